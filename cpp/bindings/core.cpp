@@ -1,0 +1,338 @@
+// pybind11 module sc_rt._core: the C++ core, names and argument names as in
+// C++. numpy in/out for 3-vectors, 4-vectors and 3x4 matrices.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <chrono>
+#include <string>
+
+#include "sc_rt/controllers.hpp"
+#include "sc_rt/guidance.hpp"
+#include "sc_rt/mrp.hpp"
+#include "sc_rt/neso.hpp"
+#include "sc_rt/ppc.hpp"
+#include "sc_rt/spacecraft.hpp"
+#include "translate.hpp"
+
+namespace py = pybind11;
+using namespace sc_rt;
+using py::arg;
+
+namespace {
+
+template <typename T>
+py::bytes encode_lcm(const T& msg) {
+  std::string buf(static_cast<std::size_t>(msg.getEncodedSize()), '\0');
+  msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  return py::bytes(buf);
+}
+
+using RowsD = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// Measurements from arrays: t (N,), sigma_BN (N,3), omega_BN_B (N,3), wheel_speed (N,4).
+std::vector<Measurement> measurements(const RowsD& t, const RowsD& sigma, const RowsD& omega,
+                                      const RowsD& wheel) {
+  const auto n = t.shape(0);
+  if (sigma.ndim() != 2 || sigma.shape(0) != n || sigma.shape(1) != 3 || omega.ndim() != 2 ||
+      omega.shape(0) != n || omega.shape(1) != 3 || wheel.ndim() != 2 || wheel.shape(0) != n ||
+      wheel.shape(1) != 4)
+    throw std::invalid_argument(
+        "expected t (N,), sigma_BN (N,3), omega_BN_B (N,3), wheel_speed (N,4)");
+  auto T = t.unchecked<1>();
+  auto S = sigma.unchecked<2>();
+  auto W = omega.unchecked<2>();
+  auto O = wheel.unchecked<2>();
+  std::vector<Measurement> ms(static_cast<std::size_t>(n));
+  for (py::ssize_t k = 0; k < n; ++k) {
+    Measurement& m = ms[static_cast<std::size_t>(k)];
+    m.t = T(k);
+    for (int i = 0; i < 3; ++i) {
+      m.sigma_BN(i) = S(k, i);
+      m.omega_BN_B(i) = W(k, i);
+    }
+    for (int i = 0; i < 4; ++i) m.wheel_speed(i) = O(k, i);
+  }
+  return ms;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "sc-rt control core (C++, Eigen), see docs/CORE.md";
+  m.attr("__version__") = SCRT_VERSION;
+
+  // --- MRP (MODEL.md sections 1, 3)
+  m.def("skew", &skew, arg("x"), "Skew matrix x^ with x^ y = x cross y.");
+  m.def("mrp_G", &mrp_G, arg("sigma"),
+        "G(sigma) of (1),(2): sigma_dot = G(sigma) omega [rad/s -> 1/s].");
+  m.def("mrp_G_inverse", &mrp_G_inverse, arg("sigma"), "Inverse of G(sigma).");
+  m.def("mrp_to_dcm", &mrp_to_dcm, arg("sigma"),
+        "Direction cosine matrix R(sigma) (10): maps N components to B for sigma_BN.");
+  m.def("mrp_shadow", &mrp_shadow, arg("sigma"), "Shadow set -sigma/|sigma|^2 (same attitude).");
+  m.def("mrp_short", &mrp_short, arg("sigma"), "The shadow set when |sigma| > 1, else sigma.");
+  m.def("mrp_subtract", &mrp_subtract, arg("sigma_BN"), arg("sigma_DN"),
+        "sigma_BD from sigma_BN and sigma_DN by composition (8), short rotation.");
+
+  // --- spacecraft
+  py::class_<SpacecraftParams>(m, "SpacecraftParams",
+                               "Parameters the controller knows; defaults are the paper's.")
+      .def(py::init<>())
+      .def_readwrite("J0", &SpacecraftParams::J0, "[kg m^2] nominal inertia (3x3)")
+      .def_readwrite("Cbar", &SpacecraftParams::Cbar, "[-] wheel axes in B (3x4)")
+      .def_readwrite("Jw", &SpacecraftParams::Jw, "[kg m^2] wheel spin inertias (4)")
+      .def_readwrite("umin", &SpacecraftParams::umin, "[rad/s^2] lower limits (4)")
+      .def_readwrite("umax", &SpacecraftParams::umax, "[rad/s^2] upper limits (4)")
+      .def_readwrite("w0", &SpacecraftParams::w0, "[rad/s] orbit rate")
+      .def_readwrite("pinv_damping", &SpacecraftParams::pinv_damping,
+                     "[-] damping of B+ (0: exact pseudo-inverse)");
+  m.def("validate", py::overload_cast<const SpacecraftParams&>(&validate), arg("p"),
+        "Every problem with the parameters (empty list: valid).");
+  py::class_<SpacecraftModel>(m, "SpacecraftModel", "Validated parameters with B and B+ of (21).")
+      .def(py::init<const SpacecraftParams&>(), arg("p"))
+      .def_property_readonly("params", &SpacecraftModel::params)
+      .def_property_readonly("B", &SpacecraftModel::B, "B = -J0^-1 Cbar Jw (3x4)")
+      .def_property_readonly("B_pinv", &SpacecraftModel::B_pinv, "B+ (4x3)")
+      .def("saturate", &SpacecraftModel::saturate, arg("u"), "Saturation of (15) [rad/s^2].");
+  m.def("gravity_gradient", &gravity_gradient, arg("J"), arg("sigma_BN"), arg("w0"),
+        "Gravity-gradient torque (5),(6) [N m].");
+
+  // --- guidance
+  py::class_<GuidanceParams>(m, "GuidanceParams",
+                             "omega_DN_D(t) = bias + cos_amp cos(freq t) + sin_amp sin(freq t)")
+      .def(py::init<>())
+      .def_readwrite("sigma_d0", &GuidanceParams::sigma_d0, "[-] sigma_DN(0)")
+      .def_readwrite("omega_bias", &GuidanceParams::omega_bias, "[rad/s]")
+      .def_readwrite("omega_cos", &GuidanceParams::omega_cos, "[rad/s]")
+      .def_readwrite("omega_sin", &GuidanceParams::omega_sin, "[rad/s]")
+      .def_readwrite("omega_freq", &GuidanceParams::omega_freq, "[rad/s]");
+  m.def("validate", py::overload_cast<const GuidanceParams&>(&validate), arg("p"));
+  m.def("omega_d", &omega_d, arg("p"), arg("t"), "omega_DN_D(t) [rad/s].");
+  m.def("omega_d_dot", &omega_d_dot, arg("p"), arg("t"), "d omega_DN_D / dt [rad/s^2].");
+  m.def("guidance_rk4_step", &guidance_rk4_step, arg("p"), arg("sigma"), arg("t"), arg("h"),
+        "One RK4 step of the desired attitude from t to t + h [s].");
+  py::class_<Guidance>(m, "Guidance", "Desired attitude on the controller's time line.")
+      .def(py::init<const GuidanceParams&, double>(), arg("p"), arg("max_step") = 0.1)
+      .def("reset", &Guidance::reset, arg("t0"))
+      .def("advance", &Guidance::advance, arg("t"))
+      .def_property_readonly("t", &Guidance::t)
+      .def_property_readonly("sigma_DN", &Guidance::sigma_DN);
+
+  // --- NESO (22)
+  py::class_<NesoParams>(m, "NesoParams", "Observer (22) gains; defaults are the paper's.")
+      .def(py::init<>())
+      .def_readwrite("k1", &NesoParams::k1)
+      .def_readwrite("k2", &NesoParams::k2)
+      .def_readwrite("k3", &NesoParams::k3)
+      .def_readwrite("k4", &NesoParams::k4)
+      .def_readwrite("alpha", &NesoParams::alpha)
+      .def_readwrite("substeps", &NesoParams::substeps, "RK4 steps per control period")
+      .def_readwrite("init_from_measurement", &NesoParams::init_from_measurement);
+  m.def("validate", py::overload_cast<const NesoParams&>(&validate), arg("p"));
+  m.def("neso_condition_26", &neso_condition_26, arg("p"),
+        "Per-axis margin of condition (26), stricter reading (> 0 holds).");
+  m.def("sig_pow", &sig_pow, arg("v"), arg("a"), "sig^a(v) = |v|^a sign(v), element-wise.");
+  py::class_<Neso>(m, "Neso")
+      .def(py::init<const NesoParams&>(), arg("p"))
+      .def("reset", &Neso::reset, arg("z1"), arg("z2"))
+      .def("update", &Neso::update, arg("h"), arg("A0"), arg("A1"), arg("x20"), arg("x21"),
+           arg("Bu"), "Propagate over one period h [s]; A, x2 linear, Bu held.")
+      .def_property_readonly("z1", &Neso::z1)
+      .def_property_readonly("z2", &Neso::z2);
+
+  // --- PPC (29)-(35)
+  py::class_<PpcParams>(m, "PpcParams", "Prescribed performance; defaults are Table 1.")
+      .def(py::init<>())
+      .def_readwrite("chi0", &PpcParams::chi0)
+      .def_readwrite("chiinf", &PpcParams::chiinf)
+      .def_readwrite("gamma", &PpcParams::gamma, "[1/s]")
+      .def_readwrite("dmin", &PpcParams::dmin)
+      .def_readwrite("dmax", &PpcParams::dmax)
+      .def_readwrite("clamp_margin", &PpcParams::clamp_margin);
+  m.def("validate", py::overload_cast<const PpcParams&>(&validate), arg("p"));
+  py::class_<PpcResult>(m, "PpcResult")
+      .def_readonly("chi", &PpcResult::chi)
+      .def_readonly("chi_dot", &PpcResult::chi_dot)
+      .def_readonly("lambda_", &PpcResult::lambda)
+      .def_readonly("eps", &PpcResult::eps)
+      .def_readonly("e1", &PpcResult::e1)
+      .def_readonly("r", &PpcResult::r)
+      .def_readonly("violated", &PpcResult::violated, "bit i: axis i outside its bound");
+  m.def("ppc_chi", &ppc_chi, arg("p"), arg("t"));
+  m.def("ppc_chi_dot", &ppc_chi_dot, arg("p"), arg("t"));
+  m.def("ppc_transform", &ppc_transform, arg("p"), arg("x1"), arg("t"));
+  m.def("ppc_inverse", &ppc_inverse, arg("p"), arg("e1"), arg("t"));
+
+  // --- controllers
+  py::enum_<Law>(m, "Law")
+      .value("DscPpc", Law::DscPpc)
+      .value("Dsc", Law::Dsc)
+      .value("Pd", Law::Pd)
+      .value("Rft", Law::Rft);
+  m.def("law_name", &law_name, arg("law"));
+  for (auto [name, v] : std::initializer_list<std::pair<const char*, int>>{
+           {"MODE_INIT", MODE_INIT}, {"MODE_NORMAL", MODE_NORMAL}, {"MODE_SAFE", MODE_SAFE},
+           {"FLAG_BOUND_X", FLAG_BOUND_X}, {"FLAG_BOUND_Y", FLAG_BOUND_Y},
+           {"FLAG_BOUND_Z", FLAG_BOUND_Z}, {"FLAG_SAT_1", FLAG_SAT_1},
+           {"FLAG_INVALID_STATE", FLAG_INVALID_STATE}, {"FLAG_STALE_STATE", FLAG_STALE_STATE},
+           {"FLAG_TIME_NOT_ADVANCING", FLAG_TIME_NOT_ADVANCING}})
+    m.attr(name) = v;
+  py::class_<DscGains>(m, "DscGains")
+      .def(py::init<>())
+      .def_readwrite("k1", &DscGains::k1)
+      .def_readwrite("k2", &DscGains::k2)
+      .def_readwrite("k3", &DscGains::k3)
+      .def_readwrite("k4", &DscGains::k4)
+      .def_readwrite("k6", &DscGains::k6)
+      .def_readwrite("tau", &DscGains::tau, "[s]");
+  py::class_<PdGains>(m, "PdGains")
+      .def(py::init<>())
+      .def_readwrite("beta1", &PdGains::beta1, "[1/s^2]")
+      .def_readwrite("beta2", &PdGains::beta2, "[1/s]");
+  py::class_<RftGains>(m, "RftGains")
+      .def(py::init<>())
+      .def_readwrite("c", &RftGains::c)
+      .def_readwrite("k", &RftGains::k)
+      .def_readwrite("gain", &RftGains::gain)
+      .def_readwrite("leak", &RftGains::leak)
+      .def_readwrite("phi", &RftGains::phi)
+      .def_readwrite("rho0", &RftGains::rho0);
+  py::class_<SafetyLimits>(m, "SafetyLimits")
+      .def(py::init<>())
+      .def_readwrite("max_rate", &SafetyLimits::max_rate, "[rad/s]")
+      .def_readwrite("max_wheel_speed", &SafetyLimits::max_wheel_speed, "[rad/s]")
+      .def_readwrite("stale_periods", &SafetyLimits::stale_periods);
+  py::class_<ControllerConfig>(m, "ControllerConfig", "Everything a controller needs.")
+      .def(py::init<>())
+      .def_readwrite("law", &ControllerConfig::law)
+      .def_readwrite("control_rate_hz", &ControllerConfig::control_rate_hz)
+      .def_readwrite("spacecraft", &ControllerConfig::spacecraft)
+      .def_readwrite("guidance", &ControllerConfig::guidance)
+      .def_readwrite("ppc", &ControllerConfig::ppc)
+      .def_readwrite("neso", &ControllerConfig::neso)
+      .def_readwrite("dsc", &ControllerConfig::dsc)
+      .def_readwrite("pd", &ControllerConfig::pd)
+      .def_readwrite("rft", &ControllerConfig::rft)
+      .def_readwrite("safety", &ControllerConfig::safety)
+      .def_static("from_lcm_bytes",
+                  [](const py::bytes& b) {
+                    const std::string s = b;
+                    return config_from_bytes(s.data(), static_cast<int>(s.size()));
+                  },
+                  arg("data"), "Decode an LCM-encoded controller_config_t.")
+      .def("to_lcm_bytes",
+           [](const ControllerConfig& c, const std::string& scenario) {
+             return encode_lcm(config_to_lcm(c, scenario));
+           },
+           arg("scenario") = "", "Encode as controller_config_t.");
+  m.def("validate", py::overload_cast<const ControllerConfig&>(&validate), arg("c"));
+
+  py::class_<Measurement>(m, "Measurement")
+      .def(py::init([](double t, const Vec3& s, const Vec3& w, const Vec4& o) {
+             return Measurement{t, s, w, o};
+           }),
+           arg("t"), arg("sigma_BN"), arg("omega_BN_B"), arg("wheel_speed"))
+      .def_readwrite("t", &Measurement::t, "[s]")
+      .def_readwrite("sigma_BN", &Measurement::sigma_BN)
+      .def_readwrite("omega_BN_B", &Measurement::omega_BN_B, "[rad/s]")
+      .def_readwrite("wheel_speed", &Measurement::wheel_speed, "[rad/s]");
+  py::class_<Command>(m, "Command")
+      .def_readonly("t", &Command::t)
+      .def_readonly("u_cmd", &Command::u_cmd, "[rad/s^2] before saturation")
+      .def_readonly("u_sat", &Command::u_sat, "[rad/s^2] after saturation")
+      .def_readonly("mode", &Command::mode)
+      .def_readonly("flags", &Command::flags)
+      .def_readonly("sigma_DN", &Command::sigma_DN)
+      .def_readonly("sigma_BD", &Command::sigma_BD)
+      .def_readonly("omega_BD_B", &Command::omega_BD_B)
+      .def_readonly("e1", &Command::e1)
+      .def_readonly("e2", &Command::e2)
+      .def_readonly("z1", &Command::z1)
+      .def_readonly("z2", &Command::z2)
+      .def_readonly("chi", &Command::chi)
+      .def_readonly("lam", &Command::lam)
+      .def_readonly("x2d", &Command::x2d)
+      .def_readonly("vs", &Command::vs)
+      .def_readonly("rho_hat", &Command::rho_hat);
+  py::class_<TrackingErrors>(m, "TrackingErrors")
+      .def_readonly("sigma_BD", &TrackingErrors::sigma_BD)
+      .def_readonly("omega_BD_B", &TrackingErrors::omega_BD_B)
+      .def_readonly("R_BD", &TrackingErrors::R_BD)
+      .def_readonly("omega_DN_B", &TrackingErrors::omega_DN_B)
+      .def_readonly("A", &TrackingErrors::A)
+      .def_readonly("u_g0", &TrackingErrors::u_g0);
+  m.def("tracking_errors", &tracking_errors, arg("sc"), arg("m"), arg("sigma_DN"),
+        arg("omega_DN_D"), arg("omega_dot_DN_D"), "Errors (8)-(11) and A of (21).");
+  m.def("measurement_valid", &measurement_valid, arg("m"), arg("lim"));
+
+  py::class_<Controller>(m, "Controller", "One control law behind reset/step.")
+      .def(py::init(&Controller::create), arg("c"))
+      .def("reset", &Controller::reset, arg("m"))
+      .def("step", &Controller::step, arg("m"))
+      .def("safe_command", &Controller::safe_command, arg("t"), arg("flags"))
+      .def_property_readonly("law", &Controller::law)
+      .def_property_readonly("config", &Controller::config)
+      .def_property_readonly("model", &Controller::model)
+      .def_property_readonly("t0", &Controller::t0);
+
+  m.def(
+      "run_steps",
+      [](Controller& c, const RowsD& t, const RowsD& sigma, const RowsD& omega,
+         const RowsD& wheel) {
+        const auto ms = measurements(t, sigma, omega, wheel);
+        const py::ssize_t n = static_cast<py::ssize_t>(ms.size());
+        py::array_t<double> u_cmd({n, py::ssize_t(4)}), u_sat({n, py::ssize_t(4)});
+        py::array_t<double> z2({n, py::ssize_t(3)});
+        py::array_t<int> flags(n);
+        auto U = u_cmd.mutable_unchecked<2>();
+        auto S = u_sat.mutable_unchecked<2>();
+        auto Z = z2.mutable_unchecked<2>();
+        auto F = flags.mutable_unchecked<1>();
+        {
+          py::gil_scoped_release release;
+          for (py::ssize_t k = 0; k < n; ++k) {
+            const Command cmd = c.step(ms[static_cast<std::size_t>(k)]);
+            for (int i = 0; i < 4; ++i) {
+              U(k, i) = cmd.u_cmd(i);
+              S(k, i) = cmd.u_sat(i);
+            }
+            for (int i = 0; i < 3; ++i) Z(k, i) = cmd.z2(i);
+            F(k) = cmd.flags;
+          }
+        }
+        py::dict out;
+        out["u_cmd"] = u_cmd;
+        out["u_sat"] = u_sat;
+        out["z2"] = z2;
+        out["flags"] = flags;
+        return out;
+      },
+      arg("controller"), arg("t"), arg("sigma_BN"), arg("omega_BN_B"), arg("wheel_speed"),
+      "Run N steps inside C++ on recorded measurements; returns u_cmd, u_sat, z2, flags.");
+
+  m.def(
+      "time_steps",
+      [](Controller& c, const RowsD& t, const RowsD& sigma, const RowsD& omega,
+         const RowsD& wheel) {
+        const auto ms = measurements(t, sigma, omega, wheel);
+        py::array_t<double> ns(static_cast<py::ssize_t>(ms.size()));
+        auto N = ns.mutable_unchecked<1>();
+        double sink = 0.0;
+        {
+          py::gil_scoped_release release;
+          using clk = std::chrono::steady_clock;
+          for (std::size_t k = 0; k < ms.size(); ++k) {
+            const auto a = clk::now();
+            const Command cmd = c.step(ms[k]);
+            const auto b = clk::now();
+            sink += cmd.u_cmd(0);
+            N(static_cast<py::ssize_t>(k)) =
+                static_cast<double>(std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count());
+          }
+        }
+        return py::make_tuple(ns, sink);
+      },
+      arg("controller"), arg("t"), arg("sigma_BN"), arg("omega_BN_B"), arg("wheel_speed"),
+      "Benchmark helper: per-step wall time [ns] of N steps inside C++ (bindings-side clock).");
+}

@@ -1,0 +1,161 @@
+#include "translate.hpp"
+
+#include <stdexcept>
+
+namespace sc_rt {
+
+namespace {
+template <int N>
+Eigen::Matrix<double, N, 1> vec(const double (&a)[N]) {
+  Eigen::Matrix<double, N, 1> v;
+  for (int i = 0; i < N; ++i) v(i) = a[i];
+  return v;
+}
+template <int N, typename V>
+void put(double (&a)[N], const V& v) {
+  for (int i = 0; i < N; ++i) a[i] = v(i);
+}
+}  // namespace
+
+ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& m) {
+  ControllerConfig c;
+  if (m.law < 0 || m.law > 3)
+    throw std::invalid_argument("controller_config_t.law must be 0..3, got " + std::to_string(m.law));
+  c.law = static_cast<Law>(m.law);
+  c.control_rate_hz = m.control_rate_hz;
+  SpacecraftParams& s = c.spacecraft;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) s.J0(i, j) = m.J0[i][j];
+    for (int j = 0; j < 4; ++j) s.Cbar(i, j) = m.Cbar[i][j];
+  }
+  s.Jw = vec(m.Jw);
+  s.umin = vec(m.umin);
+  s.umax = vec(m.umax);
+  s.w0 = m.w0;
+  s.pinv_damping = m.pinv_damping;
+  GuidanceParams& g = c.guidance;
+  g.sigma_d0 = vec(m.sigma_d0);
+  g.omega_bias = vec(m.omega_d_bias);
+  g.omega_cos = vec(m.omega_d_cos);
+  g.omega_sin = vec(m.omega_d_sin);
+  g.omega_freq = m.omega_d_freq;
+  PpcParams& p = c.ppc;
+  p.chi0 = vec(m.ppc_chi0);
+  p.chiinf = vec(m.ppc_chiinf);
+  p.gamma = vec(m.ppc_gamma);
+  p.dmin = vec(m.ppc_dmin);
+  p.dmax = vec(m.ppc_dmax);
+  NesoParams& n = c.neso;
+  n.k1 = vec(m.neso_k1);
+  n.k2 = vec(m.neso_k2);
+  n.k3 = vec(m.neso_k3);
+  n.k4 = vec(m.neso_k4);
+  n.alpha = m.neso_alpha;
+  n.substeps = m.neso_substeps;
+  n.init_from_measurement = m.neso_init_from_measurement;
+  c.dsc = {m.dsc_k1, m.dsc_k2, m.dsc_k3, m.dsc_k4, m.dsc_k6, m.dsc_tau};
+  c.pd = {m.pd_beta1, m.pd_beta2};
+  c.rft = {m.rft_c, m.rft_k, m.rft_gain, m.rft_leak, m.rft_phi, m.rft_rho0};
+  c.safety = {m.max_rate, m.max_wheel_speed, m.stale_periods};
+  return c;
+}
+
+sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const std::string& scenario) {
+  sc_rt_lcm::controller_config_t m{};
+  m.utime = 0;
+  m.scenario = scenario;
+  m.law = static_cast<int8_t>(c.law);
+  m.control_rate_hz = c.control_rate_hz;
+  const SpacecraftParams& s = c.spacecraft;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) m.J0[i][j] = s.J0(i, j);
+    for (int j = 0; j < 4; ++j) m.Cbar[i][j] = s.Cbar(i, j);
+  }
+  put(m.Jw, s.Jw);
+  put(m.umin, s.umin);
+  put(m.umax, s.umax);
+  m.w0 = s.w0;
+  m.pinv_damping = s.pinv_damping;
+  put(m.sigma_d0, c.guidance.sigma_d0);
+  put(m.omega_d_bias, c.guidance.omega_bias);
+  put(m.omega_d_cos, c.guidance.omega_cos);
+  put(m.omega_d_sin, c.guidance.omega_sin);
+  m.omega_d_freq = c.guidance.omega_freq;
+  put(m.ppc_chi0, c.ppc.chi0);
+  put(m.ppc_chiinf, c.ppc.chiinf);
+  put(m.ppc_gamma, c.ppc.gamma);
+  put(m.ppc_dmin, c.ppc.dmin);
+  put(m.ppc_dmax, c.ppc.dmax);
+  put(m.neso_k1, c.neso.k1);
+  put(m.neso_k2, c.neso.k2);
+  put(m.neso_k3, c.neso.k3);
+  put(m.neso_k4, c.neso.k4);
+  m.neso_alpha = c.neso.alpha;
+  m.neso_substeps = c.neso.substeps;
+  m.neso_init_from_measurement = c.neso.init_from_measurement;
+  m.dsc_k1 = c.dsc.k1;
+  m.dsc_k2 = c.dsc.k2;
+  m.dsc_k3 = c.dsc.k3;
+  m.dsc_k4 = c.dsc.k4;
+  m.dsc_k6 = c.dsc.k6;
+  m.dsc_tau = c.dsc.tau;
+  m.pd_beta1 = c.pd.beta1;
+  m.pd_beta2 = c.pd.beta2;
+  m.rft_c = c.rft.c;
+  m.rft_k = c.rft.k;
+  m.rft_gain = c.rft.gain;
+  m.rft_leak = c.rft.leak;
+  m.rft_phi = c.rft.phi;
+  m.rft_rho0 = c.rft.rho0;
+  m.max_rate = c.safety.max_rate;
+  m.max_wheel_speed = c.safety.max_wheel_speed;
+  m.stale_periods = c.safety.stale_periods;
+  return m;
+}
+
+ControllerConfig config_from_bytes(const void* data, int size) {
+  sc_rt_lcm::controller_config_t m;
+  if (m.decode(data, 0, size) < 0)
+    throw std::invalid_argument(
+        "cannot decode controller_config_t (" + std::to_string(size) +
+        " bytes): wrong type, truncated, or built from other .lcm files");
+  return config_from_lcm(m);
+}
+
+Measurement measurement_from_lcm(const sc_rt_lcm::plant_state_t& msg) {
+  Measurement m;
+  m.t = msg.t;
+  m.sigma_BN = vec(msg.sigma_BN);
+  m.omega_BN_B = vec(msg.omega_BN_B);
+  m.wheel_speed = vec(msg.wheel_speed);
+  return m;
+}
+
+void fill_wheel_cmd(const Command& c, sc_rt_lcm::wheel_cmd_t& msg) {
+  msg.t = c.t;
+  put(msg.u_cmd, c.u_cmd);
+  put(msg.u_sat, c.u_sat);
+  msg.mode = static_cast<int8_t>(c.mode);
+  msg.flags = c.flags;
+}
+
+void fill_status(const Command& c, Law law, sc_rt_lcm::controller_status_t& msg) {
+  msg.t = c.t;
+  msg.law = static_cast<int8_t>(law);
+  msg.mode = static_cast<int8_t>(c.mode);
+  msg.flags = c.flags;
+  put(msg.sigma_DN, c.sigma_DN);
+  put(msg.sigma_BD, c.sigma_BD);
+  put(msg.omega_BD_B, c.omega_BD_B);
+  put(msg.e1, c.e1);
+  put(msg.e2, c.e2);
+  put(msg.z1, c.z1);
+  put(msg.z2, c.z2);
+  put(msg.chi, c.chi);
+  put(msg.lam, c.lam);
+  put(msg.u_cmd, c.u_cmd);
+  put(msg.u_sat, c.u_sat);
+  put(msg.vs, c.vs);
+}
+
+}  // namespace sc_rt

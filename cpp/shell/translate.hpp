@@ -1,0 +1,26 @@
+// Translators between LCM messages and core types: conversion only, no
+// logic, no I/O (Drake's three-layer message design).
+#pragma once
+#include <sc_rt_lcm/controller_config_t.hpp>
+#include <sc_rt_lcm/controller_status_t.hpp>
+#include <sc_rt_lcm/plant_state_t.hpp>
+#include <sc_rt_lcm/wheel_cmd_t.hpp>
+
+#include "sc_rt/controllers.hpp"
+
+namespace sc_rt {
+
+// Throws std::invalid_argument when the message's law is unknown; the
+// returned config still needs validate() (Controller's constructor does it).
+ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& msg);
+sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const std::string& scenario);
+
+// Decode a controller_config_t from its LCM encoding (fingerprint checked).
+ControllerConfig config_from_bytes(const void* data, int size);
+
+Measurement measurement_from_lcm(const sc_rt_lcm::plant_state_t& msg);
+
+void fill_wheel_cmd(const Command& c, sc_rt_lcm::wheel_cmd_t& msg);
+void fill_status(const Command& c, Law law, sc_rt_lcm::controller_status_t& msg);
+
+}  // namespace sc_rt
