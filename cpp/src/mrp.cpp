@@ -33,22 +33,28 @@ Vec3 mrp_shadow(const Vec3& s) { return -s / s.squaredNorm(); }
 
 Vec3 mrp_short(const Vec3& s) { return s.squaredNorm() > 1.0 ? mrp_shadow(s) : s; }
 
-Vec3 mrp_subtract(const Vec3& s, const Vec3& sd) {
-  // (8): sigma_e = [sd (s's - 1) + s (1 - sd'sd) - 2 sd^ s]
-  //               / [1 + (s's)(sd'sd) + 2 sd's]
+namespace {
+// (8) as printed; returns the denominator through den.
+Vec3 compose8(const Vec3& s, const Vec3& sd, double& den) {
+  // sigma_e = [sd (s's - 1) + s (1 - sd'sd) - 2 sd^ s] / [1 + (s's)(sd'sd) + 2 sd's]
   const double ss = s.squaredNorm();
   const double sdsd = sd.squaredNorm();
-  const Vec3 num = sd * (ss - 1.0) + s * (1.0 - sdsd) - 2.0 * sd.cross(s);
-  double den = 1.0 + ss * sdsd + 2.0 * sd.dot(s);
-  if (den * den < 1e-12 * num.squaredNorm()) {
-    // Near the singular composition (relative rotation near 360 deg in this
-    // representation): compose with the shadow set of sd instead, which
-    // describes the same attitude and keeps the denominator away from 0.
-    const Vec3 sd2 = mrp_shadow(sd);
-    const double sd2sd2 = sd2.squaredNorm();
-    const Vec3 num2 = sd2 * (ss - 1.0) + s * (1.0 - sd2sd2) - 2.0 * sd2.cross(s);
-    den = 1.0 + ss * sd2sd2 + 2.0 * sd2.dot(s);
-    return mrp_short(num2 / den);
+  den = 1.0 + ss * sdsd + 2.0 * sd.dot(s);
+  return sd * (ss - 1.0) + s * (1.0 - sdsd) - 2.0 * sd.cross(s);
+}
+}  // namespace
+
+Vec3 mrp_subtract(const Vec3& s, const Vec3& sd) {
+  double den;
+  const Vec3 num = compose8(s, sd, den);
+  // den = 1 + |s|^2 |sd|^2 + 2 sd's >= (1 - |s||sd|)^2 vanishes when the
+  // relative rotation is 360 deg in this pair of sets. Composing with the
+  // shadow set of s (the same attitude) then has den = |s - sd|^2 / |s|^2,
+  // and the two cannot be small together: use the larger.
+  if (den < 0.25 && s.squaredNorm() > 0.0) {
+    double den2;
+    const Vec3 num2 = compose8(mrp_shadow(s), sd, den2);
+    if (den2 > den) return mrp_short(num2 / den2);
   }
   return mrp_short(num / den);
 }
