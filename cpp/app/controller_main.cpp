@@ -1,69 +1,455 @@
 // sc-rt-controller: the fixed-rate LCM shell around the control core.
-// This first slice parses its command line and validates a configuration
-// file; the LCM loop (lockstep and real-time modes) arrives with the HIL
-// issue.
+//
+// All math is in the core (sc_rt::Controller); this file owns the command
+// line, LCM, the clock, the scheduler and the counters. Two modes:
+//   lockstep : event-driven, one command per state message, answering its seq;
+//   realtime : wakes on absolute deadlines (clock_nanosleep, CLOCK_MONOTONIC,
+//              TIMER_ABSTIME), uses the newest state, publishes.
+// Every received message is decoded by hand so that malformed input is
+// counted by kind and never applied (docs/HIL.md, "Bad input").
+#include <sched.h>
+#include <signal.h>
+#include <sys/mman.h>
+#include <sys/prctl.h>
+#include <time.h>
+#include <poll.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <lcm/lcm-cpp.hpp>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "translate.hpp"
 
 namespace {
-const char* kUsage =
-    "usage: sc-rt-controller [--help] [--version] --config FILE\n"
-    "\n"
-    "The sc-rt real-time controller process.\n"
-    "\n"
-    "  --config FILE   controller_config_t, LCM-encoded (sc-rt writes it from a\n"
-    "                  scenario file); validated and summarised\n"
-    "  --version       print the version and exit\n"
-    "  --help          this text\n";
 
-int load_config(const std::string& path, sc_rt::ControllerConfig& cfg) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) {
-    std::fprintf(stderr, "sc-rt-controller: cannot open config file %s\n", path.c_str());
-    return 2;
-  }
-  std::vector<char> buf((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  try {
-    cfg = sc_rt::config_from_bytes(buf.data(), static_cast<int>(buf.size()));
-    sc_rt::Controller::create(cfg);  // validates every parameter
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "sc-rt-controller: %s: %s\n", path.c_str(), e.what());
-    return 2;
-  }
-  return 0;
+const char* kUsage =
+    "usage: sc-rt-controller (--config FILE | --config-channel) [options]\n"
+    "\n"
+    "The sc-rt controller process: runs a control law of the C++ core against\n"
+    "plant states on LCM and publishes wheel commands and its status.\n"
+    "\n"
+    "  --config FILE          controller_config_t, LCM-encoded (sc-rt writes it\n"
+    "                         from a scenario: sc-rt config SCENARIO --out FILE)\n"
+    "  --config-channel       wait for the configuration on <prefix>SCRT_CONFIG\n"
+    "  --check                validate the configuration, print it, exit\n"
+    "  --mode MODE            lockstep (default) or realtime\n"
+    "  --lcm-url URL          default udpm://239.255.76.67:7667?ttl=0\n"
+    "  --prefix P             channel name prefix (default none)\n"
+    "  --realtime-priority    ask for SCHED_FIFO and mlockall (falls back with a\n"
+    "                         warning when not permitted)\n"
+    "  --max-steps N          stop after N control steps (default: run until\n"
+    "                         SIGINT/SIGTERM)\n"
+    "  --summary FILE         write the exit summary as JSON to FILE\n"
+    "  --version              print the version and exit\n"
+    "  --help                 this text\n";
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop = true; }
+
+int64_t mono_ns() {
+  timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return int64_t(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
 }
+int64_t wall_us() {
+  timespec ts;
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return int64_t(ts.tv_sec) * 1000000LL + ts.tv_nsec / 1000;
+}
+
+// Percentiles of a sample (copied: called once at exit / per report).
+struct Stats {
+  double p50 = 0, p99 = 0, max = 0;
+  std::size_t n = 0;
+};
+Stats stats(std::vector<double> v) {
+  Stats s;
+  s.n = v.size();
+  if (v.empty()) return s;
+  std::sort(v.begin(), v.end());
+  auto q = [&](double p) { return v[std::min(v.size() - 1, std::size_t(p * (v.size() - 1) + 0.5))]; };
+  s.p50 = q(0.5);
+  s.p99 = q(0.99);
+  s.max = v.back();
+  return s;
+}
+
+struct Counters {
+  int64_t received = 0;
+  int64_t malformed = 0;       // decode failed (empty, truncated, random, wrong type)
+  int64_t trailing = 0;        // valid message followed by extra bytes
+  int64_t duplicate = 0;       // same seq as the newest
+  int64_t out_of_order = 0;    // older seq than the newest
+  int64_t invalid_state = 0;   // non-finite or out-of-range fields
+  int64_t stale_steps = 0;     // steps without a fresh state
+  int64_t safe_steps = 0;      // steps that commanded zero in SAFE mode
+  int64_t deadline_misses = 0;
+  int64_t steps = 0;
+  int64_t rejected() const { return malformed + trailing + duplicate + out_of_order + invalid_state; }
+};
+
+struct Options {
+  std::string config_path;
+  bool config_channel = false;
+  bool check = false;
+  bool realtime = false;
+  bool rt_priority = false;
+  std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  std::string prefix;
+  int64_t max_steps = -1;
+  std::string summary_path;
+};
+
+class Shell {
+ public:
+  Shell(const Options& o, lcm::LCM& lcm) : opt_(o), lcm_(lcm) {
+    lat_.reserve(1 << 20);
+    comp_.reserve(1 << 20);
+    age_.reserve(1 << 20);
+  }
+
+  void configure(const sc_rt::ControllerConfig& cfg) {
+    ctl_ = sc_rt::Controller::create(cfg);
+    period_ns_ = int64_t(std::llround(1e9 / cfg.control_rate_hz));
+    stale_ns_ = int64_t(cfg.safety.stale_periods * double(period_ns_));
+  }
+
+  // Raw handler: decode by hand, count every kind of bad input, keep the newest state.
+  static void on_state(const lcm::ReceiveBuffer* rb, const std::string&, Shell* self) {
+    self->handle_state(rb);
+  }
+
+  void handle_state(const lcm::ReceiveBuffer* rb) {
+    const int64_t now = mono_ns();
+    ++cnt_.received;
+    sc_rt_lcm::plant_state_t msg;
+    const int n = msg.decode(rb->data, 0, int(rb->data_size));
+    if (n < 0) {
+      ++cnt_.malformed;
+      return;
+    }
+    if (n != int(rb->data_size)) {
+      ++cnt_.trailing;
+      return;
+    }
+    if (have_state_ && msg.seq == state_.seq) {
+      ++cnt_.duplicate;
+      // lockstep: the plant re-sent a state it had no answer to: answer again
+      if (!opt_.realtime && have_cmd_) publish_cmd(last_cmd_, msg.seq);
+      return;
+    }
+    if (have_state_ && msg.seq < state_.seq) {
+      ++cnt_.out_of_order;
+      return;
+    }
+    const sc_rt::Measurement m = sc_rt::measurement_from_lcm(msg);
+    if (!sc_rt::measurement_valid(m, ctl_->config().safety)) {
+      ++cnt_.invalid_state;
+      if (opt_.realtime) {
+        invalid_pending_ = true;  // the next step goes SAFE
+      } else {
+        // lockstep: answer this state with a SAFE zero command (the law
+        // re-engages from the next valid state)
+        const sc_rt::Command safe = ctl_->safe_command(msg.t, sc_rt::FLAG_INVALID_STATE);
+        ++cnt_.safe_steps;
+        ++cnt_.steps;
+        last_cmd_ = safe;
+        publish_cmd(safe, msg.seq);
+        publish_status(safe, msg.seq, 0.0, 0.0, 0.0);
+      }
+      return;
+    }
+    state_ = msg;
+    state_rx_ns_ = now;
+    have_state_ = true;
+    fresh_ = true;
+    if (!opt_.realtime) step(now, now);
+  }
+
+  // One control step at monotonic time `now` (wake-up at `deadline` in real time).
+  void step(int64_t now, int64_t deadline) {
+    const int64_t t_start = mono_ns();
+    sc_rt::Command cmd;
+    const bool stale = !have_state_ || (opt_.realtime && now - state_rx_ns_ > stale_ns_);
+    if (invalid_pending_ && !fresh_) {
+      cmd = ctl_->safe_command(have_state_ ? state_.t : 0.0, sc_rt::FLAG_INVALID_STATE);
+      ++cnt_.safe_steps;
+    } else if (stale) {
+      cmd = ctl_->safe_command(have_state_ ? state_.t : 0.0, sc_rt::FLAG_STALE_STATE);
+      ++cnt_.stale_steps;
+      ++cnt_.safe_steps;
+    } else if (!fresh_) {
+      // real time, no new state since the last step but not yet stale: hold
+      // the last command (zero-order hold), count it
+      ++cnt_.stale_steps;
+      cmd = last_cmd_;
+      cmd.flags |= sc_rt::FLAG_STALE_STATE;
+    } else {
+      cmd = ctl_->step(sc_rt::measurement_from_lcm(state_));
+    }
+    invalid_pending_ = false;
+    fresh_ = false;
+    const double age_us = have_state_ ? double(now - state_rx_ns_) / 1e3 : 0.0;
+    last_cmd_ = cmd;
+    have_cmd_ = true;
+    const int64_t used_seq = have_state_ ? state_.seq : -1;
+    publish_cmd(cmd, used_seq);
+    const int64_t t_end = mono_ns();
+    const double comp_us = double(t_end - t_start) / 1e3;
+    const double late_us = double(now - deadline) / 1e3;
+    ++cnt_.steps;
+    if (opt_.realtime && t_end > deadline + period_ns_) ++cnt_.deadline_misses;
+    if (lat_.size() < lat_.capacity()) {
+      lat_.push_back(late_us);
+      comp_.push_back(comp_us);
+      age_.push_back(age_us);
+    }
+    publish_status(cmd, used_seq, late_us, comp_us, age_us);
+  }
+
+  void publish_cmd(const sc_rt::Command& cmd, int64_t state_seq) {
+    sc_rt_lcm::wheel_cmd_t m{};
+    m.utime = wall_us();
+    m.seq = cmd_seq_;
+    m.state_seq = state_seq;
+    sc_rt::fill_wheel_cmd(cmd, m);
+    lcm_.publish(opt_.prefix + "SCRT_CMD", &m);
+    ++cmd_seq_;
+  }
+
+  void publish_status(const sc_rt::Command& cmd, int64_t state_seq, double late_us, double comp_us,
+                      double age_us) {
+    sc_rt_lcm::controller_status_t s{};
+    s.utime = wall_us();
+    s.cmd_seq = cmd_seq_ - 1;
+    s.state_seq = state_seq;
+    sc_rt::fill_status(cmd, ctl_->law(), s);
+    s.wake_lateness_us = late_us;
+    s.compute_us = comp_us;
+    s.state_age_us = age_us;
+    s.steps = cnt_.steps;
+    s.deadline_misses = cnt_.deadline_misses;
+    s.stale_states = cnt_.stale_steps;
+    s.rejected = cnt_.rejected();
+    lcm_.publish(opt_.prefix + "SCRT_CTRL_STATUS", &s);
+  }
+
+  bool done() const { return g_stop || (opt_.max_steps >= 0 && cnt_.steps >= opt_.max_steps); }
+  int64_t period_ns() const { return period_ns_; }
+
+  std::string summary_json(const std::string& scheduler) const {
+    const Stats l = stats(lat_), c = stats(comp_), a = stats(age_);
+    char buf[2048];
+    std::snprintf(
+        buf, sizeof buf,
+        "{\"mode\": \"%s\", \"control_rate_hz\": %.9g, \"law\": \"%s\", \"steps\": %lld, "
+        "\"deadline_misses\": %lld, \"scheduler\": \"%s\", "
+        "\"wake_lateness_us\": {\"p50\": %.3f, \"p99\": %.3f, \"max\": %.3f}, "
+        "\"compute_us\": {\"p50\": %.3f, \"p99\": %.3f, \"max\": %.3f}, "
+        "\"state_age_us\": {\"p50\": %.3f, \"p99\": %.3f, \"max\": %.3f}, "
+        "\"received\": %lld, \"stale_states\": %lld, \"safe_steps\": %lld, "
+        "\"rejected\": {\"malformed\": %lld, \"trailing_bytes\": %lld, \"duplicate\": %lld, "
+        "\"out_of_order\": %lld, \"invalid_state\": %lld}}",
+        opt_.realtime ? "realtime" : "lockstep", 1e9 / double(period_ns_), sc_rt::law_name(ctl_->law()),
+        (long long)cnt_.steps, (long long)cnt_.deadline_misses, scheduler.c_str(), l.p50, l.p99,
+        l.max, c.p50, c.p99, c.max, a.p50, a.p99, a.max, (long long)cnt_.received,
+        (long long)cnt_.stale_steps, (long long)cnt_.safe_steps, (long long)cnt_.malformed,
+        (long long)cnt_.trailing, (long long)cnt_.duplicate, (long long)cnt_.out_of_order,
+        (long long)cnt_.invalid_state);
+    return buf;
+  }
+
+ private:
+  const Options& opt_;
+  lcm::LCM& lcm_;
+  std::unique_ptr<sc_rt::Controller> ctl_;
+  int64_t period_ns_ = 100000000;
+  int64_t stale_ns_ = 500000000;
+  sc_rt_lcm::plant_state_t state_{};
+  int64_t state_rx_ns_ = 0;
+  bool have_state_ = false, fresh_ = false, invalid_pending_ = false, have_cmd_ = false;
+  sc_rt::Command last_cmd_;
+  int64_t cmd_seq_ = 0;
+  Counters cnt_;
+  std::vector<double> lat_, comp_, age_;
+};
+
+bool read_file(const std::string& path, std::vector<char>& buf) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) return false;
+  buf.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  return true;
+}
+
+struct ConfigWait {
+  bool got = false;
+  std::vector<char> bytes;
+  static void on(const lcm::ReceiveBuffer* rb, const std::string&, ConfigWait* self) {
+    const char* p = static_cast<const char*>(rb->data);
+    self->bytes.assign(p, p + rb->data_size);
+    self->got = true;
+  }
+};
+
+std::string setup_scheduler(bool want_rt) {
+  // Timer slack 1 ns: wake-ups as close to the deadline as the kernel can.
+  prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
+  if (!want_rt) return "SCHED_OTHER";
+  std::string s;
+  sched_param sp{};
+  sp.sched_priority = 80;
+  if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {
+    s = "SCHED_FIFO 80";
+  } else {
+    std::fprintf(stderr, "sc-rt-controller: warning: SCHED_FIFO not permitted (%s): running SCHED_OTHER\n",
+                 std::strerror(errno));
+    s = "SCHED_OTHER (SCHED_FIFO denied)";
+  }
+  if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+    s += " + mlockall";
+  } else {
+    std::fprintf(stderr, "sc-rt-controller: warning: mlockall not permitted (%s)\n", std::strerror(errno));
+  }
+  return s;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string config_path;
+  Options o;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
+    auto need = [&](const char* what) -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "sc-rt-controller: %s needs a value\n", what);
+        std::exit(2);
+      }
+      return argv[++i];
+    };
     if (a == "--help" || a == "-h") {
       std::fputs(kUsage, stdout);
       return 0;
     } else if (a == "--version") {
       std::printf("sc-rt-controller %s\n", SCRT_VERSION);
       return 0;
-    } else if (a == "--config" && i + 1 < argc) {
-      config_path = argv[++i];
+    } else if (a == "--config") {
+      o.config_path = need("--config");
+    } else if (a == "--config-channel") {
+      o.config_channel = true;
+    } else if (a == "--check") {
+      o.check = true;
+    } else if (a == "--mode") {
+      const std::string m = need("--mode");
+      if (m != "lockstep" && m != "realtime") {
+        std::fprintf(stderr, "sc-rt-controller: --mode must be lockstep or realtime, got '%s'\n", m.c_str());
+        return 2;
+      }
+      o.realtime = (m == "realtime");
+    } else if (a == "--lcm-url") {
+      o.url = need("--lcm-url");
+    } else if (a == "--prefix") {
+      o.prefix = need("--prefix");
+    } else if (a == "--realtime-priority") {
+      o.rt_priority = true;
+    } else if (a == "--max-steps") {
+      o.max_steps = std::atoll(need("--max-steps").c_str());
+    } else if (a == "--summary") {
+      o.summary_path = need("--summary");
     } else {
       std::fprintf(stderr, "sc-rt-controller: unknown argument '%s'\n%s", a.c_str(), kUsage);
       return 2;
     }
   }
-  if (config_path.empty()) {
-    std::fprintf(stderr, "sc-rt-controller: --config FILE is required\n%s", kUsage);
+  if (o.config_path.empty() == !o.config_channel) {
+    std::fprintf(stderr, "sc-rt-controller: give exactly one of --config FILE and --config-channel\n%s", kUsage);
     return 2;
   }
-  sc_rt::ControllerConfig cfg;
-  if (int rc = load_config(config_path, cfg)) return rc;
-  std::printf("sc-rt-controller: config ok: law %s, %.6g Hz\n", sc_rt::law_name(cfg.law),
-              cfg.control_rate_hz);
+
+  std::vector<char> cfg_bytes;
+  if (!o.config_path.empty() && !read_file(o.config_path, cfg_bytes)) {
+    std::fprintf(stderr, "sc-rt-controller: cannot read config file %s\n", o.config_path.c_str());
+    return 2;
+  }
+  if (o.check) {
+    try {
+      const sc_rt::ControllerConfig cfg = sc_rt::config_from_bytes(cfg_bytes.data(), int(cfg_bytes.size()));
+      sc_rt::Controller::create(cfg);
+      std::printf("sc-rt-controller: config ok: law %s, %.6g Hz\n", sc_rt::law_name(cfg.law), cfg.control_rate_hz);
+      return 0;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "sc-rt-controller: %s: %s\n", o.config_path.c_str(), e.what());
+      return 2;
+    }
+  }
+
+  lcm::LCM lcm(o.url);
+  if (!lcm.good()) {
+    std::fprintf(stderr,
+                 "sc-rt-controller: cannot start LCM on %s (no multicast route? as root: "
+                 "ip route add 224.0.0.0/4 dev lo)\n", o.url.c_str());
+    return 3;
+  }
+  struct sigaction sa{};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  if (o.config_channel) {
+    ConfigWait w;
+    auto* sub = lcm.subscribeFunction(o.prefix + "SCRT_CONFIG", &ConfigWait::on, &w);
+    std::fprintf(stderr, "sc-rt-controller: waiting for %sSCRT_CONFIG\n", o.prefix.c_str());
+    while (!w.got && !g_stop) lcm.handleTimeout(100);
+    lcm.unsubscribe(sub);
+    if (!w.got) return 0;
+    cfg_bytes = w.bytes;
+  }
+  Shell shell(o, lcm);
+  try {
+    shell.configure(sc_rt::config_from_bytes(cfg_bytes.data(), int(cfg_bytes.size())));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sc-rt-controller: bad configuration: %s\n", e.what());
+    return 2;
+  }
+  const std::string sched = setup_scheduler(o.rt_priority);
+  lcm.subscribeFunction(o.prefix + "SCRT_STATE", &Shell::on_state, &shell);
+  std::fprintf(stderr, "sc-rt-controller: %s mode on %s, %s\n", o.realtime ? "realtime" : "lockstep",
+               o.url.c_str(), sched.c_str());
+
+  const int fd = lcm.getFileno();
+  if (!o.realtime) {
+    while (!shell.done()) lcm.handleTimeout(100);
+  } else {
+    int64_t deadline = mono_ns() + shell.period_ns();
+    while (!shell.done()) {
+      timespec ts{time_t(deadline / 1000000000LL), long(deadline % 1000000000LL)};
+      while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR && !g_stop) {
+      }
+      if (g_stop) break;
+      const int64_t now = mono_ns();
+      // drain everything that arrived: the newest valid state wins
+      pollfd p{fd, POLLIN, 0};
+      while (poll(&p, 1, 0) > 0 && (p.revents & POLLIN)) lcm.handle();
+      shell.step(now, deadline);
+      deadline += shell.period_ns();
+      // after a long stall, skip the missed periods instead of bursting
+      const int64_t after = mono_ns();
+      if (after > deadline) deadline += ((after - deadline) / shell.period_ns() + 1) * shell.period_ns();
+    }
+  }
+  const std::string js = shell.summary_json(sched);
+  std::printf("%s\n", js.c_str());
+  if (!o.summary_path.empty()) {
+    std::ofstream f(o.summary_path);
+    f << js << "\n";
+  }
   return 0;
 }
