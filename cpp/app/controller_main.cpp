@@ -144,30 +144,21 @@ class Shell {
     if (have_state_ && msg.seq == state_.seq) {
       ++cnt_.duplicate;
       // lockstep: the plant re-sent a state it had no answer to: answer again
-      if (!opt_.realtime && have_cmd_) publish_cmd(last_cmd_, msg.seq);
+      if (!opt_.realtime && have_cmd_) {
+        publish_cmd(last_cmd_, msg.seq);
+        publish_status(last_cmd_, msg.seq, 0.0, 0.0, 0.0);
+      }
       return;
     }
     if (have_state_ && msg.seq < state_.seq) {
       ++cnt_.out_of_order;
       return;
     }
-    const sc_rt::Measurement m = sc_rt::measurement_from_lcm(msg);
-    if (!sc_rt::measurement_valid(m, ctl_->config().safety)) {
+    // A decodable state with non-finite or out-of-range values is counted
+    // here; the core answers it with a SAFE zero command (and re-engages at
+    // the next valid state), so lockstep and offline runs stay identical.
+    if (!sc_rt::measurement_valid(sc_rt::measurement_from_lcm(msg), ctl_->config().safety))
       ++cnt_.invalid_state;
-      if (opt_.realtime) {
-        invalid_pending_ = true;  // the next step goes SAFE
-      } else {
-        // lockstep: answer this state with a SAFE zero command (the law
-        // re-engages from the next valid state)
-        const sc_rt::Command safe = ctl_->safe_command(msg.t, sc_rt::FLAG_INVALID_STATE);
-        ++cnt_.safe_steps;
-        ++cnt_.steps;
-        last_cmd_ = safe;
-        publish_cmd(safe, msg.seq);
-        publish_status(safe, msg.seq, 0.0, 0.0, 0.0);
-      }
-      return;
-    }
     state_ = msg;
     state_rx_ns_ = now;
     have_state_ = true;
@@ -180,10 +171,7 @@ class Shell {
     const int64_t t_start = mono_ns();
     sc_rt::Command cmd;
     const bool stale = !have_state_ || (opt_.realtime && now - state_rx_ns_ > stale_ns_);
-    if (invalid_pending_ && !fresh_) {
-      cmd = ctl_->safe_command(have_state_ ? state_.t : 0.0, sc_rt::FLAG_INVALID_STATE);
-      ++cnt_.safe_steps;
-    } else if (stale) {
+    if (stale) {
       cmd = ctl_->safe_command(have_state_ ? state_.t : 0.0, sc_rt::FLAG_STALE_STATE);
       ++cnt_.stale_steps;
       ++cnt_.safe_steps;
@@ -195,19 +183,20 @@ class Shell {
       cmd.flags |= sc_rt::FLAG_STALE_STATE;
     } else {
       cmd = ctl_->step(sc_rt::measurement_from_lcm(state_));
+      if (cmd.mode == sc_rt::MODE_SAFE) ++cnt_.safe_steps;
     }
-    invalid_pending_ = false;
     fresh_ = false;
     const double age_us = have_state_ ? double(now - state_rx_ns_) / 1e3 : 0.0;
+    const int64_t t_end = mono_ns();  // compute: the core's step, no I/O
     last_cmd_ = cmd;
     have_cmd_ = true;
     const int64_t used_seq = have_state_ ? state_.seq : -1;
     publish_cmd(cmd, used_seq);
-    const int64_t t_end = mono_ns();
     const double comp_us = double(t_end - t_start) / 1e3;
     const double late_us = double(now - deadline) / 1e3;
     ++cnt_.steps;
-    if (opt_.realtime && t_end > deadline + period_ns_) ++cnt_.deadline_misses;
+    // a miss: the command left after the next deadline
+    if (opt_.realtime && mono_ns() > deadline + period_ns_) ++cnt_.deadline_misses;
     if (lat_.size() < lat_.capacity()) {
       lat_.push_back(late_us);
       comp_.push_back(comp_us);
@@ -276,7 +265,7 @@ class Shell {
   int64_t stale_ns_ = 500000000;
   sc_rt_lcm::plant_state_t state_{};
   int64_t state_rx_ns_ = 0;
-  bool have_state_ = false, fresh_ = false, invalid_pending_ = false, have_cmd_ = false;
+  bool have_state_ = false, fresh_ = false, have_cmd_ = false;
   sc_rt::Command last_cmd_;
   int64_t cmd_seq_ = 0;
   Counters cnt_;

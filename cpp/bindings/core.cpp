@@ -8,6 +8,7 @@
 #include <chrono>
 #include <string>
 
+#include "sc_rt/closed_loop.hpp"
 #include "sc_rt/controllers.hpp"
 #include "sc_rt/guidance.hpp"
 #include "sc_rt/mrp.hpp"
@@ -20,6 +21,7 @@ namespace py = pybind11;
 using namespace sc_rt;
 using py::arg;
 
+void bind_plant(pybind11::module_& m);
 namespace {
 
 template <typename T>
@@ -276,6 +278,81 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("model", &Controller::model)
       .def_property_readonly("t0", &Controller::t0);
 
+  // Packed telemetry of one step, one numpy allocation (the offline
+  // simulator's hot path). Layout: sc_rt.sim.PACKED.
+  m.attr("PACKED_SIZE") = 45;
+  m.def(
+      "step_packed",
+      [](Controller& c, double t, const Eigen::Matrix<double, 10, 1>& x) {
+        Measurement m{t, x.segment<3>(0), x.segment<3>(3), x.segment<4>(6)};
+        const Command cmd = c.step(m);
+        py::array_t<double> out(45);
+        double* o = out.mutable_data();
+        auto put = [&o](const auto& v) {
+          for (int i = 0; i < v.size(); ++i) *o++ = v(i);
+        };
+        put(cmd.u_cmd);
+        put(cmd.u_sat);
+        put(cmd.sigma_DN);
+        put(cmd.sigma_BD);
+        put(cmd.omega_BD_B);
+        put(cmd.e1);
+        put(cmd.e2);
+        put(cmd.z1);
+        put(cmd.z2);
+        put(cmd.chi);
+        put(cmd.lam);
+        put(cmd.x2d);
+        put(cmd.vs);
+        *o++ = cmd.rho_hat;
+        *o++ = cmd.mode;
+        *o++ = cmd.flags;
+        return out;
+      },
+      arg("controller"), arg("t"), arg("x"),
+      "One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];\n"
+      "returns the packed telemetry (45,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,\n"
+      "omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, mode, flags.");
+
+  m.def(
+      "simulate_closed_loop",
+      [](const ControllerConfig& cfg, const PlantParams& plant, const ActuatorParams& act,
+         const Eigen::Matrix<double, 10, 1>& x0, int n_ctrl, int n_sub, double rate) {
+        PlantState x{x0.segment<3>(0), x0.segment<3>(3), x0.segment<4>(6)};
+        ClosedLoopResult r;
+        {
+          py::gil_scoped_release release;
+          r = simulate_closed_loop(cfg, plant, act, x, n_ctrl, n_sub, rate);
+        }
+        const py::ssize_t n = r.rows;
+        auto arr = [n](const std::vector<double>& v, py::ssize_t w) {
+          py::array_t<double> a = w == 1 ? py::array_t<double>(n) : py::array_t<double>({n, w});
+          std::copy(v.begin(), v.begin() + n * w, a.mutable_data());
+          return a;
+        };
+        py::dict d;
+        d["rows"] = r.rows;
+        d["diverged"] = r.diverged;
+        d["t"] = arr(r.t, 1);
+        for (auto [name, vec] : std::initializer_list<std::pair<const char*, const std::vector<double>*>>{
+                 {"sigma_BN", &r.sigma_BN}, {"omega_BN_B", &r.omega_BN_B}, {"sigma_DN", &r.sigma_DN},
+                 {"sigma_BD", &r.sigma_BD}, {"omega_BD_B", &r.omega_BD_B}, {"z1", &r.z1},
+                 {"z2", &r.z2}, {"delta2", &r.delta2}, {"chi", &r.chi}, {"lam", &r.lam},
+                 {"e1", &r.e1}, {"e2", &r.e2}})
+          d[name] = arr(*vec, 3);
+        for (auto [name, vec] : std::initializer_list<std::pair<const char*, const std::vector<double>*>>{
+                 {"wheel_speed", &r.wheel_speed}, {"u_cmd", &r.u_cmd}, {"u_sat", &r.u_sat},
+                 {"wheel_accel", &r.wheel_accel}, {"vs", &r.vs}})
+          d[name] = arr(*vec, 4);
+        py::array_t<int> flags(n);
+        std::copy(r.flags.begin(), r.flags.begin() + n, flags.mutable_data());
+        d["flags"] = flags;
+        return d;
+      },
+      arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),
+      "The whole offline closed loop in C++ (sc-rt sim --engine cpp): n_ctrl periods at rate [Hz],\n"
+      "n_sub plant RK4 steps each; returns the trajectory arrays (one row per control instant).");
+
   m.def(
       "run_steps",
       [](Controller& c, const RowsD& t, const RowsD& sigma, const RowsD& omega,
@@ -335,4 +412,5 @@ PYBIND11_MODULE(_core, m) {
       },
       arg("controller"), arg("t"), arg("sigma_BN"), arg("omega_BN_B"), arg("wheel_speed"),
       "Benchmark helper: per-step wall time [ns] of N steps inside C++ (bindings-side clock).");
+  bind_plant(m);
 }

@@ -121,7 +121,24 @@ Command Controller::safe_command(double t, int flags) {
 }
 
 Command Controller::step(const Measurement& m) {
-  if (!measurement_valid(m, cfg_.safety)) return safe_command(m.t, FLAG_INVALID_STATE);
+  if (!measurement_valid(m, cfg_.safety)) {
+    Command out = safe_command(m.t, FLAG_INVALID_STATE);
+    // Telemetry stays true in SAFE mode when the state is finite but out of
+    // range (a tumble past max_rate): the errors are still well defined.
+    if (std::isfinite(m.t) && m.sigma_BN.allFinite() && m.omega_BN_B.allFinite() &&
+        m.wheel_speed.allFinite() && m.t >= guidance_.t()) {
+      guidance_.advance(m.t);
+      const TrackingErrors e = errors_at(m);
+      out.sigma_DN = guidance_.sigma_DN();
+      out.sigma_BD = e.sigma_BD;
+      out.omega_BD_B = e.omega_BD_B;
+      const PpcResult ppc = ppc_transform(cfg_.ppc, e.sigma_BD, m.t - t0_);
+      out.chi = ppc.chi;
+      out.lam = ppc.lambda;
+      out.flags |= ppc.violated;
+    }
+    return out;
+  }
   if (!engaged_) reset(m);  // (re-)engage from this measurement
   Command out;
   out.t = m.t;

@@ -48,7 +48,7 @@ struct RftGains {
   double k = 0.4;      //!< [1/s] linear reaching gain
   double gain = 0.5;   //!< [1/s] adaptation gain of rho_hat_dot = gain |s| - leak rho_hat
   double leak = 0.01;  //!< [1/s] leakage (sigma-modification)
-  double phi = 1e-3;   //!< [rad/s] boundary layer width
+  double phi = 1e-2;   //!< [rad/s] boundary layer width (wider than s moves in one period)
   double rho0 = 0.0;   //!< [rad/s^2] rho_hat(t0)
 };
 

@@ -1,0 +1,178 @@
+// Bindings of the C++ plant (sc_rt/plant.hpp) into sc_rt._core, C++ names
+// and argument names. The keyword constructors of PlantParams, WheelFault and
+// ActuatorParams validate (ValueError naming the field, from
+// std::invalid_argument); fields assigned afterwards are not re-checked.
+// From the Python dataclasses use sc_rt.plant.plant_params_to_cpp and
+// sc_rt.actuators.actuator_params_to_cpp.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "sc_rt/plant.hpp"
+#include "sc_rt/util.hpp"
+
+namespace py = pybind11;
+using namespace sc_rt;
+using py::arg;
+
+namespace {
+using Vec10 = Eigen::Matrix<double, 10, 1>;
+
+Vec10 to_vector(const PlantState& x) {
+  Vec10 v;
+  v << x.sigma_BN, x.omega_BN_B, x.wheel_speed;
+  return v;
+}
+
+PlantState from_vector(const Vec10& v) {
+  PlantState x;
+  x.sigma_BN = v.segment<3>(0);
+  x.omega_BN_B = v.segment<3>(3);
+  x.wheel_speed = v.segment<4>(6);
+  return x;
+}
+
+void set_faults(ActuatorParams& a, const std::vector<WheelFault>& faults) {
+  if (faults.size() != 4)
+    throw std::invalid_argument(
+        "ActuatorParams.faults must hold 4 WheelFault (one per wheel), got " +
+        std::to_string(faults.size()));
+  for (std::size_t i = 0; i < 4; ++i) a.faults[i] = faults[i];
+}
+}  // namespace
+
+void bind_plant(py::module_& m) {
+  const PlantParams P;
+  const ActuatorParams A;
+  const WheelFault F;
+
+  py::class_<PlantParams>(m, "PlantParams",
+                          "True plant parameters (C++ engine); defaults are the paper's. "
+                          "The keyword constructor validates.")
+      .def(py::init([](const Mat3& J0, const Mat3& dJ, const Mat34& Cbar, const Vec4& Jw,
+                       double w0, const Vec3& dist_amp, const Vec3& dist_freq,
+                       const Vec3& dist_bias) {
+             PlantParams p;
+             p.J0 = J0;
+             p.dJ = dJ;
+             p.Cbar = Cbar;
+             p.Jw = Jw;
+             p.w0 = w0;
+             p.dist_amp = dist_amp;
+             p.dist_freq = dist_freq;
+             p.dist_bias = dist_bias;
+             throw_if_errors("PlantParams", validate(p));
+             return p;
+           }),
+           arg("J0") = P.J0, arg("dJ") = P.dJ, arg("Cbar") = P.Cbar, arg("Jw") = P.Jw,
+           arg("w0") = P.w0, arg("dist_amp") = P.dist_amp, arg("dist_freq") = P.dist_freq,
+           arg("dist_bias") = P.dist_bias)
+      .def_readwrite("J0", &PlantParams::J0, "[kg m^2] nominal inertia (3x3)")
+      .def_readwrite("dJ", &PlantParams::dJ, "[kg m^2] inertia error; J = J0 + dJ (3x3)")
+      .def_readwrite("Cbar", &PlantParams::Cbar, "[-] wheel axes in B (3x4)")
+      .def_readwrite("Jw", &PlantParams::Jw, "[kg m^2] wheel spin inertias (4)")
+      .def_readwrite("w0", &PlantParams::w0, "[rad/s] orbit rate of (5)")
+      .def_readwrite("dist_amp", &PlantParams::dist_amp, "[N m] d(t) = bias + amp cos(freq t)")
+      .def_readwrite("dist_freq", &PlantParams::dist_freq, "[rad/s]")
+      .def_readwrite("dist_bias", &PlantParams::dist_bias, "[N m]");
+  m.def("validate", py::overload_cast<const PlantParams&>(&validate), arg("p"),
+        "Every problem with the plant parameters (empty list: valid).");
+
+  py::class_<WheelFault>(m, "WheelFault",
+                         "One wheel's fault of (16); inactive by default. The keyword "
+                         "constructor validates an active fault.")
+      .def(py::init([](bool active, double effectiveness, double bias, double onset, double end,
+                       double rate, bool stuck) {
+             WheelFault f{active, effectiveness, bias, onset, end, rate, stuck};
+             throw_if_errors("WheelFault", validate(f));
+             return f;
+           }),
+           arg("active") = F.active, arg("effectiveness") = F.effectiveness,
+           arg("bias") = F.bias, arg("onset") = F.onset, arg("end") = F.end,
+           arg("rate") = F.rate, arg("stuck") = F.stuck)
+      .def_readwrite("active", &WheelFault::active, "false: healthy wheel")
+      .def_readwrite("effectiveness", &WheelFault::effectiveness, "[-] L_i in [0, 1]")
+      .def_readwrite("bias", &WheelFault::bias, "[rad/s^2] ubar_i")
+      .def_readwrite("onset", &WheelFault::onset, "[s] T_i")
+      .def_readwrite("end", &WheelFault::end, "[s] abrupt end (inf: never)")
+      .def_readwrite("rate", &WheelFault::rate, "[1/s] a_i")
+      .def_readwrite("stuck", &WheelFault::stuck, "zero acceleration while active");
+  m.def("validate", py::overload_cast<const WheelFault&>(&validate), arg("f"),
+        "Problems of one fault (none when inactive).");
+  m.def("fault_Y", &fault_Y, arg("f"), arg("t"), "Y_i(t) of (16) [-].");
+
+  py::class_<ActuatorParams>(m, "ActuatorParams",
+                             "Wheel limits and faults (C++ engine). The keyword constructor "
+                             "validates.")
+      .def(py::init([](const Vec4& umin, const Vec4& umax, const Vec4& max_wheel_speed,
+                       const std::vector<WheelFault>& faults) {
+             ActuatorParams a;
+             a.umin = umin;
+             a.umax = umax;
+             a.max_wheel_speed = max_wheel_speed;
+             set_faults(a, faults);
+             throw_if_errors("ActuatorParams", validate(a));
+             return a;
+           }),
+           arg("umin") = A.umin, arg("umax") = A.umax,
+           arg("max_wheel_speed") = A.max_wheel_speed,
+           arg("faults") = std::vector<WheelFault>(A.faults.begin(), A.faults.end()))
+      .def_readwrite("umin", &ActuatorParams::umin, "[rad/s^2] lower limits (4)")
+      .def_readwrite("umax", &ActuatorParams::umax, "[rad/s^2] upper limits (4)")
+      .def_readwrite("max_wheel_speed", &ActuatorParams::max_wheel_speed,
+                     "[rad/s] wheel-speed limits (4; inf: none)")
+      .def_property(
+          "faults",
+          [](py::object self) {
+            ActuatorParams& a = self.cast<ActuatorParams&>();
+            py::tuple t(4);
+            for (std::size_t i = 0; i < 4; ++i)
+              t[i] = py::cast(&a.faults[i], py::return_value_policy::reference_internal, self);
+            return t;
+          },
+          &set_faults,
+          "The 4 wheels' faults: a tuple of references (assigning their fields edits this "
+          "object); assign a sequence of 4 WheelFault to replace them all.");
+  m.def("validate", py::overload_cast<const ActuatorParams&>(&validate), arg("a"),
+        "Every problem with the actuator parameters (empty list: valid).");
+
+  py::class_<PlantState>(m, "PlantState",
+                         "Plant state; as a vector [sigma_BN, omega_BN_B, wheel_speed].")
+      .def(py::init([](const Vec3& sigma_BN, const Vec3& omega_BN_B, const Vec4& wheel_speed) {
+             return PlantState{sigma_BN, omega_BN_B, wheel_speed};
+           }),
+           arg("sigma_BN") = Vec3::Zero().eval(), arg("omega_BN_B") = Vec3::Zero().eval(),
+           arg("wheel_speed") = Vec4::Zero().eval())
+      .def_readwrite("sigma_BN", &PlantState::sigma_BN, "[-] MRP of B relative to N")
+      .def_readwrite("omega_BN_B", &PlantState::omega_BN_B, "[rad/s] body rate in B")
+      .def_readwrite("wheel_speed", &PlantState::wheel_speed, "[rad/s] relative to the body")
+      .def_static("from_vector", &from_vector, arg("x"),
+                  "From x = [sigma_BN (3), omega_BN_B (3), wheel_speed (4)].")
+      .def("to_vector", &to_vector, "x = [sigma_BN (3), omega_BN_B (3), wheel_speed (4)].")
+      .def("__repr__", [](const PlantState& x) {
+        return "PlantState(sigma_BN=" + format_matrix(x.sigma_BN) +
+               ", omega_BN_B=" + format_matrix(x.omega_BN_B) +
+               ", wheel_speed=" + format_matrix(x.wheel_speed) + ")";
+      });
+
+  py::class_<WheelOutput>(m, "WheelOutput")
+      .def_readonly("u_sat", &WheelOutput::u_sat, "[rad/s^2] saturated commands")
+      .def_readonly("accel", &WheelOutput::accel, "[rad/s^2] actual wheel accelerations")
+      .def_readonly("Y", &WheelOutput::Y, "[-] fault activations of (16)");
+
+  m.def("wheel_accel", &wheel_accel, arg("a"), arg("t"), arg("u_cmd"), arg("wheel_speed"),
+        "Saturation and faults (15),(16), stuck wheels and the speed limit.");
+  m.def("disturbance", &disturbance, arg("p"), arg("t"), "d(t) [N m] in B.");
+  m.def("plant_derivative", &plant_derivative, arg("p"), arg("t"), arg("x"),
+        arg("wheel_accel"),
+        "State derivative (1),(2),(7) for the actual wheel accelerations [rad/s^2].");
+  m.def("plant_rk4_step", &plant_rk4_step, arg("p"), arg("a"), arg("t"), arg("x"), arg("h"),
+        arg("u_cmd"), "One RK4 step from t to t + h [s], u_cmd held; then the MRP short set.");
+  m.def("lumped_disturbance", &lumped_disturbance, arg("p"), arg("t"), arg("x"), arg("u_sat"),
+        arg("accel"), "The true delta_2 of (20),(21) [rad/s^2].");
+}

@@ -1,0 +1,29 @@
+// Offline closed loop in C++ (the "cpp" engine of sc-rt sim): the plant twin
+// (plant.hpp) and a controller, sampled at the control rate with a
+// zero-order hold. Same loop, same order of operations as python/sc_rt/sim.py.
+#pragma once
+#include <vector>
+
+#include "sc_rt/controllers.hpp"
+#include "sc_rt/plant.hpp"
+
+namespace sc_rt {
+
+struct ClosedLoopResult {
+  int rows = 0;           //!< rows written (n_ctrl + 1 unless diverged)
+  bool diverged = false;  //!< the plant state became non-finite
+  // One row per control instant, row-major, widths as named.
+  std::vector<double> t;                                           // 1
+  std::vector<double> sigma_BN, omega_BN_B, sigma_DN, sigma_BD;    // 3
+  std::vector<double> omega_BD_B, z1, z2, delta2, chi, lam, e1, e2;  // 3
+  std::vector<double> wheel_speed, u_cmd, u_sat, wheel_accel, vs;  // 4
+  std::vector<int> flags;                                          // 1
+};
+
+// n_ctrl control periods of 1/rate s (n_ctrl + 1 rows, t_k = k / rate), each
+// integrated with n_sub RK4 plant steps of 1/(rate n_sub) s.
+ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantParams& plant,
+                                      const ActuatorParams& act, const PlantState& x0, int n_ctrl,
+                                      int n_sub, double rate);
+
+}  // namespace sc_rt

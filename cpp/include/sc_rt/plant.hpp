@@ -1,0 +1,114 @@
+// The true plant (MODEL.md sections 1 and 2): what the emulator integrates.
+// The same model as the Python reference sc_rt.plant / sc_rt.actuators,
+// compiled for batch speed. The hot path (wheel_accel, disturbance,
+// plant_derivative, plant_rk4_step, lumped_disturbance) repeats the Python
+// code's scalar operations in the same order, so the two engines give
+// BIT-IDENTICAL results (tests/test_plant.py); this relies on IEEE double
+// without contraction (-ffp-contract=off) and on glibc's cos/expm1, which
+// Python's math module calls too. Edit the two together.
+//
+// State: sigma_BN (MRP), omega_BN_B [rad/s], wheel speeds Omega_w [rad/s,
+// relative to the body].
+//   Kinematics (1),(2): sigma_dot = G(sigma) omega.
+//   Dynamics (7), TRUE inertia J = J0 + dJ:
+//     J omega_dot = -omega^ (J omega + Cbar Jw Omega_w) - Cbar Jw Omega_w_dot + u_g + d(t)
+//   Gravity gradient (5),(6): u_g = 3 w0^2 R3^ J R3, R3 = R(sigma) e3 (10).
+//   Wheels: Omega_w_dot = the actual acceleration of (15),(16) (wheel_accel).
+//
+// Fault conventions (shared with sc_rt.actuators): a fault is active on
+// onset <= t < end (Y = 0 from end on, abrupt); a stuck wheel has zero
+// acceleration while its fault is active, whatever Y; with |Omega_i| >=
+// max_wheel_speed_i an acceleration that drives the speed further out is 0
+// (applied after the fault model). A NaN command propagates.
+//
+// Pure functions: no I/O, no allocation. They assume valid parameters: check
+// them once with validate() (the Python binding's constructors do).
+#pragma once
+#include <array>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "sc_rt/types.hpp"
+
+namespace sc_rt {
+
+// The true plant. Defaults are the paper's (Section 4): J0, dJ, Cbar, Jw and d(t).
+struct PlantParams {
+  Mat3 J0 = (Mat3() << 10, 0, 0, 0, 15, 0, 0, 0, 20).finished();  //!< [kg m^2] nominal inertia
+  Mat3 dJ = (Mat3() << 2, 0, 0, 0, -1, 0, 0, 0, 2).finished();    //!< [kg m^2] error; J = J0 + dJ
+  Mat34 Cbar = (Mat34() << -0.9992, -0.0300, -0.0256, -0.6086,
+                            -0.0394, 0.7455, 0.6653, 0.7913,
+                            0.0009, -0.6658, 0.7461, 0.0469).finished();  //!< [-] wheel axes in B
+  Vec4 Jw = Vec4::Constant(0.338);               //!< [kg m^2] wheel spin inertias
+  double w0 = 0.0011;                            //!< [rad/s] orbit rate of (5)
+  Vec3 dist_amp = Vec3(5e-3, -5e-3, 6e-3);       //!< [N m] d(t) = bias + amp cos(freq t)
+  Vec3 dist_freq = Vec3(0.02, 0.025, 0.04);      //!< [rad/s]
+  Vec3 dist_bias = Vec3::Zero();                 //!< [N m]
+};
+
+// One fault of one wheel, (16).
+struct WheelFault {
+  bool active = false;                                    //!< false: healthy wheel
+  double effectiveness = 1.0;                             //!< [-] L_i in [0, 1]
+  double bias = 0.0;                                      //!< [rad/s^2] ubar_i
+  double onset = 0.0;                                     //!< [s] T_i
+  double end = std::numeric_limits<double>::infinity();   //!< [s] abrupt end (inf: never)
+  double rate = 1.0;                                      //!< [1/s] a_i
+  bool stuck = false;                                     //!< zero acceleration while active
+};
+
+struct ActuatorParams {
+  Vec4 umin = Vec4::Constant(-7.0);  //!< [rad/s^2] lower limits of (15)
+  Vec4 umax = Vec4::Constant(10.0);  //!< [rad/s^2] upper limits of (15)
+  Vec4 max_wheel_speed = Vec4::Constant(std::numeric_limits<double>::infinity());  //!< [rad/s]
+  std::array<WheelFault, 4> faults{};  //!< faults[i] is wheel i's (0-based)
+};
+
+struct PlantState {
+  Vec3 sigma_BN = Vec3::Zero();     //!< [-] MRP of B relative to N
+  Vec3 omega_BN_B = Vec3::Zero();   //!< [rad/s] body rate in B
+  Vec4 wheel_speed = Vec4::Zero();  //!< [rad/s] wheel speeds relative to the body
+};
+
+struct WheelOutput {
+  Vec4 u_sat;  //!< [rad/s^2] saturated commands sat(uc)
+  Vec4 accel;  //!< [rad/s^2] actual wheel accelerations Omega_w_dot
+  Vec4 Y;      //!< [-] fault activations Y_i(t) of (16)
+};
+
+// Every problem with the parameters, each naming the field and the value;
+// empty if valid.
+std::vector<std::string> validate(const PlantParams& p);
+std::vector<std::string> validate(const ActuatorParams& a);
+// Problems of one fault (an inactive fault has none).
+std::vector<std::string> validate(const WheelFault& f);
+
+// Y_i(t) of (16): 0 outside [onset, end), 1 - exp(-rate (t - onset)) inside.
+double fault_Y(const WheelFault& f, double t);
+
+// Saturation and the fault model (15),(16), stuck wheels, speed limit.
+WheelOutput wheel_accel(const ActuatorParams& a, double t, const Vec4& u_cmd,
+                        const Vec4& wheel_speed);
+
+// d(t) = bias + amp cos(freq t) [N m], in B.
+Vec3 disturbance(const PlantParams& p, double t);
+
+// The state derivative for the given actual wheel accelerations [rad/s^2]
+// (the wheel_speed field of the result is Omega_w_dot = wheel_accel).
+PlantState plant_derivative(const PlantParams& p, double t, const PlantState& x,
+                            const Vec4& wheel_accel);
+
+// One classical RK4 step from t to t + h [s]; u_cmd [rad/s^2] held (ZOH), the
+// actual acceleration re-evaluated by wheel_accel at each stage's time and
+// wheel speeds; then the MRP short set (|sigma| > 1 -> -sigma/|sigma|^2).
+PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t,
+                          const PlantState& x, double h, const Vec4& u_cmd);
+
+// The true lumped disturbance delta_2 of (20),(21) [rad/s^2] (MODEL.md section 4):
+// omega_dot_true - J0^-1 [-W^ (J0 W + Cbar Jw Omega_w) + u_g0] - B u_sat, with
+// W = omega_BN_B, u_g0 = 3 w0^2 R3^ J0 R3, B = -J0^-1 Cbar Jw.
+Vec3 lumped_disturbance(const PlantParams& p, double t, const PlantState& x, const Vec4& u_sat,
+                        const Vec4& accel);
+
+}  // namespace sc_rt

@@ -1,0 +1,69 @@
+#include "sc_rt/closed_loop.hpp"
+
+#include <stdexcept>
+
+namespace sc_rt {
+
+namespace {
+template <typename V>
+void put(std::vector<double>& dst, int row, const V& v) {
+  for (int i = 0; i < v.size(); ++i) dst[static_cast<std::size_t>(row * v.size() + i)] = v(i);
+}
+bool finite(const PlantState& x) {
+  return x.sigma_BN.allFinite() && x.omega_BN_B.allFinite() && x.wheel_speed.allFinite();
+}
+}  // namespace
+
+ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantParams& plant,
+                                      const ActuatorParams& act, const PlantState& x0, int n_ctrl,
+                                      int n_sub, double rate) {
+  if (n_ctrl < 0 || n_sub < 1 || !(rate > 0.0))
+    throw std::invalid_argument("simulate_closed_loop: need n_ctrl >= 0, n_sub >= 1, rate > 0");
+  const auto ctl = Controller::create(cfg);
+  const std::size_t n = static_cast<std::size_t>(n_ctrl) + 1;
+  ClosedLoopResult r;
+  r.t.resize(n);
+  for (auto* v : {&r.sigma_BN, &r.omega_BN_B, &r.sigma_DN, &r.sigma_BD, &r.omega_BD_B, &r.z1, &r.z2,
+                  &r.delta2, &r.chi, &r.lam, &r.e1, &r.e2})
+    v->resize(3 * n);
+  for (auto* v : {&r.wheel_speed, &r.u_cmd, &r.u_sat, &r.wheel_accel, &r.vs}) v->resize(4 * n);
+  r.flags.resize(n);
+
+  const double h = 1.0 / (rate * n_sub);
+  PlantState x = x0;
+  ctl->reset(Measurement{0.0, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
+  for (int k = 0; k <= n_ctrl; ++k) {
+    const double t = k / rate;
+    const Command c = ctl->step(Measurement{t, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
+    const WheelOutput w = wheel_accel(act, t, c.u_cmd, x.wheel_speed);
+    r.t[static_cast<std::size_t>(k)] = t;
+    put(r.sigma_BN, k, x.sigma_BN);
+    put(r.omega_BN_B, k, x.omega_BN_B);
+    put(r.wheel_speed, k, x.wheel_speed);
+    put(r.u_cmd, k, c.u_cmd);
+    put(r.u_sat, k, c.u_sat);
+    put(r.wheel_accel, k, w.accel);
+    put(r.delta2, k, lumped_disturbance(plant, t, x, w.u_sat, w.accel));
+    put(r.sigma_DN, k, c.sigma_DN);
+    put(r.sigma_BD, k, c.sigma_BD);
+    put(r.omega_BD_B, k, c.omega_BD_B);
+    put(r.z1, k, c.z1);
+    put(r.z2, k, c.z2);
+    put(r.chi, k, c.chi);
+    put(r.lam, k, c.lam);
+    put(r.e1, k, c.e1);
+    put(r.e2, k, c.e2);
+    put(r.vs, k, c.vs);
+    r.flags[static_cast<std::size_t>(k)] = c.flags;
+    r.rows = k + 1;
+    if (k == n_ctrl) break;
+    for (int j = 0; j < n_sub; ++j) x = plant_rk4_step(plant, act, t + j * h, x, h, c.u_cmd);
+    if (!finite(x)) {
+      r.diverged = true;
+      break;
+    }
+  }
+  return r;
+}
+
+}  // namespace sc_rt

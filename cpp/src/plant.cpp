@@ -1,0 +1,423 @@
+#include "sc_rt/plant.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "sc_rt/util.hpp"
+
+namespace sc_rt {
+
+namespace {
+
+std::string idx(const char* name, int i) {
+  return std::string(name) + "[" + std::to_string(i) + "]";
+}
+
+void check_spd(const Mat3& M, const std::string& name, std::vector<std::string>& errs) {
+  if ((M - M.transpose()).cwiseAbs().maxCoeff() > 1e-9 * M.cwiseAbs().maxCoeff()) {
+    errs.push_back(name + " is not symmetric: " + format_matrix(M));
+    return;
+  }
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(0.5 * (M + M.transpose()), Eigen::EigenvaluesOnly);
+  if (!(es.eigenvalues().minCoeff() > 0.0))
+    errs.push_back(name + " is not positive definite (eigenvalues " +
+                   format_matrix(es.eigenvalues()) + "): " + format_matrix(M));
+}
+
+void check_fault(const WheelFault& f, const std::string& pre, std::vector<std::string>& errs) {
+  if (!f.active) return;
+  if (!(f.effectiveness >= 0.0 && f.effectiveness <= 1.0))
+    errs.push_back(pre + "effectiveness must be in [0, 1], got " + format_double(f.effectiveness));
+  if (!std::isfinite(f.bias))
+    errs.push_back(pre + "bias must be finite, got " + format_double(f.bias));
+  if (!std::isfinite(f.onset))
+    errs.push_back(pre + "onset must be finite, got " + format_double(f.onset));
+  else if (!(f.end > f.onset))  // NaN fails too; +inf: never ends
+    errs.push_back(pre + "end must be > onset (" + format_double(f.onset) + "), got " +
+                   format_double(f.end));
+  if (!(std::isfinite(f.rate) && f.rate > 0.0))
+    errs.push_back(pre + "rate must be finite and > 0, got " + format_double(f.rate));
+}
+
+// ---------------------------------------------------------------------------
+// The hot path, written as plain scalar expressions in EXACTLY the order of
+// the Python reference (sc_rt/plant.py: _inv3, _make_rhs, _make_wheel_map,
+// _make_disturbance, rk4_step; sc_rt/actuators.py: _sat4, _accel4), so that
+// both engines give bit-identical results (IEEE double, -ffp-contract=off,
+// the same glibc cos/expm1). Python evaluates a + b + c as (a + b) + c, as
+// C++ does; no Eigen products here (their summation order is Eigen's own).
+// Changing an expression here means changing its Python twin the same way
+// (tests/test_plant.py holds the two to np.array_equal).
+// ---------------------------------------------------------------------------
+
+// Inverse of a 3x3 matrix by cofactors: inv = adj(M) / det(M) (plant.py _inv3).
+void inv3(const Mat3& M, double I[3][3]) {
+  const double a = M(0, 0), b = M(0, 1), c = M(0, 2);
+  const double d = M(1, 0), e = M(1, 1), f = M(1, 2);
+  const double g = M(2, 0), h = M(2, 1), i = M(2, 2);
+  const double A = e * i - f * h;
+  const double B = f * g - d * i;
+  const double C = d * h - e * g;
+  const double det = a * A + b * B + c * C;
+  I[0][0] = A / det;
+  I[0][1] = (c * h - b * i) / det;
+  I[0][2] = (b * f - c * e) / det;
+  I[1][0] = B / det;
+  I[1][1] = (a * i - c * g) / det;
+  I[1][2] = (c * d - a * f) / det;
+  I[2][0] = C / det;
+  I[2][1] = (b * g - a * h) / det;
+  I[2][2] = (a * e - b * d) / det;
+}
+
+// One right-hand side of (1),(2),(7) (plant.py _make_rhs): J, its inverse and
+// k = 3 w0^2 as plain doubles.
+struct Rhs {
+  double J[3][3];
+  double I[3][3];
+  double k;
+  Rhs(const Mat3& Jm, double w0) : k(3.0 * w0 * w0) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) J[r][c] = Jm(r, c);
+    inv3(Jm, I);
+  }
+  // out = (sigma_dot (3), omega_dot (3)) of sigma s, rate w, wheel momentum
+  // hw = Cbar Jw Omega_w, wheel torque tw = Cbar Jw Omega_w_dot, disturbance d.
+  void operator()(const double s[3], const double w[3], const double hw[3], const double tw[3],
+                  const double d[3], double out[6]) const {
+    const double s1 = s[0], s2 = s[1], s3 = s[2], w1 = w[0], w2 = w[1], w3 = w[2];
+    const double ss = s1 * s1 + s2 * s2 + s3 * s3;
+    const double c = 0.25 * (1.0 - ss);
+    const double e = 0.5 * (s1 * w1 + s2 * w2 + s3 * w3);
+    const double H1 = J[0][0] * w1 + J[0][1] * w2 + J[0][2] * w3 + hw[0];
+    const double H2 = J[1][0] * w1 + J[1][1] * w2 + J[1][2] * w3 + hw[1];
+    const double H3 = J[2][0] * w1 + J[2][1] * w2 + J[2][2] * w3 + hw[2];
+    double T1 = (w3 * H2 - w2 * H3) - tw[0] + d[0];
+    double T2 = (w1 * H3 - w3 * H1) - tw[1] + d[1];
+    double T3 = (w2 * H1 - w1 * H2) - tw[2] + d[2];
+    if (k != 0.0) {
+      // (5),(6),(10): u_g = 3 w0^2 R3^ J R3, R3 = R(sigma) e3
+      const double q = 1.0 / ((1.0 + ss) * (1.0 + ss));
+      const double m4 = 4.0 * (1.0 - ss);
+      const double r1 = (8.0 * s1 * s3 - m4 * s2) * q;
+      const double r2 = (8.0 * s2 * s3 + m4 * s1) * q;
+      const double r3 = 1.0 + 8.0 * (s3 * s3 - ss) * q;
+      const double g1 = J[0][0] * r1 + J[0][1] * r2 + J[0][2] * r3;
+      const double g2 = J[1][0] * r1 + J[1][1] * r2 + J[1][2] * r3;
+      const double g3 = J[2][0] * r1 + J[2][1] * r2 + J[2][2] * r3;
+      T1 += k * (r2 * g3 - r3 * g2);
+      T2 += k * (r3 * g1 - r1 * g3);
+      T3 += k * (r1 * g2 - r2 * g1);
+    }
+    out[0] = c * w1 + 0.5 * (s2 * w3 - s3 * w2) + e * s1;
+    out[1] = c * w2 + 0.5 * (s3 * w1 - s1 * w3) + e * s2;
+    out[2] = c * w3 + 0.5 * (s1 * w2 - s2 * w1) + e * s3;
+    out[3] = I[0][0] * T1 + I[0][1] * T2 + I[0][2] * T3;
+    out[4] = I[1][0] * T1 + I[1][1] * T2 + I[1][2] * T3;
+    out[5] = I[2][0] * T1 + I[2][1] * T2 + I[2][2] * T3;
+  }
+};
+
+// Cbar Jw v (plant.py _make_wheel_map): of wheel speeds the wheels' momentum
+// in B, of wheel accelerations their reaction torque with its sign flipped.
+struct WheelMap {
+  double C[3][4];
+  explicit WheelMap(const PlantParams& p) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) C[r][c] = p.Cbar(r, c) * p.Jw(c);
+  }
+  void operator()(const double v[4], double out[3]) const {
+    for (int r = 0; r < 3; ++r)
+      out[r] = C[r][0] * v[0] + C[r][1] * v[1] + C[r][2] * v[2] + C[r][3] * v[3];
+  }
+};
+
+// d(t) (plant.py _make_disturbance): the bias alone when every amplitude is 0.
+void dist3(const PlantParams& p, double t, double out[3]) {
+  if (p.dist_amp(0) == 0.0 && p.dist_amp(1) == 0.0 && p.dist_amp(2) == 0.0) {
+    for (int i = 0; i < 3; ++i) out[i] = p.dist_bias(i);
+    return;
+  }
+  for (int i = 0; i < 3; ++i)
+    out[i] = p.dist_bias(i) + p.dist_amp(i) * std::cos(p.dist_freq(i) * t);
+}
+
+// (15) saturation as comparisons, NaN stays NaN (actuators.py _sat4).
+void sat4(const ActuatorParams& a, const Vec4& u, double out[4]) {
+  for (int i = 0; i < 4; ++i) {
+    const double ui = u(i), lo = a.umin(i), hi = a.umax(i);
+    out[i] = ui < lo ? lo : (ui > hi ? hi : ui);
+  }
+}
+
+// Actual accelerations (15),(16), stuck wheels, then the finite wheel-speed
+// limits (actuators.py _accel4). omega is read only for a finite limit.
+void accel4(const ActuatorParams& a, double t, const double sat[4], const double omega[4],
+            double acc[4]) {
+  for (int i = 0; i < 4; ++i) {
+    acc[i] = sat[i];
+    const WheelFault& f = a.faults[static_cast<std::size_t>(i)];
+    if (f.active && f.onset <= t && t < f.end) {
+      if (f.stuck) {
+        acc[i] = 0.0;
+      } else {
+        const double Y = -std::expm1(-f.rate * (t - f.onset));  // (16)
+        const double s = sat[i];
+        acc[i] = s + Y * ((f.effectiveness - 1.0) * s + f.bias);  // (15)
+      }
+    }
+  }
+  for (int i = 0; i < 4; ++i) {
+    const double wm = a.max_wheel_speed(i);
+    if (!std::isfinite(wm)) continue;
+    const double w = omega[i];
+    if ((w >= wm && acc[i] > 0.0) || (w <= -wm && acc[i] < 0.0)) acc[i] = 0.0;
+  }
+}
+
+bool any_fault(const ActuatorParams& a) {
+  for (const WheelFault& f : a.faults)
+    if (f.active) return true;
+  return false;
+}
+
+bool any_limit(const ActuatorParams& a) {
+  for (int i = 0; i < 4; ++i)
+    if (std::isfinite(a.max_wheel_speed(i))) return true;
+  return false;
+}
+
+void unpack(const PlantState& x, double s[3], double w[3], double O[4]) {
+  for (int i = 0; i < 3; ++i) s[i] = x.sigma_BN(i), w[i] = x.omega_BN_B(i);
+  for (int i = 0; i < 4; ++i) O[i] = x.wheel_speed(i);
+}
+
+}  // namespace
+
+std::vector<std::string> validate(const PlantParams& p) {
+  std::vector<std::string> errs;
+  const bool J0_ok = p.J0.allFinite();
+  const bool dJ_ok = p.dJ.allFinite();
+  if (!J0_ok) errs.push_back("J0 is not finite: " + format_matrix(p.J0));
+  else check_spd(p.J0, "J0", errs);
+  if (!dJ_ok) errs.push_back("dJ is not finite: " + format_matrix(p.dJ));
+  else if ((p.dJ - p.dJ.transpose()).cwiseAbs().maxCoeff() >
+           1e-9 * std::max(1.0, p.dJ.cwiseAbs().maxCoeff()))
+    errs.push_back("dJ is not symmetric: " + format_matrix(p.dJ));
+  if (J0_ok && dJ_ok) {
+    const Mat3 J = p.J0 + p.dJ;
+    const Eigen::SelfAdjointEigenSolver<Mat3> es(0.5 * (J + J.transpose()), Eigen::EigenvaluesOnly);
+    if (!(es.eigenvalues().minCoeff() > 0.0))
+      errs.push_back("J0 + dJ (the true inertia J) is not positive definite (eigenvalues " +
+                     format_matrix(es.eigenvalues()) + "): " + format_matrix(J));
+  }
+  if (!p.Cbar.allFinite()) errs.push_back("Cbar is not finite: " + format_matrix(p.Cbar));
+  else
+    for (int i = 0; i < 4; ++i) {
+      const double n = p.Cbar.col(i).norm();
+      if (std::abs(n - 1.0) > 1e-2)
+        errs.push_back("Cbar column " + std::to_string(i) + " is not a unit vector (norm " +
+                       format_double(n) + ")");
+    }
+  for (int i = 0; i < 4; ++i)
+    if (!(std::isfinite(p.Jw(i)) && p.Jw(i) > 0.0))
+      errs.push_back(idx("Jw", i) + " must be > 0, got " + format_double(p.Jw(i)));
+  if (!(std::isfinite(p.w0) && p.w0 >= 0.0))
+    errs.push_back("w0 must be finite and >= 0, got " + format_double(p.w0));
+  if (!p.dist_amp.allFinite())
+    errs.push_back("dist_amp is not finite: " + format_matrix(p.dist_amp));
+  if (!p.dist_freq.allFinite())
+    errs.push_back("dist_freq is not finite: " + format_matrix(p.dist_freq));
+  if (!p.dist_bias.allFinite())
+    errs.push_back("dist_bias is not finite: " + format_matrix(p.dist_bias));
+  return errs;
+}
+
+std::vector<std::string> validate(const WheelFault& f) {
+  std::vector<std::string> errs;
+  check_fault(f, "", errs);
+  return errs;
+}
+
+std::vector<std::string> validate(const ActuatorParams& a) {
+  std::vector<std::string> errs;
+  for (int i = 0; i < 4; ++i) {
+    const double lo = a.umin(i), hi = a.umax(i);
+    if (!(std::isfinite(lo) && std::isfinite(hi)))
+      errs.push_back(idx("umin", i) + "/" + idx("umax", i) + " must be finite, got " +
+                     format_double(lo) + ", " + format_double(hi));
+    else if (!(lo < hi))
+      errs.push_back(idx("umin", i) + " must be < " + idx("umax", i) + ": umin = " +
+                     format_double(lo) + ", umax = " + format_double(hi));
+    if (!(a.max_wheel_speed(i) > 0.0))  // NaN fails too; +inf: no limit
+      errs.push_back(idx("max_wheel_speed", i) + " must be > 0, got " +
+                     format_double(a.max_wheel_speed(i)));
+    check_fault(a.faults[static_cast<std::size_t>(i)], idx("faults", i) + ".", errs);
+  }
+  return errs;
+}
+
+double fault_Y(const WheelFault& f, double t) {
+  // (16): 0 before onset, 1 - exp(-a (t - T)) from onset, 0 from the end on
+  if (f.active && f.onset <= t && t < f.end) return -std::expm1(-f.rate * (t - f.onset));
+  return 0.0;
+}
+
+WheelOutput wheel_accel(const ActuatorParams& a, double t, const Vec4& u_cmd,
+                        const Vec4& wheel_speed) {
+  double sat[4], omega[4], acc[4];
+  sat4(a, u_cmd, sat);
+  for (int i = 0; i < 4; ++i) omega[i] = wheel_speed(i);
+  accel4(a, t, sat, omega, acc);
+  WheelOutput out;
+  for (int i = 0; i < 4; ++i) {
+    out.u_sat(i) = sat[i];
+    out.accel(i) = acc[i];
+    out.Y(i) = fault_Y(a.faults[static_cast<std::size_t>(i)], t);
+  }
+  return out;
+}
+
+Vec3 disturbance(const PlantParams& p, double t) {
+  double d[3];
+  dist3(p, t, d);
+  return Vec3(d[0], d[1], d[2]);
+}
+
+PlantState plant_derivative(const PlantParams& p, double t, const PlantState& x,
+                            const Vec4& wheel_accel) {
+  const Rhs f(p.J0 + p.dJ, p.w0);
+  const WheelMap wheel(p);
+  double s[3], w[3], O[4], acc[4], hw[3], tw[3], d[3], k[6];
+  unpack(x, s, w, O);
+  for (int i = 0; i < 4; ++i) acc[i] = wheel_accel(i);
+  wheel(O, hw);
+  wheel(acc, tw);
+  dist3(p, t, d);
+  f(s, w, hw, tw, d, k);
+  PlantState dx;
+  dx.sigma_BN = Vec3(k[0], k[1], k[2]);
+  dx.omega_BN_B = Vec3(k[3], k[4], k[5]);
+  dx.wheel_speed = wheel_accel;
+  return dx;
+}
+
+PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t,
+                          const PlantState& x, double h, const Vec4& u_cmd) {
+  // The mirror of plant.py rk4_step, operation for operation. The wheel
+  // states enter (7) only through hw = Cbar Jw Omega_w and tw = Cbar Jw
+  // Omega_w_dot: a stage's hw is hw0 + c tw_prev (linearity), not Cbar Jw
+  // (Omega_0 + c a_prev), which rounds differently.
+  const Rhs f(p.J0 + p.dJ, p.w0);
+  const WheelMap wheel(p);
+  double s[3], w[3], O[4], sat[4];
+  unpack(x, s, w, O);
+  sat4(a, u_cmd, sat);
+  const double hh = 0.5 * h;
+  const double tm = t + hh;
+  const double te = t + h;
+  double d1[3], dm[3], de[3];
+  dist3(p, t, d1);
+  dist3(p, tm, dm);
+  dist3(p, te, de);
+  const bool limit = any_limit(a);
+  const bool timed = any_fault(a) || limit;
+  double hw[3];
+  wheel(O, hw);
+  // stage accelerations A, B, C, E; wheel torques ta, tb, tc, te_;
+  // stages k1 = (p, q), k2 = (P, Q), k3 = (u, v), k4 = (U, V) as in plant.py
+  double A[4], B[4], C[4], E[4], ta[3], tb[3], tc[3], tE[3];
+  double k1[6], k2[6], k3[6], k4[6], xs[3], xw[3], xh[3], xO[4];
+  // stage 1 at (t, x0)
+  if (timed) accel4(a, t, sat, O, A);
+  else
+    for (int i = 0; i < 4; ++i) A[i] = sat[i];
+  wheel(A, ta);
+  f(s, w, hw, ta, d1, k1);
+  // stage 2 at (t + h/2, x0 + h/2 k1)
+  if (timed) {
+    for (int i = 0; i < 4; ++i) xO[i] = O[i] + hh * A[i];
+    accel4(a, tm, sat, xO, B);
+    wheel(B, tb);
+  } else {
+    for (int i = 0; i < 4; ++i) B[i] = A[i];
+    for (int i = 0; i < 3; ++i) tb[i] = ta[i];
+  }
+  for (int i = 0; i < 3; ++i) {
+    xs[i] = s[i] + hh * k1[i];
+    xw[i] = w[i] + hh * k1[3 + i];
+    xh[i] = hw[i] + hh * ta[i];
+  }
+  f(xs, xw, xh, tb, dm, k2);
+  // stage 3 at (t + h/2, x0 + h/2 k2): without a speed limit, the same
+  // time and acceleration as stage 2
+  if (limit) {
+    for (int i = 0; i < 4; ++i) xO[i] = O[i] + hh * B[i];
+    accel4(a, tm, sat, xO, C);
+    wheel(C, tc);
+  } else {
+    for (int i = 0; i < 4; ++i) C[i] = B[i];
+    for (int i = 0; i < 3; ++i) tc[i] = tb[i];
+  }
+  for (int i = 0; i < 3; ++i) {
+    xs[i] = s[i] + hh * k2[i];
+    xw[i] = w[i] + hh * k2[3 + i];
+    xh[i] = hw[i] + hh * tb[i];
+  }
+  f(xs, xw, xh, tc, dm, k3);
+  // stage 4 at (t + h, x0 + h k3)
+  if (timed) {
+    for (int i = 0; i < 4; ++i) xO[i] = O[i] + h * C[i];
+    accel4(a, te, sat, xO, E);
+    wheel(E, tE);
+  } else {
+    for (int i = 0; i < 4; ++i) E[i] = A[i];
+    for (int i = 0; i < 3; ++i) tE[i] = ta[i];
+  }
+  for (int i = 0; i < 3; ++i) {
+    xs[i] = s[i] + h * k3[i];
+    xw[i] = w[i] + h * k3[3 + i];
+    xh[i] = hw[i] + h * tc[i];
+  }
+  f(xs, xw, xh, tE, de, k4);
+  // x(t + h) = x0 + h/6 (k1 + 2 k2 + 2 k3 + k4)
+  const double h6 = h / 6.0;
+  double sn[3];
+  for (int i = 0; i < 3; ++i) sn[i] = s[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
+  const double ss = sn[0] * sn[0] + sn[1] * sn[1] + sn[2] * sn[2];
+  if (ss > 1.0)  // MRP shadow set: same attitude, |sigma| <= 1
+    for (int i = 0; i < 3; ++i) sn[i] = -sn[i] / ss;
+  PlantState y;
+  for (int i = 0; i < 3; ++i) {
+    y.sigma_BN(i) = sn[i];
+    y.omega_BN_B(i) = w[i] + h6 * (k1[3 + i] + 2.0 * (k2[3 + i] + k3[3 + i]) + k4[3 + i]);
+  }
+  for (int i = 0; i < 4; ++i) y.wheel_speed(i) = O[i] + h6 * (A[i] + 2.0 * (B[i] + C[i]) + E[i]);
+  return y;
+}
+
+Vec3 lumped_disturbance(const PlantParams& p, double t, const PlantState& x, const Vec4& u_sat,
+                        const Vec4& accel) {
+  // As plant.py: omega_dot of (7) with the true J, the actual accelerations
+  // and d(t), minus the model of (21): the same right-hand side with J0 (u_g0
+  // too), the saturated commands and no d:
+  // J0^-1 [-W^ (J0 W + Cbar Jw Omega_w) + u_g0 - Cbar Jw u_sat].
+  const Rhs f(p.J0 + p.dJ, p.w0);
+  const Rhs f0(p.J0, p.w0);
+  const WheelMap wheel(p);
+  double s[3], w[3], O[4], v[4], hw[3], ta[3], tu[3], d[3], a3[6], m3[6];
+  const double zero[3] = {0.0, 0.0, 0.0};
+  unpack(x, s, w, O);
+  wheel(O, hw);
+  for (int i = 0; i < 4; ++i) v[i] = accel(i);
+  wheel(v, ta);
+  for (int i = 0; i < 4; ++i) v[i] = u_sat(i);
+  wheel(v, tu);
+  dist3(p, t, d);
+  f(s, w, hw, ta, d, a3);
+  f0(s, w, hw, tu, zero, m3);
+  return Vec3(a3[3] - m3[3], a3[4] - m3[4], a3[5] - m3[5]);
+}
+
+}  // namespace sc_rt

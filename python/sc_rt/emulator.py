@@ -1,0 +1,337 @@
+"""The plant as an LCM process (``sc-rt emulator``).
+
+Publishes ``plant_state_t`` (SCRT_STATE) and ``plant_truth_t`` (SCRT_TRUTH),
+applies the newest valid ``wheel_cmd_t`` it holds (zero-order hold), with the
+scenario's saturation and faults, and records the run.
+
+- lockstep: publish state k, wait for the command answering k (and the
+  controller's status for k), apply it over one control period. The same
+  loop and arithmetic as ``sim.simulate(engine="python")``: same numbers.
+- realtime: a tick every 1/rate s of wall clock divided by the time scale;
+  at each tick the newest command is applied over the next period; commands
+  older than ``stale_periods`` periods, or invalid, are replaced by zero and
+  flagged (watchdog).
+
+Bad input never stops the loop: every message is decoded under guard and
+counted by kind (``counters``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import select
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import sc_rt_lcm
+
+from . import actuators, plant
+from .actuators import WheelFault
+from .lcmio import channel, decode_guarded, open_lcm
+from .scenario import Scenario
+from .sim import _allocate, _steps, initial_state, with_overrides
+
+__all__ = ["Emulator", "EmulatorResult"]
+
+STATUS_FIELDS = ("sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam")
+
+
+@dataclass
+class EmulatorResult:
+    trajectory: dict[str, np.ndarray]
+    rows: int
+    counters: Counter
+    latency_us: np.ndarray  # state publish -> receipt of the command answering it
+    tick_lateness_us: np.ndarray  # real time: emulator tick behind its deadline
+    status_timing: dict[str, np.ndarray]  # controller-side timing from its status
+    diverged: bool = False
+    gaps: list[tuple[float, float]] = field(default_factory=list)  # [s] sim-time spans without commands
+    faults_applied: list[dict[str, Any]] = field(default_factory=list)
+
+
+class Emulator:
+    def __init__(self, scn: Scenario, *, mode: str = "lockstep", url: str, prefix: str = "",
+                 rate: float | None = None, time_scale: float = 1.0, duration: float | None = None,
+                 accept_fault_commands: bool = False, cmd_timeout: float = 1.0, retries: int = 3,
+                 stale_periods: float | None = None, wait_status: bool = True):
+        if mode not in ("lockstep", "realtime"):
+            raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
+        if not (time_scale > 0 and math.isfinite(time_scale)):
+            raise ValueError(f"time scale must be > 0, got {time_scale}")
+        scn = with_overrides(scn, control_rate_hz=rate, duration=duration)
+        self.scn, self.mode, self.prefix = scn, mode, prefix
+        self.rate = scn.run.control_rate_hz
+        self.duration = scn.run.duration
+        self.time_scale = time_scale
+        self.accept_faults = accept_fault_commands
+        self.cmd_timeout, self.retries = cmd_timeout, retries
+        self.stale_periods = (scn.controller.safety.stale_periods if stale_periods is None
+                              else stale_periods)
+        self.wait_status = wait_status
+        self.lc = open_lcm(url)
+        self.counters: Counter = Counter()
+        self.act = scn.actuators
+        self._cmd: dict[int, Any] = {}  # state seq -> first valid command answering it
+        self._cmd_rx: dict[int, int] = {}  # state seq -> monotonic ns of receipt
+        self._status: dict[int, Any] = {}
+        self._newest_cmd = None
+        self._newest_cmd_ns = 0
+        self._last_cmd_seq = -1
+        self._pub_ns: dict[int, int] = {}
+        self._t_now = 0.0
+        self.faults_applied: list[dict[str, Any]] = []
+        self.lc.subscribe(channel("SCRT_CMD", prefix), self._on_cmd)
+        self.lc.subscribe(channel("SCRT_CTRL_STATUS", prefix), self._on_status)
+        self.lc.subscribe(channel("SCRT_FAULT", prefix), self._on_fault)
+
+    # --- handlers: never raise -------------------------------------------
+    def _on_cmd(self, _ch: str, data: bytes) -> None:
+        now = time.monotonic_ns()
+        self.counters["cmd_received"] += 1
+        msg = decode_guarded(sc_rt_lcm.wheel_cmd_t, data, self.counters)
+        if msg is None:
+            return
+        # any finite command is meaningful: the wheels saturate it (15)
+        if not all(math.isfinite(v) for v in msg.u_cmd):
+            self.counters["invalid_command"] += 1
+            return
+        if msg.seq <= self._last_cmd_seq:
+            self.counters["duplicate" if msg.seq == self._last_cmd_seq else "out_of_order"] += 1
+            # a re-answer of a re-sent state is a duplicate command seq only if
+            # the controller re-published; still usable for that state
+            if msg.state_seq not in self._cmd and msg.state_seq >= 0:
+                self._cmd[msg.state_seq] = msg
+                self._cmd_rx[msg.state_seq] = now
+            return
+        self._last_cmd_seq = msg.seq
+        self._newest_cmd, self._newest_cmd_ns = msg, now
+        if msg.state_seq >= 0 and msg.state_seq not in self._cmd:
+            self._cmd[msg.state_seq] = msg
+            self._cmd_rx[msg.state_seq] = now
+
+    def _on_status(self, _ch: str, data: bytes) -> None:
+        msg = decode_guarded(sc_rt_lcm.controller_status_t, data, self.counters)
+        if msg is not None and msg.state_seq >= 0 and msg.state_seq not in self._status:
+            self._status[msg.state_seq] = msg
+
+    def _on_fault(self, _ch: str, data: bytes) -> None:
+        msg = decode_guarded(sc_rt_lcm.fault_cmd_t, data, self.counters)
+        if msg is None:
+            return
+        if not self.accept_faults:
+            self.counters["fault_ignored"] += 1
+            return
+        try:
+            self._apply_fault(msg)
+            self.counters["fault_applied"] += 1
+        except ValueError as e:
+            self.counters["fault_rejected"] += 1
+            self.faults_applied.append({"rejected": str(e), "wheel": msg.wheel})
+
+    def _apply_fault(self, m) -> None:
+        if not 1 <= m.wheel <= 4:
+            raise ValueError(f"wheel must be 1..4, got {m.wheel}")
+        w = m.wheel - 1
+        others = tuple(f for f in self.act.faults if f.wheel != w)
+        if m.action == sc_rt_lcm.fault_cmd_t.ACTION_CLEAR:
+            new = others
+            rec = {"t": self._t_now, "wheel": m.wheel, "action": "clear"}
+        elif m.action == sc_rt_lcm.fault_cmd_t.ACTION_INJECT:
+            onset = self._t_now if m.now else m.t_onset
+            fault = WheelFault(wheel=w, effectiveness=m.effectiveness, bias=m.bias, onset=onset,
+                               end=None if m.t_end < 0 else m.t_end, rate=m.rate, stuck=bool(m.stuck))
+            new = others + (fault,)
+            rec = {"t": self._t_now, "wheel": m.wheel, "action": "inject",
+                   **{k: getattr(fault, k) for k in ("effectiveness", "bias", "onset", "end", "rate", "stuck")}}
+        else:
+            raise ValueError(f"unknown action {m.action}")
+        self.act = dataclasses.replace(self.act, faults=new)  # validated by ActuatorParams
+        self.faults_applied.append(rec)
+
+    # --- publishing --------------------------------------------------------
+    def _publish_state(self, k: int, t: float, x: np.ndarray) -> None:
+        m = sc_rt_lcm.plant_state_t()
+        m.utime = time.time_ns() // 1000
+        m.seq, m.t = k, t
+        m.sigma_BN = [float(v) for v in x[0:3]]
+        m.omega_BN_B = [float(v) for v in x[3:6]]
+        m.wheel_speed = [float(v) for v in x[6:10]]
+        data = m.encode()
+        self._pub_ns[k] = time.monotonic_ns()
+        self.lc.publish(channel("SCRT_STATE", self.prefix), data)
+
+    def _publish_truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale) -> None:
+        m = sc_rt_lcm.plant_truth_t()
+        m.utime = time.time_ns() // 1000
+        m.seq, m.t, m.cmd_seq_applied = k, t, cmd_seq
+        m.u_cmd = [float(v) for v in u_cmd]
+        m.wheel_accel = [float(v) for v in accel]
+        m.delta2 = [float(v) for v in delta2]
+        m.disturbance = [float(v) for v in plant.disturbance(self.scn.plant, t)]
+        faults = {f.wheel: f for f in self.act.faults}
+        m.fault_Y = [actuators.fault_Y(faults.get(i), t) for i in range(4)]
+        m.fault_effectiveness = [faults[i].effectiveness if i in faults else 1.0 for i in range(4)]
+        m.fault_bias = [faults[i].bias if i in faults else 0.0 for i in range(4)]
+        m.fault_stuck = [1 if i in faults and faults[i].stuck else 0 for i in range(4)]
+        m.cmd_stale = 1 if stale else 0
+        self.lc.publish(channel("SCRT_TRUTH", self.prefix), m.encode())
+
+    def _handle_until(self, deadline_ns: int) -> None:
+        fd = self.lc.fileno()
+        while True:
+            rem = (deadline_ns - time.monotonic_ns()) / 1e9
+            if rem <= 0:
+                # drain what is already there without waiting
+                while select.select([fd], [], [], 0)[0]:
+                    self.lc.handle()
+                return
+            if select.select([fd], [], [], rem)[0]:
+                self.lc.handle()
+
+    # --- the loops -----------------------------------------------------------
+    def run(self) -> EmulatorResult:
+        if self.mode == "lockstep":
+            return self._run_lockstep()
+        return self._run_realtime()
+
+    def _record(self, traj, k, t, x, u_cmd, u_sat_ctrl, accel, delta2) -> None:
+        traj["t"][k] = t
+        traj["sigma_BN"][k] = x[0:3]
+        traj["omega_BN_B"][k] = x[3:6]
+        traj["wheel_speed"][k] = x[6:10]
+        traj["u_cmd"][k] = u_cmd
+        traj["u_sat"][k] = u_sat_ctrl
+        traj["wheel_accel"][k] = accel
+        traj["delta2"][k] = delta2
+
+    def _fill_status(self, traj, rows) -> dict[str, np.ndarray]:
+        timing = {k: np.full(rows, np.nan) for k in ("wake_lateness_us", "compute_us", "state_age_us")}
+        for k in range(rows):
+            s = self._status.get(k)
+            if s is None:
+                continue
+            for name in STATUS_FIELDS:
+                traj[name][k] = getattr(s, name)
+            for name in timing:
+                timing[name][k] = getattr(s, name)
+        return timing
+
+    def _latencies(self, rows: int) -> np.ndarray:
+        return np.array([(self._cmd_rx[k] - self._pub_ns[k]) / 1e3 for k in range(rows)
+                         if k in self._cmd_rx and k in self._pub_ns])
+
+    def _run_lockstep(self) -> EmulatorResult:
+        scn = self.scn
+        n_ctrl, n_sub, h, rate = _steps(scn)
+        traj = _allocate(n_ctrl + 1)
+        x = initial_state(scn)
+        rows, diverged, gaps = 0, False, []
+        gap_start = None
+        for k in range(n_ctrl + 1):
+            t = k / rate
+            self._t_now = t
+            cmd = None
+            for attempt in range(self.retries + 1):
+                if attempt:
+                    self.counters["state_resent"] += 1
+                self._publish_state(k, t, x)
+                deadline = time.monotonic_ns() + int(self.cmd_timeout * 1e9)
+                while time.monotonic_ns() < deadline:
+                    cmd = self._cmd.get(k)
+                    if cmd is not None and (not self.wait_status or k in self._status):
+                        break
+                    rem_ms = max(1, (deadline - time.monotonic_ns()) // 1_000_000)
+                    self.lc.handle_timeout(int(min(rem_ms, 100)))
+                cmd = self._cmd.get(k)
+                if cmd is not None:
+                    break
+            stale = cmd is None
+            if stale:
+                # watchdog: no answer to this state: apply zero, flag, go on
+                self.counters["cmd_timeout"] += 1
+                u_cmd = np.zeros(4)
+                u_sat_ctrl = np.zeros(4)
+                cmd_seq = -1
+                gap_start = t if gap_start is None else gap_start
+            else:
+                u_cmd = np.array(cmd.u_cmd)
+                u_sat_ctrl = np.array(cmd.u_sat)
+                cmd_seq = cmd.seq
+                if gap_start is not None:
+                    gaps.append((gap_start, t))
+                    gap_start = None
+            u_sat, accel, _ = actuators.wheel_accel(self.act, t, u_cmd, x[6:10])
+            delta2 = plant.lumped_disturbance(scn.plant, t, x, u_sat, accel)
+            self._record(traj, k, t, x, u_cmd, u_sat_ctrl, accel, delta2)
+            self._publish_truth(k, t, cmd_seq, u_cmd, accel, delta2, stale)
+            rows = k + 1
+            if k == n_ctrl:
+                break
+            for j in range(n_sub):
+                x = plant.rk4_step(scn.plant, self.act, t + j * h, x, h, u_cmd)
+            if not np.all(np.isfinite(x)):
+                diverged = True
+                break
+        if gap_start is not None:
+            gaps.append((gap_start, traj["t"][rows - 1]))
+        # let the last status arrive
+        self._handle_until(time.monotonic_ns() + 20_000_000)
+        traj = {k: v[:rows] for k, v in traj.items()}
+        timing = self._fill_status(traj, rows)
+        return EmulatorResult(traj, rows, self.counters, self._latencies(rows), np.zeros(0), timing,
+                              diverged, gaps, self.faults_applied)
+
+    def _run_realtime(self) -> EmulatorResult:
+        scn = self.scn
+        n_ticks, n_sub, h, rate = _steps(scn)
+        period = 1.0 / rate
+        wall_period_ns = int(round(period / self.time_scale * 1e9))
+        stale_ns = int(self.stale_periods * wall_period_ns)
+        traj = _allocate(n_ticks + 1)
+        x = initial_state(scn)
+        lateness = np.zeros(n_ticks + 1)
+        rows, diverged, gaps, gap_start = 0, False, [], None
+        self._publish_state(0, 0.0, x)
+        start = time.monotonic_ns()
+        for k in range(n_ticks + 1):
+            t = k * period
+            self._t_now = t
+            deadline = start + (k + 1) * wall_period_ns
+            self._handle_until(deadline)
+            now = time.monotonic_ns()
+            lateness[k] = (now - deadline) / 1e3
+            cmd = self._newest_cmd
+            stale = cmd is None or now - self._newest_cmd_ns > stale_ns
+            if stale:
+                self.counters["cmd_stale_ticks"] += 1
+                u_cmd, u_sat_ctrl, cmd_seq = np.zeros(4), np.zeros(4), -1
+                gap_start = t if gap_start is None else gap_start
+            else:
+                u_cmd, u_sat_ctrl, cmd_seq = np.array(cmd.u_cmd), np.array(cmd.u_sat), cmd.seq
+                if gap_start is not None:
+                    gaps.append((gap_start, t))
+                    gap_start = None
+            u_sat, accel, _ = actuators.wheel_accel(self.act, t, u_cmd, x[6:10])
+            delta2 = plant.lumped_disturbance(scn.plant, t, x, u_sat, accel)
+            self._record(traj, k, t, x, u_cmd, u_sat_ctrl, accel, delta2)
+            self._publish_truth(k, t, cmd_seq, u_cmd, accel, delta2, stale)
+            rows = k + 1
+            if k == n_ticks:
+                break
+            for j in range(n_sub):
+                x = plant.rk4_step(scn.plant, self.act, t + j * h, x, h, u_cmd)
+            if not np.all(np.isfinite(x)):
+                diverged = True
+                break
+            self._publish_state(k + 1, (k + 1) * period, x)
+        if gap_start is not None:
+            gaps.append((gap_start, traj["t"][rows - 1]))
+        self._handle_until(time.monotonic_ns() + 20_000_000)
+        traj = {k: v[:rows] for k, v in traj.items()}
+        timing = self._fill_status(traj, rows)
+        return EmulatorResult(traj, rows, self.counters, self._latencies(rows), lateness[:rows],
+                              timing, diverged, gaps, self.faults_applied)

@@ -1,0 +1,188 @@
+"""``sc-rt hil``: the controller process, the plant emulator and
+``lcm-logger`` on real LCM; a timing report and the run's log.
+
+The emulator runs in this process (it is the test bench's clock in
+lockstep); the controller (``sc-rt-controller``) and the logger (the real
+binary in the lcm wheel) are child processes, stopped cleanly at the end.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .analysis import TRAJECTORY_KEYS, bound_ok, compute_metrics, json_safe
+from .emulator import Emulator, EmulatorResult
+from .lcmio import free_port_url, lcm_binary, open_lcm
+from .scenario import Scenario
+from .sim import with_overrides
+
+__all__ = ["HilResult", "run_hil", "controller_binary", "percentiles"]
+
+
+def controller_binary() -> str:
+    """sc-rt-controller next to this interpreter (the venv's bin), else PATH."""
+    here = Path(sys.executable).parent / "sc-rt-controller"
+    if here.exists():
+        return str(here)
+    found = shutil.which("sc-rt-controller")
+    if not found:
+        raise FileNotFoundError("sc-rt-controller not found: install sc-rt (make install)")
+    return found
+
+
+def percentiles(v: np.ndarray) -> dict[str, float | None]:
+    v = np.asarray(v, float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return {"p50": None, "p99": None, "max": None}
+    return {"p50": float(np.percentile(v, 50)), "p99": float(np.percentile(v, 99)),
+            "max": float(v.max())}
+
+
+@dataclass
+class HilResult:
+    out: Path
+    metrics: dict[str, Any]
+    timing: dict[str, Any]
+    emulator: EmulatorResult
+    controller_summary: dict[str, Any]
+
+
+def _probe_logger(url: str, path: Path, payload: bytes, timeout: float) -> bool:
+    lc = open_lcm(url)
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        lc.publish("SCRT_HIL_START", payload)
+        time.sleep(0.02)
+        if path.exists() and path.stat().st_size > 0:
+            return True
+    return False
+
+
+def _stop(proc: subprocess.Popen, sig: int = signal.SIGTERM, timeout: float = 5.0) -> int:
+    if proc.poll() is None:
+        proc.send_signal(sig)
+        try:
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    return proc.returncode
+
+
+def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None = None,
+            control_rate_hz: float | None = None, duration: float | None = None,
+            lcm_url: str | None = None, prefix: str = "", realtime_priority: bool = False,
+            time_scale: float = 1.0, accept_fault_commands: bool = False,
+            plots: bool = True) -> HilResult:
+    scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
+    law, rate, duration = scn.run.controller, scn.run.control_rate_hz, scn.run.duration
+    url = lcm_url or free_port_url(ttl=0)
+    out.mkdir(parents=True, exist_ok=True)
+    cfg_path = out / "controller_config.bin"
+    cfg_path.write_bytes(scn.controller_config_msg().encode())
+    log_path = out / "run.lcmlog"
+    if log_path.exists():
+        log_path.unlink()
+
+    logger = subprocess.Popen([lcm_binary("lcm-logger"), "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    # a non-empty log means the logger is listening: publish a marker until it
+    # shows up (SCRT_HIL_START carries the scenario name; readers skip it)
+    if not _probe_logger(url, log_path, scn.name.encode(), 5.0):
+        _stop(logger, signal.SIGINT)
+        raise RuntimeError(f"lcm-logger did not start on {url}: {logger.stderr.read().decode()}")
+
+    cmd = [controller_binary(), "--config", str(cfg_path), "--mode", mode, "--lcm-url", url,
+           "--summary", str(out / "controller_summary.json")]
+    if prefix:
+        cmd += ["--prefix", prefix]
+    if realtime_priority:
+        cmd.append("--realtime-priority")
+    ctl = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        # the controller says on stderr when it has subscribed
+        line = ctl.stderr.readline()
+        if "mode on" not in line:
+            rest = ctl.stderr.read() if ctl.poll() is not None else ""
+            raise RuntimeError(f"sc-rt-controller did not start: {line}{rest}")
+        emu = Emulator(scn, mode=mode, url=url, prefix=prefix, time_scale=time_scale,
+                       accept_fault_commands=accept_fault_commands)
+        t0 = time.perf_counter()
+        res = emu.run()
+        wall = time.perf_counter() - t0
+    finally:
+        _stop(ctl, signal.SIGTERM)
+        ctl_err = ctl.stderr.read() if ctl.stderr else ""
+        time.sleep(0.15)  # one logger flush interval
+        _stop(logger, signal.SIGINT)
+    summary_path = out / "controller_summary.json"
+    summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
+    if ctl_err.strip():
+        (out / "controller_stderr.txt").write_text(ctl_err)
+
+    traj = dict(res.trajectory)
+    traj["bound_ok"] = bound_ok(scn.controller.ppc, traj["t"], traj["sigma_BD"])
+    metrics = compute_metrics(traj, scenario=scn.name, controller=law, engine=f"hil-{mode}",
+                              control_rate_hz=rate, duration_s=duration, wall_s=wall)
+    if res.diverged:
+        metrics["diverged"] = True
+        metrics["finite"] = False
+    timing = timing_report(mode, rate, res, summary, wall)
+    np.savez_compressed(out / "trajectory.npz", **{k: traj[k] for k in TRAJECTORY_KEYS},
+                        **{f"timing_{k}": v for k, v in res.status_timing.items()},
+                        latency_us=res.latency_us, tick_lateness_us=res.tick_lateness_us)
+    (out / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2) + "\n")
+    (out / "timing.json").write_text(json.dumps(json_safe(timing), indent=2) + "\n")
+    if plots:
+        from . import plots as plots_mod
+
+        plots_mod.timing_figures(res, out)
+        plots_mod.tracking_figures(traj, scn, out, title=f"{scn.name}, {law}, HIL {mode}")
+    return HilResult(out, metrics, timing, res, summary)
+
+
+def timing_report(mode: str, rate: float, res: EmulatorResult, summary: dict[str, Any],
+                  wall: float) -> dict[str, Any]:
+    """timing.json: the controller's own measurements (from its status
+    messages and exit summary) and the emulator's (state-to-command latency)."""
+    st = res.status_timing
+    c = res.counters
+    ctl_rej = summary.get("rejected", {})
+    return {
+        "mode": mode,
+        "control_rate_hz": rate,
+        "steps": int(summary.get("steps", res.rows)),
+        "deadline_misses": int(summary.get("deadline_misses", 0)),
+        "wake_lateness_us": percentiles(st["wake_lateness_us"]) if mode == "realtime"
+        else {"p50": None, "p99": None, "max": None},
+        "compute_us": percentiles(st["compute_us"]),
+        "state_to_cmd_latency_us": percentiles(res.latency_us),
+        "state_age_us": percentiles(st["state_age_us"]),
+        "stale_states": int(summary.get("stale_states", 0)),
+        "dropped": int(c.get("cmd_timeout", 0) + c.get("cmd_stale_ticks", 0)),
+        "malformed": int(ctl_rej.get("malformed", 0) + ctl_rej.get("trailing_bytes", 0)
+                         + c.get("malformed", 0) + c.get("trailing_bytes", 0)),
+        "scheduler": summary.get("scheduler", "unknown"),
+        "rows": res.rows,
+        "wall_s": wall,
+        "steps_per_s": res.rows / wall if wall > 0 else None,
+        "emulator_tick_lateness_us": percentiles(res.tick_lateness_us) if mode == "realtime"
+        else {"p50": None, "p99": None, "max": None},
+        "controller_rejected": ctl_rej,
+        "controller_safe_steps": int(summary.get("safe_steps", 0)),
+        "emulator_counters": dict(c),
+        "command_gaps_s": [list(g) for g in res.gaps],
+        "faults_applied": res.faults_applied,
+    }

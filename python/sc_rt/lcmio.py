@@ -1,0 +1,85 @@
+"""LCM plumbing shared by the emulator, the HIL runner, the monitor and the
+report: URLs, channel names, guarded decoding, the wheel's real binaries."""
+
+from __future__ import annotations
+
+import os
+import socket
+import struct
+from collections import Counter
+from pathlib import Path
+
+import lcm
+
+__all__ = ["DEFAULT_URL", "CHANNELS", "channel", "decode_guarded", "lcm_prefix", "lcm_binary",
+           "free_port_url", "open_lcm"]
+
+#: Nothing leaves the machine: ttl=0.
+DEFAULT_URL = "udpm://239.255.76.67:7667?ttl=0"
+
+#: Channel -> (LCM type name, who publishes, rate).
+CHANNELS = {
+    "SCRT_STATE": ("plant_state_t", "emulator", "one per plant publish period"),
+    "SCRT_CMD": ("wheel_cmd_t", "controller", "one per control step"),
+    "SCRT_TRUTH": ("plant_truth_t", "emulator", "one per plant state"),
+    "SCRT_CTRL_STATUS": ("controller_status_t", "controller", "one per control step"),
+    "SCRT_FAULT": ("fault_cmd_t", "sc-rt fault", "on demand"),
+    "SCRT_CONFIG": ("controller_config_t", "sc-rt hil", "once at start (controller --config-channel)"),
+}
+
+
+def channel(name: str, prefix: str = "") -> str:
+    if name not in CHANNELS:
+        raise KeyError(f"unknown sc-rt channel {name!r}")
+    return prefix + name
+
+
+def decode_guarded(cls, data: bytes, counts: Counter) -> object | None:
+    """Decode ``data`` as ``cls``; count and drop anything that is not exactly
+    one well-formed message (lcm's Python decode raises ValueError on a wrong
+    fingerprint and struct.error on truncation, and accepts trailing bytes)."""
+    try:
+        msg = cls.decode(data)
+    except (ValueError, struct.error, IndexError, UnicodeDecodeError, TypeError):
+        counts["malformed"] += 1
+        return None
+    if len(msg.encode()) != len(data):
+        counts["trailing_bytes"] += 1
+        return None
+    return msg
+
+
+def lcm_prefix() -> Path:
+    """The folder of the lcm wheel holding bin/, lib/, share/java."""
+    return Path(lcm.__file__).resolve().parent.parent
+
+
+def lcm_binary(name: str) -> str:
+    """The real binary inside the wheel (the venv's bin/ has Python wrappers
+    that orphan the tool on SIGTERM)."""
+    p = lcm_prefix() / "bin" / name
+    if not p.exists():
+        raise FileNotFoundError(f"{name} not found in the lcm wheel at {p}")
+    return str(p)
+
+
+def free_port_url(ttl: int = 0, group: str = "239.255.76.67") -> str:
+    """A udpm URL on a port free on this machine, so parallel runs never cross."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("", 0))
+        port = s.getsockname()[1]
+    return f"udpm://{group}:{port}?ttl={ttl}"
+
+
+def open_lcm(url: str) -> lcm.LCM:
+    try:
+        return lcm.LCM(url)
+    except RuntimeError as e:
+        raise RuntimeError(
+            f"cannot start LCM on {url}: {e}. LCM needs a multicast route: as root, "
+            "`ip route add 224.0.0.0/4 dev lo` (the tests do it in a private network "
+            "namespace)") from e
+
+
+def env_url() -> str:
+    return os.environ.get("SCRT_LCM_URL", DEFAULT_URL)

@@ -1,0 +1,833 @@
+"""Scenario files: the one source of truth for a run (docs/SCENARIOS.md).
+
+A scenario is a TOML file that states the physical model explicitly (inertia,
+wheels, limits, disturbance, initial state, desired trajectory, faults, run
+timing); controller gains may be left out and then take the paper's values
+(MODEL.md section 8), which come from the C++ config structs
+(``sc_rt._core.ControllerConfig()``), so no second copy of them exists.
+
+``load_scenario`` parses and validates a file once and returns a frozen
+:class:`Scenario`. Every problem of a file is reported together in one
+:class:`ScenarioError` naming the file, line, dotted key and bad value.
+The controller receives its part as an LCM ``controller_config_t``
+(:meth:`Scenario.controller_config_msg`); :meth:`Scenario.core_config`
+decodes those bytes with the same C++ translator as the real-time process.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import re
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from sc_rt_lcm import controller_config_t
+
+from . import _core
+from ._core import mrp_to_dcm
+from .actuators import ActuatorParams, WheelFault
+from .combined import RigidBody, combine
+from .plant import DisturbanceParams, PlantParams
+
+__all__ = [
+    "LAWS",
+    "ControllerParams",
+    "DscGains",
+    "GuidanceParams",
+    "InitialState",
+    "NesoParams",
+    "PdGains",
+    "PpcParams",
+    "RftGains",
+    "RunParams",
+    "SafetyLimits",
+    "Scenario",
+    "ScenarioError",
+    "ScenarioIssue",
+    "load_scenario",
+]
+
+# Control-law names <-> controller_config_t.LAW_* (and sc_rt._core.Law).
+LAWS = {"dsc-ppc": 0, "dsc": 1, "pd": 2, "rft": 3}
+
+_PAPER = _core.ControllerConfig()  # the paper's controller values (C++ defaults)
+_FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
+
+
+# --------------------------------------------------------------------------- #
+# Field specifications: what a TOML value must look like. A dataclass below
+# carries one in each field's metadata, so the dataclass is the schema.
+
+
+@dataclass(frozen=True)
+class _Spec:
+    kind: str  # "number" | "int" | "bool" | "str" | "vector" | "matrix"
+    shape: tuple[int, ...] = ()  # (n,) for a vector, (rows, cols) for a matrix
+    scalar_ok: bool = False  # a vector may be given as one number for all
+    gt: float | None = None
+    ge: float | None = None
+    le: float | None = None
+    allow_inf: bool = False  # +inf is a valid value (a limit that is "none")
+    mrp: bool = False  # a 3-vector that must satisfy |sigma| <= 1
+    choices: tuple[str, ...] = ()
+
+
+def _spec(kind: str, **kw: Any) -> dict[str, _Spec]:
+    return {"spec": _Spec(kind, **kw)}
+
+
+def _vec(n: int, **kw: Any) -> dict[str, _Spec]:
+    return _spec("vector", shape=(n,), **kw)
+
+
+def _ro(a: Any) -> np.ndarray:
+    """A read-only float copy: the dataclasses holding it are frozen."""
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def _paper(get: Any, metadata: dict[str, _Spec]) -> Any:
+    """A vector field whose default comes from the C++ config structs (the paper's values)."""
+    return field(default_factory=lambda: _ro(get(_PAPER)), metadata=metadata)
+
+
+# --------------------------------------------------------------------------- #
+# The typed scenario.
+
+
+@dataclass(frozen=True)
+class RunParams:
+    """Run timing and the control law."""
+
+    duration: float = field(metadata=_spec("number", gt=0))  # [s]
+    control_rate_hz: float = field(metadata=_spec("number", gt=0))  # [Hz]
+    # [s] plant integration step; the control period is an integer multiple
+    plant_step: float = field(metadata=_spec("number", gt=0))
+    controller: str = field(metadata=_spec("str", choices=tuple(LAWS)))  # law name, LAWS
+
+    @property
+    def control_period(self) -> float:
+        """[s] 1 / control_rate_hz."""
+        return 1.0 / self.control_rate_hz
+
+    @property
+    def plant_substeps(self) -> int:
+        """Plant steps per control period."""
+        return round(self.control_period / self.plant_step)
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """Plant state at t = 0."""
+
+    sigma_BN: np.ndarray = field(metadata=_vec(3, mrp=True))  # [-] MRP, |sigma| <= 1
+    omega_BN_B: np.ndarray = field(metadata=_vec(3))  # [rad/s]
+    wheel_speed: np.ndarray = field(metadata=_vec(4))  # [rad/s] relative to the body
+
+
+@dataclass(frozen=True)
+class GuidanceParams:
+    """Desired trajectory (mirror of C++ sc_rt::GuidanceParams):
+    omega_DN_D(t) = omega_bias + omega_cos cos(omega_freq t) + omega_sin sin(omega_freq t).
+    """
+
+    sigma_d0: np.ndarray = field(metadata=_vec(3, mrp=True))  # [-] sigma_DN at t = 0
+    omega_bias: np.ndarray = field(metadata=_vec(3))  # [rad/s]
+    omega_cos: np.ndarray = field(metadata=_vec(3))  # [rad/s]
+    omega_sin: np.ndarray = field(metadata=_vec(3))  # [rad/s]
+    omega_freq: float = field(metadata=_spec("number", ge=0))  # [rad/s]
+
+
+@dataclass(frozen=True)
+class PpcParams:
+    """Prescribed performance (29)-(35), per axis; defaults: Table 1."""
+
+    chi0: np.ndarray = _paper(lambda c: c.ppc.chi0, _vec(3, gt=0))  # [-] chi(0) >= chiinf
+    chiinf: np.ndarray = _paper(lambda c: c.ppc.chiinf, _vec(3, gt=0))  # [-] chi(inf)
+    gamma: np.ndarray = _paper(lambda c: c.ppc.gamma, _vec(3, ge=0))  # [1/s] decay rate
+    dmin: np.ndarray = _paper(lambda c: c.ppc.dmin, _vec(3, gt=0))  # [-] lower bound factor
+    dmax: np.ndarray = _paper(lambda c: c.ppc.dmax, _vec(3, gt=0))  # [-] upper bound factor
+
+
+@dataclass(frozen=True)
+class NesoParams:
+    """Observer (22); defaults: the paper's kappa1..kappa4 = 0.2, 0.03, 0.08, 0.06 I, alpha 0.7."""
+
+    k1: np.ndarray = _paper(lambda c: c.neso.k1, _vec(3, scalar_ok=True, gt=0))  # kappa1 diag
+    k2: np.ndarray = _paper(lambda c: c.neso.k2, _vec(3, scalar_ok=True, gt=0))  # kappa2 diag
+    k3: np.ndarray = _paper(lambda c: c.neso.k3, _vec(3, scalar_ok=True, gt=0))  # kappa3 diag
+    k4: np.ndarray = _paper(lambda c: c.neso.k4, _vec(3, scalar_ok=True, gt=0))  # kappa4 diag
+    alpha: float = field(default=_PAPER.neso.alpha, metadata=_spec("number", ge=0.5, le=1.0))
+    # RK4 steps of the observer per control period
+    substeps: int = field(default=_PAPER.neso.substeps, metadata=_spec("int", ge=1, le=10000))
+    # z1(t0) = measured x2(t0) instead of 0 (paper: 0)
+    init_from_measurement: bool = field(
+        default=_PAPER.neso.init_from_measurement, metadata=_spec("bool")
+    )
+
+
+@dataclass(frozen=True)
+class DscGains:
+    """Dynamic surface control (36)-(42); defaults: the paper's."""
+
+    k1: float = field(default=_PAPER.dsc.k1, metadata=_spec("number", gt=0))  # [1/s] (36)
+    k2: float = field(default=_PAPER.dsc.k2, metadata=_spec("number", gt=0))  # [1/s] (41)
+    k3: float = field(default=_PAPER.dsc.k3, metadata=_spec("number", ge=0))  # [-] (41)
+    k4: float = field(default=_PAPER.dsc.k4, metadata=_spec("number", gt=0))  # [1/s] (42)
+    k6: float = field(default=_PAPER.dsc.k6, metadata=_spec("number", gt=0))  # [-] Theorem 1
+    tau: float = field(default=_PAPER.dsc.tau, metadata=_spec("number", gt=0))  # [s] (37)
+
+
+@dataclass(frozen=True)
+class PdGains:
+    """PD baseline uc = -B+ (beta1 x1 + beta2 x2); not from the paper."""
+
+    beta1: float = field(default=_PAPER.pd.beta1, metadata=_spec("number", gt=0))  # [1/s^2]
+    beta2: float = field(default=_PAPER.pd.beta2, metadata=_spec("number", gt=0))  # [1/s]
+
+
+@dataclass(frozen=True)
+class RftGains:
+    """RFT baseline, adaptive sliding mode (docs/CORE.md); not from the paper."""
+
+    c: float = field(default=_PAPER.rft.c, metadata=_spec("number", gt=0))  # [1/s]
+    k: float = field(default=_PAPER.rft.k, metadata=_spec("number", gt=0))  # [1/s]
+    gain: float = field(default=_PAPER.rft.gain, metadata=_spec("number", ge=0))  # [1/s]
+    leak: float = field(default=_PAPER.rft.leak, metadata=_spec("number", ge=0))  # [1/s]
+    phi: float = field(default=_PAPER.rft.phi, metadata=_spec("number", gt=0))  # [rad/s]
+    rho0: float = field(default=_PAPER.rft.rho0, metadata=_spec("number", ge=0))  # [rad/s^2]
+
+
+@dataclass(frozen=True)
+class SafetyLimits:
+    """The controller's safe-mode limits; not from the paper."""
+
+    # [rad/s] a measured |omega| beyond this is rejected
+    max_rate: float = field(default=_PAPER.safety.max_rate, metadata=_spec("number", gt=0))
+    # [rad/s] a measured |wheel speed| beyond this is rejected
+    max_wheel_speed: float = field(
+        default=_PAPER.safety.max_wheel_speed, metadata=_spec("number", gt=0)
+    )
+    # control periods without a fresh state before SAFE
+    stale_periods: float = field(
+        default=_PAPER.safety.stale_periods, metadata=_spec("number", gt=0)
+    )
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """Every controller gain and limit; ControllerParams() is the paper's controller."""
+
+    ppc: PpcParams = field(default_factory=PpcParams)
+    neso: NesoParams = field(default_factory=NesoParams)
+    dsc: DscGains = field(default_factory=DscGains)
+    pd: PdGains = field(default_factory=PdGains)
+    rft: RftGains = field(default_factory=RftGains)
+    safety: SafetyLimits = field(default_factory=SafetyLimits)
+    # [-] damping of B+ = B'(BB' + damping^2 I)^-1; 0: exact pseudo-inverse
+    pinv_damping: float = field(
+        default=_PAPER.spacecraft.pinv_damping, metadata=_spec("number", ge=0)
+    )
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One run, validated. Build it with :func:`load_scenario`."""
+
+    name: str
+    description: str
+    path: Path
+    run: RunParams
+    plant: PlantParams
+    actuators: ActuatorParams
+    initial: InitialState
+    guidance: GuidanceParams
+    controller: ControllerParams
+
+    def with_run(self, **changes: Any) -> Scenario:
+        """A copy with run fields replaced (CLI overrides), validated like the file.
+
+        ``changes`` are RunParams fields (``controller``, ``control_rate_hz``,
+        ``duration``, ``plant_step``); a value of None keeps the current one.
+        Raises ScenarioError naming the override.
+        """
+        changes = {k: v for k, v in changes.items() if v is not None}
+        doc = _Doc(f"{self.path} (override)", {})
+        run = _read_run(_Table(doc, "run", {**dataclasses.asdict(self.run), **changes}))
+        if doc.errors:
+            raise ScenarioError(doc.path, doc.errors)
+        return dataclasses.replace(self, run=run)
+
+    def controller_config_msg(
+        self, law: str | None = None, control_rate_hz: float | None = None
+    ) -> controller_config_t:
+        """The controller's part of the scenario as an LCM message, every field filled.
+
+        ``law`` and ``control_rate_hz`` override the run's values.
+        """
+        law = self.run.controller if law is None else law
+        rate = self.run.control_rate_hz if control_rate_hz is None else control_rate_hz
+        for name, value in (("controller", law), ("control_rate_hz", rate)):
+            _, problem = _convert(value, _field_spec(RunParams, name))
+            if problem:
+                raise ValueError(f"{name} {problem}, got {value!r}")
+        p, a, g, c = self.plant, self.actuators, self.guidance, self.controller
+        m = controller_config_t()
+        m.utime = time.time_ns() // 1000
+        m.scenario = self.name
+        m.law = LAWS[law]
+        m.control_rate_hz = float(rate)
+        m.J0 = p.J0.tolist()
+        m.Cbar = p.Cbar.tolist()
+        m.Jw = p.Jw.tolist()
+        m.umin = a.umin.tolist()
+        m.umax = a.umax.tolist()
+        m.w0 = float(p.w0)
+        m.sigma_d0 = g.sigma_d0.tolist()
+        m.omega_d_bias = g.omega_bias.tolist()
+        m.omega_d_cos = g.omega_cos.tolist()
+        m.omega_d_sin = g.omega_sin.tolist()
+        m.omega_d_freq = float(g.omega_freq)
+        # The wire names are the field names with a prefix (safety: none).
+        for prefix, group in (("ppc_", c.ppc), ("neso_", c.neso), ("dsc_", c.dsc),
+                              ("pd_", c.pd), ("rft_", c.rft), ("", c.safety)):  # fmt: skip
+            for f in dataclasses.fields(group):
+                value = getattr(group, f.name)
+                wire = value.tolist() if isinstance(value, np.ndarray) else value
+                setattr(m, prefix + f.name, wire)
+        m.pinv_damping = float(c.pinv_damping)
+        return m
+
+    def core_config(
+        self, law: str | None = None, control_rate_hz: float | None = None
+    ) -> _core.ControllerConfig:
+        """The C++ config, decoded from the LCM bytes as the real-time process does."""
+        msg = self.controller_config_msg(law, control_rate_hz)
+        return _core.ControllerConfig.from_lcm_bytes(msg.encode())
+
+
+# --------------------------------------------------------------------------- #
+# Errors.
+
+
+class ScenarioIssue(NamedTuple):
+    """One problem of a scenario file."""
+
+    line: int  # 1-based; 0 when no line applies
+    key: str  # dotted key, e.g. "controller.ppc.chi0" or "faults[1].wheel"
+    value: Any  # the value as read from the file; None when the key is missing
+    message: str
+
+
+class ScenarioError(ValueError):
+    """A scenario file is unreadable or invalid; ``errors`` lists every problem."""
+
+    def __init__(self, path: str | Path, errors: list[ScenarioIssue]):
+        self.path = str(path)
+        self.errors = sorted(errors, key=lambda e: e.line)
+        super().__init__("\n".join(_format_issue(self.path, e) for e in self.errors))
+
+
+def _format_issue(path: str, e: ScenarioIssue) -> str:
+    where = f"{path}:{e.line}: " if e.line else f"{path}: "
+    what = e.key + ("" if e.value is None else f" = {_fmt(e.value)}")
+    return f"{where}{what}: {e.message}" if what else f"{where}{e.message}"
+
+
+def _fmt(v: Any) -> str:
+    """A value as TOML would write it."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{...}"  # a table: its keys are reported one by one
+    return str(v)
+
+
+# --------------------------------------------------------------------------- #
+# Line locator: tomllib gives no positions, so scan the text for table headers
+# and "key =" lines (best effort; multi-line arrays and strings are skipped).
+
+_HEADER_RE = re.compile(r"^\s*(\[\[?)\s*([^\[\]]+?)\s*\]\]?\s*(?:#.*)?$")
+_KEY_PART = r"""(?:[\w-]+|"[^"]*"|'[^']*')"""
+_KEY_RE = re.compile(rf"^\s*({_KEY_PART}(?:\s*\.\s*{_KEY_PART})*)\s*=")
+_KEY_PART_RE = re.compile(r""""([^"]*)"|'([^']*)'|([^.\s]+)""")
+_STRING_RE = re.compile(r""""(?:\\.|[^"\\])*"|'[^']*'""")
+
+
+def _split_key(text: str) -> list[str]:
+    return ["".join(p) for p in _KEY_PART_RE.findall(text)]
+
+
+def _bracket_depth(text: str) -> int:
+    code = _STRING_RE.sub("", text).split("#", 1)[0]
+    return code.count("[") + code.count("{") - code.count("]") - code.count("}")
+
+
+def _key_lines(text: str) -> dict[str, int]:
+    """Dotted key (``a.b.c``, ``faults[0].wheel``) -> its 1-based line."""
+    lines: dict[str, int] = {}
+    table: list[str] = []
+    array_counts: dict[str, int] = {}
+    depth, open_string = 0, ""
+    for n, line in enumerate(text.splitlines(), 1):
+        if open_string:  # inside a multi-line string
+            open_string = "" if open_string in line else open_string
+            continue
+        if depth > 0:  # inside a multi-line array or inline table
+            depth += _bracket_depth(line)
+            continue
+        if m := _HEADER_RE.match(line):
+            table = _split_key(m.group(2))
+            if m.group(1) == "[[":  # array of tables: name the element by its index
+                base = ".".join(table)
+                table[-1] += f"[{array_counts.get(base, 0)}]"
+                array_counts[base] = array_counts.get(base, 0) + 1
+            lines.setdefault(".".join(table), n)
+        elif m := _KEY_RE.match(line):
+            lines.setdefault(".".join(table + _split_key(m.group(1))), n)
+            rest = line[m.end() :]
+            open_string = next((q for q in ('"""', "'''") if rest.count(q) % 2), "")
+            depth = _bracket_depth(rest)
+    return lines
+
+
+# --------------------------------------------------------------------------- #
+# Reading: typed values out of the parsed TOML, every problem collected.
+
+_REQUIRED = object()
+
+
+class _Doc:
+    """The file being read: its path, key lines and the problems found."""
+
+    def __init__(self, path: str, lines: dict[str, int]):
+        self.path = path
+        self.lines = lines
+        self.errors: list[ScenarioIssue] = []
+
+    def line_of(self, key: str) -> int:
+        """Line of ``key``, else of its nearest enclosing table, else 0."""
+        while key:
+            if key in self.lines:
+                return self.lines[key]
+            key = key.rpartition(".")[0]
+        return 0
+
+    def error(self, key: str, value: Any, message: str) -> None:
+        self.errors.append(ScenarioIssue(self.line_of(key), key, value, message))
+
+
+def _bounds(s: _Spec) -> str:
+    lo = f"[{s.ge:g}" if s.ge is not None else f"({s.gt:g}" if s.gt is not None else None
+    if lo and s.le is not None:
+        return f"in {lo}, {s.le:g}]"
+    return f">= {s.ge:g}" if s.ge is not None else f"> {s.gt:g}" if s.gt is not None else ""
+
+
+def _in_bounds(x: float, s: _Spec) -> bool:
+    return (
+        (s.gt is None or x > s.gt) and (s.ge is None or x >= s.ge) and (s.le is None or x <= s.le)
+    )
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _convert(v: Any, s: _Spec) -> tuple[Any, str]:
+    """(typed value, "") or (None, what is wrong)."""
+    if s.kind == "bool":
+        return (v, "") if isinstance(v, bool) else (None, "must be true or false")
+    if s.kind == "str":
+        if not isinstance(v, str):
+            return None, "must be a string"
+        if s.choices and v not in s.choices:
+            return None, "must be one of " + ", ".join(f'"{c}"' for c in s.choices)
+        return v, ""
+    if s.kind == "int" and not (isinstance(v, int) and not isinstance(v, bool)):
+        return None, "must be an integer"
+    if s.kind in ("number", "int"):
+        if not _is_number(v):
+            return None, "must be a number"
+        if not (math.isfinite(v) or (s.allow_inf and v == math.inf)):
+            return None, "must be finite"
+        if not _in_bounds(v, s):
+            return None, f"must be {_bounds(s)}"
+        return (v if s.kind == "int" else float(v)), ""
+    # vector or matrix
+    if s.kind == "vector" and s.scalar_ok and _is_number(v):
+        v = [v] * s.shape[0]
+    shape_text = (
+        f"a list of {s.shape[0]} numbers" + (" or one number" if s.scalar_ok else "")
+        if s.kind == "vector"
+        else f"a {s.shape[0]}x{s.shape[1]} array ({s.shape[0]} rows of {s.shape[1]} numbers)"
+    )
+    rows = v if s.kind == "matrix" and isinstance(v, list) else [v]
+    if not (
+        isinstance(v, list)
+        and len(rows) == (s.shape[0] if s.kind == "matrix" else 1)
+        and all(isinstance(r, list) and len(r) == s.shape[-1] for r in rows)
+        and all(_is_number(x) for r in rows for x in r)
+    ):
+        return None, f"must be {shape_text}"
+    a = np.array(v, dtype=float)
+    if not np.all(np.isfinite(a) | (s.allow_inf & (a == np.inf))):
+        return None, "must be finite"
+    if not all(_in_bounds(x, s) for x in a.flat):
+        return None, f"must have every element {_bounds(s)}"
+    if s.mrp and np.linalg.norm(a) > 1.0 + 1e-12:
+        norm = np.linalg.norm(a)
+        return None, f"must be an MRP with norm <= 1, got norm {norm:.4g} (MRP, not degrees?)"
+    return _ro(a), ""
+
+
+class _Table:
+    """One TOML table being read. data None: missing or broken (reported once)."""
+
+    def __init__(self, doc: _Doc, key: str, data: dict[str, Any] | None):
+        self.doc, self.key, self.data = doc, key, data
+        self.used: set[str] = set()
+
+    def dotted(self, name: str) -> str:
+        return f"{self.key}.{name}" if self.key else name
+
+    def has(self, name: str) -> bool:
+        return self.data is not None and name in self.data
+
+    def raw(self, name: str) -> Any:
+        return self.data.get(name) if self.data is not None else None
+
+    def sub(self, name: str, required: bool = True) -> _Table:
+        """The sub-table ``name``; an optional missing one reads as empty."""
+        self.used.add(name)
+        key = self.dotted(name)
+        if self.data is None:
+            return _Table(self.doc, key, None)
+        if name not in self.data:
+            if required:
+                self.doc.error(key, None, "required table is missing")
+            return _Table(self.doc, key, None if required else {})
+        value = self.data[name]
+        if not isinstance(value, dict):
+            self.doc.error(key, value, f"{name} must be a table")
+            return _Table(self.doc, key, None)
+        return _Table(self.doc, key, value)
+
+    def read(self, name: str, spec: _Spec, default: Any = _REQUIRED, missing: str = "") -> Any:
+        """The typed value of ``name``, its default, or None after reporting a problem."""
+        self.used.add(name)
+        if self.data is None:
+            return None
+        if name not in self.data:
+            if default is _REQUIRED:
+                self.doc.error(self.dotted(name), None, missing or "required key is missing")
+                return None
+            return default
+        value, problem = _convert(self.data[name], spec)
+        if problem:
+            self.doc.error(self.dotted(name), self.data[name], f"{name} {problem}")
+        return value
+
+    def fail(self, name: str, message: str) -> None:
+        """Report a problem of a key that read well (a cross-check)."""
+        self.doc.error(self.dotted(name), self.raw(name), message)
+
+    def finish(self) -> None:
+        """Report every key that was never read."""
+        for name, value in (self.data or {}).items():
+            if name not in self.used:
+                close = difflib.get_close_matches(name, self.used, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                kind = "table" if isinstance(value, dict) else "key"
+                self.doc.error(self.dotted(name), value, f"unknown {kind}{hint}")
+
+
+def _field_spec(cls: type, name: str) -> _Spec:
+    return next(f.metadata["spec"] for f in dataclasses.fields(cls) if f.name == name)
+
+
+def _read_fields(t: _Table, cls: type) -> Any:
+    """An instance of dataclass ``cls`` from table ``t`` (None if any field failed)."""
+    values = _read_values(t, cls)
+    return None if any(v is None for v in values.values()) else cls(**values)
+
+
+def _read_values(t: _Table, cls: type) -> dict[str, Any]:
+    """The fields of dataclass ``cls`` from table ``t``, None for each that failed.
+
+    The fields' metadata hold the specs, their defaults the defaults.
+    """
+    values = {}
+    for f in dataclasses.fields(cls):
+        if f.default is not dataclasses.MISSING:
+            default = f.default
+        elif f.default_factory is not dataclasses.MISSING:
+            default = f.default_factory()
+        else:
+            default = _REQUIRED
+        values[f.name] = t.read(f.name, f.metadata["spec"], default)
+    t.finish()
+    return values
+
+
+def _build(t: _Table, cls: type, nullable: tuple[str, ...] = (), **fields: Any) -> Any:
+    """``cls(**fields)`` once every field read well (is not None, but for
+    ``nullable`` ones), else None.
+
+    The plant's and actuators' dataclasses validate themselves too; a
+    problem only they see is reported on the table instead of escaping.
+    """
+    if any(v is None for k, v in fields.items() if k not in nullable):
+        return None
+    try:
+        return cls(**fields)
+    except ValueError as e:
+        t.doc.error(t.key, None, str(e))
+        return None
+
+
+def _read_run(t: _Table) -> RunParams | None:
+    v = _read_values(t, RunParams)
+    rate, step = v["control_rate_hz"], v["plant_step"]
+    if rate is not None and step is not None:
+        n = 1.0 / (rate * step)  # plant steps per control period
+        if abs(n - round(n)) > 1e-9 * n:  # also catches n < 1/2 (round(n) = 0)
+            t.fail(
+                "plant_step",
+                f"the control period 1/control_rate_hz = {1.0 / rate:g} s must be an "
+                f"integer multiple of plant_step (it is {n:.6g} steps)",
+            )
+            return None
+    return None if any(x is None for x in v.values()) else RunParams(**v)
+
+
+_MAT33 = _Spec("matrix", shape=(3, 3))
+_MAT34 = _Spec("matrix", shape=(3, 4))
+_WHEELS = _Spec("vector", shape=(4,), scalar_ok=True)
+_V3 = _Spec("vector", shape=(3,))
+
+
+def _inertia_problem(J: np.ndarray) -> str:
+    """Why J is not a rigid body's inertia matrix ("" if it is one)."""
+    if np.abs(J - J.T).max() > 1e-9 * np.abs(J).max():
+        return "must be symmetric"
+    moments = np.linalg.eigvalsh(J)
+    if moments[0] <= 0:
+        return f"must be positive definite (eigenvalues {_fmt(np.round(moments, 6))})"
+    if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+        return (
+            f"is not a rigid body's inertia: principal moments {_fmt(np.round(moments, 6))} "
+            "break the triangle inequality I1 + I2 >= I3"
+        )
+    return ""
+
+
+def _wheel_axes_problem(C: np.ndarray) -> str:
+    """Why C cannot be a wheel matrix ("" if it can); the checks of C++ validate()."""
+    norms = np.linalg.norm(C, axis=0)
+    if np.any(np.abs(norms - 1.0) > 1e-2):
+        return f"columns must be unit spin axes (norms {_fmt(np.round(norms, 4))})"
+    sv = np.linalg.svd(C, compute_uv=False)
+    if sv[2] < 1e-6 * sv[0]:
+        return "is rank-deficient: the wheels cannot produce torque about every axis"
+    return ""
+
+
+def _read_checked(t: _Table, name: str, spec: _Spec, problem_of: Any, missing: str = "") -> Any:
+    """A required value that must also pass ``problem_of`` (returns "" when fine)."""
+    value = t.read(name, spec, missing=missing)
+    if value is not None and (problem := problem_of(value)):
+        t.fail(name, f"{name} {problem}")
+        return None
+    return value
+
+
+def _read_capture(t: _Table) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """(J0, Cbar) of the combined spacecraft from [spacecraft.capture]."""
+    frame = t.read("frame", _Spec("str", choices=("service", "principal")), default="service")
+    s, g = t.sub("service"), t.sub("target")
+    mass = _Spec("number", gt=0)
+    service = (
+        s.read("mass", mass),
+        _read_checked(s, "inertia", _MAT33, _inertia_problem),
+        _read_checked(s, "C", _MAT34, _wheel_axes_problem),
+    )
+    target = (
+        g.read("mass", mass),
+        _read_checked(g, "inertia", _MAT33, _inertia_problem),
+        g.read("position", _Spec("vector", shape=(3,))),
+        g.read("attitude", _Spec("vector", shape=(3,), mrp=True)),
+    )
+    for sub in (s, g, t):
+        sub.finish()
+    if any(v is None for v in (frame, *service, *target)):
+        return None, None
+    c = combine(
+        RigidBody(service[0], service[1]), service[2],
+        RigidBody(target[0], target[1]), target[2], mrp_to_dcm(target[3]), frame,
+    )  # fmt: skip
+    return _ro(c.J_C), _ro(c.Cbar)
+
+
+def _read_spacecraft(t: _Table, dist: _Table) -> tuple[PlantParams | None, ActuatorParams | None]:
+    if t.has("capture"):
+        for name in ("J0", "Cbar"):
+            if t.has(name):
+                t.fail(name, f"give either {name} or [{t.key}.capture], not both")
+            t.used.add(name)
+        J0, Cbar = _read_capture(t.sub("capture"))
+    else:
+        either = f"required key is missing (or give a [{t.key}.capture] table)"
+        J0 = _read_checked(t, "J0", _MAT33, _inertia_problem, either)
+        Cbar = _read_checked(t, "Cbar", _MAT34, _wheel_axes_problem, either)
+    dJ = t.read("dJ", _MAT33)
+    if dJ is not None and np.abs(dJ - dJ.T).max() > 1e-9 * max(np.abs(dJ).max(), 1.0):
+        t.fail("dJ", "dJ must be symmetric")
+        dJ = None
+    if J0 is not None and dJ is not None and (problem := _inertia_problem(J0 + dJ)):
+        t.fail("dJ", f"the true inertia J0 + dJ = {_fmt(J0 + dJ)} {problem}")
+        dJ = None
+    Jw = t.read("Jw", dataclasses.replace(_WHEELS, gt=0))
+    umin, umax = t.read("umin", _WHEELS), t.read("umax", _WHEELS)
+    if umin is not None and umax is not None and np.any(umin >= umax):
+        bad = ", ".join(str(i + 1) for i in np.flatnonzero(umin >= umax))
+        t.fail("umin", f"umin must be < umax = {_fmt(t.raw('umax'))} for every wheel "
+                       f"(not for wheel {bad})")  # fmt: skip
+        umin = None
+    w0 = t.read("w0", _Spec("number", ge=0))
+    max_speed = t.read(
+        "max_wheel_speed",
+        dataclasses.replace(_WHEELS, gt=0, allow_inf=True),
+        default=_ro(np.full(4, np.inf)),
+    )
+    t.finish()
+    amp, freq = dist.read("amp", _V3), dist.read("freq", dataclasses.replace(_V3, ge=0))
+    bias = dist.read("bias", _V3, default=_ro(np.zeros(3)))
+    dist.finish()
+    disturbance = _build(dist, DisturbanceParams, amp=amp, freq=freq, bias=bias)
+    plant = _build(t, PlantParams, J0=J0, dJ=dJ, Cbar=Cbar, Jw=Jw, w0=w0, disturbance=disturbance)
+    actuators = _build(t, ActuatorParams, umin=umin, umax=umax, max_wheel_speed=max_speed)
+    return plant, actuators
+
+
+def _read_faults(root: _Table) -> tuple[WheelFault, ...] | None:
+    root.used.add("faults")
+    raw = root.raw("faults") if root.has("faults") else []
+    if not (isinstance(raw, list) and all(isinstance(f, dict) for f in raw)):
+        root.fail("faults", "faults must be an array of tables ([[faults]])")
+        return None
+    faults, first_of_wheel = [], {}
+    for i, entry in enumerate(raw):
+        t = _Table(root.doc, f"faults[{i}]", entry)
+        wheel = t.read("wheel", _Spec("int", ge=1, le=4))
+        eff = t.read("effectiveness", _Spec("number", ge=0, le=1), default=_FAULT.effectiveness)
+        bias = t.read("bias", _Spec("number"), default=_FAULT.bias)
+        onset = t.read("onset", _Spec("number", ge=0))
+        end = t.read("end", _Spec("number"), default=_FAULT.end)
+        rate = t.read("rate", _Spec("number", gt=0), default=_FAULT.rate)
+        stuck = t.read("stuck", _Spec("bool"), default=_FAULT.stuck)
+        t.finish()
+        if wheel is not None and wheel in first_of_wheel:
+            t.fail("wheel", f"wheel {wheel} already has a fault (faults[{first_of_wheel[wheel]}]): "
+                   "one fault per wheel")  # fmt: skip
+            wheel = None
+        elif wheel is not None:
+            first_of_wheel[wheel] = i
+        if end is not None and onset is not None and end <= onset:
+            t.fail("end", f"end must be > onset ({onset:g} s)")
+            onset = None
+        if stuck and (t.has("effectiveness") or t.has("bias")):
+            t.fail("stuck", "a stuck wheel ignores effectiveness and bias: give stuck or those")
+            stuck = None
+        if t.has("end") and end is None:  # end was given but is bad (reported)
+            continue
+        fault = _build(
+            t, WheelFault, ("end",), wheel=None if wheel is None else wheel - 1,
+            effectiveness=eff, bias=bias, onset=onset, end=end, rate=rate, stuck=stuck,
+        )  # fmt: skip
+        if fault is not None:
+            faults.append(fault)
+    return tuple(faults) if len(faults) == len(raw) else None
+
+
+def _read_controller(t: _Table) -> ControllerParams | None:
+    ppc_table = t.sub("ppc", required=False)
+    ppc = _read_fields(ppc_table, PpcParams)
+    if ppc is not None and np.any(ppc.chi0 < ppc.chiinf):
+        ppc_table.fail("chi0", f"chi0 must be >= chiinf = {_fmt(ppc.chiinf)} on every axis")
+        ppc = None
+    groups = {"ppc": ppc}
+    for name, cls in (("neso", NesoParams), ("dsc", DscGains), ("pd", PdGains),
+                      ("rft", RftGains), ("safety", SafetyLimits)):  # fmt: skip
+        groups[name] = _read_fields(t.sub(name, required=False), cls)
+    damping = t.read("pinv_damping", _field_spec(ControllerParams, "pinv_damping"),
+                     default=_PAPER.spacecraft.pinv_damping)  # fmt: skip
+    t.finish()
+    if damping is None or any(v is None for v in groups.values()):
+        return None
+    return ControllerParams(**groups, pinv_damping=damping)
+
+
+def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | None:
+    root = _Table(doc, "", data)
+    name = root.read("name", _Spec("str"), default=path.stem)
+    description = root.read("description", _Spec("str"), default="")
+    run = _read_run(root.sub("run"))
+    plant, actuators = _read_spacecraft(root.sub("spacecraft"), root.sub("disturbance"))
+    initial_table = root.sub("initial")
+    initial = _read_fields(initial_table, InitialState)
+    guidance = _read_fields(root.sub("guidance"), GuidanceParams)
+    controller = _read_controller(root.sub("controller", required=False))
+    faults = _read_faults(root)
+    root.finish()
+    if initial is not None and actuators is not None:
+        if np.any(np.abs(initial.wheel_speed) > actuators.max_wheel_speed):
+            initial_table.fail(
+                "wheel_speed",
+                "|wheel_speed| must be <= spacecraft.max_wheel_speed = "
+                f"{_fmt(actuators.max_wheel_speed)}",
+            )
+    if doc.errors:
+        return None
+    return Scenario(
+        name=name,
+        description=description,
+        path=path,
+        run=run,
+        plant=plant,
+        actuators=dataclasses.replace(actuators, faults=faults),
+        initial=initial,
+        guidance=guidance,
+        controller=controller,
+    )
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file; raise ScenarioError listing every problem."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise ScenarioError(path, [ScenarioIssue(0, "", None, f"cannot read the file: {e}")]) from e
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        m = re.search(r"at line (\d+)", str(e))
+        issue = ScenarioIssue(int(m.group(1)) if m else 0, "", None, f"TOML syntax error: {e}")
+        raise ScenarioError(path, [issue]) from None
+    doc = _Doc(str(path), _key_lines(text))
+    scenario = _read_scenario(doc, data, path)
+    if doc.errors:
+        raise ScenarioError(path, doc.errors)
+    return scenario
