@@ -159,7 +159,7 @@ def test_paper_scenarios_hold_model_md_values(path):
     assert (c.neso.alpha, c.neso.substeps, c.neso.init_from_measurement) == (0.7, 1, False)
     assert dataclasses.astuple(c.dsc) == (0.1, 4.0, 0.01, 22.0, 1.0, 0.1)
     assert dataclasses.astuple(c.pd) == (0.16, 0.56)
-    assert dataclasses.astuple(c.rft) == (0.2, 0.4, 0.5, 0.01, 1e-3, 0.0)
+    assert dataclasses.astuple(c.rft) == (0.2, 0.4, 0.5, 0.01, 1e-2, 0.0)
     assert dataclasses.astuple(c.safety) == (10.0, 1e4, 5.0)
     assert c.pinv_damping == 0.0
 
