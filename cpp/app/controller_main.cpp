@@ -46,6 +46,9 @@ const char* kUsage =
     "  --prefix P             channel name prefix (default none)\n"
     "  --realtime-priority    ask for SCHED_FIFO and mlockall (falls back with a\n"
     "                         warning when not permitted)\n"
+    "  --phase-offset US      real time: wake US microseconds after a state\n"
+    "                         arrives, by locking the timer's phase to the\n"
+    "                         states (default 50; negative: free-running)\n"
     "  --max-steps N          stop after N control steps (default: run until\n"
     "                         SIGINT/SIGTERM)\n"
     "  --summary FILE         write the exit summary as JSON to FILE\n"
@@ -107,6 +110,9 @@ struct Options {
   std::string prefix;
   int64_t max_steps = -1;
   std::string summary_path;
+  // real time: lock the wake-up phase to the arrival of states (PLL), this
+  // many microseconds after a state arrives (< 0: free-running clock)
+  double phase_offset_us = 50.0;
 };
 
 class Shell {
@@ -185,8 +191,10 @@ class Shell {
       cmd = ctl_->step(sc_rt::measurement_from_lcm(state_));
       if (cmd.mode == sc_rt::MODE_SAFE) ++cnt_.safe_steps;
     }
+    used_fresh_ = fresh_ && !stale;
     fresh_ = false;
-    const double age_us = have_state_ ? double(now - state_rx_ns_) / 1e3 : 0.0;
+    // age of the state at use: its receipt to the start of this step
+    const double age_us = have_state_ ? double(t_start - state_rx_ns_) / 1e3 : 0.0;
     const int64_t t_end = mono_ns();  // compute: the core's step, no I/O
     last_cmd_ = cmd;
     have_cmd_ = true;
@@ -233,6 +241,9 @@ class Shell {
   }
 
   bool done() const { return g_stop || (opt_.max_steps >= 0 && cnt_.steps >= opt_.max_steps); }
+  // receipt time of the newest state and whether the last step used a new one
+  int64_t state_rx_ns() const { return state_rx_ns_; }
+  bool used_fresh() const { return used_fresh_; }
   int64_t period_ns() const { return period_ns_; }
 
   std::string summary_json(const std::string& scheduler) const {
@@ -265,7 +276,7 @@ class Shell {
   int64_t stale_ns_ = 500000000;
   sc_rt_lcm::plant_state_t state_{};
   int64_t state_rx_ns_ = 0;
-  bool have_state_ = false, fresh_ = false, have_cmd_ = false;
+  bool have_state_ = false, fresh_ = false, have_cmd_ = false, used_fresh_ = false;
   sc_rt::Command last_cmd_;
   int64_t cmd_seq_ = 0;
   Counters cnt_;
@@ -349,6 +360,8 @@ int main(int argc, char** argv) {
       o.prefix = need("--prefix");
     } else if (a == "--realtime-priority") {
       o.rt_priority = true;
+    } else if (a == "--phase-offset") {
+      o.phase_offset_us = std::atof(need("--phase-offset").c_str());
     } else if (a == "--max-steps") {
       o.max_steps = std::atoll(need("--max-steps").c_str());
     } else if (a == "--summary") {
@@ -429,6 +442,16 @@ int main(int argc, char** argv) {
       while (poll(&p, 1, 0) > 0 && (p.revents & POLLIN)) lcm.handle();
       shell.step(now, deadline);
       deadline += shell.period_ns();
+      if (o.phase_offset_us >= 0.0 && shell.used_fresh()) {
+        // phase-locked loop on the state arrivals: move the next deadline a
+        // quarter of the way toward (arrival + offset), modulo the period
+        const int64_t P = shell.period_ns();
+        const int64_t target = shell.state_rx_ns() + int64_t(o.phase_offset_us * 1e3);
+        int64_t err = (deadline - target) % P;
+        if (err < 0) err += P;
+        if (err > P / 2) err -= P;
+        deadline -= err / 4;
+      }
       // after a long stall, skip the missed periods instead of bursting
       const int64_t after = mono_ns();
       if (after > deadline) deadline += ((after - deadline) / shell.period_ns() + 1) * shell.period_ns();

@@ -160,7 +160,7 @@ Command Controller::step(const Measurement& m) {
   out.lam = ppc.lambda;
   out.flags |= ppc.violated;  // FLAG_BOUND_X/Y/Z are bits 0..2
 
-  law_step(e, dt, out);
+  law_step(e, ppc, dt, out);
 
   out.u_sat = model_.saturate(out.u_cmd);
   for (int i = 0; i < 4; ++i)
@@ -182,14 +182,13 @@ class DscController final : public Controller {
  protected:
   // Virtual control (36): x2bar = -(r G)^-1 (k1 e1 - r Lambda chi_dot)
   //                             = -G^-1 (k1 r^-1 e1 - Lambda chi_dot).
-  Vec3 virtual_control(const TrackingErrors& e, double t_rel, Vec3& e1, Vec3& r) const {
+  Vec3 virtual_control(const TrackingErrors& e, const PpcResult& p, Vec3& e1, Vec3& r) const {
     const Mat3 Ginv = mrp_G_inverse(e.sigma_BD);
     if (!use_ppc_) {  // DSC: e1 = x1, r = I, no chi_dot term
       e1 = e.sigma_BD;
       r.setOnes();
       return -Ginv * (cfg_.dsc.k1 * e1);
     }
-    const PpcResult p = ppc_transform(cfg_.ppc, e.sigma_BD, t_rel);
     e1 = p.e1;
     r = p.r;
     return -Ginv * (cfg_.dsc.k1 * e1.cwiseQuotient(r) - p.lambda.cwiseProduct(p.chi_dot));
@@ -197,7 +196,7 @@ class DscController final : public Controller {
 
   void law_reset(const TrackingErrors& e, const Measurement&) override {
     Vec3 e1, r;
-    x2bar_prev_ = virtual_control(e, 0.0, e1, r);
+    x2bar_prev_ = virtual_control(e, ppc_transform(cfg_.ppc, e.sigma_BD, 0.0), e1, r);
     x2d_ = x2bar_prev_;  // (37): x2d(0) = x2bar(0)
     vs_.setZero();       // (42): vs(0) = 0
     du_prev_.setZero();
@@ -206,7 +205,7 @@ class DscController final : public Controller {
     x2_prev_ = e.omega_BD_B;
   }
 
-  void law_step(const TrackingErrors& e, double dt, Command& out) override {
+  void law_step(const TrackingErrors& e, const PpcResult& ppc, double dt, Command& out) override {
     const DscGains& g = cfg_.dsc;
     const Mat34& B = model_.B();
     if (dt > 0.0) {
@@ -220,7 +219,7 @@ class DscController final : public Controller {
       vs_ = b * vs_ + ((1.0 - b) / g.k4) * du_prev_;
     }
     Vec3 e1, r;
-    const Vec3 x2bar = virtual_control(e, out.t - t0_, e1, r);
+    const Vec3 x2bar = virtual_control(e, ppc, e1, r);
     const Vec3 x2d_dot = (x2bar - x2d_) / g.tau;  // (37) at t_k
     const Vec3 e2 = e.omega_BD_B - x2d_;          // (27)
     const Mat3 G = mrp_G(e.sigma_BD);
@@ -258,7 +257,7 @@ class PdController final : public Controller {
 
  protected:
   void law_reset(const TrackingErrors&, const Measurement&) override {}
-  void law_step(const TrackingErrors& e, double, Command& out) override {
+  void law_step(const TrackingErrors& e, const PpcResult&, double, Command& out) override {
     out.u_cmd = -model_.B_pinv() * (cfg_.pd.beta1 * e.sigma_BD + cfg_.pd.beta2 * e.omega_BD_B);
     out.e1 = e.sigma_BD;
     out.e2 = e.omega_BD_B;
@@ -278,7 +277,7 @@ class RftController final : public Controller {
     rho_ = cfg_.rft.rho0;
     s_norm_prev_ = (e.omega_BD_B + cfg_.rft.c * e.sigma_BD).norm();
   }
-  void law_step(const TrackingErrors& e, double dt, Command& out) override {
+  void law_step(const TrackingErrors& e, const PpcResult&, double dt, Command& out) override {
     const RftGains& g = cfg_.rft;
     if (dt > 0.0) {
       if (g.leak > 0.0) {

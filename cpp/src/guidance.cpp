@@ -30,9 +30,10 @@ Vec3 omega_d_dot(const GuidanceParams& p, double t) {
 }
 
 Vec3 guidance_rk4_step(const GuidanceParams& p, const Vec3& s, double t, double h) {
+  const Vec3 w_mid = omega_d(p, t + 0.5 * h);
   const Vec3 k1 = mrp_G(s) * omega_d(p, t);
-  const Vec3 k2 = mrp_G(s + 0.5 * h * k1) * omega_d(p, t + 0.5 * h);
-  const Vec3 k3 = mrp_G(s + 0.5 * h * k2) * omega_d(p, t + 0.5 * h);
+  const Vec3 k2 = mrp_G(s + 0.5 * h * k1) * w_mid;
+  const Vec3 k3 = mrp_G(s + 0.5 * h * k2) * w_mid;
   const Vec3 k4 = mrp_G(s + h * k3) * omega_d(p, t + h);
   return mrp_short(s + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4));
 }

@@ -53,13 +53,12 @@ namespace {
 struct Deriv {
   Vec3 d1, d2;
 };
-// Right-hand side of (22) with sig^alpha and sig^(2 alpha - 1) from one log
-// per axis: |e|^a = exp(a ln|e|).
+// Right-hand side of (22). One log and one exp per axis:
+// |e|^alpha = exp(alpha ln|e|) and |e|^(2 alpha - 1) = (|e|^alpha)^2 / |e|.
 inline Deriv neso_rhs(const NesoParams& p, const Vec3& z1, const Vec3& z2, const Vec3& A,
                       const Vec3& x2, const Vec3& Bu) {
   const Vec3 e = z1 - x2;
   Vec3 s1, s2;
-  const double a1 = p.alpha, a2 = 2.0 * p.alpha - 1.0;
   for (int i = 0; i < 3; ++i) {
     const double x = e(i);
     if (x == 0.0) {
@@ -67,10 +66,11 @@ inline Deriv neso_rhs(const NesoParams& p, const Vec3& z1, const Vec3& z2, const
       s2(i) = 0.0;
       continue;
     }
-    const double l = std::log(std::abs(x));
+    const double ax = std::abs(x);
+    const double pa = std::exp(p.alpha * std::log(ax));
     const double sg = x > 0.0 ? 1.0 : -1.0;
-    s1(i) = sg * std::exp(a1 * l);
-    s2(i) = sg * std::exp(a2 * l);
+    s1(i) = sg * pa;
+    s2(i) = sg * (pa * pa / ax);
   }
   Deriv d;
   d.d1 = A + Bu + z2 - p.k1.cwiseProduct(s1) - p.k2.cwiseProduct(e);

@@ -93,42 +93,44 @@ def _run_python(scn: Scenario):
     ctl = _core.Controller(scn.core_config())
     pp, act = scn.plant, scn.actuators
     x = initial_state(scn)
-    traj = _allocate(n_ctrl + 1)
-    extra = {"flags": np.zeros(n_ctrl + 1, np.int64), "vs": np.full((n_ctrl + 1, 4), np.nan),
-             "e1": np.full((n_ctrl + 1, 3), np.nan), "e2": np.full((n_ctrl + 1, 3), np.nan)}
+    n = n_ctrl + 1
+    # one row assignment per array and step; columns are split at the end
+    T = np.full(n, np.nan)
+    X = np.full((n, 10), np.nan)
+    OUT = np.full((n, _core.PACKED_SIZE), np.nan)
+    ACC = np.full((n, 4), np.nan)
+    D2 = np.full((n, 3), np.nan)
     ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
-    P = PACKED
+    u_slice = PACKED["u_cmd"]
     rows = 0
     diverged = False
     step_packed, wheel_accel, lumped, rk4 = (_core.step_packed, actuators.wheel_accel,
                                               plant.lumped_disturbance, plant.rk4_step)
-    for k in range(n_ctrl + 1):
+    isfinite = math.isfinite
+    for k in range(n):
         t = k / rate
         out = step_packed(ctl, t, x)
-        u_cmd = out[P["u_cmd"]]
+        u_cmd = out[u_slice]
         u_sat, accel, _ = wheel_accel(act, t, u_cmd, x[6:10])
-        traj["t"][k] = t
-        traj["sigma_BN"][k] = x[0:3]
-        traj["omega_BN_B"][k] = x[3:6]
-        traj["wheel_speed"][k] = x[6:10]
-        traj["u_cmd"][k] = u_cmd
-        traj["u_sat"][k] = out[P["u_sat"]]
-        traj["wheel_accel"][k] = accel
-        traj["delta2"][k] = lumped(pp, t, x, u_sat, accel)
-        for name in ("sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam"):
-            traj[name][k] = out[P[name]]
-        extra["flags"][k] = int(out[P["flags"]][0])
-        extra["vs"][k] = out[P["vs"]]
-        extra["e1"][k] = out[P["e1"]]
-        extra["e2"][k] = out[P["e2"]]
+        T[k] = t
+        X[k] = x
+        OUT[k] = out
+        ACC[k] = accel
+        D2[k] = lumped(pp, t, x, u_sat, accel)
         rows = k + 1
         if k == n_ctrl:
             break
         for j in range(n_sub):
             x = rk4(pp, act, t + j * h, x, h, u_cmd)
-        if not np.all(np.isfinite(x)):
+        if not all(map(isfinite, x)):
             diverged = True
             break
+    traj = {"t": T, "sigma_BN": X[:, 0:3], "omega_BN_B": X[:, 3:6], "wheel_speed": X[:, 6:10],
+            "wheel_accel": ACC, "delta2": D2}
+    for name in ("u_cmd", "u_sat", "sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam"):
+        traj[name] = OUT[:, PACKED[name]]
+    extra = {"flags": np.nan_to_num(OUT[:, PACKED["flags"]][:, 0]).astype(np.int64),
+             "vs": OUT[:, PACKED["vs"]], "e1": OUT[:, PACKED["e1"]], "e2": OUT[:, PACKED["e2"]]}
     return traj, extra, rows, diverged
 
 

@@ -144,7 +144,8 @@ class Controller {
   // Law hooks. e: errors at this step; dt: time since the previous step
   // (0 at engagement); out: fill u_cmd and the law's telemetry.
   virtual void law_reset(const TrackingErrors& e, const Measurement& m) = 0;
-  virtual void law_step(const TrackingErrors& e, double dt, Command& out) = 0;
+  // ppc: the transform of x1 at this step (computed once, for every law).
+  virtual void law_step(const TrackingErrors& e, const PpcResult& ppc, double dt, Command& out) = 0;
   virtual void law_after(const Command& out) { (void)out; }
 
   ControllerConfig cfg_;

@@ -1,0 +1,43 @@
+"""Offline closed loop, paper fault scenario, DSC+PPC with full logging:
+C++ engine vs Python engine at 10 Hz, 100 Hz and 1 kHz, measured alternately.
+Targets (issue 4): 300 s at 10 Hz, C++ <= 5 ms, Python <= 150 ms.
+
+    .venv/bin/python bench/bench_sim.py [--quick]
+"""
+
+from __future__ import annotations
+
+import sys
+
+from common import ROOT, alternate, machine, summary, write
+
+from sc_rt.scenario import load_scenario
+from sc_rt.sim import simulate
+
+
+def main(quick: bool = False) -> None:
+    scn = load_scenario(ROOT / "scenarios" / "paper_faults.toml")
+    res = {"machine": machine(), "scenario": "paper_faults", "law": "dsc-ppc"}
+    for rate, runs, py_duration in ((10.0, 7, 300.0), (100.0, 3, 300.0), (1000.0, 3, 30.0)):
+        if quick:
+            runs = 2
+        steps_cpp = int(300 * rate) + 1
+        steps_py = int(py_duration * rate) + 1
+        t = alternate({
+            "cpp": lambda: simulate(scn, engine="cpp", control_rate_hz=rate),
+            "python": lambda: simulate(scn, engine="python", control_rate_hz=rate, duration=py_duration),
+        }, runs=runs)
+        key = f"{int(rate)}hz"
+        res[f"cpp_{key}_run_s"] = summary(t["cpp"], "s")
+        res[f"cpp_{key}_step_us"] = res[f"cpp_{key}_run_s"]["median"] / steps_cpp * 1e6
+        res[f"python_{key}_run_s"] = summary(t["python"], "s")
+        res[f"python_{key}_step_us"] = res[f"python_{key}_run_s"]["median"] / steps_py * 1e6
+        res[f"python_{key}_run_300s_estimate_s"] = res[f"python_{key}_step_us"] * steps_cpp / 1e6
+        res[f"ratio_python_over_cpp_{key}"] = res[f"python_{key}_step_us"] / res[f"cpp_{key}_step_us"]
+    res["target_cpp_10hz_le_5ms"] = "pass" if res["cpp_10hz_run_s"]["median"] <= 5e-3 else "miss"
+    res["target_python_10hz_le_150ms"] = "pass" if res["python_10hz_run_s"]["median"] <= 0.150 else "miss"
+    write("sim", res)
+
+
+if __name__ == "__main__":
+    main("--quick" in sys.argv)
