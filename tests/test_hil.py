@@ -7,6 +7,8 @@ trajectory, to the last bit, as the offline simulator with the Python plant
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -30,8 +32,17 @@ if not lcmnet.lcm_available():  # pragma: no cover - CI is root with namespaces
 
 
 def run_cli(args: list[str], timeout: float = 300) -> subprocess.CompletedProcess:
+    """The CLI in its own process group, all of it killed on a timeout."""
     cmd = lcmnet.wrap([sys.executable, "-m", "sc_rt.cli", *args])
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=ROOT)
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                         start_new_session=True)
+    try:
+        out, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        out, err = p.communicate()
+        pytest.fail(f"sc-rt {' '.join(args)} did not finish in {timeout} s:\n{err}")
+    return subprocess.CompletedProcess(cmd, p.returncode, out, err)
 
 
 @pytest.mark.parametrize("scenario", ["paper_fault_free", "paper_faults"])

@@ -24,6 +24,8 @@
 #include <iterator>
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
+#include <mutex>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -86,17 +88,19 @@ Stats stats(std::vector<double> v) {
   return s;
 }
 
+// Atomic: the real-time mode receives on its own thread.
 struct Counters {
-  int64_t received = 0;
-  int64_t malformed = 0;       // decode failed (empty, truncated, random, wrong type)
-  int64_t trailing = 0;        // valid message followed by extra bytes
-  int64_t duplicate = 0;       // same seq as the newest
-  int64_t out_of_order = 0;    // older seq than the newest
-  int64_t invalid_state = 0;   // non-finite or out-of-range fields
-  int64_t stale_steps = 0;     // steps without a fresh state
-  int64_t safe_steps = 0;      // steps that commanded zero in SAFE mode
-  int64_t deadline_misses = 0;
-  int64_t steps = 0;
+  using C = std::atomic<int64_t>;
+  C received{0};
+  C malformed{0};       // decode failed (empty, truncated, random, wrong type)
+  C trailing{0};        // valid message followed by extra bytes
+  C duplicate{0};       // same seq as the newest
+  C out_of_order{0};    // older seq than the newest
+  C invalid_state{0};   // non-finite or out-of-range fields
+  C stale_steps{0};     // steps without a fresh state
+  C safe_steps{0};      // steps that commanded zero in SAFE mode
+  C deadline_misses{0};
+  C steps{0};
   int64_t rejected() const { return malformed + trailing + duplicate + out_of_order + invalid_state; }
 };
 
@@ -134,8 +138,11 @@ class Shell {
     self->handle_state(rb);
   }
 
+  // Lockstep: called on the main thread and steps at once. Real time: called
+  // on the receive thread, timestamps the arrival and only fills the mailbox.
   void handle_state(const lcm::ReceiveBuffer* rb) {
     const int64_t now = mono_ns();
+    std::unique_lock<std::mutex> lock(mu_);
     ++cnt_.received;
     sc_rt_lcm::plant_state_t msg;
     const int n = msg.decode(rb->data, 0, int(rb->data_size));
@@ -169,36 +176,49 @@ class Shell {
     state_rx_ns_ = now;
     have_state_ = true;
     fresh_ = true;
+    lock.unlock();
     if (!opt_.realtime) step(now, now);
   }
 
   // One control step at monotonic time `now` (wake-up at `deadline` in real time).
   void step(int64_t now, int64_t deadline) {
     const int64_t t_start = mono_ns();
+    // take the newest state from the mailbox
+    sc_rt_lcm::plant_state_t st;
+    bool have, fresh;
+    int64_t rx;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      st = state_;
+      have = have_state_;
+      fresh = fresh_;
+      rx = state_rx_ns_;
+      fresh_ = false;
+    }
     sc_rt::Command cmd;
-    const bool stale = !have_state_ || (opt_.realtime && now - state_rx_ns_ > stale_ns_);
+    const bool stale = !have || (opt_.realtime && t_start - rx > stale_ns_);
     if (stale) {
-      cmd = ctl_->safe_command(have_state_ ? state_.t : 0.0, sc_rt::FLAG_STALE_STATE);
+      cmd = ctl_->safe_command(have ? st.t : 0.0, sc_rt::FLAG_STALE_STATE);
       ++cnt_.stale_steps;
       ++cnt_.safe_steps;
-    } else if (!fresh_) {
+    } else if (!fresh) {
       // real time, no new state since the last step but not yet stale: hold
       // the last command (zero-order hold), count it
       ++cnt_.stale_steps;
       cmd = last_cmd_;
       cmd.flags |= sc_rt::FLAG_STALE_STATE;
     } else {
-      cmd = ctl_->step(sc_rt::measurement_from_lcm(state_));
+      cmd = ctl_->step(sc_rt::measurement_from_lcm(st));
       if (cmd.mode == sc_rt::MODE_SAFE) ++cnt_.safe_steps;
     }
-    used_fresh_ = fresh_ && !stale;
-    fresh_ = false;
-    // age of the state at use: its receipt to the start of this step
-    const double age_us = have_state_ ? double(t_start - state_rx_ns_) / 1e3 : 0.0;
+    used_fresh_ = fresh && !stale;
+    used_rx_ns_ = rx;
+    // age of the state at use: its arrival to the start of this step
+    const double age_us = have ? double(t_start - rx) / 1e3 : 0.0;
     const int64_t t_end = mono_ns();  // compute: the core's step, no I/O
     last_cmd_ = cmd;
     have_cmd_ = true;
-    const int64_t used_seq = have_state_ ? state_.seq : -1;
+    const int64_t used_seq = have ? st.seq : -1;
     publish_cmd(cmd, used_seq);
     const double comp_us = double(t_end - t_start) / 1e3;
     const double late_us = double(now - deadline) / 1e3;
@@ -242,7 +262,7 @@ class Shell {
 
   bool done() const { return g_stop || (opt_.max_steps >= 0 && cnt_.steps >= opt_.max_steps); }
   // receipt time of the newest state and whether the last step used a new one
-  int64_t state_rx_ns() const { return state_rx_ns_; }
+  int64_t state_rx_ns() const { return used_rx_ns_; }
   bool used_fresh() const { return used_fresh_; }
   int64_t period_ns() const { return period_ns_; }
 
@@ -277,6 +297,8 @@ class Shell {
   sc_rt_lcm::plant_state_t state_{};
   int64_t state_rx_ns_ = 0;
   bool have_state_ = false, fresh_ = false, have_cmd_ = false, used_fresh_ = false;
+  int64_t used_rx_ns_ = 0;
+  std::mutex mu_;  // guards the mailbox: state_, state_rx_ns_, have_state_, fresh_
   sc_rt::Command last_cmd_;
   int64_t cmd_seq_ = 0;
   Counters cnt_;
@@ -426,10 +448,15 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "sc-rt-controller: %s mode on %s, %s\n", o.realtime ? "realtime" : "lockstep",
                o.url.c_str(), sched.c_str());
 
-  const int fd = lcm.getFileno();
   if (!o.realtime) {
     while (!shell.done()) lcm.handleTimeout(100);
   } else {
+    // A receive thread timestamps every state as it arrives (the newest wins);
+    // this thread only wakes on its absolute deadlines and steps.
+    std::atomic<bool> rx_stop{false};
+    std::thread rx([&] {
+      while (!rx_stop && !g_stop) lcm.handleTimeout(20);
+    });
     int64_t deadline = mono_ns() + shell.period_ns();
     while (!shell.done()) {
       timespec ts{time_t(deadline / 1000000000LL), long(deadline % 1000000000LL)};
@@ -437,9 +464,6 @@ int main(int argc, char** argv) {
       }
       if (g_stop) break;
       const int64_t now = mono_ns();
-      // drain everything that arrived: the newest valid state wins
-      pollfd p{fd, POLLIN, 0};
-      while (poll(&p, 1, 0) > 0 && (p.revents & POLLIN)) lcm.handle();
       shell.step(now, deadline);
       deadline += shell.period_ns();
       if (o.phase_offset_us >= 0.0 && shell.used_fresh()) {
@@ -456,6 +480,8 @@ int main(int argc, char** argv) {
       const int64_t after = mono_ns();
       if (after > deadline) deadline += ((after - deadline) / shell.period_ns() + 1) * shell.period_ns();
     }
+    rx_stop = true;
+    rx.join();
   }
   const std::string js = shell.summary_json(sched);
   std::printf("%s\n", js.c_str());

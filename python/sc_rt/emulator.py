@@ -231,15 +231,21 @@ class Emulator:
         x = initial_state(scn)
         rows, diverged, gaps = 0, False, []
         gap_start = None
+        silent = 0  # consecutive states without an answer
         for k in range(n_ctrl + 1):
             t = k / rate
             self._t_now = t
             cmd = None
-            for attempt in range(self.retries + 1):
+            # a silent peer (crashed controller) gets one short wait per state
+            # instead of the full timeout and retries: the run goes on under
+            # the watchdog and resumes when a controller answers again
+            timeout = self.cmd_timeout if silent == 0 else min(self.cmd_timeout, 0.05)
+            retries = self.retries if silent == 0 else 0
+            for attempt in range(retries + 1):
                 if attempt:
                     self.counters["state_resent"] += 1
                 self._publish_state(k, t, x)
-                deadline = time.monotonic_ns() + int(self.cmd_timeout * 1e9)
+                deadline = time.monotonic_ns() + int(timeout * 1e9)
                 while time.monotonic_ns() < deadline:
                     cmd = self._cmd.get(k)
                     if cmd is not None and (not self.wait_status or k in self._status):
@@ -250,6 +256,7 @@ class Emulator:
                 if cmd is not None:
                     break
             stale = cmd is None
+            silent = silent + 1 if stale else 0
             if stale:
                 # watchdog: no answer to this state: apply zero, flag, go on
                 self.counters["cmd_timeout"] += 1
