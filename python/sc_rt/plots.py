@@ -50,8 +50,9 @@ def tracking_figures(traj: dict[str, np.ndarray], scn, out: Path, title: str = "
     fig, axs = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
     for i, ax in enumerate(axs):
         ax.semilogy(t, np.abs(traj["sigma_BD"][:, i]) + 1e-300, label=f"|sigma_BD,{AXES[i]}|")
-        ax.semilogy(t, np.minimum(dmin[i], dmax[i]) * chi[:, i], "r--", lw=0.8,
-                    label="min(dmin, dmax) chi(t)")
+        ax.semilogy(t, dmax[i] * chi[:, i], "r--", lw=0.8, label="dmax chi(t) (bound for > 0)")
+        if dmin[i] != dmax[i]:
+            ax.semilogy(t, dmin[i] * chi[:, i], "m:", lw=0.9, label="dmin chi(t) (bound for < 0)")
         ax.set_ylabel(f"|sigma_BD,{AXES[i]}| [-]")
         ax.set_ylim(max(1e-12, np.nanmin(chi) * 1e-3), 1.0)
         ax.grid(alpha=0.3, which="both")
