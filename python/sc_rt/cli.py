@@ -114,6 +114,19 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_check(args: argparse.Namespace) -> int:
+    from .check import check_scenario, exit_code
+
+    findings = check_scenario(args.scenario, run_estimate=not args.fast)
+    for f in findings:
+        if f.level != "ok" or args.verbose:
+            print(f)
+    rc = exit_code(findings)
+    n = {lvl: sum(f.level == lvl for f in findings) for lvl in ("error", "warning", "ok")}
+    print(f"sc-rt check: {args.scenario}: {n['error']} errors, {n['warning']} warnings, {n['ok']} ok")
+    return rc
+
+
 def cmd_config(args: argparse.Namespace) -> int:
     scn = _scenario(args.scenario)
     data = scn.controller_config_msg(args.controller, args.control_rate).encode()
@@ -179,6 +192,12 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--accept-fault-commands", action="store_true")
     lcm_opts(e)
     e.set_defaults(func=cmd_emulator)
+
+    k = sub.add_parser("check", help="check a scenario: schema, bound at t=0, (26), Theorem 1, B, Cbar, limits")
+    k.add_argument("scenario")
+    k.add_argument("--verbose", "-v", action="store_true", help="also list the checks that pass")
+    k.add_argument("--fast", action="store_true", help="estimate r's bound at t = 0 instead of along a run")
+    k.set_defaults(func=cmd_check)
 
     c = sub.add_parser("config", help="write the scenario's controller_config_t for sc-rt-controller")
     c.add_argument("scenario")

@@ -1,0 +1,189 @@
+"""``sc-rt check SCENARIO``: everything that can be said about a scenario
+before running it, each finding with the key and value involved.
+
+Exit code 0 (all good), 1 (warnings), 2 (errors). Errors: the file does not
+load (schema, values), B is rank-deficient, the initial attitude error is
+outside the prescribed bound (29) at t = 0. Warnings: the observer condition
+(26), the Theorem 1 gain conditions (with r's bound estimated along a run),
+Cbar not a proper rotation of the service-frame wheel layout, saturation
+limits that cannot produce the feed-forward the desired trajectory needs.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import _core
+from .scenario import Scenario, ScenarioError, load_scenario
+
+__all__ = ["Finding", "check_scenario", "PAPER_C"]
+
+#: The paper's service-frame wheel layout: three orthogonal wheels and a
+#: skewed fourth (MODEL.md section 8). Used for the Cbar check when the
+#: scenario gives Cbar directly (a [spacecraft.capture] table builds Cbar from
+#: its own C, which is then a rotation by construction).
+PAPER_C = np.column_stack([np.eye(3), np.ones(3) / math.sqrt(3)])
+
+
+@dataclass(frozen=True)
+class Finding:
+    level: str  # "error", "warning" or "ok"
+    key: str
+    value: str
+    message: str
+
+    def __str__(self) -> str:
+        v = f" = {self.value}" if self.value else ""
+        return f"{self.level.upper():7s} {self.key}{v}: {self.message}"
+
+
+def _fmt(v) -> str:
+    return np.array2string(np.asarray(v, float), precision=4, separator=", ") if np.ndim(v) else f"{v:.4g}"
+
+
+def check_scenario(path: str | Path, *, run_estimate: bool = True) -> list[Finding]:
+    try:
+        scn = load_scenario(path)
+    except ScenarioError as e:
+        return [Finding("error", i.key, "" if i.value is None else str(i.value), i.message)
+                for i in e.errors] or [Finding("error", "", "", str(e))]
+    out: list[Finding] = []
+    out += _check_model(scn)
+    if any(f.level == "error" for f in out):
+        return out
+    out += _check_initial_bound(scn)
+    out += _check_observer(scn)
+    out += _check_theorem1(scn, run_estimate)
+    out += _check_feedforward(scn)
+    return out
+
+
+def _check_model(scn: Scenario) -> list[Finding]:
+    out = []
+    cfg = scn.core_config()
+    errs = _core.validate(cfg)
+    for e in errs:
+        out.append(Finding("error", "controller", "", e))
+    try:
+        model = _core.SpacecraftModel(cfg.spacecraft)
+        sv = np.linalg.svd(np.asarray(model.B), compute_uv=False)
+        out.append(Finding("ok", "spacecraft.Cbar", "", f"B = -J0^-1 Cbar Jw has rank 3 (singular values {_fmt(sv)}, condition {sv[0] / sv[-1]:.3g})"))
+    except ValueError as e:
+        out.append(Finding("error", "spacecraft.Cbar", _fmt(scn.plant.Cbar), str(e)))
+        return out
+    from .combined import check_cbar_is_rotation
+
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        fit = check_cbar_is_rotation(np.asarray(scn.plant.Cbar), PAPER_C)
+    if fit.is_rotation:
+        out.append(Finding("ok", "spacecraft.Cbar", "", "a proper rotation of the paper's wheel layout C"))
+    else:
+        msg = str(w[0].message) if w else f"residual {fit.residual:.3g}"
+        out.append(Finding("warning", "spacecraft.Cbar", "",
+                           "compared with the paper's layout C = [e1, e2, e3, (1,1,1)/sqrt(3)]: " + msg))
+    return out
+
+
+def _check_initial_bound(scn: Scenario) -> list[Finding]:
+    x1 = _core.mrp_subtract(np.asarray(scn.initial.sigma_BN), np.asarray(scn.guidance.sigma_d0))
+    p = scn.controller.ppc
+    chi0, dmin, dmax = (np.asarray(v, float) for v in (p.chi0, p.dmin, p.dmax))
+    inside = (x1 > -dmin * chi0) & (x1 < dmax * chi0)
+    if np.all(inside):
+        return [Finding("ok", "controller.ppc.chi0", _fmt(chi0),
+                        f"the initial error sigma_BD(0) = {_fmt(x1)} is inside the bound (29)")]
+    axes = [i + 1 for i in range(3) if not inside[i]]
+    return [Finding("error", "controller.ppc.chi0", _fmt(chi0),
+                    f"the initial error sigma_BD(0) = {_fmt(x1)} is outside -dmin chi0 < x1 < dmax chi0 "
+                    f"on axis {axes}: the transform (31) has no value there; widen chi0 or dmin/dmax")]
+
+
+def _check_observer(scn: Scenario) -> list[Finding]:
+    cfg = scn.core_config()
+    m = np.asarray(_core.neso_condition_26(cfg.neso))
+    n = scn.controller.neso
+    if np.all(m > 0):
+        return [Finding("ok", "controller.neso", "", f"condition (26) holds on every axis (margins {_fmt(m)})")]
+    axes = [i + 1 for i in range(3) if m[i] <= 0]
+    return [Finding("warning", "controller.neso.k4", _fmt(n.k4),
+                    f"observer condition (26) fails on axis {axes} (margins {_fmt(m)}): "
+                    "k3 k4 > k2^2 k3 / alpha + (alpha + 1)^2 k1^2 k2^2 (stricter reading)")]
+
+
+def _r_bound(scn: Scenario) -> float:
+    """max ||r|| along an offline DSC+PPC run (C++ engine), r of (35)."""
+    from .sim import simulate
+
+    tr = simulate(scn, law="dsc-ppc", engine="cpp").trajectory
+    p = scn.controller.ppc
+    dmin, dmax = np.asarray(p.dmin), np.asarray(p.dmax)
+    lam, chi = tr["lam"], tr["chi"]
+    r = 0.5 / chi * (1.0 / (lam + dmin) - 1.0 / (lam - dmax))
+    return float(np.nanmax(r))
+
+
+def _check_theorem1(scn: Scenario, run_estimate: bool) -> list[Finding]:
+    d = scn.controller.dsc
+    cfg = scn.core_config()
+    k5 = float(np.linalg.norm(np.asarray(_core.SpacecraftModel(cfg.spacecraft).B), 2))
+    out = []
+    p = scn.controller.ppc
+    # r at x1 = 0 and t = 0: a lower bound of rM
+    r0 = float(np.max(0.5 / np.asarray(p.chi0) * (1 / np.asarray(p.dmin) + 1 / np.asarray(p.dmax))))
+    rM = _r_bound(scn) if run_estimate else r0
+    src = "max along an offline DSC+PPC run" if run_estimate else "at x1 = 0, t = 0 (a lower bound)"
+    conds = [
+        ("controller.dsc.k1", d.k1, 16 * d.k1 > 3 * rM**2 * d.tau,
+         f"16 k1 > 3 rM^2 tau with rM = {rM:.4g} ({src}; ||r|| at x1 = 0, t = 0 is {r0:.4g}, "
+         f"the condition needs rM < {math.sqrt(16 * d.k1 / (3 * d.tau)):.4g}): "
+         f"{16 * d.k1:.4g} vs {3 * rM**2 * d.tau:.4g}"),
+        ("controller.dsc.k2", d.k2, 4 * d.k2 * d.k6 > 3,
+         f"4 k2 k6 > 3: {4 * d.k2 * d.k6:.4g} vs 3"),
+        ("controller.dsc.k3", d.k3, 8 * d.k2 * d.k4 > 9 * d.k3**2 * k5**2,
+         f"8 k2 k4 > 9 k3^2 k5^2 with k5 = ||B|| = {k5:.4g}: {8 * d.k2 * d.k4:.4g} vs {9 * d.k3**2 * k5**2:.4g}"),
+    ]
+    for key, val, ok, msg in conds:
+        out.append(Finding("ok" if ok else "warning", key, _fmt(val),
+                           ("Theorem 1 condition holds: " if ok else "Theorem 1 condition fails: ") + msg))
+    return out
+
+
+def _check_feedforward(scn: Scenario) -> list[Finding]:
+    """The wheel accelerations that hold the desired trajectory at zero error
+    (u = B+ (-A)), sampled every second, against the limits."""
+    cfg = scn.core_config()
+    model = _core.SpacecraftModel(cfg.spacecraft)
+    g = _core.Guidance(cfg.guidance, 0.1)
+    g.reset(0.0)
+    wheel = np.asarray(scn.initial.wheel_speed, float)
+    Bp = np.asarray(model.B_pinv)
+    umin, umax = np.asarray(scn.actuators.umin), np.asarray(scn.actuators.umax)
+    worst, worst_t, worst_u = -np.inf, 0.0, None
+    for t in np.arange(0.0, scn.run.duration + 1e-9, 1.0):
+        g.advance(t)
+        sd = g.sigma_DN
+        wd = _core.omega_d(cfg.guidance, t)
+        m = _core.Measurement(t, sd, wd, wheel)
+        e = _core.tracking_errors(model, m, sd, wd, _core.omega_d_dot(cfg.guidance, t))
+        u = Bp @ (-np.asarray(e.A))
+        use = np.max(np.maximum(u / umax, u / umin))  # fraction of the limit on its side
+        if use > worst:
+            worst, worst_t, worst_u = use, t, u
+    if worst < 1.0:
+        return [Finding("ok", "spacecraft.umax", "",
+                        f"the feed-forward of the desired trajectory uses at most {100 * worst:.3g} % of the "
+                        f"wheel limits (at t = {worst_t:g} s, initial wheel speeds)")]
+    return [Finding("warning", "spacecraft.umax", _fmt(umax),
+                    f"the feed-forward of the desired trajectory needs {_fmt(worst_u)} rad/s^2 at t = {worst_t:g} s: "
+                    "beyond the wheel limits, no law can track it exactly")]
+
+
+def exit_code(findings: list[Finding]) -> int:
+    levels = {f.level for f in findings}
+    return 2 if "error" in levels else (1 if "warning" in levels else 0)

@@ -1,0 +1,63 @@
+"""sc-rt check over broken and borderline scenarios (table-driven)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from sc_rt.check import check_scenario, exit_code
+
+ROOT = Path(__file__).resolve().parent.parent
+PAPER = (ROOT / "scenarios" / "paper_faults.toml").read_text()
+
+
+def edited(tmp_path: Path, old: str, new: str) -> Path:
+    assert old in PAPER, old
+    p = tmp_path / "s.toml"
+    p.write_text(PAPER.replace(old, new, 1))
+    return p
+
+
+CASES = [
+    # (old, new, expected exit code, key, fragment)
+    ("umin = -7.0", "umin = 12.0", 2, "spacecraft.umin", "umin"),
+    ("chi0 = [0.11, 0.14, 0.2]", "chi0 = [0.01, 0.14, 0.2]", 2, "controller.ppc.chi0",
+     "outside -dmin chi0 < x1 < dmax chi0 on axis [1]"),
+    ("k4 = 0.06", "k4 = 0.001", 1, "controller.neso.k4", "condition (26) fails"),
+    ("umax = 10.0", "umax = 0.0001", 1, "spacecraft.umax", "beyond the wheel limits"),
+    ("k2 = 4.0", "k2 = 0.5", 1, "controller.dsc.k2", "4 k2 k6 > 3"),
+]
+
+
+@pytest.mark.parametrize("old, new, code, key, fragment", CASES)
+def test_findings(tmp_path, old, new, code, key, fragment):
+    findings = check_scenario(edited(tmp_path, old, new), run_estimate=False)
+    assert exit_code(findings) == code, [str(f) for f in findings]
+    hits = [f for f in findings if f.key == key and f.level != "ok" and fragment in f.message]
+    assert hits, [str(f) for f in findings]
+
+
+def test_paper_scenario_warns_about_its_own_theorem_and_cbar():
+    findings = check_scenario(ROOT / "scenarios" / "paper_fault_free.toml", run_estimate=False)
+    assert exit_code(findings) == 1
+    by_key = {(f.key, f.level) for f in findings}
+    # MODEL.md erratum 7: the paper's k1 and tau need rM < 2.31, r(0) is ~30
+    assert ("controller.dsc.k1", "warning") in by_key
+    k1 = next(f for f in findings if f.key == "controller.dsc.k1")
+    assert "rM < 2.309" in k1.message
+    # MODEL.md section 9: the printed Cbar is mirrored, not rotated
+    assert ("spacecraft.Cbar", "warning") in by_key
+    assert ("controller.neso", "ok") in by_key and ("controller.ppc.chi0", "ok") in by_key
+
+
+def test_cli_exit_codes(tmp_path):
+    bad = edited(tmp_path, "umin = -7.0", "umin = 12.0")
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "check", str(bad), "--fast"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "ERROR" in r.stdout and "spacecraft.umin" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "check", str(ROOT / "scenarios/paper_faults.toml")],
+                       capture_output=True, text=True)
+    assert r.returncode == 1 and "Theorem 1 condition fails" in r.stdout
