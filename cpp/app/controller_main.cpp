@@ -25,6 +25,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <mutex>
+#include <random>
 #include <thread>
 #include <string>
 #include <vector>
@@ -97,11 +98,15 @@ struct Counters {
   C duplicate{0};       // same seq as the newest
   C out_of_order{0};    // older seq than the newest
   C invalid_state{0};   // non-finite or out-of-range fields
+  C foreign_session{0}; // a state from another plant while ours is alive
+  C sessions_adopted{0};// a new plant adopted after ours went silent
   C stale_steps{0};     // steps without a fresh state
   C safe_steps{0};      // steps that commanded zero in SAFE mode
   C deadline_misses{0};
   C steps{0};
-  int64_t rejected() const { return malformed + trailing + duplicate + out_of_order + invalid_state; }
+  int64_t rejected() const {
+    return malformed + trailing + duplicate + out_of_order + invalid_state + foreign_session;
+  }
 };
 
 struct Options {
@@ -131,6 +136,10 @@ class Shell {
     ctl_ = sc_rt::Controller::create(cfg);
     period_ns_ = int64_t(std::llround(1e9 / cfg.control_rate_hz));
     stale_ns_ = int64_t(cfg.safety.stale_periods * double(period_ns_));
+    // a silent plant is replaced after max(stale time, 2 s)
+    session_timeout_ns_ = std::max<int64_t>(stale_ns_, 2000000000);
+    std::random_device rd;
+    session_ = (int64_t(rd()) << 31 ^ int64_t(rd()) ^ mono_ns()) & 0x7fffffffffffffffLL;
   }
 
   // Raw handler: decode by hand, count every kind of bad input, keep the newest state.
@@ -153,6 +162,22 @@ class Shell {
     if (n != int(rb->data_size)) {
       ++cnt_.trailing;
       return;
+    }
+    if (have_state_ && msg.session != state_.session) {
+      // Another plant on this channel. While ours is alive, ignore it; once
+      // ours has been silent for the session timeout, adopt the new one (a
+      // restarted emulator) at its first valid state and re-engage the law.
+      if (now - state_rx_ns_ < session_timeout_ns_) {
+        ++cnt_.foreign_session;
+        return;
+      }
+      if (!sc_rt::measurement_valid(sc_rt::measurement_from_lcm(msg), ctl_->config().safety)) {
+        ++cnt_.invalid_state;
+        return;
+      }
+      ++cnt_.sessions_adopted;
+      have_state_ = false;
+      reengage_ = true;
     }
     if (have_state_ && msg.seq == state_.seq) {
       ++cnt_.duplicate;
@@ -208,7 +233,12 @@ class Shell {
       cmd = last_cmd_;
       cmd.flags |= sc_rt::FLAG_STALE_STATE;
     } else {
-      cmd = ctl_->step(sc_rt::measurement_from_lcm(st));
+      const sc_rt::Measurement m = sc_rt::measurement_from_lcm(st);
+      if (reengage_) {  // a new plant session: start the law afresh
+        reengage_ = false;
+        ctl_->reset(m);
+      }
+      cmd = ctl_->step(m);
       if (cmd.mode == sc_rt::MODE_SAFE) ++cnt_.safe_steps;
     }
     used_fresh_ = fresh && !stale;
@@ -237,6 +267,7 @@ class Shell {
     sc_rt_lcm::wheel_cmd_t m{};
     m.utime = wall_us();
     m.seq = cmd_seq_;
+    m.session = session_;
     m.state_seq = state_seq;
     sc_rt::fill_wheel_cmd(cmd, m);
     lcm_.publish(opt_.prefix + "SCRT_CMD", &m);
@@ -248,6 +279,7 @@ class Shell {
     sc_rt_lcm::controller_status_t s{};
     s.utime = wall_us();
     s.cmd_seq = cmd_seq_ - 1;
+    s.session = session_;
     s.state_seq = state_seq;
     sc_rt::fill_status(cmd, ctl_->law(), s);
     s.wake_lateness_us = late_us;
@@ -278,13 +310,15 @@ class Shell {
         "\"state_age_us\": {\"p50\": %.3f, \"p99\": %.3f, \"max\": %.3f}, "
         "\"received\": %lld, \"stale_states\": %lld, \"safe_steps\": %lld, "
         "\"rejected\": {\"malformed\": %lld, \"trailing_bytes\": %lld, \"duplicate\": %lld, "
-        "\"out_of_order\": %lld, \"invalid_state\": %lld}}",
+        "\"out_of_order\": %lld, \"invalid_state\": %lld, \"foreign_session\": %lld}, "
+        "\"sessions_adopted\": %lld}",
         opt_.realtime ? "realtime" : "lockstep", 1e9 / double(period_ns_), sc_rt::law_name(ctl_->law()),
         (long long)cnt_.steps, (long long)cnt_.deadline_misses, scheduler.c_str(), l.p50, l.p99,
         l.max, c.p50, c.p99, c.max, a.p50, a.p99, a.max, (long long)cnt_.received,
         (long long)cnt_.stale_steps, (long long)cnt_.safe_steps, (long long)cnt_.malformed,
         (long long)cnt_.trailing, (long long)cnt_.duplicate, (long long)cnt_.out_of_order,
-        (long long)cnt_.invalid_state);
+        (long long)cnt_.invalid_state, (long long)cnt_.foreign_session,
+        (long long)cnt_.sessions_adopted);
     return buf;
   }
 
@@ -298,6 +332,9 @@ class Shell {
   int64_t state_rx_ns_ = 0;
   bool have_state_ = false, fresh_ = false, have_cmd_ = false, used_fresh_ = false;
   int64_t used_rx_ns_ = 0;
+  std::atomic<bool> reengage_{false};
+  int64_t session_ = 0;
+  int64_t session_timeout_ns_ = 500000000;
   std::mutex mu_;  // guards the mailbox: state_, state_rx_ns_, have_state_, fresh_
   sc_rt::Command last_cmd_;
   int64_t cmd_seq_ = 0;
@@ -444,7 +481,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string sched = setup_scheduler(o.rt_priority);
-  lcm.subscribeFunction(o.prefix + "SCRT_STATE", &Shell::on_state, &shell);
+  // LCM drops messages beyond a subscription's queue capacity (30 by
+  // default) without a word: under a burst of hostile traffic that would lose
+  // genuine states. Hold many; every one is counted or used.
+  lcm.subscribeFunction(o.prefix + "SCRT_STATE", &Shell::on_state, &shell)->setQueueCapacity(100000);
   std::fprintf(stderr, "sc-rt-controller: %s mode on %s, %s\n", o.realtime ? "realtime" : "lockstep",
                o.url.c_str(), sched.c_str());
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import secrets
 import select
 import time
 from collections import Counter
@@ -81,14 +82,38 @@ class Emulator:
         self._newest_cmd = None
         self._newest_cmd_ns = 0
         self._last_cmd_seq = -1
+        self._last_status_seq = -1
+        self._ctl_session: int | None = None
+        self._peer_lost = False
+        self.session = secrets.randbits(62)
         self._pub_ns: dict[int, int] = {}
         self._t_now = 0.0
         self.faults_applied: list[dict[str, Any]] = []
-        self.lc.subscribe(channel("SCRT_CMD", prefix), self._on_cmd)
-        self.lc.subscribe(channel("SCRT_CTRL_STATUS", prefix), self._on_status)
-        self.lc.subscribe(channel("SCRT_FAULT", prefix), self._on_fault)
+        # LCM silently drops messages beyond a subscription's queue capacity
+        # (30 by default): hold many, so every one is either used or counted
+        for name, handler in (("SCRT_CMD", self._on_cmd), ("SCRT_CTRL_STATUS", self._on_status),
+                              ("SCRT_FAULT", self._on_fault)):
+            self.lc.subscribe(channel(name, prefix), handler).set_queue_capacity(100_000)
 
     # --- handlers: never raise -------------------------------------------
+    def _session_ok(self, session: int, now: int) -> bool:
+        """Commands and status come from one controller session at a time; a
+        new session is adopted only once the current controller is lost (the
+        loop saw an unanswered state in lockstep or a stale command in real
+        time: a crashed or restarted controller), never while it answers."""
+        if session == self._ctl_session:
+            return True
+        if self._ctl_session is None or self._peer_lost:
+            if self._ctl_session is not None:
+                self.counters["controller_sessions_adopted"] += 1
+            self._ctl_session = session
+            self._peer_lost = False
+            self._last_cmd_seq = -1
+            self._last_status_seq = -1
+            return True
+        self.counters["foreign_session"] += 1
+        return False
+
     def _on_cmd(self, _ch: str, data: bytes) -> None:
         now = time.monotonic_ns()
         self.counters["cmd_received"] += 1
@@ -99,13 +124,10 @@ class Emulator:
         if not all(math.isfinite(v) for v in msg.u_cmd):
             self.counters["invalid_command"] += 1
             return
+        if not self._session_ok(msg.session, now):
+            return
         if msg.seq <= self._last_cmd_seq:
             self.counters["duplicate" if msg.seq == self._last_cmd_seq else "out_of_order"] += 1
-            # a re-answer of a re-sent state is a duplicate command seq only if
-            # the controller re-published; still usable for that state
-            if msg.state_seq not in self._cmd and msg.state_seq >= 0:
-                self._cmd[msg.state_seq] = msg
-                self._cmd_rx[msg.state_seq] = now
             return
         self._last_cmd_seq = msg.seq
         self._newest_cmd, self._newest_cmd_ns = msg, now
@@ -114,8 +136,15 @@ class Emulator:
             self._cmd_rx[msg.state_seq] = now
 
     def _on_status(self, _ch: str, data: bytes) -> None:
+        now = time.monotonic_ns()
         msg = decode_guarded(sc_rt_lcm.controller_status_t, data, self.counters)
-        if msg is not None and msg.state_seq >= 0 and msg.state_seq not in self._status:
+        if msg is None or not self._session_ok(msg.session, now):
+            return
+        if msg.cmd_seq <= self._last_status_seq:
+            self.counters["status_out_of_order"] += 1
+            return
+        self._last_status_seq = msg.cmd_seq
+        if msg.state_seq >= 0 and msg.state_seq not in self._status:
             self._status[msg.state_seq] = msg
 
     def _on_fault(self, _ch: str, data: bytes) -> None:
@@ -156,7 +185,7 @@ class Emulator:
     def _publish_state(self, k: int, t: float, x: np.ndarray) -> None:
         m = sc_rt_lcm.plant_state_t()
         m.utime = time.time_ns() // 1000
-        m.seq, m.t = k, t
+        m.seq, m.t, m.session = k, t, self.session
         m.sigma_BN = [float(v) for v in x[0:3]]
         m.omega_BN_B = [float(v) for v in x[3:6]]
         m.wheel_speed = [float(v) for v in x[6:10]]
@@ -257,6 +286,7 @@ class Emulator:
                     break
             stale = cmd is None
             silent = silent + 1 if stale else 0
+            self._peer_lost = stale
             if stale:
                 # watchdog: no answer to this state: apply zero, flag, go on
                 self.counters["cmd_timeout"] += 1
@@ -313,6 +343,7 @@ class Emulator:
             lateness[k] = (now - deadline) / 1e3
             cmd = self._newest_cmd
             stale = cmd is None or now - self._newest_cmd_ns > stale_ns
+            self._peer_lost = stale
             if stale:
                 self.counters["cmd_stale_ticks"] += 1
                 u_cmd, u_sat_ctrl, cmd_seq = np.zeros(4), np.zeros(4), -1

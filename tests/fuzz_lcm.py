@@ -1,0 +1,104 @@
+"""A hostile LCM publisher for the robustness tests: malformed, truncated,
+foreign, replayed and non-finite messages on every channel sc-rt subscribes
+to. Run as a script: python fuzz_lcm.py URL N OUT.json [--seed S]."""
+
+from __future__ import annotations
+
+import json
+import math
+import random
+import sys
+import threading
+import time
+from collections import Counter, deque
+
+import lcm
+import sc_rt_lcm
+
+TARGETS = {  # channel -> the type its subscriber expects
+    "SCRT_STATE": sc_rt_lcm.plant_state_t,
+    "SCRT_CMD": sc_rt_lcm.wheel_cmd_t,
+    "SCRT_CTRL_STATUS": sc_rt_lcm.controller_status_t,
+    "SCRT_FAULT": sc_rt_lcm.fault_cmd_t,
+}
+OTHER = [sc_rt_lcm.plant_state_t, sc_rt_lcm.wheel_cmd_t, sc_rt_lcm.controller_status_t,
+         sc_rt_lcm.plant_truth_t, sc_rt_lcm.fault_cmd_t]
+
+
+def valid(cls, rng: random.Random, bad: float | None = None):
+    m = cls()
+    for slot in cls.__slots__:
+        v = getattr(m, slot)
+        if isinstance(v, list) and v and isinstance(v[0], float):
+            setattr(m, slot, [bad if bad is not None else rng.uniform(-1, 1) for _ in v])
+    if hasattr(m, "session"):
+        m.session = rng.getrandbits(62)  # never the genuine peer's
+    if hasattr(m, "seq"):
+        m.seq = rng.randrange(0, 10**6)
+    if cls is sc_rt_lcm.fault_cmd_t:
+        m.wheel = rng.randrange(1, 5)
+        m.action = 1
+        m.effectiveness = 0.0
+        m.rate = 1.0
+        m.now = True
+    return m
+
+
+def main(url: str, n: int, out: str, seed: int = 1) -> None:
+    rng = random.Random(seed)
+    lc = lcm.LCM(url)
+    sent: Counter = Counter()
+    recent: dict[str, deque] = {ch: deque(maxlen=50) for ch in ("SCRT_STATE", "SCRT_CMD", "SCRT_CTRL_STATUS")}
+    for ch in recent:
+        lc.subscribe(ch, lambda c, d: recent[c].append(d))
+    stop = threading.Event()
+
+    def pump():
+        while not stop.is_set():
+            lc.handle_timeout(20)
+
+    th = threading.Thread(target=pump, daemon=True)
+    th.start()
+    kinds = ["empty", "random", "truncated", "other_type", "trailing", "nan", "inf", "absurd", "replay"]
+    i = 0
+    t0 = time.monotonic()
+    while i < n:
+        ch = rng.choice(list(TARGETS))
+        cls = TARGETS[ch]
+        kind = rng.choice(kinds)
+        if kind == "empty":
+            data = b""
+        elif kind == "random":
+            data = rng.randbytes(rng.randrange(1, 300))
+        elif kind == "truncated":
+            full = valid(cls, rng).encode()
+            data = full[: rng.randrange(0, len(full))]
+        elif kind == "other_type":
+            data = valid(rng.choice([c for c in OTHER if c is not cls]), rng).encode()
+        elif kind == "trailing":
+            data = valid(cls, rng).encode() + rng.randbytes(rng.randrange(1, 40))
+        elif kind in ("nan", "inf", "absurd"):
+            bad = {"nan": math.nan, "inf": math.inf, "absurd": 1e300}[kind]
+            if cls is sc_rt_lcm.fault_cmd_t:
+                m = valid(cls, rng)
+                m.effectiveness = bad
+                data = m.encode()
+            else:
+                data = valid(cls, rng, bad).encode()
+        else:  # replay of a genuine message seen earlier (old sequence number)
+            q = recent.get(ch)
+            if not q or len(q) < 5:
+                continue
+            data = q[rng.randrange(0, len(q) - 3)]
+        lc.publish(ch, data)
+        sent[f"{ch}:{kind}"] += 1
+        i += 1
+        if i % 500 == 0:
+            time.sleep(0.01)  # pace: keep the receivers' socket buffers from overflowing
+    stop.set()
+    th.join()
+    json.dump({"sent": dict(sent), "n": i, "seconds": time.monotonic() - t0}, open(out, "w"))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], int(sys.argv[2]), sys.argv[3], int(sys.argv[4]) if len(sys.argv) > 4 else 1)
