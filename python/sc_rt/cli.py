@@ -109,8 +109,21 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("sc-rt emulator: interrupted", file=sys.stderr)
         return 130
-    print(json.dumps({"rows": res.rows, "counters": dict(res.counters),
-                      "gaps_s": res.gaps, "diverged": res.diverged}))
+    summary = {"rows": res.rows, "counters": dict(res.counters), "gaps_s": res.gaps,
+               "diverged": res.diverged}
+    if args.out:
+        import numpy as np
+
+        from .analysis import TRAJECTORY_KEYS, bound_ok
+
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        traj = dict(res.trajectory)
+        traj["bound_ok"] = bound_ok(emu.scn.controller.ppc, traj["t"], traj["sigma_BD"])
+        np.savez_compressed(out / "trajectory.npz", **{k: traj[k] for k in TRAJECTORY_KEYS},
+                            latency_us=res.latency_us)
+        (out / "emulator.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(json.dumps(summary))
     return 0
 
 
@@ -133,6 +146,160 @@ def cmd_config(args: argparse.Namespace) -> int:
     Path(args.out).write_bytes(data)
     print(f"sc-rt config: controller_config_t ({len(data)} bytes) -> {args.out}")
     return 0
+
+
+# --- monitoring and reports (issue 8): spy, lcm-spy, fault, report, replay ---
+def _url(args: argparse.Namespace) -> str:
+    from .lcmio import env_url
+
+    return args.lcm_url or env_url()
+
+
+def cmd_spy(args: argparse.Namespace) -> int:
+    from .spy import main_loop
+
+    if args.duration is not None and not args.duration > 0:
+        print(f"sc-rt spy: error: --duration must be > 0, got {args.duration}", file=sys.stderr)
+        return 2
+    return main_loop(_url(args), args.channels, once=args.once, as_json=args.json,
+                     duration=args.duration, refresh=args.refresh, window=args.window)
+
+
+def cmd_lcm_spy(args: argparse.Namespace) -> int:
+    import os
+
+    from .lcmspy import JavaMissing, spy_command, types_jar
+
+    try:
+        if args.build_only:
+            print(types_jar(rebuild=args.rebuild, log=lambda m: print(m, file=sys.stderr)))
+            return 0
+        if args.rebuild:
+            types_jar(rebuild=True)
+        cmd, env = spy_command(_url(args), title=args.title)
+    except JavaMissing as e:
+        print(f"sc-rt lcm-spy: error: {e}", file=sys.stderr)
+        return 2
+    print(f"sc-rt lcm-spy: CLASSPATH={env['CLASSPATH']}\nsc-rt lcm-spy: {' '.join(cmd)}", flush=True)
+    os.execvpe(cmd[0], cmd, env)  # the real tool replaces this process (signals reach it)
+    return 0  # pragma: no cover
+
+
+def cmd_fault(args: argparse.Namespace) -> int:
+    from .faultcmd import FaultArgError, clear_msg, inject_msg, publish
+
+    try:
+        if args.action == "inject":
+            msg = inject_msg(args.wheel, effectiveness=args.effectiveness, bias=args.bias,
+                             stuck=args.stuck, at=args.at, until=args.until, rate=args.rate)
+        else:
+            msg = clear_msg(args.wheel)
+    except FaultArgError as e:
+        print(f"sc-rt fault {args.action}: error: {e}", file=sys.stderr)
+        return 2
+    ch = publish(msg, _url(args), args.prefix)
+    when = "now" if msg.now else f"at t = {msg.t_onset:g} s"
+    what = (f"effectiveness {msg.effectiveness:g}, bias {msg.bias:g} rad/s^2, rate {msg.rate:g} 1/s"
+            f"{', stuck' if msg.stuck else ''}, {when}"
+            f"{'' if msg.t_end < 0 else f' until t = {msg.t_end:g} s'}") if args.action == "inject" else "now"
+    print(f"sc-rt fault: {args.action} wheel {msg.wheel} ({what}) -> {ch} (seq {msg.seq}); applied only "
+          "by an emulator started with --accept-fault-commands")
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from .report import write_report
+
+    out = Path(args.out) if args.out else Path(args.log).parent / "report"
+    try:
+        rep = write_report(args.log, out, scenario=args.scenario, prefix=args.prefix,
+                           mode=args.mode, plots=not args.no_plots)
+    except ValueError as e:
+        print(f"sc-rt report: error: {e}", file=sys.stderr)
+        return 2
+    print(f"sc-rt report: {args.log}: {rep['events']} events in {rep['read_decode_s']:.2f} s "
+          f"({rep['events_per_s']:.3g} events/s), {rep['rows']} rows, mode {rep['mode']}, "
+          f"{rep['undecodable']} undecodable, skipped {rep['skipped']} -> {out}/")
+    _print_metrics(rep["metrics"])
+    for c in rep["faults"]["commands"]:
+        print(f"  fault command: {c}")
+    return 0
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    import subprocess
+
+    from .report import replay_command
+
+    try:
+        cmd = replay_command(args.log, _url(args), args.speed, args.channels, args.verbose)
+    except ValueError as e:
+        print(f"sc-rt replay: error: {e}", file=sys.stderr)
+        return 2
+    try:
+        return subprocess.call(cmd)
+    except KeyboardInterrupt:
+        return 130
+
+
+def _add_monitoring(sub) -> None:
+    url_help = "default: $SCRT_LCM_URL or udpm://239.255.76.67:7667?ttl=0 (sc-rt hil picks a free port: pass its URL)"
+
+    y = sub.add_parser("spy", help="terminal monitor of the bus: rates, jitter, newest values")
+    y.add_argument("--lcm-url", metavar="URL", help=url_help)
+    y.add_argument("--channels", default=".*", metavar="REGEX",
+                   help="channels to watch (LCM regex: the whole name must match; default all)")
+    y.add_argument("--once", action="store_true", help="listen --duration seconds, print one snapshot")
+    y.add_argument("--json", action="store_true", help="JSON instead of the table")
+    y.add_argument("--duration", type=float, metavar="S",
+                   help="--once: listening time (default 1.5 s); live: stop after S s")
+    y.add_argument("--refresh", type=float, default=0.5, metavar="S", help="live: redraw period")
+    y.add_argument("--window", type=float, default=2.0, metavar="S", help="live: rate window")
+    y.set_defaults(func=cmd_spy)
+
+    j = sub.add_parser("lcm-spy", help="LCM's lcm-spy (GUI) with the sc_rt_lcm types on its CLASSPATH")
+    j.add_argument("--lcm-url", metavar="URL", help=url_help)
+    j.add_argument("--title", help="window title")
+    j.add_argument("--build-only", action="store_true", help="build (or find) the types jar, print its path")
+    j.add_argument("--rebuild", action="store_true", help="rebuild the cached types jar")
+    j.set_defaults(func=cmd_lcm_spy)
+
+    f = sub.add_parser("fault", help="inject or clear a wheel fault live (fault_cmd_t on SCRT_FAULT)")
+    fs = f.add_subparsers(dest="action", metavar="ACTION", required=True)
+    fi = fs.add_parser("inject", help="inject a fault on one wheel")
+    fi.add_argument("--wheel", type=int, required=True, metavar="N", help="wheel 1..4")
+    fi.add_argument("--effectiveness", type=float, default=1.0, metavar="E", help="L in [0, 1] (default 1)")
+    fi.add_argument("--bias", type=float, default=0.0, metavar="B", help="bias ubar [rad/s^2] (default 0)")
+    fi.add_argument("--stuck", action="store_true", help="the wheel keeps its speed at onset")
+    when = fi.add_mutually_exclusive_group()
+    when.add_argument("--at", type=float, metavar="T", help="onset at simulation time T [s]")
+    when.add_argument("--now", action="store_true", help="onset at the emulator's current time (default)")
+    fi.add_argument("--until", type=float, metavar="T", help="end at simulation time T [s] (default never)")
+    fi.add_argument("--rate", type=float, default=1.0, metavar="A", help="evolution rate a of (16) [1/s]")
+    fc = fs.add_parser("clear", help="the wheel is healthy again from now on")
+    fc.add_argument("--wheel", type=int, required=True, metavar="N", help="wheel 1..4")
+    for q in (fi, fc):
+        q.add_argument("--lcm-url", metavar="URL", help=url_help)
+        q.add_argument("--prefix", default="", help="channel name prefix (default none)")
+        q.set_defaults(func=cmd_fault)
+
+    r = sub.add_parser("report", help="metrics, timing and figures of a run from its LCM log")
+    r.add_argument("log")
+    r.add_argument("--out", metavar="DIR", help="default: report/ next to the log")
+    r.add_argument("--scenario", metavar="FILE",
+                   help="scenario of the run (needed only for a log without SCRT_CONFIG; gives the duration)")
+    r.add_argument("--prefix", help="channel prefix (default: detected)")
+    r.add_argument("--mode", choices=("lockstep", "realtime"), help="default: detected")
+    r.add_argument("--no-plots", action="store_true")
+    r.set_defaults(func=cmd_report)
+
+    p = sub.add_parser("replay", help="play an LCM log onto the bus (the wheel's lcm-logplayer)")
+    p.add_argument("log")
+    p.add_argument("--lcm-url", metavar="URL", help=url_help)
+    p.add_argument("--speed", type=float, default=1.0, metavar="X", help="playback speed (default 1)")
+    p.add_argument("--channels", metavar="REGEX", help="only these channels")
+    p.add_argument("--verbose", action="store_true")
+    p.set_defaults(func=cmd_replay)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -190,6 +357,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--time-scale", type=float, default=1.0)
     e.add_argument("--duration", type=float, metavar="S")
     e.add_argument("--accept-fault-commands", action="store_true")
+    e.add_argument("--out", metavar="DIR", help="write trajectory.npz and emulator.json there")
     lcm_opts(e)
     e.set_defaults(func=cmd_emulator)
 
@@ -205,6 +373,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--controller", choices=LAW_CHOICES)
     c.add_argument("--control-rate", type=float, metavar="HZ")
     c.set_defaults(func=cmd_config)
+    _add_monitoring(sub)
     return p
 
 
