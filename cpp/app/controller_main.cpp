@@ -49,9 +49,10 @@ const char* kUsage =
     "  --prefix P             channel name prefix (default none)\n"
     "  --realtime-priority    ask for SCHED_FIFO and mlockall (falls back with a\n"
     "                         warning when not permitted)\n"
-    "  --phase-offset US      real time: wake US microseconds after a state\n"
-    "                         arrives, by locking the timer's phase to the\n"
-    "                         states (default 50; negative: free-running)\n"
+    "  --phase-offset US      real time: lock the timer's phase to the state\n"
+    "                         arrivals and wake at least US microseconds after\n"
+    "                         one (the guard widens with the plant's jitter;\n"
+    "                         default 50; negative: free-running)\n"
     "  --max-steps N          stop after N control steps (default: run until\n"
     "                         SIGINT/SIGTERM)\n"
     "  --summary FILE         write the exit summary as JSON to FILE\n"
@@ -498,6 +499,7 @@ int main(int argc, char** argv) {
       while (!rx_stop && !g_stop) lcm.handleTimeout(20);
     });
     int64_t deadline = mono_ns() + shell.period_ns();
+    double guard_ns = o.phase_offset_us * 1e3;
     while (!shell.done()) {
       timespec ts{time_t(deadline / 1000000000LL), long(deadline % 1000000000LL)};
       while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR && !g_stop) {
@@ -506,11 +508,19 @@ int main(int argc, char** argv) {
       const int64_t now = mono_ns();
       shell.step(now, deadline);
       deadline += shell.period_ns();
+      if (o.phase_offset_us >= 0.0) {
+        // The guard after an arrival adapts to the plant's jitter: a step
+        // that found no new state (it came after the wake-up) widens it by a
+        // quarter; fresh steps shrink it by 1 % back toward --phase-offset.
+        const double P2 = 0.5 * double(shell.period_ns());
+        guard_ns = shell.used_fresh() ? std::max(0.99 * guard_ns, o.phase_offset_us * 1e3)
+                                      : std::min(1.25 * guard_ns + 5e3, P2);
+      }
       if (o.phase_offset_us >= 0.0 && shell.used_fresh()) {
         // phase-locked loop on the state arrivals: move the next deadline a
-        // quarter of the way toward (arrival + offset), modulo the period
+        // quarter of the way toward (arrival + guard), modulo the period
         const int64_t P = shell.period_ns();
-        const int64_t target = shell.state_rx_ns() + int64_t(o.phase_offset_us * 1e3);
+        const int64_t target = shell.state_rx_ns() + int64_t(guard_ns);
         int64_t err = (deadline - target) % P;
         if (err < 0) err += P;
         if (err > P / 2) err -= P;

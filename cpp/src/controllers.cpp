@@ -120,23 +120,29 @@ Command Controller::safe_command(double t, int flags) {
   return out;
 }
 
+void Controller::observe(const Measurement& m, Command& out, TrackingErrors& e, PpcResult& ppc) {
+  guidance_.advance(m.t);
+  e = errors_at(m);
+  out.sigma_DN = guidance_.sigma_DN();
+  out.sigma_BD = e.sigma_BD;
+  out.omega_BD_B = e.omega_BD_B;
+  // The prescribed bound is reported for every law.
+  ppc = ppc_transform(cfg_.ppc, e.sigma_BD, m.t - t0_);
+  out.chi = ppc.chi;
+  out.lam = ppc.lambda;
+  out.flags |= ppc.violated;  // FLAG_BOUND_X/Y/Z are bits 0..2
+}
+
 Command Controller::step(const Measurement& m) {
+  TrackingErrors e;
+  PpcResult ppc;
   if (!measurement_valid(m, cfg_.safety)) {
     Command out = safe_command(m.t, FLAG_INVALID_STATE);
     // Telemetry stays true in SAFE mode when the state is finite but out of
     // range (a tumble past max_rate): the errors are still well defined.
     if (std::isfinite(m.t) && m.sigma_BN.allFinite() && m.omega_BN_B.allFinite() &&
-        m.wheel_speed.allFinite() && m.t >= guidance_.t()) {
-      guidance_.advance(m.t);
-      const TrackingErrors e = errors_at(m);
-      out.sigma_DN = guidance_.sigma_DN();
-      out.sigma_BD = e.sigma_BD;
-      out.omega_BD_B = e.omega_BD_B;
-      const PpcResult ppc = ppc_transform(cfg_.ppc, e.sigma_BD, m.t - t0_);
-      out.chi = ppc.chi;
-      out.lam = ppc.lambda;
-      out.flags |= ppc.violated;
-    }
+        m.wheel_speed.allFinite() && m.t >= guidance_.t())
+      observe(m, out, e, ppc);
     return out;
   }
   if (!engaged_) reset(m);  // (re-)engage from this measurement
@@ -149,17 +155,7 @@ Command Controller::step(const Measurement& m) {
     dt = 0.0;
   }
   first_ = false;
-  guidance_.advance(m.t);
-  const TrackingErrors e = errors_at(m);
-  out.sigma_DN = guidance_.sigma_DN();
-  out.sigma_BD = e.sigma_BD;
-  out.omega_BD_B = e.omega_BD_B;
-  // The prescribed bound is reported for every law.
-  const PpcResult ppc = ppc_transform(cfg_.ppc, e.sigma_BD, m.t - t0_);
-  out.chi = ppc.chi;
-  out.lam = ppc.lambda;
-  out.flags |= ppc.violated;  // FLAG_BOUND_X/Y/Z are bits 0..2
-
+  observe(m, out, e, ppc);
   law_step(e, ppc, dt, out);
 
   out.u_sat = model_.saturate(out.u_cmd);

@@ -85,6 +85,8 @@ class Emulator:
         self._last_status_seq = -1
         self._ctl_session: int | None = None
         self._peer_lost = False
+        self._gaps: list[tuple[float, float]] = []
+        self._gap_start: float | None = None
         self.session = secrets.randbits(62)
         self._pub_ns: dict[int, int] = {}
         self._t_now = 0.0
@@ -258,8 +260,7 @@ class Emulator:
         n_ctrl, n_sub, h, rate = _steps(scn)
         traj = _allocate(n_ctrl + 1)
         x = initial_state(scn)
-        rows, diverged, gaps = 0, False, []
-        gap_start = None
+        rows = 0
         silent = 0  # consecutive states without an answer
         for k in range(n_ctrl + 1):
             t = k / rate
@@ -286,41 +287,14 @@ class Emulator:
                     break
             stale = cmd is None
             silent = silent + 1 if stale else 0
-            self._peer_lost = stale
             if stale:
                 # watchdog: no answer to this state: apply zero, flag, go on
                 self.counters["cmd_timeout"] += 1
-                u_cmd = np.zeros(4)
-                u_sat_ctrl = np.zeros(4)
-                cmd_seq = -1
-                gap_start = t if gap_start is None else gap_start
-            else:
-                u_cmd = np.array(cmd.u_cmd)
-                u_sat_ctrl = np.array(cmd.u_sat)
-                cmd_seq = cmd.seq
-                if gap_start is not None:
-                    gaps.append((gap_start, t))
-                    gap_start = None
-            u_sat, accel, _ = actuators.wheel_accel(self.act, t, u_cmd, x[6:10])
-            delta2 = plant.lumped_disturbance(scn.plant, t, x, u_sat, accel)
-            self._record(traj, k, t, x, u_cmd, u_sat_ctrl, accel, delta2)
-            self._publish_truth(k, t, cmd_seq, u_cmd, accel, delta2, stale)
+            x = self._apply(traj, k, t, x, cmd, n_sub, h)
             rows = k + 1
-            if k == n_ctrl:
+            if k == n_ctrl or x is None:
                 break
-            for j in range(n_sub):
-                x = plant.rk4_step(scn.plant, self.act, t + j * h, x, h, u_cmd)
-            if not np.all(np.isfinite(x)):
-                diverged = True
-                break
-        if gap_start is not None:
-            gaps.append((gap_start, traj["t"][rows - 1]))
-        # let the last status arrive
-        self._handle_until(time.monotonic_ns() + 20_000_000)
-        traj = {k: v[:rows] for k, v in traj.items()}
-        timing = self._fill_status(traj, rows)
-        return EmulatorResult(traj, rows, self.counters, self._latencies(rows), np.zeros(0), timing,
-                              diverged, gaps, self.faults_applied)
+        return self._finish(traj, rows, np.zeros(0), x is None and rows < n_ctrl + 1)
 
     def _run_realtime(self) -> EmulatorResult:
         scn = self.scn
@@ -331,7 +305,7 @@ class Emulator:
         traj = _allocate(n_ticks + 1)
         x = initial_state(scn)
         lateness = np.zeros(n_ticks + 1)
-        rows, diverged, gaps, gap_start = 0, False, [], None
+        rows = 0
         self._publish_state(0, 0.0, x)
         start = time.monotonic_ns()
         for k in range(n_ticks + 1):
@@ -342,34 +316,46 @@ class Emulator:
             now = time.monotonic_ns()
             lateness[k] = (now - deadline) / 1e3
             cmd = self._newest_cmd
-            stale = cmd is None or now - self._newest_cmd_ns > stale_ns
-            self._peer_lost = stale
-            if stale:
+            if cmd is None or now - self._newest_cmd_ns > stale_ns:
                 self.counters["cmd_stale_ticks"] += 1
-                u_cmd, u_sat_ctrl, cmd_seq = np.zeros(4), np.zeros(4), -1
-                gap_start = t if gap_start is None else gap_start
-            else:
-                u_cmd, u_sat_ctrl, cmd_seq = np.array(cmd.u_cmd), np.array(cmd.u_sat), cmd.seq
-                if gap_start is not None:
-                    gaps.append((gap_start, t))
-                    gap_start = None
-            u_sat, accel, _ = actuators.wheel_accel(self.act, t, u_cmd, x[6:10])
-            delta2 = plant.lumped_disturbance(scn.plant, t, x, u_sat, accel)
-            self._record(traj, k, t, x, u_cmd, u_sat_ctrl, accel, delta2)
-            self._publish_truth(k, t, cmd_seq, u_cmd, accel, delta2, stale)
+                cmd = None
+            x = self._apply(traj, k, t, x, cmd, n_sub, h)
             rows = k + 1
-            if k == n_ticks:
-                break
-            for j in range(n_sub):
-                x = plant.rk4_step(scn.plant, self.act, t + j * h, x, h, u_cmd)
-            if not np.all(np.isfinite(x)):
-                diverged = True
+            if k == n_ticks or x is None:
                 break
             self._publish_state(k + 1, (k + 1) * period, x)
-        if gap_start is not None:
-            gaps.append((gap_start, traj["t"][rows - 1]))
+        return self._finish(traj, rows, lateness[:rows], x is None and rows < n_ticks + 1)
+
+    def _apply(self, traj, k: int, t: float, x: np.ndarray, cmd, n_sub: int, h: float):
+        """Row k: apply ``cmd`` (None: the watchdog's zero), record it with the
+        truth at t, publish the truth, and integrate one control period.
+        Returns the next state, or None when it is not finite."""
+        stale = cmd is None
+        self._peer_lost = stale
+        if stale:
+            u_cmd, u_sat_ctrl, cmd_seq = np.zeros(4), np.zeros(4), -1
+            if self._gap_start is None:
+                self._gap_start = t
+        else:
+            u_cmd, u_sat_ctrl, cmd_seq = np.array(cmd.u_cmd), np.array(cmd.u_sat), cmd.seq
+            if self._gap_start is not None:
+                self._gaps.append((self._gap_start, t))
+                self._gap_start = None
+        u_sat, accel, _ = actuators.wheel_accel(self.act, t, u_cmd, x[6:10])
+        delta2 = plant.lumped_disturbance(self.scn.plant, t, x, u_sat, accel)
+        self._record(traj, k, t, x, u_cmd, u_sat_ctrl, accel, delta2)
+        self._publish_truth(k, t, cmd_seq, u_cmd, accel, delta2, stale)
+        for j in range(n_sub):
+            x = plant.rk4_step(self.scn.plant, self.act, t + j * h, x, h, u_cmd)
+        return x if np.all(np.isfinite(x)) else None
+
+    def _finish(self, traj, rows: int, lateness: np.ndarray, diverged: bool) -> EmulatorResult:
+        if self._gap_start is not None:
+            self._gaps.append((self._gap_start, float(traj["t"][rows - 1])))
+            self._gap_start = None
+        # let the last status arrive
         self._handle_until(time.monotonic_ns() + 20_000_000)
         traj = {k: v[:rows] for k, v in traj.items()}
         timing = self._fill_status(traj, rows)
-        return EmulatorResult(traj, rows, self.counters, self._latencies(rows), lateness[:rows],
-                              timing, diverged, gaps, self.faults_applied)
+        return EmulatorResult(traj, rows, self.counters, self._latencies(rows), lateness, timing,
+                              diverged, self._gaps, self.faults_applied)

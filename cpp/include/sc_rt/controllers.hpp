@@ -38,9 +38,12 @@ struct DscGains {
   double tau = 0.1;  //!< [s] filter time constant (37)
 };
 
+// Designed by sc_rt.design.default_pd_design (`sc-rt design`, docs/DESIGN.md):
+// critically damped, 2 % settling time ln(50)/min(gamma) = 48.9 s of the
+// paper's slowest prescribed envelope; beta1 = 4 wn^2, beta2 = 2 wn, 4 digits.
 struct PdGains {
-  double beta1 = 0.16;  //!< [1/s^2] on sigma_BD (design: sc_rt.design)
-  double beta2 = 0.56;  //!< [1/s] on omega_BD_B
+  double beta1 = 0.05693;  //!< [1/s^2] on sigma_BD
+  double beta2 = 0.2386;   //!< [1/s] on omega_BD_B
 };
 
 struct RftGains {
@@ -159,6 +162,8 @@ class Controller {
 
  private:
   TrackingErrors errors_at(const Measurement& m);
+  // Guidance to m.t, errors, the PPC transform, and their telemetry in out.
+  void observe(const Measurement& m, Command& out, TrackingErrors& e, PpcResult& ppc);
 };
 
 }  // namespace sc_rt
