@@ -148,6 +148,41 @@ def cmd_config(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_design(args: argparse.Namespace) -> int:
+    """PD design, margins and sampled-data stability (sc_rt.design, docs/DESIGN.md)."""
+    from .design import (DEFAULT_LATENCY_S, design_report, format_margins_table,
+                         format_sampled_table, write_design)
+    from .sim import with_overrides
+
+    scn = with_overrides(_scenario(args.scenario), control_rate_hz=args.rate)  # validates --rate
+    latency = DEFAULT_LATENCY_S if args.latency is None else args.latency
+    if args.timing:
+        try:
+            timing = json.loads(Path(args.timing).read_text())
+            latency = timing["state_to_cmd_latency_us"]["p99"] * 1e-6
+        except (KeyError, TypeError, ValueError) as e:
+            raise RuntimeError(f"{args.timing}: no state_to_cmd_latency_us.p99 ({e})") from e
+    if not latency > 0:
+        raise RuntimeError(f"latency must be > 0 s, got {latency!r}")
+    rate = scn.run.control_rate_hz
+    rep = design_report(scn, rate, latency=latency)
+    out = Path(args.out)
+    paths = write_design(rep, scn, out, plots=not args.no_plots)
+    pd = rep["pd"]
+    print(f"sc-rt design: {scn.name} at {rate:g} Hz -> {out}/")
+    print(f"PD: beta1 = {pd['beta1']:.4g} 1/s^2, beta2 = {pd['beta2']:.4g} 1/s "
+          f"(wn = {pd['wn']:.4g} rad/s; {pd['rule']}); scenario has "
+          f"{rep['pd_in_scenario']['beta1']:g}, {rep['pd_in_scenario']['beta2']:g}")
+    print(f"\nmargins, each axis loop at a time (pade: latency {latency * 1e3:.3g} ms):")
+    print(format_margins_table(rep["margins"]))
+    print("\nsampled-data stability of the linearised DSC+PPC and DSC loops "
+          "(r frozen at chi(t), true inertia, faults' effectiveness, observer's linear part):")
+    print(format_sampled_table(rep))
+    for path in paths:
+        print(f"  {path}")
+    return 0
+
+
 # --- monitoring and reports (issue 8): spy, lcm-spy, fault, report, replay ---
 def _url(args: argparse.Namespace) -> str:
     from .lcmio import env_url
@@ -373,6 +408,16 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--controller", choices=LAW_CHOICES)
     c.add_argument("--control-rate", type=float, metavar="HZ")
     c.set_defaults(func=cmd_config)
+
+    g = sub.add_parser("design", help="PD design, stability margins and sampled-data stability limits")
+    g.add_argument("scenario")
+    g.add_argument("--rate", type=float, metavar="HZ", help="control rate (default: the scenario's)")
+    g.add_argument("--latency", type=float, metavar="S",
+                   help="latency of the Pade case (default 1.2e-3 s, a measured HIL p99)")
+    g.add_argument("--timing", metavar="FILE", help="take the latency from a HIL timing.json (p99)")
+    g.add_argument("--out", default="out/design", metavar="DIR")
+    g.add_argument("--no-plots", action="store_true")
+    g.set_defaults(func=cmd_design)
     _add_monitoring(sub)
     return p
 
