@@ -23,7 +23,7 @@ import numpy as np
 
 from .analysis import TRAJECTORY_KEYS, bound_ok, compute_metrics, json_safe
 from .emulator import Emulator, EmulatorResult
-from .lcmio import free_port_url, lcm_binary, open_lcm
+from .lcmio import channel, free_port_url, lcm_binary, open_lcm
 from .scenario import Scenario
 from .sim import with_overrides
 
@@ -103,6 +103,10 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     if not _probe_logger(url, log_path, scn.name.encode(), 5.0):
         _stop(logger, signal.SIGINT)
         raise RuntimeError(f"lcm-logger did not start on {url}: {logger.stderr.read().decode()}")
+    # the run's controller_config_t goes into the log (sc-rt report takes the law,
+    # the rate and the PPC envelope from it); the controller reads its file and
+    # listens to SCRT_CONFIG only with --config-channel
+    open_lcm(url).publish(channel("SCRT_CONFIG", prefix), cfg_path.read_bytes())
 
     cmd = [controller_binary(), "--config", str(cfg_path), "--mode", mode, "--lcm-url", url,
            "--summary", str(out / "controller_summary.json")]

@@ -1,0 +1,269 @@
+"""``sc-rt spy``: a terminal monitor of an LCM bus (no display needed).
+
+Per channel: the type (recognised by its fingerprint among the ``sc_rt_lcm``
+types), the rate, the jitter of the arrival intervals, the message count, the
+undecodable count, and the newest values of our types (attitude error, wheel
+speeds and commands, observer estimate, bound and saturation flags, timing,
+fault state). Refreshes in place (ANSI); ``--once --json`` listens for
+``--duration`` seconds and prints one snapshot for scripts and tests.
+
+A message is never trusted: it is checked against its fingerprint and size
+(fixed-size types) or decoded under guard (others), and anything else is
+counted by kind, never fatal.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import select
+import sys
+import time
+from collections import Counter, deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .analysis import json_safe
+from .lcmio import open_lcm
+from .wire import decode_any, identify, numpy_dtype, to_plain
+
+__all__ = ["Spy", "ChannelStats", "main_loop"]
+
+LAW_NAMES = {0: "dsc-ppc", 1: "dsc", 2: "pd", 3: "rft"}
+
+
+def _consts(cls, prefix: str) -> dict[int, str]:
+    return {getattr(cls, n): n[len(prefix):] for n in dir(cls) if n.startswith(prefix)}
+
+
+def _flags(cls, value: int) -> list[str]:
+    return [name for bit, name in sorted(_consts(cls, "FLAG_").items()) if value & bit]
+
+
+@dataclass
+class ChannelStats:
+    name: str
+    keep: float  # [s] arrival times kept (the rate window); inf: all
+    count: int = 0
+    bytes: int = 0
+    type: str | None = None
+    undecodable: Counter = field(default_factory=Counter)
+    times: deque = field(default_factory=deque)
+    latest_raw: bytes | None = None
+    latest_cls: type | None = None
+    latest_msg: object | None = None  # decoded (variable-size types) or lazily
+
+    def add(self, now: float, data: bytes) -> None:
+        self.count += 1
+        self.bytes += len(data)
+        self.times.append(now)
+        if math.isfinite(self.keep):
+            while self.times and now - self.times[0] > self.keep:
+                self.times.popleft()
+        cls = identify(data)
+        if cls is None:
+            self.undecodable["unknown_type"] += 1
+            return
+        dt = numpy_dtype(cls)
+        if dt is not None:
+            # fixed layout: fingerprint and size are the whole check; decode lazily
+            if len(data) != dt.itemsize:
+                self.undecodable["malformed" if len(data) < dt.itemsize else "trailing_bytes"] += 1
+                return
+            self.latest_raw, self.latest_cls, self.latest_msg = bytes(data), cls, None
+        else:
+            c, msg = decode_any(data, self.undecodable)
+            if msg is None:
+                return
+            self.latest_raw, self.latest_cls, self.latest_msg = bytes(data), c, msg
+        self.type = cls.__name__
+
+    def latest(self):
+        if self.latest_msg is None and self.latest_raw is not None:
+            self.latest_msg = self.latest_cls.decode(self.latest_raw)
+        return self.latest_msg
+
+    def timing(self) -> dict:
+        """rate [Hz] over the kept arrivals, mean period, jitter (standard
+        deviation of the intervals) and the largest interval [ms]."""
+        t = np.fromiter(self.times, float)
+        if t.size < 2 or t[-1] <= t[0]:
+            return {"rate_hz": None, "period_ms": None, "jitter_ms": None, "max_gap_ms": None}
+        d = np.diff(t)
+        return {"rate_hz": float((t.size - 1) / (t[-1] - t[0])), "period_ms": float(d.mean() * 1e3),
+                "jitter_ms": float(d.std() * 1e3), "max_gap_ms": float(d.max() * 1e3)}
+
+    def snapshot(self) -> dict:
+        msg = self.latest()
+        out = {"type": self.type, "count": self.count, **self.timing(),
+               "undecodable": int(sum(self.undecodable.values())),
+               "undecodable_kinds": dict(self.undecodable), "bytes": self.bytes}
+        if msg is not None:
+            out["summary"] = summarize(msg)
+            out["latest"] = to_plain(msg)
+        return out
+
+
+def _norm(v) -> float:
+    return float(np.linalg.norm(np.asarray(v, float)))
+
+
+def summarize(msg) -> dict:
+    """The figures a person watches, per type."""
+    name = type(msg).__name__
+    if name == "plant_state_t":
+        return {"t": msg.t, "seq": msg.seq, "sigma_BN_norm": _norm(msg.sigma_BN),
+                "omega_BN_B": list(msg.omega_BN_B), "wheel_speed": list(msg.wheel_speed)}
+    if name == "wheel_cmd_t":
+        return {"t": msg.t, "seq": msg.seq, "state_seq": msg.state_seq,
+                "mode": _consts(type(msg), "MODE_").get(msg.mode, msg.mode),
+                "u_cmd": list(msg.u_cmd), "u_sat": list(msg.u_sat), "flags": _flags(type(msg), msg.flags)}
+    if name == "controller_status_t":
+        import sc_rt_lcm
+
+        return {"t": msg.t, "state_seq": msg.state_seq, "law": LAW_NAMES.get(msg.law, msg.law),
+                "mode": _consts(sc_rt_lcm.wheel_cmd_t, "MODE_").get(msg.mode, msg.mode),
+                "flags": _flags(sc_rt_lcm.wheel_cmd_t, msg.flags),
+                "sigma_BD": list(msg.sigma_BD), "sigma_BD_norm": _norm(msg.sigma_BD),
+                "omega_BD_B": list(msg.omega_BD_B), "z1": list(msg.z1), "z2": list(msg.z2),
+                "chi": list(msg.chi), "lam": list(msg.lam), "u_sat": list(msg.u_sat),
+                "wake_lateness_us": msg.wake_lateness_us, "compute_us": msg.compute_us,
+                "state_age_us": msg.state_age_us, "steps": msg.steps,
+                "deadline_misses": msg.deadline_misses, "stale_states": msg.stale_states,
+                "rejected": msg.rejected}
+    if name == "plant_truth_t":
+        return {"t": msg.t, "seq": msg.seq, "cmd_seq_applied": msg.cmd_seq_applied,
+                "wheel_accel": list(msg.wheel_accel), "delta2": list(msg.delta2),
+                "fault_Y": list(msg.fault_Y), "fault_effectiveness": list(msg.fault_effectiveness),
+                "fault_bias": list(msg.fault_bias), "fault_stuck": list(msg.fault_stuck),
+                "cmd_stale": msg.cmd_stale}
+    if name == "fault_cmd_t":
+        return {k: getattr(msg, k) for k in ("seq", "wheel", "action", "now", "t_onset", "t_end",
+                                             "effectiveness", "bias", "rate", "stuck")}
+    if name == "controller_config_t":
+        return {"scenario": msg.scenario, "law": LAW_NAMES.get(msg.law, msg.law),
+                "control_rate_hz": msg.control_rate_hz}
+    return {}
+
+
+class Spy:
+    """Listens on ``url`` to every channel matching ``channels`` (LCM's
+    regex: the whole name must match) and keeps per-channel statistics."""
+
+    def __init__(self, url: str, channels: str = ".*", window: float = 2.0):
+        self.url, self.pattern, self.window = url, channels, window
+        self.lc = open_lcm(url)
+        self.stats: dict[str, ChannelStats] = {}
+        self.start = time.monotonic()
+        # a burst must not be dropped silently by LCM's default queue of 30
+        self.lc.subscribe(channels, self._on).set_queue_capacity(100_000)
+
+    def _on(self, ch: str, data: bytes) -> None:
+        now = time.monotonic()
+        s = self.stats.get(ch)
+        if s is None:
+            s = self.stats[ch] = ChannelStats(ch, self.window)
+        try:
+            s.add(now, data)
+        except Exception as e:  # noqa: BLE001 - a monitor must outlive any message
+            s.undecodable[f"error:{type(e).__name__}"] += 1
+
+    def listen(self, seconds: float) -> None:
+        fd = self.lc.fileno()
+        end = time.monotonic() + seconds
+        while (rem := end - time.monotonic()) > 0:
+            if select.select([fd], [], [], min(rem, 0.1))[0]:
+                self.lc.handle()
+
+    def snapshot(self) -> dict:
+        return {"url": self.url, "channels_regex": self.pattern,
+                "listened_s": time.monotonic() - self.start,
+                "channels": {k: self.stats[k].snapshot() for k in sorted(self.stats)}}
+
+    # --- terminal view ---------------------------------------------------
+    def render(self) -> str:
+        def f(v, fmt="{:.1f}"):
+            return "-" if v is None else fmt.format(v)
+
+        def vec(v, fmt="{:+.3e}"):
+            return "[" + " ".join(fmt.format(x) for x in v) + "]"
+
+        lines = [f"sc-rt spy  {self.url}  channels {self.pattern!r}  "
+                 f"{time.monotonic() - self.start:.0f} s  (Ctrl-C quits)", "",
+                 f"{'channel':<22} {'type':<20} {'Hz':>8} {'jitter ms':>10} {'count':>9} {'bad':>6}"]
+        for name in sorted(self.stats):
+            s = self.stats[name]
+            tm = s.timing()
+            bad = sum(s.undecodable.values())
+            lines.append(f"{name[:22]:<22} {(s.type or '?')[:20]:<20} {f(tm['rate_hz']):>8} "
+                         f"{f(tm['jitter_ms'], '{:.3f}'):>10} {s.count:>9} {bad:>6}")
+        lines.append("")
+        for name in sorted(self.stats):
+            msg = self.stats[name].latest()
+            if msg is None:
+                continue
+            m = summarize(msg)
+            tn = type(msg).__name__
+            if tn == "plant_state_t":
+                lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  |sigma_BN| {m['sigma_BN_norm']:.4f}"
+                             f"  wheel speed {vec(m['wheel_speed'], '{:+.1f}')} rad/s")
+            elif tn == "wheel_cmd_t":
+                lines.append(f"{name}: t {m['t']:.3f} s  {m['mode']}  u_cmd {vec(m['u_cmd'])}  "
+                             f"u_sat {vec(m['u_sat'])}  flags {','.join(m['flags']) or '-'}")
+            elif tn == "controller_status_t":
+                bounds = [x for x in m["flags"] if x.startswith("BOUND")]
+                lines.append(f"{name}: t {m['t']:.3f} s  {m['law']} {m['mode']}  |sigma_BD| "
+                             f"{m['sigma_BD_norm']:.3e}  sigma_BD {vec(m['sigma_BD'])}  "
+                             f"bound {','.join(bounds) or 'ok'}")
+                lines.append(f"{'':<{len(name)}}  omega_BD_B {vec(m['omega_BD_B'])}  z2 {vec(m['z2'])}  "
+                             f"chi {vec(m['chi'], '{:.2e}')}")
+                lines.append(f"{'':<{len(name)}}  wake late {m['wake_lateness_us']:.0f} us  compute "
+                             f"{m['compute_us']:.1f} us  state age {m['state_age_us']:.0f} us  steps "
+                             f"{m['steps']}  misses {m['deadline_misses']}  stale {m['stale_states']}  "
+                             f"rejected {m['rejected']}")
+            elif tn == "plant_truth_t":
+                lines.append(f"{name}: t {m['t']:.3f} s  wheel accel {vec(m['wheel_accel'])}  "
+                             f"fault Y {vec(m['fault_Y'], '{:.2f}')}  L {vec(m['fault_effectiveness'], '{:.2f}')}"
+                             f"  stuck {m['fault_stuck']}  stale {m['cmd_stale']}")
+            elif tn == "fault_cmd_t":
+                lines.append(f"{name}: " + "  ".join(f"{k} {v}" for k, v in m.items()))
+            elif tn == "controller_config_t":
+                lines.append(f"{name}: scenario {m['scenario']}  law {m['law']}  "
+                             f"{m['control_rate_hz']:g} Hz")
+        return "\n".join(lines)
+
+
+def main_loop(url: str, channels: str = ".*", once: bool = False, as_json: bool = False,
+              duration: float | None = None, refresh: float = 0.5, window: float = 2.0,
+              out=sys.stdout) -> int:
+    if once:
+        spy = Spy(url, channels, window=math.inf)
+        spy.listen(1.5 if duration is None else duration)
+        snap = spy.snapshot()
+        out.write(json.dumps(json_safe(snap), indent=2, default=float) + "\n" if as_json else spy.render() + "\n")
+        return 0
+    spy = Spy(url, channels, window=window)
+    end = math.inf if duration is None else time.monotonic() + duration
+    tty = out.isatty() if hasattr(out, "isatty") else False
+    try:
+        if tty:
+            out.write("\x1b[?25l\x1b[2J")  # hide the cursor, clear once
+        while time.monotonic() < end:
+            spy.listen(min(refresh, end - time.monotonic()))
+            if as_json:
+                out.write(json.dumps(json_safe(spy.snapshot()), default=float) + "\n")
+            else:
+                text = spy.render()
+                if tty:  # redraw in place: home, each line cleared to its end, rest cleared
+                    out.write("\x1b[H" + "\n".join(line + "\x1b[K" for line in text.split("\n")) + "\x1b[J")
+                else:
+                    out.write(text + "\n\n")
+            out.flush()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if tty:
+            out.write("\x1b[?25h\n")
+            out.flush()
+    return 0

@@ -1,0 +1,154 @@
+"""The wire types as data: which ``sc_rt_lcm`` class a message is (by its
+fingerprint), fast vectorised decoding of the fixed-size types (numpy
+structured arrays over the raw big-endian bytes), and where the ``.lcm``
+sources are (for ``sc-rt lcm-spy``'s Java types).
+
+Everything is derived from the generated Python classes (``__slots__``,
+``__typenames__``, ``__dimensions__``), so a change of a ``.lcm`` file needs
+no edit here.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import sc_rt_lcm
+
+__all__ = ["TYPES", "BY_FINGERPRINT", "identify", "decode_any", "numpy_dtype", "decode_array",
+           "lcm_sources", "to_plain"]
+
+
+def _types() -> dict[str, type]:
+    out = {}
+    for name in dir(sc_rt_lcm):
+        cls = getattr(sc_rt_lcm, name)
+        if isinstance(cls, type) and hasattr(cls, "_get_packed_fingerprint"):
+            out[name] = cls
+    return out
+
+
+#: type name -> generated class
+TYPES: dict[str, type] = _types()
+#: 8-byte packed fingerprint -> generated class
+BY_FINGERPRINT: dict[bytes, type] = {c._get_packed_fingerprint(): c for c in TYPES.values()}
+
+# LCM primitive -> numpy (big-endian, as on the wire)
+_NP = {"int8_t": "i1", "int16_t": ">i2", "int32_t": ">i4", "int64_t": ">i8", "byte": "u1",
+       "float": ">f4", "double": ">f8", "boolean": "i1"}
+
+_DTYPES: dict[type, np.dtype | None] = {}
+
+
+def identify(data: bytes) -> type | None:
+    """The sc_rt_lcm class whose fingerprint starts ``data``, else None."""
+    return BY_FINGERPRINT.get(bytes(data[:8]))
+
+
+def decode_any(data: bytes, counts: Counter | None = None):
+    """(class, message) for a message of any of our types, (None, None) for
+    anything else; never raises. Kinds counted in ``counts``:
+    ``unknown_type``, ``malformed`` (truncated or bad content),
+    ``trailing_bytes`` (a valid message followed by extra bytes)."""
+    counts = Counter() if counts is None else counts
+    cls = identify(data)
+    if cls is None:
+        counts["unknown_type"] += 1
+        return None, None
+    dt = numpy_dtype(cls)
+    if dt is not None and len(data) != dt.itemsize:
+        counts["malformed" if len(data) < dt.itemsize else "trailing_bytes"] += 1
+        return None, None
+    try:
+        msg = cls.decode(bytes(data))
+    except (ValueError, struct.error, IndexError, UnicodeDecodeError, TypeError, OverflowError):
+        counts["malformed"] += 1
+        return None, None
+    if dt is None and len(msg.encode()) != len(data):
+        counts["trailing_bytes"] += 1
+        return None, None
+    return cls, msg
+
+
+def numpy_dtype(cls) -> np.dtype | None:
+    """The packed big-endian layout of a fixed-size type (fingerprint first,
+    as field ``_fp``), None for a type with strings or variable arrays."""
+    if cls in _DTYPES:
+        return _DTYPES[cls]
+    fields: list[tuple] = [("_fp", ">u8")]
+    dt: np.dtype | None
+    try:
+        for name, tn, dims in zip(cls.__slots__, cls.__typenames__, cls.__dimensions__):
+            if tn not in _NP or (dims is not None and not all(isinstance(d, int) for d in dims)):
+                raise LookupError(name)
+            fields.append((name, _NP[tn], tuple(dims)) if dims else (name, _NP[tn]))
+        dt = np.dtype(fields)
+        if dt.itemsize != len(cls().encode()):  # pragma: no cover - guards a new lcm-gen
+            dt = None
+    except LookupError:
+        dt = None
+    _DTYPES[cls] = dt
+    return dt
+
+
+def decode_array(cls, datas: list[bytes], counts: Counter | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Decode many messages of one fixed-size type at once.
+
+    Returns (records, index): a structured array of the well-formed
+    messages and their positions in ``datas``. The rest are counted in
+    ``counts`` by kind (``unknown_type``: another fingerprint,
+    ``malformed``: too short, ``trailing_bytes``: too long)."""
+    counts = Counter() if counts is None else counts
+    dt = numpy_dtype(cls)
+    if dt is None:
+        raise ValueError(f"{cls.__name__} has no fixed layout")
+    size, fp = dt.itemsize, cls._get_packed_fingerprint()
+    fp_int = int.from_bytes(fp, "big")
+    n = len(datas)
+    lens = np.fromiter(map(len, datas), np.int64, n)
+    sized = np.nonzero(lens == size)[0]
+    for i in np.nonzero(lens != size)[0]:  # the few odd ones, one by one
+        d = datas[i]
+        counts["unknown_type" if d[:8] != fp else
+               "malformed" if len(d) < size else "trailing_bytes"] += 1
+    buf = b"".join(datas) if sized.size == n else b"".join(datas[i] for i in sized)
+    rec = np.frombuffer(buf, dtype=dt) if buf else np.zeros(0, dt)
+    ok = rec["_fp"] == fp_int
+    if not np.all(ok):
+        counts["unknown_type"] += int(np.count_nonzero(~ok))
+        rec, sized = rec[ok], sized[ok]
+    return rec, sized.astype(np.int64)
+
+
+def to_plain(msg) -> dict:
+    """A decoded message as a JSON-ready dict (tuples to lists, bytes to str)."""
+    out = {}
+    for name in msg.__slots__:
+        v = getattr(msg, name)
+        if isinstance(v, (tuple, list)):
+            v = [list(x) if isinstance(x, (tuple, list)) else x for x in v]
+        elif isinstance(v, bytes):
+            v = v.decode("utf-8", "replace")
+        out[name] = v
+    return out
+
+
+def lcm_sources() -> list[Path]:
+    """The ``.lcm`` files of the installed types: the copy installed with the
+    package (``sc_rt/lcmtypes``, matching the built ``sc_rt_lcm``), else the
+    source tree's ``lcmtypes/``."""
+    import sc_rt
+
+    for base in list(sc_rt.__path__):
+        d = Path(base) / "lcmtypes"
+        files = sorted(d.glob("*.lcm")) if d.is_dir() else []
+        if files:
+            return files
+    d = Path(sc_rt.__file__).resolve().parent.parent.parent / "lcmtypes"
+    files = sorted(d.glob("*.lcm"))
+    if not files:
+        raise FileNotFoundError("the .lcm sources of sc_rt_lcm were not found (sc_rt/lcmtypes "
+                                "in the installed package, or lcmtypes/ in the source tree)")
+    return files

@@ -1,0 +1,190 @@
+"""sc-rt fault: argument checks, the emulator's handling (only with
+--accept-fault-commands), and a fault injected live into a real-time HIL run:
+in the log, in plant_truth_t and in the report, at the right time."""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sc_rt_lcm
+
+from sc_rt.emulator import Emulator
+from sc_rt.faultcmd import clear_msg, inject_msg
+from sc_rt.report import read_log, write_report
+from sc_rt.scenario import load_scenario
+
+import lcmnet
+
+ROOT = Path(__file__).resolve().parent.parent
+PY = shlex.quote(sys.executable)
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "sc_rt.cli", *args], capture_output=True, text=True,
+                          cwd=ROOT, env=dict(os.environ, SCRT_LCM_URL="memq://"))
+
+
+@pytest.mark.parametrize("args, message", [
+    (["inject", "--wheel", "0"], "--wheel must be 1..4, got 0"),
+    (["inject", "--wheel", "5"], "--wheel must be 1..4, got 5"),
+    (["inject", "--wheel", "1", "--effectiveness", "1.2"], "--effectiveness must be in [0, 1], got 1.2"),
+    (["inject", "--wheel", "1", "--effectiveness", "-0.1"], "--effectiveness must be in [0, 1]"),
+    (["inject", "--wheel", "1", "--rate", "0"], "--rate must be > 0, got 0.0"),
+    (["inject", "--wheel", "1", "--rate", "nan"], "--rate must be finite"),
+    (["inject", "--wheel", "1", "--at", "5", "--until", "5"], "--until must be after --at"),
+    (["inject", "--wheel", "1", "--at", "-1"], "--at must be a simulation time >= 0 s"),
+    (["inject", "--wheel", "1", "--bias", "inf"], "--bias must be finite"),
+    (["clear", "--wheel", "7"], "--wheel must be 1..4, got 7"),
+    (["inject", "--wheel", "1", "--at", "1", "--now"], "not allowed with argument --at"),
+    (["inject"], "the following arguments are required: --wheel"),
+])
+def test_bad_arguments_exit_2_with_a_message(args, message):
+    r = cli("fault", *args)
+    assert r.returncode == 2, r.stdout
+    assert message in r.stderr
+
+
+def test_good_arguments_publish():
+    r = cli("fault", "inject", "--wheel", "2", "--effectiveness", "0.4", "--at", "3", "--until", "9")
+    assert r.returncode == 0, r.stderr
+    assert "inject wheel 2" in r.stdout and "SCRT_FAULT" in r.stdout
+    r = cli("fault", "clear", "--wheel", "2", "--prefix", "B1_")
+    assert r.returncode == 0 and "B1_SCRT_FAULT" in r.stdout
+
+
+def test_messages():
+    m = inject_msg(3, effectiveness=0.25, bias=-0.1, at=4.0, until=6.5, rate=2.0, stuck=False)
+    d = sc_rt_lcm.fault_cmd_t.decode(m.encode())
+    assert (d.wheel, d.action, d.now, d.t_onset, d.t_end, d.effectiveness, d.bias, d.rate, d.stuck) == (
+        3, d.ACTION_INJECT, False, 4.0, 6.5, 0.25, -0.1, 2.0, False)
+    n = inject_msg(1, stuck=True)
+    assert n.now and n.t_end == -1.0 and n.stuck
+    c = clear_msg(4)
+    assert c.action == c.ACTION_CLEAR and c.wheel == 4
+
+
+def _emulator(accept: bool) -> Emulator:
+    scn = load_scenario(ROOT / "scenarios" / "paper_fault_free.toml")
+    return Emulator(scn, mode="realtime", url="memq://", accept_fault_commands=accept)
+
+
+def test_emulator_applies_faults_only_when_it_accepts_them():
+    emu = _emulator(False)
+    emu.lc.publish("SCRT_FAULT", inject_msg(2, effectiveness=0.5).encode())
+    emu.lc.handle_timeout(200)
+    assert emu.counters["fault_ignored"] == 1 and emu.act.faults == () and emu.faults_applied == []
+
+    emu = _emulator(True)
+    emu._t_now = 12.5
+    emu.lc.publish("SCRT_FAULT", inject_msg(2, effectiveness=0.5, bias=0.1, at=20.0, until=30.0).encode())
+    emu.lc.handle_timeout(200)
+    (f,) = emu.act.faults
+    assert (f.wheel, f.effectiveness, f.bias, f.onset, f.end, f.rate) == (1, 0.5, 0.1, 20.0, 30.0, 1.0)
+    emu._on_fault("SCRT_FAULT", inject_msg(2, stuck=True).encode())  # replaces wheel 2's fault, now
+    (f,) = emu.act.faults
+    assert f.stuck and f.onset == 12.5 and f.end is None
+    emu._on_fault("SCRT_FAULT", inject_msg(4, bias=0.2).encode())
+    assert sorted(x.wheel for x in emu.act.faults) == [1, 3]
+    emu._on_fault("SCRT_FAULT", clear_msg(2).encode())
+    assert [x.wheel for x in emu.act.faults] == [3]
+    # hostile: undecodable, a wheel out of range, an effectiveness out of range
+    emu._on_fault("SCRT_FAULT", b"nonsense")
+    bad = inject_msg(1)
+    bad.wheel = 9
+    emu._on_fault("SCRT_FAULT", bad.encode())
+    bad = inject_msg(1)
+    bad.effectiveness = 3.0
+    emu._on_fault("SCRT_FAULT", bad.encode())
+    assert emu.counters["malformed"] == 1 and emu.counters["fault_rejected"] == 2
+    assert emu.counters["fault_applied"] == 4 and [x.wheel for x in emu.act.faults] == [3]
+    actions = [r.get("action", "rejected") for r in emu.faults_applied]
+    assert actions == ["inject", "inject", "inject", "clear", "rejected", "rejected"]
+    assert emu.faults_applied[0]["t"] == 12.5 and emu.faults_applied[0]["onset"] == 20.0
+
+
+def test_fault_injected_live_shows_in_log_truth_and_report(tmp_path):
+    if not lcmnet.lcm_available():  # pragma: no cover - CI is root with namespaces
+        pytest.fail("LCM needs a multicast route or permission to create a network namespace",
+                    pytrace=False)
+    rate = 50.0
+    url = "udpm://239.255.76.67:7741?ttl=0"
+    out = tmp_path / "hil"
+    # injected ~1 s of simulation into the run: wheel 2 from t = 6 s to 7 s (in the
+    # future), wheel 3 stuck now, then cleared half a second later
+    script = f"""
+set -e
+{PY} -m sc_rt.cli hil scenarios/paper_fault_free.toml --mode realtime --control-rate {rate} \\
+    --duration 8 --accept-fault-commands --out {out} --no-plots --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
+HIL=$!
+sleep 2.5
+{PY} -m sc_rt.cli fault inject --wheel 2 --effectiveness 0.3 --bias 0.05 --rate 5 --at 6 --until 7 \\
+    --lcm-url '{url}'
+{PY} -m sc_rt.cli fault inject --wheel 3 --stuck --now --lcm-url '{url}'
+sleep 0.5
+{PY} -m sc_rt.cli fault clear --wheel 3 --lcm-url '{url}'
+wait $HIL
+"""
+    (tmp_path / "run.sh").write_text(script)
+    p = subprocess.Popen(lcmnet.wrap(["sh", str(tmp_path / "run.sh")]), stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, cwd=ROOT, start_new_session=True)
+    try:
+        so, se = p.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        so, se = p.communicate()
+        pytest.fail(f"did not finish:\n{se}")
+    assert p.returncode == 0, se + (tmp_path / "hil.log").read_text()
+    assert so.count("sc-rt fault:") == 3
+
+    # 1. the emulator applied all three (timing.json: faults_applied)
+    timing = json.loads((out / "timing.json").read_text())
+    applied = timing["faults_applied"]
+    assert [(a["wheel"], a["action"]) for a in applied] == [(2, "inject"), (3, "inject"), (3, "clear")]
+    assert applied[0]["onset"] == 6.0 and applied[0]["end"] == 7.0 and applied[0]["t"] < 6.0
+    t_stuck, t_clear = applied[1]["t"], applied[2]["t"]
+    assert applied[1]["onset"] == t_stuck and t_stuck < t_clear < 6.0
+
+    # 2. the log holds the commands and plant_truth_t echoes the fault state
+    d = read_log(out / "run.lcmlog")
+    F = d.records["SCRT_FAULT"]
+    assert list(F["wheel"]) == [2, 3, 3] and list(F["action"]) == [1, 1, 2]
+    assert d.undecodable == 0
+    T = d.records["SCRT_TRUTH"]
+    t = T["t"].astype(float)
+    L2, Y2, B2 = (T[k][:, 1].astype(float) for k in ("fault_effectiveness", "fault_Y", "fault_bias"))
+    inj = t >= applied[0]["t"] - 1e-9
+    assert np.all(L2[inj] == 0.3) and np.all(L2[~inj] == 1.0) and np.all(B2[inj] == 0.05)
+    on = (t > 6.0 + 1e-9) & (t < 7.0 - 1e-9)
+    assert np.all(Y2[on] > 0) and np.all(Y2[~on] == 0)  # Y = 0 at the onset and from the end on
+    acc = T["wheel_accel"][:, 1].astype(float)
+    # (15) on wheel 2 while active: what the plant did is not what was commanded
+    u = T["u_cmd"][:, 1].astype(float)
+    assert np.count_nonzero(acc[on] != u[on]) >= 0.9 * np.count_nonzero(on)
+    S3 = T["fault_stuck"][:, 2]
+    stuck = (t >= t_stuck - 1e-9) & (t < t_clear - 1e-9)
+    assert np.all(S3[stuck] == 1) and np.all(S3[~stuck] == 0) and np.count_nonzero(stuck) >= 10
+    assert np.all(T["wheel_accel"][:, 2].astype(float)[stuck] == 0.0)
+
+    # 3. the report has them at the right time, and the fault figure
+    rep = write_report(out / "run.lcmlog", tmp_path / "report")
+    f = rep["faults"]
+    assert f["first_active_s"][1] == pytest.approx(6.0 + 1 / rate)
+    assert f["first_active_s"][0] is None and f["first_active_s"][3] is None
+    ch = [(c["wheel"], c["t"], c["stuck"], c["effectiveness"]) for c in f["state_changes"]]
+    assert (2, applied[0]["t"], False, 0.3) in ch
+    assert (3, t_stuck, True, 1.0) in ch and (3, t_clear, False, 1.0) in ch
+    assert [c["action"] for c in f["commands"]] == ["inject", "inject", "clear"]
+    assert f["commands"][0]["t_onset"] == 6.0 and f["commands"][0]["t_end"] == 7.0
+    for c, a in zip(f["commands"], applied):
+        # received on the bus within a few periods of when the emulator applied it
+        assert abs(c["t_sim_at_receipt"] - a["t"]) <= 0.2
+    assert (tmp_path / "report" / "faults.png").stat().st_size > 10000
+    assert rep["timing"]["faults_applied"] == f["commands"]
