@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["METRIC_TIMES", "bound_ok", "compute_metrics", "TRAJECTORY_KEYS"]
+__all__ = ["METRIC_TIMES", "bound_ok", "compute_metrics", "fill_tracking_errors", "TRAJECTORY_KEYS"]
 
 #: Times [s] at which the error norms are reported.
 METRIC_TIMES = (30, 70, 100, 200, 300)
@@ -23,6 +23,34 @@ TRAJECTORY_KEYS = (
 )
 
 LAWS_WITH_OBSERVER = ("dsc-ppc", "dsc")
+
+#: Controller-internal telemetry: in a real-time run a state the controller
+#: never used has none (its row is all NaN: missing, not non-finite).
+CONTROLLER_TELEMETRY = ("z1", "z2", "chi", "lam")
+
+
+def fill_tracking_errors(traj: dict[str, np.ndarray], guidance, rate: float) -> int:
+    """Rows without controller telemetry (real time: states the controller
+    never used) get sigma_DN, sigma_BD and omega_BD_B from the plant state and
+    the desired trajectory, computed as the controller does (guidance
+    integrated with RK4 steps of at most one control period, (8), (11)).
+    ``guidance`` is a ``_core.GuidanceParams``. Returns the rows filled."""
+    from . import _core
+
+    missing = np.flatnonzero(np.isnan(traj["sigma_BD"]).any(axis=1))
+    if missing.size == 0:
+        return 0
+    g = _core.Guidance(guidance, 1.0 / rate)
+    g.reset(0.0)
+    for k in missing:  # increasing times: the guidance only moves forward
+        t = float(traj["t"][k])
+        g.advance(t)
+        sd = np.asarray(g.sigma_DN)
+        x1 = np.asarray(_core.mrp_subtract(traj["sigma_BN"][k], sd))
+        traj["sigma_DN"][k] = sd
+        traj["sigma_BD"][k] = x1
+        traj["omega_BD_B"][k] = traj["omega_BN_B"][k] - _core.mrp_to_dcm(x1) @ _core.omega_d(guidance, t)
+    return int(missing.size)
 
 
 def prescribed_chi(ppc, t: np.ndarray) -> np.ndarray:
@@ -51,10 +79,10 @@ def _at(t: np.ndarray, values: np.ndarray, when: float) -> float | None:
 
 
 def _max_after(t: np.ndarray, values: np.ndarray, after: float) -> float | None:
-    sel = t >= after - 1e-9
+    sel = (t >= after - 1e-9) & ~np.all(np.isnan(values.reshape(len(t), -1)), axis=1)
     if not np.any(sel):
         return None
-    return float(np.max(np.abs(values[sel])))
+    return float(np.nanmax(np.abs(values[sel])))
 
 
 def compute_metrics(traj: dict[str, np.ndarray], *, scenario: str, controller: str, engine: str,
@@ -62,7 +90,12 @@ def compute_metrics(traj: dict[str, np.ndarray], *, scenario: str, controller: s
     """The metrics of one run (keys as documented in README, "metrics.json")."""
     t = traj["t"]
     ok = traj["bound_ok"]
-    finite = all(bool(np.all(np.isfinite(traj[k]))) for k in TRAJECTORY_KEYS if k != "bound_ok")
+    finite = all(bool(np.all(np.isfinite(traj[k]))) for k in TRAJECTORY_KEYS
+                 if k != "bound_ok" and k not in CONTROLLER_TELEMETRY)
+    for k in CONTROLLER_TELEMETRY:  # missing rows are all NaN; anything else counts
+        v = traj[k]
+        present = ~np.all(np.isnan(v), axis=1) if v.ndim == 2 else np.ones(len(v), bool)
+        finite = finite and bool(np.all(np.isfinite(v[present])))
     first_s = first_axis = None
     bad = ~ok
     if np.any(bad):

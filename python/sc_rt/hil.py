@@ -9,7 +9,6 @@ binary in the lcm wheel) are child processes, stopped cleanly at the end.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import signal
 import subprocess
@@ -21,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .analysis import TRAJECTORY_KEYS, bound_ok, compute_metrics, json_safe
+from .analysis import TRAJECTORY_KEYS, bound_ok, compute_metrics, fill_tracking_errors, json_safe
 from .emulator import Emulator, EmulatorResult
 from .lcmio import channel, free_port_url, lcm_binary, open_lcm
 from .scenario import Scenario
@@ -137,6 +136,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
         (out / "controller_stderr.txt").write_text(ctl_err)
 
     traj = dict(res.trajectory)
+    fill_tracking_errors(traj, scn.core_config().guidance, rate)
     traj["bound_ok"] = bound_ok(scn.controller.ppc, traj["t"], traj["sigma_BD"])
     metrics = compute_metrics(traj, scenario=scn.name, controller=law, engine=f"hil-{mode}",
                               control_rate_hz=rate, duration_s=duration, wall_s=wall)

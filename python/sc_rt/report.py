@@ -41,7 +41,7 @@ from typing import Any
 import lcm
 import numpy as np
 
-from .analysis import TRAJECTORY_KEYS, bound_ok, compute_metrics, json_safe
+from .analysis import TRAJECTORY_KEYS, bound_ok, compute_metrics, fill_tracking_errors, json_safe
 from .lcmio import CHANNELS, lcm_binary
 from .wire import TYPES, decode_any, decode_array, numpy_dtype
 
@@ -325,6 +325,19 @@ def _params(d: LogData, scenario_path: str | None):
                      "for the PPC envelope, the law and the rate")
 
 
+def _guidance(d: LogData, scenario_path: str | None):
+    """The desired trajectory's parameters (_core.GuidanceParams), from the
+    logged controller_config_t or the scenario file."""
+    from . import _core
+
+    cfg = _config(d)
+    if cfg is not None:
+        return _core.ControllerConfig.from_lcm_bytes(cfg.encode()).guidance
+    from .scenario import load_scenario
+
+    return load_scenario(scenario_path).core_config().guidance
+
+
 def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
     """Fault commands seen on the bus and the fault state changes in
     plant_truth_t (when the emulator applied them)."""
@@ -445,6 +458,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     t_build = time.perf_counter()
     r = rebuild(d, mode)
     traj = r.traj
+    fill_tracking_errors(traj, _guidance(d, scenario), rate)
     traj["bound_ok"] = bound_ok(ppc, traj["t"], traj["sigma_BD"])
     rows = len(traj["t"])
     if duration is None:
