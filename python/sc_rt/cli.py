@@ -183,6 +183,20 @@ def cmd_design(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    """The paper's claims checked with numbers (sc_rt.reproduce, docs/REPRODUCTION.md)."""
+    from .reproduce import reproduce
+
+    out = Path(args.out)
+    doc = reproduce(out, engine=args.engine, control_rate_hz=args.control_rate,
+                    plant_step=args.plant_step, plots=not args.no_plots,
+                    with_sensitivity=args.sensitivity, dpi=args.dpi)
+    print(f"sc-rt reproduce: {doc['command']} -> {out}/")
+    for c in doc["claims"]:
+        print(f"  {c['id']} {c['verdict']:<15} {c['claim']}\n      {c['measured']}")
+    return 0
+
+
 # --- monitoring and reports (issue 8): spy, lcm-spy, fault, report, replay ---
 def _url(args: argparse.Namespace) -> str:
     from .lcmio import env_url
@@ -418,6 +432,16 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--out", default="out/design", metavar="DIR")
     g.add_argument("--no-plots", action="store_true")
     g.set_defaults(func=cmd_design)
+    q = sub.add_parser("reproduce", help="check the paper's claims: both scenarios, four laws -> claims.json, figures")
+    q.add_argument("--out", default="out/reproduce", metavar="DIR")
+    q.add_argument("--engine", choices=("python", "cpp"), default="cpp")
+    q.add_argument("--control-rate", type=float, metavar="HZ", help="default: the scenarios' 10 Hz")
+    q.add_argument("--plant-step", type=float, metavar="S", help="default: the scenarios' 0.1 s")
+    q.add_argument("--sensitivity", action="store_true",
+                   help="also the verdicts at 10 Hz (plant step 0.1 and 0.01 s), 100 Hz and 1 kHz")
+    q.add_argument("--dpi", type=int, default=80, help="figure resolution (default 80)")
+    q.add_argument("--no-plots", action="store_true")
+    q.set_defaults(func=cmd_reproduce)
     _add_monitoring(sub)
     return p
 

@@ -58,11 +58,11 @@ class HilResult:
     controller_summary: dict[str, Any]
 
 
-def _probe_logger(url: str, path: Path, payload: bytes, timeout: float) -> bool:
+def _probe_logger(url: str, path: Path, payload: bytes, timeout: float, name: str) -> bool:
     lc = open_lcm(url)
     end = time.monotonic() + timeout
     while time.monotonic() < end:
-        lc.publish("SCRT_HIL_START", payload)
+        lc.publish(name, payload)
         time.sleep(0.02)
         if path.exists() and path.stat().st_size > 0:
             return True
@@ -99,7 +99,9 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     # a non-empty log means the logger is listening: publish a marker until it
     # shows up (SCRT_HIL_START carries the scenario name; readers skip it)
-    if not _probe_logger(url, log_path, scn.name.encode(), 5.0):
+    print(f"sc-rt hil: LCM URL {url}" + (f", channel prefix {prefix!r}" if prefix else ""),
+          file=sys.stderr, flush=True)
+    if not _probe_logger(url, log_path, scn.name.encode(), 5.0, prefix + "SCRT_HIL_START"):
         _stop(logger, signal.SIGINT)
         raise RuntimeError(f"lcm-logger did not start on {url}: {logger.stderr.read().decode()}")
     # the run's controller_config_t goes into the log (sc-rt report takes the law,
