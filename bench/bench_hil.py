@@ -1,7 +1,9 @@
 """HIL over real LCM: lockstep throughput (steps/s, target >= 5000) and real
 time at 10 Hz, 100 Hz and 1 kHz (latency p50/p99, lateness, misses; target at
 1 kHz: latency p50 <= 100 us, p99 <= 250 us, misses <= 0.1 %), with and
-without --realtime-priority. Runs in a private network namespace when root.
+without --realtime-priority; and the LCM round-trip floor (C++ ping-pong with
+the same message sizes, sc-rt-lcm-pingpong) measured alternately with the
+lockstep loop, as a ratio. Runs in a private network namespace when root.
 
     .venv/bin/python bench/bench_hil.py [--quick]
 """
@@ -9,6 +11,7 @@ without --realtime-priority. Runs in a private network namespace when root.
 from __future__ import annotations
 
 import json
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -30,11 +33,33 @@ def hil(args: list[str]) -> dict:
         return json.loads((Path(d) / "timing.json").read_text())
 
 
+def lcm_floor(count: int) -> dict:
+    """Round trip C++ <-> C++ over the same LCM transport with the lockstep
+    loop's message sizes (sc-rt-lcm-pingpong)."""
+    exe = shlex.quote(str(Path(sys.executable).parent / "sc-rt-lcm-pingpong"))
+    url = "udpm://239.255.76.67:7720?ttl=0"
+    script = (f"{exe} --role pong --lcm-url '{url}' 2>/dev/null & P=$!; sleep 0.3; "
+              f"{exe} --role ping --lcm-url '{url}' --count {count}; kill $P")
+    r = subprocess.run(lcmnet.wrap(["sh", "-c", script]), capture_output=True, text=True, timeout=300)
+    if r.returncode != 0:
+        raise RuntimeError(r.stderr)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
 def main(quick: bool = False) -> None:
     res = {"machine": machine(), "scenario": "paper_faults", "netns": lcmnet.can_unshare()}
-    t = hil(["--mode", "lockstep", "--duration", "60" if quick else "300"])
+    # the floor and the loop alternately, twice: the machine drifts
+    floors, rates = [], []
+    for _ in range(1 if quick else 2):
+        floors.append(lcm_floor(5000 if quick else 20000))
+        t = hil(["--mode", "lockstep", "--duration", "60" if quick else "300"])
+        rates.append(t["steps_per_s"])
+    res["lcm_floor_rtt_us"] = floors[-1]["rtt_us"]
+    res["lcm_floor_rtt_p50_us_runs"] = [f["rtt_us"]["p50"] for f in floors]
+    res["lockstep_steps_per_s_runs"] = rates
     res["lockstep_steps_per_s"] = t["steps_per_s"]
     res["lockstep_latency_us"] = t["state_to_cmd_latency_us"]
+    res["ratio_lockstep_step_over_floor_rtt"] = (1e6 / t["steps_per_s"]) / floors[-1]["rtt_us"]["p50"]
     res["target_lockstep_ge_5000"] = "pass" if t["steps_per_s"] >= 5000 else "miss"
     for rate, dur in ((10, 20), (100, 20), (1000, 20)):
         for prio in (False, True):
