@@ -5,6 +5,7 @@ otherwise on the host loopback (the URLs use ttl=0: nothing leaves)."""
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 import shlex
 import subprocess
 
@@ -36,3 +37,47 @@ def wrap(cmd: list[str]) -> list[str]:
         return cmd
     inner = "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec " + shlex.join(cmd)
     return ["unshare", "-n", "sh", "-c", inner]
+
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def require() -> None:
+    """Fail (never skip) when LCM cannot run here: CI is root with namespaces."""
+    import pytest
+
+    if not lcm_available():  # pragma: no cover
+        pytest.fail("LCM needs a multicast route or permission to create a network namespace",
+                    pytrace=False)
+
+
+def run(cmd: list[str], *, timeout: float = 300, env=None, netns: bool = True) -> subprocess.CompletedProcess:
+    """cmd from the repository root, in a network namespace (when netns and
+    possible) and its own process group, killed whole on a timeout."""
+    import os
+    import signal
+
+    import pytest
+
+    full = wrap(cmd) if netns else cmd
+    p = subprocess.Popen(full, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                         start_new_session=True, env=env)
+    try:
+        out, err = p.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        out, err = p.communicate()
+        pytest.fail(f"{' '.join(cmd)[:200]} did not finish in {timeout} s:\n{err[-3000:]}")
+    return subprocess.CompletedProcess(full, p.returncode, out, err)
+
+
+def run_script(script: str, *, timeout: float = 300, env=None) -> subprocess.CompletedProcess:
+    """A shell script, all its processes in one network namespace."""
+    return run(["sh", "-c", script], timeout=timeout, env=env)
+
+
+def run_cli(args: list[str], *, timeout: float = 300, netns: bool = True) -> subprocess.CompletedProcess:
+    """`sc-rt ARGS` through this interpreter (see run)."""
+    import sys
+
+    return run([sys.executable, "-m", "sc_rt.cli", *args], timeout=timeout, netns=netns)

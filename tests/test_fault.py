@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 import os
 import shlex
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -111,9 +110,7 @@ def test_emulator_applies_faults_only_when_it_accepts_them():
 
 
 def test_fault_injected_live_shows_in_log_truth_and_report(tmp_path):
-    if not lcmnet.lcm_available():  # pragma: no cover - CI is root with namespaces
-        pytest.fail("LCM needs a multicast route or permission to create a network namespace",
-                    pytrace=False)
+    lcmnet.require()
     rate = 50.0
     url = "udpm://239.255.76.67:7741?ttl=0"
     out = tmp_path / "hil"
@@ -132,16 +129,9 @@ sleep 0.5
 {PY} -m sc_rt.cli fault clear --wheel 3 --lcm-url '{url}'
 wait $HIL
 """
-    (tmp_path / "run.sh").write_text(script)
-    p = subprocess.Popen(lcmnet.wrap(["sh", str(tmp_path / "run.sh")]), stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, cwd=ROOT, start_new_session=True)
-    try:
-        so, se = p.communicate(timeout=120)
-    except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGKILL)
-        so, se = p.communicate()
-        pytest.fail(f"did not finish:\n{se}")
-    assert p.returncode == 0, se + (tmp_path / "hil.log").read_text()
+    r = lcmnet.run_script(script, timeout=120)
+    so, se = r.stdout, r.stderr
+    assert r.returncode == 0, se + (tmp_path / "hil.log").read_text()
     assert so.count("sc-rt fault:") == 3
 
     # 1. the emulator applied all three (timing.json: faults_applied)

@@ -7,8 +7,6 @@ trajectory, to the last bit, as the offline simulator with the Python plant
 from __future__ import annotations
 
 import json
-import os
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -26,30 +24,14 @@ import lcmnet
 ROOT = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.lcm
 
-if not lcmnet.lcm_available():  # pragma: no cover - CI is root with namespaces
-    pytest.fail("LCM needs a multicast route or permission to create a network namespace",
-                pytrace=False)
-
-
-def run_cli(args: list[str], timeout: float = 300) -> subprocess.CompletedProcess:
-    """The CLI in its own process group, all of it killed on a timeout."""
-    cmd = lcmnet.wrap([sys.executable, "-m", "sc_rt.cli", *args])
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
-                         start_new_session=True)
-    try:
-        out, err = p.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGKILL)
-        out, err = p.communicate()
-        pytest.fail(f"sc-rt {' '.join(args)} did not finish in {timeout} s:\n{err}")
-    return subprocess.CompletedProcess(cmd, p.returncode, out, err)
+lcmnet.require()
 
 
 @pytest.mark.parametrize("scenario", ["paper_fault_free", "paper_faults"])
 def test_lockstep_hil_is_bit_identical_to_offline_sim(scenario, tmp_path):
     duration = 20.0
     out = tmp_path / "hil"
-    r = run_cli(["hil", f"scenarios/{scenario}.toml", "--mode", "lockstep", "--duration",
+    r = lcmnet.run_cli(["hil", f"scenarios/{scenario}.toml", "--mode", "lockstep", "--duration",
                  str(duration), "--out", str(out), "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
     hil = np.load(out / "trajectory.npz")
@@ -71,7 +53,7 @@ def test_lockstep_hil_is_bit_identical_to_offline_sim(scenario, tmp_path):
 
 def test_hil_log_keeps_every_message(tmp_path):
     out = tmp_path / "hil"
-    r = run_cli(["hil", "scenarios/paper_faults.toml", "--duration", "5", "--out", str(out),
+    r = lcmnet.run_cli(["hil", "scenarios/paper_faults.toml", "--duration", "5", "--out", str(out),
                  "--no-plots"])
     assert r.returncode == 0, r.stderr
     counts: dict[str, list[int]] = {}

@@ -6,10 +6,7 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import struct
-import subprocess
-import sys
 from collections import Counter
 from pathlib import Path
 
@@ -27,27 +24,11 @@ ROOT = Path(__file__).resolve().parent.parent
 NOT_COMPARED = ("wall_s", "engine")
 
 
-def run_cli(args: list[str], timeout: float = 300, netns: bool = True) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "sc_rt.cli", *args]
-    cmd = lcmnet.wrap(cmd) if netns else cmd
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT,
-                         start_new_session=True)
-    try:
-        out, err = p.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGKILL)
-        out, err = p.communicate()
-        pytest.fail(f"sc-rt {' '.join(args)} did not finish in {timeout} s:\n{err}")
-    return subprocess.CompletedProcess(cmd, p.returncode, out, err)
-
-
 @pytest.fixture(scope="module")
 def lockstep_run(tmp_path_factory):
-    if not lcmnet.lcm_available():  # pragma: no cover - CI is root with namespaces
-        pytest.fail("LCM needs a multicast route or permission to create a network namespace",
-                    pytrace=False)
+    lcmnet.require()
     out = tmp_path_factory.mktemp("lockstep") / "hil"
-    r = run_cli(["hil", "scenarios/paper_faults.toml", "--mode", "lockstep", "--duration", "30",
+    r = lcmnet.run_cli(["hil", "scenarios/paper_faults.toml", "--mode", "lockstep", "--duration", "30",
                  "--out", str(out), "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
     return out
@@ -99,7 +80,7 @@ def test_vectorised_decode_equals_generated_decode(name, rng):
 
 def test_report_reproduces_the_lockstep_runs_metrics_exactly(lockstep_run, tmp_path):
     out = tmp_path / "report"
-    r = run_cli(["report", str(lockstep_run / "run.lcmlog"), "--out", str(out)], netns=False)
+    r = lcmnet.run_cli(["report", str(lockstep_run / "run.lcmlog"), "--out", str(out)], netns=False)
     assert r.returncode == 0, r.stderr + r.stdout
     run_m = json.loads((lockstep_run / "metrics.json").read_text())
     rep_m = json.loads((out / "metrics.json").read_text())
@@ -191,14 +172,14 @@ def test_report_without_config_needs_a_scenario(tmp_path):
         m.seq, m.t = k, k / 10
         w.write_event(k * 100000, "SCRT_STATE", m.encode())
     w.close()
-    r = run_cli(["report", str(log), "--no-plots"], netns=False)
+    r = lcmnet.run_cli(["report", str(log), "--no-plots"], netns=False)
     assert r.returncode == 2 and "pass --scenario" in r.stderr
-    r = run_cli(["report", str(log), "--no-plots", "--scenario", "scenarios/paper_fault_free.toml",
+    r = lcmnet.run_cli(["report", str(log), "--no-plots", "--scenario", "scenarios/paper_fault_free.toml",
                  "--out", str(tmp_path / "rep")], netns=False)
     assert r.returncode == 0, r.stderr
     m = json.loads((tmp_path / "rep" / "metrics.json").read_text())
     assert m["steps"] == 11 and m["scenario"] == "paper_fault_free" and m["finite"] is False
-    r = run_cli(["report", str(tmp_path / "missing.lcmlog")], netns=False)
+    r = lcmnet.run_cli(["report", str(tmp_path / "missing.lcmlog")], netns=False)
     assert r.returncode == 2 and "no such log" in r.stderr
 
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import os
 import shlex
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -26,19 +25,6 @@ pytestmark = pytest.mark.lcm
 PY = shlex.quote(sys.executable)
 
 
-def run_in_netns(script: str, timeout: float = 300) -> subprocess.CompletedProcess:
-    """A shell script in one network namespace (or on the host loopback)."""
-    p = subprocess.Popen(lcmnet.wrap(["sh", "-c", script]), stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, cwd=ROOT, start_new_session=True)
-    try:
-        out, err = p.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGKILL)
-        out, err = p.communicate()
-        pytest.fail(f"did not finish in {timeout} s:\n{err[-3000:]}")
-    return subprocess.CompletedProcess(script, p.returncode, out, err)
-
-
 def test_fuzz_during_lockstep_run_changes_nothing(tmp_path):
     # 4 MB socket buffers (the host's rmem_max): a burst must not overflow them
     url = "udpm://239.255.76.67:7711?ttl=0&recv_buf_size=4194304"
@@ -54,7 +40,7 @@ sleep 1.0
 {PY} {HERE / 'fuzz_lcm.py'} '{url}' {n} {sent}
 wait $HIL
 """
-    r = run_in_netns(script, timeout=600)
+    r = lcmnet.run_script(script, timeout=600)
     assert r.returncode == 0, r.stderr + (tmp_path / "hil.log").read_text()
     s = json.loads(sent.read_text())
     assert s["n"] == n
@@ -93,7 +79,7 @@ def test_stale_states_give_safe_mode_and_recovery(tmp_path):
     cfg.write_bytes(c.to_lcm_bytes("stale"))
     out = tmp_path / "stale.json"
     url = "udpm://239.255.76.67:7712?ttl=0"
-    r = run_in_netns(f"{PY} {HERE / 'stale_driver.py'} '{url}' {cfg} {out}", timeout=120)
+    r = lcmnet.run_script(f"{PY} {HERE / 'stale_driver.py'} '{url}' {cfg} {out}", timeout=120)
     assert r.returncode == 0, r.stderr
     d = json.loads(out.read_text())
     ph, cmds = d["phases"], d["cmds"]
@@ -129,7 +115,7 @@ wait $HIL
 kill -TERM $NEW
 wait $NEW
 """
-    r = run_in_netns(script, timeout=120)
+    r = lcmnet.run_script(script, timeout=120)
     assert r.returncode == 0, r.stderr + (tmp_path / "hil.log").read_text()
     timing = json.loads((out / "timing.json").read_text())
     emu = timing["emulator_counters"]

@@ -8,7 +8,6 @@ import os
 import re
 import shlex
 import shutil
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -27,29 +26,8 @@ PY = shlex.quote(sys.executable)
 PERIODIC = ("SCRT_STATE", "SCRT_CMD", "SCRT_CTRL_STATUS", "SCRT_TRUTH")
 
 
-def need_lcm() -> None:
-    if not lcmnet.lcm_available():  # pragma: no cover - CI is root with namespaces
-        pytest.fail("LCM needs a multicast route or permission to create a network namespace",
-                    pytrace=False)
-
-
-def run_in_netns(script: str, tmp: Path, timeout: float = 120, env=None) -> subprocess.CompletedProcess:
-    """A shell script, all its processes in one network namespace."""
-    path = tmp / "run.sh"
-    path.write_text(script)
-    p = subprocess.Popen(lcmnet.wrap(["sh", str(path)]), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, cwd=ROOT, start_new_session=True, env=env)
-    try:
-        out, err = p.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(p.pid, signal.SIGKILL)
-        out, err = p.communicate()
-        pytest.fail(f"did not finish in {timeout} s:\n{err[-3000:]}")
-    return subprocess.CompletedProcess(script, p.returncode, out, err)
-
-
 def test_spy_sees_every_channel_at_the_configured_rate(tmp_path):
-    need_lcm()
+    lcmnet.require()
     rate = 100.0
     url = "udpm://239.255.76.67:7731?ttl=0"
     out = tmp_path / "hil"
@@ -63,7 +41,7 @@ sleep 2.5
 {PY} -m sc_rt.cli spy --lcm-url '{url}' --once --json --duration 3 > {tmp_path}/spy.json
 wait $HIL
 """
-    r = run_in_netns(script, tmp_path)
+    r = lcmnet.run_script(script, timeout=120)
     assert r.returncode == 0, r.stderr + (tmp_path / "hil.log").read_text()
     snap = json.loads((tmp_path / "spy.json").read_text())
     ch = snap["channels"]
@@ -141,7 +119,7 @@ def test_lcm_spy_finds_our_types_under_xvfb(tmp_path):
     """The real lcm-spy, started by sc-rt lcm-spy, while sc-rt replay plays a
     log: it loads our types jar (built here from the .lcm files into a fresh
     cache) and decodes without an exception; sc-rt spy sees the replay."""
-    need_lcm()
+    lcmnet.require()
     missing = [t for t in ("Xvfb", "java", "javac", "jar") if shutil.which(t) is None]
     if missing:
         pytest.fail(f"{', '.join(missing)} not found: the lcm-spy test needs Xvfb and a JDK "
@@ -172,7 +150,7 @@ sleep 2
 kill $SPY; wait $SPY || true
 wait $PLAY
 """
-    r = run_in_netns(script, tmp_path, env=env)
+    r = lcmnet.run_script(script, timeout=120, env=env)
     spy_out = (tmp_path / "lcm-spy.out").read_text() if (tmp_path / "lcm-spy.out").exists() else ""
     assert r.returncode == 0, r.stderr + spy_out
     jar = Path((tmp_path / "jar.txt").read_text().strip())
