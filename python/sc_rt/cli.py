@@ -140,6 +140,22 @@ def cmd_check(args: argparse.Namespace) -> int:
     return rc
 
 
+def cmd_montecarlo(args: argparse.Namespace) -> int:
+    from .montecarlo import Dispersion, run_montecarlo, write_montecarlo
+
+    scn = _scenario(args.scenario)
+    d = Dispersion(inertia=args.inertia, onset=args.onset, effectiveness=args.effectiveness,
+                   attitude=args.attitude, rate=args.rate)
+    res = run_montecarlo(scn, args.runs, workers=args.workers, seed=args.seed, dispersion=d,
+                         law=args.controller, control_rate_hz=args.control_rate)
+    write_montecarlo(res, Path(args.out))
+    print(f"sc-rt montecarlo: {res['runs']} runs of {scn.name} ({res['law']}), seed {res['seed']}: "
+          f"{100 * res['fraction_holding_bound']:.1f} % hold the bound; worst final |sigma_BD| "
+          f"{res['worst_final_sigma_BD']:.3e}; {res['runs_per_s']:.1f} runs/s on {res['workers']} "
+          f"workers -> {args.out}/")
+    return 0
+
+
 def cmd_config(args: argparse.Namespace) -> int:
     scn = _scenario(args.scenario)
     data = scn.controller_config_msg(args.controller, args.control_rate).encode()
@@ -190,7 +206,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     out = Path(args.out)
     doc = reproduce(out, engine=args.engine, control_rate_hz=args.control_rate,
                     plant_step=args.plant_step, plots=not args.no_plots,
-                    with_sensitivity=args.sensitivity, dpi=args.dpi)
+                    with_sensitivity=args.sensitivity, with_search=args.search, dpi=args.dpi)
     print(f"sc-rt reproduce: {doc['command']} -> {out}/")
     for c in doc["claims"]:
         print(f"  {c['id']} {c['verdict']:<15} {c['claim']}\n      {c['measured']}")
@@ -416,6 +432,21 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--fast", action="store_true", help="estimate r's bound at t = 0 instead of along a run")
     k.set_defaults(func=cmd_check)
 
+    m = sub.add_parser("montecarlo", help="dispersed runs of a scenario on all cores (C++ engine)")
+    m.add_argument("scenario")
+    m.add_argument("--runs", type=int, default=200)
+    m.add_argument("--workers", type=int, help="default: all cores")
+    m.add_argument("--seed", type=int, default=0)
+    m.add_argument("--controller", choices=LAW_CHOICES)
+    m.add_argument("--control-rate", type=float, metavar="HZ")
+    m.add_argument("--inertia", type=float, default=0.2, help="relative spread of J's diagonal")
+    m.add_argument("--onset", type=float, default=2.0, help="[s] spread of fault onsets")
+    m.add_argument("--effectiveness", type=float, default=0.2, help="spread of fault effectiveness")
+    m.add_argument("--attitude", type=float, default=0.01, help="[rad] initial attitude spread")
+    m.add_argument("--rate", type=float, default=0.002, help="[rad/s] initial rate spread per axis")
+    m.add_argument("--out", default="out/montecarlo", metavar="DIR")
+    m.set_defaults(func=cmd_montecarlo)
+
     c = sub.add_parser("config", help="write the scenario's controller_config_t for sc-rt-controller")
     c.add_argument("scenario")
     c.add_argument("--out", required=True, metavar="FILE")
@@ -439,6 +470,8 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--plant-step", type=float, metavar="S", help="default: the scenarios' 0.1 s")
     q.add_argument("--sensitivity", action="store_true",
                    help="also the verdicts at 10 Hz (plant step 0.1 and 0.01 s), 100 Hz and 1 kHz")
+    q.add_argument("--search", action="store_true",
+                   help="also bisect the tightest chiinf that holds per rate and run scenarios/ppc_feasible_*.toml")
     q.add_argument("--dpi", type=int, default=80, help="figure resolution (default 80)")
     q.add_argument("--no-plots", action="store_true")
     q.set_defaults(func=cmd_reproduce)
