@@ -379,7 +379,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sim", help="offline closed loop (plant + C++ controller core)")
     s.add_argument("scenario")
     s.add_argument("--controller", choices=LAW_CHOICES, help="control law (default: the scenario's)")
-    s.add_argument("--engine", choices=("python", "cpp"), default="python")
+    s.add_argument("--engine", choices=("python", "cpp", "unsampled"), default="python",
+                   help="unsampled: reference mode, the law inside every RK4 stage (no hold)")
     s.add_argument("--control-rate", type=float, metavar="HZ")
     s.add_argument("--duration", type=float, metavar="S")
     s.add_argument("--plant-step", type=float, metavar="S",

@@ -155,7 +155,8 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     ----------
     scn : the scenario (sc_rt.scenario.load_scenario).
     law : "dsc-ppc", "dsc", "pd" or "rft" (default: the scenario's).
-    engine : "python" (reference plant, plant.py) or "cpp" (compiled twin, whole loop in C++).
+    engine : "python" (reference plant, plant.py), "cpp" (compiled twin, whole loop in C++)
+        or "unsampled" (reference mode: the law inside every RK4 stage, no hold; unsampled.py).
     control_rate_hz : [Hz] override of the scenario's control rate.
     duration : [s] override of the scenario's duration.
     plant_step : [s] override of the plant step (see with_overrides).
@@ -168,8 +169,13 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         traj, extra, rows, diverged = _run_python(scn)
     elif engine == "cpp":
         traj, extra, rows, diverged = _run_cpp(scn)
+    elif engine == "unsampled":
+        from .unsampled import run_unsampled
+
+        n_ctrl, n_sub, _, _ = _steps(scn)
+        traj, extra, rows, diverged = run_unsampled(scn, n_ctrl, n_sub, rate)
     else:
-        raise ValueError(f"engine must be 'python' or 'cpp', got {engine!r}")
+        raise ValueError(f"engine must be 'python', 'cpp' or 'unsampled', got {engine!r}")
     wall = time.perf_counter() - t0
     traj = {k: v[:rows] for k, v in traj.items()}
     extra = {k: v[:rows] for k, v in extra.items()}

@@ -1,0 +1,147 @@
+"""The unsampled reference mode of ``sc-rt sim`` (``--engine unsampled``):
+the control law evaluated inside every RK4 stage of the plant, with its
+states (guidance, observer (22), filter (37), anti-windup (42), RFT gain)
+integrated as continuous states of one ODE, as a Simulink model with a
+fixed-step solver would run it. No zero-order hold, no sample delay.
+
+A reference, not a product path: the law is written here once more in
+continuous time (numpy, with the core's kinematics, errors and PPC
+transform through ``_core``), so that the sampled-data effects of the real
+controller can be told apart from the law itself (docs/REPRODUCTION.md).
+Rows are recorded at the scenario's control rate, with the same keys as the
+sampled engines.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _core, actuators, plant
+from .scenario import Scenario
+
+__all__ = ["run_unsampled"]
+
+
+class _Law:
+    """uc(t, X) and the derivatives of the law's states, continuous time."""
+
+    def __init__(self, scn: Scenario):
+        cfg = scn.core_config()
+        self.law = scn.run.controller
+        self.cfg = cfg
+        self.model = _core.SpacecraftModel(cfg.spacecraft)
+        self.B = np.asarray(self.model.B)
+        self.Bp = np.asarray(self.model.B_pinv)
+        self.umin, self.umax = np.asarray(cfg.spacecraft.umin), np.asarray(cfg.spacecraft.umax)
+        n = cfg.neso
+        self.k1o, self.k2o, self.k3o, self.k4o = (np.asarray(v) for v in (n.k1, n.k2, n.k3, n.k4))
+        self.alpha = n.alpha
+
+    def evaluate(self, t: float, X: np.ndarray):
+        """(u_cmd, telemetry dict, derivative of the law's states)."""
+        c = self.cfg
+        sigma, omega, wheel = X[0:3], X[3:6], X[6:10]
+        sd, z1, z2, x2d, vs, rho = X[10:13], X[13:16], X[16:19], X[19:22], X[22:26], X[26]
+        od, odd = _core.omega_d(c.guidance, t), _core.omega_d_dot(c.guidance, t)
+        e = _core.tracking_errors(self.model, _core.Measurement(t, sigma, omega, wheel), sd, od, odd)
+        x1, x2, A = np.asarray(e.sigma_BD), np.asarray(e.omega_BD_B), np.asarray(e.A)
+        ppc = _core.ppc_transform(c.ppc, x1, t)
+        G = np.asarray(_core.mrp_G(x1))
+        dX = np.zeros(17)
+        dX[0:3] = np.asarray(_core.mrp_G(sd)) @ od  # guidance
+        tel = {"sigma_DN": sd, "sigma_BD": x1, "omega_BD_B": x2, "chi": np.asarray(ppc.chi),
+               "lam": np.asarray(ppc.lambda_), "z1": z1, "z2": z2}
+        if self.law in ("dsc-ppc", "dsc"):
+            d = c.dsc
+            Ginv = np.asarray(_core.mrp_G_inverse(x1))
+            if self.law == "dsc":
+                e1, r = x1, np.ones(3)
+                x2bar = -Ginv @ (d.k1 * e1)
+            else:
+                e1, r = np.asarray(ppc.e1), np.asarray(ppc.r)
+                x2bar = -Ginv @ (d.k1 * e1 / r - np.asarray(ppc.lambda_) * np.asarray(ppc.chi_dot))  # (36)
+            x2d_dot = (x2bar - x2d) / d.tau  # (37)
+            e2 = x2 - x2d  # (27)
+            u = self.Bp @ (-A - d.k2 * e2 - G.T @ (r * e1) - d.k3 * self.B @ vs - z2 + x2d_dot)  # (41)
+            usat = np.clip(u, self.umin, self.umax)
+            ev = z1 - x2
+            sa = np.sign(ev) * np.abs(ev) ** self.alpha
+            sb = np.sign(ev) * np.abs(ev) ** (2 * self.alpha - 1)
+            dX[3:6] = A + self.B @ usat + z2 - self.k1o * sa - self.k2o * ev  # (22)
+            dX[6:9] = -self.k3o * sb - self.k4o * ev
+            dX[9:12] = x2d_dot
+            dX[12:16] = -d.k4 * vs + (usat - u)  # (42)
+        elif self.law == "pd":
+            u = -self.Bp @ (c.pd.beta1 * x1 + c.pd.beta2 * x2)
+        else:  # rft
+            g = c.rft
+            s = x2 + g.c * x1
+            u = self.Bp @ (-A - g.c * G @ x2 - g.k * s - rho * np.clip(s / g.phi, -1, 1))
+            dX[16] = g.gain * np.linalg.norm(s) - g.leak * rho
+        return u, tel, dX
+
+
+def _init_states(law: _Law, scn: Scenario, x0: np.ndarray) -> np.ndarray:
+    c = law.cfg
+    sd = np.asarray(c.guidance.sigma_d0, float)
+    X = np.zeros(27)
+    X[0:10] = x0
+    X[10:13] = sd
+    X[26] = c.rft.rho0
+    if law.law in ("dsc-ppc", "dsc"):
+        # x2d(0) = x2bar(0) (37): evaluate the law once with x2d = 0, take x2bar
+        u0, tel, dX = law.evaluate(0.0, X)
+        X[19:22] = dX[9:12] * c.dsc.tau  # x2d_dot * tau = x2bar - 0
+        if c.neso.init_from_measurement:
+            X[13:16] = tel["omega_BD_B"]
+    return X
+
+
+def run_unsampled(scn: Scenario, n_ctrl: int, n_sub: int, rate: float):
+    """Rows at t_k = k / rate; between them n_sub RK4 steps of the whole ODE."""
+    from .sim import _allocate, initial_state
+
+    law = _Law(scn)
+    pp, act = scn.plant, scn.actuators
+    X = _init_states(law, scn, initial_state(scn))
+    h = 1.0 / (rate * n_sub)
+
+    def f(t: float, X: np.ndarray):
+        u, tel, dXc = law.evaluate(t, X)
+        _, accel, _ = actuators.wheel_accel(act, t, u, X[6:10])
+        dX = np.empty(27)
+        dX[0:10] = plant.derivative(t, X[0:10], accel, pp)
+        dX[10:27] = dXc
+        return dX
+
+    traj = _allocate(n_ctrl + 1)
+    rows, diverged = 0, False
+    for k in range(n_ctrl + 1):
+        t = k / rate
+        u, tel, _ = law.evaluate(t, X)
+        u_sat, accel, _ = actuators.wheel_accel(act, t, u, X[6:10])
+        traj["t"][k] = t
+        traj["sigma_BN"][k], traj["omega_BN_B"][k], traj["wheel_speed"][k] = X[0:3], X[3:6], X[6:10]
+        traj["u_cmd"][k], traj["u_sat"][k] = u, np.clip(u, law.umin, law.umax)
+        traj["wheel_accel"][k] = accel
+        traj["delta2"][k] = plant.lumped_disturbance(pp, t, X[0:10], u_sat, accel)
+        for name, v in tel.items():
+            traj[name][k] = v
+        rows = k + 1
+        if k == n_ctrl:
+            break
+        for j in range(n_sub):
+            tj = t + j * h
+            k1 = f(tj, X)
+            k2 = f(tj + h / 2, X + h / 2 * k1)
+            k3 = f(tj + h / 2, X + h / 2 * k2)
+            k4 = f(tj + h, X + h * k3)
+            X = X + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            for a in (0, 10):  # shadow sets of the plant's and the guidance's MRPs
+                X[a:a + 3] = np.asarray(_core.mrp_short(X[a:a + 3]))
+        if not np.all(np.isfinite(X)):
+            diverged = True
+            break
+    extra = {"flags": np.zeros(n_ctrl + 1, np.int64), "vs": np.full((n_ctrl + 1, 4), np.nan),
+             "e1": np.full((n_ctrl + 1, 3), np.nan), "e2": np.full((n_ctrl + 1, 3), np.nan)}
+    return traj, extra, rows, diverged
