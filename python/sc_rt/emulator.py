@@ -52,6 +52,18 @@ _CMD_LAYOUT = struct.Struct(">qqqqd4d4dbi")
 assert _CMD_LAYOUT.size + 8 == _CMD_SIZE and _STATUS_HEAD.size + 8 < _STATUS_SIZE
 
 
+# plant_state_t: utime, seq, session, t, sigma_BN[3], omega_BN_B[3], wheel_speed[4]
+_STATE_FP = sc_rt_lcm.plant_state_t._get_packed_fingerprint()
+_STATE_LAYOUT = struct.Struct(">qqqd3d3d4d")
+# plant_truth_t: utime, seq, t, cmd_seq_applied, u_cmd[4], wheel_accel[4],
+# delta2[3], disturbance[3], fault_Y[4], fault_effectiveness[4], fault_bias[4],
+# fault_stuck[4] (int8), cmd_stale (int8)
+_TRUTH_FP = sc_rt_lcm.plant_truth_t._get_packed_fingerprint()
+_TRUTH_LAYOUT = struct.Struct(">qqdq4d4d3d3d4d4d4d4bb")
+assert _STATE_LAYOUT.size + 8 == len(sc_rt_lcm.plant_state_t().encode())
+assert _TRUTH_LAYOUT.size + 8 == len(sc_rt_lcm.plant_truth_t().encode())
+
+
 class _Cmd(NamedTuple):
     """The fields of a wheel_cmd_t the loop uses."""
 
@@ -107,6 +119,8 @@ class Emulator:
         self._ctl_session: int | None = None
         self._peer_lost = False
         self._fault_fields: tuple = (None,)
+        self._ch_state = channel("SCRT_STATE", prefix)
+        self._ch_truth = channel("SCRT_TRUTH", prefix)
         self._gaps: list[tuple[float, float]] = []
         self._gap_start: float | None = None
         self.session = secrets.randbits(62)
@@ -219,35 +233,24 @@ class Emulator:
 
     # --- publishing --------------------------------------------------------
     def _publish_state(self, k: int, t: float, x: np.ndarray) -> None:
-        m = sc_rt_lcm.plant_state_t()
-        m.utime = time.time_ns() // 1000
-        m.seq, m.t, m.session = k, t, self.session
-        m.sigma_BN = [float(v) for v in x[0:3]]
-        m.omega_BN_B = [float(v) for v in x[3:6]]
-        m.wheel_speed = [float(v) for v in x[6:10]]
-        data = m.encode()
+        data = _STATE_FP + _STATE_LAYOUT.pack(time.time_ns() // 1000, k, self.session, t, *x[0:10])
         self._pub_ns[k] = time.monotonic_ns()
-        self.lc.publish(channel("SCRT_STATE", self.prefix), data)
+        self.lc.publish(self._ch_state, data)
 
     def _publish_truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale) -> None:
-        m = sc_rt_lcm.plant_truth_t()
-        m.utime = time.time_ns() // 1000
-        m.seq, m.t, m.cmd_seq_applied = k, t, cmd_seq
-        m.u_cmd = [float(v) for v in u_cmd]
-        m.wheel_accel = [float(v) for v in accel]
-        m.delta2 = [float(v) for v in delta2]
-        m.disturbance = [float(v) for v in plant.disturbance(self.scn.plant, t)]
         if self._fault_fields[0] is not self.act:  # the fault set changed (live injection)
             faults = {f.wheel: f for f in self.act.faults}
             self._fault_fields = (
                 self.act, [faults.get(i) for i in range(4)],
-                [faults[i].effectiveness if i in faults else 1.0 for i in range(4)],
-                [faults[i].bias if i in faults else 0.0 for i in range(4)],
-                [1 if i in faults and faults[i].stuck else 0 for i in range(4)])
-        _, per_wheel, m.fault_effectiveness, m.fault_bias, m.fault_stuck = self._fault_fields
-        m.fault_Y = [actuators.fault_Y(f, t) for f in per_wheel]
-        m.cmd_stale = 1 if stale else 0
-        self.lc.publish(channel("SCRT_TRUTH", self.prefix), m.encode())
+                [faults[i].effectiveness if i in faults else 1.0 for i in range(4)]
+                + [faults[i].bias if i in faults else 0.0 for i in range(4)]
+                + [1 if i in faults and faults[i].stuck else 0 for i in range(4)])
+        _, per_wheel, eff_bias_stuck = self._fault_fields
+        data = _TRUTH_FP + _TRUTH_LAYOUT.pack(
+            time.time_ns() // 1000, k, t, cmd_seq, *u_cmd, *accel, *delta2,
+            *plant.disturbance(self.scn.plant, t), *[actuators.fault_Y(f, t) for f in per_wheel],
+            *eff_bias_stuck, 1 if stale else 0)
+        self.lc.publish(self._ch_truth, data)
 
     def _handle_until(self, deadline_ns: int) -> None:
         fd = self.lc.fileno()
