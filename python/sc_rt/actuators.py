@@ -44,15 +44,22 @@ __all__ = [
 _NWHEELS = 4
 
 
-def _frozen_vector(value, n: int, name: str, errors: list[str]) -> np.ndarray | None:
-    """A read-only float64 copy of ``value`` with shape (n,), or None (error recorded)."""
+def _frozen(value, shape: tuple[int, ...], name: str, errors: list[str], *,
+            finite: bool = True) -> np.ndarray | None:
+    """A read-only float64 copy of ``value`` with ``shape`` (finite values
+    unless ``finite`` is False), or None with the problem added to ``errors``.
+    Shared by the parameter dataclasses of actuators.py and plant.py."""
+    what = f"a vector of {shape[0]} numbers" if len(shape) == 1 else f"numbers of shape {shape}"
     try:
         a = np.array(value, dtype=float)
     except (TypeError, ValueError):
-        errors.append(f"{name} must be a vector of {n} numbers, got {value!r}")
+        errors.append(f"{name} must be {what}, got {value!r}")
         return None
-    if a.shape != (n,):
-        errors.append(f"{name} must have shape ({n},), got shape {a.shape}: {value!r}")
+    if a.shape != shape:
+        errors.append(f"{name} must have shape {shape}, got shape {a.shape}: {value!r}")
+        return None
+    if finite and not np.all(np.isfinite(a)):
+        errors.append(f"{name} must be finite, got {a.tolist()!r}")
         return None
     a.setflags(write=False)
     return a
@@ -130,11 +137,10 @@ class ActuatorParams:
 
     def __post_init__(self) -> None:
         errs: list[str] = []
-        umin = _frozen_vector(self.umin, _NWHEELS, "ActuatorParams.umin", errs)
-        umax = _frozen_vector(self.umax, _NWHEELS, "ActuatorParams.umax", errs)
-        wmax = _frozen_vector(
-            self.max_wheel_speed, _NWHEELS, "ActuatorParams.max_wheel_speed", errs
-        )
+        umin = _frozen(self.umin, (_NWHEELS,), "ActuatorParams.umin", errs, finite=False)
+        umax = _frozen(self.umax, (_NWHEELS,), "ActuatorParams.umax", errs, finite=False)
+        wmax = _frozen(self.max_wheel_speed, (_NWHEELS,), "ActuatorParams.max_wheel_speed", errs,
+                       finite=False)
         if umin is not None and umax is not None:
             for i in range(_NWHEELS):
                 lo, hi = float(umin[i]), float(umax[i])

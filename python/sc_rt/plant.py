@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .actuators import ActuatorParams, _accel4, _floats, _sat4
+from .actuators import ActuatorParams, _accel4, _floats, _frozen, _sat4
 
 __all__ = [
     "DisturbanceParams",
@@ -49,23 +49,6 @@ __all__ = [
 ]
 
 _NX = 10
-
-
-def _frozen(value, shape: tuple[int, ...], name: str, errors: list[str]) -> np.ndarray | None:
-    """A read-only float64 copy of ``value`` with ``shape``, or None (error recorded)."""
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        errors.append(f"{name} must be numbers of shape {shape}, got {value!r}")
-        return None
-    if a.shape != shape:
-        errors.append(f"{name} must have shape {shape}, got shape {a.shape}: {value!r}")
-        return None
-    if not np.all(np.isfinite(a)):
-        errors.append(f"{name} must be finite, got {a.tolist()!r}")
-        return None
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True)
