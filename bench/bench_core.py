@@ -21,8 +21,8 @@ from common import ROOT, machine, summary, write
 sys.path.insert(0, str(ROOT / "tests"))
 
 from sc_rt import _core  # noqa: E402
-from sc_rt.scenario import load_scenario  # noqa: E402
-from sc_rt.sim import simulate  # noqa: E402
+from sc_rt.scenario.model import load_scenario  # noqa: E402
+from sc_rt.sim.engines import simulate  # noqa: E402
 
 LAWS = {"dsc-ppc": _core.Law.DscPpc, "dsc": _core.Law.Dsc, "pd": _core.Law.Pd, "rft": _core.Law.Rft}
 

@@ -11,8 +11,8 @@ import sys
 
 from common import ROOT, machine, write
 
-from sc_rt.montecarlo import run_montecarlo
-from sc_rt.scenario import load_scenario
+from sc_rt.studies.montecarlo import run_montecarlo
+from sc_rt.scenario.model import load_scenario
 
 
 def main(quick: bool = False) -> None:

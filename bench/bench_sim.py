@@ -13,8 +13,8 @@ import sys
 
 from common import ROOT, alternate, machine, summary, write
 
-from sc_rt.scenario import load_scenario
-from sc_rt.sim import simulate
+from sc_rt.scenario.model import load_scenario
+from sc_rt.sim.engines import simulate
 
 
 def main(quick: bool = False) -> None:

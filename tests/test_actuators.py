@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from sc_rt import _core
-from sc_rt.actuators import (
+from sc_rt.model.actuators import (
     ActuatorParams,
     WheelFault,
     actuator_params_to_cpp,

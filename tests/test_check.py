@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from sc_rt.check import check_scenario, exit_code
+from sc_rt.studies.check import check_scenario, exit_code
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = (ROOT / "scenarios" / "paper_faults.toml").read_text()

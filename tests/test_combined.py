@@ -8,8 +8,9 @@ import warnings
 import numpy as np
 import pytest
 
-from sc_rt import _core, combined
-from sc_rt.combined import (
+from sc_rt import _core
+from sc_rt.model import combined
+from sc_rt.model.combined import (
     CbarWarning,
     RigidBody,
     check_cbar_is_rotation,

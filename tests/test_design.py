@@ -1,4 +1,4 @@
-"""sc_rt.design: linearisation, PD design, margins, sampled-data stability (docs/DESIGN.md)."""
+"""sc_rt.studies.design: linearisation, PD design, margins, sampled-data stability (docs/DESIGN.md)."""
 
 from __future__ import annotations
 
@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from sc_rt import _core
-from sc_rt import design as D
+from sc_rt.studies import design as D
 from sc_rt.cli import main
-from sc_rt.plant import DisturbanceParams
-from sc_rt.scenario import load_scenario
-from sc_rt.sim import simulate
+from sc_rt.model.plant import DisturbanceParams
+from sc_rt.scenario.model import load_scenario
+from sc_rt.sim.engines import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 FAULT_FREE = ROOT / "scenarios" / "paper_fault_free.toml"

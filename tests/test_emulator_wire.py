@@ -7,7 +7,7 @@ import random
 
 import sc_rt_lcm
 
-from sc_rt import emulator as E
+from sc_rt.bus import emulator as E
 
 
 def test_state_and_truth_packing_equal_the_generated_encoding():

@@ -15,9 +15,9 @@ import lcm
 import numpy as np
 import pytest
 
-from sc_rt.analysis import TRAJECTORY_KEYS
-from sc_rt.scenario import load_scenario
-from sc_rt.sim import simulate
+from sc_rt.results.metrics import TRAJECTORY_KEYS
+from sc_rt.scenario.model import load_scenario
+from sc_rt.sim.engines import simulate
 
 import lcmnet
 

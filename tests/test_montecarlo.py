@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.montecarlo import Dispersion, disperse, run_montecarlo
-from sc_rt.scenario import load_scenario
+from sc_rt.studies.montecarlo import Dispersion, disperse, run_montecarlo
+from sc_rt.scenario.model import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 

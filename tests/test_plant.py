@@ -15,8 +15,8 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from sc_rt import _core
-from sc_rt.actuators import ActuatorParams, WheelFault, actuator_params_to_cpp, wheel_accel
-from sc_rt.plant import (
+from sc_rt.model.actuators import ActuatorParams, WheelFault, actuator_params_to_cpp, wheel_accel
+from sc_rt.model.plant import (
     DisturbanceParams,
     PlantParams,
     derivative,

@@ -14,9 +14,9 @@ import lcm
 import numpy as np
 import pytest
 
-from sc_rt import wire
-from sc_rt.analysis import TRAJECTORY_KEYS
-from sc_rt.report import read_log, write_report
+from sc_rt.bus import wire
+from sc_rt.results.metrics import TRAJECTORY_KEYS
+from sc_rt.bus.report import read_log, write_report
 
 import lcmnet
 
@@ -188,7 +188,7 @@ def test_a_restarted_controller_and_a_replayed_command_map_to_the_right_command(
     command is replayed: the applied one is the one the emulator used."""
     import sc_rt_lcm
 
-    from sc_rt.scenario import load_scenario
+    from sc_rt.scenario.model import load_scenario
 
     if "session" not in sc_rt_lcm.wheel_cmd_t.__slots__:  # pragma: no cover
         pytest.skip("wheel_cmd_t has no session field in this build")

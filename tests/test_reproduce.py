@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 
 import pytest
-from sc_rt import reproduce as R
+from sc_rt.studies import reproduce as R
 from sc_rt.cli import main
 
 VERDICTS = {"reproduced", "not reproduced", "partly"}
@@ -29,7 +29,7 @@ def doc(outdir) -> dict:
 
 
 def _holds_independently(case: dict) -> bool:
-    """The rule of sc_rt.reproduce, restated here from its docstring."""
+    """The rule of sc_rt.studies.reproduce, restated here from its docstring."""
     k = case["kind"]
     if k == "inside":
         return case["first_bound_violation_s"] is None
@@ -122,10 +122,10 @@ FEASIBLE = {"10hz": 10.0, "100hz": 100.0, "1khz": 1000.0}
 @pytest.mark.parametrize("tag", list(FEASIBLE))
 def test_feasible_design_holds_its_bound_in_both_paper_cases(tag):
     """Each file carries the paper's faults; the fault-free case is the same file
-    with its [[faults]] removed (sc_rt.reproduce.without_faults)."""
+    with its [[faults]] removed (sc_rt.studies.reproduce.without_faults)."""
     import numpy as np
-    from sc_rt.scenario import load_scenario
-    from sc_rt.sim import simulate
+    from sc_rt.scenario.model import load_scenario
+    from sc_rt.sim.engines import simulate
 
     scn = load_scenario(ROOT / "scenarios" / f"ppc_feasible_{tag}.toml")
     paper = load_scenario(ROOT / "scenarios" / "paper_faults.toml")
@@ -152,7 +152,7 @@ def test_feasible_design_holds_its_bound_in_both_paper_cases(tag):
 def test_search_finds_the_predicted_smallest_chiinf_at_10hz():
     """Bisection on the runs (both cases, 300 s, C++) lands on the sampled-data
     analysis' smallest stable chiinf, with the paper's k2 and with k2 T = 1.6."""
-    from sc_rt.scenario import load_scenario
+    from sc_rt.scenario.model import load_scenario
 
     paper = load_scenario(ROOT / "scenarios" / "paper_faults.toml")
     for k2 in (4.0, 16.0):

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.analysis import TRAJECTORY_KEYS
-from sc_rt.scenario import load_scenario
-from sc_rt.sim import simulate
+from sc_rt.results.metrics import TRAJECTORY_KEYS
+from sc_rt.scenario.model import load_scenario
+from sc_rt.sim.engines import simulate
 
 import lcmnet
 

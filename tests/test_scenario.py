@@ -17,8 +17,8 @@ import pytest
 from sc_rt_lcm import controller_config_t
 
 from sc_rt import _core
-from sc_rt.actuators import WheelFault
-from sc_rt.scenario import (
+from sc_rt.model.actuators import WheelFault
+from sc_rt.scenario.model import (
     LAWS,
     ControllerParams,
     Scenario,
@@ -71,7 +71,7 @@ EXPECTED_MSG = {
     "dsc_k4": 22.0,
     "dsc_k6": 1.0,
     "dsc_tau": 0.1,
-    "pd_beta1": 0.05693,  # sc_rt.design.default_pd_design, 4 digits
+    "pd_beta1": 0.05693,  # sc_rt.studies.design.default_pd_design, 4 digits
     "pd_beta2": 0.2386,
     "rft_c": 0.2,
     "rft_k": 0.4,
@@ -158,7 +158,7 @@ def test_paper_scenarios_hold_model_md_values(path):
         np.testing.assert_array_equal(getattr(c.neso, k), [v] * 3)
     assert (c.neso.alpha, c.neso.substeps, c.neso.init_from_measurement) == (0.7, 1, False)
     assert dataclasses.astuple(c.dsc) == (0.1, 4.0, 0.01, 22.0, 1.0, 0.1)
-    assert dataclasses.astuple(c.pd) == (0.05693, 0.2386)  # sc_rt.design (docs/DESIGN.md)
+    assert dataclasses.astuple(c.pd) == (0.05693, 0.2386)  # sc_rt.studies.design (docs/DESIGN.md)
     assert dataclasses.astuple(c.rft) == (0.2, 0.4, 0.5, 0.01, 1e-2, 0.0)
     assert dataclasses.astuple(c.safety) == (10.0, 1e4, 5.0)
     assert c.pinv_damping == 0.0

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.analysis import TRAJECTORY_KEYS
-from sc_rt.scenario import load_scenario
-from sc_rt.sim import simulate, with_overrides, write_result
+from sc_rt.results.metrics import TRAJECTORY_KEYS
+from sc_rt.scenario.model import load_scenario
+from sc_rt.sim.engines import simulate, with_overrides, write_result
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ("paper_fault_free", "paper_faults")

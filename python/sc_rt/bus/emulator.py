@@ -31,11 +31,11 @@ from typing import Any, NamedTuple
 import numpy as np
 import sc_rt_lcm
 
-from . import actuators, plant
-from .actuators import WheelFault
-from .lcmio import channel, decode_guarded, open_lcm
-from .scenario import Scenario
-from .sim import _allocate, _steps, initial_state, with_overrides
+from sc_rt.model import actuators, plant
+from sc_rt.model.actuators import WheelFault
+from sc_rt.bus.lcmio import channel, decode_guarded, open_lcm
+from sc_rt.scenario.model import Scenario
+from sc_rt.sim.engines import _allocate, _steps, initial_state, with_overrides
 
 __all__ = ["Emulator", "EmulatorResult"]
 

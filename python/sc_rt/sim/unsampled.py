@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _core, actuators, plant
-from .scenario import Scenario
+from sc_rt import _core
+from sc_rt.model import actuators, plant
+from sc_rt.scenario.model import Scenario
 
 __all__ = ["run_unsampled"]
 
@@ -99,7 +100,7 @@ def _init_states(law: _Law, scn: Scenario, x0: np.ndarray) -> np.ndarray:
 
 def run_unsampled(scn: Scenario, n_ctrl: int, n_sub: int, rate: float):
     """Rows at t_k = k / rate; between them n_sub RK4 steps of the whole ODE."""
-    from .sim import _allocate, initial_state
+    from sc_rt.sim.engines import _allocate, initial_state
 
     law = _Law(scn)
     pp, act = scn.plant, scn.actuators

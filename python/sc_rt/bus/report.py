@@ -41,9 +41,9 @@ from typing import Any
 import lcm
 import numpy as np
 
-from .analysis import TRAJECTORY_KEYS, bound_ok, compute_metrics, fill_tracking_errors, json_safe
-from .lcmio import CHANNELS, lcm_binary
-from .wire import TYPES, decode_any, decode_array, numpy_dtype
+from sc_rt.results.metrics import TRAJECTORY_KEYS, bound_ok, compute_metrics, fill_tracking_errors, json_safe
+from sc_rt.bus.lcmio import CHANNELS, lcm_binary
+from sc_rt.bus.wire import TYPES, decode_any, decode_array, numpy_dtype
 
 __all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command", "LAW_NAMES"]
 
@@ -307,7 +307,7 @@ def _params(d: LogData, scenario_path: str | None):
     cfg = _config(d)
     scn = None
     if scenario_path:
-        from .scenario import load_scenario
+        from sc_rt.scenario.model import load_scenario
 
         scn = load_scenario(scenario_path)
     if cfg is not None:
@@ -328,12 +328,12 @@ def _params(d: LogData, scenario_path: str | None):
 def _guidance(d: LogData, scenario_path: str | None):
     """The desired trajectory's parameters (_core.GuidanceParams), from the
     logged controller_config_t or the scenario file."""
-    from . import _core
+    from sc_rt import _core
 
     cfg = _config(d)
     if cfg is not None:
         return _core.ControllerConfig.from_lcm_bytes(cfg.encode()).guidance
-    from .scenario import load_scenario
+    from sc_rt.scenario.model import load_scenario
 
     return load_scenario(scenario_path).core_config().guidance
 
@@ -375,7 +375,7 @@ def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
 
 
 def _timing(r: Rebuilt, rate: float, d: LogData, wall: float, faults: dict) -> dict[str, Any]:
-    from .hil import timing_report
+    from sc_rt.bus.hil import timing_report
 
     stale = int(np.sum(r.extra["cmd_stale"]))
     counters = Counter({"cmd_timeout" if r.mode == "lockstep" else "cmd_stale_ticks": stale,
@@ -398,7 +398,7 @@ def fault_figure(r: Rebuilt, faults: dict, out: Path, title: str = "") -> Path:
     state the plant reported (effectiveness L, activation Y, stuck spans,
     bias); thin black lines where a fault command for that wheel reached
     the bus, red dashed at its onset."""
-    from . import plots  # noqa: F401  (selects the Agg backend)
+    from sc_rt.results import figures  # noqa: F401  (selects the Agg backend)
     import matplotlib.pyplot as plt
 
     t, h = r.traj["t"], r.extra["has_truth"]
@@ -487,7 +487,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
         report["config"] = {"scenario": cfg.scenario, "law": law, "control_rate_hz": rate}
     (out / "report.json").write_text(json.dumps(json_safe(report), indent=2) + "\n")
     if plots:
-        from . import plots as plots_mod
+        from sc_rt.results import figures as plots_mod
 
         shim = SimpleNamespace(controller=SimpleNamespace(ppc=ppc),
                                actuators=SimpleNamespace(umin=umin, umax=umax))

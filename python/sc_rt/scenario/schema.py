@@ -1,4 +1,4 @@
-"""Schema machinery of the scenario files (sc_rt.scenario): field specs,
+"""Schema machinery of the scenario files (sc_rt.scenario.model): field specs,
 value conversion with bounds, the file/line locator (tomllib gives no
 positions) and the error types. Generic: nothing here knows about
 spacecraft."""

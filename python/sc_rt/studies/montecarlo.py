@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .scenario import Scenario
+from sc_rt.scenario.model import Scenario
 
 __all__ = ["Dispersion", "disperse", "run_montecarlo"]
 
@@ -54,7 +54,7 @@ def _physical(J: np.ndarray) -> bool:
 
 def disperse(scn: Scenario, rng: np.random.Generator, d: Dispersion) -> Scenario:
     """One dispersed copy of ``scn`` (the controller's J0 is unchanged)."""
-    from . import _core
+    from sc_rt import _core
 
     p = scn.plant
     J_nom = np.asarray(p.J0 + p.dJ, float)
@@ -100,7 +100,7 @@ def _compose(s_rel: np.ndarray, s0: np.ndarray, core) -> np.ndarray:
 
 @functools.lru_cache(maxsize=4)
 def _load(path: str) -> Scenario:
-    from .scenario import load_scenario
+    from sc_rt.scenario.model import load_scenario
 
     return load_scenario(path)
 
@@ -109,7 +109,7 @@ def _one(args) -> dict[str, Any]:
     # the scenario travels as its path: its parameter objects hold compiled
     # closures that do not pickle; each worker loads it once
     path, i, seed, d, law, rate = args
-    from .sim import simulate
+    from sc_rt.sim.engines import simulate
 
     scn = _load(path)
     rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(i + 1)[i])
@@ -172,7 +172,7 @@ def _progress(on: bool, done: int, total: int) -> None:
 
 
 def write_montecarlo(res: dict[str, Any], out: Path) -> None:
-    from . import plots  # noqa: F401  (Agg backend)
+    from sc_rt.results import figures  # noqa: F401  (Agg backend)
     import matplotlib.pyplot as plt
 
     out.mkdir(parents=True, exist_ok=True)

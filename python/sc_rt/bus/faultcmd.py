@@ -13,7 +13,7 @@ import time
 
 import sc_rt_lcm
 
-from .lcmio import channel, open_lcm
+from sc_rt.bus.lcmio import channel, open_lcm
 
 __all__ = ["FaultArgError", "inject_msg", "clear_msg", "publish"]
 

@@ -20,7 +20,7 @@ Conventions (shared with the C++ engine ``sc_rt._core.wheel_accel``):
 
 The public functions take array-likes and return numpy arrays; the private
 ``_sat4``/``_accel4`` work on plain floats for the plant's hot path
-(``sc_rt.plant.rk4_step``). Their C++ twins (``sat4``/``accel4`` in
+(``sc_rt.model.plant.rk4_step``). Their C++ twins (``sat4``/``accel4`` in
 cpp/src/plant.cpp) repeat the same operations in the same order: the two
 engines give bit-identical accelerations, so edit them together.
 """
@@ -338,7 +338,7 @@ def actuator_params_to_cpp(a: ActuatorParams):
     struct: ``end=None`` becomes ``+inf``, wheels without a fault get an
     inactive ``WheelFault``.
     """
-    from . import _core
+    from sc_rt import _core
 
     faults = [_core.WheelFault() for _ in range(_NWHEELS)]
     for f in a.faults:

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .analysis import prescribed_chi  # noqa: E402
+from sc_rt.results.metrics import prescribed_chi  # noqa: E402
 
 __all__ = ["tracking_figures", "timing_figures"]
 

@@ -26,9 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from . import _core, actuators, plant
-from .analysis import TRAJECTORY_KEYS, bound_ok, compute_metrics, json_safe
-from .scenario import Scenario
+from sc_rt import _core
+from sc_rt.model import actuators, plant
+from sc_rt.results.metrics import TRAJECTORY_KEYS, bound_ok, compute_metrics, json_safe
+from sc_rt.scenario.model import Scenario
 
 __all__ = ["SimResult", "simulate", "with_overrides", "write_result", "PACKED"]
 
@@ -153,7 +154,7 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
 
     Parameters
     ----------
-    scn : the scenario (sc_rt.scenario.load_scenario).
+    scn : the scenario (sc_rt.scenario.model.load_scenario).
     law : "dsc-ppc", "dsc", "pd" or "rft" (default: the scenario's).
     engine : "python" (reference plant, plant.py), "cpp" (compiled twin, whole loop in C++)
         or "unsampled" (reference mode: the law inside every RK4 stage, no hold; unsampled.py).
@@ -170,7 +171,7 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     elif engine == "cpp":
         traj, extra, rows, diverged = _run_cpp(scn)
     elif engine == "unsampled":
-        from .unsampled import run_unsampled
+        from sc_rt.sim.unsampled import run_unsampled
 
         n_ctrl, n_sub, _, _ = _steps(scn)
         traj, extra, rows, diverged = run_unsampled(scn, n_ctrl, n_sub, rate)

@@ -31,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from .analysis import json_safe, prescribed_chi
-from .scenario import Scenario, load_scenario
-from .sim import SimResult, simulate
+from sc_rt.results.metrics import json_safe, prescribed_chi
+from sc_rt.scenario.model import Scenario, load_scenario
+from sc_rt.sim.engines import SimResult, simulate
 
 __all__ = [
     "CASES",
@@ -48,7 +48,7 @@ __all__ = [
     "verdict_of",
 ]
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 #: case name -> scenario file (relative to the repository)
 CASES = {"fault_free": "scenarios/paper_fault_free.toml", "faults": "scenarios/paper_faults.toml"}
 LAWS = ("dsc-ppc", "dsc", "pd", "rft")
@@ -205,7 +205,7 @@ def claims_of(runs: Runs, command: str) -> dict[str, Any]:
 
 
 def _plant_step(S: dict[str, Scenario], runs: Runs) -> float:
-    from .sim import with_overrides
+    from sc_rt.sim.engines import with_overrides
 
     s = with_overrides(next(iter(S.values())), control_rate_hz=runs.control_rate_hz,
                        plant_step=runs.plant_step)
@@ -425,7 +425,7 @@ ROOT_CAUSE_RATES = (10.0, 100.0, 1000.0)
 def root_cause(out: Path, *, engine: str = "cpp", scenarios: dict[str, Scenario] | None = None,
                dpi: int = DPI) -> dict[str, Any]:
     """``root_cause.png`` and the numbers behind it (fault-free scenario, DSC+PPC):
-    the spectral radius of the linearised sampled loop (sc_rt.design) over t per
+    the spectral radius of the linearised sampled loop (sc_rt.studies.design) over t per
     rate, its predicted loss of stability, the simulated growth onset and first
     violation; chi_x(t) against the critical chi per rate with the runs' |x1|;
     at 10 Hz the commanded wheel accelerations against the limits."""
@@ -434,7 +434,7 @@ def root_cause(out: Path, *, engine: str = "cpp", scenarios: dict[str, Scenario]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from . import design as D
+    from sc_rt.studies import design as D
 
     scns = scenarios if scenarios is not None else load_cases()
     scn = scns["fault_free"]
@@ -534,9 +534,9 @@ def holds(scn: Scenario, chiinf, rate: float, *, engine: str = "cpp") -> dict[st
 
 
 def chiinf_min(scn: Scenario, rate: float) -> np.ndarray:
-    """The predicted smallest stable chiinf (sc_rt.design.stability_limit), the larger
+    """The predicted smallest stable chiinf (sc_rt.studies.design.stability_limit), the larger
     of the scenario with its faults and without them, per axis."""
-    from . import design as D
+    from sc_rt.studies import design as D
 
     return np.maximum(*(np.asarray(D.stability_limit(s, "dsc-ppc", rate, horizon=1.0).chiinf_min, float)
                         for s in (scn, without_faults(scn))))

@@ -15,8 +15,8 @@ step cost hundreds of microseconds.
 Examples
 --------
 >>> import numpy as np
->>> from sc_rt.plant import PlantParams, rk4_step, derivative
->>> from sc_rt.actuators import ActuatorParams
+>>> from sc_rt.model.plant import PlantParams, rk4_step, derivative
+>>> from sc_rt.model.actuators import ActuatorParams
 >>> p = PlantParams(J0=np.diag([10.0, 15, 20]), dJ=np.diag([2.0, -1, 2]),
 ...                 Cbar=np.c_[np.eye(3), np.ones(3) / np.sqrt(3)],
 ...                 Jw=np.full(4, 0.338), w0=0.0011)
@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .actuators import ActuatorParams, _accel4, _floats, _frozen, _sat4
+from sc_rt.model.actuators import ActuatorParams, _accel4, _floats, _frozen, _sat4
 
 __all__ = [
     "DisturbanceParams",
@@ -304,7 +304,7 @@ def derivative(t: float, x, wheel_accel, p: PlantParams) -> np.ndarray:
         ``[sigma_BN (3) [-], omega_BN_B (3) [rad/s], Omega_w (4) [rad/s]]``.
     wheel_accel : array_like, shape (4,)
         ACTUAL wheel accelerations Omega_w_dot [rad/s^2] (after saturation and
-        faults, see ``sc_rt.actuators.wheel_accel``).
+        faults, see ``sc_rt.model.actuators.wheel_accel``).
     p : PlantParams
 
     Returns
@@ -509,7 +509,7 @@ def plant_params_to_cpp(p: PlantParams):
     The single conversion point between the Python dataclass and the C++
     struct (the C++ constructor validates again).
     """
-    from . import _core
+    from sc_rt import _core
 
     d = p.disturbance
     return _core.PlantParams(

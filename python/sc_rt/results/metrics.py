@@ -35,7 +35,7 @@ def fill_tracking_errors(traj: dict[str, np.ndarray], guidance, rate: float) -> 
     the desired trajectory, computed as the controller does (guidance
     integrated with RK4 steps of at most one control period, (8), (11)).
     ``guidance`` is a ``_core.GuidanceParams``. Returns the rows filled."""
-    from . import _core
+    from sc_rt import _core
 
     missing = np.flatnonzero(np.isnan(traj["sigma_BD"]).any(axis=1))
     if missing.size == 0:

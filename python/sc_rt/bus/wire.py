@@ -146,7 +146,7 @@ def lcm_sources() -> list[Path]:
         files = sorted(d.glob("*.lcm")) if d.is_dir() else []
         if files:
             return files
-    d = Path(sc_rt.__file__).resolve().parent.parent.parent / "lcmtypes"
+    d = Path(sc_rt.__file__).resolve().parents[2] / "lcmtypes"
     files = sorted(d.glob("*.lcm"))
     if not files:
         raise FileNotFoundError("the .lcm sources of sc_rt_lcm were not found (sc_rt/lcmtypes "

@@ -27,12 +27,12 @@ from typing import Any
 import numpy as np
 from sc_rt_lcm import controller_config_t
 
-from . import _core
-from ._core import mrp_to_dcm
-from .actuators import ActuatorParams, WheelFault
-from .combined import RigidBody, combine
-from .plant import DisturbanceParams, PlantParams
-from ._schema import (  # noqa: F401  (ScenarioError and ScenarioIssue are public here)
+from sc_rt import _core
+from sc_rt._core import mrp_to_dcm
+from sc_rt.model.actuators import ActuatorParams, WheelFault
+from sc_rt.model.combined import RigidBody, combine
+from sc_rt.model.plant import DisturbanceParams, PlantParams
+from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIssue are public here)
     ScenarioError,
     ScenarioIssue,
     _Doc,

@@ -5,7 +5,7 @@ What is here, in the order of docs/DESIGN.md:
 1. **Error dynamics, linearised** about ``sigma_BD = 0, omega_BD_B = 0``:
    analytically (:func:`error_model`: ``x1' = G(0) x2 = x2/4``,
    ``x2' = B u``) and numerically (:func:`error_system`, a ``control.nlsys``
-   around the real plant :func:`sc_rt.plant.derivative` and the error
+   around the real plant :func:`sc_rt.model.plant.derivative` and the error
    equations (8)-(11); :func:`linearize_error` calls ``control.linearize``).
 2. **PD baseline design** (:func:`design_pd`, :func:`default_pd_design`):
    ``u = -B+ (beta1 x1 + beta2 x2)`` closes each axis as
@@ -42,10 +42,10 @@ import control
 import numpy as np
 import scipy.optimize
 
-from . import _core
-from .actuators import fault_Y
-from .plant import PlantParams, derivative
-from .scenario import Scenario
+from sc_rt import _core
+from sc_rt.model.actuators import fault_Y
+from sc_rt.model.plant import PlantParams, derivative
+from sc_rt.scenario.model import Scenario
 
 __all__ = [
     "CASES",
@@ -188,7 +188,7 @@ def error_system(scn: Scenario, inertia: str = "true", *, desired: bool = True,
     State ``[x1, x2]`` = ``[sigma_BD, omega_BD_B]``, input the actual wheel
     accelerations (4). The update function rebuilds the plant state
     (``sigma_BN = x1 (+) sigma_DN``, ``omega = x2 + R(x1) omega_d(t)``), calls
-    :func:`sc_rt.plant.derivative` (the true plant (7), with J0 or J0 + dJ)
+    :func:`sc_rt.model.plant.derivative` (the true plant (7), with J0 or J0 + dJ)
     and returns ``x1' = G(x1) x2`` (1),(2) and
     ``x2' = omega' + x2^ R(x1) omega_d - R(x1) omega_d'`` (the derivative of
     (11)). The wheel speeds are a parameter (they are not error states).
@@ -905,7 +905,7 @@ def stability_limit(scn: Scenario, law: str = "dsc-ppc", rate: float | None = No
 def simulated_loss_of_stability(scn: Scenario, law: str = "dsc-ppc", rate: float | None = None, *,
                                 duration: float | None = None, window: float = 1.0,
                                 engine: str = "cpp", result=None) -> dict[str, Any]:
-    """Where a simulation loses stability (``sc_rt.sim.simulate``).
+    """Where a simulation loses stability (``sc_rt.sim.engines.simulate``).
 
     Two measures: ``first_bound_violation_s`` (the metric of analysis.py) and,
     per axis, the growth onset: the time at which the windowed peak of
@@ -917,7 +917,7 @@ def simulated_loss_of_stability(scn: Scenario, law: str = "dsc-ppc", rate: float
     meaningful when the run has reached the small-signal regime
     (``lam_at_onset`` << 1 and no saturation there).
     """
-    from .sim import simulate
+    from sc_rt.sim.engines import simulate
 
     res = result if result is not None else simulate(scn, law=law, engine=engine,
                                                      control_rate_hz=rate, duration=duration)
@@ -1098,7 +1098,7 @@ def _plot_spectral(scn: Scenario, report: dict[str, Any], out: Path) -> Path:
 
 def write_design(report: dict[str, Any], scn: Scenario, out: Path, plots: bool = True) -> list[Path]:
     """design.json and the figures (bode.png, nichols.png, spectral_radius.png) into out/."""
-    from .analysis import json_safe
+    from sc_rt.results.metrics import json_safe
 
     out.mkdir(parents=True, exist_ok=True)
     paths = []

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _core
-from .scenario import Scenario, ScenarioError, load_scenario
+from sc_rt import _core
+from sc_rt.scenario.model import Scenario, ScenarioError, load_scenario
 
 __all__ = ["Finding", "check_scenario", "PAPER_C"]
 
@@ -76,7 +76,7 @@ def _check_model(scn: Scenario) -> list[Finding]:
     except ValueError as e:
         out.append(Finding("error", "spacecraft.Cbar", _fmt(scn.plant.Cbar), str(e)))
         return out
-    from .combined import check_cbar_is_rotation
+    from sc_rt.model.combined import check_cbar_is_rotation
 
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
@@ -118,7 +118,7 @@ def _check_observer(scn: Scenario) -> list[Finding]:
 
 def _r_bound(scn: Scenario) -> float:
     """max ||r|| along an offline DSC+PPC run (C++ engine), r of (35)."""
-    from .sim import simulate
+    from sc_rt.sim.engines import simulate
 
     tr = simulate(scn, law="dsc-ppc", engine="cpp").trajectory
     p = scn.controller.ppc

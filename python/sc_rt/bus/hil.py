@@ -20,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from .analysis import TRAJECTORY_KEYS, bound_ok, compute_metrics, fill_tracking_errors, json_safe
-from .emulator import Emulator, EmulatorResult
-from .lcmio import channel, free_port_url, lcm_binary, open_lcm
-from .scenario import Scenario
-from .sim import with_overrides
+from sc_rt.results.metrics import TRAJECTORY_KEYS, bound_ok, compute_metrics, fill_tracking_errors, json_safe
+from sc_rt.bus.emulator import Emulator, EmulatorResult
+from sc_rt.bus.lcmio import channel, free_port_url, lcm_binary, open_lcm
+from sc_rt.scenario.model import Scenario
+from sc_rt.sim.engines import with_overrides
 
 __all__ = ["HilResult", "run_hil", "controller_binary", "percentiles"]
 
@@ -152,7 +152,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     (out / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2) + "\n")
     (out / "timing.json").write_text(json.dumps(json_safe(timing), indent=2) + "\n")
     if plots:
-        from . import plots as plots_mod
+        from sc_rt.results import figures as plots_mod
 
         plots_mod.timing_figures(res, out)
         plots_mod.tracking_figures(traj, scn, out, title=f"{scn.name}, {law}, HIL {mode}")

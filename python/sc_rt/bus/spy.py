@@ -24,9 +24,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .analysis import json_safe
-from .lcmio import open_lcm
-from .wire import decode_any, identify, numpy_dtype, to_plain
+from sc_rt.results.metrics import json_safe
+from sc_rt.bus.lcmio import open_lcm
+from sc_rt.bus.wire import decode_any, identify, numpy_dtype, to_plain
 
 __all__ = ["Spy", "ChannelStats", "main_loop"]
 

@@ -9,13 +9,13 @@ import json
 import sys
 from pathlib import Path
 
-from . import __version__
+from sc_rt import __version__
 
 LAW_CHOICES = ("dsc-ppc", "dsc", "pd", "rft")
 
 
 def _scenario(path: str, args: argparse.Namespace | None = None):
-    from .scenario import load_scenario
+    from sc_rt.scenario.model import load_scenario
 
     return load_scenario(path)
 
@@ -41,7 +41,7 @@ def _print_metrics(m: dict) -> None:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
-    from .sim import simulate, write_result
+    from sc_rt.sim.engines import simulate, write_result
 
     scn = _scenario(args.scenario)
     res = simulate(scn, law=args.controller, engine=args.engine,
@@ -50,7 +50,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
     out = Path(args.out)
     write_result(res, out)
     if not args.no_plots:
-        from .plots import tracking_figures
+        from sc_rt.results.figures import tracking_figures
 
         tracking_figures(res.trajectory, scn, out,
                          title=f"{scn.name}, {res.metrics['controller']}, {res.metrics['engine']}")
@@ -62,7 +62,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
 
 def cmd_hil(args: argparse.Namespace) -> int:
-    from .hil import run_hil
+    from sc_rt.bus.hil import run_hil
 
     scn = _scenario(args.scenario)
     res = run_hil(scn, out=Path(args.out), mode=args.mode, law=args.controller,
@@ -97,8 +97,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_emulator(args: argparse.Namespace) -> int:
-    from .emulator import Emulator
-    from .lcmio import DEFAULT_URL
+    from sc_rt.bus.emulator import Emulator
+    from sc_rt.bus.lcmio import DEFAULT_URL
 
     scn = _scenario(args.scenario)
     emu = Emulator(scn, mode=args.mode, url=args.lcm_url or DEFAULT_URL, prefix=args.prefix,
@@ -114,7 +114,7 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     if args.out:
         import numpy as np
 
-        from .analysis import TRAJECTORY_KEYS, bound_ok
+        from sc_rt.results.metrics import TRAJECTORY_KEYS, bound_ok
 
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
@@ -128,7 +128,7 @@ def cmd_emulator(args: argparse.Namespace) -> int:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    from .check import check_scenario, exit_code
+    from sc_rt.studies.check import check_scenario, exit_code
 
     findings = check_scenario(args.scenario, run_estimate=not args.fast)
     for f in findings:
@@ -141,7 +141,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 
 def cmd_montecarlo(args: argparse.Namespace) -> int:
-    from .montecarlo import Dispersion, run_montecarlo, write_montecarlo
+    from sc_rt.studies.montecarlo import Dispersion, run_montecarlo, write_montecarlo
 
     scn = _scenario(args.scenario)
     d = Dispersion(inertia=args.inertia, onset=args.onset, effectiveness=args.effectiveness,
@@ -165,10 +165,10 @@ def cmd_config(args: argparse.Namespace) -> int:
 
 
 def cmd_design(args: argparse.Namespace) -> int:
-    """PD design, margins and sampled-data stability (sc_rt.design, docs/DESIGN.md)."""
-    from .design import (DEFAULT_LATENCY_S, design_report, format_margins_table,
+    """PD design, margins and sampled-data stability (sc_rt.studies.design, docs/DESIGN.md)."""
+    from sc_rt.studies.design import (DEFAULT_LATENCY_S, design_report, format_margins_table,
                          format_sampled_table, write_design)
-    from .sim import with_overrides
+    from sc_rt.sim.engines import with_overrides
 
     scn = with_overrides(_scenario(args.scenario), control_rate_hz=args.rate)  # validates --rate
     latency = DEFAULT_LATENCY_S if args.latency is None else args.latency
@@ -200,8 +200,8 @@ def cmd_design(args: argparse.Namespace) -> int:
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    """The paper's claims checked with numbers (sc_rt.reproduce, docs/REPRODUCTION.md)."""
-    from .reproduce import reproduce
+    """The paper's claims checked with numbers (sc_rt.studies.reproduce, docs/REPRODUCTION.md)."""
+    from sc_rt.studies.reproduce import reproduce
 
     out = Path(args.out)
     doc = reproduce(out, engine=args.engine, control_rate_hz=args.control_rate,
@@ -215,13 +215,13 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 # --- monitoring and reports (issue 8): spy, lcm-spy, fault, report, replay ---
 def _url(args: argparse.Namespace) -> str:
-    from .lcmio import env_url
+    from sc_rt.bus.lcmio import env_url
 
     return args.lcm_url or env_url()
 
 
 def cmd_spy(args: argparse.Namespace) -> int:
-    from .spy import main_loop
+    from sc_rt.bus.spy import main_loop
 
     if args.duration is not None and not args.duration > 0:
         print(f"sc-rt spy: error: --duration must be > 0, got {args.duration}", file=sys.stderr)
@@ -233,7 +233,7 @@ def cmd_spy(args: argparse.Namespace) -> int:
 def cmd_lcm_spy(args: argparse.Namespace) -> int:
     import os
 
-    from .lcmspy import JavaMissing, spy_command, types_jar
+    from sc_rt.bus.lcmspy import JavaMissing, spy_command, types_jar
 
     try:
         if args.build_only:
@@ -251,7 +251,7 @@ def cmd_lcm_spy(args: argparse.Namespace) -> int:
 
 
 def cmd_fault(args: argparse.Namespace) -> int:
-    from .faultcmd import FaultArgError, clear_msg, inject_msg, publish
+    from sc_rt.bus.faultcmd import FaultArgError, clear_msg, inject_msg, publish
 
     try:
         if args.action == "inject":
@@ -273,7 +273,7 @@ def cmd_fault(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from .report import write_report
+    from sc_rt.bus.report import write_report
 
     out = Path(args.out) if args.out else Path(args.log).parent / "report"
     try:
@@ -294,7 +294,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     import subprocess
 
-    from .report import replay_command
+    from sc_rt.bus.report import replay_command
 
     try:
         cmd = replay_command(args.log, _url(args), args.speed, args.channels, args.verbose)
@@ -486,7 +486,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
-    from .scenario import ScenarioError
+    from sc_rt.scenario.model import ScenarioError
 
     try:
         return args.func(args)

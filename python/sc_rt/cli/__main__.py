@@ -1,0 +1,5 @@
+import sys
+
+from sc_rt.cli.main import main
+
+sys.exit(main())
