@@ -54,6 +54,9 @@ class SimResult:
     message: str = ""
     extra: dict[str, np.ndarray] = field(default_factory=dict)
 
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.trajectory[name] if name in self.trajectory else self.extra[name]
+
 
 def with_overrides(scn: Scenario, *, law: str | None = None, control_rate_hz: float | None = None,
                    duration: float | None = None, plant_step: float | None = None) -> Scenario:
