@@ -133,7 +133,21 @@ class PlantParams:
         object.__setattr__(self, "Cbar", Cbar)
         object.__setattr__(self, "Jw", Jw)
         object.__setattr__(self, "w0", w0)
-        object.__setattr__(self, "_fast", _PlantFast(self))
+        # the closure cache (_PlantFast) is built on first use (__getattr__) and
+        # left out of pickles: closures do not pickle, and a Scenario must
+        # travel to Monte Carlo workers
+
+    def __getattr__(self, name: str):
+        # called only for attributes not found normally: after the first use
+        # _fast sits in __dict__ and the hot path reads it without this call
+        if name == "_fast":
+            fast = _PlantFast(self)
+            object.__setattr__(self, "_fast", fast)
+            return fast
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k != "_fast"}
 
     @property
     def J(self) -> np.ndarray:
