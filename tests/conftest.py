@@ -9,13 +9,13 @@ from sc_rt import _core
 
 LAWS = {"dsc-ppc": _core.Law.DscPpc, "dsc": _core.Law.Dsc, "pd": _core.Law.Pd, "rft": _core.Law.Rft}
 
-# The paper's initial condition (MODEL.md section 8).
+# The paper's initial condition (docs/MODEL.md section 8).
 SIGMA0 = np.array([0.323, -0.194, -0.388])
 OMEGA0 = np.array([-0.01, 0.02, -0.03])
 
 
 def core_config(law: str = "dsc-ppc", rate: float = 10.0) -> _core.ControllerConfig:
-    """The C++ defaults are the paper's values (MODEL.md section 8)."""
+    """The C++ defaults are the paper's values (docs/MODEL.md section 8)."""
     c = _core.ControllerConfig()
     c.law = LAWS[law]
     c.control_rate_hz = rate

@@ -1,6 +1,6 @@
 """Independent numpy re-implementations used by the tests as references.
 
-Written from MODEL.md, not from the C++ sources: attitude via quaternions
+Written from docs/MODEL.md, not from the C++ sources: attitude via quaternions
 and rotation matrices, the control laws term by term.
 """
 
@@ -86,7 +86,7 @@ def rotation_exp(w, h):
     return np.eye(3) - np.sin(th) * K + (1 - np.cos(th)) * K @ K
 
 
-# --- the controller's math, term by term from MODEL.md ----------------------
+# --- the controller's math, term by term from docs/MODEL.md -----------------
 
 def G(s):
     s = np.asarray(s, float)

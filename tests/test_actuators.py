@@ -1,4 +1,4 @@
-"""Saturation and the wheel fault model (MODEL.md section 2, (15), (16)).
+"""Saturation and the wheel fault model (docs/MODEL.md section 2, (15), (16)).
 
 Expected values are written out by hand from (15),(16) in each test, not taken
 from the code under test; the C++ engine is held to the Python one.

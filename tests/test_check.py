@@ -44,11 +44,11 @@ def test_paper_scenario_warns_about_its_own_theorem_and_cbar():
     findings = check_scenario(ROOT / "scenarios" / "paper_fault_free.toml", run_estimate=False)
     assert exit_code(findings) == 1
     by_key = {(f.key, f.level) for f in findings}
-    # MODEL.md erratum 7: the paper's k1 and tau need rM < 2.31, r(0) is ~30
+    # docs/MODEL.md erratum 7: the paper's k1 and tau need rM < 2.31, r(0) is ~30
     assert ("controller.dsc.k1", "warning") in by_key
     k1 = next(f for f in findings if f.key == "controller.dsc.k1")
     assert "rM < 2.309" in k1.message
-    # MODEL.md section 9: the printed Cbar is mirrored, not rotated
+    # docs/MODEL.md section 9: the printed Cbar is mirrored, not rotated
     assert ("spacecraft.Cbar", "warning") in by_key
     assert ("controller.neso", "ok") in by_key and ("controller.ppc.chi0", "ok") in by_key
 

@@ -1,4 +1,4 @@
-"""The combined-spacecraft builder (MODEL.md section 9) against hand computations."""
+"""The combined-spacecraft builder (docs/MODEL.md section 9) against hand computations."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ from sc_rt.model.combined import (
 S3 = 1.0 / np.sqrt(3.0)
 # Service-frame wheel matrix of paper section 4: columns e1, e2, e3, (1,1,1)/sqrt(3).
 C_PAPER = np.array([[1.0, 0.0, 0.0, S3], [0.0, 1.0, 0.0, S3], [0.0, 0.0, 1.0, S3]])
-# Cbar as printed in paper section 4 (MODEL.md section 8).
+# Cbar as printed in paper section 4 (docs/MODEL.md section 8).
 CBAR_PAPER = np.array(
     [
         [-0.9992, -0.0300, -0.0256, -0.6086],
@@ -157,7 +157,7 @@ def test_combine_rejects_bad_input(kwargs, fragment):
 
 def test_paper_cbar_is_not_a_proper_rotation_of_c():
     # Its first three columns, the images of e1, e2, e3, have determinant -1:
-    # a mirror image, which no rotation produces (MODEL.md section 9).
+    # a mirror image, which no rotation produces (docs/MODEL.md section 9).
     assert np.linalg.det(CBAR_PAPER[:, :3]) == pytest.approx(-0.99993, abs=1e-5)
     with pytest.warns(CbarWarning, match=r"not R C for any proper rotation.*a reflection"):
         ok, R_best, residual = check_cbar_is_rotation(CBAR_PAPER, C_PAPER)

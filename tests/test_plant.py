@@ -1,4 +1,4 @@
-"""The plant (MODEL.md section 1), Python reference and C++ engine.
+"""The plant (docs/MODEL.md section 1), Python reference and C++ engine.
 
 Independent checks: scipy's rotations for the attitude (DCM, nadir), a numpy
 re-implementation of (7) integrated by scipy's DOP853, conservation laws, and

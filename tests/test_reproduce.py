@@ -1,4 +1,4 @@
-"""sc-rt reproduce: every claim of MODEL.md section 8 has a row with numbers
+"""sc-rt reproduce: every claim of docs/MODEL.md section 8 has a row with numbers
 and a verdict that follows from the numbers by the documented rule."""
 
 from __future__ import annotations

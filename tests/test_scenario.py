@@ -1,6 +1,6 @@
 """Scenario files: the paper's two scenarios, the LCM config path, and the validator.
 
-Expected values are typed in from MODEL.md section 8 (the paper's section 4),
+Expected values are typed in from docs/MODEL.md section 8 (the paper's section 4),
 not read from the code, so a drift in the files or in the C++ defaults fails.
 """
 
@@ -37,7 +37,7 @@ CBAR = [
     [0.0009, -0.6658, 0.7461, 0.0469],
 ]
 # Every field of controller_config_t for the paper's fault-free file
-# (MODEL.md section 8; pd, rft, safety, substeps: this project's values).
+# (docs/MODEL.md section 8; pd, rft, safety, substeps: this project's values).
 EXPECTED_MSG = {
     "scenario": "paper_fault_free",
     "law": 0,

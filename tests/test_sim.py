@@ -69,7 +69,7 @@ def test_python_and_cpp_engines_agree(scenarios, scenario, law):
 
 
 def test_delta2_is_the_true_lumped_disturbance(scenarios):
-    # delta_2 = x2_dot - A - B sat(u) (MODEL.md section 4): check it from the
+    # delta_2 = x2_dot - A - B sat(u) (docs/MODEL.md section 4): check it from the
     # trajectory by a finite difference of omega_BD_B between samples where
     # the dynamics are smooth (fault-free, after the initial transient).
     scn = scenarios["paper_fault_free"]

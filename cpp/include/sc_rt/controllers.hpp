@@ -1,4 +1,4 @@
-// One small interface, four laws (MODEL.md section 7):
+// One small interface, four laws (docs/MODEL.md section 7):
 //   DSC+PPC: (36), (37), corrected (41), anti-windup (42), observer (22)
 //   DSC    : the same with e1 = x1, r = I and no chi_dot term
 //   PD     : uc = -B+ (beta1 x1 + beta2 x2)

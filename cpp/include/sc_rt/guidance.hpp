@@ -1,4 +1,4 @@
-// Desired trajectory (MODEL.md section 3): sigma_DN(t) from
+// Desired trajectory (docs/MODEL.md section 3): sigma_DN(t) from
 // sigma_DN_dot = G(sigma_DN) omega_DN_D(t), with
 //   omega_DN_D(t) = bias + cos_amp cos(freq t) + sin_amp sin(freq t)   [rad/s]
 // (the paper's omega_d(t) has bias 0, cos_amp = [0.02, 0, -0.03],

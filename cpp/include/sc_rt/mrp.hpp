@@ -1,4 +1,4 @@
-// Modified Rodrigues parameters (MODEL.md sections 1 and 3).
+// Modified Rodrigues parameters (docs/MODEL.md sections 1 and 3).
 //
 // Convention: sigma_BN is the attitude of B relative to N; R(sigma_BN) is the
 // direction cosine matrix [BN] that maps N components to B components.

@@ -1,4 +1,4 @@
-// The true plant (MODEL.md sections 1 and 2): what the emulator integrates.
+// The true plant (docs/MODEL.md sections 1 and 2): what the emulator integrates.
 // The same model as the Python reference sc_rt.plant / sc_rt.actuators,
 // compiled for batch speed. The hot path (wheel_accel, disturbance,
 // plant_derivative, plant_rk4_step, lumped_disturbance) repeats the Python
@@ -105,7 +105,7 @@ PlantState plant_derivative(const PlantParams& p, double t, const PlantState& x,
 PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t,
                           const PlantState& x, double h, const Vec4& u_cmd);
 
-// The true lumped disturbance delta_2 of (20),(21) [rad/s^2] (MODEL.md section 4):
+// The true lumped disturbance delta_2 of (20),(21) [rad/s^2] (docs/MODEL.md section 4):
 // omega_dot_true - J0^-1 [-W^ (J0 W + Cbar Jw Omega_w) + u_g0] - B u_sat, with
 // W = omega_BN_B, u_g0 = 3 w0^2 R3^ J0 R3, B = -J0^-1 Cbar Jw.
 Vec3 lumped_disturbance(const PlantParams& p, double t, const PlantState& x, const Vec4& u_sat,

@@ -1,4 +1,4 @@
-"""Wheel saturation and faults (MODEL.md section 2, (15), (16)).
+"""Wheel saturation and faults (docs/MODEL.md section 2, (15), (16)).
 
 Per wheel i, command uc_i [rad/s^2]:
     sat(uc_i)     = min(max(uc_i, umin_i), umax_i)
@@ -287,7 +287,7 @@ def fault_Y(fault: WheelFault | None, t: float) -> float:
 def wheel_accel(
     act: ActuatorParams, t: float, u_cmd, wheel_speed
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Saturation and the fault model, (15),(16) of MODEL.md section 2.
+    """Saturation and the fault model, (15),(16) of docs/MODEL.md section 2.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Combined-spacecraft builder (MODEL.md section 9; paper section 2.1, Remark 1).
+"""Combined-spacecraft builder (docs/MODEL.md section 9; paper section 2.1, Remark 1).
 
 After capture, the service spacecraft and the target are one rigid body. Its
 inertia about the new mass centre follows from the two bodies by the
@@ -19,7 +19,7 @@ C
     principal axes of the combined inertia (``frame="principal"``), or any
     given rotation of S.
 
-Direction cosine matrices follow ``sc_rt._core.mrp_to_dcm`` (MODEL.md (10)):
+Direction cosine matrices follow ``sc_rt._core.mrp_to_dcm`` (docs/MODEL.md (10)):
 ``R_XY`` maps the components of a vector in Y to its components in X,
 ``v_X = R_XY v_Y``, and the MRP ``sigma_XY`` of X relative to Y gives
 ``R_XY = R(sigma_XY)``. The paper's ``R_sc`` is ``R_CS`` here.
@@ -225,7 +225,7 @@ def fit_rotation(A: np.ndarray, B: np.ndarray, proper: bool = True) -> tuple[np.
 def check_cbar_is_rotation(
     Cbar: np.ndarray, C: np.ndarray, tol: float = 1e-3, warn: bool = True
 ) -> RotationFit:
-    """Is ``Cbar = R C`` for a proper rotation R (MODEL.md section 9)?
+    """Is ``Cbar = R C`` for a proper rotation R (docs/MODEL.md section 9)?
 
     Fits the best proper rotation (Kabsch, with the determinant corrected to
     +1) and compares the largest wheel-axis error to ``tol``. The default

@@ -1,4 +1,4 @@
-"""The pure plant of the combined spacecraft (MODEL.md section 1).
+"""The pure plant of the combined spacecraft (docs/MODEL.md section 1).
 
 State ``x`` (10,): ``sigma_BN`` (3), ``omega_BN_B`` (3, rad/s), wheel speeds
 ``Omega_w`` (4, rad/s relative to the body). The plant integrates the TRUE
@@ -350,7 +350,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
     acceleration is re-evaluated at every stage by the fault model
     ``wheel_accel(act, t_stage, u_cmd, Omega_stage)`` (15),(16), and the
     disturbance at every stage time. After the step the attitude is mapped to
-    the MRP short set (|sigma| > 1 -> -sigma/|sigma|^2, MODEL.md section 1).
+    the MRP short set (|sigma| > 1 -> -sigma/|sigma|^2, docs/MODEL.md section 1).
 
     Parameters
     ----------
@@ -470,7 +470,7 @@ def lumped_disturbance(p: PlantParams, t: float, x, u_sat, accel) -> np.ndarray:
 
     ``delta_2 = omega_dot_true - J0^-1 [-W^ (J0 W + Cbar Jw Omega_w) + u_g0] - B u_sat``
     with ``W = omega_BN_B``, ``u_g0 = 3 w0^2 R3^ J0 R3`` and
-    ``B = -J0^-1 Cbar Jw`` (MODEL.md section 4). The terms of A that involve
+    ``B = -J0^-1 Cbar Jw`` (docs/MODEL.md section 4). The terms of A that involve
     omega_d cancel against d/dt (R omega_d), so delta_2 does not depend on the
     desired trajectory. It collects the inertia error dJ, the faults
     (``accel - u_sat``) and d(t).

@@ -24,7 +24,7 @@ from sc_rt.scenario.model import Scenario, ScenarioError, load_scenario
 __all__ = ["Finding", "check_scenario", "PAPER_C"]
 
 #: The paper's service-frame wheel layout: three orthogonal wheels and a
-#: skewed fourth (MODEL.md section 8). Used for the Cbar check when the
+#: skewed fourth (docs/MODEL.md section 8). Used for the Cbar check when the
 #: scenario gives Cbar directly (a [spacecraft.capture] table builds Cbar from
 #: its own C, which is then a rotation by construction).
 PAPER_C = np.column_stack([np.eye(3), np.ones(3) / math.sqrt(3)])
