@@ -140,6 +140,17 @@ def cmd_check(args: argparse.Namespace) -> int:
     return rc
 
 
+def cmd_scenarios(args: argparse.Namespace) -> int:
+    """The shipped scenarios, one line each: name and description (or file)."""
+    from sc_rt.scenario.shipped import shipped
+
+    library = shipped()
+    w = max(map(len, library), default=0)
+    for name, (path, description) in library.items():
+        print(f"{name:<{w}}  {path if args.paths else description}")
+    return 0
+
+
 def cmd_montecarlo(args: argparse.Namespace) -> int:
     from sc_rt.studies.montecarlo import Dispersion, run_montecarlo, write_montecarlo
 
@@ -411,7 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
     h.set_defaults(func=cmd_hil)
 
     d = sub.add_parser("demo", help="the main job: paper fault scenario through the LCM loop")
-    d.add_argument("--scenario", default=str(Path("scenarios") / "paper_faults.toml"))
+    d.add_argument("--scenario", default="paper_faults", help="file or shipped name (default: paper_faults)")
     d.add_argument("--out", default="out/demo", metavar="DIR")
     d.add_argument("--lcm-url", metavar="URL")
     d.set_defaults(func=cmd_demo)
@@ -432,6 +443,10 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--verbose", "-v", action="store_true", help="also list the checks that pass")
     k.add_argument("--fast", action="store_true", help="estimate r's bound at t = 0 instead of along a run")
     k.set_defaults(func=cmd_check)
+
+    n = sub.add_parser("scenarios", help="the shipped scenarios: any SCENARIO argument may be one of these names")
+    n.add_argument("--paths", action="store_true", help="print each file instead of its description")
+    n.set_defaults(func=cmd_scenarios)
 
     m = sub.add_parser("montecarlo", help="dispersed runs of a scenario on all cores (C++ engine)")
     m.add_argument("scenario")

@@ -49,6 +49,7 @@ from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIs
     _spec,
     _vec,
 )
+from sc_rt.scenario.shipped import resolve
 
 __all__ = [
     "LAWS",
@@ -512,8 +513,9 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file; raise ScenarioError listing every problem."""
-    path = Path(path)
+    """Read and validate a scenario file, or a shipped scenario by name
+    (``paper_faults``: sc_rt.scenario.shipped); raise ScenarioError listing every problem."""
+    path = resolve(path)
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as e:
