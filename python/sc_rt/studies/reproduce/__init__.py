@@ -48,7 +48,7 @@ __all__ = [
     "verdict_of",
 ]
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[4]
 #: case name -> scenario file (relative to the repository)
 CASES = {"fault_free": "scenarios/paper_fault_free.toml", "faults": "scenarios/paper_faults.toml"}
 LAWS = ("dsc-ppc", "dsc", "pd", "rft")
