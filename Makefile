@@ -2,6 +2,9 @@
 #   make demo   set up, then run the main job (writes out/demo/)
 #   make test   set up with the test extra, then run the test suite
 #   make bench  set up, then run the benchmarks (bench/results.json)
+# demo and test first check the system packages they need (tools/sysdeps.sh):
+# as root they install what is missing (apt-get), otherwise they stop with the
+# command to run. `make sysdeps` checks what test needs; SYSDEPS=: skips it.
 # Developer loop: `make install` rebuilds incrementally (build/<wheel tag>).
 
 PYTHON ?= python3
@@ -12,8 +15,9 @@ PIP    := $(PY) -m pip --disable-pip-version-check
 # build without isolation (incremental, fixed build directory).
 BUILD_REQS := "scikit-build-core>=0.10" "pybind11>=2.12" "cmeel-eigen>=3.4" "lcm>=1.5.1,<1.6" "cmake>=3.24" "ninja>=1.10"
 PYTEST_ARGS ?=
+SYSDEPS ?= tools/sysdeps.sh
 
-.PHONY: all venv install demo test bench clean stubs
+.PHONY: all venv install demo test bench clean stubs sysdeps sysdeps-demo
 
 all: install
 
@@ -30,10 +34,20 @@ venv: $(VENV)/.build-reqs
 install: venv
 	$(PIP) install -q --no-build-isolation -e '.[test]' -C build-dir=build/{wheel_tag}
 
-demo: install
+# System packages and the LCM multicast route: test needs more than demo.
+sysdeps:
+	@PYTHON='$(PYTHON)' VENV='$(VENV)' $(SYSDEPS) test
+
+sysdeps-demo:
+	@PYTHON='$(PYTHON)' VENV='$(VENV)' $(SYSDEPS) demo
+
+# The check before the build (it may install g++): prerequisites in order, even with -j.
+.NOTPARALLEL: demo test
+
+demo: sysdeps-demo install
 	$(VENV)/bin/sc-rt demo --out out/demo
 
-test: install
+test: sysdeps install
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 bench: install
