@@ -74,6 +74,11 @@ if [ ${#pkgs[@]} -gt 0 ]; then
   fi
 fi
 
+if [ ! -x "$VENV/bin/python" ] && ! "$PYTHON" -c 'import sys; sys.exit(sys.version_info < (3, 11))'; then
+  echo "sc-rt: needs Python >= 3.11 and $PYTHON is $("$PYTHON" -V 2>&1): run make with PYTHON=python3.11 (or newer)" >&2
+  exit 1
+fi
+
 # LCM's udpm transport needs a route for its multicast group. The tests make
 # their own network namespace with one when they may (root); the demo runs on
 # this host and needs the host to have one.
