@@ -1,6 +1,12 @@
 """A hostile LCM publisher for the robustness tests: malformed, truncated,
 foreign, replayed and non-finite messages on every channel sc-rt subscribes
-to. Run as a script: python fuzz_lcm.py URL N OUT.json [--seed S]."""
+to. Run as a script: python fuzz_lcm.py URL N OUT.json [SEED].
+
+It starts only once it has seen the genuine loop running (states and the
+controller's commands on the bus, waiting up to START_TIMEOUT_S): a hostile
+message before the peers have adopted each other's session could be adopted
+in their place, and a fixed sleep is either too long or, on a loaded
+machine, too short."""
 
 from __future__ import annotations
 
@@ -21,6 +27,7 @@ TARGETS = {  # channel -> the type its subscriber expects
     "SCRT_CTRL_STATUS": sc_rt_lcm.controller_status_t,
     "SCRT_FAULT": sc_rt_lcm.fault_cmd_t,
 }
+START_TIMEOUT_S = 120.0
 OTHER = [sc_rt_lcm.plant_state_t, sc_rt_lcm.wheel_cmd_t, sc_rt_lcm.controller_status_t,
          sc_rt_lcm.plant_truth_t, sc_rt_lcm.fault_cmd_t]
 
@@ -59,6 +66,13 @@ def main(url: str, n: int, out: str, seed: int = 1) -> None:
 
     th = threading.Thread(target=pump, daemon=True)
     th.start()
+    t_wait = time.monotonic()
+    while min(len(recent["SCRT_STATE"]), len(recent["SCRT_CMD"])) < 5:
+        if time.monotonic() - t_wait > START_TIMEOUT_S:
+            stop.set()
+            sys.exit(f"fuzz_lcm: no genuine SCRT_STATE/SCRT_CMD traffic on {url} in {START_TIMEOUT_S} s")
+        time.sleep(0.01)
+    waited = time.monotonic() - t_wait
     kinds = ["empty", "random", "truncated", "other_type", "trailing", "nan", "inf", "absurd", "replay"]
     i = 0
     t0 = time.monotonic()
@@ -97,7 +111,8 @@ def main(url: str, n: int, out: str, seed: int = 1) -> None:
             time.sleep(0.01)  # pace: keep the receivers' socket buffers from overflowing
     stop.set()
     th.join()
-    json.dump({"sent": dict(sent), "n": i, "seconds": time.monotonic() - t0}, open(out, "w"))
+    json.dump({"sent": dict(sent), "n": i, "seconds": time.monotonic() - t0, "waited_s": waited},
+              open(out, "w"))
 
 
 if __name__ == "__main__":
