@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 import pytest
+from sc_rt.scenario import variants as V
 from sc_rt.studies import reproduce as R
 from sc_rt.cli import main
 
@@ -122,7 +123,7 @@ FEASIBLE = {"10hz": 10.0, "100hz": 100.0, "1khz": 1000.0}
 @pytest.mark.parametrize("tag", list(FEASIBLE))
 def test_feasible_design_holds_its_bound_in_both_paper_cases(tag):
     """Each file carries the paper's faults; the fault-free case is the same file
-    with its [[faults]] removed (sc_rt.studies.reproduce.without_faults)."""
+    with its [[faults]] removed (sc_rt.scenario.variants.without_faults)."""
     import numpy as np
     from sc_rt.scenario.model import load_scenario
     from sc_rt.sim.engines import simulate
@@ -141,7 +142,7 @@ def test_feasible_design_holds_its_bound_in_both_paper_cases(tag):
     base = R.chiinf_min(scn, FEASIBLE[tag])
     ratio = np.asarray(scn.controller.ppc.chiinf) / base
     assert np.all(ratio >= 1.05) and np.all(ratio <= 1.2), ratio
-    for case, s in (("faults", scn), ("fault_free", R.without_faults(scn))):
+    for case, s in (("faults", scn), ("fault_free", V.without_faults(scn))):
         res = simulate(s, engine="cpp")
         assert not res.diverged
         assert len(res.trajectory["t"]) == int(300 * FEASIBLE[tag]) + 1
@@ -156,9 +157,9 @@ def test_search_finds_the_predicted_smallest_chiinf_at_10hz():
 
     paper = load_scenario(ROOT / "scenarios" / "paper_faults.toml")
     for k2 in (4.0, 16.0):
-        r = R.tightest_chiinf(R.with_dsc(paper, k2=k2), 10.0, rtol=0.02)
+        r = R.tightest_chiinf(V.with_dsc(paper, k2=k2), 10.0, rtol=0.02)
         assert r["bracket_ok"], r
         assert 0.95 <= r["factor_fails"] < r["factor_holds"] <= 1.05, r
     # k2 T = 1.6 halves the achievable bound at 10 Hz (chiinf_min ~ 1/sqrt(k2))
-    ratio = R.chiinf_min(R.with_dsc(paper, k2=16.0), 10.0) / R.chiinf_min(paper, 10.0)
+    ratio = R.chiinf_min(V.with_dsc(paper, k2=16.0), 10.0) / R.chiinf_min(paper, 10.0)
     assert ratio == pytest.approx([0.5, 0.5, 0.5], rel=0.01)
