@@ -32,6 +32,7 @@ from sc_rt._core import mrp_to_dcm
 from sc_rt.model.actuators import ActuatorParams, WheelFault
 from sc_rt.model.combined import RigidBody, combine
 from sc_rt.model.plant import DisturbanceParams, PlantParams
+from sc_rt.scenario.dispersions import read_montecarlo
 from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIssue are public here)
     ScenarioError,
     ScenarioIssue,
@@ -67,6 +68,7 @@ __all__ = [
     "ScenarioError",
     "ScenarioIssue",
     "load_scenario",
+    "scenario_from_data",
 ]
 
 # Control-law names <-> controller_config_t.LAW_* (and sc_rt._core.Law).
@@ -233,6 +235,8 @@ class Scenario:
     initial: InitialState
     guidance: GuidanceParams
     controller: ControllerParams
+    # the [montecarlo] table (sc_rt.scenario.dispersions.MonteCarloTable), None without one
+    montecarlo: Any = None
 
     def with_run(self, **changes: Any) -> Scenario:
         """A copy with run fields replaced (CLI overrides), validated like the file.
@@ -489,6 +493,7 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
     guidance = _read_fields(root.sub("guidance"), GuidanceParams)
     controller = _read_controller(root.sub("controller", required=False))
     faults = _read_faults(root)
+    montecarlo = root.sub("montecarlo", required=False)  # read last: it names the others' keys
     root.finish()
     if initial is not None and actuators is not None:
         if np.any(np.abs(initial.wheel_speed) > actuators.max_wheel_speed):
@@ -498,8 +503,9 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
                 f"{_fmt(actuators.max_wheel_speed)}",
             )
     if doc.errors:
+        read_montecarlo(montecarlo, None)  # its own problems, reported with the others
         return None
-    return Scenario(
+    scenario = Scenario(
         name=name,
         description=description,
         path=path,
@@ -510,6 +516,17 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
         guidance=guidance,
         controller=controller,
     )
+    return dataclasses.replace(scenario, montecarlo=read_montecarlo(montecarlo, scenario))
+
+
+def scenario_from_data(data: dict[str, Any], path: str | Path, where: str = "") -> Scenario:
+    """A scenario from parsed TOML data (e.g. a dispersed copy), validated as a
+    file is; ScenarioError (no line numbers) names ``path`` + ``where``."""
+    doc = _Doc(f"{path}{where}", {})
+    scenario = _read_scenario(doc, data, Path(path))
+    if doc.errors:
+        raise ScenarioError(doc.path, doc.errors)
+    return scenario
 
 
 def load_scenario(path: str | Path) -> Scenario:
