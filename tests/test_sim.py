@@ -108,14 +108,79 @@ def test_metrics_and_trajectory_files(scenarios, tmp_path):
 def test_bound_check_is_independent_of_the_controller(scenarios):
     scn = scenarios["paper_fault_free"]
     res = simulate(scn, law="dsc-ppc", engine="cpp", duration=30.0)
-    tr = res.trajectory
     p = scn.controller.ppc
-    chi = (np.array(p.chi0) - p.chiinf) * np.exp(-np.outer(tr["t"], p.gamma)) + p.chiinf
-    inside = (tr["sigma_BD"] > -np.array(p.dmin) * chi) & (tr["sigma_BD"] < np.array(p.dmax) * chi)
-    np.testing.assert_array_equal(tr["bound_ok"], inside)
-    # and the controller's own flags agree with it (bits 0..2)
-    flags = res.extra["flags"]
-    np.testing.assert_array_equal((flags & 7) != 0, ~tr["bound_ok"].all(axis=1) & ((flags & 7) != 0))
+    chi = (np.array(p.chi0) - p.chiinf) * np.exp(-np.outer(res["t"], p.gamma)) + p.chiinf
+    inside = (res["sigma_BD"] > -np.array(p.dmin) * chi) & (res["sigma_BD"] < np.array(p.dmax) * chi)
+    np.testing.assert_array_equal(res["bound_ok"], inside)
+    # the case exercises the flags: at 10 Hz the sampled loop leaves the
+    # envelope (a violation on some axis, and rows back inside after it)
+    viol = ~res["bound_ok"]
+    assert viol.any() and not viol.all(), "the case must violate the bound for the flag check to mean anything"
+    # the controller's own flags (bits 0..2, FLAG_BOUND_X/Y/Z) are set exactly
+    # on the rows and axes outside the bound, from the first violation on
+    flags = res["flags"]
+    from sc_rt import _core
+
+    bits = np.array([_core.FLAG_BOUND_X, _core.FLAG_BOUND_Y, _core.FLAG_BOUND_Z])
+    flagged = (flags[:, None] & bits) != 0
+    assert flagged.any()
+    np.testing.assert_array_equal(flagged, viol)
+    k = int(np.flatnonzero(viol.any(axis=1))[0])
+    assert not flagged[:k].any() and flagged[k].any()
+    # and the metrics report that row and its (first) axis
+    assert res.metrics["first_bound_violation_s"] == res["t"][k]
+    assert res.metrics["first_bound_violation_axis"] == int(np.flatnonzero(flagged[k])[0]) + 1
+
+
+def _constructed_run(t, sigma_BD, ppc):
+    """A run holding only t and sigma_BD (the rest at its fill values), its
+    bound check and metrics computed as every producer does."""
+    from sc_rt.results.metrics import finish_run
+    from sc_rt.results.run import Run, RunMeta
+
+    t = np.asarray(t, float)
+    meta = RunMeta(scenario="constructed", law="pd", engine="python", control_rate_hz=1.0,
+                   duration_s=float(t[-1]), ppc={k: tuple(map(float, v)) for k, v in ppc.items()},
+                   umin=(-1.0,) * 4, umax=(1.0,) * 4)
+    return finish_run(Run(meta, {"t": t, "sigma_BD": np.asarray(sigma_BD, float)}))
+
+
+def test_bound_verdict_on_trajectories_with_a_known_answer():
+    # a constant envelope: chi(t) = chi0 = chiinf = 0.2, dmin = 0.5, dmax = 1,
+    # so the bound is the open interval (-0.1, 0.2) on every axis
+    const = dict(chi0=[0.2] * 3, chiinf=[0.2] * 3, gamma=[0.3] * 3, dmin=[0.5] * 3, dmax=[1.0] * 3)
+    t = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    sigma = np.array([
+        [0.0, 0.19, -0.09],    # inside
+        [0.1, -0.05, 0.15],    # inside
+        [0.05, 0.2, -0.11],    # y on the upper edge (open interval), z below: outside
+        [0.21, 0.0, 0.0],      # x above: outside
+        [0.0, 0.0, 0.0],       # back inside
+        [-0.1, 0.0, 0.0],      # x on the lower edge: outside
+    ])
+    run = _constructed_run(t, sigma, const)
+    expected = np.array([[1, 1, 1], [1, 1, 1], [1, 0, 0], [0, 1, 1], [1, 1, 1], [0, 1, 1]], bool)
+    np.testing.assert_array_equal(run["bound_ok"], expected)
+    # the first violation: t = 2 s; two axes at once, the first of them (y) reported
+    assert run.metrics["first_bound_violation_s"] == 2.0
+    assert run.metrics["first_bound_violation_axis"] == 2
+
+    # a decaying envelope: chi0 = 1, chiinf = 0, gamma = ln 2, so chi = 2^-t:
+    # 0.4 is inside at t = 1 (chi = 0.5) and outside at t = 2 (chi = 0.25)
+    decay = dict(chi0=[1.0] * 3, chiinf=[0.0] * 3, gamma=[np.log(2.0)] * 3, dmin=[1.0] * 3,
+                 dmax=[1.0] * 3)
+    sigma = np.array([[0.0, 0.0, 0.9], [0.0, 0.0, 0.4], [0.0, 0.0, 0.4], [0.0, 0.0, 0.0]])
+    run = _constructed_run([0.0, 1.0, 2.0, 3.0], sigma, decay)
+    np.testing.assert_array_equal(run["bound_ok"][:, 2], [True, True, False, True])
+    assert run["bound_ok"][:, :2].all()
+    assert run.metrics["first_bound_violation_s"] == 2.0
+    assert run.metrics["first_bound_violation_axis"] == 3
+
+    # never outside: no violation time, no axis
+    run = _constructed_run(t, np.zeros((6, 3)), const)
+    assert run["bound_ok"].all()
+    assert run.metrics["first_bound_violation_s"] is None
+    assert run.metrics["first_bound_violation_axis"] is None
 
 
 def test_rate_override_adapts_the_plant_step(scenarios):
