@@ -198,7 +198,7 @@ def _linear_probe(paper, chi, rate=100.0, steps=300):
 def test_sampled_model_reproduces_the_cpp_closed_loop(paper, chi_x, grows):
     rate, N = 100.0, 300
     scn, res = _linear_probe(paper, [chi_x, 0.03, 0.05], rate, N)
-    tr, ex = res.trajectory, res.extra
+    tr = ex = res.trajectory
     assert res.metrics["saturated_fraction"] == 0.0
     Phi = D.sampled_closed_loop(scn, "dsc-ppc", rate, 0.0, observer="local-gain")
     rho = np.max(np.abs(np.linalg.eigvals(Phi)))

@@ -25,7 +25,6 @@ import select
 import struct
 import time
 from collections import Counter
-from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -34,12 +33,12 @@ import sc_rt_lcm
 from sc_rt.model import actuators, plant
 from sc_rt.model.actuators import WheelFault
 from sc_rt.bus.lcmio import channel, decode_guarded, open_lcm
+from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
+from sc_rt.results.run import Run, RunMeta
 from sc_rt.scenario.model import Scenario
-from sc_rt.sim.engines import _allocate, _steps, initial_state, with_overrides
+from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
-__all__ = ["Emulator", "EmulatorResult"]
-
-STATUS_FIELDS = ("sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam")
+__all__ = ["Emulator"]
 # controller_status_t's fixed layout: fingerprint, then utime, cmd_seq,
 # session, state_seq (big-endian int64), as generated from the .lcm file
 _STATUS_FP = sc_rt_lcm.controller_status_t._get_packed_fingerprint()
@@ -72,19 +71,8 @@ class _Cmd(NamedTuple):
     state_seq: int
     u_cmd: tuple
     u_sat: tuple
-
-
-@dataclass
-class EmulatorResult:
-    trajectory: dict[str, np.ndarray]
-    rows: int
-    counters: Counter
-    latency_us: np.ndarray  # state publish -> receipt of the command answering it
-    tick_lateness_us: np.ndarray  # real time: emulator tick behind its deadline
-    status_timing: dict[str, np.ndarray]  # controller-side timing from its status
-    diverged: bool = False
-    gaps: list[tuple[float, float]] = field(default_factory=list)  # [s] sim-time spans without commands
-    faults_applied: list[dict[str, Any]] = field(default_factory=list)
+    mode: int = -1
+    flags: int = 0
 
 
 class Emulator:
@@ -157,7 +145,8 @@ class Emulator:
         self.counters["cmd_received"] += 1
         if len(data) == _CMD_SIZE and data[:8] == _CMD_FP:  # the fixed layout, unpacked at once
             v = _CMD_LAYOUT.unpack_from(data, 8)
-            msg = _Cmd(seq=v[1], session=v[2], state_seq=v[3], u_cmd=v[5:9], u_sat=v[9:13])
+            msg = _Cmd(seq=v[1], session=v[2], state_seq=v[3], u_cmd=v[5:9], u_sat=v[9:13],
+                       mode=v[13], flags=v[14])
         else:  # not exactly one wheel_cmd_t: count it by kind
             msg = decode_guarded(sc_rt_lcm.wheel_cmd_t, data, self.counters)
             if msg is None:
@@ -237,7 +226,7 @@ class Emulator:
         self._pub_ns[k] = time.monotonic_ns()
         self.lc.publish(self._ch_state, data)
 
-    def _publish_truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale) -> None:
+    def _publish_truth(self, run, k, t, cmd_seq, u_cmd, accel, delta2, stale) -> None:
         if self._fault_fields[0] is not self.act:  # the fault set changed (live injection)
             faults = {f.wheel: f for f in self.act.faults}
             self._fault_fields = (
@@ -246,11 +235,15 @@ class Emulator:
                 + [faults[i].bias if i in faults else 0.0 for i in range(4)]
                 + [1 if i in faults and faults[i].stuck else 0 for i in range(4)])
         _, per_wheel, eff_bias_stuck = self._fault_fields
+        fault_y = [actuators.fault_Y(f, t) for f in per_wheel]
         data = _TRUTH_FP + _TRUTH_LAYOUT.pack(
             time.time_ns() // 1000, k, t, cmd_seq, *u_cmd, *accel, *delta2,
-            *plant.disturbance(self.scn.plant, t), *[actuators.fault_Y(f, t) for f in per_wheel],
-            *eff_bias_stuck, 1 if stale else 0)
+            *plant.disturbance(self.scn.plant, t), *fault_y, *eff_bias_stuck, 1 if stale else 0)
         self.lc.publish(self._ch_truth, data)
+        run["fault_Y"][k] = fault_y
+        run["fault_effectiveness"][k] = eff_bias_stuck[0:4]
+        run["fault_bias"][k] = eff_bias_stuck[4:8]
+        run["fault_stuck"][k] = eff_bias_stuck[8:12]
 
     def _handle_until(self, deadline_ns: int) -> None:
         fd = self.lc.fileno()
@@ -265,42 +258,50 @@ class Emulator:
                 self.lc.handle()
 
     # --- the loops -----------------------------------------------------------
-    def run(self) -> EmulatorResult:
+    def run(self) -> Run:
+        """The whole run; returns its record (metrics are the caller's:
+        ``sc_rt.results.metrics.finish_run``)."""
         if self.mode == "lockstep":
             return self._run_lockstep()
         return self._run_realtime()
 
-    def _record(self, traj, k, t, x, u_cmd, u_sat_ctrl, accel, delta2) -> None:
-        traj["t"][k] = t
-        traj["sigma_BN"][k] = x[0:3]
-        traj["omega_BN_B"][k] = x[3:6]
-        traj["wheel_speed"][k] = x[6:10]
-        traj["u_cmd"][k] = u_cmd
-        traj["u_sat"][k] = u_sat_ctrl
-        traj["wheel_accel"][k] = accel
-        traj["delta2"][k] = delta2
+    def _allocate(self, n: int) -> Run:
+        return Run.allocate(n, RunMeta.of_scenario(self.scn, f"hil-{self.mode}", mode=self.mode))
 
-    def _fill_status(self, traj, rows) -> dict[str, np.ndarray]:
-        timing = {k: np.full(rows, np.nan) for k in ("wake_lateness_us", "compute_us", "state_age_us")}
-        for k in range(rows):
+    @staticmethod
+    def _record(run, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2) -> None:
+        run["t"][k] = t
+        run["sigma_BN"][k] = x[0:3]
+        run["omega_BN_B"][k] = x[3:6]
+        run["wheel_speed"][k] = x[6:10]
+        run["u_cmd"][k] = u_cmd
+        run["u_sat"][k] = u_sat_ctrl
+        run["wheel_accel"][k] = accel
+        run["delta2"][k] = delta2
+        run["cmd_stale"][k] = cmd is None
+        if cmd is not None:
+            run["cmd_seq_applied"][k] = cmd.seq
+            run["flags"][k] = cmd.flags
+            run["ctrl_mode"][k] = cmd.mode
+
+    def _fill_status(self, run: Run) -> None:
+        """The controller's telemetry and timing for every state it answered."""
+        for k in range(len(run)):
             raw = self._status.get(k)
             if raw is None:
                 continue
             s = sc_rt_lcm.controller_status_t.decode(raw)
-            for name in STATUS_FIELDS:
-                traj[name][k] = getattr(s, name)
-            for name in timing:
-                timing[name][k] = getattr(s, name)
-        return timing
-
-    def _latencies(self, rows: int) -> np.ndarray:
-        return np.array([(self._cmd_rx[k] - self._pub_ns[k]) / 1e3 for k in range(rows)
-                         if k in self._cmd_rx and k in self._pub_ns])
+            for name in STATUS_RUN_FIELDS + STATUS_TIMING_FIELDS:
+                run[name][k] = getattr(s, name)
+        lat = run["latency_us"]
+        for k in range(len(run)):
+            if k in self._cmd_rx and k in self._pub_ns:
+                lat[k] = (self._cmd_rx[k] - self._pub_ns[k]) / 1e3
 
     def _run_lockstep(self) -> EmulatorResult:
         scn = self.scn
-        n_ctrl, n_sub, h, rate = _steps(scn)
-        traj = _allocate(n_ctrl + 1)
+        n_ctrl, n_sub, h, rate = grid(scn)
+        traj = self._allocate(n_ctrl + 1)
         x = initial_state(scn)
         rows = 0
         silent = 0  # consecutive states without an answer
@@ -336,17 +337,17 @@ class Emulator:
             rows = k + 1
             if k == n_ctrl or x is None:
                 break
-        return self._finish(traj, rows, np.zeros(0), x is None and rows < n_ctrl + 1)
+        return self._finish(traj, rows, x is None and rows < n_ctrl + 1)
 
     def _run_realtime(self) -> EmulatorResult:
         scn = self.scn
-        n_ticks, n_sub, h, rate = _steps(scn)
+        n_ticks, n_sub, h, rate = grid(scn)
         period = 1.0 / rate
         wall_period_ns = int(round(period / self.time_scale * 1e9))
         stale_ns = int(self.stale_periods * wall_period_ns)
-        traj = _allocate(n_ticks + 1)
+        traj = self._allocate(n_ticks + 1)
         x = initial_state(scn)
-        lateness = np.zeros(n_ticks + 1)
+        lateness = traj["tick_lateness_us"]
         rows = 0
         self._publish_state(0, 0.0, x)
         start = time.monotonic_ns()
@@ -366,7 +367,7 @@ class Emulator:
             if k == n_ticks or x is None:
                 break
             self._publish_state(k + 1, (k + 1) * period, x)
-        return self._finish(traj, rows, lateness[:rows], x is None and rows < n_ticks + 1)
+        return self._finish(traj, rows, x is None and rows < n_ticks + 1)
 
     def _apply(self, traj, k: int, t: float, x: np.ndarray, cmd, n_sub: int, h: float):
         """Row k: apply ``cmd`` (None: the watchdog's zero), record it with the
@@ -385,19 +386,22 @@ class Emulator:
                 self._gap_start = None
         u_sat, accel, _ = actuators.wheel_accel(self.act, t, u_cmd, x[6:10])
         delta2 = plant.lumped_disturbance(self.scn.plant, t, x, u_sat, accel)
-        self._record(traj, k, t, x, u_cmd, u_sat_ctrl, accel, delta2)
-        self._publish_truth(k, t, cmd_seq, u_cmd, accel, delta2, stale)
+        self._record(traj, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2)
+        self._publish_truth(traj, k, t, cmd_seq, u_cmd, accel, delta2, stale)
         for j in range(n_sub):
             x = plant.rk4_step(self.scn.plant, self.act, t + j * h, x, h, u_cmd)
         return x if np.all(np.isfinite(x)) else None
 
-    def _finish(self, traj, rows: int, lateness: np.ndarray, diverged: bool) -> EmulatorResult:
+    def _finish(self, run: Run, rows: int, diverged: bool) -> Run:
         if self._gap_start is not None:
-            self._gaps.append((self._gap_start, float(traj["t"][rows - 1])))
+            self._gaps.append((self._gap_start, float(run["t"][rows - 1])))
             self._gap_start = None
         # let the last status arrive
         self._handle_until(time.monotonic_ns() + 20_000_000)
-        traj = {k: v[:rows] for k, v in traj.items()}
-        timing = self._fill_status(traj, rows)
-        return EmulatorResult(traj, rows, self.counters, self._latencies(rows), lateness, timing,
-                              diverged, self._gaps, self.faults_applied)
+        run = run.head(rows)
+        self._fill_status(run)
+        run.counters = dict(self.counters)
+        run.gaps = list(self._gaps)
+        run.faults_applied = list(self.faults_applied)
+        run.diverged = diverged
+        return run

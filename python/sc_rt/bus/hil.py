@@ -8,6 +8,7 @@ binary in the lcm wheel) are child processes, stopped cleanly at the end.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 import signal
@@ -20,11 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.metrics import TRAJECTORY_KEYS, bound_ok, compute_metrics, fill_tracking_errors, json_safe
-from sc_rt.bus.emulator import Emulator, EmulatorResult
+from sc_rt.bus.emulator import Emulator
 from sc_rt.bus.lcmio import channel, free_port_url, lcm_binary, open_lcm
+from sc_rt.results.metrics import fill_tracking_errors, finish_run
+from sc_rt.results.output import write_run
+from sc_rt.results.run import Run, RunMeta
 from sc_rt.scenario.model import Scenario
-from sc_rt.sim.engines import with_overrides
+from sc_rt.scenario.overrides import with_overrides
 
 __all__ = ["HilResult", "run_hil", "controller_binary", "percentiles"]
 
@@ -51,11 +54,21 @@ def percentiles(v: np.ndarray) -> dict[str, float | None]:
 
 @dataclass
 class HilResult:
+    """A bench run: its record (with ``run.metrics`` and ``run.timing``),
+    where it was written, and the controller's own exit summary."""
+
     out: Path
-    metrics: dict[str, Any]
-    timing: dict[str, Any]
-    emulator: EmulatorResult
+    run: Run
     controller_summary: dict[str, Any]
+    files: list[Path]
+
+    @property
+    def metrics(self) -> dict[str, Any]:
+        return self.run.metrics
+
+    @property
+    def timing(self) -> dict[str, Any]:
+        return self.run.timing or {}
 
 
 def _probe_logger(url: str, path: Path, payload: bytes, timeout: float, name: str) -> bool:
@@ -137,54 +150,39 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     if ctl_err.strip():
         (out / "controller_stderr.txt").write_text(ctl_err)
 
-    traj = dict(res.trajectory)
-    fill_tracking_errors(traj, scn.core_config().guidance, rate)
-    traj["bound_ok"] = bound_ok(scn.controller.ppc, traj["t"], traj["sigma_BD"])
-    metrics = compute_metrics(traj, scenario=scn.name, controller=law, engine=f"hil-{mode}",
-                              control_rate_hz=rate, duration_s=duration, wall_s=wall)
-    if res.diverged:
-        metrics["diverged"] = True
-        metrics["finite"] = False
-    timing = timing_report(mode, rate, res, summary, wall)
-    np.savez_compressed(out / "trajectory.npz", **{k: traj[k] for k in TRAJECTORY_KEYS},
-                        **{f"timing_{k}": v for k, v in res.status_timing.items()},
-                        latency_us=res.latency_us, tick_lateness_us=res.tick_lateness_us)
-    (out / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2) + "\n")
-    (out / "timing.json").write_text(json.dumps(json_safe(timing), indent=2) + "\n")
-    if plots:
-        from sc_rt.results import figures as plots_mod
-
-        plots_mod.timing_figures(res, out)
-        plots_mod.tracking_figures(traj, scn, out, title=f"{scn.name}, {law}, HIL {mode}")
-    return HilResult(out, metrics, timing, res, summary)
+    res.meta = dataclasses.replace(res.meta, wall_s=wall)
+    fill_tracking_errors(res, scn.core_config().guidance)
+    finish_run(res)
+    res.timing = timing_report(res, summary, wall)
+    files = write_run(res, out, figures=plots)
+    return HilResult(out, res, summary, files)
 
 
-def timing_report(mode: str, rate: float, res: EmulatorResult, summary: dict[str, Any],
-                  wall: float) -> dict[str, Any]:
+def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, Any]:
     """timing.json: the controller's own measurements (from its status
     messages and exit summary) and the emulator's (state-to-command latency)."""
-    st = res.status_timing
     c = res.counters
+    mode, rate, rows = res.meta.mode, res.meta.control_rate_hz, len(res)
     ctl_rej = summary.get("rejected", {})
     return {
         "mode": mode,
         "control_rate_hz": rate,
-        "steps": int(summary.get("steps", res.rows)),
+        "steps": int(summary.get("steps", rows)),
         "deadline_misses": int(summary.get("deadline_misses", 0)),
-        "wake_lateness_us": percentiles(st["wake_lateness_us"]) if mode == "realtime"
+        "wake_lateness_us": percentiles(res["wake_lateness_us"]) if mode == "realtime"
         else {"p50": None, "p99": None, "max": None},
-        "compute_us": percentiles(st["compute_us"]),
-        "state_to_cmd_latency_us": percentiles(res.latency_us),
-        "state_age_us": percentiles(st["state_age_us"]),
+        "compute_us": percentiles(res["compute_us"]),
+        "state_to_cmd_latency_us": percentiles(res["latency_us"]),
+        "state_age_us": percentiles(res["state_age_us"]),
         "stale_states": int(summary.get("stale_states", 0)),
         "dropped": int(c.get("cmd_timeout", 0) + c.get("cmd_stale_ticks", 0)),
         "malformed": int(ctl_rej.get("malformed", 0) + ctl_rej.get("trailing_bytes", 0)
                          + c.get("malformed", 0) + c.get("trailing_bytes", 0)),
         "scheduler": summary.get("scheduler", "unknown"),
-        "rows": res.rows,
+        "rows": rows,
         "wall_s": wall,
-        "steps_per_s": res.rows / wall if wall > 0 else None,
-        "emulator_tick_lateness_us": percentiles(res.tick_lateness_us) if mode == "realtime"
+        "steps_per_s": rows / wall if wall > 0 else None,
+        "emulator_tick_lateness_us": percentiles(res["tick_lateness_us"]) if mode == "realtime"
         else {"p50": None, "p99": None, "max": None},
         "controller_rejected": ctl_rej,
         "controller_safe_steps": int(summary.get("safe_steps", 0)),

@@ -35,21 +35,20 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import lcm
 import numpy as np
 
-from sc_rt.results.metrics import TRAJECTORY_KEYS, bound_ok, compute_metrics, fill_tracking_errors, json_safe
 from sc_rt.bus.lcmio import CHANNELS, lcm_binary
-from sc_rt.bus.wire import TYPES, decode_any, decode_array, numpy_dtype
+from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, TYPES, decode_any, decode_array, numpy_dtype
+from sc_rt.results.metrics import fill_tracking_errors, finish_run
+from sc_rt.results.output import write_run
+from sc_rt.results.run import Run, RunMeta, empty_arrays, json_safe
 
 __all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command", "LAW_NAMES"]
 
 LAW_NAMES = {0: "dsc-ppc", 1: "dsc", 2: "pd", 3: "rft"}
-STATUS_FIELDS = ("sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam")
-TIMING_FIELDS = ("wake_lateness_us", "compute_us", "state_age_us")
 #: fault state changes listed per wheel in report.json (a hostile log could have one per row)
 MAX_FAULT_CHANGES = 1000
 
@@ -162,10 +161,10 @@ def _f(a) -> np.ndarray:
 
 @dataclass
 class Rebuilt:
-    traj: dict[str, np.ndarray]
-    extra: dict[str, np.ndarray]  # fault state, applied command seq, log stamps
-    status_timing: dict[str, np.ndarray]
-    latency_us: np.ndarray
+    """The run as the emulator recorded it, and what only the log knows."""
+
+    arrays: dict[str, np.ndarray]  # run fields (sc_rt.results.run.FIELDS)
+    has_truth: np.ndarray  # rows with their plant_truth_t
     last_status: dict[str, Any] | None
     mode: str
     gaps: list[tuple[float, float]]
@@ -214,16 +213,12 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
     seqs, si = _first_valid(S["seq"])
     s_stamp = d.stamps["SCRT_STATE"][si]
     n = seqs.size
-    traj: dict[str, np.ndarray] = {}
+    # every run field at its fill value; then what the log has
+    traj = empty_arrays(n)
     for k in ("t", "sigma_BN", "omega_BN_B", "wheel_speed"):
         traj[k] = _f(S[k][si])
-    for k, w in (("sigma_DN", 3), ("sigma_BD", 3), ("omega_BD_B", 3), ("u_cmd", 4), ("u_sat", 4),
-                 ("wheel_accel", 4), ("z1", 3), ("z2", 3), ("delta2", 3), ("chi", 3), ("lam", 3)):
-        traj[k] = np.full((n, w), np.nan)
-    extra = {"cmd_seq_applied": np.full(n, -1, np.int64), "cmd_stale": np.zeros(n, np.int8),
-             "fault_Y": np.full((n, 4), np.nan), "fault_effectiveness": np.full((n, 4), np.nan),
-             "fault_bias": np.full((n, 4), np.nan), "fault_stuck": np.zeros((n, 4), np.int8),
-             "has_truth": np.zeros(n, bool), "state_log_us": s_stamp}
+    traj["state_log_us"] = s_stamp.astype(float)
+    has_truth = np.zeros(n, bool)
 
     C = d.records["SCRT_CMD"]
 
@@ -237,15 +232,17 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
             traj[k][has] = _f(T[k][tm])
         for k in ("cmd_seq_applied", "cmd_stale", "fault_Y", "fault_effectiveness", "fault_bias",
                   "fault_stuck"):
-            extra[k][has] = T[k][tm]
-        extra["has_truth"][has] = True
-        applied = extra["cmd_seq_applied"]
+            traj[k][has] = T[k][tm]
+        has_truth[has] = True
+        applied = traj["cmd_seq_applied"]
         none = has & (applied < 0)
         traj["u_sat"][none] = 0.0  # nothing applied: the emulator records zeros
         rows = np.nonzero(has & (applied >= 0))[0]
         idx = _applied_cmd(C, d.stamps["SCRT_CMD"], applied[rows], d.stamps["SCRT_TRUTH"][ti[pos[rows]]])
         ok = idx >= 0
         traj["u_sat"][rows[ok]] = _f(C["u_sat"][idx[ok]])
+        traj["flags"][rows[ok]] = C["flags"][idx[ok]]
+        traj["ctrl_mode"][rows[ok]] = C["mode"][idx[ok]]
     # a state without its truth: the command answering it (first received)
     miss = ~has
     if np.any(miss) and C.size:
@@ -259,13 +256,10 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
     St = d.records["SCRT_CTRL_STATUS"]
     st_seqs, sti = _first_valid(St["state_seq"])
     hs, ps = _align(seqs, st_seqs)
-    timing = {k: np.full(n, np.nan) for k in TIMING_FIELDS}
     if np.any(hs):
         sm = sti[ps[hs]]
-        for k in STATUS_FIELDS:
+        for k in STATUS_RUN_FIELDS + STATUS_TIMING_FIELDS:
             traj[k][hs] = _f(St[k][sm])
-        for k in TIMING_FIELDS:
-            timing[k][hs] = _f(St[k][sm])
     last_status = None
     if St.size:
         last = St[int(np.argmax(St["steps"]))]
@@ -273,28 +267,27 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
 
     # state-to-command latency as the logger saw it: receipt of state k to
     # receipt of the first command answering k
-    latency = np.zeros(0)
     if C.size:
         a_seqs, ai = _first_valid(C["state_seq"])
         c_stamp = d.stamps["SCRT_CMD"][ai]
         hl, pl = _align(seqs, a_seqs)
-        latency = (c_stamp[pl[hl]] - s_stamp[hl]).astype(float)
+        traj["latency_us"][hl] = (c_stamp[pl[hl]] - s_stamp[hl]).astype(float)
 
     if mode is None:
-        wl = timing["wake_lateness_us"]
+        wl = traj["wake_lateness_us"]
         wl = wl[np.isfinite(wl)]
         # the lockstep controller steps on arrival: its lateness is exactly 0
         mode = "lockstep" if wl.size and np.all(wl == 0) else "realtime"
 
     # spans without a command (the emulator's watchdog applied zero), as it records them
-    h = extra["has_truth"]
+    h = has_truth
     th = traj["t"][h]
-    st = extra["cmd_stale"][h].astype(bool)
+    st = traj["cmd_stale"][h].astype(bool)
     edge = np.diff(np.concatenate(([0], st.astype(np.int8), [0])))
     starts, ends = np.nonzero(edge == 1)[0], np.nonzero(edge == -1)[0]
     gaps = [(float(th[a]), float(th[b]) if b < th.size else float(traj["t"][-1]))
             for a, b in zip(starts, ends)]
-    return Rebuilt(traj, extra, timing, latency, last_status, mode, gaps)
+    return Rebuilt(traj, has_truth, last_status, mode, gaps)
 
 
 def _config(d: LogData):
@@ -311,14 +304,15 @@ def _params(d: LogData, scenario_path: str | None):
 
         scn = load_scenario(scenario_path)
     if cfg is not None:
-        ppc = SimpleNamespace(**{k: np.asarray(getattr(cfg, "ppc_" + k), float)
-                                 for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")})
+        ppc = {k: tuple(float(x) for x in getattr(cfg, "ppc_" + k))
+               for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")}
         return (cfg.scenario, LAW_NAMES.get(cfg.law, str(cfg.law)), float(cfg.control_rate_hz),
                 None if scn is None else float(scn.run.duration), ppc,
                 np.asarray(cfg.umin, float), np.asarray(cfg.umax, float), "SCRT_CONFIG")
     if scn is not None:
+        m = RunMeta.of_scenario(scn, "report")
         return (scn.name, scn.run.controller, float(scn.run.control_rate_hz), float(scn.run.duration),
-                scn.controller.ppc, np.asarray(scn.actuators.umin), np.asarray(scn.actuators.umax),
+                m.ppc, np.asarray(scn.actuators.umin), np.asarray(scn.actuators.umax),
                 f"--scenario {scenario_path}")
     raise ValueError(f"{d.path}: no controller_config_t on {d.prefix}SCRT_CONFIG (a log from "
                      "before sc-rt hil logged it, or from another bench): pass --scenario FILE "
@@ -343,8 +337,8 @@ def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
     plant_truth_t (when the emulator applied them)."""
     F = d.records["SCRT_FAULT"]
     fs = d.stamps["SCRT_FAULT"]
-    st = r.extra["state_log_us"]
-    t = r.traj["t"]
+    st = r.arrays["state_log_us"]
+    t = r.arrays["t"]
     t0 = int(st[0]) if st.size else 0
     cmds = []
     for rec, stamp in zip(F, fs):
@@ -356,8 +350,8 @@ def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
                      "effectiveness": float(rec["effectiveness"]), "bias": float(rec["bias"]),
                      "rate": float(rec["rate"]), "stuck": bool(rec["stuck"])})
     changes: list[dict[str, Any]] = []
-    h = r.extra["has_truth"]
-    L, B, K, Y = (r.extra[k][h] for k in ("fault_effectiveness", "fault_bias", "fault_stuck", "fault_Y"))
+    h = r.has_truth
+    L, B, K, Y = (r.arrays[k][h] for k in ("fault_effectiveness", "fault_bias", "fault_stuck", "fault_Y"))
     th = t[h]
     active_from: list[float | None] = []
     for w in range(4):
@@ -374,26 +368,23 @@ def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
     return {"commands": cmds, "state_changes": changes, "first_active_s": active_from}
 
 
-def _timing(r: Rebuilt, rate: float, d: LogData, wall: float, faults: dict) -> dict[str, Any]:
+def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     from sc_rt.bus.hil import timing_report
 
-    stale = int(np.sum(r.extra["cmd_stale"]))
-    counters = Counter({"cmd_timeout" if r.mode == "lockstep" else "cmd_stale_ticks": stale,
-                        "malformed": d.undecodable})
-    res = SimpleNamespace(status_timing=r.status_timing, counters=counters, latency_us=r.latency_us,
-                          tick_lateness_us=np.zeros(0), rows=len(r.traj["t"]), gaps=r.gaps,
-                          faults_applied=faults["commands"])
+    stale = int(np.sum(run["cmd_stale"]))
+    run.counters = {"cmd_timeout" if r.mode == "lockstep" else "cmd_stale_ticks": stale,
+                    "malformed": d.undecodable}
     ls = r.last_status or {}
-    summary = {"steps": ls.get("steps", len(r.traj["t"])), "deadline_misses": ls.get("deadline_misses", 0),
+    summary = {"steps": ls.get("steps", len(run)), "deadline_misses": ls.get("deadline_misses", 0),
                "stale_states": ls.get("stale_states", 0), "scheduler": "unknown (not in the log)"}
-    out = timing_report(r.mode, rate, res, summary, wall)
+    out = timing_report(run, summary, wall)
     out["source"] = "log"
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"
     return out
 
 
-def fault_figure(r: Rebuilt, faults: dict, out: Path, title: str = "") -> Path:
+def fault_figure(run: Run, has_truth: np.ndarray, faults: dict, out: Path, title: str = "") -> Path:
     """Per wheel: the commanded and the actual acceleration, and the fault
     state the plant reported (effectiveness L, activation Y, stuck spans,
     bias); thin black lines where a fault command for that wheel reached
@@ -401,23 +392,23 @@ def fault_figure(r: Rebuilt, faults: dict, out: Path, title: str = "") -> Path:
     from sc_rt.results import figures  # noqa: F401  (selects the Agg backend)
     import matplotlib.pyplot as plt
 
-    t, h = r.traj["t"], r.extra["has_truth"]
+    t, h = run["t"], has_truth
     th = t[h]
     fig, axs = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
     for w, ax in enumerate(axs):
-        ax.plot(t, r.traj["u_sat"][:, w], color="0.6", ls=":", lw=1.0, label="command (saturated)")
-        ax.plot(t, r.traj["wheel_accel"][:, w], color="C0", lw=0.9, label="actual")
+        ax.plot(t, run["u_sat"][:, w], color="0.6", ls=":", lw=1.0, label="command (saturated)")
+        ax.plot(t, run["wheel_accel"][:, w], color="C0", lw=0.9, label="actual")
         ax.set_ylabel("[rad/s^2]")
         ax2 = ax.twinx()
-        ax2.plot(th, r.extra["fault_effectiveness"][h, w], color="C2", lw=1.2, label="L")
-        ax2.plot(th, r.extra["fault_Y"][h, w], color="C3", ls="--", lw=1.0, label="Y(t)")
+        ax2.plot(th, run["fault_effectiveness"][h, w], color="C2", lw=1.2, label="L")
+        ax2.plot(th, run["fault_Y"][h, w], color="C3", ls="--", lw=1.0, label="Y(t)")
         ax2.set_ylim(-0.05, 1.1)
         ax2.set_ylabel("L, Y [-]")
-        stuck = r.extra["fault_stuck"][h, w].astype(bool)
+        stuck = run["fault_stuck"][h, w].astype(bool)
         if np.any(stuck):
             ax.fill_between(th, 0, 1, where=stuck, transform=ax.get_xaxis_transform(), color="k",
                             alpha=0.12, label="stuck")
-        bias = r.extra["fault_bias"][h, w]
+        bias = run["fault_bias"][h, w]
         bias = bias[np.isfinite(bias)]
         bmax = float(bias[np.argmax(np.abs(bias))]) if bias.size else 0.0
         ax.set_title(f"wheel {w + 1}" + (f" (bias up to {bmax:+g} rad/s^2)" if bmax else ""),
@@ -457,26 +448,24 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     name, law, rate, duration, ppc, umin, umax, source = _params(d, scenario)
     t_build = time.perf_counter()
     r = rebuild(d, mode)
-    traj = r.traj
-    fill_tracking_errors(traj, _guidance(d, scenario), rate)
-    traj["bound_ok"] = bound_ok(ppc, traj["t"], traj["sigma_BD"])
-    rows = len(traj["t"])
+    rows = len(r.arrays["t"])
     if duration is None:
         duration = (rows - 1) / rate if rows else 0.0
-    st = r.extra["state_log_us"]
+    st = r.arrays["state_log_us"]
     wall = float(st[-1] - st[0]) / 1e6 if st.size > 1 else 0.0
-    metrics = compute_metrics(traj, scenario=name, controller=law, engine="report",
-                              control_rate_hz=rate, duration_s=duration, wall_s=wall)
+    meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
+                   ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
+                   wall_s=wall, mode=r.mode)
+    run = Run(meta, r.arrays, gaps=r.gaps)
+    fill_tracking_errors(run, _guidance(d, scenario))
     faults = fault_summary(d, r)
-    timing = _timing(r, rate, d, wall, faults)
+    run.faults_applied = faults["commands"]
+    finish_run(run)
+    run.timing = _timing(run, r, d, wall)
     build_s = time.perf_counter() - t_build
-    out.mkdir(parents=True, exist_ok=True)
     # uncompressed: zlib would take longer than reading a million-event log
-    np.savez(out / "trajectory.npz", **{k: traj[k] for k in TRAJECTORY_KEYS},
-                        **{f"timing_{k}": v for k, v in r.status_timing.items()},
-                        **{k: v for k, v in r.extra.items()}, latency_us=r.latency_us)
-    (out / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2) + "\n")
-    (out / "timing.json").write_text(json.dumps(json_safe(timing), indent=2) + "\n")
+    title_run = run
+    write_run(run, out, figures=plots, compress=False)
     report = {"log": str(d.path), "events": d.events, "read_decode_s": d.decode_s,
               "events_per_s": d.events / d.decode_s if d.decode_s > 0 else None,
               "rebuild_s": build_s, "prefix": d.prefix, "mode": r.mode, "rows": rows,
@@ -487,16 +476,11 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
         report["config"] = {"scenario": cfg.scenario, "law": law, "control_rate_hz": rate}
     (out / "report.json").write_text(json.dumps(json_safe(report), indent=2) + "\n")
     if plots:
-        from sc_rt.results import figures as plots_mod
+        from sc_rt.results.figures import run_title
 
-        shim = SimpleNamespace(controller=SimpleNamespace(ppc=ppc),
-                               actuators=SimpleNamespace(umin=umin, umax=umax))
-        title = f"{name}, {law}, log {r.mode}"
-        plots_mod.tracking_figures(traj, shim, out, title=title)
-        plots_mod.timing_figures(SimpleNamespace(status_timing=r.status_timing, latency_us=r.latency_us), out)
-        fault_figure(r, faults, out, title=title)
-    report["metrics"] = metrics
-    report["timing"] = timing
+        fault_figure(title_run, r.has_truth, faults, out, title=run_title(title_run))
+    report["metrics"] = run.metrics
+    report["timing"] = run.timing
     return report
 
 

@@ -17,8 +17,10 @@ from pathlib import Path
 import numpy as np
 import sc_rt_lcm
 
+from sc_rt.results.run import FIELDS
+
 __all__ = ["TYPES", "BY_FINGERPRINT", "identify", "decode_any", "numpy_dtype", "decode_array",
-           "lcm_sources", "to_plain"]
+           "lcm_sources", "to_plain", "STATUS_RUN_FIELDS", "STATUS_TIMING_FIELDS"]
 
 
 def _types() -> dict[str, type]:
@@ -40,6 +42,15 @@ _NP = {"int8_t": "i1", "int16_t": ">i2", "int32_t": ">i4", "int64_t": ">i8", "by
        "float": ">f4", "double": ">f8", "boolean": "i1"}
 
 _DTYPES: dict[type, np.dtype | None] = {}
+
+#: Run fields a controller_status_t carries for the state it used (the
+#: command's own fields, u_cmd, u_sat, flags and mode, come from wheel_cmd_t).
+STATUS_RUN_FIELDS: tuple[str, ...] = tuple(
+    f.name for f in FIELDS if f.source == "controller" and f.name in sc_rt_lcm.controller_status_t.__slots__
+    and f.name not in ("u_cmd", "u_sat", "flags"))
+#: The controller's own timing measurements in controller_status_t.
+STATUS_TIMING_FIELDS: tuple[str, ...] = tuple(
+    f.name for f in FIELDS if f.source == "timing" and f.name in sc_rt_lcm.controller_status_t.__slots__)
 
 
 def identify(data: bytes) -> type | None:

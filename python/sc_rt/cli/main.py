@@ -20,42 +20,64 @@ def _scenario(path: str, args: argparse.Namespace | None = None):
     return load_scenario(path)
 
 
-def _print_metrics(m: dict) -> None:
-    def f(v):
-        return "-" if v is None else (f"{v:.3e}" if isinstance(v, float) else str(v))
+def _print_metrics(m: dict, faults=()) -> None:
+    from sc_rt.results.verdict import verdict_line
 
+    def f(v):
+        return "-" if v is None else (f"{v:.3g}" if isinstance(v, float) else str(v))
+
+    marks = list(m["sigma_e_norm"])
+    faults = ", ".join(f"wheel {x['wheel']} from {x['onset']:g} s (L {x['effectiveness']:g}, "
+                       f"bias {x['bias']:g} rad/s^2)" for x in faults) or "none"
+    safe = m.get("safe_steps", 0)
+    why = "; ".join(f"{k}: {v}" for k, v in m.get("safe_reasons", {}).items())
     rows = [
+        ("verdict", verdict_line(m, m["controller"])),
         ("controller", m["controller"]), ("engine", m["engine"]),
         ("steps", m["steps"]), ("wall [s]", f"{m['wall_s']:.3f}"), ("finite", m["finite"]),
         ("first bound violation [s]", f(m["first_bound_violation_s"])),
-        ("  axis", f(m["first_bound_violation_axis"])),
-        ("|sigma_BD| at 30/100/300 s", " / ".join(f(m["sigma_e_norm"][k]) for k in ("30", "100", "300"))),
-        ("max |omega_BD_B| after 70 s", f(m["max_abs_omega_e_after_70s"])),
-        ("max observer error after 30 s", f(m["max_observer_error_after_30s"])),
-        ("max |u_cmd| [rad/s^2]", f(m["max_abs_u_cmd"])),
+        ("  axis", "-" if m["first_bound_violation_axis"] is None else "xyz"[m["first_bound_violation_axis"] - 1]),
+        (f"|sigma_BD| at {'/'.join(marks)} s", " / ".join(f(m["sigma_e_norm"][k]) for k in marks)),
+        ("max pointing error after 30 s [arcsec]", f(m.get("max_pointing_error_arcsec_after_30s"))),
+        ("max |omega_BD_B| after 70 s [rad/s]", f(m["max_abs_omega_e_after_70s"])),
+        ("max observer error after 30 s [rad/s^2]", f(m["max_observer_error_after_30s"])),
+        ("max |u_cmd| before saturation [rad/s^2]", f(m["max_abs_u_cmd"])),
+        ("max |wheel accel| applied [rad/s^2]", f(m["max_abs_wheel_accel"])),
         ("saturated fraction", f(m["saturated_fraction"])),
+        ("SAFE steps", f"{safe}" + (f" from {m['safe_from_s']:.1f} s ({why})" if safe else "")),
+        ("faults scheduled", faults),
     ]
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         print(f"  {k:<{w}}  {v}")
 
 
-def cmd_sim(args: argparse.Namespace) -> int:
-    from sc_rt.sim.engines import simulate, write_result
+def _out_dir(value: str, option: str = "--out") -> Path:
+    """The output directory, checked before anything runs (exit 2 if unusable)."""
+    from sc_rt.results.output import check_out_dir
 
+    problem = check_out_dir(Path(value), option)
+    if problem:
+        raise UsageError(problem)
+    return Path(value)
+
+
+class UsageError(Exception):
+    """A bad command-line value: one line, exit 2."""
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    from sc_rt.results.output import write_run
+    from sc_rt.sim.engines import simulate
+
+    out = _out_dir(args.out)
     scn = _scenario(args.scenario)
     res = simulate(scn, law=args.controller, engine=args.engine,
                    control_rate_hz=args.control_rate, duration=args.duration,
                    plant_step=args.plant_step)
-    out = Path(args.out)
-    write_result(res, out)
-    if not args.no_plots:
-        from sc_rt.results.figures import tracking_figures
-
-        tracking_figures(res.trajectory, scn, out,
-                         title=f"{scn.name}, {res.metrics['controller']}, {res.metrics['engine']}")
+    write_run(res, out, figures=not args.no_plots)
     print(f"sc-rt sim: {scn.name} -> {out}/")
-    _print_metrics(res.metrics)
+    _print_metrics(res.metrics, res.meta.faults)
     if res.diverged:
         print(f"sc-rt sim: DIVERGED: {res.message}", file=sys.stderr)
     return 0
@@ -64,14 +86,15 @@ def cmd_sim(args: argparse.Namespace) -> int:
 def cmd_hil(args: argparse.Namespace) -> int:
     from sc_rt.bus.hil import run_hil
 
+    out = _out_dir(args.out)
     scn = _scenario(args.scenario)
-    res = run_hil(scn, out=Path(args.out), mode=args.mode, law=args.controller,
+    res = run_hil(scn, out=out, mode=args.mode, law=args.controller,
                   control_rate_hz=args.control_rate, duration=args.duration, lcm_url=args.lcm_url,
                   prefix=args.prefix, realtime_priority=args.realtime_priority,
                   time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
                   plots=not args.no_plots)
     print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/")
-    _print_metrics(res.metrics)
+    _print_metrics(res.metrics, res.run.meta.faults)
     t = res.timing
     lat = t["state_to_cmd_latency_us"]
     print(f"  state-to-command latency [us]  p50 {lat['p50']}  p99 {lat['p99']}  max {lat['max']}")
@@ -80,20 +103,33 @@ def cmd_hil(args: argparse.Namespace) -> int:
     return 0
 
 
+#: The demo's two runs: the paper's law on the paper's fault scenario, and
+#: the design that holds on the same plant and faults (docs/REPRODUCTION.md).
+DEMO_RUNS = (("paper DSC+PPC", "paper_faults", "paper"),
+             ("feasible 10 Hz design", "ppc_feasible_10hz", "feasible_10hz"))
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
-    """The main job: the paper fault scenario through the real LCM loop."""
-    scenario = Path(args.scenario)
-    out = Path(args.out)
-    ns = argparse.Namespace(scenario=str(scenario), out=str(out), mode="lockstep", controller=None,
-                            control_rate=None, duration=None, lcm_url=args.lcm_url, prefix="",
-                            realtime_priority=False, time_scale=1.0, accept_fault_commands=False,
-                            no_plots=False)
-    rc = cmd_hil(ns)
-    print(f"\nsc-rt demo: report, metrics, log and figures in {out.resolve()}/")
-    for name in ("metrics.json", "timing.json", "run.lcmlog", "attitude_error.png",
-                 "attitude_error_log.png", "timing.png"):
-        print(f"  {out / name}")
-    return rc
+    """The main job: the paper's law and the feasible design, each through
+    the real LCM loop (controller process, emulator, lcm-logger)."""
+    from sc_rt.bus.hil import run_hil
+    from sc_rt.results.verdict import verdict_line
+
+    out = _out_dir(args.out)
+    results = []
+    for label, name, sub in DEMO_RUNS:
+        scn = _scenario(name)
+        print(f"sc-rt demo: {label} ({scn.name}) through LCM, lockstep ...", file=sys.stderr, flush=True)
+        results.append((label, run_hil(scn, out=out / sub, mode="lockstep", lcm_url=args.lcm_url)))
+    for label, res in results:
+        print(verdict_line(res.metrics, label))
+    print("\nWhy the paper's law leaves its bound in a sampled loop, and how the feasible design "
+          "was found: docs/REPRODUCTION.md")
+    for label, res in results:
+        print(f"\n{label}: {len(res.files)} files in {res.out.resolve()}/")
+        for p in res.files:
+            print(f"  {p}")
+    return 0
 
 
 def cmd_emulator(args: argparse.Namespace) -> int:
@@ -109,19 +145,14 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("sc-rt emulator: interrupted", file=sys.stderr)
         return 130
-    summary = {"rows": res.rows, "counters": dict(res.counters), "gaps_s": res.gaps,
+    summary = {"rows": len(res), "counters": dict(res.counters), "gaps_s": res.gaps,
                "diverged": res.diverged}
     if args.out:
-        import numpy as np
-
-        from sc_rt.results.metrics import TRAJECTORY_KEYS, bound_ok
+        from sc_rt.results.metrics import finish_run
+        from sc_rt.results.output import write_run
 
         out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        traj = dict(res.trajectory)
-        traj["bound_ok"] = bound_ok(emu.scn.controller.ppc, traj["t"], traj["sigma_BD"])
-        np.savez_compressed(out / "trajectory.npz", **{k: traj[k] for k in TRAJECTORY_KEYS},
-                            latency_us=res.latency_us)
+        write_run(finish_run(res), out, figures=False)
         (out / "emulator.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(json.dumps(summary))
     return 0
@@ -302,6 +333,29 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export_mcap(log, out, partial: bool = False, who: str = "export") -> int:
+    """Write the MCAP of ``log`` (sc-rt export, report --mcap, hil --mcap)."""
+    from sc_rt.bus.mcap_export import ExportError, export_mcap
+
+    try:
+        s = export_mcap(log, out, partial=partial)
+    except ExportError as e:
+        print(f"sc-rt {who}: error: {e}", file=sys.stderr)
+        return 2
+    damaged = (f", damaged log: {s.skipped_bytes} bytes skipped, torn tail {s.torn_tail_bytes} bytes"
+               if s.skipped_bytes or s.torn_tail_bytes else "")
+    print(f"sc-rt {who}: {log}: {s.events} events -> {out} ({s.messages} messages, derived "
+          f"{sum(s.derived.values())}) in {s.seconds:.2f} s ({s.events_per_s or 0:.3g} events/s); "
+          f"{s.undecodable} undecodable{' ' + str(s.undecodable_kinds) if s.undecodable else ''} and "
+          f"{s.foreign_events} of foreign "
+          f"channels carried raw{damaged}")
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    return _export_mcap(args.log, args.mcap, args.partial)
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
     import subprocess
 
@@ -369,6 +423,13 @@ def _add_monitoring(sub) -> None:
     r.add_argument("--no-plots", action="store_true")
     r.set_defaults(func=cmd_report)
 
+    x = sub.add_parser("export", help="an LCM log as MCAP (JSON + schemas from the .lcm files) for Foxglove, PlotJuggler")
+    x.add_argument("log")
+    x.add_argument("--mcap", required=True, metavar="OUT", help="the MCAP file to write")
+    x.add_argument("--partial", action="store_true",
+                   help="a truncated or corrupt log: export the events that can be read (default: refuse)")
+    x.set_defaults(func=cmd_export)
+
     p = sub.add_parser("replay", help="play an LCM log onto the bus (the wheel's lcm-logplayer)")
     p.add_argument("log")
     p.add_argument("--lcm-url", metavar="URL", help=url_help)
@@ -421,10 +482,11 @@ def build_parser() -> argparse.ArgumentParser:
     lcm_opts(h)
     h.set_defaults(func=cmd_hil)
 
-    d = sub.add_parser("demo", help="the main job: paper fault scenario through the LCM loop")
-    d.add_argument("--scenario", default="paper_faults", help="file or shipped name (default: paper_faults)")
-    d.add_argument("--out", default="out/demo", metavar="DIR")
-    d.add_argument("--lcm-url", metavar="URL")
+    d = sub.add_parser("demo", help="the main job: the paper's DSC+PPC and the feasible 10 Hz design "
+                       "on the paper's fault scenario, each through the real LCM loop")
+    d.add_argument("--out", default="out/demo", metavar="DIR",
+                   help="output directory, one subdirectory per run (default: %(default)s)")
+    d.add_argument("--lcm-url", metavar="URL", help="LCM URL (default: a free port on 239.255.76.67, ttl=0)")
     d.set_defaults(func=cmd_demo)
 
     e = sub.add_parser("emulator", help="the plant as an LCM process")
@@ -507,6 +569,9 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except ScenarioError as e:
         print(f"sc-rt: {e}", file=sys.stderr)
+        return 2
+    except UsageError as e:
+        print(f"sc-rt {args.command}: {e}", file=sys.stderr)
         return 2
     except (FileNotFoundError, RuntimeError) as e:
         print(f"sc-rt {args.command}: error: {e}", file=sys.stderr)

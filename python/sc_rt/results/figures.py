@@ -11,10 +11,28 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from sc_rt.results.metrics import prescribed_chi  # noqa: E402
+from sc_rt.results.run import Run  # noqa: E402
 
 __all__ = ["tracking_figures", "timing_figures"]
 
 AXES = ("x", "y", "z")
+
+
+def run_title(run: Run) -> str:
+    """"scenario, law, engine" of a run, for figure titles."""
+    m = run.meta
+    how = {"python": "offline", "cpp": "offline (C++ loop)", "unsampled": "unsampled reference",
+           "hil-lockstep": "HIL lockstep", "hil-realtime": "HIL real time",
+           "report": f"from its log ({m.mode})"}
+    return f"{m.scenario}, {m.law}, {how.get(m.engine, m.engine)}"
+
+
+def save_figure(fig, path: Path, dpi: int = 110) -> Path:
+    """Lay a figure out, write it to ``path`` (PNG at ``dpi``) and close it; returns ``path``."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
 
 
 def _save(fig, path: Path) -> Path:
@@ -24,15 +42,18 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def tracking_figures(traj: dict[str, np.ndarray], scn, out: Path, title: str = "") -> list[Path]:
+def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     """Attitude error with the prescribed bounds (linear and log), rate error,
     wheel commands with the saturation limits, lumped disturbance and the
-    observer's error (the paper's figures 4-15)."""
+    observer's error (the paper's figures 4-15). The envelope and the wheel
+    limits come from ``run.meta``."""
     out.mkdir(parents=True, exist_ok=True)
+    traj = run
+    title = title or run_title(run)
     t = traj["t"]
-    ppc = scn.controller.ppc
+    ppc = run.meta.ppc
     chi = prescribed_chi(ppc, t)
-    dmin, dmax = np.asarray(ppc.dmin), np.asarray(ppc.dmax)
+    dmin, dmax = np.asarray(ppc["dmin"]), np.asarray(ppc["dmax"])
     paths = []
 
     fig, axs = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
@@ -78,7 +99,7 @@ def tracking_figures(traj: dict[str, np.ndarray], scn, out: Path, title: str = "
     fig, ax = plt.subplots(figsize=(8, 4))
     for i in range(4):
         ax.plot(t, traj["u_sat"][:, i], lw=0.9, label=f"wheel {i + 1}")
-    umin, umax = np.asarray(scn.actuators.umin), np.asarray(scn.actuators.umax)
+    umin, umax = np.asarray(run.meta.umin), np.asarray(run.meta.umax)
     ax.axhline(umax.max(), color="r", ls="--", lw=0.8, label="umax")
     ax.axhline(umin.min(), color="r", ls=":", lw=0.8, label="umin")
     ax.set_xlabel("t [s]")
@@ -107,15 +128,15 @@ def tracking_figures(traj: dict[str, np.ndarray], scn, out: Path, title: str = "
     return paths
 
 
-def timing_figures(res, out: Path) -> list[Path]:
+def timing_figures(run: Run, out: Path) -> list[Path]:
     """Histograms of the controller's wake lateness and the state-to-command
     latency, and both over time."""
     out.mkdir(parents=True, exist_ok=True)
-    st = res.status_timing
+    lat = run["latency_us"]
     series = {
-        "state-to-command latency [us]": np.asarray(res.latency_us),
-        "controller compute [us]": st["compute_us"],
-        "controller wake lateness [us]": st["wake_lateness_us"],
+        "state-to-command latency [us]": lat[np.isfinite(lat)],
+        "controller compute [us]": run["compute_us"],
+        "controller wake lateness [us]": run["wake_lateness_us"],
     }
     fig, axs = plt.subplots(len(series), 2, figsize=(10, 8))
     for row, (name, v) in zip(axs, series.items()):

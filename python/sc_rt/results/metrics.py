@@ -11,17 +11,17 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["METRIC_TIMES", "bound_ok", "compute_metrics", "fill_tracking_errors", "TRAJECTORY_KEYS"]
+from sc_rt.results.run import CORE_FIELDS, Run, json_safe
+from sc_rt.results.verdict import pointing_arcsec, safe_summary
 
-#: Times [s] at which the error norms are reported.
+__all__ = ["METRIC_TIMES", "bound_ok", "compute_metrics", "fill_tracking_errors", "prescribed_chi",
+           "finish_run", "json_safe"]
+
+#: Times [s] at which the error norms are reported (those within the run;
+#: the run's end is always added).
 METRIC_TIMES = (30, 70, 100, 200, 300)
 
-#: Arrays of trajectory.npz, one row per control instant.
-TRAJECTORY_KEYS = (
-    "t", "sigma_BN", "omega_BN_B", "sigma_DN", "sigma_BD", "omega_BD_B", "wheel_speed",
-    "u_cmd", "u_sat", "wheel_accel", "z1", "z2", "delta2", "chi", "lam", "bound_ok",
-)
-
+#: Laws whose z2 is a disturbance estimate (the observer error is reported).
 LAWS_WITH_OBSERVER = ("dsc-ppc", "dsc")
 
 #: Controller-internal telemetry: in a real-time run a state the controller
@@ -29,7 +29,7 @@ LAWS_WITH_OBSERVER = ("dsc-ppc", "dsc")
 CONTROLLER_TELEMETRY = ("z1", "z2", "chi", "lam")
 
 
-def fill_tracking_errors(traj: dict[str, np.ndarray], guidance, rate: float) -> int:
+def fill_tracking_errors(run: Run, guidance) -> int:
     """Rows without controller telemetry (real time: states the controller
     never used) get sigma_DN, sigma_BD and omega_BD_B from the plant state and
     the desired trajectory, computed as the controller does (guidance
@@ -37,37 +37,47 @@ def fill_tracking_errors(traj: dict[str, np.ndarray], guidance, rate: float) -> 
     ``guidance`` is a ``_core.GuidanceParams``. Returns the rows filled."""
     from sc_rt import _core
 
-    missing = np.flatnonzero(np.isnan(traj["sigma_BD"]).any(axis=1))
+    missing = np.flatnonzero(np.isnan(run["sigma_BD"]).any(axis=1))
     if missing.size == 0:
         return 0
-    g = _core.Guidance(guidance, 1.0 / rate)
+    g = _core.Guidance(guidance, 1.0 / run.meta.control_rate_hz)
     g.reset(0.0)
+    t_all, s_bn, w_bn = run["t"], run["sigma_BN"], run["omega_BN_B"]
+    s_dn, s_bd, w_bd = run["sigma_DN"], run["sigma_BD"], run["omega_BD_B"]
     for k in missing:  # increasing times: the guidance only moves forward
-        t = float(traj["t"][k])
+        t = float(t_all[k])
         g.advance(t)
         sd = np.asarray(g.sigma_DN)
-        x1 = np.asarray(_core.mrp_subtract(traj["sigma_BN"][k], sd))
-        traj["sigma_DN"][k] = sd
-        traj["sigma_BD"][k] = x1
-        traj["omega_BD_B"][k] = traj["omega_BN_B"][k] - _core.mrp_to_dcm(x1) @ _core.omega_d(guidance, t)
+        x1 = np.asarray(_core.mrp_subtract(s_bn[k], sd))
+        s_dn[k] = sd
+        s_bd[k] = x1
+        w_bd[k] = w_bn[k] - _core.mrp_to_dcm(x1) @ _core.omega_d(guidance, t)
     return int(missing.size)
 
 
+def _ppc_arrays(ppc) -> tuple[np.ndarray, ...]:
+    """(chi0, chiinf, gamma, dmin, dmax) of a PpcParams-like object or a dict."""
+    get = ppc.get if isinstance(ppc, dict) else (lambda k: getattr(ppc, k))
+    return tuple(np.asarray(get(k), float) for k in ("chi0", "chiinf", "gamma", "dmin", "dmax"))
+
+
 def prescribed_chi(ppc, t: np.ndarray) -> np.ndarray:
-    """chi(t) of (29) for each axis, shape (len(t), 3)."""
-    chi0, chiinf, gamma = (np.asarray(v, float) for v in (ppc.chi0, ppc.chiinf, ppc.gamma))
-    return (chi0 - chiinf) * np.exp(-np.outer(t, gamma)) + chiinf
+    """chi(t) of (29) for each axis, shape (len(t), 3), vectorised over t
+    (tests check it against the core's ``_core.ppc_chi``). ``ppc``: the
+    scenario's PpcParams or a run's ``meta.ppc``."""
+    chi0, chiinf, gamma, _, _ = _ppc_arrays(ppc)
+    return (chi0 - chiinf) * np.exp(-np.outer(np.asarray(t, float), gamma)) + chiinf
 
 
 def bound_ok(ppc, t: np.ndarray, sigma_BD: np.ndarray) -> np.ndarray:
     """Per axis, whether -dmin chi(t) < sigma_BD < dmax chi(t) (29); (N, 3) bool.
 
-    Computed from the scenario's PPC parameters, independently of the
+    Computed from the envelope's parameters, independently of the
     controller's own flags, and for every law (the bound is the paper's
     performance claim, whatever the law).
     """
     chi = prescribed_chi(ppc, t)
-    dmin, dmax = np.asarray(ppc.dmin, float), np.asarray(ppc.dmax, float)
+    _, _, _, dmin, dmax = _ppc_arrays(ppc)
     return (sigma_BD > -dmin * chi) & (sigma_BD < dmax * chi)
 
 
@@ -85,15 +95,28 @@ def _max_after(t: np.ndarray, values: np.ndarray, after: float) -> float | None:
     return float(np.nanmax(np.abs(values[sel])))
 
 
-def compute_metrics(traj: dict[str, np.ndarray], *, scenario: str, controller: str, engine: str,
-                    control_rate_hz: float, duration_s: float, wall_s: float) -> dict[str, Any]:
+def checkpoints(duration: float) -> tuple[float, ...]:
+    """The times the error norms are reported at: the standard ones within
+    the run, and its end."""
+    ts = [float(s) for s in METRIC_TIMES if s <= duration + 1e-9]
+    if not ts or abs(ts[-1] - duration) > 1e-9:
+        ts.append(float(duration))
+    return tuple(ts)
+
+
+def _key(s: float) -> str:
+    return str(int(s)) if float(s).is_integer() else f"{s:g}"
+
+
+def compute_metrics(run: Run) -> dict[str, Any]:
     """The metrics of one run (keys as documented in README, "metrics.json")."""
-    t = traj["t"]
-    ok = traj["bound_ok"]
-    finite = all(bool(np.all(np.isfinite(traj[k]))) for k in TRAJECTORY_KEYS
+    m = run.meta
+    t = run["t"]
+    ok = run["bound_ok"]
+    finite = all(bool(np.all(np.isfinite(run[k]))) for k in CORE_FIELDS
                  if k != "bound_ok" and k not in CONTROLLER_TELEMETRY)
     for k in CONTROLLER_TELEMETRY:  # missing rows are all NaN; anything else counts
-        v = traj[k]
+        v = run[k]
         present = ~np.all(np.isnan(v), axis=1) if v.ndim == 2 else np.ones(len(v), bool)
         finite = finite and bool(np.all(np.isfinite(v[present])))
     first_s = first_axis = None
@@ -102,38 +125,52 @@ def compute_metrics(traj: dict[str, np.ndarray], *, scenario: str, controller: s
         k = int(np.argmax(np.any(bad, axis=1)))
         first_s = float(t[k])
         first_axis = int(np.argmax(bad[k])) + 1  # 1-based axis
-    sat = np.any(traj["u_cmd"] != traj["u_sat"], axis=1) if len(t) else np.zeros(0, bool)
+    sat = np.any(run["u_cmd"] != run["u_sat"], axis=1) if len(t) else np.zeros(0, bool)
     obs = None
-    if controller in LAWS_WITH_OBSERVER:
-        obs = _max_after(t, traj["z2"] - traj["delta2"], 30.0)
+    if m.law in LAWS_WITH_OBSERVER:
+        obs = _max_after(t, run["z2"] - run["delta2"], 30.0)
+    marks = checkpoints(m.duration_s)
     return {
-        "scenario": scenario,
-        "controller": controller,
-        "engine": engine,
-        "control_rate_hz": float(control_rate_hz),
-        "duration_s": float(duration_s),
+        "scenario": m.scenario,
+        "controller": m.law,
+        "engine": m.engine,
+        "control_rate_hz": float(m.control_rate_hz),
+        "duration_s": float(m.duration_s),
         "steps": int(len(t)),
-        "wall_s": float(wall_s),
+        "wall_s": float(m.wall_s),
         "finite": finite,
         "first_bound_violation_s": first_s,
         "first_bound_violation_axis": first_axis,
-        "sigma_e_norm": {str(s): _at(t, traj["sigma_BD"], s) for s in METRIC_TIMES},
-        "omega_e_norm": {str(s): _at(t, traj["omega_BD_B"], s) for s in METRIC_TIMES},
-        "max_abs_omega_e_after_70s": _max_after(t, traj["omega_BD_B"], 70.0),
+        "sigma_e_norm": {_key(s): _at(t, run["sigma_BD"], s) for s in marks},
+        "omega_e_norm": {_key(s): _at(t, run["omega_BD_B"], s) for s in marks},
+        "max_abs_omega_e_after_70s": _max_after(t, run["omega_BD_B"], 70.0),
         "max_observer_error_after_30s": obs,
-        "max_abs_u_cmd": float(np.max(np.abs(traj["u_cmd"]))) if len(t) else None,
-        "max_abs_wheel_accel": float(np.max(np.abs(traj["wheel_accel"]))) if len(t) else None,
+        "max_abs_u_cmd": float(np.max(np.abs(run["u_cmd"]))) if len(t) else None,
+        "max_abs_wheel_accel": float(np.max(np.abs(run["wheel_accel"]))) if len(t) else None,
         "saturated_fraction": float(np.mean(sat)) if len(t) else 0.0,
-        "final_wheel_speed": [float(v) for v in traj["wheel_speed"][-1]] if len(t) else None,
+        "final_wheel_speed": [float(v) for v in run["wheel_speed"][-1]] if len(t) else None,
     }
 
 
-def json_safe(obj: Any) -> Any:
-    """NaN/inf become null so that metrics.json stays valid JSON."""
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, dict):
-        return {k: json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [json_safe(v) for v in obj]
-    return obj
+def finish_run(run: Run) -> Run:
+    """The derived fields and the metrics of a run its producer has filled:
+    ``bound_ok`` from the envelope in ``run.meta``, then ``run.metrics``."""
+    run["bound_ok"][:] = bound_ok(run.meta.ppc, run["t"], run["sigma_BD"])
+    metrics = compute_metrics(run)
+    metrics.update(safe_summary(run["t"], run["ctrl_mode"], run["flags"]))
+    lam = run["lam"]
+    ok_lam = np.isfinite(lam)
+    # |lambda| = |sigma_BD| / chi of the controller; its worst value says how close the bound came
+    metrics["max_abs_lambda"] = float(np.max(np.abs(lam[ok_lam]))) if np.any(ok_lam) else None
+    metrics["max_pointing_error_arcsec_after_30s"] = (
+        float(np.max(pointing_arcsec(run["sigma_BD"][run["t"] >= 30.0 - 1e-9])))
+        if np.any(run["t"] >= 30.0 - 1e-9) else None)
+    if run.diverged:
+        metrics["diverged"] = True
+        metrics["diverged_after_s"] = float(run["t"][-1]) if len(run) else 0.0
+        metrics["finite"] = False
+    if run.partial:
+        metrics["partial"] = True
+    metrics.update({k: v for k, v in run.metrics.items() if k not in metrics})
+    run.metrics = metrics
+    return run

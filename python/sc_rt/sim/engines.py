@@ -17,83 +17,42 @@ same numbers to the last bit as ``engine="python"``.
 
 from __future__ import annotations
 
-import json
 import math
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant
-from sc_rt.results.metrics import TRAJECTORY_KEYS, bound_ok, compute_metrics, json_safe
+from sc_rt.results.metrics import finish_run
+from sc_rt.results.run import FIELD, Run, RunMeta
 from sc_rt.scenario.model import Scenario
+from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
-__all__ = ["SimResult", "simulate", "with_overrides", "write_result", "PACKED"]
+__all__ = ["simulate", "PACKED", "ENGINES"]
 
-#: Layout of _core.step_packed's output (name -> slice).
+ENGINES = ("python", "cpp", "unsampled")
+
+#: Layout of _core.step_packed's output (name -> slice), from the C++ list
+#: _core.PACKED_FIELDS ((name, width) in the order the C++ writes them).
 PACKED: dict[str, slice] = {}
 _o = 0
-for _name, _n in (("u_cmd", 4), ("u_sat", 4), ("sigma_DN", 3), ("sigma_BD", 3), ("omega_BD_B", 3),
-                  ("e1", 3), ("e2", 3), ("z1", 3), ("z2", 3), ("chi", 3), ("lam", 3), ("x2d", 3),
-                  ("vs", 4), ("rho_hat", 1), ("mode", 1), ("flags", 1)):
+for _name, _n in _core.PACKED_FIELDS:
     PACKED[_name] = slice(_o, _o + _n)
     _o += _n
 assert _o == _core.PACKED_SIZE
 
-
-@dataclass
-class SimResult:
-    """A run: the trajectory arrays, its metrics, and how it ended."""
-
-    trajectory: dict[str, np.ndarray]
-    metrics: dict[str, Any]
-    diverged: bool = False
-    message: str = ""
-    extra: dict[str, np.ndarray] = field(default_factory=dict)
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        return self.trajectory[name] if name in self.trajectory else self.extra[name]
+#: Packed telemetry recorded in the run: run field -> packed name.
+RECORDED = {"u_cmd": "u_cmd", "u_sat": "u_sat", "sigma_DN": "sigma_DN", "sigma_BD": "sigma_BD",
+            "omega_BD_B": "omega_BD_B", "z1": "z1", "z2": "z2", "chi": "chi", "lam": "lam",
+            "e1": "e1", "e2": "e2", "vs": "vs"}
+for _k, _p in RECORDED.items():  # the run declares each with the packed width
+    assert FIELD[_k].shape == (PACKED[_p].stop - PACKED[_p].start,), _k
 
 
-def with_overrides(scn: Scenario, *, law: str | None = None, control_rate_hz: float | None = None,
-                   duration: float | None = None, plant_step: float | None = None) -> Scenario:
-    """The scenario with CLI-style overrides, validated like the file.
-
-    When only the control rate changes, the plant step becomes the largest
-    step that divides the new control period and does not exceed the
-    scenario's (10 Hz -> 100 Hz with a 0.1 s plant step gives 0.01 s).
-    """
-    if control_rate_hz is not None and plant_step is None:
-        period = 1.0 / control_rate_hz
-        plant_step = period / math.ceil(period / scn.run.plant_step - 1e-9)
-    return scn.with_run(controller=law, control_rate_hz=control_rate_hz, duration=duration,
-                        plant_step=plant_step)
-
-
-def _steps(scn: Scenario) -> tuple[int, int, float, float]:
-    """(control periods, plant steps per period, plant step [s], rate [Hz])."""
-    rate = scn.run.control_rate_hz
-    n_sub = scn.run.plant_substeps
-    return int(round(scn.run.duration * rate)), n_sub, 1.0 / (rate * n_sub), rate
-
-
-def initial_state(scn: Scenario) -> np.ndarray:
-    i = scn.initial
-    return np.concatenate([i.sigma_BN, i.omega_BN_B, i.wheel_speed]).astype(float)
-
-
-def _allocate(n: int) -> dict[str, np.ndarray]:
-    shapes = {"t": (), "sigma_BN": (3,), "omega_BN_B": (3,), "sigma_DN": (3,), "sigma_BD": (3,),
-              "omega_BD_B": (3,), "wheel_speed": (4,), "u_cmd": (4,), "u_sat": (4,),
-              "wheel_accel": (4,), "z1": (3,), "z2": (3,), "delta2": (3,), "chi": (3,), "lam": (3,)}
-    return {k: np.full((n, *s), np.nan) for k, s in shapes.items()}
-
-
-def _run_python(scn: Scenario):
-    n_ctrl, n_sub, h, rate = _steps(scn)
+def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
+    n_ctrl, n_sub, h, rate = grid(scn)
     ctl = _core.Controller(scn.core_config())
     pp, act = scn.plant, scn.actuators
     x = initial_state(scn)
@@ -129,76 +88,72 @@ def _run_python(scn: Scenario):
         if not all(map(isfinite, x)):
             diverged = True
             break
-    traj = {"t": T, "sigma_BN": X[:, 0:3], "omega_BN_B": X[:, 3:6], "wheel_speed": X[:, 6:10],
+    cols = {"t": T, "sigma_BN": X[:, 0:3], "omega_BN_B": X[:, 3:6], "wheel_speed": X[:, 6:10],
             "wheel_accel": ACC, "delta2": D2}
-    for name in ("u_cmd", "u_sat", "sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam"):
-        traj[name] = OUT[:, PACKED[name]]
-    extra = {"flags": np.nan_to_num(OUT[:, PACKED["flags"]][:, 0]).astype(np.int64),
-             "vs": OUT[:, PACKED["vs"]], "e1": OUT[:, PACKED["e1"]], "e2": OUT[:, PACKED["e2"]]}
-    return traj, extra, rows, diverged
+    for name, packed in RECORDED.items():
+        cols[name] = OUT[:, PACKED[packed]]
+    cols["flags"] = np.nan_to_num(OUT[:, PACKED["flags"]][:, 0]).astype(np.int64)
+    return cols, rows, diverged
 
 
-def _run_cpp(scn: Scenario):
-    n_ctrl, n_sub, _, rate = _steps(scn)
+def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
+    n_ctrl, n_sub, _, rate = grid(scn)
     res = _core.simulate_closed_loop(
         scn.core_config(), plant.plant_params_to_cpp(scn.plant),
         actuators.actuator_params_to_cpp(scn.actuators), initial_state(scn), n_ctrl, n_sub, rate)
     rows = int(res.pop("rows"))
     diverged = bool(res.pop("diverged"))
-    extra = {k: res.pop(k) for k in ("flags", "vs", "e1", "e2")}
-    traj = {k: res[k] for k in _allocate(0)}
-    return traj, extra, rows, diverged
+    unknown = set(res) - set(FIELD)
+    if unknown:  # the C++ loop names its columns after the run's fields
+        raise RuntimeError(f"simulate_closed_loop returned columns the run does not declare: {sorted(unknown)}")
+    return dict(res), rows, diverged
 
 
 def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
              control_rate_hz: float | None = None, duration: float | None = None,
-             plant_step: float | None = None) -> SimResult:
+             plant_step: float | None = None) -> Run:
     """Run the scenario's closed loop offline.
 
     Parameters
     ----------
-    scn : the scenario (sc_rt.scenario.model.load_scenario).
-    law : "dsc-ppc", "dsc", "pd" or "rft" (default: the scenario's).
-    engine : "python" (reference plant, plant.py), "cpp" (compiled twin, whole loop in C++)
-        or "unsampled" (reference mode: the law inside every RK4 stage, no hold; unsampled.py).
-    control_rate_hz : [Hz] override of the scenario's control rate.
-    duration : [s] override of the scenario's duration.
-    plant_step : [s] override of the plant step (see with_overrides).
+    scn : Scenario
+        The scenario (``sc_rt.load_scenario``).
+    law : str, optional
+        "dsc-ppc", "dsc", "pd" or "rft" (default: the scenario's).
+    engine : {"python", "cpp", "unsampled"}
+        "python": the reference plant (sc_rt.model.plant) stepped from Python;
+        "cpp": its compiled twin, the whole loop in C++ (bitwise equal);
+        "unsampled": reference mode, the law inside every RK4 stage, no hold.
+    control_rate_hz : float, optional
+        [Hz] override of the scenario's control rate.
+    duration : float, optional
+        [s] override of the scenario's duration.
+    plant_step : float, optional
+        [s] override of the plant step (see ``sc_rt.scenario.with_overrides``).
+
+    Returns
+    -------
+    Run
+        The run record: per-row arrays (``run["sigma_BD"]``), ``run.metrics``.
     """
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration,
                          plant_step=plant_step)
-    law, rate, duration = scn.run.controller, scn.run.control_rate_hz, scn.run.duration
     t0 = time.perf_counter()
     if engine == "python":
-        traj, extra, rows, diverged = _run_python(scn)
+        cols, rows, diverged = _run_python(scn)
     elif engine == "cpp":
-        traj, extra, rows, diverged = _run_cpp(scn)
-    elif engine == "unsampled":
+        cols, rows, diverged = _run_cpp(scn)
+    else:
         from sc_rt.sim.unsampled import run_unsampled
 
-        n_ctrl, n_sub, _, _ = _steps(scn)
-        traj, extra, rows, diverged = run_unsampled(scn, n_ctrl, n_sub, rate)
-    else:
-        raise ValueError(f"engine must be 'python', 'cpp' or 'unsampled', got {engine!r}")
+        cols, rows, diverged = run_unsampled(scn)
     wall = time.perf_counter() - t0
-    traj = {k: v[:rows] for k, v in traj.items()}
-    extra = {k: v[:rows] for k, v in extra.items()}
-    traj["bound_ok"] = bound_ok(scn.controller.ppc, traj["t"], traj["sigma_BD"])
-    metrics = compute_metrics(traj, scenario=scn.name, controller=law, engine=engine,
-                              control_rate_hz=rate, duration_s=duration, wall_s=wall)
-    message = ""
+    meta = RunMeta.of_scenario(scn, engine, wall_s=wall)
+    run = Run(meta, cols, rows=rows, diverged=diverged)
     if diverged:
-        message = (f"the plant state became non-finite after t = {traj['t'][-1]:.6g} s: "
-                   f"the run stopped there ({rows} of {int(round(duration * rate)) + 1} rows)")
-        metrics["diverged"] = True
-        metrics["diverged_after_s"] = float(traj["t"][-1])
-    metrics["finite"] = metrics["finite"] and not diverged
-    return SimResult(traj, metrics, diverged, message, extra)
-
-
-def write_result(res: SimResult, out: Path) -> None:
-    """trajectory.npz and metrics.json into out/."""
-    out.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out / "trajectory.npz", **{k: res.trajectory[k] for k in TRAJECTORY_KEYS},
-                        **{f"ctrl_{k}": v for k, v in res.extra.items()})
-    (out / "metrics.json").write_text(json.dumps(json_safe(res.metrics), indent=2) + "\n")
+        n_ctrl = grid(scn).n_ctrl
+        run.message = (f"the plant state became non-finite after t = {run.t[-1]:.6g} s: "
+                       f"the run stopped there ({rows} of {n_ctrl + 1} rows)")
+    return finish_run(run)

@@ -19,6 +19,7 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.model import actuators, plant
 from sc_rt.scenario.model import Scenario
+from sc_rt.scenario.overrides import grid, initial_state
 
 __all__ = ["run_unsampled"]
 
@@ -98,10 +99,10 @@ def _init_states(law: _Law, scn: Scenario, x0: np.ndarray) -> np.ndarray:
     return X
 
 
-def run_unsampled(scn: Scenario, n_ctrl: int, n_sub: int, rate: float):
-    """Rows at t_k = k / rate; between them n_sub RK4 steps of the whole ODE."""
-    from sc_rt.sim.engines import _allocate, initial_state
-
+def run_unsampled(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
+    """Rows at t_k = k / rate; between them n_sub RK4 steps of the whole ODE.
+    Returns (run columns, rows, diverged)."""
+    n_ctrl, n_sub, _, rate = grid(scn)
     law = _Law(scn)
     pp, act = scn.plant, scn.actuators
     X = _init_states(law, scn, initial_state(scn))
@@ -115,7 +116,11 @@ def run_unsampled(scn: Scenario, n_ctrl: int, n_sub: int, rate: float):
         dX[10:27] = dXc
         return dX
 
-    traj = _allocate(n_ctrl + 1)
+    traj = {k: np.full((n_ctrl + 1, w), np.nan) for k, w in (
+        ("sigma_BN", 3), ("omega_BN_B", 3), ("wheel_speed", 4), ("u_cmd", 4), ("u_sat", 4),
+        ("wheel_accel", 4), ("delta2", 3), ("sigma_DN", 3), ("sigma_BD", 3), ("omega_BD_B", 3),
+        ("chi", 3), ("lam", 3), ("z1", 3), ("z2", 3))}
+    traj["t"] = np.full(n_ctrl + 1, np.nan)
     rows, diverged = 0, False
     for k in range(n_ctrl + 1):
         t = k / rate
@@ -143,6 +148,4 @@ def run_unsampled(scn: Scenario, n_ctrl: int, n_sub: int, rate: float):
         if not np.all(np.isfinite(X)):
             diverged = True
             break
-    extra = {"flags": np.zeros(n_ctrl + 1, np.int64), "vs": np.full((n_ctrl + 1, 4), np.nan),
-             "e1": np.full((n_ctrl + 1, 3), np.nan), "e2": np.full((n_ctrl + 1, 3), np.nan)}
-    return traj, extra, rows, diverged
+    return traj, rows, diverged

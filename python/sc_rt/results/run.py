@@ -1,0 +1,273 @@
+"""One run of the bench as a declared record: ``Run``.
+
+Every producer (the python, cpp and unsampled engines, the LCM emulator, the
+rebuild of an ``lcm-logger`` log) returns a ``Run``, and every consumer
+(metrics, the bound check, figures, timing reports, studies) takes one. The
+per-row arrays are declared once, in ``FIELDS``: name, shape of one row,
+unit, where the value comes from, and what it means. A producer fills the
+fields it has; the others keep their fill value (NaN, or the integer fill
+of the field), so every run has every field and readers never guess.
+
+A row is one control instant t_k = k / rate.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+
+__all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "RunMeta", "Run", "empty_arrays", "json_safe", "write_json"]
+
+SOURCES = ("plant", "controller", "truth", "timing", "derived")
+
+
+@dataclass(frozen=True)
+class Field:
+    """One per-row array of a run."""
+
+    name: str
+    shape: tuple[int, ...]  # of one row
+    unit: str
+    source: str  # one of SOURCES
+    doc: str
+    dtype: str = "f8"
+    fill: Any = math.nan
+    #: part of the trajectory every producer fills (checked for finiteness by the metrics)
+    core: bool = False
+
+
+def _f(name, shape, unit, source, doc, core=False, dtype="f8", fill=math.nan) -> Field:
+    return Field(name, shape, unit, source, doc, dtype, fill, core)
+
+
+#: Every per-row array of a run, in the order trajectory.npz lists them.
+FIELDS: tuple[Field, ...] = (
+    _f("t", (), "s", "plant", "control instant t_k = k / rate", True),
+    _f("sigma_BN", (3,), "-", "plant", "MRP attitude of the body B relative to N at t_k", True),
+    _f("omega_BN_B", (3,), "rad/s", "plant", "body rate relative to N, body frame", True),
+    _f("wheel_speed", (4,), "rad/s", "plant", "wheel speeds relative to the body", True),
+    _f("sigma_DN", (3,), "-", "controller", "desired attitude (guidance) at t_k", True),
+    _f("sigma_BD", (3,), "-", "controller", "attitude tracking error, MRP of B relative to D (8)", True),
+    _f("omega_BD_B", (3,), "rad/s", "controller", "rate tracking error, body frame (11)", True),
+    _f("u_cmd", (4,), "rad/s^2", "controller",
+       "wheel acceleration command before saturation (what the law asked for)", True),
+    _f("u_sat", (4,), "rad/s^2", "controller", "the command after the controller's saturation (15)", True),
+    _f("wheel_accel", (4,), "rad/s^2", "truth", "actual wheel acceleration, faults applied (16)", True),
+    _f("z1", (3,), "rad/s", "controller", "NESO estimate of the rate error state", True),
+    _f("z2", (3,), "rad/s^2", "controller", "NESO estimate of the lumped disturbance", True),
+    _f("delta2", (3,), "rad/s^2", "truth", "true lumped disturbance (20),(21)", True),
+    _f("chi", (3,), "-", "controller", "prescribed envelope chi(t) the controller used (29)", True),
+    _f("lam", (3,), "-", "controller", "normalised error lambda = sigma_BD / chi (30)", True),
+    _f("bound_ok", (3,), "-", "derived",
+       "-dmin chi(t) < sigma_BD < dmax chi(t) per axis, from the scenario's envelope", True, "?", False),
+    _f("e1", (3,), "-", "controller", "transformed error of the PPC (31)"),
+    _f("e2", (3,), "rad/s", "controller", "second DSC surface error (37)"),
+    _f("vs", (4,), "rad/s^2", "controller", "anti-windup auxiliary state (40)"),
+    _f("flags", (), "-", "controller", "controller flags bit set (safety, bound, invalid input)",
+       dtype="i8", fill=0),
+    _f("ctrl_mode", (), "-", "controller", "controller mode: 0 INIT, 1 NORMAL, 2 SAFE; -1 unknown",
+       dtype="i8", fill=-1),
+    _f("cmd_seq_applied", (), "-", "truth", "seq of the wheel_cmd_t the plant applied (-1: none)",
+       dtype="i8", fill=-1),
+    _f("cmd_stale", (), "-", "truth", "1 when the watchdog applied zero (no valid command)",
+       dtype="i8", fill=0),
+    _f("fault_Y", (4,), "-", "truth", "fault evolution Y_i(t) (19)"),
+    _f("fault_effectiveness", (4,), "-", "truth", "wheel effectiveness L_i of the active fault"),
+    _f("fault_bias", (4,), "rad/s^2", "truth", "wheel bias of the active fault"),
+    _f("fault_stuck", (4,), "-", "truth", "1 when the wheel is stuck", dtype="i8", fill=0),
+    _f("latency_us", (), "us", "timing", "state publish to receipt of the command answering it"),
+    _f("tick_lateness_us", (), "us", "timing", "real time: the emulator's tick behind its deadline"),
+    _f("wake_lateness_us", (), "us", "timing", "the controller's wake behind its schedule"),
+    _f("compute_us", (), "us", "timing", "the controller's compute time for this state"),
+    _f("state_age_us", (), "us", "timing", "age of the state when the controller used it"),
+    _f("state_log_us", (), "us", "timing", "logger receive time of the state (log rebuilds)"),
+)
+FIELD: dict[str, Field] = {f.name: f for f in FIELDS}
+#: The trajectory every producer fills (checked for finiteness by the metrics).
+CORE_FIELDS: tuple[str, ...] = tuple(f.name for f in FIELDS if f.core)
+assert all(f.source in SOURCES for f in FIELDS)
+
+
+@dataclass(frozen=True)
+class RunMeta:
+    """What a run is: its scenario, law, engine and the parameters its
+    figures and checks need (so no consumer needs the scenario file)."""
+
+    scenario: str
+    law: str
+    engine: str  # python | cpp | unsampled | hil-lockstep | hil-realtime | report
+    control_rate_hz: float
+    duration_s: float
+    #: the prescribed envelope (29): chi0, chiinf, gamma, dmin, dmax (3 each)
+    ppc: dict[str, tuple[float, ...]]
+    umin: tuple[float, ...]
+    umax: tuple[float, ...]
+    #: the scenario's scheduled faults: dicts wheel (1-based), onset, end, effectiveness, bias, rate, stuck
+    faults: tuple[dict[str, Any], ...] = ()
+    wall_s: float = math.nan
+    #: how the loop was clocked: offline, lockstep or realtime
+    mode: str = "offline"
+
+    def to_json(self) -> dict[str, Any]:
+        return json_safe(dataclasses.asdict(self))
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> RunMeta:
+        d = dict(d)
+        d["ppc"] = {k: tuple(float(x) for x in v) for k, v in d["ppc"].items()}
+        d["umin"], d["umax"] = tuple(d["umin"]), tuple(d["umax"])
+        d["faults"] = tuple(d.get("faults", ()))
+        d["wall_s"] = math.nan if d.get("wall_s") is None else float(d["wall_s"])
+        return cls(**d)
+
+    @classmethod
+    def of_scenario(cls, scn, engine: str, **over: Any) -> RunMeta:
+        """The meta of a run of ``scn`` (a sc_rt.scenario Scenario)."""
+        p, a = scn.controller.ppc, scn.actuators
+        faults = tuple({"wheel": f.wheel + 1, "onset": f.onset, "end": f.end,
+                        "effectiveness": f.effectiveness, "bias": f.bias, "rate": f.rate,
+                        "stuck": bool(f.stuck)} for f in a.faults)
+        kw = dict(scenario=scn.name, law=scn.run.controller, engine=engine,
+                  control_rate_hz=float(scn.run.control_rate_hz), duration_s=float(scn.run.duration),
+                  ppc={k: tuple(float(x) for x in np.asarray(getattr(p, k), float))
+                       for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")},
+                  umin=tuple(float(x) for x in np.asarray(a.umin, float)),
+                  umax=tuple(float(x) for x in np.asarray(a.umax, float)), faults=faults)
+        kw.update(over)
+        return cls(**kw)
+
+
+def empty_arrays(n: int) -> dict[str, np.ndarray]:
+    """Every field of ``n`` rows at its fill value."""
+    return {f.name: np.full((n, *f.shape), f.fill, dtype=f.dtype) for f in FIELDS}
+
+
+class Run:
+    """A run: per-row arrays (``FIELDS``), what it is (``meta``), its
+    metrics, and what the bench counted while it ran.
+
+    ``run["sigma_BD"]`` is the (rows, 3) array; ``run.t`` the times.
+    """
+
+    def __init__(self, meta: RunMeta, arrays: dict[str, np.ndarray], *, rows: int | None = None,
+                 metrics: dict[str, Any] | None = None, timing: dict[str, Any] | None = None,
+                 counters: dict[str, int] | None = None, gaps: list[tuple[float, float]] | None = None,
+                 faults_applied: list[dict[str, Any]] | None = None, diverged: bool = False,
+                 message: str = "", partial: bool = False):
+        unknown = set(arrays) - set(FIELD)
+        if unknown:
+            raise KeyError(f"not fields of a run: {sorted(unknown)} (declared in sc_rt.results.run.FIELDS)")
+        n = len(arrays["t"]) if rows is None else rows
+        self._a: dict[str, np.ndarray] = {}
+        for f in FIELDS:
+            v = arrays.get(f.name)
+            if v is None:
+                v = np.full((n, *f.shape), f.fill, dtype=f.dtype)
+            else:
+                v = np.asarray(v)[:n]
+                if v.shape != (n, *f.shape):
+                    raise ValueError(f"run field {f.name}: shape {v.shape}, declared {(n, *f.shape)}")
+                if v.dtype != np.dtype(f.dtype):
+                    v = v.astype(f.dtype)
+            self._a[f.name] = v
+        self.meta = meta
+        self.metrics: dict[str, Any] = metrics if metrics is not None else {}
+        self.timing = timing
+        self.counters: dict[str, int] = dict(counters or {})
+        self.gaps: list[tuple[float, float]] = list(gaps or [])
+        self.faults_applied: list[dict[str, Any]] = list(faults_applied or [])
+        self.diverged = diverged
+        self.message = message
+        self.partial = partial
+
+    # --- construction ---------------------------------------------------
+    @classmethod
+    def allocate(cls, n: int, meta: RunMeta) -> Run:
+        """n rows at their fill values, to be filled row by row."""
+        return cls(meta, {}, rows=n)
+
+    def head(self, rows: int) -> Run:
+        """The first ``rows`` rows (views), everything else shared."""
+        r = Run.__new__(Run)
+        r.__dict__.update(self.__dict__)
+        r._a = {k: v[:rows] for k, v in self._a.items()}
+        return r
+
+    # --- access -----------------------------------------------------------
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self._a[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._a
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._a)
+
+    def __len__(self) -> int:
+        return len(self._a["t"])
+
+    @property
+    def t(self) -> np.ndarray:
+        return self._a["t"]
+
+    @property
+    def trajectory(self) -> dict[str, np.ndarray]:
+        """The per-row arrays by name (every field of ``FIELDS``)."""
+        return self._a
+
+    def present(self, name: str) -> np.ndarray:
+        """Rows where the producer filled ``name`` (not its fill value)."""
+        f, v = FIELD[name], self._a[name]
+        flat = v.reshape(len(v), -1)
+        if isinstance(f.fill, float) and math.isnan(f.fill):
+            return ~np.all(np.isnan(flat), axis=1)
+        return ~np.all(flat == f.fill, axis=1)
+
+    # --- files ------------------------------------------------------------
+    def save_npz(self, path: Path, *, compress: bool = True) -> Path:
+        """trajectory.npz: every field by name, and the meta as JSON."""
+        save = np.savez_compressed if compress else np.savez
+        save(path, **self._a, meta_json=np.array(json.dumps(self.meta.to_json())))
+        return path
+
+    @classmethod
+    def load_npz(cls, path: Path) -> Run:
+        """A run written by ``save_npz`` (metrics.json / timing.json next to
+        it are read when present)."""
+        path = Path(path)
+        with np.load(path, allow_pickle=False) as z:
+            meta = RunMeta.from_json(json.loads(str(z["meta_json"])))
+            arrays = {k: z[k] for k in z.files if k in FIELD}
+        run = cls(meta, arrays)
+        for name, attr in (("metrics.json", "metrics"), ("timing.json", "timing")):
+            p = path.parent / name
+            if p.exists():
+                setattr(run, attr, json.loads(p.read_text()))
+        return run
+
+
+def json_safe(obj: Any) -> Any:
+    """NaN/inf become null and numpy scalars plain numbers, so that the
+    JSON files stay valid JSON."""
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_safe(obj.tolist())
+    return obj
+
+
+def write_json(path: Path, obj: Any) -> Path:
+    path.write_text(json.dumps(json_safe(obj), indent=2) + "\n")
+    return path
