@@ -3,7 +3,18 @@ four reaction wheels, some of them faulty.
 
 The control laws live in the C++ core (``sc_rt._core``); this package holds
 the plant, the scenario files, the offline simulator, the LCM emulator and
-the command line (``sc-rt``).
+the command line (``sc-rt``). The Python API (docs/API.md)::
+
+    import sc_rt
+    scn = sc_rt.load_scenario("paper_faults")       # a shipped name or a path
+    run = sc_rt.simulate(scn, law="pd", engine="cpp")
+    print(sc_rt.verdict_line(run.metrics))
+    run["sigma_BD"]                                 # (rows, 3) array, see sc_rt.FIELDS
+
+Layers (imports run one way, checked by tests/test_layers.py): ``model``
+(plant, wheels) -> ``scenario`` -> ``results`` (the Run record, metrics,
+figures) -> ``sim`` (offline engines) | ``bus`` (LCM: emulator, HIL, logs)
+-> ``studies`` (design, reproduce, Monte Carlo) -> ``cli``.
 """
 
 import os
@@ -20,4 +31,39 @@ try:
 except PackageNotFoundError:  # running from a source tree without install
     __version__ = "0+unknown"
 
-__all__ = ["__version__"]
+#: The public Python API: name -> (module, attribute). Imported on first use,
+#: so that ``import sc_rt`` stays cheap (the CLI imports only what it runs).
+_API = {
+    "load_scenario": ("sc_rt.scenario.model", "load_scenario"),
+    "Scenario": ("sc_rt.scenario.model", "Scenario"),
+    "ScenarioError": ("sc_rt.scenario.schema", "ScenarioError"),
+    "with_overrides": ("sc_rt.scenario.overrides", "with_overrides"),
+    "shipped_scenarios": ("sc_rt.scenario.shipped", "shipped"),
+    "simulate": ("sc_rt.sim.engines", "simulate"),
+    "Run": ("sc_rt.results.run", "Run"),
+    "RunMeta": ("sc_rt.results.run", "RunMeta"),
+    "FIELDS": ("sc_rt.results.run", "FIELDS"),
+    "write_run": ("sc_rt.results.output", "write_run"),
+    "verdict_line": ("sc_rt.results.verdict", "verdict_line"),
+    "run_hil": ("sc_rt.bus.hil", "run_hil"),
+    "design": ("sc_rt.studies.design", "design_report"),
+    "montecarlo": ("sc_rt.studies.montecarlo", "run_montecarlo"),
+}
+
+__all__ = ["__version__", *_API]
+
+
+def __getattr__(name: str):
+    try:
+        module, attr = _API[name]
+    except KeyError:
+        raise AttributeError(f"module 'sc_rt' has no attribute {name!r}") from None
+    import importlib
+
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_API))

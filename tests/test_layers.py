@@ -1,0 +1,58 @@
+"""The package's imports run one way (pyproject.toml, [tool.importlinter]):
+model -> scenario -> results -> sim | bus -> studies -> cli. Checked with
+import-linter on the real tree, and shown to catch a violation: a copy of
+the package in which the plant model imports the CLI must break it."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PKG = ROOT / "python" / "sc_rt"
+LINT = str(Path(sys.executable).with_name("lint-imports"))
+
+
+def _lint(config: Path, cwd: Path, pythonpath: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([LINT, "--config", str(config), "--no-cache"], cwd=cwd, capture_output=True,
+                          text=True, timeout=120, env={"PYTHONPATH": str(pythonpath), "PATH": "/usr/bin:/bin"})
+
+
+def _contract_config(tmp: Path, root: str) -> Path:
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+    layers = [layer.replace("sc_rt", root) for layer in cfg["contracts"][0]["layers"]]
+    text = (f'[importlinter]\nroot_package = {root}\n\n[importlinter:contract:layers]\n'
+            f'name = layers\ntype = layers\nlayers =\n' + "".join(f"    {x}\n" for x in layers))
+    p = tmp / "importlinter.ini"
+    p.write_text(text)
+    return p
+
+
+def _copy(tmp: Path, name: str) -> Path:
+    """The package's sources under another top-level name (so that the
+    installed sc_rt cannot be picked up instead)."""
+    dst = tmp / name
+    shutil.copytree(PKG, dst, ignore=shutil.ignore_patterns("*.so", "__pycache__", "library"))
+    for f in dst.rglob("*.py"):
+        f.write_text(re.sub(r"\bsc_rt\b(?!_lcm)", name, f.read_text()))
+    return dst
+
+
+def test_layers_contract_holds_on_the_tree(tmp_path):
+    dst = _copy(tmp_path, "scrt_layers_ok")
+    r = _lint(_contract_config(tmp_path, dst.name), tmp_path, tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "1 kept, 0 broken" in r.stdout
+
+
+def test_layers_contract_catches_a_lower_layer_importing_a_higher_one(tmp_path):
+    dst = _copy(tmp_path, "scrt_layers_bad")
+    plant = dst / "model" / "plant.py"
+    plant.write_text(plant.read_text() + f"\n\ndef _oops():\n    from {dst.name}.cli import main  # noqa\n")
+    r = _lint(_contract_config(tmp_path, dst.name), tmp_path, tmp_path)
+    assert r.returncode != 0
+    assert "BROKEN" in r.stdout and f"{dst.name}.model.plant -> {dst.name}.cli" in r.stdout, r.stdout
