@@ -1,0 +1,150 @@
+"""Derived channels of ``sc-rt export`` (JSON rows, vectorised over a batch):
+the frames B and D relative to N as ``foxglove.FrameTransform``, the
+pointing error against the prescribed bound, the wheel speeds; and their
+JSON schemas (Foxglove's well-known one for the frames)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+__all__ = ["ARCSEC", "FOXGLOVE_SCHEMAS", "POINTING_SCHEMA", "WHEELS_SCHEMA", "mrp_to_quaternion",
+           "frame_messages", "pointing_messages", "wheel_messages"]
+
+#: [arcsec / rad]
+ARCSEC = 180.0 / math.pi * 3600.0
+RPM = 60.0 / (2.0 * math.pi)
+
+_XYZ = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"},
+        "required": list("xyz")}
+_TIME = {"type": "object", "title": "time",
+         "properties": {"sec": {"type": "integer", "minimum": 0},
+                        "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}},
+         "required": ["sec", "nsec"]}
+#: Foxglove's well-known schemas used here (JSON encoding), as Foxglove defines them
+FOXGLOVE_SCHEMAS = {
+    "foxglove.FrameTransform": {
+        "title": "foxglove.FrameTransform", "description": "A transform between two reference frames in 3D space",
+        "type": "object",
+        "properties": {
+            "timestamp": {**_TIME, "description": "Timestamp of transform"},
+            "parent_frame_id": {"type": "string", "description": "Name of the parent frame"},
+            "child_frame_id": {"type": "string", "description": "Name of the child frame"},
+            "translation": {**_XYZ, "title": "foxglove.Vector3", "description": "Translation component of the transform"},
+            "rotation": {"title": "foxglove.Quaternion", "type": "object",
+                         "properties": {k: {"type": "number"} for k in "xyzw"}, "required": list("xyzw"),
+                         "description": "Rotation component of the transform"},
+        },
+        "required": ["timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"],
+    },
+}
+_AX = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}, "required": list("xyz")}
+POINTING_SCHEMA = {
+    "title": "sc_rt.pointing",
+    "description": "Pointing error of B relative to D and the prescribed bound, from controller_status_t "
+                   "and the logged controller_config_t (bound fields absent before a config is in the log)",
+    "type": "object",
+    "properties": {
+        "t": {"type": "number", "description": "[s] simulation time"},
+        "mode": {"type": "integer", "description": "wheel_cmd_t.MODE_*: 0 INIT, 1 NORMAL, 2 SAFE"},
+        "pointing_error_arcsec": {"type": "number", "description": "[arcsec] 4 atan |sigma_BD|"},
+        "sigma_BD_arcsec": {**_AX, "description": "[arcsec] 4 atan sigma_BD,i per axis"},
+        "bound_upper_arcsec": {**_AX, "description": "[arcsec] 4 atan(dmax chi(t)) per axis"},
+        "bound_lower_arcsec": {**_AX, "description": "[arcsec] -4 atan(dmin chi(t)) per axis"},
+        "chi": {**_AX, "description": "[-] prescribed envelope chi(t) of (29), _core.ppc_chi"},
+        "bound_ok": {"type": "boolean", "description": "-dmin chi < sigma_BD < dmax chi on every axis"},
+    },
+    "required": ["t", "mode", "pointing_error_arcsec", "sigma_BD_arcsec"],
+}
+WHEELS_SCHEMA = {
+    "title": "sc_rt.wheels", "description": "Reaction wheel speeds from plant_state_t", "type": "object",
+    "properties": {
+        "t": {"type": "number", "description": "[s] simulation time"},
+        "speed_rad_s": {"type": "object", "properties": {f"w{i}": {"type": "number"} for i in range(1, 5)},
+                        "required": [f"w{i}" for i in range(1, 5)], "description": "[rad/s]"},
+        "speed_rpm": {"type": "object", "properties": {f"w{i}": {"type": "number"} for i in range(1, 5)},
+                      "required": [f"w{i}" for i in range(1, 5)], "description": "[rpm]"},
+    },
+    "required": ["t", "speed_rad_s", "speed_rpm"],
+}
+
+
+def mrp_to_quaternion(sigma: np.ndarray) -> np.ndarray:
+    """(x, y, z, w) Hamilton quaternions of the rotation from parent N to
+    child B for MRPs sigma_BN, shape (n, 3) -> (n, 4): the Euler parameters
+    of sigma (w = (1 - |s|^2) / (1 + |s|^2), v = 2 s / (1 + |s|^2)); their
+    rotation matrix is [NB] = R(sigma)^T (B components to N)."""
+    s = np.asarray(sigma, float).reshape(-1, 3)
+    s2 = np.sum(s * s, axis=1, keepdims=True)
+    return np.hstack([2.0 * s / (1.0 + s2), (1.0 - s2) / (1.0 + s2)])
+
+
+
+def frame_messages(sigma, stamps_us: list[int], parent: str, child: str) -> list[bytes | None]:
+    """One foxglove.FrameTransform per MRP row (None where not finite)."""
+    sigma = np.asarray(sigma, float).reshape(-1, 3)
+    q = mrp_to_quaternion(sigma)
+    ok = np.isfinite(q).all(axis=1).tolist()
+    pre = ('{"timestamp":{"sec":%d,"nsec":%d},"parent_frame_id":' + json.dumps(parent).replace("%", "%%")
+           + ',"child_frame_id":' + json.dumps(child).replace("%", "%%") + ',"translation":{"x":0.0,"y":0.0,"z":0.0},"rotation":{"x":%r,"y":%r,"z":%r,"w":%r}}')
+    out: list[bytes | None] = []
+    for good, ts, (x, y, z, w) in zip(ok, stamps_us, q.tolist()):
+        if not good:
+            out.append(None)
+            continue
+        ts = max(int(ts), 0)
+        out.append((pre % (ts // 1_000_000, ts % 1_000_000 * 1000, x, y, z, w)).encode())
+    return out
+
+
+def _xyz(v) -> str:
+    return '{"x":%r,"y":%r,"z":%r}' % (v[0], v[1], v[2])
+
+
+def pointing_messages(t, mode, sigma_BD, ppc) -> list[bytes | None]:
+    """sc_rt.pointing rows; the bound fields need ``ppc`` (_core.PpcParams
+    of the logged controller_config_t), else they are left out."""
+    from sc_rt import _core
+
+    t = np.asarray(t, float)
+    s = np.asarray(sigma_BD, float).reshape(-1, 3)
+    err = 4.0 * np.arctan(np.linalg.norm(s, axis=1)) * ARCSEC
+    ax = 4.0 * np.arctan(s) * ARCSEC
+    ok = (np.isfinite(t) & np.isfinite(s).all(axis=1)).tolist()
+    chi = up = lo = inside = None
+    if ppc is not None:
+        chi = np.array([_core.ppc_chi(ppc, float(tk)) if math.isfinite(tk) else [np.nan] * 3
+                        for tk in t.tolist()]).reshape(-1, 3)
+        dmin, dmax = np.asarray(ppc.dmin, float), np.asarray(ppc.dmax, float)
+        up = 4.0 * np.arctan(dmax * chi) * ARCSEC
+        lo = -4.0 * np.arctan(dmin * chi) * ARCSEC
+        inside = np.all((s > -dmin * chi) & (s < dmax * chi), axis=1).tolist()
+        ok = (np.asarray(ok) & np.isfinite(chi).all(axis=1)).tolist()
+    out: list[bytes | None] = []
+    modes = np.asarray(mode).astype(int).tolist()
+    for k, good in enumerate(ok):
+        if not good:
+            out.append(None)
+            continue
+        body = '{"t":%r,"mode":%d,"pointing_error_arcsec":%r,"sigma_BD_arcsec":%s' % (
+            float(t[k]), modes[k], float(err[k]), _xyz(ax[k].tolist()))
+        if chi is not None:
+            body += ',"bound_upper_arcsec":%s,"bound_lower_arcsec":%s,"chi":%s,"bound_ok":%s' % (
+                _xyz(up[k].tolist()), _xyz(lo[k].tolist()), _xyz(chi[k].tolist()),
+                "true" if inside[k] else "false")
+        out.append((body + "}").encode())
+    return out
+
+
+def wheel_messages(t, speed) -> list[bytes | None]:
+    """sc_rt.wheels rows (None where not finite)."""
+    t = np.asarray(t, float)
+    w = np.asarray(speed, float).reshape(-1, 4)
+    ok = (np.isfinite(t) & np.isfinite(w).all(axis=1)).tolist()
+    fmt = ('{"t":%r,"speed_rad_s":{"w1":%r,"w2":%r,"w3":%r,"w4":%r},'
+           '"speed_rpm":{"w1":%r,"w2":%r,"w3":%r,"w4":%r}}')
+    rpm = (w * RPM).tolist()
+    return [(fmt % (tk, *wk, *rk)).encode() if good else None
+            for good, tk, wk, rk in zip(ok, t.tolist(), w.tolist(), rpm)]

@@ -1,0 +1,390 @@
+"""``sc-rt export LOG --mcap OUT``: every event of an ``lcm-logger`` log into
+an MCAP file for Foxglove and PlotJuggler.
+
+- One MCAP channel per LCM channel (topic = the LCM channel name), message
+  encoding ``json``, schema encoding ``jsonschema`` with the schema
+  generated from the ``.lcm`` definitions (``lcmdefs``). log_time is the
+  logger's receive time of the event, publish_time the message's ``utime``
+  (the publisher's clock) where it has a plausible one, else log_time;
+  sequence is the log's event number (mod 2^32).
+- The type of a channel: by its name (``[prefix]SCRT_STATE`` ... as in
+  ``lcmio.CHANNELS``), else by the fingerprint of its first message of one
+  of our types.
+- Events that are not one well-formed message of their channel's type are
+  counted by kind and carried as raw bytes (base64, schema
+  ``sc_rt.lcm_raw_event``) on ``<channel>/undecodable``; channels of no
+  type of ours are carried raw under their own name. Nothing is dropped.
+- Derived channels: ``/tf`` (``foxglove.FrameTransform``: frames B and D
+  relative to N, from ``plant_state_t.sigma_BN`` and
+  ``controller_status_t.sigma_DN``), ``/derived/pointing`` (pointing error
+  4 atan|sigma_BD| and the PPC bound chi(t) of the logged
+  ``controller_config_t``, in arcsec) and ``/derived/wheels`` (wheel speeds).
+
+The file is written under a temporary name next to OUT and renamed at the
+end: OUT is either complete or untouched.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import time
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sc_rt.bus.lcmdefs import json_schema, load_definitions
+from sc_rt.bus.lcmio import CHANNELS
+from sc_rt.bus.lcmjson import RowEncoder, count_none, dumps, json_value
+from sc_rt.bus.mcap_derived import (FOXGLOVE_SCHEMAS, POINTING_SCHEMA, WHEELS_SCHEMA, frame_messages,
+                                    pointing_messages, wheel_messages)
+from sc_rt.bus.lcmlog import LogDamaged, LogScan, read_events
+from sc_rt.bus.wire import TYPES, decode_any, decode_array, identify, numpy_dtype
+
+__all__ = ["ExportError", "ExportSummary", "export_mcap", "RAW_SCHEMA"]
+
+BATCH = 1 << 15
+#: MCAP channel ids are 16 bit: further raw channels share one overflow channel
+MAX_CHANNELS = 60000
+_MAX_UTIME = (1 << 63) // 1000
+
+RAW_SCHEMA = {
+    "title": "sc_rt.lcm_raw_event",
+    "description": "An LCM log event carried as its raw bytes (not one well-formed message of its channel's type)",
+    "type": "object",
+    "properties": {
+        "lcm_channel": {"type": "string", "description": "LCM channel (bytes that are not UTF-8 as \\x escapes)"},
+        "reason": {"type": "string", "description": "foreign_channel, unknown_type, malformed, trailing_bytes, channel_not_utf8"},
+        "size": {"type": "integer", "minimum": 0, "description": "[bytes]"},
+        "data": {"type": "string", "contentEncoding": "base64", "description": "the event's bytes"},
+    },
+    "required": ["lcm_channel", "reason", "size", "data"], "additionalProperties": False,
+}
+class ExportError(ValueError):
+    """Bad input or output of an export (one line, names the option)."""
+
+
+@dataclass
+class ExportSummary:
+    log: str
+    out: str
+    events: int = 0
+    messages: int = 0
+    seconds: float = 0.0
+    channels: dict[str, dict[str, Any]] = field(default_factory=dict)
+    undecodable: int = 0
+    undecodable_kinds: dict[str, int] = field(default_factory=dict)
+    foreign_events: int = 0
+    derived: dict[str, int] = field(default_factory=dict)
+    non_finite_as_null: int = 0
+    skipped_bytes: int = 0
+    torn_tail_bytes: int = 0
+    damaged_at: list[int] = field(default_factory=list)
+
+    @property
+    def events_per_s(self) -> float | None:
+        return self.events / self.seconds if self.seconds > 0 else None
+
+    def as_dict(self) -> dict[str, Any]:
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        d["events_per_s"] = self.events_per_s
+        return d
+
+
+class _Chan:
+    __slots__ = ("name", "utf8", "cls", "json_id", "raw_id", "prefix", "count", "json", "raw", "kinds")
+
+    def __init__(self, name: str, utf8: bool, cls):
+        self.name, self.utf8, self.cls = name, utf8, cls
+        self.json_id = self.raw_id = 0
+        self.prefix = None
+        self.count = self.json = self.raw = 0
+        self.kinds: Counter = Counter()
+
+
+_BY_BASE = {base: TYPES[tn] for base, (tn, _w, _r) in CHANNELS.items()}
+
+
+def _named_type(name: str):
+    for base, cls in _BY_BASE.items():
+        if name.endswith(base):
+            return cls, name[: -len(base)]
+    return None, None
+
+
+def _kind(cls, d: bytes, dt) -> str:
+    """Why ``d`` is not one message of fixed-size ``cls`` (as decode_array counts)."""
+    if d[:8] != cls._get_packed_fingerprint():
+        return "unknown_type"
+    return "malformed" if dt is None or len(d) < dt.itemsize else "trailing_bytes"
+
+
+class _Exporter:
+    def __init__(self, writer, log_name: str):
+        self.w = writer
+        self.defs = load_definitions()
+        self.schemas: dict[str, int] = {}
+        self.chans: dict[bytes, _Chan] = {}
+        self.derived_ids: dict[str, int] = {}
+        self.configs: dict[str, Any] = {}  # prefix -> _core.PpcParams (first config)
+        self.derived: Counter = Counter()
+        self.non_finite = [0]
+        self.n_channels = 0
+        self.encoders: dict[type, RowEncoder] = {}
+        self.log_name = log_name
+
+    # --- registration ------------------------------------------------------
+    def _schema(self, name: str, schema: dict) -> int:
+        if name not in self.schemas:
+            self.schemas[name] = self.w.register_schema(name, "jsonschema", dumps(schema))
+        return self.schemas[name]
+
+    def _channel(self, topic: str, schema_name: str, schema: dict, meta: dict[str, str]) -> int:
+        if self.n_channels >= MAX_CHANNELS:
+            topic, meta = "lcm_raw_overflow", {"content": "raw events of channels beyond the MCAP channel limit"}
+            if "overflow" in self.derived_ids:
+                return self.derived_ids["overflow"]
+        self.n_channels += 1
+        cid = self.w.register_channel(topic, "json", self._schema(schema_name, schema), meta)
+        if topic == "lcm_raw_overflow":
+            self.derived_ids["overflow"] = cid
+        return cid
+
+    def _derived(self, topic: str, schema_name: str, schema: dict) -> int:
+        if topic not in self.derived_ids:
+            self.derived_ids[topic] = self._channel(topic, schema_name, schema, {"derived": "sc-rt export"})
+        return self.derived_ids[topic]
+
+    def _chan(self, ch: bytes, data: bytes) -> _Chan:
+        c = self.chans.get(ch)
+        if c is None:
+            try:
+                name, utf8 = ch.decode("utf-8"), True
+                cls, prefix = _named_type(name)
+            except UnicodeDecodeError:
+                name, utf8, cls, prefix = ch.decode("utf-8", "backslashreplace"), False, None, None
+            c = self.chans[ch] = _Chan(name, utf8, cls)
+            c.prefix = prefix
+        if c.cls is None and c.utf8 and not c.raw_id:
+            cls = identify(data)  # an unnamed channel: typed by its first message of ours
+            if cls is not None and decode_any(data)[0] is cls:
+                c.cls = cls
+        if c.cls is not None and not c.json_id:
+            s = self.defs[c.cls.__name__]
+            c.json_id = self._channel(c.name, s.full_name, json_schema(s, self.defs),
+                                      {"lcm_channel": c.name, "lcm_type": s.full_name})
+        return c
+
+    def _raw(self, c: _Chan, data: bytes, reason: str) -> bytes:
+        if not c.raw_id:
+            topic = c.name if c.cls is None else c.name + "/undecodable"
+            c.raw_id = self._channel(topic, RAW_SCHEMA["title"], RAW_SCHEMA,
+                                     {"lcm_channel": c.name, "content": "raw LCM events"})
+        c.raw += 1
+        return dumps({"lcm_channel": c.name, "reason": reason, "size": len(data),
+                       "data": base64.b64encode(data).decode()})
+
+    # --- one batch of events, written in log order --------------------------
+    def batch(self, events: list) -> int:
+        n = len(events)
+        out: list = [None] * n  # (channel id, bytes, publish_ns or None)
+        extra: dict[int, list] = defaultdict(list)  # event index -> derived (channel id, bytes)
+        groups: dict[bytes, list[int]] = defaultdict(list)
+        for i, e in enumerate(events):
+            groups[e[2]].append(i)
+        # configs first: the bound of the statuses of this batch needs it
+        order = sorted(groups, key=lambda ch: not ch.endswith(b"SCRT_CONFIG"))
+        for ch in order:
+            idx = groups[ch]
+            c = self._chan(ch, events[idx[0]][3])
+            c.count += len(idx)
+            if c.cls is None:
+                reason = "foreign_channel" if c.utf8 else "channel_not_utf8"
+                for i in idx:
+                    raw = self._raw(c, events[i][3], reason)
+                    out[i] = (c.raw_id, raw, None)
+                continue
+            self._typed(c, [events[i] for i in idx], idx, out, extra)
+        written = 0
+        add = self.w.add_message
+        for i, e in enumerate(events):
+            log_ns = max(e[1], 0) * 1000
+            cid, data, pub = out[i]
+            add(cid, log_ns, data, pub if pub is not None else log_ns, e[0] & 0xFFFFFFFF)
+            written += 1
+            for cid2, data2 in extra.get(i, ()):
+                add(cid2, log_ns, data2, log_ns, 0)
+                written += 1
+        return written
+
+    def _typed(self, c: _Chan, evs: list, idx: list[int], out: list, extra) -> None:
+        cls = c.cls
+        datas = [e[3] for e in evs]
+        dt = numpy_dtype(cls)
+        enc = self.encoders.get(cls)
+        if enc is None:
+            enc = self.encoders[cls] = RowEncoder(cls) if dt is not None else None
+        good = np.zeros(len(evs), bool)
+        bad_kind: dict[int, str] = {}
+        if enc is not None and enc.ok:
+            kinds: Counter = Counter()
+            rec, pos = decode_array(cls, datas, kinds)
+            rows = enc.rows(rec, self.non_finite)
+            utime = rec["utime"].astype(np.int64) if "utime" in (rec.dtype.names or ()) else None
+            for j, (p, row) in enumerate(zip(pos.tolist(), rows)):
+                u = int(utime[j]) if utime is not None else 0
+                out[idx[p]] = (c.json_id, row, u * 1000 if 0 < u < _MAX_UTIME else None)
+            good[pos] = True
+            self._derive(c, rec, [idx[p] for p in pos.tolist()], [evs[p][1] for p in pos.tolist()], extra)
+        else:
+            kinds = Counter()
+            for j, d in enumerate(datas):
+                before = Counter(kinds)
+                got, msg = decode_any(d, kinds)
+                if got is not cls:
+                    if got is not None:  # a valid message of another of our types
+                        kinds["unknown_type"] += 1
+                    bad_kind[j] = next(iter(kinds - before), "unknown_type")
+                    continue
+                obj = json_value(msg)
+                self.non_finite[0] += count_none(obj)
+                u = getattr(msg, "utime", 0)
+                out[idx[j]] = (c.json_id, dumps(obj), u * 1000 if isinstance(u, int) and 0 < u < _MAX_UTIME else None)
+                good[j] = True
+                if cls.__name__ == "controller_config_t" and c.prefix is not None:
+                    self._config(c.prefix, d)
+        c.json += int(good.sum())
+        c.kinds.update(kinds)
+        for j in np.nonzero(~good)[0]:
+            raw = self._raw(c, datas[j], bad_kind.get(int(j)) or _kind(cls, datas[j], dt))
+            out[idx[j]] = (c.raw_id, raw, None)
+
+    def _config(self, prefix: str, data: bytes) -> None:
+        if prefix in self.configs:
+            return
+        from sc_rt import _core
+
+        try:
+            self.configs[prefix] = _core.ControllerConfig.from_lcm_bytes(bytes(data)).ppc
+        except (ValueError, RuntimeError, TypeError):
+            self.derived["config_rejected"] += 1
+
+    # --- derived channels ----------------------------------------------------
+    def _derive(self, c: _Chan, rec: np.ndarray, where: list[int], stamps: list[int], extra) -> None:
+        name = c.cls.__name__
+        if c.prefix is None or name not in ("plant_state_t", "controller_status_t") or not len(rec):
+            return
+
+        p = c.prefix
+        root = "/derived" + ("/" + p.strip("_/.") if p.strip("_/.") else "")
+        tf = self._derived("/tf", "foxglove.FrameTransform", FOXGLOVE_SCHEMAS["foxglove.FrameTransform"])
+        if name == "plant_state_t":
+            frames = frame_messages(rec["sigma_BN"], stamps, p + "N", p + "B")
+            wheels = wheel_messages(rec["t"], rec["wheel_speed"])
+            wid = self._derived(root + "/wheels", WHEELS_SCHEMA["title"], WHEELS_SCHEMA)
+            for i, f, w in zip(where, frames, wheels):
+                if f is not None:
+                    extra[i].append((tf, f))
+                    self.derived["frame_B"] += 1
+                if w is not None:
+                    extra[i].append((wid, w))
+                    self.derived["wheels"] += 1
+        else:
+            frames = frame_messages(rec["sigma_DN"], stamps, p + "N", p + "D")
+            pts = pointing_messages(rec["t"], rec["mode"], rec["sigma_BD"], self.configs.get(p))
+            pid = self._derived(root + "/pointing", POINTING_SCHEMA["title"], POINTING_SCHEMA)
+            for i, f, m in zip(where, frames, pts):
+                if f is not None:
+                    extra[i].append((tf, f))
+                    self.derived["frame_D"] += 1
+                if m is not None:
+                    extra[i].append((pid, m))
+                    self.derived["pointing"] += 1
+            self.derived["skipped_non_finite"] += sum(f is None for f in frames) + sum(m is None for m in pts)
+
+
+def _check_out(out: Path) -> None:
+    if out.is_dir():
+        raise ExportError(f"--mcap {out}: is a directory (give a file name, e.g. {out}/run.mcap)")
+    probe = out.parent
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    if not probe.is_dir():
+        raise ExportError(f"--mcap {out}: {probe} is not a directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise ExportError(f"--mcap {out}: {probe} is not writable")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ExportError(f"--mcap {out}: cannot create its directory: {e.strerror or e}") from None
+
+
+def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
+                compression: str = "zstd") -> ExportSummary:
+    """Convert ``log`` into the MCAP file ``out`` (see the module's docstring).
+
+    Raises FileNotFoundError (no log), ExportError (bad output path, or a
+    damaged log without ``partial``)."""
+    from mcap.writer import CompressionType, Writer
+
+    log, out = Path(log), Path(out)
+    if not log.exists():
+        raise FileNotFoundError(f"{log}: no such log")
+    if log.is_dir():
+        raise ExportError(f"{log}: is a directory, not an LCM log")
+    _check_out(out)
+    comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
+    tmp = out.parent / f".{out.name}.{os.getpid()}.partial"
+    t0 = time.perf_counter()
+    scan = LogScan()
+    summ = ExportSummary(str(log), str(out))
+    try:
+        with open(tmp, "wb") as f:
+            w = Writer(f, compression=comp)
+            w.start(profile="", library="sc-rt export")
+            ex = _Exporter(w, log.name)
+            batch: list = []
+            for ev in read_events(log, scan, partial):
+                batch.append(ev)
+                if len(batch) >= BATCH:
+                    summ.messages += ex.batch(batch)
+                    batch = []
+            if batch:
+                summ.messages += ex.batch(batch)
+            summ.events = scan.events
+            _fill(summ, ex, scan)
+            w.add_metadata("sc_rt.export", {"source_log": log.name,
+                                             "summary": json.dumps(summ.as_dict(), default=str)})
+            w.finish()
+        os.replace(tmp, out)
+    except LogDamaged as e:
+        hint = " (--partial exports the events that can be read)" if e.recoverable else ""
+        raise ExportError(f"{e}{hint}") from None
+    except OSError as e:
+        raise ExportError(f"--mcap {out}: cannot write: {e.strerror or e}") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    summ.seconds = time.perf_counter() - t0
+    return summ
+
+
+def _fill(summ: ExportSummary, ex: _Exporter, scan: LogScan) -> None:
+    kinds: Counter = Counter()
+    for c in ex.chans.values():
+        summ.channels[c.name] = {"type": c.cls.__name__ if c.cls else None, "count": c.count,
+                                 "json": c.json, "raw": c.raw, "undecodable_kinds": dict(c.kinds)}
+        if c.cls is None:
+            summ.foreign_events += c.count
+        else:
+            kinds.update(c.kinds)
+    summ.undecodable_kinds = dict(kinds)
+    summ.undecodable = int(sum(kinds.values()))
+    summ.derived = dict(ex.derived)
+    summ.non_finite_as_null = ex.non_finite[0]
+    summ.skipped_bytes, summ.torn_tail_bytes = scan.skipped_bytes, scan.torn_tail_bytes
+    summ.damaged_at = list(scan.damaged_at)
