@@ -88,6 +88,10 @@ def cmd_hil(args: argparse.Namespace) -> int:
 
     out = _out_dir(args.out)
     scn = _scenario(args.scenario)
+    mcap = getattr(args, "mcap", None)
+    mcap = str(Path(args.out) / "run.mcap") if mcap == "" else mcap
+    if _mcap_problem(mcap, "hil"):
+        return 2
     res = run_hil(scn, out=out, mode=args.mode, law=args.controller,
                   control_rate_hz=args.control_rate, duration=args.duration, lcm_url=args.lcm_url,
                   prefix=args.prefix, realtime_priority=args.realtime_priority,
@@ -100,6 +104,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
     print(f"  state-to-command latency [us]  p50 {lat['p50']}  p99 {lat['p99']}  max {lat['max']}")
     print(f"  steps/s {t['steps_per_s']:.0f}  deadline misses {t['deadline_misses']}  "
           f"dropped {t['dropped']}  malformed {t['malformed']}  scheduler {t['scheduler']}")
+    if mcap:
+        return _export_mcap(Path(res.out) / "run.lcmlog", mcap, who="hil")
     return 0
 
 
@@ -318,6 +324,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     from sc_rt.bus.report import write_report
 
     out = Path(args.out) if args.out else Path(args.log).parent / "report"
+    if _mcap_problem(args.mcap, "report"):
+        return 2
     try:
         rep = write_report(args.log, out, scenario=args.scenario, prefix=args.prefix,
                            mode=args.mode, plots=not args.no_plots)
@@ -330,6 +338,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     _print_metrics(rep["metrics"])
     for c in rep["faults"]["commands"]:
         print(f"  fault command: {c}")
+    if args.mcap:  # the report reads damaged logs as far as it can: so does its MCAP
+        return _export_mcap(args.log, args.mcap, partial=True, who="report")
     return 0
 
 
@@ -347,9 +357,22 @@ def _export_mcap(log, out, partial: bool = False, who: str = "export") -> int:
     print(f"sc-rt {who}: {log}: {s.events} events -> {out} ({s.messages} messages, derived "
           f"{sum(s.derived.values())}) in {s.seconds:.2f} s ({s.events_per_s or 0:.3g} events/s); "
           f"{s.undecodable} undecodable{' ' + str(s.undecodable_kinds) if s.undecodable else ''} and "
-          f"{s.foreign_events} of foreign "
+          f"{s.foreign_events} events of foreign "
           f"channels carried raw{damaged}")
     return 0
+
+
+def _mcap_problem(path: str | None, who: str) -> bool:
+    """Print why ``--mcap path`` cannot be written (checked before any work)."""
+    from sc_rt.bus.mcap_export import ExportError, check_output
+
+    try:
+        if path:
+            check_output(Path(path))
+    except ExportError as e:
+        print(f"sc-rt {who}: error: {e}", file=sys.stderr)
+        return True
+    return False
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -421,6 +444,7 @@ def _add_monitoring(sub) -> None:
     r.add_argument("--prefix", help="channel prefix (default: detected)")
     r.add_argument("--mode", choices=("lockstep", "realtime"), help="default: detected")
     r.add_argument("--no-plots", action="store_true")
+    r.add_argument("--mcap", metavar="OUT", help="also write the log as MCAP (as sc-rt export)")
     r.set_defaults(func=cmd_report)
 
     x = sub.add_parser("export", help="an LCM log as MCAP (JSON + schemas from the .lcm files) for Foxglove, PlotJuggler")
@@ -479,6 +503,8 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--accept-fault-commands", action="store_true",
                    help="the emulator applies fault_cmd_t from SCRT_FAULT")
     h.add_argument("--no-plots", action="store_true")
+    h.add_argument("--mcap", nargs="?", const="", metavar="OUT",
+                   help="also write the run's log as MCAP (default OUT: run.mcap in --out; as sc-rt export)")
     lcm_opts(h)
     h.set_defaults(func=cmd_hil)
 
