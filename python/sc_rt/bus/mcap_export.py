@@ -45,7 +45,7 @@ from sc_rt.bus.mcap_derived import (FOXGLOVE_SCHEMAS, POINTING_SCHEMA, WHEELS_SC
 from sc_rt.bus.lcmlog import LogDamaged, LogScan, read_events
 from sc_rt.bus.wire import TYPES, decode_any, decode_array, identify, numpy_dtype
 
-__all__ = ["ExportError", "ExportSummary", "export_mcap", "RAW_SCHEMA"]
+__all__ = ["ExportError", "ExportSummary", "export_mcap", "check_output", "RAW_SCHEMA"]
 
 BATCH = 1 << 15
 #: MCAP channel ids are 16 bit: further raw channels share one overflow channel
@@ -307,7 +307,8 @@ class _Exporter:
             self.derived["skipped_non_finite"] += sum(f is None for f in frames) + sum(m is None for m in pts)
 
 
-def _check_out(out: Path) -> None:
+def check_output(out: Path) -> None:
+    """Raise ExportError when ``out`` cannot be the MCAP file (checked before any work)."""
     if out.is_dir():
         raise ExportError(f"--mcap {out}: is a directory (give a file name, e.g. {out}/run.mcap)")
     probe = out.parent
@@ -336,7 +337,7 @@ def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
         raise FileNotFoundError(f"{log}: no such log")
     if log.is_dir():
         raise ExportError(f"{log}: is a directory, not an LCM log")
-    _check_out(out)
+    check_output(out)
     comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
     tmp = out.parent / f".{out.name}.{os.getpid()}.partial"
     t0 = time.perf_counter()
