@@ -189,19 +189,9 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
 
 
 def cmd_montecarlo(args: argparse.Namespace) -> int:
-    from sc_rt.studies.montecarlo import Dispersion, run_montecarlo, write_montecarlo
+    from sc_rt.cli.montecarlo import cmd_montecarlo as run
 
-    scn = _scenario(args.scenario)
-    d = Dispersion(inertia=args.inertia, onset=args.onset, effectiveness=args.effectiveness,
-                   attitude=args.attitude, rate=args.rate)
-    res = run_montecarlo(scn, args.runs, workers=args.workers, seed=args.seed, dispersion=d,
-                         law=args.controller, control_rate_hz=args.control_rate)
-    write_montecarlo(res, Path(args.out))
-    print(f"sc-rt montecarlo: {res['runs']} runs of {scn.name} ({res['law']}), seed {res['seed']}: "
-          f"{100 * res['fraction_holding_bound']:.1f} % hold the bound; worst final |sigma_BD| "
-          f"{res['worst_final_sigma_BD']:.3e}; {res['runs_per_s']:.1f} runs/s on {res['workers']} "
-          f"workers -> {args.out}/")
-    return 0
+    return run(args)
 
 
 def cmd_config(args: argparse.Namespace) -> int:
@@ -536,20 +526,9 @@ def build_parser() -> argparse.ArgumentParser:
     n.add_argument("--paths", action="store_true", help="print each file instead of its description")
     n.set_defaults(func=cmd_scenarios)
 
-    m = sub.add_parser("montecarlo", help="dispersed runs of a scenario on all cores (C++ engine)")
-    m.add_argument("scenario")
-    m.add_argument("--runs", type=int, default=200)
-    m.add_argument("--workers", type=int, help="default: all cores")
-    m.add_argument("--seed", type=int, default=0)
-    m.add_argument("--controller", choices=LAW_CHOICES)
-    m.add_argument("--control-rate", type=float, metavar="HZ")
-    m.add_argument("--inertia", type=float, default=0.2, help="relative spread of J's diagonal")
-    m.add_argument("--onset", type=float, default=2.0, help="[s] spread of fault onsets")
-    m.add_argument("--effectiveness", type=float, default=0.2, help="spread of fault effectiveness")
-    m.add_argument("--attitude", type=float, default=0.01, help="[rad] initial attitude spread")
-    m.add_argument("--rate", type=float, default=0.002, help="[rad/s] initial rate spread per axis")
-    m.add_argument("--out", default="out/montecarlo", metavar="DIR")
-    m.set_defaults(func=cmd_montecarlo)
+    from sc_rt.cli.montecarlo import add_parser as add_montecarlo
+
+    add_montecarlo(sub)  # its options and their checks: sc_rt/cli/montecarlo.py
 
     c = sub.add_parser("config", help="write the scenario's controller_config_t for sc-rt-controller")
     c.add_argument("scenario")

@@ -1,0 +1,212 @@
+"""``sc-rt montecarlo``: its options, their checks and the command.
+
+Every option is checked before anything starts (no scenario read, no worker
+started, nothing written): a bad value exits with code 2 and one line naming
+the option and the value. So does an unreachable Dask scheduler (within a
+few seconds) and an output directory that holds another campaign.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_parser", "cmd_montecarlo"]
+
+LAW_CHOICES = ("dsc-ppc", "dsc", "pd", "rft")
+SHORTCUTS = ("inertia", "onset", "effectiveness", "attitude", "rate")
+_ADDRESS_RE = re.compile(r"^(tcp|tls)://(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):(\d{1,5})$")
+
+
+class BadOption(Exception):
+    """One bad option: its message is the line printed."""
+
+
+def add_parser(sub: Any) -> argparse.ArgumentParser:
+    m = sub.add_parser("montecarlo", help="dispersed runs of a scenario (C++ engine): local pool or "
+                                          "Dask, resumable Parquet dataset, confidence intervals")
+    m.add_argument("scenario")
+    m.add_argument("--runs", default="200", metavar="N", help="runs 0..N-1 (default 200)")
+    m.add_argument("--workers", metavar="K", help="local worker processes (default: all cores)")
+    m.add_argument("--seed", default="0", metavar="S", help="campaign seed, an integer >= 0 (default 0)")
+    m.add_argument("--controller", metavar="LAW", help="control law: " + ", ".join(LAW_CHOICES))
+    m.add_argument("--control-rate", metavar="HZ")
+    m.add_argument("--backend", default="local", metavar="NAME",
+                   help="local (process pool, the default), dask (a Dask LocalCluster of --workers)")
+    m.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on this running Dask cluster")
+    m.add_argument("--scheduler-file", metavar="FILE", help="run on the Dask cluster of this scheduler file")
+    m.add_argument("--batch", metavar="N", help="runs per task and per dataset file (default: <= 64)")
+    m.add_argument("--resume", action="store_true", help="continue the campaign in --out: skip finished ids")
+    m.add_argument("--overwrite", action="store_true", help="replace the runs already in --out")
+    m.add_argument("--rerun", metavar="ID", help="run ID alone and write its full outputs to OUT/rerun-ID/")
+    g = m.add_argument_group("shortcut dispersions (uniform half-widths; the scenario's [montecarlo] "
+                             "table disperses any key: docs/SCENARIOS.md). Without a table, unset ones "
+                             "take the default shown; with a table, only the ones given apply")
+    g.add_argument("--inertia", metavar="F", help="relative spread of the true inertia's diagonal, in [0, 1) (0.2)")
+    g.add_argument("--onset", metavar="S", help="[s] spread of fault onsets, >= 0 (2)")
+    g.add_argument("--effectiveness", metavar="E", help="spread of fault effectiveness, in [0, 1] (0.2)")
+    g.add_argument("--attitude", metavar="RAD", help="[rad] initial attitude spread, in [0, pi] (0.01)")
+    g.add_argument("--rate", metavar="RAD/S", help="[rad/s] initial rate spread per axis, >= 0 (0.002)")
+    m.add_argument("--out", default="out/montecarlo", metavar="DIR")
+    m.set_defaults(func=cmd_montecarlo)
+    return m
+
+
+def _int(option: str, value: str | None, lo: int, default: int | None = None) -> int | None:
+    if value is None:
+        return default
+    try:
+        v = int(value)
+    except ValueError:
+        raise BadOption(f"{option} {value}: must be an integer >= {lo}") from None
+    if v < lo:
+        raise BadOption(f"{option} {value}: must be an integer >= {lo}")
+    return v
+
+
+def _float(option: str, value: str | None, lo: float, hi: float = math.inf, *,
+           open_lo: bool = False, open_hi: bool = False) -> float | None:
+    if value is None:
+        return None
+    lo_s = f"{'(' if open_lo else '['}{lo:g}"
+    want = f"in {lo_s}, {hi:g}{')' if open_hi else ']'}" if math.isfinite(hi) else (
+        f"> {lo:g}" if open_lo else f">= {lo:g}")
+    try:
+        v = float(value)
+    except ValueError:
+        raise BadOption(f"{option} {value}: must be a number {want}") from None
+    ok = math.isfinite(v) and (v > lo if open_lo else v >= lo) and (v < hi if open_hi else v <= hi)
+    if not ok:
+        raise BadOption(f"{option} {value}: must be a finite number {want}")
+    return v
+
+
+def parse_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The checked options (BadOption on the first bad one)."""
+    o: dict[str, Any] = {
+        "runs": _int("--runs", args.runs, 1),
+        "workers": _int("--workers", args.workers, 1),
+        "seed": _int("--seed", args.seed, 0),
+        "batch": _int("--batch", args.batch, 1),
+        "rerun": _int("--rerun", args.rerun, 0),
+        "control_rate": _float("--control-rate", args.control_rate, 0.0, open_lo=True),
+        "inertia": _float("--inertia", args.inertia, 0.0, 1.0, open_hi=True),
+        "onset": _float("--onset", args.onset, 0.0),
+        "effectiveness": _float("--effectiveness", args.effectiveness, 0.0, 1.0),
+        "attitude": _float("--attitude", args.attitude, 0.0, math.pi),
+        "rate": _float("--rate", args.rate, 0.0),
+    }
+    if args.controller is not None and args.controller not in LAW_CHOICES:
+        raise BadOption(f"--controller {args.controller}: must be one of " + ", ".join(LAW_CHOICES))
+    if args.backend not in ("local", "dask"):
+        raise BadOption(f"--backend {args.backend}: must be local or dask")
+    if args.scheduler and args.scheduler_file:
+        raise BadOption(f"--scheduler {args.scheduler}: give --scheduler or --scheduler-file, not both")
+    if args.scheduler is not None:
+        m = _ADDRESS_RE.match(args.scheduler)
+        if not m or not 1 <= int(m.group(3)) <= 65535:
+            raise BadOption(f"--scheduler {args.scheduler}: must be tcp://HOST:PORT (port 1..65535)")
+    if args.scheduler_file is not None and not Path(args.scheduler_file).is_file():
+        raise BadOption(f"--scheduler-file {args.scheduler_file}: no such file")
+    if args.resume and args.overwrite:
+        raise BadOption("--resume with --overwrite: give one of them")
+    if args.rerun is not None and (args.resume or args.overwrite):
+        raise BadOption(f"--rerun {args.rerun}: runs one run alone; --resume and --overwrite do not apply")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise BadOption(f"--out {args.out}: exists and is not a directory")
+    return o
+
+
+def _dispersion(o: dict[str, Any], has_table: bool):
+    from sc_rt.studies.campaign import NO_SHORTCUTS, Dispersion
+
+    given = {k: o[k] for k in SHORTCUTS if o[k] is not None}
+    if not has_table:
+        return Dispersion(**given)
+    base = NO_SHORTCUTS
+    if "inertia" in given:  # the off-diagonal products go with the inertia shortcut
+        given["products"] = Dispersion().products
+    import dataclasses
+
+    return dataclasses.replace(base, **given)
+
+
+def _dataset_row(c: Any, out: Path, run: int) -> dict[str, Any] | None:
+    """Run ``run``'s row in the dataset of ``out``, if that is this campaign's."""
+    from sc_rt.studies.campaign.store import RunStore, fingerprint
+
+    store = RunStore(out, c.columns())
+    old = store.existing_manifest()
+    if old is None or old.get("fingerprint") != fingerprint(c.identity()):
+        return None
+    rows = [r for r in store.read().to_pylist() if r["run"] == run]
+    return {k: v for k, v in rows[0].items() if v is not None or k in ("message",)} if rows else None
+
+
+def _fail(message: str) -> int:
+    print(f"sc-rt montecarlo: error: {message}", file=sys.stderr)
+    return 2
+
+
+def cmd_montecarlo(args: argparse.Namespace) -> int:
+    try:
+        o = parse_options(args)
+    except BadOption as e:
+        return _fail(str(e))
+    from sc_rt.scenario.model import load_scenario
+    from sc_rt.studies.campaign import (Campaign, CampaignExists, SchedulerUnreachable, make_backend,
+                                        rerun, run_campaign, write_summary)
+    from sc_rt.studies.campaign.runner import check_out
+    from sc_rt.studies.campaign.store import RunStore
+
+    scn = load_scenario(args.scenario)  # ScenarioError: exit 2 with file, line, key, value
+    c = Campaign(scn, _dispersion(o, scn.montecarlo is not None and bool(scn.montecarlo.disperse)),
+                 o["seed"], args.controller, o["control_rate"])
+    out = Path(args.out)
+    if o["rerun"] is not None:
+        where = out / f"rerun-{o['rerun']}"
+        row = rerun(c, o["rerun"], where)
+        verdict = ("holds the bound" if row["holds_bound"] else
+                   f"no valid draw ({row['message']})" if row["status"] == "invalid" else
+                   f"leaves the bound at {row.get('first_bound_violation_s')} s")
+        print(f"sc-rt montecarlo: run {o['rerun']} of seed {o['seed']} ({scn.name}) {verdict} -> {where}/")
+        same = _dataset_row(c, out, o["rerun"])
+        if same is not None:  # the campaign in --out holds this run: the two must agree
+            match = repr(same) == repr({k: row.get(k) for k in same})
+            print(f"sc-rt montecarlo: run {o['rerun']} {'matches' if match else 'DIFFERS FROM'} "
+                  f"its row in {out}/runs")
+            return 0 if match else 1
+        return 0
+    try:
+        check_out(c, out, args.resume, args.overwrite)
+    except CampaignExists as e:
+        return _fail(f"--out {args.out}: {e}")
+    try:
+        backend = make_backend(args.backend, o["workers"], args.scheduler, args.scheduler_file)
+    except SchedulerUnreachable as e:
+        return _fail(f"--scheduler{'-file' if args.scheduler_file else ''} "
+                     f"{args.scheduler or args.scheduler_file}: {e}")
+    try:
+        res = run_campaign(c, o["runs"], out, resume=args.resume, overwrite=args.overwrite,
+                           batch_size=o["batch"], backend_obj=backend)
+    except CampaignExists as e:
+        return _fail(f"--out {args.out}: {e}")
+    finally:
+        backend.close()
+    rows = RunStore(out, c.columns()).read().to_pylist()
+    write_summary(res, rows, out)
+    lo, hi = res["fraction_holding_bound_ci95"]
+    worst = res["worst_final_sigma_BD"]
+    rate = res["runs_per_s"]
+    print(f"sc-rt montecarlo: {res['runs']} runs of {scn.name} ({res['law']}), seed {res['seed']}: "
+          f"{100 * res['fraction_holding_bound']:.1f} % hold the bound (95 % CI {100 * lo:.1f}-"
+          f"{100 * hi:.1f} %); worst final |sigma_BD| {'-' if worst is None else f'{worst:.3e}'}; "
+          f"{res['runs_this_invocation']} runs now"
+          + (f" at {rate:.1f} runs/s on {res['workers']} workers ({res['backend']})" if rate else "")
+          + f" -> {args.out}/")
+    return 0

@@ -1,0 +1,248 @@
+"""A Monte Carlo campaign: dispersed runs of one scenario (C++ engine) on a
+backend, rows streamed to the dataset as batches complete, resumable, and
+its statistics at the end (sc_rt.studies.campaign.stats)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sc_rt.scenario.dispersions import scenario_data
+from sc_rt.scenario.model import Scenario
+from sc_rt.studies.campaign.backends import make_backend
+from sc_rt.studies.campaign.draws import Dispersion, draw_run, value_columns
+from sc_rt.studies.campaign.stats import clopper_pearson, tolerance_bound
+from sc_rt.studies.campaign.store import RunStore, fingerprint
+
+__all__ = ["Campaign", "CampaignExists", "check_out", "run_batch", "run_campaign",
+           "run_one", "rerun", "summarize"]
+
+_HEAD = [("run", "int64"), ("seed", "int64"), ("status", "string"), ("redraws", "int64"),
+         ("holds_bound", "bool"), ("message", "string")]  # fmt: skip
+#: Metrics left out of the rows: the same for every run, or not a property of the run.
+SKIP_METRICS = ("scenario", "controller", "engine", "control_rate_hz", "duration_s", "wall_s")
+#: Metrics whose worst case (largest value) gets a Wilks tolerance bound (those present).
+WORST_CASE = ("max_abs_omega_e_after_70s", "max_observer_error_after_30s",
+              "max_pointing_error_arcsec_after_30s", "max_abs_u_cmd", "saturated_fraction")  # fmt: skip
+
+
+class CampaignExists(RuntimeError):
+    """The output directory holds another campaign's runs (or runs and no --resume)."""
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """What every worker needs: the scenario itself (in-memory changes
+    included: it pickles) and the campaign's settings."""
+
+    scenario: Scenario
+    dispersion: Dispersion
+    seed: int
+    law: str | None = None
+    control_rate_hz: float | None = None
+
+    def columns(self) -> list[tuple[str, str]]:
+        """The columns known before any run (the metrics' follow simulate()'s .metrics)."""
+        return _HEAD + [(c, "float64") for c in value_columns(self.scenario, self.dispersion)]
+
+    def identity(self) -> dict[str, Any]:
+        """What makes two campaigns the same (resume checks it)."""
+        mc = self.scenario.montecarlo
+        return {"scenario": scenario_data(self.scenario), "seed": self.seed,
+                "dispersion": dataclasses.asdict(self.dispersion),
+                "table": None if mc is None else [dataclasses.asdict(e) for e in mc.disperse],
+                "on_invalid": None if mc is None else [mc.on_invalid, mc.max_redraws],
+                "law": self.law, "control_rate_hz": self.control_rate_hz, "engine": "cpp"}
+
+
+def _metric_row(m: dict[str, Any]) -> dict[str, Any]:
+    """simulate()'s .metrics flattened to columns: "sigma_e_norm.30",
+    "final_wheel_speed[2]"; numbers, booleans and None only."""
+    row: dict[str, Any] = {}
+
+    def put(key: str, v: Any) -> None:
+        if isinstance(v, dict):
+            for k, x in v.items():
+                put(f"{key}.{k}", x)
+        elif isinstance(v, (list, tuple)):
+            for i, x in enumerate(v):
+                put(f"{key}[{i}]", x)
+        elif v is None or isinstance(v, (bool, int, float)):
+            row[key] = v
+        elif isinstance(v, (np.floating, np.integer, np.bool_)):
+            row[key] = v.item()
+
+    for k, v in m.items():
+        if k not in SKIP_METRICS:
+            put(k, v)
+    return row
+
+
+def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple:
+    """Run ``run`` of the campaign: its dataset row (and, with ``keep``, the
+    dispersed scenario and the simulation result too)."""
+    from sc_rt.sim.engines import simulate
+
+    scn, values, redraws, message = draw_run(c.scenario, c.dispersion, c.seed, run)
+    row: dict[str, Any] = {"run": run, "seed": c.seed, "redraws": redraws, **values}
+    res = None
+    if scn is None:
+        row.update(status="invalid", holds_bound=False, message=message)
+    else:
+        res = simulate(scn, law=c.law, engine="cpp", control_rate_hz=c.control_rate_hz)
+        m = res.metrics
+        row.update(status="diverged" if m.get("diverged") else "ok",
+                   holds_bound=bool(m["finite"] and m["first_bound_violation_s"] is None),
+                   message="")
+        row.update(_metric_row(m))
+    return (row, scn, res) if keep else row
+
+
+def run_batch(c: Campaign, runs: list[int]) -> list[dict[str, Any]]:
+    """The rows of a batch of run ids (what a worker executes)."""
+    return [run_one(c, i) for i in runs]
+
+
+def _batches(ids: list[int], size: int) -> list[list[int]]:
+    return [ids[k:k + size] for k in range(0, len(ids), size)]
+
+
+def check_out(c: Campaign, out: Path, resume: bool, overwrite: bool) -> str:
+    """The campaign's fingerprint, once ``out`` may take its runs (else CampaignExists)."""
+    store = RunStore(out, c.columns())
+    fp = fingerprint(c.identity())
+    old = store.existing_manifest()
+    if resume and old is not None and old.get("fingerprint") != fp:
+        raise CampaignExists("holds a different campaign (scenario, seed, dispersions, law or "
+                             "rate differ): resume it with its own settings or use another --out")
+    if not resume and not overwrite and store.has_runs():
+        raise CampaignExists("runs/ holds runs already: --resume to continue that campaign, "
+                             "--overwrite to start again")
+    return fp
+
+
+def run_campaign(c: Campaign, runs: int, out: Path, *, backend: str = "local",
+                 workers: int | None = None, scheduler: str | None = None,
+                 scheduler_file: str | None = None, resume: bool = False,
+                 overwrite: bool = False, batch_size: int | None = None,
+                 progress: bool = True, backend_obj=None) -> dict[str, Any]:
+    """Run ids 0..runs-1 (those not in the dataset yet with ``resume``),
+    appending each completed batch to ``out/runs``; returns the summary of
+    the whole dataset (also written to ``out/montecarlo.json``)."""
+    store = RunStore(out, c.columns())
+    ident = c.identity()
+    fp = check_out(c, out, resume, overwrite)
+    b = backend_obj or make_backend(backend, workers, scheduler, scheduler_file)
+    t0 = time.perf_counter()
+    done_now = 0
+    try:
+        store.start({"fingerprint": fp, "campaign": ident, "runs": runs}, fresh=not resume)
+        done = store.done_ids() if resume else set()
+        todo = [i for i in range(runs) if i not in done]
+        size = batch_size or max(1, min(64, len(todo) // (8 * max(1, b.workers)) or 1))
+        bar = _bar(progress, runs, len(done))
+        for rows in b.map(run_batch, c, _batches(todo, size)):
+            store.append(rows)
+            done_now += len(rows)
+            if bar is not None:
+                bar.update(len(rows))
+        if bar is not None:
+            bar.close()
+        info = b.describe()
+    finally:
+        if backend_obj is None:
+            b.close()
+    wall = time.perf_counter() - t0
+    summary = summarize(c, store, runs)
+    summary.update(info)
+    summary.update(wall_s=wall, runs_this_invocation=done_now,
+                   runs_per_s=done_now / wall if wall > 0 and done_now else None)
+    return summary
+
+
+def _bar(on: bool, total: int, initial: int):
+    if not on:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=initial, unit="run", desc="montecarlo", file=sys.stderr,
+                disable=not sys.stderr.isatty(), smoothing=0.1)
+
+
+def _final_column(names: list[str]) -> str | None:
+    """The last reported |sigma_BD| ("sigma_e_norm.<largest time>")."""
+    ts = [n.removeprefix("sigma_e_norm.") for n in names if n.startswith("sigma_e_norm.")]
+    ts = [t for t in ts if t.replace(".", "", 1).isdigit()]
+    return f"sigma_e_norm.{max(ts, key=float)}" if ts else None
+
+
+def summarize(c: Campaign, store: RunStore, runs: int) -> dict[str, Any]:
+    """Statistics of the dataset (every row written so far)."""
+    t = store.read()
+    rows = t.to_pylist()
+    n = len(rows)
+    held = sum(r["holds_bound"] for r in rows)
+    values = [k for k, _ in c.columns() if k not in dict(_HEAD)]
+    failed = [{"run": r["run"], "status": r["status"],
+               "first_bound_violation_s": r.get("first_bound_violation_s"),
+               "message": r["message"], "values": {k: r[k] for k in values}}
+              for r in rows if not r["holds_bound"]]  # fmt: skip
+    final = _final_column(t.column_names)
+
+    def worst(k):  # a run without the metric (invalid, diverged, too short) counts as +inf
+        return [math.inf if r.get(k) is None or not math.isfinite(r[k]) else r[k] for r in rows]
+
+    fin = [r[final] for r in rows if final and r.get(final) is not None]
+    mc = c.scenario.montecarlo
+    return {
+        "scenario": c.scenario.name,
+        "law": c.law or c.scenario.run.controller,
+        "control_rate_hz": c.control_rate_hz or c.scenario.run.control_rate_hz,
+        "duration_s": c.scenario.run.duration,
+        "runs": n, "runs_requested": runs, "complete": n == runs, "seed": c.seed,
+        "dispersion": dataclasses.asdict(c.dispersion),
+        "table": None if mc is None else {"on_invalid": mc.on_invalid, "max_redraws": mc.max_redraws,
+                                          "disperse": [dataclasses.asdict(e) for e in mc.disperse]},
+        "holds_bound": held,
+        "fraction_holding_bound": held / n if n else None,
+        "fraction_holding_bound_ci95": list(clopper_pearson(held, n)) if n else None,
+        "ci_method": "Clopper-Pearson, two-sided 95 %",
+        "status": {s: sum(r["status"] == s for r in rows) for s in ("ok", "diverged", "invalid")},
+        "redraws_total": sum(r["redraws"] for r in rows),
+        "final_metric": final,
+        "worst_final_sigma_BD": max(fin) if fin else None,
+        "median_final_sigma_BD": float(np.median(fin)) if fin else None,
+        "tolerance_95_95": {k: tolerance_bound(worst(k)) for k in (final, *WORST_CASE)
+                            if k in t.column_names},
+        "runs_breaking_bound": [f["run"] for f in failed[:1000]],
+        "failed_total": len(failed),
+        "failed": failed[:1000],
+        "dataset": {"path": "runs/", "rows": n, "bytes": store.bytes(),
+                    "bytes_per_row": store.bytes() / n if n else None,
+                    "columns": t.num_columns},
+    }
+
+
+def rerun(c: Campaign, run: int, out: Path, plots: bool = True) -> dict[str, Any]:
+    """Run ``run`` alone (the same draws as inside the campaign) and write its
+    full outputs to ``out`` as ``sc-rt sim`` does (trajectory.npz,
+    metrics.json, figures) plus run.json (its dataset row)."""
+    import json
+
+    from sc_rt.results.metrics import json_safe
+    from sc_rt.results.output import write_run  # what sc-rt sim writes
+
+    row, scn, res = run_one(c, run, keep=True)
+    out.mkdir(parents=True, exist_ok=True)
+    if res is not None:
+        write_run(res, out, figures=plots,
+                  title=f"{scn.name}, run {run} of seed {c.seed}, {res.metrics['controller']}")
+    (out / "run.json").write_text(json.dumps(json_safe(row), indent=2) + "\n")
+    return row
