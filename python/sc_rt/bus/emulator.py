@@ -32,8 +32,8 @@ import sc_rt_lcm
 
 from sc_rt.model import actuators, plant
 from sc_rt.model.actuators import WheelFault
-from sc_rt.bus.lcmio import channel, decode_guarded, open_lcm
-from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
+from sc_rt.bus.lcmio import channel, open_lcm
+from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
 from sc_rt.results.run import Run, RunMeta
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
@@ -148,7 +148,7 @@ class Emulator:
             msg = _Cmd(seq=v[1], session=v[2], state_seq=v[3], u_cmd=v[5:9], u_sat=v[9:13],
                        mode=v[13], flags=v[14])
         else:  # not exactly one wheel_cmd_t: count it by kind
-            msg = decode_guarded(sc_rt_lcm.wheel_cmd_t, data, self.counters)
+            msg = decode_as(sc_rt_lcm.wheel_cmd_t, data, self.counters)
             if msg is None:
                 return
         # any finite command is meaningful: the wheels saturate it (15)
@@ -173,7 +173,7 @@ class Emulator:
         if len(data) == _STATUS_SIZE and data[:8] == _STATUS_FP:
             _, cmd_seq, session, state_seq = _STATUS_HEAD.unpack_from(data, 8)
         else:  # not exactly one status message: count it by kind
-            msg = decode_guarded(sc_rt_lcm.controller_status_t, data, self.counters)
+            msg = decode_as(sc_rt_lcm.controller_status_t, data, self.counters)
             if msg is None:
                 return
             cmd_seq, session, state_seq = msg.cmd_seq, msg.session, msg.state_seq
@@ -187,7 +187,7 @@ class Emulator:
             self._status[state_seq] = data
 
     def _on_fault(self, _ch: str, data: bytes) -> None:
-        msg = decode_guarded(sc_rt_lcm.fault_cmd_t, data, self.counters)
+        msg = decode_as(sc_rt_lcm.fault_cmd_t, data, self.counters)
         if msg is None:
             return
         if not self.accept_faults:
@@ -298,7 +298,7 @@ class Emulator:
             if k in self._cmd_rx and k in self._pub_ns:
                 lat[k] = (self._cmd_rx[k] - self._pub_ns[k]) / 1e3
 
-    def _run_lockstep(self) -> EmulatorResult:
+    def _run_lockstep(self) -> Run:
         scn = self.scn
         n_ctrl, n_sub, h, rate = grid(scn)
         traj = self._allocate(n_ctrl + 1)
@@ -339,7 +339,7 @@ class Emulator:
                 break
         return self._finish(traj, rows, x is None and rows < n_ctrl + 1)
 
-    def _run_realtime(self) -> EmulatorResult:
+    def _run_realtime(self) -> Run:
         scn = self.scn
         n_ticks, n_sub, h, rate = grid(scn)
         period = 1.0 / rate

@@ -25,7 +25,7 @@ from sc_rt.bus.emulator import Emulator
 from sc_rt.bus.lcmio import channel, free_port_url, lcm_binary, open_lcm
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
-from sc_rt.results.run import Run, RunMeta
+from sc_rt.results.run import Run
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
 
@@ -99,7 +99,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
             time_scale: float = 1.0, accept_fault_commands: bool = False,
             plots: bool = True) -> HilResult:
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
-    law, rate, duration = scn.run.controller, scn.run.control_rate_hz, scn.run.duration
+
     url = lcm_url or free_port_url(ttl=0)
     out.mkdir(parents=True, exist_ok=True)
     cfg_path = out / "controller_config.bin"

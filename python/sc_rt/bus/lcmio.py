@@ -5,13 +5,11 @@ from __future__ import annotations
 
 import os
 import socket
-import struct
-from collections import Counter
 from pathlib import Path
 
 import lcm
 
-__all__ = ["DEFAULT_URL", "CHANNELS", "channel", "decode_guarded", "lcm_prefix", "lcm_binary",
+__all__ = ["DEFAULT_URL", "CHANNELS", "channel", "lcm_prefix", "lcm_binary",
            "free_port_url", "open_lcm"]
 
 #: Nothing leaves the machine: ttl=0.
@@ -32,37 +30,6 @@ def channel(name: str, prefix: str = "") -> str:
     if name not in CHANNELS:
         raise KeyError(f"unknown sc-rt channel {name!r}")
     return prefix + name
-
-
-_FIXED_SIZE: dict[type, int | None] = {}
-
-
-def _fixed_size(cls) -> int | None:
-    """Encoded size of a type without strings or variable arrays, else None."""
-    if cls not in _FIXED_SIZE:
-        a = cls()
-        fixed = not any(isinstance(getattr(a, slot), str) for slot in cls.__slots__)
-        _FIXED_SIZE[cls] = len(a.encode()) if fixed else None
-    return _FIXED_SIZE[cls]
-
-
-def decode_guarded(cls, data: bytes, counts: Counter) -> object | None:
-    """Decode ``data`` as ``cls``; count and drop anything that is not exactly
-    one well-formed message (lcm's Python decode raises ValueError on a wrong
-    fingerprint and struct.error on truncation, and accepts trailing bytes)."""
-    size = _fixed_size(cls)
-    if size is not None and len(data) > size and data[:8] == cls._get_packed_fingerprint():
-        counts["trailing_bytes"] += 1
-        return None
-    try:
-        msg = cls.decode(data)
-    except (ValueError, struct.error, IndexError, UnicodeDecodeError, TypeError):
-        counts["malformed"] += 1
-        return None
-    if size is None and len(msg.encode()) != len(data):
-        counts["trailing_bytes"] += 1
-        return None
-    return msg
 
 
 def lcm_prefix() -> Path:

@@ -20,7 +20,7 @@ import sc_rt_lcm
 from sc_rt.results.run import FIELDS
 
 __all__ = ["TYPES", "BY_FINGERPRINT", "identify", "decode_any", "numpy_dtype", "decode_array",
-           "lcm_sources", "to_plain", "STATUS_RUN_FIELDS", "STATUS_TIMING_FIELDS"]
+           "lcm_sources", "to_plain", "decode_as", "DECODE_ERRORS", "STATUS_RUN_FIELDS", "STATUS_TIMING_FIELDS"]
 
 
 def _types() -> dict[str, type]:
@@ -68,19 +68,34 @@ def decode_any(data: bytes, counts: Counter | None = None):
     if cls is None:
         counts["unknown_type"] += 1
         return None, None
+    msg = decode_as(cls, data, counts)
+    return (cls, msg) if msg is not None else (None, None)
+
+
+#: What lcm's generated Python decode raises on hostile bytes (ValueError on
+#: a wrong fingerprint, struct.error on truncation, the rest on bad content).
+DECODE_ERRORS = (ValueError, struct.error, IndexError, UnicodeDecodeError, TypeError, OverflowError)
+
+
+def decode_as(cls, data: bytes, counts: Counter) -> object | None:
+    """``data`` decoded as exactly one message of ``cls``, else None with
+    the kind counted: ``trailing_bytes`` (a valid message followed by extra
+    bytes: lcm's decode would accept it), ``malformed`` (anything else).
+    The one guarded decoder of the project: never raises."""
     dt = numpy_dtype(cls)
     if dt is not None and len(data) != dt.itemsize:
-        counts["malformed" if len(data) < dt.itemsize else "trailing_bytes"] += 1
-        return None, None
+        longer = len(data) > dt.itemsize and bytes(data[:8]) == cls._get_packed_fingerprint()
+        counts["trailing_bytes" if longer else "malformed"] += 1
+        return None
     try:
         msg = cls.decode(bytes(data))
-    except (ValueError, struct.error, IndexError, UnicodeDecodeError, TypeError, OverflowError):
+    except DECODE_ERRORS:
         counts["malformed"] += 1
-        return None, None
+        return None
     if dt is None and len(msg.encode()) != len(data):
         counts["trailing_bytes"] += 1
-        return None, None
-    return cls, msg
+        return None
+    return msg
 
 
 def numpy_dtype(cls) -> np.dtype | None:

@@ -6,7 +6,6 @@ One function computes ``metrics.json`` for every producer (``sc-rt sim``,
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
