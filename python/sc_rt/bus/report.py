@@ -40,6 +40,7 @@ from typing import Any
 import lcm
 import numpy as np
 
+from sc_rt.scenario.model import LAW_NAMES
 from sc_rt.bus.lcmio import CHANNELS, lcm_binary
 from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, TYPES, decode_any, decode_array, numpy_dtype
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
@@ -48,7 +49,6 @@ from sc_rt.results.run import Run, RunMeta, empty_arrays, json_safe
 
 __all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command", "LAW_NAMES"]
 
-LAW_NAMES = {0: "dsc-ppc", 1: "dsc", 2: "pd", 3: "rft"}
 #: fault state changes listed per wheel in report.json (a hostile log could have one per row)
 MAX_FAULT_CHANGES = 1000
 

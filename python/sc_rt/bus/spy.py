@@ -24,13 +24,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sc_rt.scenario.model import LAW_NAMES
 from sc_rt.results.metrics import json_safe
 from sc_rt.bus.lcmio import open_lcm
 from sc_rt.bus.wire import decode_any, identify, numpy_dtype, to_plain
 
 __all__ = ["Spy", "ChannelStats", "main_loop"]
 
-LAW_NAMES = {0: "dsc-ppc", 1: "dsc", 2: "pd", 3: "rft"}
 
 
 def _consts(cls, prefix: str) -> dict[int, str]:

@@ -11,7 +11,9 @@ from pathlib import Path
 
 from sc_rt import __version__
 
-LAW_CHOICES = ("dsc-ppc", "dsc", "pd", "rft")
+from sc_rt.scenario.model import LAWS  # noqa: E402
+
+LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 
 
 def _scenario(path: str, args: argparse.Namespace | None = None):
@@ -72,7 +74,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     out = _out_dir(args.out)
     scn = _scenario(args.scenario)
-    res = simulate(scn, law=args.controller, engine=args.engine,
+    res = simulate(scn, law=args.law, engine=args.engine,
                    control_rate_hz=args.control_rate, duration=args.duration,
                    plant_step=args.plant_step)
     write_run(res, out, figures=not args.no_plots)
@@ -92,7 +94,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
     mcap = str(Path(args.out) / "run.mcap") if mcap == "" else mcap
     if _mcap_problem(mcap, "hil"):
         return 2
-    res = run_hil(scn, out=out, mode=args.mode, law=args.controller,
+    res = run_hil(scn, out=out, mode=args.mode, law=args.law,
                   control_rate_hz=args.control_rate, duration=args.duration, lcm_url=args.lcm_url,
                   prefix=args.prefix, realtime_priority=args.realtime_priority,
                   time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
@@ -196,7 +198,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
 
 def cmd_config(args: argparse.Namespace) -> int:
     scn = _scenario(args.scenario)
-    data = scn.controller_config_msg(args.controller, args.control_rate).encode()
+    data = scn.controller_config_msg(args.law, args.control_rate).encode()
     Path(args.out).write_bytes(data)
     print(f"sc-rt config: controller_config_t ({len(data)} bytes) -> {args.out}")
     return 0
@@ -204,8 +206,7 @@ def cmd_config(args: argparse.Namespace) -> int:
 
 def cmd_design(args: argparse.Namespace) -> int:
     """PD design, margins and sampled-data stability (sc_rt.studies.design, docs/DESIGN.md)."""
-    from sc_rt.studies.design import (DEFAULT_LATENCY_S, design_report, format_margins_table,
-                         format_sampled_table, write_design)
+    from sc_rt.studies.design import DEFAULT_LATENCY_S, design_report, format_design_text, write_design
     from sc_rt.sim.engines import with_overrides
 
     scn = with_overrides(_scenario(args.scenario), control_rate_hz=args.rate)  # validates --rate
@@ -222,18 +223,7 @@ def cmd_design(args: argparse.Namespace) -> int:
     rep = design_report(scn, rate, latency=latency)
     out = Path(args.out)
     paths = write_design(rep, scn, out, plots=not args.no_plots)
-    pd = rep["pd"]
-    print(f"sc-rt design: {scn.name} at {rate:g} Hz -> {out}/")
-    print(f"PD: beta1 = {pd['beta1']:.4g} 1/s^2, beta2 = {pd['beta2']:.4g} 1/s "
-          f"(wn = {pd['wn']:.4g} rad/s; {pd['rule']}); scenario has "
-          f"{rep['pd_in_scenario']['beta1']:g}, {rep['pd_in_scenario']['beta2']:g}")
-    print(f"\nmargins, each axis loop at a time (pade: latency {latency * 1e3:.3g} ms):")
-    print(format_margins_table(rep["margins"]))
-    print("\nsampled-data stability of the linearised DSC+PPC and DSC loops "
-          "(r frozen at chi(t), true inertia, faults' effectiveness, observer's linear part):")
-    print(format_sampled_table(rep))
-    for path in paths:
-        print(f"  {path}")
+    print(format_design_text(rep, out, paths))
     return 0
 
 
@@ -464,7 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("sim", help="offline closed loop (plant + C++ controller core)")
     s.add_argument("scenario")
-    s.add_argument("--controller", choices=LAW_CHOICES, help="control law (default: the scenario's)")
+    s.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES, help="control law (default: the scenario's; --controller is the old name)")
     s.add_argument("--engine", choices=("python", "cpp", "unsampled"), default="python",
                    help="unsampled: reference mode, the law inside every RK4 stage (no hold)")
     s.add_argument("--control-rate", type=float, metavar="HZ")
@@ -483,7 +473,7 @@ def build_parser() -> argparse.ArgumentParser:
     h = sub.add_parser("hil", help="controller process + plant emulator + lcm-logger over LCM")
     h.add_argument("scenario")
     h.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
-    h.add_argument("--controller", choices=LAW_CHOICES)
+    h.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES, help="control law (default: the scenario's)")
     h.add_argument("--control-rate", type=float, metavar="HZ")
     h.add_argument("--duration", type=float, metavar="S")
     h.add_argument("--out", default="out/hil", metavar="DIR")
@@ -533,7 +523,7 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("config", help="write the scenario's controller_config_t for sc-rt-controller")
     c.add_argument("scenario")
     c.add_argument("--out", required=True, metavar="FILE")
-    c.add_argument("--controller", choices=LAW_CHOICES)
+    c.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES, help="control law (default: the scenario's)")
     c.add_argument("--control-rate", type=float, metavar="HZ")
     c.set_defaults(func=cmd_config)
 

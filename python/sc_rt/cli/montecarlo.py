@@ -17,7 +17,9 @@ from typing import Any
 
 __all__ = ["add_parser", "cmd_montecarlo"]
 
-LAW_CHOICES = ("dsc-ppc", "dsc", "pd", "rft")
+from sc_rt.scenario.model import LAWS  # noqa: E402
+
+LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 SHORTCUTS = ("inertia", "onset", "effectiveness", "attitude", "rate")
 _ADDRESS_RE = re.compile(r"^(tcp|tls)://(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):(\d{1,5})$")
 
@@ -33,7 +35,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     m.add_argument("--runs", default="200", metavar="N", help="runs 0..N-1 (default 200)")
     m.add_argument("--workers", metavar="K", help="local worker processes (default: all cores)")
     m.add_argument("--seed", default="0", metavar="S", help="campaign seed, an integer >= 0 (default 0)")
-    m.add_argument("--controller", metavar="LAW", help="control law: " + ", ".join(LAW_CHOICES))
+    m.add_argument("--law", "--controller", dest="law", metavar="LAW", help="control law: " + ", ".join(LAW_CHOICES))
     m.add_argument("--control-rate", metavar="HZ")
     m.add_argument("--backend", default="local", metavar="NAME",
                    help="local (process pool, the default), dask (a Dask LocalCluster of --workers)")
@@ -100,8 +102,8 @@ def parse_options(args: argparse.Namespace) -> dict[str, Any]:
         "attitude": _float("--attitude", args.attitude, 0.0, math.pi),
         "rate": _float("--rate", args.rate, 0.0),
     }
-    if args.controller is not None and args.controller not in LAW_CHOICES:
-        raise BadOption(f"--controller {args.controller}: must be one of " + ", ".join(LAW_CHOICES))
+    if args.law is not None and args.law not in LAW_CHOICES:
+        raise BadOption(f"--law {args.law}: must be one of " + ", ".join(LAW_CHOICES))
     if args.backend not in ("local", "dask"):
         raise BadOption(f"--backend {args.backend}: must be local or dask")
     if args.scheduler and args.scheduler_file:
@@ -166,7 +168,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
 
     scn = load_scenario(args.scenario)  # ScenarioError: exit 2 with file, line, key, value
     c = Campaign(scn, _dispersion(o, scn.montecarlo is not None and bool(scn.montecarlo.disperse)),
-                 o["seed"], args.controller, o["control_rate"])
+                 o["seed"], args.law, o["control_rate"])
     out = Path(args.out)
     if o["rerun"] is not None:
         where = out / f"rerun-{o['rerun']}"

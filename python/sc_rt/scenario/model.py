@@ -54,6 +54,7 @@ from sc_rt.scenario.shipped import resolve
 
 __all__ = [
     "LAWS",
+    "LAW_NAMES",
     "ControllerParams",
     "DscGains",
     "GuidanceParams",
@@ -71,8 +72,10 @@ __all__ = [
     "scenario_from_data",
 ]
 
-# Control-law names <-> controller_config_t.LAW_* (and sc_rt._core.Law).
-LAWS = {"dsc-ppc": 0, "dsc": 1, "pd": 2, "rft": 3}
+# The law table: control-law names <-> sc_rt._core.Law (= controller_config_t.LAW_*),
+# from the core itself; every other module takes it from here.
+LAWS: dict[str, int] = {_core.law_name(v): int(v) for v in _core.Law.__members__.values()}
+LAW_NAMES: dict[int, str] = {v: k for k, v in LAWS.items()}
 
 _PAPER = _core.ControllerConfig()  # the paper's controller values (C++ defaults)
 _FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from sc_rt.scenario.model import LAWS as LAW_TABLE
 from sc_rt.scenario.model import Scenario, load_scenario
 from sc_rt.scenario.shipped import shipped
 from sc_rt.sim.engines import simulate
@@ -19,7 +20,7 @@ __all__ = ["CASES", "LAWS", "LAW_LABEL", "Runs", "load_cases", "run_all", "scena
 
 #: case -> shipped scenario name
 CASES = {"fault_free": "paper_fault_free", "faults": "paper_faults"}
-LAWS = ("dsc-ppc", "dsc", "pd", "rft")
+LAWS = tuple(LAW_TABLE)  # the law table, in the core's order
 LAW_LABEL = {"dsc-ppc": "DSC+PPC", "dsc": "DSC", "pd": "PD", "rft": "RFT"}
 
 
