@@ -120,49 +120,86 @@ def test_stale_states_give_safe_mode_and_recovery(tmp_path):
     r = lcmnet.run_script(f"{PY} {HERE / 'stale_driver.py'} '{url}' {cfg} {out}", timeout=120)
     assert r.returncode == 0, r.stderr
     d = json.loads(out.read_text())
-    ph, cmds = d["phases"], d["cmds"]
-    stale_after = c.safety.stale_periods / c.control_rate_hz  # 50 ms
-    before = [x for x in cmds if 0.3 < x["t"] < ph["pause_start"] - 0.02]
-    during = [x for x in cmds if ph["pause_start"] + stale_after + 0.03 < x["t"] < ph["resume"] - 0.01]
-    after = [x for x in cmds if ph["resume"] + 0.1 < x["t"] < ph["end"] - 0.02]
-    assert before and during and after
-    assert all(x["mode"] == _core.MODE_NORMAL for x in before)
-    # no fresh state for more than stale_periods periods: SAFE, zero command, flagged
-    assert all(x["mode"] == _core.MODE_SAFE and x["flags"] & _core.FLAG_STALE_STATE for x in during)
-    assert all(x["u"] == [0.0] * 4 for x in during)
-    # fresh states again: the law re-engages
-    assert all(x["mode"] == _core.MODE_NORMAL for x in after)
-    assert any(x["u"] != [0.0] * 4 for x in after)
-    assert d["summary"]["stale_states"] >= len(during)
+    stale_after_us = c.safety.stale_periods / c.control_rate_hz * 1e6  # 50 ms
+    # judged by the controller's own clock, not by wall-clock windows of the
+    # driver (which a loaded machine shifts): each status carries the age of
+    # the state the step used, measured by the controller at that step
+    st = [x for x in d["status"] if x["state_seq"] >= 0]
+    stale = [x for x in st if x["state_age_us"] > stale_after_us]
+    fresh = [x for x in st if x["state_age_us"] <= stale_after_us]
+    # a state older than stale_periods periods: SAFE, zero command, flagged
+    assert all(x["mode"] == _core.MODE_SAFE and x["flags"] & _core.FLAG_STALE_STATE for x in stale)
+    assert all(x["u"] == [0.0] * 4 for x in stale)
+    # a fresh enough state: the law runs (NORMAL)
+    assert all(x["mode"] == _core.MODE_NORMAL for x in fresh)
+    # the 0.5 s pause was seen: steps on the last state before it went stale
+    # (about 45 at 100 Hz; at least a few even if the controller was starved)
+    paused = [x for x in stale if x["state_seq"] == d["seq_pause"]]
+    assert len(paused) >= 10, (len(paused), len(stale))
+    # before it and after it the law ran: fresh steps on both sides, and the
+    # law re-engaged after the pause with a non-zero command
+    assert any(x["state_seq"] < d["seq_pause"] for x in fresh)
+    after = [x for x in fresh if x["state_seq"] >= d["seq_resume"]]
+    assert after and any(x["u"] != [0.0] * 4 for x in after)
+    # the commands say the same as the status of their step
+    by_seq = {x["seq"]: x for x in d["cmds"]}
+    matched = 0
+    for x in st:
+        m = by_seq.get(x["cmd_seq"])
+        if m is not None:
+            matched += 1
+            assert (m["mode"], m["flags"], m["state_seq"], m["u"]) == (x["mode"], x["flags"], x["state_seq"], x["u"])
+    assert matched >= 0.9 * len(st)
+    assert d["summary"]["stale_states"] >= len(stale)
 
 
 def test_killed_controller_is_replaced_and_the_log_keeps_everything(tmp_path):
     url = "udpm://239.255.76.67:7713?ttl=0&recv_buf_size=4194304"
     out = tmp_path / "hil"
+    duration = 8.0
+    wait = f"{PY} {shlex.quote(str(HERE / 'buswait.py'))} '{url}'"
+    # every step waits for an event (up to 60 s) instead of a fixed sleep:
+    # the kill once the controller answers, the restart after a 1.5 s outage
+    # (the scenario, not a wait); marks.txt gets the simulation time at the
+    # kill, at the restart and once the new controller is up
     script = f"""
 {PY} -m sc_rt.cli hil scenarios/paper_faults.toml --controller pd --mode realtime --control-rate 50 \\
-    --duration 6 --no-plots --out {out} --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
+    --duration {duration} --no-plots --out {out} --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
 HIL=$!
-sleep 2.0
+{wait} cmd 60 > /dev/null || exit 3
+T_KILL=$({wait} state 60) || exit 3
 pkill -KILL -f '^[^ ]*sc-rt-controller --config {out}'
 sleep 1.5
+T_START=$({wait} state 60) || exit 3
 {shlex.quote(str(Path(sys.executable).parent / 'sc-rt-controller'))} --config {out}/controller_config.bin \\
-    --mode realtime --lcm-url '{url}' > /dev/null 2>&1 &
+    --mode realtime --lcm-url '{url}' > /dev/null 2> {tmp_path}/new.err &
 NEW=$!
+for i in $(seq 600); do grep -q 'mode on' {tmp_path}/new.err && break; sleep 0.1; done
+T_READY=$({wait} state 60) || exit 3
+echo "$T_KILL $T_START $T_READY" > {tmp_path}/marks.txt
 wait $HIL
 kill -TERM $NEW
 wait $NEW
 """
-    r = lcmnet.run_script(script, timeout=120)
+    r = lcmnet.run_script(script, timeout=180)
     assert r.returncode == 0, r.stderr + (tmp_path / "hil.log").read_text()
+    t_kill, t_start, t_ready = map(float, (tmp_path / "marks.txt").read_text().split())
     timing = json.loads((out / "timing.json").read_text())
     emu = timing["emulator_counters"]
     assert emu.get("controller_sessions_adopted") == 1, emu
+    # one gap for the outage: it starts after the kill (the watchdog's stale
+    # time after the last command) and before the restart, and ends once the
+    # new controller answers. Any other gap is a controller starved on a
+    # loaded machine: short, and outside the outage.
     gaps = timing["command_gaps_s"]
-    # one gap from the kill (~1.5 s into the run after start-up) to the restart
-    assert len(gaps) == 1, gaps
-    g0, g1 = gaps[0]
-    assert 1.0 < g1 - g0 < 3.0, gaps
+    outage = [g for g in gaps if g[0] <= t_start <= g[1]]
+    assert len(outage) == 1, (gaps, t_kill, t_start, t_ready)
+    g0, g1 = outage[0]
+    assert t_kill < g0 < t_start, (g0, t_kill, t_start)
+    assert t_start <= g1 <= t_ready + 0.5, (g1, t_start, t_ready)
+    assert g1 - g0 >= 1.2, outage  # 1.5 s of outage, less the watchdog's 0.1 s
+    assert all(b - a < 0.5 for a, b in gaps if [a, b] != outage[0]), gaps
+    assert g1 + 0.5 < duration, f"the restart came too late in the run to see control resume: {gaps}"
     tr = np.load(out / "trajectory.npz")
     t, u = tr["t"], tr["u_cmd"]
     # rows without controller telemetry (the gap) still have true tracking

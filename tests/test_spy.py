@@ -22,20 +22,9 @@ from sc_rt.bus.spy import Spy
 import lcmnet
 
 ROOT = Path(__file__).resolve().parent.parent
+HERE = Path(__file__).resolve().parent
 PY = shlex.quote(sys.executable)
 PERIODIC = ("SCRT_STATE", "SCRT_CMD", "SCRT_CTRL_STATUS", "SCRT_TRUTH")
-
-
-WAIT_FOR_STATE = """
-import sys, time, lcm
-lc = lcm.LCM(sys.argv[1])
-seen = []
-lc.subscribe("SCRT_STATE", lambda c, d: seen.append(d))
-end = time.monotonic() + float(sys.argv[2])
-while not seen and time.monotonic() < end:
-    lc.handle_timeout(100)
-sys.exit(0 if seen else "no SCRT_STATE on " + sys.argv[1])
-"""
 
 
 def test_spy_sees_every_channel_at_the_configured_rate(tmp_path):
@@ -44,7 +33,6 @@ def test_spy_sees_every_channel_at_the_configured_rate(tmp_path):
     listen = 3.0
     url = "udpm://239.255.76.67:7731?ttl=0"
     out = tmp_path / "hil"
-    (tmp_path / "wait_state.py").write_text(WAIT_FOR_STATE)
     # the spy starts once the run's states are on the bus (an event, waited
     # for up to 60 s), then listens 3 s of a 9 s run
     script = f"""
@@ -52,7 +40,7 @@ set -e
 {PY} -m sc_rt.cli hil scenarios/paper_fault_free.toml --mode realtime --control-rate {rate} \\
     --duration 9 --out {out} --no-plots --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
 HIL=$!
-{PY} {tmp_path}/wait_state.py '{url}' 60
+{PY} {shlex.quote(str(HERE / 'buswait.py'))} '{url}' state 60 > /dev/null
 {PY} -m sc_rt.cli spy --lcm-url '{url}' --once --json --duration {listen} > {tmp_path}/spy.json
 wait $HIL
 """
