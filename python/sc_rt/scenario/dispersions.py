@@ -282,11 +282,13 @@ def _read_entry(t: Any, keys: dict[str, tuple[tuple[int, ...], bool]] | None
         bad("dist", "dist must be one of " + ", ".join(f'"{d}"' for d in DISTRIBUTIONS))
         dist = None
     shape, ints = None, False
+    key_ok = ok
     if ok and keys is not None:
         if key not in keys:
             close = difflib.get_close_matches(key, keys, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            bad("key", f"{key!r} is not a numeric key of this scenario{hint}")
+            t.fail("key", f"{key!r} is not a numeric key of this scenario{hint}")
+            key_ok = False  # the parameters are still checked (their shapes cannot be)
         else:
             shape, ints = keys[key]
     apply = t.raw("apply") if t.has("apply") else ("set" if dist == "choice" else "add")
@@ -323,7 +325,7 @@ def _read_entry(t: Any, keys: dict[str, tuple[tuple[int, ...], bool]] | None
         ok = _check_numeric(t, dist, params, shape, bad)
         if ok and ints:
             bad("dist", f"{key} takes integers: disperse it with dist = \"choice\" of integers")
-    if not ok:
+    if not ok or not key_ok:
         return None
     return DispersionEntry(key, dist, apply, params, symmetric)
 
