@@ -1,7 +1,8 @@
 """The paper-style figures of a reproduction (its figures 4-15), per case.
 
 :func:`claim_figures` builds them and returns the Figures (so they can be
-inspected); :func:`write_figures` saves and closes them.
+inspected); :func:`write_figures` saves and closes them
+(``sc_rt.results.figures.save_figure``).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from sc_rt.results.metrics import prescribed_chi
 from sc_rt.studies.reproduce.cases import LAW_LABEL, Runs
 from sc_rt.studies.reproduce.claims import OBSERVER_THRESHOLD, OMEGA_E_THRESHOLD
 
-__all__ = ["COLORS", "DPI", "FIGURES", "claim_figures", "save_figure", "write_figures"]
+__all__ = ["COLORS", "DPI", "FIGURES", "claim_figures", "write_figures"]
 
 DPI = 80
 COLORS = {"dsc-ppc": "C0", "dsc": "C1", "pd": "C2", "rft": "C3"}
@@ -32,16 +33,10 @@ def _pyplot():
     return plt
 
 
-def save_figure(fig: Any, path: Path, dpi: int = DPI) -> Path:
-    """Lay out, save and close one figure."""
-    fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    _pyplot().close(fig)
-    return path
-
-
 def write_figures(figs: dict[str, Any], out: Path, dpi: int = DPI) -> list[Path]:
-    """Save every figure of ``figs`` (file name -> Figure) into ``out``."""
+    """Save (and close) every figure of ``figs`` (file name -> Figure) into ``out``."""
+    from sc_rt.results.figures import save_figure  # imports matplotlib: only when plotting
+
     return [save_figure(fig, Path(out) / name, dpi) for name, fig in figs.items()]
 
 

@@ -12,7 +12,7 @@ from sc_rt.results.metrics import prescribed_chi
 from sc_rt.scenario.model import Scenario
 from sc_rt.sim.engines import simulate
 from sc_rt.studies.reproduce.cases import CASES, load_cases, scenario_label
-from sc_rt.studies.reproduce.figures import DPI, save_figure
+from sc_rt.studies.reproduce.figures import DPI
 
 __all__ = ["ROOT_CAUSE_RATES", "root_cause", "root_cause_figure"]
 
@@ -97,6 +97,8 @@ def root_cause_figure(scn: Scenario, *, engine: str = "cpp") -> tuple[dict[str, 
 def root_cause(out: Path, *, engine: str = "cpp", scenarios: dict[str, Scenario] | None = None,
                dpi: int = DPI) -> dict[str, Any]:
     """``root_cause.png`` in ``out`` (see :func:`root_cause_figure`) and its numbers."""
+    from sc_rt.results.figures import save_figure
+
     scns = scenarios if scenarios is not None else load_cases()
     info, fig = root_cause_figure(scns["fault_free"], engine=engine)
     info["figure"] = save_figure(fig, Path(out) / "root_cause.png", dpi).name
