@@ -384,59 +384,6 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     return out
 
 
-def fault_figure(run: Run, has_truth: np.ndarray, faults: dict, out: Path, title: str = "") -> Path:
-    """Per wheel: the commanded and the actual acceleration, and the fault
-    state the plant reported (effectiveness L, activation Y, stuck spans,
-    bias); thin black lines where a fault command for that wheel reached
-    the bus, red dashed at its onset."""
-    from sc_rt.results import figures  # noqa: F401  (selects the Agg backend)
-    import matplotlib.pyplot as plt
-
-    t, h = run["t"], has_truth
-    th = t[h]
-    fig, axs = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
-    for w, ax in enumerate(axs):
-        ax.plot(t, run["u_sat"][:, w], color="0.6", ls=":", lw=1.0, label="command (saturated)")
-        ax.plot(t, run["wheel_accel"][:, w], color="C0", lw=0.9, label="actual")
-        ax.set_ylabel("[rad/s^2]")
-        ax2 = ax.twinx()
-        ax2.plot(th, run["fault_effectiveness"][h, w], color="C2", lw=1.2, label="L")
-        ax2.plot(th, run["fault_Y"][h, w], color="C3", ls="--", lw=1.0, label="Y(t)")
-        ax2.set_ylim(-0.05, 1.1)
-        ax2.set_ylabel("L, Y [-]")
-        stuck = run["fault_stuck"][h, w].astype(bool)
-        if np.any(stuck):
-            ax.fill_between(th, 0, 1, where=stuck, transform=ax.get_xaxis_transform(), color="k",
-                            alpha=0.12, label="stuck")
-        bias = run["fault_bias"][h, w]
-        bias = bias[np.isfinite(bias)]
-        bmax = float(bias[np.argmax(np.abs(bias))]) if bias.size else 0.0
-        ax.set_title(f"wheel {w + 1}" + (f" (bias up to {bmax:+g} rad/s^2)" if bmax else ""),
-                     fontsize=9, loc="left")
-        for c in faults["commands"][:200]:
-            if c["wheel"] != w + 1:
-                continue
-            tc = c["t_sim_at_receipt"]
-            if tc is not None:
-                ax.axvline(tc, color="k", lw=0.7)
-            onset = tc if c["now"] else c["t_onset"]
-            if c["action"] == "inject" and onset is not None:
-                ax.axvline(onset, color="r", lw=0.9, ls="--")
-        ax.grid(alpha=0.3)
-        if w == 0:
-            h1, l1 = ax.get_legend_handles_labels()
-            h2, l2 = ax2.get_legend_handles_labels()
-            ax.legend(h1 + h2, l1 + l2, fontsize=7, ncol=5, loc="upper right")
-    axs[-1].set_xlabel("t [s]")
-    fig.suptitle(f"Wheel faults from plant_truth_t (black: fault command received, red: onset)\n{title}",
-                 fontsize=10)
-    fig.tight_layout()
-    p = out / "faults.png"
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    return p
-
-
 def write_report(log: str | Path, out: str | Path, *, scenario: str | None = None,
                  prefix: str | None = None, mode: str | None = None, plots: bool = True) -> dict[str, Any]:
     """Read ``log`` and write metrics.json, timing.json, trajectory.npz,
@@ -464,7 +411,6 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     run.timing = _timing(run, r, d, wall)
     build_s = time.perf_counter() - t_build
     # uncompressed: zlib would take longer than reading a million-event log
-    title_run = run
     write_run(run, out, figures=plots, compress=False)
     report = {"log": str(d.path), "events": d.events, "read_decode_s": d.decode_s,
               "events_per_s": d.events / d.decode_s if d.decode_s > 0 else None,
@@ -475,10 +421,6 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     if cfg is not None:
         report["config"] = {"scenario": cfg.scenario, "law": law, "control_rate_hz": rate}
     (out / "report.json").write_text(json.dumps(json_safe(report), indent=2) + "\n")
-    if plots:
-        from sc_rt.results.figures import run_title
-
-        fault_figure(title_run, r.has_truth, faults, out, title=run_title(title_run))
     report["metrics"] = run.metrics
     report["timing"] = run.timing
     return report

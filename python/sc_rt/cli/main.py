@@ -11,6 +11,8 @@ from pathlib import Path
 
 from sc_rt import __version__
 
+from sc_rt.cli.validate import (OneLineParser, UsageError, check_run_size, given_options, integer,
+                                lcm_url, number, out_dir, out_file, resolve_url, rounded)
 from sc_rt.scenario.model import LAWS  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
@@ -64,22 +66,29 @@ def _out_dir(value: str, option: str = "--out") -> Path:
     return Path(value)
 
 
-class UsageError(Exception):
-    """A bad command-line value: one line, exit 2."""
+def _html_report(out: Path, who: str) -> None:
+    """report.html of the run in ``out`` (sc_rt.results.html_report)."""
+    from sc_rt.results.html_report import write_html_report
+
+    print(f"sc-rt {who}: report for reading: {write_html_report(out)}")
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
     from sc_rt.results.output import write_run
     from sc_rt.sim.engines import simulate
 
+    from sc_rt.scenario.overrides import with_overrides
+
     out = _out_dir(args.out)
-    scn = _scenario(args.scenario)
-    res = simulate(scn, law=args.law, engine=args.engine,
-                   control_rate_hz=args.control_rate, duration=args.duration,
-                   plant_step=args.plant_step)
-    write_run(res, out, figures=not args.no_plots)
-    print(f"sc-rt sim: {scn.name} -> {out}/")
+    scn = with_overrides(_scenario(args.scenario), law=args.law, control_rate_hz=args.control_rate,
+                         duration=args.duration, plant_step=args.plant_step)
+    check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
+                                      plant_step="--plant-step"))
+    res = simulate(scn, engine=args.engine)
+    files = write_run(res, out, figures=not args.no_plots)
+    print(f"sc-rt sim: {scn.name} -> {out}/ ({len(files)} files: {', '.join(p.name for p in files)})")
     _print_metrics(res.metrics, res.meta.faults)
+    _html_report(out, "sim")
     if res.diverged:
         print(f"sc-rt sim: DIVERGED: {res.message}", file=sys.stderr)
     return 0
@@ -88,24 +97,32 @@ def cmd_sim(args: argparse.Namespace) -> int:
 def cmd_hil(args: argparse.Namespace) -> int:
     from sc_rt.bus.hil import run_hil
 
+    from sc_rt.scenario.overrides import with_overrides
+
     out = _out_dir(args.out)
-    scn = _scenario(args.scenario)
+    scn = with_overrides(_scenario(args.scenario), law=args.law, control_rate_hz=args.control_rate,
+                         duration=args.duration)
+    check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
+                                      time_scale="--time-scale"),
+                   bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale)
+    url = resolve_url(args.lcm_url, None)
     mcap = getattr(args, "mcap", None)
     mcap = str(Path(args.out) / "run.mcap") if mcap == "" else mcap
     if _mcap_problem(mcap, "hil"):
         return 2
-    res = run_hil(scn, out=out, mode=args.mode, law=args.law,
-                  control_rate_hz=args.control_rate, duration=args.duration, lcm_url=args.lcm_url,
+    res = run_hil(scn, out=out, mode=args.mode, lcm_url=url,
                   prefix=args.prefix, realtime_priority=args.realtime_priority,
                   time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
                   plots=not args.no_plots)
-    print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/")
+    print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/ ({len(res.files)} files: "
+          f"{', '.join(p.name for p in res.files)}, run.lcmlog)")
     _print_metrics(res.metrics, res.run.meta.faults)
     t = res.timing
     lat = t["state_to_cmd_latency_us"]
     print(f"  state-to-command latency [us]  p50 {lat['p50']}  p99 {lat['p99']}  max {lat['max']}")
     print(f"  steps/s {t['steps_per_s']:.0f}  deadline misses {t['deadline_misses']}  "
           f"dropped {t['dropped']}  malformed {t['malformed']}  scheduler {t['scheduler']}")
+    _html_report(Path(res.out), "hil")
     if mcap:
         return _export_mcap(Path(res.out) / "run.lcmlog", mcap, who="hil")
     return 0
@@ -128,9 +145,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     for label, name, sub in DEMO_RUNS:
         scn = _scenario(name)
         print(f"sc-rt demo: {label} ({scn.name}) through LCM, lockstep ...", file=sys.stderr, flush=True)
-        results.append((label, run_hil(scn, out=out / sub, mode="lockstep", lcm_url=args.lcm_url)))
+        results.append((label, run_hil(scn, out=out / sub, mode="lockstep",
+                                       lcm_url=resolve_url(args.lcm_url, None))))
     for label, res in results:
         print(verdict_line(res.metrics, label))
+    for label, res in results:
+        _html_report(Path(res.out), "demo")
     print("\nWhy the paper's law leaves its bound in a sampled loop, and how the feasible design "
           "was found: docs/REPRODUCTION.md")
     for label, res in results:
@@ -144,16 +164,23 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     from sc_rt.bus.emulator import Emulator
     from sc_rt.bus.lcmio import DEFAULT_URL
 
-    scn = _scenario(args.scenario)
-    emu = Emulator(scn, mode=args.mode, url=args.lcm_url or DEFAULT_URL, prefix=args.prefix,
-                   rate=args.rate, time_scale=args.time_scale, duration=args.duration,
+    from sc_rt.scenario.overrides import with_overrides
+
+    if args.out:
+        _out_dir(args.out)
+    scn = with_overrides(_scenario(args.scenario), control_rate_hz=args.rate, duration=args.duration)
+    check_run_size(scn, given_options(args, rate="--rate", duration="--duration", time_scale="--time-scale"),
+                   bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale)
+    url = resolve_url(args.lcm_url, DEFAULT_URL)
+    print(f"sc-rt emulator: LCM URL {url}", file=sys.stderr, flush=True)
+    emu = Emulator(scn, mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,
                    accept_fault_commands=args.accept_fault_commands)
     try:
         res = emu.run()
     except KeyboardInterrupt:
         print("sc-rt emulator: interrupted", file=sys.stderr)
         return 130
-    summary = {"rows": len(res), "counters": dict(res.counters), "gaps_s": res.gaps,
+    summary = {"rows": len(res), "counters": dict(res.counters), "gaps_s": rounded(res.gaps),
                "diverged": res.diverged}
     if args.out:
         from sc_rt.results.metrics import finish_run
@@ -318,6 +345,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     _print_metrics(rep["metrics"])
     for c in rep["faults"]["commands"]:
         print(f"  fault command: {c}")
+    _html_report(out, "report")
     if args.mcap:  # the report reads damaged logs as far as it can: so does its MCAP
         return _export_mcap(args.log, args.mcap, partial=True, who="report")
     return 0

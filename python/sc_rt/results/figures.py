@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 from sc_rt.results.metrics import prescribed_chi  # noqa: E402
 from sc_rt.results.run import Run  # noqa: E402
 
-__all__ = ["tracking_figures", "timing_figures"]
+__all__ = ["tracking_figures", "timing_figures", "fault_figure", "mark_events", "run_title", "save_figure"]
 
 AXES = ("x", "y", "z")
 
@@ -35,121 +35,258 @@ def save_figure(fig, path: Path, dpi: int = 110) -> Path:
     return path
 
 
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+def _two_line(what: str, run: Run, title: str = "") -> str:
+    return f"{what}\n{title or run_title(run)}"
+
+
+def _safe_mask(run: Run) -> np.ndarray:
+    from sc_rt.results.verdict import MODE_SAFE, SAFE_FLAGS
+
+    known = run["ctrl_mode"] >= 0
+    return np.where(known, run["ctrl_mode"] == MODE_SAFE, (run["flags"] & sum(SAFE_FLAGS)) != 0)
+
+
+def _spans(t: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
+    edge = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+    starts, ends = np.nonzero(edge == 1)[0], np.nonzero(edge == -1)[0]
+    return [(float(t[a]), float(t[min(b, len(t) - 1)])) for a, b in zip(starts, ends)]
+
+
+def fault_onsets(run: Run) -> list[tuple[float, int]]:
+    """(time, wheel) of every fault onset: scheduled in the scenario or
+    injected live (as the emulator applied them)."""
+    out = [(float(f["onset"]), int(f["wheel"])) for f in run.meta.faults]
+    for f in run.faults_applied:  # the emulator's record, or the commands a log holds
+        if f.get("action") != "inject":
+            continue
+        onset = f.get("t_sim_at_receipt") if f.get("now") else f.get("onset", f.get("t_onset"))
+        if onset is not None:
+            out.append((float(onset), int(f["wheel"])))
+    return sorted(set(out))
+
+
+def mark_events(ax, run: Run, *, labels: bool = False) -> None:
+    """Fault onsets (red dashed), the first bound violation (black), SAFE
+    spans (grey) and spans without a command (orange) on a time axis."""
+    t = run["t"]
+    if len(t) == 0:
+        return
+    for j, (onset, wheel) in enumerate(fault_onsets(run)):
+        if onset <= t[-1]:
+            ax.axvline(onset, color="r", ls="--", lw=0.7, label="fault onset" if labels and j == 0 else None)
+    first = run.metrics.get("first_bound_violation_s")
+    if first is not None:
+        ax.axvline(first, color="k", lw=0.9, label="first bound violation" if labels else None)
+    for j, (a, b) in enumerate(_spans(t, _safe_mask(run))):
+        ax.axvspan(a, b, color="0.5", alpha=0.2, lw=0, label="SAFE" if labels and j == 0 else None)
+    for j, (a, b) in enumerate(run.gaps):
+        ax.axvspan(a, b, color="orange", alpha=0.2, lw=0, label="no command" if labels and j == 0 else None)
+
+
+def _legend_outside(ax, **kw) -> None:
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, borderaxespad=0.0, **kw)
 
 
 def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
-    """Attitude error with the prescribed bounds (linear and log), rate error,
-    wheel commands with the saturation limits, lumped disturbance and the
-    observer's error (the paper's figures 4-15). The envelope and the wheel
+    """Attitude error with the prescribed bounds (linear and log), pointing
+    error in arcsec, rate error, wheel commands per wheel with the limits,
+    lumped disturbance and the observer's error (the paper's figures 4-15),
+    and the faults when there are any. Every time plot marks fault onsets,
+    the first bound violation and SAFE spans. The envelope and the wheel
     limits come from ``run.meta``."""
+    from sc_rt.results.verdict import pointing_arcsec
+
     out.mkdir(parents=True, exist_ok=True)
-    traj = run
-    title = title or run_title(run)
-    t = traj["t"]
+    t = run["t"]
     ppc = run.meta.ppc
     chi = prescribed_chi(ppc, t)
     dmin, dmax = np.asarray(ppc["dmin"]), np.asarray(ppc["dmax"])
+    sig = run["sigma_BD"]
     paths = []
 
-    fig, axs = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for i, ax in enumerate(axs):
-        ax.plot(t, traj["sigma_BD"][:, i], label=f"sigma_BD,{AXES[i]}")
+        ax.plot(t, sig[:, i], label=f"sigma_BD,{AXES[i]}")
         ax.plot(t, dmax[i] * chi[:, i], "r--", lw=0.8, label="dmax chi(t)")
-        ax.plot(t, -dmin[i] * chi[:, i], "r--", lw=0.8, label="-dmin chi(t)")
+        ax.plot(t, -dmin[i] * chi[:, i], "r:", lw=0.8, label="-dmin chi(t)")
+        mark_events(ax, run, labels=i == 0)
         ax.set_ylabel(f"sigma_BD,{AXES[i]} [-]")
         ax.grid(alpha=0.3)
-    axs[0].legend(loc="upper right", fontsize=8)
-    axs[0].set_title(f"Attitude tracking error and prescribed bounds {title}")
+    _legend_outside(axs[0])
+    axs[0].set_title(_two_line("Attitude tracking error (MRP) and prescribed bounds", run, title))
     axs[-1].set_xlabel("t [s]")
-    paths.append(_save(fig, out / "attitude_error.png"))
+    paths.append(save_figure(fig, out / "attitude_error.png"))
 
-    fig, axs = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for i, ax in enumerate(axs):
-        ax.semilogy(t, np.abs(traj["sigma_BD"][:, i]) + 1e-300, label=f"|sigma_BD,{AXES[i]}|")
+        ax.semilogy(t, np.abs(sig[:, i]) + 1e-300, label=f"|sigma_BD,{AXES[i]}|")
         ax.semilogy(t, dmax[i] * chi[:, i], "r--", lw=0.8, label="dmax chi(t) (bound for > 0)")
         if dmin[i] != dmax[i]:
             ax.semilogy(t, dmin[i] * chi[:, i], "m:", lw=0.9, label="dmin chi(t) (bound for < 0)")
         ax.set_ylabel(f"|sigma_BD,{AXES[i]}| [-]")
-        ax.set_ylim(max(1e-12, np.nanmin(chi) * 1e-3), 1.0)
+        ax.set_ylim(max(1e-12, np.nanmin(chi) * 1e-3) if chi.size else 1e-12, 1.0)
         ax.grid(alpha=0.3, which="both")
-        viol = ~traj["bound_ok"][:, i]
+        viol = ~run["bound_ok"][:, i]
         if np.any(viol):
-            ax.plot(t[viol], np.abs(traj["sigma_BD"][viol, i]) + 1e-300, "k.", ms=2,
-                    label="outside the bound")
-        ax.legend(loc="upper right", fontsize=7)
-    axs[0].set_title(f"Attitude error, log scale {title}")
+            ax.plot(t[viol], np.abs(sig[viol, i]) + 1e-300, "k.", ms=2, label="outside the bound")
+        mark_events(ax, run, labels=i == 0)
+        _legend_outside(ax)
+    axs[0].set_title(_two_line("Attitude tracking error, log scale", run, title))
     axs[-1].set_xlabel("t [s]")
-    paths.append(_save(fig, out / "attitude_error_log.png"))
+    paths.append(save_figure(fig, out / "attitude_error_log.png"))
 
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = plt.subplots(figsize=(9, 4))
+    ang = pointing_arcsec(sig)
+    env = pointing_arcsec(dmax * chi)  # the angle of the envelope's corner (all axes at dmax chi)
+    ax.semilogy(t, ang + 1e-300, lw=0.9, label="pointing error 4 atan|sigma_BD|")
+    ax.semilogy(t, env, "r--", lw=0.8, label="envelope corner 4 atan|dmax chi(t)|")
+    mark_events(ax, run, labels=True)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("pointing error [arcsec]")
+    ax.grid(alpha=0.3, which="both")
+    _legend_outside(ax)
+    ax.set_title(_two_line("Pointing error", run, title))
+    paths.append(save_figure(fig, out / "pointing_error.png"))
+
+    fig, ax = plt.subplots(figsize=(9, 4))
     for i in range(3):
-        ax.plot(t, traj["omega_BD_B"][:, i], label=f"omega_BD_B,{AXES[i]}")
+        ax.plot(t, run["omega_BD_B"][:, i], label=f"omega_BD_B,{AXES[i]}")
+    mark_events(ax, run, labels=True)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("rate error [rad/s]")
-    ax.set_title(f"Angular-rate tracking error {title}")
+    ax.set_title(_two_line("Angular-rate tracking error", run, title))
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    paths.append(_save(fig, out / "rate_error.png"))
+    _legend_outside(ax)
+    paths.append(save_figure(fig, out / "rate_error.png"))
 
-    fig, ax = plt.subplots(figsize=(8, 4))
-    for i in range(4):
-        ax.plot(t, traj["u_sat"][:, i], lw=0.9, label=f"wheel {i + 1}")
+    fig, axs = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
     umin, umax = np.asarray(run.meta.umin), np.asarray(run.meta.umax)
-    ax.axhline(umax.max(), color="r", ls="--", lw=0.8, label="umax")
-    ax.axhline(umin.min(), color="r", ls=":", lw=0.8, label="umin")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("wheel acceleration command [rad/s^2]")
-    ax.set_title(f"Wheel commands (after saturation) {title}")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, ncol=3)
-    paths.append(_save(fig, out / "wheel_commands.png"))
+    for w, ax in enumerate(axs):
+        ax.plot(t, run["u_sat"][:, w], lw=0.9, label="command after saturation")
+        if np.any(np.isfinite(run["wheel_accel"][:, w])):
+            ax.plot(t, run["wheel_accel"][:, w], lw=0.7, ls="--", label="actual (faults applied)")
+        ax.axhline(umax[w], color="r", ls=":", lw=0.8, label="limits")
+        ax.axhline(umin[w], color="r", ls=":", lw=0.8)
+        mark_events(ax, run, labels=w == 0)
+        ax.set_ylabel(f"wheel {w + 1}\n[rad/s^2]")
+        ax.grid(alpha=0.3)
+    _legend_outside(axs[0])
+    axs[0].set_title(_two_line("Wheel acceleration commands, one axis per wheel", run, title))
+    axs[-1].set_xlabel("t [s]")
+    paths.append(save_figure(fig, out / "wheel_commands.png"))
 
-    fig, axs = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    fig, axs = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     for i in range(3):
-        axs[0].plot(t, traj["delta2"][:, i], label=f"delta_2,{AXES[i]} (true)")
-        axs[0].plot(t, traj["z2"][:, i], "--", label=f"z2,{AXES[i]} (observer)")
+        axs[0].plot(t, run["delta2"][:, i], label=f"delta_2,{AXES[i]} (true)")
+        axs[0].plot(t, run["z2"][:, i], "--", label=f"z2,{AXES[i]} (observer)")
     axs[0].set_ylabel("[rad/s^2]")
-    axs[0].set_title(f"Lumped disturbance and its estimate {title}")
-    axs[0].legend(fontsize=7, ncol=2)
+    axs[0].set_title(_two_line("Lumped disturbance and its estimate", run, title))
     axs[0].grid(alpha=0.3)
-    err = np.abs(traj["z2"] - traj["delta2"])
+    mark_events(axs[0], run, labels=True)
+    _legend_outside(axs[0], ncol=1)
+    err = np.abs(run["z2"] - run["delta2"])
     for i in range(3):
         axs[1].semilogy(t, err[:, i] + 1e-300, label=f"|z2 - delta_2|,{AXES[i]}")
+    mark_events(axs[1], run)
     axs[1].set_ylabel("observer error [rad/s^2]")
     axs[1].set_xlabel("t [s]")
     axs[1].grid(alpha=0.3, which="both")
-    axs[1].legend(fontsize=7)
-    paths.append(_save(fig, out / "disturbance_observer.png"))
+    _legend_outside(axs[1])
+    paths.append(save_figure(fig, out / "disturbance_observer.png"))
+    if fault_onsets(run) or np.any(np.isfinite(run["fault_Y"])):
+        paths.append(fault_figure(run, out, title))
     return paths
 
 
-def timing_figures(run: Run, out: Path) -> list[Path]:
-    """Histograms of the controller's wake lateness and the state-to-command
-    latency, and both over time."""
+def scheduled_fault_state(run: Run) -> dict[str, np.ndarray]:
+    """Y(t) (19), effectiveness, bias and stuck per wheel at the run's rows,
+    from the run's own truth when it has it, else from the scheduled faults."""
+    t = run["t"]
+    if np.any(np.isfinite(run["fault_Y"])):
+        return {k: run[k] for k in ("fault_Y", "fault_effectiveness", "fault_bias", "fault_stuck")}
+    n = len(t)
+    Y, L, B, K = np.zeros((n, 4)), np.ones((n, 4)), np.zeros((n, 4)), np.zeros((n, 4), np.int64)
+    for f in run.meta.faults:
+        w = f["wheel"] - 1
+        on = (t >= f["onset"]) & (True if f["end"] is None else (t < f["end"]))
+        Y[on, w] = 1.0 - np.exp(-f["rate"] * (t[on] - f["onset"]))
+        L[on, w], B[on, w], K[on, w] = f["effectiveness"], f["bias"], int(f["stuck"])
+    return {"fault_Y": Y, "fault_effectiveness": L, "fault_bias": B, "fault_stuck": K}
+
+
+def fault_figure(run: Run, out: Path, title: str = "") -> Path:
+    """Per wheel: the commanded and the actual acceleration, and the fault
+    state (effectiveness L, activation Y, stuck spans, bias); red dashed at
+    each onset."""
+    t = run["t"]
+    fs = scheduled_fault_state(run)
+    fig, axs = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
+    for w, ax in enumerate(axs):
+        ax.plot(t, run["u_sat"][:, w], color="0.6", ls=":", lw=1.0, label="command (saturated)")
+        ax.plot(t, run["wheel_accel"][:, w], color="C0", lw=0.9, label="actual")
+        ax.set_ylabel("[rad/s^2]")
+        ax2 = ax.twinx()
+        ok = np.isfinite(fs["fault_effectiveness"][:, w])
+        ax2.plot(t[ok], fs["fault_effectiveness"][ok, w], color="C2", lw=1.2, label="L")
+        ax2.plot(t[ok], fs["fault_Y"][ok, w], color="C3", ls="--", lw=1.0, label="Y(t)")
+        ax2.set_ylim(-0.05, 1.1)
+        ax2.set_ylabel("L, Y [-]")
+        stuck = fs["fault_stuck"][:, w].astype(bool)
+        if np.any(stuck):
+            ax.fill_between(t, 0, 1, where=stuck, transform=ax.get_xaxis_transform(), color="k",
+                            alpha=0.12, label="stuck")
+        bias = fs["fault_bias"][:, w]
+        bias = bias[np.isfinite(bias)]
+        bmax = float(bias[np.argmax(np.abs(bias))]) if bias.size else 0.0
+        ax.set_title(f"wheel {w + 1}" + (f" (bias up to {bmax:+g} rad/s^2)" if bmax else ""),
+                     fontsize=9, loc="left")
+        for onset, wheel in fault_onsets(run):
+            if wheel == w + 1:
+                ax.axvline(onset, color="r", lw=0.9, ls="--")
+        ax.grid(alpha=0.3)
+        if w == 0:
+            h1, l1 = ax.get_legend_handles_labels()
+            h2, l2 = ax2.get_legend_handles_labels()
+            ax.legend(h1 + h2, l1 + l2, fontsize=7, ncol=5, loc="lower left", bbox_to_anchor=(0.0, 1.12))
+    axs[-1].set_xlabel("t [s]")
+    fig.suptitle(_two_line("Wheel faults (red dashed: onset)", run, title), fontsize=10)
+    return save_figure(fig, out / "faults.png", dpi=100)
+
+
+def timing_figures(run: Run, out: Path, floor: dict | None = None) -> list[Path]:
+    """The bench's timing over time and as histograms: state-to-command
+    latency, controller compute and (real time only) the controller's wake
+    lateness and the emulator's tick lateness. The control period is drawn,
+    and the bench floor (``floor``: {series: p99 [us]}) when there is one."""
     out.mkdir(parents=True, exist_ok=True)
-    lat = run["latency_us"]
-    series = {
-        "state-to-command latency [us]": lat[np.isfinite(lat)],
-        "controller compute [us]": run["compute_us"],
-        "controller wake lateness [us]": run["wake_lateness_us"],
-    }
-    fig, axs = plt.subplots(len(series), 2, figsize=(10, 8))
-    for row, (name, v) in zip(axs, series.items()):
-        v = np.asarray(v, float)
-        ok = v[np.isfinite(v)]
-        if ok.size:
-            row[0].hist(ok, bins=80)
-            row[0].set_yscale("log")
-            row[1].plot(np.arange(v.size), v, lw=0.5)
-        row[0].set_xlabel(name)
-        row[0].set_ylabel("count")
-        row[1].set_xlabel("step")
-        row[1].set_ylabel(name)
+    t = run["t"]
+    period_us = 1e6 / run.meta.control_rate_hz
+    series = {"state-to-command latency [us]": "latency_us", "controller compute [us]": "compute_us"}
+    if run.meta.mode == "realtime":
+        series["controller wake lateness [us]"] = "wake_lateness_us"
+        series["emulator tick lateness [us]"] = "tick_lateness_us"
+    series = {k: v for k, v in series.items() if np.any(np.isfinite(run[v]))}
+    if not series:
+        series = {"state-to-command latency [us]": "latency_us"}
+    fig, axs = plt.subplots(len(series), 2, figsize=(11, 2.6 * len(series) + 1), squeeze=False,
+                            gridspec_kw={"width_ratios": [2, 1]})
+    for row, (name, key) in zip(axs, series.items()):
+        v = np.asarray(run[key], float)
+        ok = np.isfinite(v)
+        row[0].plot(t[ok], v[ok], lw=0.5)
+        row[0].axhline(period_us, color="r", ls="--", lw=0.8, label=f"period {period_us:g} us")
+        if floor and floor.get(key) is not None:
+            row[0].axhline(floor[key], color="g", ls=":", lw=0.9, label=f"bench floor p99 {floor[key]:.0f} us")
+        row[0].set_yscale("log")
+        row[0].set_xlabel("t [s]")
+        row[0].set_ylabel(name)
+        row[0].legend(fontsize=7, loc="upper right")
+        if np.any(ok):
+            row[1].hist(v[ok], bins=80)
+            row[1].set_yscale("log")
+        row[1].set_xlabel(name)
+        row[1].set_ylabel("count")
         for a in row:
             a.grid(alpha=0.3)
-    return [_save(fig, out / "timing.png")]
+    axs[0][0].set_title(_two_line(f"Bench timing, {run.meta.mode}, {run.meta.control_rate_hz:g} Hz", run))
+    return [save_figure(fig, out / "timing.png")]

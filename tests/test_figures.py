@@ -1,0 +1,105 @@
+"""The run figures by content: the axes, the series, the bound lines and the
+event markers each figure must show (not file sizes)."""
+
+from __future__ import annotations
+
+import matplotlib
+import numpy as np
+import pytest
+
+from sc_rt.results import figures
+from sc_rt.scenario.model import load_scenario
+from sc_rt.sim.engines import simulate
+
+
+@pytest.fixture(scope="module")
+def faults_run():
+    return simulate(load_scenario("paper_faults"), law="dsc-ppc", engine="cpp", duration=60.0)
+
+
+@pytest.fixture
+def captured(monkeypatch):
+    """Every figure the module saves, by file name, still open for inspection."""
+    figs: dict[str, matplotlib.figure.Figure] = {}
+
+    def keep(fig, path, dpi=110):
+        figs[path.name] = fig
+        return path
+
+    monkeypatch.setattr(figures, "save_figure", keep)
+    yield figs
+    for f in figs.values():
+        matplotlib.pyplot.close(f)
+
+
+def _labels(ax) -> list[str]:
+    return [ln.get_label() for ln in ax.get_lines()] + [p.get_label() for p in ax.patches]
+
+
+def test_tracking_figures_show_the_envelope_events_and_one_axis_per_wheel(faults_run, captured, tmp_path):
+    paths = figures.tracking_figures(faults_run, tmp_path)
+    names = {p.name for p in paths}
+    assert names == set(captured) == {"attitude_error.png", "attitude_error_log.png", "pointing_error.png",
+                                      "rate_error.png", "wheel_commands.png", "disturbance_observer.png",
+                                      "faults.png"}
+    att = captured["attitude_error.png"].axes
+    assert len(att) == 3
+    for i, ax in enumerate(att):
+        labels = _labels(ax)
+        assert {f"sigma_BD,{'xyz'[i]}", "dmax chi(t)", "-dmin chi(t)"} <= set(labels)
+        # the bound line is the scenario's envelope, recomputed here independently
+        bound = next(ln for ln in ax.get_lines() if ln.get_label() == "dmax chi(t)")
+        p = faults_run.meta.ppc
+        t = faults_run.t
+        chi = (p["chi0"][i] - p["chiinf"][i]) * np.exp(-p["gamma"][i] * t) + p["chiinf"][i]
+        np.testing.assert_allclose(bound.get_ydata(), p["dmax"][i] * chi, rtol=1e-12)
+    # titles on their own lines: what, then which run
+    title = att[0].get_title()
+    assert title.split("\n")[1] == "paper_faults, dsc-ppc, offline (C++ loop)"
+    # the events: three scheduled fault onsets (5, 10, 5 s -> two distinct times)
+    # and the first violation (4.1 s, docs/REPRODUCTION.md) as vertical lines
+    xs = sorted({float(ln.get_xdata()[0]) for ln in att[0].get_lines()
+                 if ln.get_label() in ("fault onset", "first bound violation")
+                 or (ln.get_linestyle() == "--" and ln.get_color() == "r" and len(set(ln.get_xdata())) == 1)})
+    assert xs == [pytest.approx(4.1), 5.0, 10.0]
+    wheels = captured["wheel_commands.png"].axes
+    assert len(wheels) == 4 and all("limits" in _labels(a) or len(a.get_lines()) >= 3 for a in wheels)
+    # the legend sits outside the data (right of the axes)
+    leg = wheels[0].get_legend()
+    assert leg is not None and leg.get_bbox_to_anchor().x0 > wheels[0].get_window_extent().x1 - 1
+    ptg = captured["pointing_error.png"].axes[0]
+    assert ptg.get_yscale() == "log" and "arcsec" in ptg.get_ylabel()
+    series = {ln.get_label(): ln for ln in ptg.get_lines()}
+    ang = series["pointing error 4 atan|sigma_BD|"].get_ydata()
+    np.testing.assert_allclose(ang, np.degrees(4 * np.arctan(np.linalg.norm(faults_run["sigma_BD"], axis=1)))
+                               * 3600 + 1e-300, rtol=1e-12)
+    assert len(captured["faults.png"].axes) == 8  # four wheels, each with its fault-state twin axis
+
+
+def test_safe_spans_are_shaded(captured, tmp_path):
+    # the paper's law tumbles past the 10 rad/s safety limit near 240 s: the
+    # controller is in SAFE from there (docs/REPRODUCTION.md), shaded grey
+    run = simulate(load_scenario("paper_faults"), law="dsc-ppc", engine="python")
+    assert run.metrics["safe_steps"] > 0
+    figures.tracking_figures(run, tmp_path)
+    ax = captured["attitude_error.png"].axes[0]
+    safe = [p for p in ax.patches if p.get_label() == "SAFE"]
+    assert safe, _labels(ax)
+    x0 = safe[0].get_x() if hasattr(safe[0], "get_x") else safe[0].get_xy()[0][0]
+    assert x0 == pytest.approx(run.metrics["safe_from_s"])
+
+
+def test_lockstep_timing_figure_has_no_empty_wake_panel(captured, tmp_path):
+    from sc_rt.results.run import Run, RunMeta
+
+    scn = load_scenario("paper_faults")
+    n = 50
+    run = Run(RunMeta.of_scenario(scn, "hil-lockstep", mode="lockstep"),
+              {"t": np.arange(n) / 10.0, "latency_us": np.full(n, 80.0), "compute_us": np.full(n, 1.0)})
+    figures.timing_figures(run, tmp_path, floor={"latency_us": 150.0})
+    axs = captured["timing.png"].axes
+    ylabels = [a.get_ylabel() for a in axs[::2]]
+    assert ylabels == ["state-to-command latency [us]", "controller compute [us]"]
+    labels = _labels(axs[0])
+    assert "period 100000 us" in labels and "bench floor p99 150 us" in labels
+    assert axs[0].get_xlabel() == "t [s]"
