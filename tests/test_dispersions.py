@@ -204,3 +204,15 @@ def test_a_table_campaign_stores_its_values_and_reruns_bitwise(tmp_path):
     assert "initial.omega_BN_B[0]" not in rows[0]  # with a table the shortcuts are off
     assert repr({k: run_one(c, 2).get(k) for k in rows[2]}) == repr(rows[2])
     assert get_key(scenario_data(s), "faults[1].onset") == s.actuators.faults[1].onset
+
+
+def test_the_documented_example_reads(tmp_path):
+    doc = (ROOT / "docs/SCENARIOS.md").read_text()
+    section = doc[doc.index("### `[montecarlo]`"):]
+    block = section[section.index("```toml") + len("```toml"):]
+    block = block[:block.index("```")]
+    s = scenario(tmp_path, "\n" + block)
+    assert [e.key for e in s.montecarlo.disperse] == ["spacecraft.dJ", "faults[1].onset", "spacecraft.Jw",
+                                                      "controller.dsc.k2"]
+    d, values, _, _ = draw_run(s, NO_SHORTCUTS, 0, 0)
+    assert d is not None and values["controller.dsc.k2"] in (12.0, 16.0, 20.0)
