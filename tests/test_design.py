@@ -47,10 +47,22 @@ def unlimited_wheels(scn):
 # Linearisation
 
 
-def test_mrp_add_inverts_the_subtraction_of_8(rng):
+def test_mrp_add_composes_the_rotations(rng):
+    # mrp_add is the core's (8) with sigma_DN negated; check it against an
+    # independent implementation (scipy's rotations: R(sigma_BN) = R(sigma_BD) R(sigma_DN)
+    # for the DCMs, i.e. the transposes of scipy's active matrices) and the
+    # published composition formula.
+    from scipy.spatial.transform import Rotation
+
     for _ in range(20):
         a, b = rng.uniform(-0.5, 0.5, 3), rng.uniform(-0.5, 0.5, 3)
-        np.testing.assert_allclose(_core.mrp_subtract(D.mrp_add(a, b), b), a, atol=1e-14)
+        c = D.mrp_add(a, b)
+        dcm = Rotation.from_mrp(a).as_matrix().T @ Rotation.from_mrp(b).as_matrix().T
+        np.testing.assert_allclose(Rotation.from_mrp(c).as_matrix().T, dcm, atol=1e-14)
+        aa, bb = a @ a, b @ b
+        formula = ((1 - bb) * a + (1 - aa) * b - 2 * np.cross(a, b)) / (1 + aa * bb - 2 * (a @ b))
+        if formula @ formula <= 1.0:  # the core returns the short set
+            np.testing.assert_allclose(c, formula, atol=1e-14)
 
 
 @pytest.mark.parametrize("inertia", D.INERTIAS)
@@ -160,6 +172,15 @@ def test_margins_match_the_closed_forms(paper, rate, inertia):
         p = by["pade", ax]
         assert p["pm"] == pytest.approx(cf["pm"] - math.degrees(cf["wgc"] * D.DEFAULT_LATENCY_S),
                                         abs=1e-6)
+        # python-control agrees on the continuous loops with latency (not on the
+        # sampled ones: sc_rt.studies.design.margins.loop_margins); its polynomial
+        # root search overflows harmlessly on these 21-state loops
+        with np.errstate(over="ignore"):
+            gm, pm, _, wpc, wgc, _ = control.stability_margins(
+                D.axis_loop(paper, pd.beta1, pd.beta2, i, case="pade", inertia=inertia,
+                            latency=D.DEFAULT_LATENCY_S))
+        assert (gm, wpc) == (pytest.approx(p["gm"], rel=1e-6), pytest.approx(p["wpc"], rel=1e-6))
+        assert (pm, wgc) == (pytest.approx(p["pm"], abs=1e-6), pytest.approx(p["wgc"], rel=1e-6))
         for r in (c, z, d, p):
             assert 1.0 - 1e-9 <= r["ms"] < 1.1
 
@@ -234,6 +255,97 @@ def test_sampled_model_reproduces_the_cpp_closed_loop(paper, chi_x, grows):
     assert (growth > 3.0) if grows else (growth < 0.5)
 
 
+def _core_step_derivative(scn, law, rate, a, b, h0=2e-4):
+    """d(Command)/d(measurements) of the C++ controller along the measurement
+    sequence (h a_k, h b_k), h -> 0: central differences at h0, h0/2, h0/4 and
+    two Richardson steps (error O(h0^6) plus rounding; the PPC's logarithms
+    cancel at small h, so plain central differences stop at ~1e-11)."""
+    fields = ("u_cmd", "u_sat", "x2d", "vs", "z1", "z2")
+
+    def run(h):
+        ctl = _core.Controller(scn.core_config(law))
+        cmds = []
+        for k in range(len(a)):
+            m = _core.Measurement(k / rate, h * a[k], h * b[k], np.zeros(4))
+            if k == 0:
+                ctl.reset(m)
+            cmd = ctl.step(m)
+            cmds.append({f: np.array(getattr(cmd, f)) for f in fields})
+        return cmds
+
+    def central(h):
+        p, m = run(h), run(-h)
+        return [{f: (p[k][f] - m[k][f]) / (2 * h) for f in fields} for k in range(len(a))]
+
+    d = [central(h0 / 2**j) for j in range(3)]
+    for level in (1, 2):
+        w = 4.0**level
+        d = [[{f: (w * d[j + 1][k][f] - d[j][k][f]) / (w - 1) for f in fields}
+              for k in range(len(a))] for j in range(len(d) - 1)]
+    return d[0]
+
+
+@pytest.mark.parametrize("law", ["dsc-ppc", "dsc"])
+@pytest.mark.parametrize("rate", [10.0, 100.0])
+def test_linearised_controller_step_is_the_cores_step(paper_faults, rng, law, rate):
+    # The law of the sampled model (controller_step) is written out in Python;
+    # it must stay the derivative of the C++ DscController's step. With alpha = 1
+    # (the observer's sig terms are then linear, local-gain exact), no desired
+    # motion and w0 = 0 the core's step is smooth at the origin: drive it with a
+    # random measurement sequence and compare every step's u_cmd, x2d, vs, z1, z2
+    # with the linear map applied to the same measurements, to 1e-12.
+    scn = replace(paper_faults, plant=dict(w0=0.0),
+                  guidance=dict(sigma_d0=np.zeros(3), omega_bias=np.zeros(3),
+                                omega_cos=np.zeros(3), omega_sin=np.zeros(3)))
+    c = scn.controller
+    scn = dataclasses.replace(scn, controller=dataclasses.replace(
+        c, neso=dataclasses.replace(c.neso, alpha=1.0, substeps=3)))
+    N = 30
+    a, b = rng.standard_normal((N, 3)), rng.standard_normal((N, 3))
+    ref = _core_step_derivative(scn, law, rate, a, b)
+    assert np.all(np.abs(ref[1]["u_cmd"]) > 1e-3)  # the laws act
+    B = np.array(_core.SpacecraftModel(scn.core_config().spacecraft).B)
+    si = {n: D.SAMPLED_STATES.index(f"{n}[0]") for n in
+          ("x1", "x2", "x2d", "x2bar_prev", "vs", "z1", "z2", "x2_prev", "Bu_prev")}
+    oi = {n: D.CONTROLLER_OUTPUTS.index(f"{n}[0]") for n in ("u", "x2d", "x2bar", "vs", "z1", "z2")}
+    size = {"u": 4, "vs": 4}
+    s = np.zeros(len(D.SAMPLED_STATES))
+
+    def put(name, v):
+        s[si[name]:si[name] + len(v)] = v
+
+    def out(y, name):
+        return y[oi[name]:oi[name] + size.get(name, 3)]
+
+    # the state after the core's step 0 (reset: x2d = x2bar, vs = 0)
+    put("x2d", ref[0]["x2d"])
+    put("x2bar_prev", ref[0]["x2d"])
+    put("vs", ref[0]["vs"])
+    put("z1", ref[0]["z1"])
+    put("z2", ref[0]["z2"])
+    put("x2_prev", b[0])
+    put("Bu_prev", B @ ref[0]["u_sat"])
+    err = dict.fromkeys(("u_cmd", "x2d", "vs", "z1", "z2"), 0.0)
+    mag = dict(err)
+    for k in range(1, N):
+        put("x1", a[k])
+        put("x2", b[k])
+        y = D.controller_step(scn, law, rate, k / rate, observer="local-gain") @ s
+        got = {"u_cmd": out(y, "u"), "x2d": out(y, "x2d"), "vs": out(y, "vs"), "z1": out(y, "z1"),
+               "z2": out(y, "z2")}
+        for f in err:
+            err[f] = max(err[f], np.abs(got[f] - ref[k][f]).max())
+            mag[f] = max(mag[f], np.abs(ref[k][f]).max())
+        for name in ("x2d", "vs", "z1", "z2"):
+            put(name, got[name])
+        put("x2bar_prev", out(y, "x2bar"))
+        put("x2_prev", b[k])
+        put("Bu_prev", B @ got["u_cmd"])
+    assert mag["vs"] == 0.0 and err["vs"] == 0.0  # no saturation: the compensator stays at 0
+    for f in ("u_cmd", "x2d", "z1", "z2"):
+        assert err[f] <= 1e-12 * mag[f], (f, err[f], mag[f])
+
+
 @pytest.mark.parametrize("rate", [10.0, 100.0, 1000.0])
 def test_critical_gain_follows_the_half_sample_rule(paper, rate):
     lim = D.stability_limit(paper, "dsc-ppc", rate)
@@ -275,6 +387,13 @@ def test_the_10hz_break_at_4s_is_saturation_not_the_sampled_loop(paper):
     # error grows only after it (masked by a slower transient until ~11.5 s)
     assert free["first_bound_violation_s"] > pred.t_loss_s + 3.0
     assert pred.t_loss_s <= free["onset_s"][0] < 1.25 * pred.t_loss_s
+    # what sc-rt design prints about it
+    why = D.compare_loss_of_stability(pred, real, free)
+    assert (why["t_loss_s"], why["first_bound_violation_s"]) == (pred.t_loss_s, 4.1)
+    assert why["first_bound_violation_axis"] == "z"
+    text = why["explanation"]
+    assert "4.10 s" in text and f"{pred.t_loss_s:.2f} s" in text and "100% of the control steps" in text
+    assert f"until {free['first_bound_violation_s']:.2f} s" in text
 
 
 @pytest.mark.parametrize("which", ["fault_free", "faults"])
@@ -312,6 +431,25 @@ def test_design_cli_writes_its_files(tmp_path, capsys):
     assert set(lim) == {"dsc-ppc", "dsc"} and set(lim["dsc-ppc"]) == {"10", "100", "1000"}
     assert lim["dsc-ppc"]["100"]["t_loss_s"] == pytest.approx(19.4, abs=0.1)
     assert lim["dsc"]["100"]["t_loss_s"] is None
+    # the margins are labelled as the PD loop's
+    assert "margins of the PD baseline loop, not of DSC+PPC" in text and "PD loop u = -B+" in text
+    # chiinf against the half-sample rule's smallest stable chiinf (within its 1 %)
+    p, k2 = d["chiinf_check"], 4.0  # paper k2 [1/s]
+    scn = load_scenario(FAULT_FREE)
+    ppc = scn.controller.ppc
+    assert scn.controller.dsc.k2 == k2
+    rule = (1 / ppc.dmin + 1 / ppc.dmax) / (2 * 4 * math.sqrt(2 * k2 * 100.0))
+    np.testing.assert_allclose(p["chiinf_min"], rule, rtol=0.01)
+    np.testing.assert_allclose(p["ratio"], ppc.chiinf / rule, rtol=0.01)
+    assert not any(p["stable_at_end"])  # the paper's chiinf is far below it
+    for ax, r in zip("xyz", p["ratio"]):
+        assert f"{ax}: chiinf = " in text and f"ratio chiinf/chiinf_min = {r:.2e}" in text
+    # the predicted loss and the run's first violation, side by side
+    los = d["loss_of_stability"]
+    assert los["t_loss_s"] == lim["dsc-ppc"]["100"]["t_loss_s"]
+    assert los["first_bound_violation_s"] == pytest.approx(31.65, abs=0.05)  # docs/DESIGN.md
+    assert los["onset_s"] == pytest.approx(los["t_loss_s"], rel=0.10)
+    assert "grow from the error floor" in los["explanation"] and los["explanation"] in text
 
 
 def test_design_cli_rejects_a_bad_scenario_and_rate(tmp_path, capsys):
