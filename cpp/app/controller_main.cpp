@@ -30,6 +30,8 @@
 #include <string>
 #include <vector>
 
+#include "input_gate.hpp"
+#include "phase_lock.hpp"
 #include "translate.hpp"
 
 namespace {
@@ -90,24 +92,14 @@ Stats stats(std::vector<double> v) {
   return s;
 }
 
-// Atomic: the real-time mode receives on its own thread.
+// Atomic: the real-time mode receives on its own thread. The input counters
+// (received, rejected by kind, sessions adopted) are the gate's (input_gate.hpp).
 struct Counters {
   using C = std::atomic<int64_t>;
-  C received{0};
-  C malformed{0};       // decode failed (empty, truncated, random, wrong type)
-  C trailing{0};        // valid message followed by extra bytes
-  C duplicate{0};       // same seq as the newest
-  C out_of_order{0};    // older seq than the newest
-  C invalid_state{0};   // non-finite or out-of-range fields
-  C foreign_session{0}; // a state from another plant while ours is alive
-  C sessions_adopted{0};// a new plant adopted after ours went silent
   C stale_steps{0};     // steps without a fresh state
   C safe_steps{0};      // steps that commanded zero in SAFE mode
   C deadline_misses{0};
   C steps{0};
-  int64_t rejected() const {
-    return malformed + trailing + duplicate + out_of_order + invalid_state + foreign_session;
-  }
 };
 
 struct Options {
@@ -138,12 +130,13 @@ class Shell {
     period_ns_ = int64_t(std::llround(1e9 / cfg.control_rate_hz));
     stale_ns_ = int64_t(cfg.safety.stale_periods * double(period_ns_));
     // a silent plant is replaced after max(stale time, 2 s)
-    session_timeout_ns_ = std::max<int64_t>(stale_ns_, 2000000000);
+    gate_ = std::make_unique<sc_rt::InputGate>(sc_rt::InputGate::session_timeout_for(stale_ns_));
     std::random_device rd;
     session_ = (int64_t(rd()) << 31 ^ int64_t(rd()) ^ mono_ns()) & 0x7fffffffffffffffLL;
   }
 
-  // Raw handler: decode by hand, count every kind of bad input, keep the newest state.
+  // Raw handler: decode by hand; the gate counts every kind of bad input and
+  // decides; the newest accepted state goes to the mailbox.
   static void on_state(const lcm::ReceiveBuffer* rb, const std::string&, Shell* self) {
     self->handle_state(rb);
   }
@@ -153,35 +146,24 @@ class Shell {
   void handle_state(const lcm::ReceiveBuffer* rb) {
     const int64_t now = mono_ns();
     std::unique_lock<std::mutex> lock(mu_);
-    ++cnt_.received;
     sc_rt_lcm::plant_state_t msg;
     const int n = msg.decode(rb->data, 0, int(rb->data_size));
     if (n < 0) {
-      ++cnt_.malformed;
+      gate_->malformed();
       return;
     }
     if (n != int(rb->data_size)) {
-      ++cnt_.trailing;
+      gate_->trailing_bytes();
       return;
     }
-    if (have_state_ && msg.session != state_.session) {
-      // Another plant on this channel. While ours is alive, ignore it; once
-      // ours has been silent for the session timeout, adopt the new one (a
-      // restarted emulator) at its first valid state and re-engage the law.
-      if (now - state_rx_ns_ < session_timeout_ns_) {
-        ++cnt_.foreign_session;
-        return;
-      }
-      if (!sc_rt::measurement_valid(sc_rt::measurement_from_lcm(msg), ctl_->config().safety)) {
-        ++cnt_.invalid_state;
-        return;
-      }
-      ++cnt_.sessions_adopted;
-      have_state_ = false;
-      reengage_ = true;
-    }
-    if (have_state_ && msg.seq == state_.seq) {
-      ++cnt_.duplicate;
+    // A decodable state with non-finite or out-of-range values of our
+    // session is counted and applied: the core answers it with a SAFE zero
+    // command (and re-engages at the next valid state), so lockstep and
+    // offline runs stay identical. A new session is adopted only at a valid one.
+    const bool valid =
+        sc_rt::measurement_valid(sc_rt::measurement_from_lcm(msg), ctl_->config().safety);
+    const sc_rt::GateVerdict v = gate_->offer(now, msg.session, msg.seq, valid);
+    if (v == sc_rt::GateVerdict::Duplicate) {
       // lockstep: the plant re-sent a state it had no answer to: answer again
       if (!opt_.realtime && have_cmd_) {
         publish_cmd(last_cmd_, msg.seq);
@@ -189,18 +171,9 @@ class Shell {
       }
       return;
     }
-    if (have_state_ && msg.seq < state_.seq) {
-      ++cnt_.out_of_order;
-      return;
-    }
-    // A decodable state with non-finite or out-of-range values is counted
-    // here; the core answers it with a SAFE zero command (and re-engages at
-    // the next valid state), so lockstep and offline runs stay identical.
-    if (!sc_rt::measurement_valid(sc_rt::measurement_from_lcm(msg), ctl_->config().safety))
-      ++cnt_.invalid_state;
+    if (v != sc_rt::GateVerdict::Accept && v != sc_rt::GateVerdict::Adopt) return;
+    if (v == sc_rt::GateVerdict::Adopt) reengage_ = true;  // a restarted plant: start the law afresh
     state_ = msg;
-    state_rx_ns_ = now;
-    have_state_ = true;
     fresh_ = true;
     lock.unlock();
     if (!opt_.realtime) step(now, now);
@@ -216,9 +189,9 @@ class Shell {
     {
       std::lock_guard<std::mutex> lock(mu_);
       st = state_;
-      have = have_state_;
+      have = gate_->have_state();
       fresh = fresh_;
-      rx = state_rx_ns_;
+      rx = gate_->last_rx_ns();
       fresh_ = false;
     }
     sc_rt::Command cmd;
@@ -289,7 +262,7 @@ class Shell {
     s.steps = cnt_.steps;
     s.deadline_misses = cnt_.deadline_misses;
     s.stale_states = cnt_.stale_steps;
-    s.rejected = cnt_.rejected();
+    s.rejected = gate_->counts().rejected();
     lcm_.publish(opt_.prefix + "SCRT_CTRL_STATUS", &s);
   }
 
@@ -301,6 +274,7 @@ class Shell {
 
   std::string summary_json(const std::string& scheduler) const {
     const Stats l = stats(lat_), c = stats(comp_), a = stats(age_);
+    const sc_rt::GateCounts g = gate_->counts();
     char buf[2048];
     std::snprintf(
         buf, sizeof buf,
@@ -315,11 +289,11 @@ class Shell {
         "\"sessions_adopted\": %lld}",
         opt_.realtime ? "realtime" : "lockstep", 1e9 / double(period_ns_), sc_rt::law_name(ctl_->law()),
         (long long)cnt_.steps, (long long)cnt_.deadline_misses, scheduler.c_str(), l.p50, l.p99,
-        l.max, c.p50, c.p99, c.max, a.p50, a.p99, a.max, (long long)cnt_.received,
-        (long long)cnt_.stale_steps, (long long)cnt_.safe_steps, (long long)cnt_.malformed,
-        (long long)cnt_.trailing, (long long)cnt_.duplicate, (long long)cnt_.out_of_order,
-        (long long)cnt_.invalid_state, (long long)cnt_.foreign_session,
-        (long long)cnt_.sessions_adopted);
+        l.max, c.p50, c.p99, c.max, a.p50, a.p99, a.max, (long long)g.received,
+        (long long)cnt_.stale_steps, (long long)cnt_.safe_steps, (long long)g.malformed,
+        (long long)g.trailing_bytes, (long long)g.duplicate, (long long)g.out_of_order,
+        (long long)g.invalid_state, (long long)g.foreign_session,
+        (long long)g.sessions_adopted);
     return buf;
   }
 
@@ -330,13 +304,12 @@ class Shell {
   int64_t period_ns_ = 100000000;
   int64_t stale_ns_ = 500000000;
   sc_rt_lcm::plant_state_t state_{};
-  int64_t state_rx_ns_ = 0;
-  bool have_state_ = false, fresh_ = false, have_cmd_ = false, used_fresh_ = false;
+  bool fresh_ = false, have_cmd_ = false, used_fresh_ = false;
   int64_t used_rx_ns_ = 0;
   std::atomic<bool> reengage_{false};
   int64_t session_ = 0;
-  int64_t session_timeout_ns_ = 500000000;
-  std::mutex mu_;  // guards the mailbox: state_, state_rx_ns_, have_state_, fresh_
+  std::unique_ptr<sc_rt::InputGate> gate_;  // session, seq and arrival of the newest state
+  std::mutex mu_;  // guards the mailbox: state_, fresh_ and the gate's state
   sc_rt::Command last_cmd_;
   int64_t cmd_seq_ = 0;
   Counters cnt_;
@@ -498,37 +471,18 @@ int main(int argc, char** argv) {
     std::thread rx([&] {
       while (!rx_stop && !g_stop) lcm.handleTimeout(20);
     });
-    int64_t deadline = mono_ns() + shell.period_ns();
-    double guard_ns = o.phase_offset_us * 1e3;
+    // The deadlines: phase-locked to the state arrivals with an adaptive
+    // guard (--phase-offset; phase_lock.hpp).
+    sc_rt::PhaseLock sched_lock(shell.period_ns(), o.phase_offset_us, mono_ns());
     while (!shell.done()) {
+      const int64_t deadline = sched_lock.deadline();
       timespec ts{time_t(deadline / 1000000000LL), long(deadline % 1000000000LL)};
       while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR && !g_stop) {
       }
       if (g_stop) break;
       const int64_t now = mono_ns();
       shell.step(now, deadline);
-      deadline += shell.period_ns();
-      if (o.phase_offset_us >= 0.0) {
-        // The guard after an arrival adapts to the plant's jitter: a step
-        // that found no new state (it came after the wake-up) widens it by a
-        // quarter; fresh steps shrink it by 1 % back toward --phase-offset.
-        const double P2 = 0.5 * double(shell.period_ns());
-        guard_ns = shell.used_fresh() ? std::max(0.99 * guard_ns, o.phase_offset_us * 1e3)
-                                      : std::min(1.25 * guard_ns + 5e3, P2);
-      }
-      if (o.phase_offset_us >= 0.0 && shell.used_fresh()) {
-        // phase-locked loop on the state arrivals: move the next deadline a
-        // quarter of the way toward (arrival + guard), modulo the period
-        const int64_t P = shell.period_ns();
-        const int64_t target = shell.state_rx_ns() + int64_t(guard_ns);
-        int64_t err = (deadline - target) % P;
-        if (err < 0) err += P;
-        if (err > P / 2) err -= P;
-        deadline -= err / 4;
-      }
-      // after a long stall, skip the missed periods instead of bursting
-      const int64_t after = mono_ns();
-      if (after > deadline) deadline += ((after - deadline) / shell.period_ns() + 1) * shell.period_ns();
+      sched_lock.advance(shell.used_fresh(), shell.state_rx_ns(), mono_ns());
     }
     rx_stop = true;
     rx.join();

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <string>
+#include <type_traits>
 
 #include "sc_rt/closed_loop.hpp"
 #include "sc_rt/controllers.hpp"
@@ -22,7 +23,67 @@ using namespace sc_rt;
 using py::arg;
 
 void bind_plant(pybind11::module_& m);
+void bind_shell(pybind11::module_& m);
 namespace {
+
+// The packed row of step_packed, in the order it is written: f(name, value)
+// for each field (an Eigen vector, or one scalar). PACKED_FIELDS is built
+// from the same list, so the names and the writes cannot drift apart.
+template <typename F>
+void for_each_packed(const Command& c, F&& f) {
+  f("u_cmd", c.u_cmd);
+  f("u_sat", c.u_sat);
+  f("sigma_DN", c.sigma_DN);
+  f("sigma_BD", c.sigma_BD);
+  f("omega_BD_B", c.omega_BD_B);
+  f("e1", c.e1);
+  f("e2", c.e2);
+  f("z1", c.z1);
+  f("z2", c.z2);
+  f("chi", c.chi);
+  f("lam", c.lam);
+  f("x2d", c.x2d);
+  f("vs", c.vs);
+  f("rho_hat", c.rho_hat);
+  f("mode", c.mode);
+  f("flags", c.flags);
+}
+template <typename T>
+int packed_width(const T& v) {
+  if constexpr (std::is_arithmetic_v<T>)
+    return 1;
+  else
+    return static_cast<int>(v.size());
+}
+constexpr int kPackedSize = 45;
+
+// The columns of simulate_closed_loop's result, in the order of its dict
+// (then "flags", int): name, width, the ClosedLoopResult member.
+struct ClosedLoopColumn {
+  const char* name;
+  py::ssize_t width;
+  std::vector<double> ClosedLoopResult::*v;
+};
+const ClosedLoopColumn kClosedLoopColumns[] = {
+    {"t", 1, &ClosedLoopResult::t},
+    {"sigma_BN", 3, &ClosedLoopResult::sigma_BN},
+    {"omega_BN_B", 3, &ClosedLoopResult::omega_BN_B},
+    {"sigma_DN", 3, &ClosedLoopResult::sigma_DN},
+    {"sigma_BD", 3, &ClosedLoopResult::sigma_BD},
+    {"omega_BD_B", 3, &ClosedLoopResult::omega_BD_B},
+    {"z1", 3, &ClosedLoopResult::z1},
+    {"z2", 3, &ClosedLoopResult::z2},
+    {"delta2", 3, &ClosedLoopResult::delta2},
+    {"chi", 3, &ClosedLoopResult::chi},
+    {"lam", 3, &ClosedLoopResult::lam},
+    {"e1", 3, &ClosedLoopResult::e1},
+    {"e2", 3, &ClosedLoopResult::e2},
+    {"wheel_speed", 4, &ClosedLoopResult::wheel_speed},
+    {"u_cmd", 4, &ClosedLoopResult::u_cmd},
+    {"u_sat", 4, &ClosedLoopResult::u_sat},
+    {"wheel_accel", 4, &ClosedLoopResult::wheel_accel},
+    {"vs", 4, &ClosedLoopResult::vs},
+};
 
 template <typename T>
 py::bytes encode_lcm(const T& msg) {
@@ -279,40 +340,45 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("t0", &Controller::t0);
 
   // Packed telemetry of one step, one numpy allocation (the offline
-  // simulator's hot path). Layout: sc_rt.sim.PACKED.
-  m.attr("PACKED_SIZE") = 45;
+  // simulator's hot path). Layout: PACKED_FIELDS (sc_rt.sim.engines.PACKED).
+  {
+    py::list fields;
+    int size = 0;
+    for_each_packed(Command{}, [&](const char* name, const auto& v) {
+      fields.append(py::make_tuple(name, packed_width(v)));
+      size += packed_width(v);
+    });
+    if (size != kPackedSize) throw std::logic_error("step_packed: PACKED_FIELDS do not add up to PACKED_SIZE");
+    m.attr("PACKED_SIZE") = kPackedSize;
+    m.attr("PACKED_FIELDS") = fields;
+  }
   m.def(
       "step_packed",
       [](Controller& c, double t, const Eigen::Matrix<double, 10, 1>& x) {
         Measurement m{t, x.segment<3>(0), x.segment<3>(3), x.segment<4>(6)};
         const Command cmd = c.step(m);
-        py::array_t<double> out(45);
+        py::array_t<double> out(kPackedSize);
         double* o = out.mutable_data();
-        auto put = [&o](const auto& v) {
-          for (int i = 0; i < v.size(); ++i) *o++ = v(i);
-        };
-        put(cmd.u_cmd);
-        put(cmd.u_sat);
-        put(cmd.sigma_DN);
-        put(cmd.sigma_BD);
-        put(cmd.omega_BD_B);
-        put(cmd.e1);
-        put(cmd.e2);
-        put(cmd.z1);
-        put(cmd.z2);
-        put(cmd.chi);
-        put(cmd.lam);
-        put(cmd.x2d);
-        put(cmd.vs);
-        *o++ = cmd.rho_hat;
-        *o++ = cmd.mode;
-        *o++ = cmd.flags;
+        for_each_packed(cmd, [&o](const char*, const auto& v) {
+          if constexpr (std::is_arithmetic_v<std::decay_t<decltype(v)>>)
+            *o++ = v;
+          else
+            for (int i = 0; i < v.size(); ++i) *o++ = v(i);
+        });
         return out;
       },
       arg("controller"), arg("t"), arg("x"),
       "One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];\n"
       "returns the packed telemetry (45,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,\n"
-      "omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, mode, flags.");
+      "omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, mode, flags\n"
+      "(PACKED_FIELDS: (name, width) in this order).");
+
+  {
+    py::list cols;
+    for (const ClosedLoopColumn& c : kClosedLoopColumns) cols.append(py::make_tuple(c.name, c.width));
+    cols.append(py::make_tuple("flags", 1));
+    m.attr("CLOSED_LOOP_FIELDS") = cols;
+  }
 
   m.def(
       "simulate_closed_loop",
@@ -333,17 +399,7 @@ PYBIND11_MODULE(_core, m) {
         py::dict d;
         d["rows"] = r.rows;
         d["diverged"] = r.diverged;
-        d["t"] = arr(r.t, 1);
-        for (auto [name, vec] : std::initializer_list<std::pair<const char*, const std::vector<double>*>>{
-                 {"sigma_BN", &r.sigma_BN}, {"omega_BN_B", &r.omega_BN_B}, {"sigma_DN", &r.sigma_DN},
-                 {"sigma_BD", &r.sigma_BD}, {"omega_BD_B", &r.omega_BD_B}, {"z1", &r.z1},
-                 {"z2", &r.z2}, {"delta2", &r.delta2}, {"chi", &r.chi}, {"lam", &r.lam},
-                 {"e1", &r.e1}, {"e2", &r.e2}})
-          d[name] = arr(*vec, 3);
-        for (auto [name, vec] : std::initializer_list<std::pair<const char*, const std::vector<double>*>>{
-                 {"wheel_speed", &r.wheel_speed}, {"u_cmd", &r.u_cmd}, {"u_sat", &r.u_sat},
-                 {"wheel_accel", &r.wheel_accel}, {"vs", &r.vs}})
-          d[name] = arr(*vec, 4);
+        for (const ClosedLoopColumn& c : kClosedLoopColumns) d[c.name] = arr(r.*(c.v), c.width);
         py::array_t<int> flags(n);
         std::copy(r.flags.begin(), r.flags.begin() + n, flags.mutable_data());
         d["flags"] = flags;
@@ -351,7 +407,8 @@ PYBIND11_MODULE(_core, m) {
       },
       arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),
       "The whole offline closed loop in C++ (sc-rt sim --engine cpp): n_ctrl periods at rate [Hz],\n"
-      "n_sub plant RK4 steps each; returns the trajectory arrays (one row per control instant).");
+      "n_sub plant RK4 steps each; returns rows, diverged and the trajectory arrays (one row per\n"
+      "control instant; CLOSED_LOOP_FIELDS: (name, width) in dict order).");
 
   m.def(
       "run_steps",
@@ -413,4 +470,5 @@ PYBIND11_MODULE(_core, m) {
       arg("controller"), arg("t"), arg("sigma_BN"), arg("omega_BN_B"), arg("wheel_speed"),
       "Benchmark helper: per-step wall time [ns] of N steps inside C++ (bindings-side clock).");
   bind_plant(m);
+  bind_shell(m);
 }

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'Command', 'Controller', 'ControllerConfig', 'DscGains', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'Guidance', 'GuidanceParams', 'Law', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Neso', 'NesoParams', 'PACKED_SIZE', 'PdGains', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'SafetyLimits', 'SpacecraftModel', 'SpacecraftParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_rk4_step', 'law_name', 'lumped_disturbance', 'measurement_valid', 'mrp_G', 'mrp_G_inverse', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_steps', 'sig_pow', 'simulate_closed_loop', 'skew', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DscGains', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceParams', 'InputGate', 'Law', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'SafetyLimits', 'SpacecraftModel', 'SpacecraftParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_rk4_step', 'law_name', 'lumped_disturbance', 'measurement_valid', 'mrp_G', 'mrp_G_inverse', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_steps', 'sig_pow', 'simulate_closed_loop', 'skew', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -847,6 +847,169 @@ class WheelOutput:
         """
         [rad/s^2] saturated commands
         """
+class GateVerdict:
+    """
+    What the controller shell does with one received state.
+    
+    Members:
+    
+      Accept
+    
+      Adopt
+    
+      Duplicate
+    
+      OutOfOrder
+    
+      ForeignSession
+    
+      InvalidCandidate
+    
+      Malformed
+    
+      TrailingBytes
+    """
+    Accept: typing.ClassVar[GateVerdict]
+    Adopt: typing.ClassVar[GateVerdict]
+    Duplicate: typing.ClassVar[GateVerdict]
+    ForeignSession: typing.ClassVar[GateVerdict]
+    InvalidCandidate: typing.ClassVar[GateVerdict]
+    Malformed: typing.ClassVar[GateVerdict]
+    OutOfOrder: typing.ClassVar[GateVerdict]
+    TrailingBytes: typing.ClassVar[GateVerdict]
+    __members__: typing.ClassVar[dict[str, GateVerdict]]
+    @typing.overload
+    def __eq__(self, other: GateVerdict) -> bool:
+        ...
+    @typing.overload
+    def __eq__(self, other: typing.Any) -> bool:
+        ...
+    def __getstate__(self) -> int:
+        ...
+    def __hash__(self) -> int:
+        ...
+    def __index__(self) -> int:
+        ...
+    def __init__(self, value: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __int__(self) -> int:
+        ...
+    @typing.overload
+    def __ne__(self, other: GateVerdict) -> bool:
+        ...
+    @typing.overload
+    def __ne__(self, other: typing.Any) -> bool:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, state: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __str__(self) -> str:
+        ...
+    @property
+    def name(self) -> str:
+        ...
+    @property
+    def value(self) -> int:
+        ...
+class GateCounts:
+    """
+    A snapshot of the input gate's counters.
+    """
+    def as_dict(self) -> dict:
+        ...
+    @property
+    def duplicate(self) -> int:
+        ...
+    @property
+    def foreign_session(self) -> int:
+        ...
+    @property
+    def invalid_state(self) -> int:
+        ...
+    @property
+    def malformed(self) -> int:
+        ...
+    @property
+    def out_of_order(self) -> int:
+        ...
+    @property
+    def received(self) -> int:
+        ...
+    @property
+    def rejected(self) -> int:
+        ...
+    @property
+    def sessions_adopted(self) -> int:
+        ...
+    @property
+    def trailing_bytes(self) -> int:
+        ...
+class InputGate:
+    """
+    The controller's input gate: session adoption, duplicates, order, counters.
+    """
+    @staticmethod
+    def session_timeout_for(stale_ns: typing.SupportsInt | typing.SupportsIndex) -> int:
+        """
+        The controller's session timeout: max(stale_ns, 2 s) [ns].
+        """
+    def __init__(self, session_timeout_ns: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def counts(self) -> GateCounts:
+        ...
+    def malformed(self) -> GateVerdict:
+        """
+        A message that did not decode.
+        """
+    def offer(self, now_ns: typing.SupportsInt | typing.SupportsIndex, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, valid: bool) -> GateVerdict:
+        """
+        A decoded state received at now_ns; valid: measurement_valid of its values.
+        """
+    def trailing_bytes(self) -> GateVerdict:
+        """
+        A message followed by extra bytes.
+        """
+    @property
+    def have_state(self) -> bool:
+        ...
+    @property
+    def last_rx_ns(self) -> int:
+        ...
+    @property
+    def seq(self) -> int:
+        ...
+    @property
+    def session(self) -> int:
+        ...
+    @property
+    def session_timeout_ns(self) -> int:
+        ...
+class PhaseLock:
+    """
+    The real-time controller's deadlines, phase-locked to the state arrivals.
+    """
+    def __init__(self, period_ns: typing.SupportsInt | typing.SupportsIndex, phase_offset_us: typing.SupportsFloat | typing.SupportsIndex, start_ns: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def advance(self, used_fresh: bool, rx_ns: typing.SupportsInt | typing.SupportsIndex, now_ns: typing.SupportsInt | typing.SupportsIndex) -> int:
+        """
+        After the step woken at deadline: returns the next deadline (never before now_ns).
+        """
+    @property
+    def deadline(self) -> int:
+        ...
+    @property
+    def guard_ns(self) -> float:
+        ...
+    @property
+    def locked(self) -> bool:
+        ...
+    @property
+    def period_ns(self) -> int:
+        ...
+    @property
+    def phase_offset_us(self) -> float:
+        ...
 def disturbance(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     d(t) [N m] in B.
@@ -934,7 +1097,8 @@ def sig_pow(v: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]
 def simulate_closed_loop(c: ControllerConfig, plant: ..., act: ..., x0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], n_ctrl: typing.SupportsInt | typing.SupportsIndex, n_sub: typing.SupportsInt | typing.SupportsIndex, rate: typing.SupportsFloat | typing.SupportsIndex) -> dict:
     """
     The whole offline closed loop in C++ (sc-rt sim --engine cpp): n_ctrl periods at rate [Hz],
-    n_sub plant RK4 steps each; returns the trajectory arrays (one row per control instant).
+    n_sub plant RK4 steps each; returns rows, diverged and the trajectory arrays (one row per
+    control instant; CLOSED_LOOP_FIELDS: (name, width) in dict order).
     """
 def skew(x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
     """
@@ -944,7 +1108,8 @@ def step_packed(controller: Controller, t: typing.SupportsFloat | typing.Support
     """
     One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];
     returns the packed telemetry (45,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,
-    omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, mode, flags.
+    omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, mode, flags
+    (PACKED_FIELDS: (name, width) in this order).
     """
 def time_steps(controller: Controller, t: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], omega_BN_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64]) -> tuple[numpy.typing.NDArray[numpy.float64], float]:
     """
@@ -990,6 +1155,7 @@ def wheel_accel(a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsInde
     """
     Saturation and faults (15),(16), stuck wheels and the speed limit.
     """
+CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('flags', 1)]
 FLAG_BOUND_X: int = 1
 FLAG_BOUND_Y: int = 2
 FLAG_BOUND_Z: int = 4
@@ -1000,5 +1166,6 @@ FLAG_TIME_NOT_ADVANCING: int = 512
 MODE_INIT: int = 0
 MODE_NORMAL: int = 1
 MODE_SAFE: int = 2
+PACKED_FIELDS: list = [('u_cmd', 4), ('u_sat', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('e1', 3), ('e2', 3), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('x2d', 3), ('vs', 4), ('rho_hat', 1), ('mode', 1), ('flags', 1)]
 PACKED_SIZE: int = 45
 __version__: str = '0.1.0'

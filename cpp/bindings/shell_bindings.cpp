@@ -1,0 +1,74 @@
+// Bindings of the controller shell's policy classes (cpp/shell/input_gate.hpp,
+// phase_lock.hpp) into sc_rt._core, for unit tests of the gate and the
+// scheduler without LCM or a clock. Times are monotonic ns (int).
+#include <pybind11/pybind11.h>
+
+#include "input_gate.hpp"
+#include "phase_lock.hpp"
+
+namespace py = pybind11;
+using namespace sc_rt;
+using py::arg;
+
+void bind_shell(py::module_& m) {
+  py::enum_<GateVerdict>(m, "GateVerdict", "What the controller shell does with one received state.")
+      .value("Accept", GateVerdict::Accept)
+      .value("Adopt", GateVerdict::Adopt)
+      .value("Duplicate", GateVerdict::Duplicate)
+      .value("OutOfOrder", GateVerdict::OutOfOrder)
+      .value("ForeignSession", GateVerdict::ForeignSession)
+      .value("InvalidCandidate", GateVerdict::InvalidCandidate)
+      .value("Malformed", GateVerdict::Malformed)
+      .value("TrailingBytes", GateVerdict::TrailingBytes);
+
+  py::class_<GateCounts>(m, "GateCounts", "A snapshot of the input gate's counters.")
+      .def_readonly("received", &GateCounts::received)
+      .def_readonly("malformed", &GateCounts::malformed)
+      .def_readonly("trailing_bytes", &GateCounts::trailing_bytes)
+      .def_readonly("duplicate", &GateCounts::duplicate)
+      .def_readonly("out_of_order", &GateCounts::out_of_order)
+      .def_readonly("invalid_state", &GateCounts::invalid_state)
+      .def_readonly("foreign_session", &GateCounts::foreign_session)
+      .def_readonly("sessions_adopted", &GateCounts::sessions_adopted)
+      .def_property_readonly("rejected", &GateCounts::rejected)
+      .def("as_dict", [](const GateCounts& c) {
+        py::dict d;
+        d["received"] = c.received;
+        d["malformed"] = c.malformed;
+        d["trailing_bytes"] = c.trailing_bytes;
+        d["duplicate"] = c.duplicate;
+        d["out_of_order"] = c.out_of_order;
+        d["invalid_state"] = c.invalid_state;
+        d["foreign_session"] = c.foreign_session;
+        d["sessions_adopted"] = c.sessions_adopted;
+        return d;
+      });
+
+  py::class_<InputGate>(m, "InputGate",
+                        "The controller's input gate: session adoption, duplicates, order, counters.")
+      .def(py::init<int64_t>(), arg("session_timeout_ns"))
+      .def_static("session_timeout_for", &InputGate::session_timeout_for, arg("stale_ns"),
+                  "The controller's session timeout: max(stale_ns, 2 s) [ns].")
+      .def("malformed", &InputGate::malformed, "A message that did not decode.")
+      .def("trailing_bytes", &InputGate::trailing_bytes, "A message followed by extra bytes.")
+      .def("offer", &InputGate::offer, arg("now_ns"), arg("session"), arg("seq"), arg("valid"),
+           "A decoded state received at now_ns; valid: measurement_valid of its values.")
+      .def_property_readonly("have_state", &InputGate::have_state)
+      .def_property_readonly("session", &InputGate::session)
+      .def_property_readonly("seq", &InputGate::seq)
+      .def_property_readonly("last_rx_ns", &InputGate::last_rx_ns)
+      .def_property_readonly("session_timeout_ns", &InputGate::session_timeout_ns)
+      .def("counts", &InputGate::counts);
+
+  py::class_<PhaseLock>(m, "PhaseLock",
+                        "The real-time controller's deadlines, phase-locked to the state arrivals.")
+      .def(py::init<int64_t, double, int64_t>(), arg("period_ns"), arg("phase_offset_us"),
+           arg("start_ns"))
+      .def("advance", &PhaseLock::advance, arg("used_fresh"), arg("rx_ns"), arg("now_ns"),
+           "After the step woken at deadline: returns the next deadline (never before now_ns).")
+      .def_property_readonly("deadline", &PhaseLock::deadline)
+      .def_property_readonly("guard_ns", &PhaseLock::guard_ns)
+      .def_property_readonly("period_ns", &PhaseLock::period_ns)
+      .def_property_readonly("phase_offset_us", &PhaseLock::phase_offset_us)
+      .def_property_readonly("locked", &PhaseLock::locked);
+}
