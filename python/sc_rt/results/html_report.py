@@ -1,0 +1,337 @@
+"""``report.html``: a run's report for a person, in one self-contained file.
+
+Built from the run's output directory alone (``metrics.json``, and when
+present ``timing.json``, ``trajectory.npz``, ``report.json`` and the PNG
+figures), so ``sc-rt sim``, ``sc-rt hil`` and ``sc-rt report`` write the
+same page. The figures are embedded (base64 PNG), the style is inline,
+nothing is fetched. Order: the verdict (the bound, SAFE, faults, timing),
+the timeline of modes, faults and violations (inline SVG), the figures,
+then every metric with its unit.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import math
+import os
+from html import escape
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sc_rt.results.html_timeline import MODE_NAMES, spans, timeline_svg
+
+__all__ = ["write_html_report", "render_html", "verdict_items", "pointing_arcsec_of_mrp_norm"]
+
+AXES = "xyz"
+ARCSEC = 180.0 / math.pi * 3600.0
+#: known figures, in reading order, with a caption
+FIGURES = {
+    "attitude_error.png": "Attitude tracking error sigma_BD per axis and the prescribed bounds dmax chi(t), -dmin chi(t)",
+    "attitude_error_log.png": "The same on a log scale; dots: outside the bound",
+    "pointing_error.png": "Pointing error 4 atan|sigma_BD| [arcsec]",
+    "rate_error.png": "Angular-rate tracking error omega_BD_B [rad/s]",
+    "wheel_commands.png": "Wheel acceleration commands after saturation [rad/s^2] and the limits",
+    "disturbance_observer.png": "Lumped disturbance delta_2, its estimate z2 and the observer error [rad/s^2]",
+    "faults.png": "Wheel faults as the plant reported them",
+    "timing.png": "Timing: state-to-command latency, compute and wake lateness [us]",
+}
+CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:24px auto;max-width:1100px;
+color:#222;line-height:1.4;padding:0 16px}
+h1{font-size:1.5em;margin-bottom:0.2em}h2{font-size:1.2em;border-bottom:1px solid #ddd;padding-bottom:4px;margin-top:1.6em}
+.sub{color:#666;margin-top:0}
+#verdict{border:2px solid #999;border-radius:8px;padding:12px 18px;background:#fafafa}
+#verdict.ok{border-color:#31a354;background:#f1faf2}#verdict.bad{border-color:#cb181d;background:#fdf1f1}
+#verdict ul{margin:0.3em 0 0 0;padding-left:1.2em}#verdict-bound{font-size:1.25em;font-weight:600;margin:0}
+table{border-collapse:collapse;margin:0.5em 0;font-size:0.92em}
+td,th{border:1px solid #ddd;padding:3px 8px;text-align:left;vertical-align:top}th{background:#f0f0f0}
+td.num{text-align:right;font-variant-numeric:tabular-nums}
+figure{margin:1em 0}figure img{max-width:100%;border:1px solid #eee}figcaption{color:#555;font-size:0.9em}
+.legend span{display:inline-block;margin-right:14px;font-size:0.85em}
+.legend i{display:inline-block;width:14px;height:10px;margin-right:4px;vertical-align:middle}
+"""
+#: metrics.json keys: (label, unit, kind); kind: s (time), pct, axis, num, arcsec
+METRIC_ROWS = {
+    "scenario": ("scenario", "", "text"), "controller": ("control law", "", "text"),
+    "engine": ("engine", "", "text"), "control_rate_hz": ("control rate", "Hz", "num"),
+    "duration_s": ("duration", "s", "num"), "steps": ("steps", "", "int"), "wall_s": ("wall time", "s", "num"),
+    "finite": ("all values finite", "", "bool"),
+    "first_bound_violation_s": ("first bound violation", "s", "s"),
+    "first_bound_violation_axis": ("axis of the first violation", "", "axis"),
+    "max_pointing_error_arcsec_after_30s": ("max pointing error after 30 s", "arcsec", "arcsec"),
+    "max_abs_omega_e_after_70s": ("max |omega_BD_B| after 70 s", "rad/s", "num"),
+    "max_observer_error_after_30s": ("max observer error |z2 - delta_2| after 30 s", "rad/s^2", "num"),
+    "max_abs_u_cmd": ("max |u_cmd| before saturation", "rad/s^2", "num"),
+    "max_abs_wheel_accel": ("max |wheel acceleration| applied", "rad/s^2", "num"),
+    "saturated_fraction": ("steps with a saturated command", "%", "pct"),
+    "final_wheel_speed": ("final wheel speeds", "rad/s", "list"),
+    "safe_steps": ("steps in SAFE", "", "int"), "safe_from_s": ("SAFE from", "s", "s"),
+    "max_abs_lambda": ("max |lambda| (sigma_BD / chi)", "-", "lam"),
+    "diverged_after_s": ("diverged after", "s", "s"),
+}
+
+
+def pointing_arcsec_of_mrp_norm(n: float) -> float:
+    """Principal rotation angle 4 atan|sigma| of an MRP norm, in arcsec."""
+    return 4.0 * math.atan(n) * ARCSEC
+
+
+def fmt(v: Any, kind: str = "num") -> str:
+    """A value rounded to what is meaningful (3 significant digits)."""
+    if v is None:
+        return "–"
+    if kind == "bool" or isinstance(v, bool):
+        return "yes" if v else "no"
+    if kind == "axis":
+        return AXES[int(v) - 1] if isinstance(v, int) and 1 <= v <= 3 else str(v)
+    if kind == "text":
+        return str(v)
+    if kind == "list":
+        return ", ".join(fmt(x) for x in v)
+    if kind == "lam" and isinstance(v, float):  # how close to the bound (1): more digits
+        return f"{v:.6g}"
+    if kind == "pct":
+        return f"{100.0 * v:.1f}"
+    if isinstance(v, int) or kind == "int":
+        return f"{int(v):,}".replace(",", " ")
+    if not isinstance(v, (int, float)):
+        return escape(json.dumps(v))
+    if not math.isfinite(v):
+        return str(v)
+    if kind == "s":
+        return f"{v:.2f}"
+    if kind == "arcsec" and abs(v) >= 100:
+        return f"{v:,.0f}".replace(",", " ")
+    if v != 0 and (abs(v) >= 1e6 or abs(v) < 1e-3):
+        return f"{v:.3g}"
+    return f"{v:.4g}" if abs(v) >= 1000 else f"{v:.3g}"
+
+
+def _load(run_dir: Path) -> dict[str, Any]:
+    def js(name):
+        p = run_dir / name
+        return json.loads(p.read_text()) if p.exists() else None
+
+    metrics = js("metrics.json")
+    if metrics is None:
+        raise FileNotFoundError(f"{run_dir}: no metrics.json (not a run's output directory)")
+    traj: dict[str, np.ndarray] = {}
+    meta: dict[str, Any] = {}
+    p = run_dir / "trajectory.npz"
+    if p.exists():
+        with np.load(p, allow_pickle=False) as z:
+            for k in ("t", "bound_ok", "ctrl_mode", "flags", "fault_Y", "cmd_stale"):
+                if k in z.files:
+                    traj[k] = z[k]
+            if "meta_json" in z.files:
+                meta = json.loads(str(z["meta_json"]))
+    figs = sorted(run_dir.glob("*.png"), key=lambda q: (list(FIGURES).index(q.name) if q.name in FIGURES
+                                                          else len(FIGURES), q.name))
+    return {"metrics": metrics, "timing": js("timing.json"), "report": js("report.json"), "traj": traj,
+            "meta": meta, "figures": figs}
+
+
+def _scheduled(d: dict[str, Any]) -> list[dict[str, Any]]:
+    return list(d["meta"].get("faults") or [])
+
+
+def _fault_texts(d: dict[str, Any]) -> list[str]:
+    out = []
+    for f in _scheduled(d):
+        end = f.get("end")
+        out.append(f"wheel {f['wheel']}: effectiveness L {fmt(f.get('effectiveness'))}, bias "
+                   f"{fmt(f.get('bias'))} rad/s^2{', stuck' if f.get('stuck') else ''}, from {fmt(f['onset'])} s"
+                   + ("" if end is None else f" to {fmt(end)} s"))
+    from_log = d["meta"].get("engine") == "report" or d["report"] is not None
+    sched = "Faults scheduled: " + ("; ".join(out) if out else
+                                    "not known from a log (it holds what the plant applied)" if from_log else "none")
+    applied = []
+    Y, t = d["traj"].get("fault_Y"), d["traj"].get("t")
+    if Y is not None and t is not None and np.isfinite(Y).any():
+        for w in range(Y.shape[1]):
+            on = np.nonzero(np.nan_to_num(Y[:, w]) > 0)[0]
+            if on.size:
+                applied.append(f"wheel {w + 1} from {fmt(float(t[on[0]]), 's')} s")
+        live = (d["report"] or {}).get("faults", {}).get("commands", []) + list((d["timing"] or {}).get("faults_applied") or [])
+        text = "Faults applied (plant truth): " + ("; ".join(applied) if applied else "none")
+        if live:
+            text += f"; {len(live)} live fault command{'s' if len(live) > 1 else ''} on the bus"
+        return [sched, text]
+    return [sched, "Faults applied: not recorded by this engine (the plant applies the scheduled ones)"]
+
+
+def _safe_text(d: dict[str, Any]) -> str:
+    m, traj = d["metrics"], d["traj"]
+    modes = traj.get("ctrl_mode")
+    n_spans = None
+    if modes is not None and np.any(modes >= 0):
+        n_spans = len(spans(traj["t"], modes == 2))
+    steps = m.get("safe_steps")
+    if steps is None and modes is not None:
+        steps = int(np.sum(modes == 2))
+    if not steps:
+        return "SAFE: never" if steps == 0 else "SAFE: not recorded"
+    why = "; ".join(f"{k}: {v} steps" for k, v in (m.get("safe_reasons") or {}).items())
+    s = f"SAFE: {steps} steps" + (f" from {fmt(m.get('safe_from_s'), 's')} s" if m.get("safe_from_s") is not None else "")
+    if n_spans:
+        s += f" in {n_spans} span{'s' if n_spans > 1 else ''}"
+    return s + (f" ({why})" if why else "")
+
+
+def _timing_text(timing: dict[str, Any] | None) -> str:
+    if not timing:
+        return "Timing: offline run (no bus, no timing.json)"
+    lat = timing.get("state_to_cmd_latency_us") or {}
+    s = (f"Timing ({timing.get('mode', '?')}): {fmt(timing.get('steps'), 'int')} steps"
+         + (f", {fmt(timing.get('steps_per_s'))} steps/s" if timing.get("steps_per_s") else "")
+         + f"; state-to-command latency p50 {fmt(lat.get('p50'))} us, p99 {fmt(lat.get('p99'))} us, "
+           f"max {fmt(lat.get('max'))} us; deadline misses {fmt(timing.get('deadline_misses'), 'int')}, "
+           f"dropped {fmt(timing.get('dropped'), 'int')}, malformed {fmt(timing.get('malformed'), 'int')}")
+    floor = next((v for k, v in timing.items() if "floor" in k and isinstance(v, dict) and v.get("p50")), None)
+    if floor and lat.get("p50"):
+        s += (f"; bench floor (LCM round trip) p50 {fmt(floor['p50'])} us: latency p50 is "
+              f"{lat['p50'] / floor['p50']:.2g}x the floor")
+    else:
+        s += "; no bench floor in timing.json (bench/bench_hil.py measures the LCM round trip)"
+    return s
+
+
+def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
+    """(held, headline, [(id, text)]) of the verdict block."""
+    m = d["metrics"]
+    first = m.get("first_bound_violation_s")
+    if first is None and m.get("steps"):
+        head = f"Bound held for the whole run ({fmt(m.get('duration_s'))} s, {fmt(m.get('steps'), 'int')} steps)"
+        if m.get("max_abs_lambda") is not None:
+            head += f", worst |lambda| {fmt(m['max_abs_lambda'], 'lam')}"
+        held = True
+    elif first is None:
+        head, held = "No steps: nothing to judge", False
+    else:
+        head = f"Bound violated: first at {fmt(first, 's')} s on axis {fmt(m.get('first_bound_violation_axis'), 'axis')}"
+        ok = d["traj"].get("bound_ok")
+        if ok is not None and len(ok):
+            head += f"; outside the bound {100.0 * float(np.mean(~np.all(ok, axis=1))):.1f} % of the run"
+        held = False
+    items = [("verdict-safe", _safe_text(d))]
+    items += [(f"verdict-faults-{i}", s) for i, s in enumerate(_fault_texts(d))]
+    items.append(("verdict-timing", _timing_text(d["timing"])))
+    if m.get("diverged") or m.get("finite") is False:
+        after = m.get("diverged_after_s")
+        items.append(("verdict-diverged", "The run diverged" + (f" after {fmt(after, 's')} s" if after is not None else "")
+                      if m.get("diverged") else "Some values are not finite"))
+        held = False
+    pe = m.get("max_pointing_error_arcsec_after_30s")
+    if pe is not None:
+        items.append(("verdict-pointing", f"Max pointing error after 30 s: {fmt(pe, 'arcsec')} arcsec"))
+    return held, head, items
+
+
+def _metrics_table(m: dict[str, Any]) -> str:
+    rows = []
+    for k, v in m.items():
+        if k in ("sigma_e_norm", "omega_e_norm") and isinstance(v, dict):
+            for tk, x in v.items():
+                if k == "sigma_e_norm":
+                    rows.append((f"pointing error 4 atan|sigma_BD| at {tk} s",
+                                 fmt(None if x is None else pointing_arcsec_of_mrp_norm(x), "arcsec"), "arcsec"))
+                    rows.append((f"|sigma_BD| at {tk} s", fmt(x), "-"))
+                else:
+                    rows.append((f"|omega_BD_B| at {tk} s", fmt(x), "rad/s"))
+            continue
+        if k == "safe_reasons":
+            rows.append(("SAFE reasons", escape("; ".join(f"{a}: {b}" for a, b in v.items())) or "–", "steps"))
+            continue
+        label, unit, kind = METRIC_ROWS.get(k, (k, "", "num"))
+        rows.append((label, escape(fmt(v, kind)) if kind == "text" else fmt(v, kind), unit))
+    body = "".join(f"<tr><td>{escape(a)}</td><td class=num>{b}</td><td>{escape(c)}</td></tr>" for a, b, c in rows)
+    return f'<table id="metrics"><tr><th>metric</th><th>value</th><th>unit</th></tr>{body}</table>'
+
+
+def _timing_table(t: dict[str, Any]) -> str:
+    rows = []
+    for k, v in t.items():
+        unit = ("us" if k.endswith("_us") else "1/s" if k.endswith("_per_s") else "s" if k.endswith("_s")
+                else "Hz" if k.endswith("_hz") else "")
+        if isinstance(v, dict) and {"p50", "p99", "max"} <= set(v):
+            val = " / ".join(fmt(v[q]) for q in ("p50", "p99", "max"))
+            rows.append((f"{k} (p50 / p99 / max)", val, unit))
+        elif isinstance(v, (dict, list)):
+            rows.append((k, escape(json.dumps(v))[:300] if v else "–", ""))
+        else:
+            rows.append((k, escape(fmt(v, "text" if isinstance(v, str) else "num")), unit))
+    body = "".join(f"<tr><td>{escape(a)}</td><td class=num>{b}</td><td>{escape(c)}</td></tr>" for a, b, c in rows)
+    return f'<table id="timing"><tr><th>timing</th><th>value</th><th>unit</th></tr>{body}</table>'
+
+
+def render_html(run_dir: str | Path) -> str:
+    """The page for ``run_dir`` (see the module's docstring)."""
+    run_dir = Path(run_dir)
+    d = _load(run_dir)
+    m = d["metrics"]
+    held, head, items = verdict_items(d)
+    title = f"{m.get('scenario', '?')}, {m.get('controller', '?')}, {m.get('engine', '?')}"
+    parts = [f"<!DOCTYPE html><html lang=en><head><meta charset=utf-8><title>sc-rt run report: {escape(title)}</title>"
+             f"<style>{CSS}</style></head><body>",
+             f"<h1>Run report: {escape(title)}</h1>",
+             f'<p class=sub>{fmt(m.get("duration_s"))} s at {fmt(m.get("control_rate_hz"))} Hz; '
+             f"from {escape(run_dir.name)}/ (metrics.json{', timing.json' if d['timing'] else ''}"
+             f"{', report.json' if d['report'] else ''})</p>",
+             f'<section id="verdict" class="{"ok" if held else "bad"}"><p id="verdict-bound">{escape(head)}</p><ul>'
+             + "".join(f'<li id="{i}">{escape(s)}</li>' for i, s in items) + "</ul></section>"]
+    traj = d["traj"]
+    parts.append('<h2>Timeline</h2><section id="timeline">')
+    if "t" in traj:
+        modes = traj.get("ctrl_mode")
+        if modes is not None and not np.any(modes >= 0):
+            modes = None
+            parts.append("<p>Controller mode not recorded by this engine.</p>")
+        cmds = [{"wheel": c.get("wheel"), "t": c.get("t_sim_at_receipt", c.get("t")), "action": c.get("action")}
+                for c in ((d["report"] or {}).get("faults", {}).get("commands", [])
+                          + list((d["timing"] or {}).get("faults_applied") or []))]
+        parts.append(timeline_svg(traj["t"], modes=modes, bound_ok=traj.get("bound_ok"), scheduled=_scheduled(d),
+                                  fault_Y=traj.get("fault_Y"), cmd_stale=traj.get("cmd_stale"), commands=cmds))
+        legend = [(c, f"mode {n}") for n, c in (("INIT", "#9ecae1"), ("NORMAL", "#74c476"), ("SAFE", "#de2d26"))]
+        legend += [("#9e9ac8", "fault active (Y > 0)"), ("#ffffff;border:2px dashed #6a51a3", "fault scheduled"),
+                   ("#fd8d3c", "no valid command"), ("#cb181d", "outside the prescribed bound")]
+        parts.append('<p class=legend>' + "".join(f'<span><i style="background:{c}"></i>{escape(n)}</span>'
+                                                   for c, n in legend) + "</p>")
+        _ = MODE_NAMES
+    else:
+        parts.append("<p>No trajectory.npz: no timeline.</p>")
+    parts.append('</section><h2>Figures</h2><section id="figures">')
+    for p in d["figures"]:
+        b64 = base64.b64encode(p.read_bytes()).decode()
+        parts.append(f'<figure data-file="{escape(p.name)}"><img alt="{escape(p.name)}" src="data:image/png;base64,{b64}">'
+                     f"<figcaption>{escape(p.name)}: {escape(FIGURES.get(p.name, ''))}</figcaption></figure>")
+    if not d["figures"]:
+        parts.append("<p>No figures (run with plots to get them).</p>")
+    parts.append("</section><h2>Metrics</h2>" + _metrics_table(m))
+    if d["timing"]:
+        parts.append("<h2>Timing</h2>" + _timing_table(d["timing"]))
+    rep = d["report"]
+    if rep:
+        parts.append("<h2>Log</h2><table id=log><tr><th>log</th><th>value</th></tr>" + "".join(
+            f"<tr><td>{escape(k)}</td><td class=num>{escape(fmt(rep.get(k), 'text' if k in ('prefix', 'mode', 'parameters_from') else 'num'))}</td></tr>"
+            for k in ("events", "rows", "undecodable", "mode", "prefix", "parameters_from", "read_decode_s") if k in rep)
+            + "</table>")
+    parts.append("</body></html>\n")
+    return "\n".join(parts)
+
+
+def write_html_report(run_dir: str | Path, out: str | Path | None = None) -> Path:
+    """Write ``report.html`` into ``run_dir`` (or ``out``), atomically."""
+    run_dir = Path(run_dir)
+    out = Path(out) if out is not None else run_dir / "report.html"
+    text = render_html(run_dir)
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.partial")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return out

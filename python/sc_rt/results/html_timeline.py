@@ -1,0 +1,111 @@
+"""The timeline of a run as an inline SVG: controller modes, wheel faults
+(scheduled, and active in the plant's truth), command gaps and the spans
+outside the prescribed bound per axis. Pure data in, SVG text out."""
+
+from __future__ import annotations
+
+from html import escape
+from typing import Any
+
+import numpy as np
+
+__all__ = ["spans", "timeline_svg", "MODE_NAMES"]
+
+MODE_NAMES = {-1: "unknown", 0: "INIT", 1: "NORMAL", 2: "SAFE"}
+MODE_COLOURS = {-1: "#d9d9d9", 0: "#9ecae1", 1: "#74c476", 2: "#de2d26"}
+W, LEFT, RIGHT, LANE, TOP = 1000, 150, 20, 22, 10
+
+
+def spans(t: np.ndarray, on: np.ndarray) -> list[tuple[float, float]]:
+    """[start, end) spans of t where ``on``; a span ends at the next row's
+    time (or the last time)."""
+    t = np.asarray(t, float)
+    on = np.asarray(on, bool)
+    if t.size == 0:
+        return []
+    edge = np.diff(np.concatenate(([0], on.astype(np.int8), [0])))
+    starts, ends = np.nonzero(edge == 1)[0], np.nonzero(edge == -1)[0]
+    return [(float(t[a]), float(t[b]) if b < t.size else float(t[-1])) for a, b in zip(starts, ends)]
+
+
+def value_spans(t: np.ndarray, v: np.ndarray) -> list[tuple[float, float, int]]:
+    """(start, end, value) of the runs of equal values of ``v``."""
+    t, v = np.asarray(t, float), np.asarray(v)
+    if t.size == 0:
+        return []
+    cut = np.nonzero(np.diff(v) != 0)[0] + 1
+    starts = np.concatenate(([0], cut))
+    ends = np.concatenate((cut, [t.size]))
+    return [(float(t[a]), float(t[b]) if b < t.size else float(t[-1]), int(v[a])) for a, b in zip(starts, ends)]
+
+
+def _x(t: float, t0: float, t1: float) -> float:
+    return LEFT + (W - LEFT - RIGHT) * ((t - t0) / (t1 - t0) if t1 > t0 else 0.0)
+
+
+def _bar(y: float, a: float, b: float, t0: float, t1: float, fill: str, title: str, **kw) -> str:
+    x0, x1 = _x(a, t0, t1), _x(b, t0, t1)
+    extra = "".join(f' {k.replace("_", "-")}="{v}"' for k, v in kw.items())
+    return (f'<rect x="{x0:.1f}" y="{y + 3:.1f}" width="{max(x1 - x0, 1.0):.1f}" height="{LANE - 6}" '
+            f'fill="{fill}"{extra}><title>{escape(title)}</title></rect>')
+
+
+def timeline_svg(t: np.ndarray, *, modes: np.ndarray | None, bound_ok: np.ndarray | None,
+                 scheduled: list[dict[str, Any]], fault_Y: np.ndarray | None,
+                 cmd_stale: np.ndarray | None, commands: list[dict[str, Any]]) -> str:
+    """The SVG (one lane each: mode, wheels 1..4, command gaps, bound x/y/z)."""
+    t = np.asarray(t, float)
+    t0, t1 = (float(t[0]), float(t[-1])) if t.size else (0.0, 1.0)
+    lanes: list[tuple[str, list[str]]] = []
+    mode_bars = []
+    if modes is not None and t.size:
+        for a, b, m in value_spans(t, modes):
+            name = MODE_NAMES.get(m, str(m))
+            mode_bars.append(_bar(0, a, b, t0, t1, MODE_COLOURS.get(m, "#bbbbbb"), f"{name} {a:.2f}-{b:.2f} s",
+                                  class_=f"mode-{name}"))
+    lanes.append(("controller mode", mode_bars))
+    for w in range(1, 5):
+        bars = []
+        for f in scheduled:
+            if int(f.get("wheel", 0)) != w:
+                continue
+            end = f.get("end")
+            b = t1 if end is None else min(float(end), t1)
+            bars.append(_bar(0, float(f["onset"]), b, t0, t1, "none",
+                             f"scheduled: L {f.get('effectiveness')}, bias {f.get('bias')} rad/s^2, "
+                             f"from {f['onset']} s" + ("" if end is None else f" to {end} s"),
+                             stroke="#6a51a3", stroke_width="2", stroke_dasharray="5,3"))
+        if fault_Y is not None and t.size:
+            y = np.asarray(fault_Y, float)[:, w - 1]
+            for a, b in spans(t, np.nan_to_num(y) > 0):
+                bars.append(_bar(0, a, b, t0, t1, "#9e9ac8", f"active in the plant (Y > 0) {a:.2f}-{b:.2f} s",
+                                 fill_opacity="0.8"))
+        for c in commands:
+            if int(c.get("wheel", 0)) == w and c.get("t") is not None:
+                bars.append(_bar(0, float(c["t"]), float(c["t"]), t0, t1, "#000000",
+                                 f"fault command {c.get('action', '')} at {c['t']} s"))
+        lanes.append((f"wheel {w} fault", bars))
+    if cmd_stale is not None and t.size:
+        lanes.append(("command gaps", [_bar(0, a, b, t0, t1, "#fd8d3c", f"no valid command {a:.2f}-{b:.2f} s")
+                                       for a, b in spans(t, np.asarray(cmd_stale) != 0)]))
+    if bound_ok is not None and t.size:
+        ok = np.asarray(bound_ok, bool)
+        for i, ax in enumerate("xyz"):
+            lanes.append((f"outside bound, {ax}", [
+                _bar(0, a, b, t0, t1, "#cb181d", f"outside the prescribed bound on {ax}: {a:.2f}-{b:.2f} s",
+                     class_="violation") for a, b in spans(t, ~ok[:, i])]))
+    h = TOP + LANE * len(lanes) + 30
+    out = [f'<svg viewBox="0 0 {W} {h}" width="100%" role="img" '
+           f'aria-label="timeline of modes, faults and bound violations" id="timeline-svg">']
+    for k, (name, bars) in enumerate(lanes):
+        y = TOP + k * LANE
+        out.append(f'<rect x="{LEFT}" y="{y + 1}" width="{W - LEFT - RIGHT}" height="{LANE - 2}" fill="#f7f7f7"/>')
+        out.append(f'<text x="{LEFT - 6}" y="{y + LANE / 2 + 4}" text-anchor="end" font-size="12">{escape(name)}</text>')
+        out.append(f'<g transform="translate(0,{y})">' + "".join(bars) + "</g>")
+    ya = TOP + LANE * len(lanes) + 4
+    for tick in np.linspace(t0, t1, 7):
+        x = _x(float(tick), t0, t1)
+        out.append(f'<line x1="{x:.1f}" y1="{TOP}" x2="{x:.1f}" y2="{ya}" stroke="#cccccc" stroke-width="0.5"/>')
+        out.append(f'<text x="{x:.1f}" y="{ya + 14}" text-anchor="middle" font-size="11">{tick:.4g} s</text>')
+    out.append("</svg>")
+    return "\n".join(out)
