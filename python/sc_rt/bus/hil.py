@@ -155,6 +155,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     finish_run(res)
     res.timing = timing_report(res, summary, wall)
     files = write_run(res, out, figures=plots)
+    files += [p for p in (log_path, cfg_path, summary_path, out / "controller_stderr.txt") if p.exists()]
     return HilResult(out, res, summary, files)
 
 
