@@ -389,6 +389,44 @@ def test_command_writes_where_out_says_whatever_the_working_directory(tmp_path, 
             assert imread(tmp_path / "out" / f"{c}_{n}.png").shape[:2] == hw, (c, n)
 
 
+@pytest.mark.slow
+def test_root_cause_numbers_and_figure():
+    """docs/REPRODUCTION.md section 4 (sc-rt reproduce --sensitivity, fault-free, DSC+PPC): chi_x
+    meets the critical chi at 9.82 / 19.40 / 29.00 s (10 / 100 / 1000 Hz; printed to 0.01 s,
+    tolerance 0.005 s), the error stops decreasing at 19.5 s and 28.5 s (100 Hz, 1 kHz; printed
+    to 0.1 s: 0.05 s) and leaves the envelope at 4.1 s (z), 31.65 s (x) and 44.31 s (10 Hz:
+    a control instant, 1e-9 s; 100 Hz: to the step, 1e-9 s; 1 kHz printed to 0.01 s: 0.005 s).
+    The figure: the three spectral radii, the line rho = 1, chi_x(t) from (29) and the three
+    critical chi, the 10 Hz commands against umax."""
+    import matplotlib.pyplot as plt
+    from sc_rt.studies.reproduce.root_cause import root_cause_figure
+
+    scn = R.shipped_scenario("paper_fault_free")
+    info, fig = root_cause_figure(scn, engine="cpp")
+    try:
+        rates = info["rates"]
+        assert list(rates) == ["10", "100", "1000"]
+        for rate, t_loss in (("10", 9.82), ("100", 19.40), ("1000", 29.00)):
+            assert rates[rate]["t_loss_predicted_s"] == pytest.approx(t_loss, abs=0.005), rate
+        assert rates["100"]["growth_onset_s"][0] == pytest.approx(19.5, abs=0.05)
+        assert rates["1000"]["growth_onset_s"][0] == pytest.approx(28.5, abs=0.05)
+        for rate, (t, tol, axis) in (("10", (4.1, 1e-9, 3)), ("100", (31.65, 1e-9, 1)),
+                                     ("1000", (44.31, 0.005, 2))):
+            assert rates[rate]["first_bound_violation_s"] == pytest.approx(t, abs=tol), rate
+            assert rates[rate]["first_bound_violation_axis"] == axis, rate
+        top, middle, bottom = fig.axes
+        lines = _lines(top)
+        assert all(len(lines[f"{r} Hz"].get_ydata()) == 241 for r in rates)  # 0 to 60 s every 0.25 s
+        assert 1.0 in _hlines(top)
+        lines = _lines(middle)
+        tt = np.linspace(0, 60, 601)
+        np.testing.assert_allclose(lines["chi_x(t)"].get_ydata(), envelope(scn.controller.ppc, tt)[:, 0], rtol=1e-12)
+        assert _hlines(middle) == sorted(r["chi_crit"][0] for r in rates.values())
+        assert _hlines(bottom) == [1.0, 10.0]
+    finally:
+        plt.close(fig)
+
+
 # --------------------------------------------------------------------------------------------- #
 # 4. The feasible designs (shipped ppc_feasible_*) and the bisection
 
