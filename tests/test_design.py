@@ -452,10 +452,18 @@ def test_design_cli_writes_its_files(tmp_path, capsys):
     assert "grow from the error floor" in los["explanation"] and los["explanation"] in text
 
 
+def _exit_code(argv) -> int:
+    """main's exit code, whether it returns it or argparse exits with it."""
+    try:
+        return main(argv)
+    except SystemExit as e:
+        return e.code
+
+
 def test_design_cli_rejects_a_bad_scenario_and_rate(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text(FAULT_FREE.read_text().replace("umin = -7.0", "umin = 70.0"))
-    assert main(["design", str(bad), "--out", str(tmp_path / "o"), "--no-plots"]) == 2
+    assert _exit_code(["design", str(bad), "--out", str(tmp_path / "o"), "--no-plots"]) == 2
     assert "umin" in capsys.readouterr().err
-    assert main(["design", str(FAULT_FREE), "--rate", "-5", "--out", str(tmp_path / "o")]) == 2
+    assert _exit_code(["design", str(FAULT_FREE), "--rate", "-5", "--out", str(tmp_path / "o")]) == 2
     assert not (tmp_path / "o").exists()
