@@ -7,7 +7,6 @@ the statistics; bad options exit 2 with one line."""
 from __future__ import annotations
 
 import json
-import math
 import pickle
 import subprocess
 import sys
@@ -20,7 +19,7 @@ from sc_rt import _core
 from sc_rt.cli.main import main
 from sc_rt.scenario.model import load_scenario
 from sc_rt.sim.engines import simulate, with_overrides
-from sc_rt.studies.campaign import (Campaign, Dispersion, NO_SHORTCUTS, RunStore, clopper_pearson,
+from sc_rt.studies.campaign import (Campaign, Dispersion, RunStore, clopper_pearson,
                                     draw_run, rerun, run_campaign, run_one, run_seed_sequence,
                                     tolerance_bound, wilks_order, wilks_runs)
 from sc_rt.studies.campaign.figure import figure
@@ -175,7 +174,7 @@ def test_the_figure_says_no_run_left_the_bound_instead_of_a_bar_at_zero():
     ("--runs", "0"), ("--runs", "-3"), ("--runs", "abc"), ("--workers", "-1"), ("--workers", "0"),
     ("--seed", "-1"), ("--inertia", "5"), ("--inertia", "nan"), ("--inertia", "1"),
     ("--effectiveness", "-1"), ("--onset", "inf"), ("--attitude", "4"), ("--rate", "-0.1"),
-    ("--control-rate", "0"), ("--batch", "0"), ("--rerun", "-2"), ("--controller", "lqr"),
+    ("--control-rate", "0"), ("--batch", "0"), ("--rerun", "-2"), ("--law", "lqr"),
     ("--backend", "spark"), ("--scheduler", "localhost"), ("--scheduler", "tcp://h:99999"),
     ("--scheduler-file", "no/such/file.json"),
 ])  # fmt: skip

@@ -26,24 +26,25 @@ It is pure: no simulation, no file access.
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
-import math
-import re
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from sc_rt.scenario.keys import (element_names, get_key, numeric_keys, scenario_data,  # noqa: F401
+                                 set_key, value_shape)
 
 __all__ = [
     "DISTRIBUTIONS",
     "DispersionEntry",
     "MonteCarloTable",
     "draw",
+    "read_montecarlo",
+    # re-exported from keys.py, the names a table's keys refer to
     "element_names",
     "get_key",
     "numeric_keys",
-    "read_montecarlo",
     "scenario_data",
     "set_key",
 ]
@@ -80,133 +81,6 @@ class MonteCarloTable:
     on_invalid: str = "redraw"  # "redraw": draw again (up to max_redraws); "fail": count as failed
     max_redraws: int = 100
     lines: dict[str, int] = field(default_factory=dict, compare=False)  # key -> line, for messages
-
-
-# --------------------------------------------------------------------------- #
-# The scenario as the TOML data it could have been read from.
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    if isinstance(v, (np.floating, np.integer, np.bool_)):
-        return v.item()
-    return v
-
-
-def _group(obj: Any) -> dict[str, Any]:
-    return {f.name: _plain(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
-
-
-def scenario_data(scn: Any) -> dict[str, Any]:
-    """The scenario as the parsed TOML of a file that reads back to the same
-    numbers (the reader of sc_rt.scenario.model accepts it: no capture table,
-    J0 and Cbar written out; every controller value written out)."""
-    p, a, c = scn.plant, scn.actuators, scn.controller
-    controller = {name: _group(getattr(c, name))
-                  for name in ("ppc", "neso", "dsc", "pd", "rft", "safety")}  # fmt: skip
-    controller["pinv_damping"] = float(c.pinv_damping)
-    faults = []
-    for f in a.faults:
-        entry: dict[str, Any] = {"wheel": int(f.wheel) + 1, "onset": float(f.onset),
-                                 "rate": float(f.rate), "stuck": bool(f.stuck)}  # fmt: skip
-        if not f.stuck:  # the reader refuses effectiveness and bias next to stuck
-            entry["effectiveness"] = float(f.effectiveness)
-            entry["bias"] = float(f.bias)
-        if f.end is not None:
-            entry["end"] = float(f.end)
-        faults.append(entry)
-    return {
-        "name": scn.name,
-        "description": scn.description,
-        "run": _group(scn.run),
-        "spacecraft": {
-            "J0": p.J0.tolist(), "dJ": p.dJ.tolist(), "Cbar": p.Cbar.tolist(), "Jw": p.Jw.tolist(),
-            "umin": a.umin.tolist(), "umax": a.umax.tolist(), "w0": float(p.w0),
-            "max_wheel_speed": a.max_wheel_speed.tolist(),
-        },  # fmt: skip
-        "disturbance": _group(p.disturbance),
-        "initial": _group(scn.initial),
-        "guidance": _group(scn.guidance),
-        "controller": controller,
-        "faults": faults,
-    }
-
-
-_PART_RE = re.compile(r"^([A-Za-z_][\w-]*)((?:\[\d+\])*)$")
-
-
-def _parts(key: str) -> list[str | int] | None:
-    out: list[str | int] = []
-    for part in key.split("."):
-        m = _PART_RE.match(part)
-        if not m:
-            return None
-        out.append(m.group(1))
-        out.extend(int(i) for i in re.findall(r"\[(\d+)\]", m.group(2)))
-    return out
-
-
-def get_key(data: dict[str, Any], key: str) -> Any:
-    """The value of dotted ``key`` ("faults[0].onset") in ``data``; KeyError if absent."""
-    node: Any = data
-    for p in _parts(key) or [key]:
-        try:
-            node = node[p]
-        except (KeyError, IndexError, TypeError):
-            raise KeyError(key) from None
-    return node
-
-
-def set_key(data: dict[str, Any], key: str, value: Any) -> None:
-    """Set dotted ``key`` in ``data`` (which must hold it already)."""
-    parts = _parts(key) or [key]
-    node: Any = data
-    for p in parts[:-1]:
-        node = node[p]
-    node[parts[-1]] = value
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _shape(v: Any) -> tuple[int, ...] | None:
-    """Shape of a number, a list of numbers or a list of rows; None otherwise."""
-    if _is_number(v):
-        return ()
-    if isinstance(v, list) and v and all(_is_number(x) for x in v):
-        return (len(v),)
-    if (isinstance(v, list) and v and all(isinstance(r, list) and r for r in v)
-            and len({len(r) for r in v}) == 1 and all(_is_number(x) for r in v for x in r)):  # fmt: skip
-        return (len(v), len(v[0]))
-    return None
-
-
-def numeric_keys(data: dict[str, Any]) -> dict[str, tuple[tuple[int, ...], bool]]:
-    """Every numeric key of scenario data -> (shape, integer-valued)."""
-    out: dict[str, tuple[tuple[int, ...], bool]] = {}
-
-    def walk(node: Any, key: str) -> None:
-        if isinstance(node, dict):
-            for k, v in node.items():
-                walk(v, f"{key}.{k}" if key else k)
-        elif isinstance(node, list) and node and all(isinstance(x, dict) for x in node):
-            for i, v in enumerate(node):
-                walk(v, f"{key}[{i}]")
-        elif (shape := _shape(node)) is not None:
-            ints = all(isinstance(x, int) for x in np.asarray(node, dtype=object).flat)
-            out[key] = (shape, ints)
-
-    walk(data, "")
-    return out
-
-
-def element_names(key: str, shape: tuple[int, ...]) -> list[str]:
-    """Column names of the elements of ``key``: key, key[i] or key[i][j]."""
-    if shape == ():
-        return [key]
-    return [key + "".join(f"[{i}]" for i in idx) for idx in np.ndindex(*shape)]
 
 
 # --------------------------------------------------------------------------- #
@@ -333,7 +207,7 @@ def _read_entry(t: Any, keys: dict[str, tuple[tuple[int, ...], bool]] | None
 def _check_numeric(t: Any, dist: str, params: dict[str, Any], shape, bad) -> bool:
     arrays = {}
     for name, v in params.items():
-        s = _shape(v)
+        s = value_shape(v)
         if s is None or (shape is not None and s not in ((), shape)):
             want = "one number" + (f" or {_fmt_shape(shape)} (one per element)" if shape else "")
             bad(name, f"{name} must be {want}")
@@ -370,7 +244,7 @@ def _check_choice(t: Any, params: dict[str, Any], shape, ints: bool, apply: str,
     if not (isinstance(values, list) and values):
         bad("values", "values must be a non-empty list")
         return False
-    shapes = {_shape(v) for v in values}
+    shapes = {value_shape(v) for v in values}
     if len(shapes) != 1 or None in shapes or (shape is not None and shapes.pop() not in ((), shape)):
         want = "numbers" + (f", or of values of the key's shape {list(shape)}" if shape else "")
         bad("values", f"values must be a list of {want}")
@@ -382,7 +256,7 @@ def _check_choice(t: Any, params: dict[str, Any], shape, ints: bool, apply: str,
         bad("values", "values must be integers (the key takes integers) with apply = \"set\"")
         return False
     if weights is not None:
-        w = np.asarray(weights, float) if _shape(weights) == (len(values),) else None
+        w = np.asarray(weights, float) if value_shape(weights) == (len(values),) else None
         if w is None or not np.all(np.isfinite(w)) or np.any(w < 0) or not w.sum() > 0:
             bad("weights", f"weights must be {len(values)} numbers >= 0 (one per value), not all 0")
             return False

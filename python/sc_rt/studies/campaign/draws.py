@@ -35,7 +35,8 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.scenario.dispersions import draw, element_names, get_key, scenario_data, set_key
+from sc_rt.scenario.dispersions import draw
+from sc_rt.scenario.keys import element_names, get_key, scenario_data, set_key
 from sc_rt.scenario.model import Scenario, ScenarioError, scenario_from_data
 
 __all__ = ["Dispersion", "NO_SHORTCUTS", "disperse", "draw_run", "run_seed_sequence", "value_columns"]

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.scenario.dispersions import scenario_data
+from sc_rt.scenario.keys import scenario_data
 from sc_rt.scenario.model import Scenario
 from sc_rt.studies.campaign.backends import make_backend
 from sc_rt.studies.campaign.draws import Dispersion, draw_run, value_columns
