@@ -29,7 +29,34 @@ CASES = [
     ("k4 = 0.06", "k4 = 0.001", 1, "controller.neso.k4", "condition (26) fails"),
     ("umax = 10.0", "umax = 0.0001", 1, "spacecraft.umax", "beyond the wheel limits"),
     ("k2 = 4.0", "k2 = 0.5", 1, "controller.dsc.k2", "4 k2 k6 > 3"),
+    ("onset = 10.0", "onset = 300.0", 1, "faults[1].onset", "at or after the run's end"),
 ]
+
+
+# (old, new, law, exit code, exit code with strict): the checks follow the law
+LAW_CASES = [
+    # a DSC gain condition concerns only DSC+PPC
+    ("k2 = 4.0", "k2 = 0.5", "pd", 0, 1),
+    ("k2 = 4.0", "k2 = 0.5", "dsc-ppc", 1, 1),
+    # the observer condition concerns the laws with a NESO
+    ("k4 = 0.06", "k4 = 0.001", "rft", 0, 1),
+    ("k4 = 0.06", "k4 = 0.001", "dsc", 1, 1),
+    # outside the bound at t = 0: DSC+PPC's transform has no value (error); a PD run starts outside (note)
+    ("chi0 = [0.11, 0.14, 0.2]", "chi0 = [0.01, 0.14, 0.2]", "pd", 0, 1),
+    ("chi0 = [0.11, 0.14, 0.2]", "chi0 = [0.01, 0.14, 0.2]", "dsc-ppc", 2, 2),
+    # a limit no law can track with concerns every law
+    ("umax = 10.0", "umax = 0.0001", "pd", 1, 1),
+]
+
+
+@pytest.mark.parametrize("old, new, law, code, strict", LAW_CASES)
+def test_checks_follow_the_law(tmp_path, old, new, law, code, strict):
+    findings = check_scenario(edited(tmp_path, old, new), run_estimate=False, law=law)
+    assert exit_code(findings) == code, [str(f) for f in findings]
+    assert exit_code(findings, strict=True) == strict, [str(f) for f in findings]
+    keys = {f.key for f in findings}
+    assert ("controller.dsc.k1" in keys) == (law == "dsc-ppc")
+    assert ("controller.neso" in keys or "controller.neso.k4" in keys) == (law in ("dsc-ppc", "dsc"))
 
 
 @pytest.mark.parametrize("old, new, code, key, fragment", CASES)
@@ -48,8 +75,8 @@ def test_paper_scenario_warns_about_its_own_theorem_and_cbar():
     assert ("controller.dsc.k1", "warning") in by_key
     k1 = next(f for f in findings if f.key == "controller.dsc.k1")
     assert "rM < 2.309" in k1.message
-    # docs/MODEL.md section 9: the printed Cbar is mirrored, not rotated
-    assert ("spacecraft.Cbar", "warning") in by_key
+    # docs/MODEL.md section 9: the printed Cbar is mirrored, not rotated (used as given: a note)
+    assert ("spacecraft.Cbar", "note") in by_key
     assert ("controller.neso", "ok") in by_key and ("controller.ppc.chi0", "ok") in by_key
 
 
@@ -61,3 +88,10 @@ def test_cli_exit_codes(tmp_path):
     r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "check", str(ROOT / "scenarios/paper_faults.toml")],
                        capture_output=True, text=True)
     assert r.returncode == 1 and "Theorem 1 condition fails" in r.stdout
+    # the same scenario for PD: none of DSC+PPC's conditions, the Cbar note alone -> 0; strict -> 1
+    for extra, code in (([], 0), (["--strict"], 1)):
+        r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "check", "paper_faults", "--fast",
+                            "--law", "pd", *extra], capture_output=True, text=True)
+        assert r.returncode == code, r.stdout + r.stderr
+        assert "Theorem 1" not in r.stdout and "NOTE    spacecraft.Cbar" in r.stdout
+        assert f"-> exit {code}" in r.stdout

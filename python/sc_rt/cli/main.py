@@ -11,8 +11,9 @@ from pathlib import Path
 
 from sc_rt import __version__
 
-from sc_rt.cli.validate import (OneLineParser, UsageError, check_run_size, given_options, integer,
-                                lcm_url, number, out_dir, out_file, resolve_url, rounded)
+from sc_rt.cli.validate import (MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError, check_run_size,
+                                given_options, integer, lcm_url, number, out_dir, out_file, resolve_url,
+                                rounded)
 from sc_rt.scenario.model import LAWS  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
@@ -194,15 +195,17 @@ def cmd_emulator(args: argparse.Namespace) -> int:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    from sc_rt.studies.check import check_scenario, exit_code
+    from sc_rt.studies.check import LEVELS, check_scenario, exit_code
 
-    findings = check_scenario(args.scenario, run_estimate=not args.fast)
+    findings = check_scenario(args.scenario, run_estimate=not args.fast, law=args.law)
     for f in findings:
         if f.level != "ok" or args.verbose:
             print(f)
-    rc = exit_code(findings)
-    n = {lvl: sum(f.level == lvl for f in findings) for lvl in ("error", "warning", "ok")}
-    print(f"sc-rt check: {args.scenario}: {n['error']} errors, {n['warning']} warnings, {n['ok']} ok")
+    rc = exit_code(findings, strict=args.strict)
+    n = {lvl: sum(f.level == lvl for f in findings) for lvl in LEVELS}
+    print(f"sc-rt check: {args.scenario}{f' for {args.law}' if args.law else ''}: {n['error']} errors, "
+          f"{n['warning']} warnings, {n['note']} notes{' (strict: as warnings)' if args.strict else ''}, "
+          f"{n['ok']} ok -> exit {rc}")
     return rc
 
 
@@ -404,23 +407,28 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def _add_monitoring(sub) -> None:
-    url_help = "default: $SCRT_LCM_URL or udpm://239.255.76.67:7667?ttl=0 (sc-rt hil picks a free port: pass its URL)"
+    url_help = ("default: $SCRT_LCM_URL, else udpm://239.255.76.67:7667?ttl=0 (sc-rt hil picks a free "
+                "port and prints it: pass its URL)")
 
     y = sub.add_parser("spy", help="terminal monitor of the bus: rates, jitter, newest values")
-    y.add_argument("--lcm-url", metavar="URL", help=url_help)
+    y.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
     y.add_argument("--channels", default=".*", metavar="REGEX",
-                   help="channels to watch (LCM regex: the whole name must match; default all)")
-    y.add_argument("--once", action="store_true", help="listen --duration seconds, print one snapshot")
+                   help="channels to watch (LCM regex: the whole name must match; default: %(default)s, all)")
+    y.add_argument("--once", action="store_true",
+                   help="listen --duration seconds, print one snapshot (exit 1 if nothing was heard)")
     y.add_argument("--json", action="store_true", help="JSON instead of the table")
-    y.add_argument("--duration", type=float, metavar="S",
-                   help="--once: listening time (default 1.5 s); live: stop after S s")
-    y.add_argument("--refresh", type=float, default=0.5, metavar="S", help="live: redraw period")
-    y.add_argument("--window", type=float, default=2.0, metavar="S", help="live: rate window")
+    y.add_argument("--duration", type=number(0, 1e6, unit="s"), metavar="S",
+                   help="--once: listening time (default 1.5 s); live: stop after S s (exit 1 if "
+                        "nothing was heard; default: until Ctrl-C)")
+    y.add_argument("--refresh", type=number(0, 3600, unit="s"), default=0.5, metavar="S",
+                   help="live: redraw period (default: %(default)s s)")
+    y.add_argument("--window", type=number(0, 3600, unit="s"), default=2.0, metavar="S",
+                   help="live: rate window (default: %(default)s s)")
     y.set_defaults(func=cmd_spy)
 
     j = sub.add_parser("lcm-spy", help="LCM's lcm-spy (GUI) with the sc_rt_lcm types on its CLASSPATH")
-    j.add_argument("--lcm-url", metavar="URL", help=url_help)
-    j.add_argument("--title", help="window title")
+    j.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
+    j.add_argument("--title", help="window title (default: lcm-spy's)")
     j.add_argument("--build-only", action="store_true", help="build (or find) the types jar, print its path")
     j.add_argument("--rebuild", action="store_true", help="rebuild the cached types jar")
     j.set_defaults(func=cmd_lcm_spy)
@@ -428,30 +436,40 @@ def _add_monitoring(sub) -> None:
     f = sub.add_parser("fault", help="inject or clear a wheel fault live (fault_cmd_t on SCRT_FAULT)")
     fs = f.add_subparsers(dest="action", metavar="ACTION", required=True)
     fi = fs.add_parser("inject", help="inject a fault on one wheel")
-    fi.add_argument("--wheel", type=int, required=True, metavar="N", help="wheel 1..4")
-    fi.add_argument("--effectiveness", type=float, default=1.0, metavar="E", help="L in [0, 1] (default 1)")
-    fi.add_argument("--bias", type=float, default=0.0, metavar="B", help="bias ubar [rad/s^2] (default 0)")
+    fi.add_argument("--wheel", type=integer(1, 4), required=True, metavar="N", help="wheel 1..4")
+    fi.add_argument("--effectiveness", type=number(0, 1, open_lo=False), default=1.0, metavar="E",
+                    help="L in [0, 1] (default: %(default)s)")
+    fi.add_argument("--bias", type=number(-1e3, 1e3, open_lo=False, unit="rad/s^2"), default=0.0, metavar="B",
+                    help="bias ubar [rad/s^2] (default: %(default)s)")
     fi.add_argument("--stuck", action="store_true", help="the wheel keeps its speed at onset")
     when = fi.add_mutually_exclusive_group()
-    when.add_argument("--at", type=float, metavar="T", help="onset at simulation time T [s]")
+    when.add_argument("--at", type=number(0, 1e9, open_lo=False, unit="s"), metavar="T",
+                      help="onset at simulation time T [s] (refused when the emulator is already past it)")
     when.add_argument("--now", action="store_true", help="onset at the emulator's current time (default)")
-    fi.add_argument("--until", type=float, metavar="T", help="end at simulation time T [s] (default never)")
-    fi.add_argument("--rate", type=float, default=1.0, metavar="A", help="evolution rate a of (16) [1/s]")
+    fi.add_argument("--until", type=number(0, 1e9, unit="s"), metavar="T",
+                    help="end at simulation time T [s] (default: never)")
+    fi.add_argument("--rate", type=number(0, 1e6, unit="1/s"), default=1.0, metavar="A",
+                    help="evolution rate a of (16) [1/s] (default: %(default)s)")
     fc = fs.add_parser("clear", help="the wheel is healthy again from now on")
-    fc.add_argument("--wheel", type=int, required=True, metavar="N", help="wheel 1..4")
+    fc.add_argument("--wheel", type=integer(1, 4), required=True, metavar="N", help="wheel 1..4")
     for q in (fi, fc):
-        q.add_argument("--lcm-url", metavar="URL", help=url_help)
-        q.add_argument("--prefix", default="", help="channel name prefix (default none)")
+        q.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
+        q.add_argument("--prefix", default="", help="channel name prefix (default: none)")
+        q.add_argument("--timeout", type=number(0, 600, unit="s"), default=3.0, metavar="S",
+                       help="wait this long for an emulator's plant_truth_t to echo the fault "
+                            "(default: %(default)s s); exit 1 if none does")
+        q.add_argument("--no-wait", action="store_true",
+                       help="publish and exit 0 without waiting for the echo")
         q.set_defaults(func=cmd_fault)
 
     r = sub.add_parser("report", help="metrics, timing and figures of a run from its LCM log")
     r.add_argument("log")
-    r.add_argument("--out", metavar="DIR", help="default: report/ next to the log")
+    r.add_argument("--out", metavar="DIR", type=out_dir, help="default: report/ next to the log")
     r.add_argument("--scenario", metavar="FILE",
                    help="scenario of the run (needed only for a log without SCRT_CONFIG; gives the duration)")
     r.add_argument("--prefix", help="channel prefix (default: detected)")
     r.add_argument("--mode", choices=("lockstep", "realtime"), help="default: detected")
-    r.add_argument("--no-plots", action="store_true")
+    r.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     r.add_argument("--mcap", metavar="OUT", help="also write the log as MCAP (as sc-rt export)")
     r.set_defaults(func=cmd_report)
 
@@ -464,16 +482,21 @@ def _add_monitoring(sub) -> None:
 
     p = sub.add_parser("replay", help="play an LCM log onto the bus (the wheel's lcm-logplayer)")
     p.add_argument("log")
-    p.add_argument("--lcm-url", metavar="URL", help=url_help)
-    p.add_argument("--speed", type=float, default=1.0, metavar="X", help="playback speed (default 1)")
-    p.add_argument("--channels", metavar="REGEX", help="only these channels")
-    p.add_argument("--verbose", action="store_true")
+    p.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
+    p.add_argument("--speed", type=number(0, 1e4), default=1.0, metavar="X",
+                   help="playback speed (default: %(default)s)")
+    p.add_argument("--channels", metavar="REGEX", help="only these channels (default: all)")
+    p.add_argument("--verbose", action="store_true", help="lcm-logplayer's own output")
     p.set_defaults(func=cmd_replay)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="sc-rt",
+        epilog="Exit codes: 0 done; 1 the run or check found a problem (sc-rt check: warnings; "
+               "sc-rt fault: no emulator echoed; sc-rt spy: nothing heard); 2 a bad option, value, "
+               "scenario or path (one line, nothing started); 130/143 interrupted by SIGINT/SIGTERM "
+               "(partial outputs written and marked). LCM URL: --lcm-url, else $SCRT_LCM_URL.",
         description="Real-time attitude-control emulator: fault-tolerant controllers against a "
                     "reaction-wheel spacecraft, offline and over LCM.",
     )
@@ -481,36 +504,38 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     s = sub.add_parser("sim", help="offline closed loop (plant + C++ controller core)")
-    s.add_argument("scenario")
+    s.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     s.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES, help="control law (default: the scenario's; --controller is the old name)")
     s.add_argument("--engine", choices=("python", "cpp", "unsampled"), default="python",
-                   help="unsampled: reference mode, the law inside every RK4 stage (no hold)")
-    s.add_argument("--control-rate", type=float, metavar="HZ")
-    s.add_argument("--duration", type=float, metavar="S")
-    s.add_argument("--plant-step", type=float, metavar="S",
+                   help="unsampled: reference mode, the law inside every RK4 stage (no hold) "
+                        "(default: %(default)s)")
+    s.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
+    s.add_argument("--duration", type=number(unit="s"), metavar="S", help="default: the scenario's")
+    s.add_argument("--plant-step", type=number(unit="s"), metavar="S",
                    help="plant RK4 step (default: the scenario's, reduced to divide the control period)")
-    s.add_argument("--out", default="out/sim", metavar="DIR")
-    s.add_argument("--no-plots", action="store_true")
+    s.add_argument("--out", default="out/sim", type=out_dir, metavar="DIR", help="default: %(default)s")
+    s.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     s.set_defaults(func=cmd_sim)
 
-    def lcm_opts(q):
-        q.add_argument("--lcm-url", metavar="URL",
-                       help="default: udpm://239.255.76.67:<free port>?ttl=0 (nothing leaves the machine)")
-        q.add_argument("--prefix", default="", help="channel name prefix (default none)")
+    def lcm_opts(q, url_help="default: $SCRT_LCM_URL, else udpm://239.255.76.67:<a free port>?ttl=0 "
+                             "(printed; nothing leaves the machine)"):
+        q.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
+        q.add_argument("--prefix", default="", help="channel name prefix (default: none)")
 
     h = sub.add_parser("hil", help="controller process + plant emulator + lcm-logger over LCM")
-    h.add_argument("scenario")
-    h.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    h.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
+    h.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep", help="default: %(default)s")
     h.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES, help="control law (default: the scenario's)")
-    h.add_argument("--control-rate", type=float, metavar="HZ")
-    h.add_argument("--duration", type=float, metavar="S")
-    h.add_argument("--out", default="out/hil", metavar="DIR")
+    h.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
+    h.add_argument("--duration", type=number(unit="s"), metavar="S", help="default: the scenario's")
+    h.add_argument("--out", default="out/hil", type=out_dir, metavar="DIR", help="default: %(default)s")
     h.add_argument("--realtime-priority", action="store_true",
-                   help="controller asks for SCHED_FIFO + mlockall")
-    h.add_argument("--time-scale", type=float, default=1.0, help="real time: > 1 runs faster")
+                   help="controller asks for SCHED_FIFO + mlockall (default: off)")
+    h.add_argument("--time-scale", type=number(0, MAX_TIME_SCALE), default=1.0, metavar="X",
+                   help="real time: > 1 runs faster (default: %(default)s)")
     h.add_argument("--accept-fault-commands", action="store_true",
-                   help="the emulator applies fault_cmd_t from SCRT_FAULT")
-    h.add_argument("--no-plots", action="store_true")
+                   help="the emulator applies fault_cmd_t from SCRT_FAULT (default: ignored)")
+    h.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     h.add_argument("--mcap", nargs="?", const="", metavar="OUT",
                    help="also write the run's log as MCAP (default OUT: run.mcap in --out; as sc-rt export)")
     lcm_opts(h)
@@ -518,26 +543,35 @@ def build_parser() -> argparse.ArgumentParser:
 
     d = sub.add_parser("demo", help="the main job: the paper's DSC+PPC and the feasible 10 Hz design "
                        "on the paper's fault scenario, each through the real LCM loop")
-    d.add_argument("--out", default="out/demo", metavar="DIR",
+    d.add_argument("--out", default="out/demo", type=out_dir, metavar="DIR",
                    help="output directory, one subdirectory per run (default: %(default)s)")
-    d.add_argument("--lcm-url", metavar="URL", help="LCM URL (default: a free port on 239.255.76.67, ttl=0)")
+    d.add_argument("--lcm-url", metavar="URL", type=lcm_url,
+                   help="LCM URL (default: $SCRT_LCM_URL, else a free port on 239.255.76.67, ttl=0)")
     d.set_defaults(func=cmd_demo)
 
     e = sub.add_parser("emulator", help="the plant as an LCM process")
-    e.add_argument("scenario")
-    e.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
-    e.add_argument("--rate", type=float, metavar="HZ", help="state publish rate (default: control rate)")
-    e.add_argument("--time-scale", type=float, default=1.0)
-    e.add_argument("--duration", type=float, metavar="S")
-    e.add_argument("--accept-fault-commands", action="store_true")
-    e.add_argument("--out", metavar="DIR", help="write trajectory.npz and emulator.json there")
-    lcm_opts(e)
+    e.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
+    e.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep", help="default: %(default)s")
+    e.add_argument("--rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ",
+                   help="state publish rate (default: the scenario's control rate)")
+    e.add_argument("--time-scale", type=number(0, MAX_TIME_SCALE), default=1.0, metavar="X",
+                   help="real time: > 1 runs faster (default: %(default)s)")
+    e.add_argument("--duration", type=number(unit="s"), metavar="S", help="default: the scenario's")
+    e.add_argument("--accept-fault-commands", action="store_true",
+                   help="apply fault_cmd_t from SCRT_FAULT (default: ignored)")
+    e.add_argument("--out", metavar="DIR", type=out_dir,
+                   help="write trajectory.npz and emulator.json there (default: nothing written)")
+    lcm_opts(e, "default: $SCRT_LCM_URL, else udpm://239.255.76.67:7667?ttl=0 (the port sc-rt-controller "
+                "uses by default)")
     e.set_defaults(func=cmd_emulator)
 
     k = sub.add_parser("check", help="check a scenario: schema, bound at t=0, (26), Theorem 1, B, Cbar, limits")
-    k.add_argument("scenario")
+    k.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     k.add_argument("--verbose", "-v", action="store_true", help="also list the checks that pass")
     k.add_argument("--fast", action="store_true", help="estimate r's bound at t = 0 instead of along a run")
+    k.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES,
+                   help="check for this law (default: the scenario's): only its conditions are checked")
+    k.add_argument("--strict", action="store_true", help="notes count as warnings (exit 1)")
     k.set_defaults(func=cmd_check)
 
     n = sub.add_parser("scenarios", help="the shipped scenarios: any SCENARIO argument may be one of these names")
@@ -549,32 +583,32 @@ def build_parser() -> argparse.ArgumentParser:
     add_montecarlo(sub)  # its options and their checks: sc_rt/cli/montecarlo.py
 
     c = sub.add_parser("config", help="write the scenario's controller_config_t for sc-rt-controller")
-    c.add_argument("scenario")
-    c.add_argument("--out", required=True, metavar="FILE")
+    c.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
+    c.add_argument("--out", required=True, type=out_file, metavar="FILE", help="the file to write")
     c.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES, help="control law (default: the scenario's)")
-    c.add_argument("--control-rate", type=float, metavar="HZ")
+    c.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
     c.set_defaults(func=cmd_config)
 
     g = sub.add_parser("design", help="PD design, stability margins and sampled-data stability limits")
-    g.add_argument("scenario")
-    g.add_argument("--rate", type=float, metavar="HZ", help="control rate (default: the scenario's)")
-    g.add_argument("--latency", type=float, metavar="S",
+    g.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
+    g.add_argument("--rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="control rate (default: the scenario's)")
+    g.add_argument("--latency", type=number(0, 10, unit="s"), metavar="S",
                    help="latency of the Pade case (default 1.2e-3 s, a measured HIL p99)")
     g.add_argument("--timing", metavar="FILE", help="take the latency from a HIL timing.json (p99)")
-    g.add_argument("--out", default="out/design", metavar="DIR")
-    g.add_argument("--no-plots", action="store_true")
+    g.add_argument("--out", default="out/design", type=out_dir, metavar="DIR", help="default: %(default)s")
+    g.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     g.set_defaults(func=cmd_design)
     q = sub.add_parser("reproduce", help="check the paper's claims: both scenarios, four laws -> claims.json, figures")
-    q.add_argument("--out", default="out/reproduce", metavar="DIR")
-    q.add_argument("--engine", choices=("python", "cpp"), default="cpp")
-    q.add_argument("--control-rate", type=float, metavar="HZ", help="default: the scenarios' 10 Hz")
-    q.add_argument("--plant-step", type=float, metavar="S", help="default: the scenarios' 0.1 s")
+    q.add_argument("--out", default="out/reproduce", type=out_dir, metavar="DIR", help="default: %(default)s")
+    q.add_argument("--engine", choices=("python", "cpp"), default="cpp", help="default: %(default)s")
+    q.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenarios' 10 Hz")
+    q.add_argument("--plant-step", type=number(unit="s"), metavar="S", help="default: the scenarios' 0.1 s")
     q.add_argument("--sensitivity", action="store_true",
                    help="also the verdicts at 10 Hz (plant step 0.1 and 0.01 s), 100 Hz and 1 kHz")
     q.add_argument("--search", action="store_true",
                    help="also bisect the tightest chiinf that holds per rate and run scenarios/ppc_feasible_*.toml")
-    q.add_argument("--dpi", type=int, default=80, help="figure resolution (default 80)")
-    q.add_argument("--no-plots", action="store_true")
+    q.add_argument("--dpi", type=integer(10, 1200), default=80, help="figure resolution (default: %(default)s)")
+    q.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     q.set_defaults(func=cmd_reproduce)
     _add_monitoring(sub)
     return p

@@ -1,12 +1,19 @@
 """``sc-rt check SCENARIO``: everything that can be said about a scenario
 before running it, each finding with the key and value involved.
 
-Exit code 0 (all good), 1 (warnings), 2 (errors). Errors: the file does not
-load (schema, values), B is rank-deficient, the initial attitude error is
-outside the prescribed bound (29) at t = 0. Warnings: the observer condition
-(26), the Theorem 1 gain conditions (with r's bound estimated along a run),
-Cbar not a proper rotation of the service-frame wheel layout, saturation
-limits that cannot produce the feed-forward the desired trajectory needs.
+The checks follow the law checked (the scenario's, or ``law=``): the
+observer condition only for the laws with a NESO, Theorem 1 and the
+transform (31) only for DSC+PPC.
+
+Levels and exit code (``exit_code``, the one policy): errors 2 (the file
+does not load, B is rank-deficient, DSC+PPC's initial attitude error
+outside the prescribed bound (29) at t = 0, where (31) has no value);
+warnings that concern the law and the run 1 (the observer condition (26),
+the Theorem 1 gain conditions with r's bound estimated along a run,
+saturation limits that cannot produce the feed-forward the desired
+trajectory needs, a fault scheduled at or after the run's end); notes 0
+(Cbar not a proper rotation of the paper's wheel layout, used as given; a
+non-PPC run that starts outside the bound), warnings with ``strict``.
 """
 
 from __future__ import annotations
@@ -21,7 +28,12 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.scenario.model import Scenario, ScenarioError, load_scenario
 
-__all__ = ["Finding", "check_scenario", "PAPER_C"]
+__all__ = ["Finding", "check_scenario", "exit_code", "LEVELS", "PAPER_C"]
+
+#: Finding levels, most severe first.
+LEVELS = ("error", "warning", "note", "ok")
+#: Laws with the NESO observer (condition (26) applies).
+OBSERVER_LAWS = ("dsc-ppc", "dsc")
 
 #: The paper's service-frame wheel layout: three orthogonal wheels and a
 #: skewed fourth (docs/MODEL.md section 8). Used for the Cbar check when the
@@ -32,7 +44,7 @@ PAPER_C = np.column_stack([np.eye(3), np.ones(3) / math.sqrt(3)])
 
 @dataclass(frozen=True)
 class Finding:
-    level: str  # "error", "warning" or "ok"
+    level: str  # one of LEVELS
     key: str
     value: str
     message: str
@@ -46,20 +58,27 @@ def _fmt(v) -> str:
     return np.array2string(np.asarray(v, float), precision=4, separator=", ") if np.ndim(v) else f"{v:.4g}"
 
 
-def check_scenario(path: str | Path, *, run_estimate: bool = True) -> list[Finding]:
+def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | None = None) -> list[Finding]:
+    """The findings on the scenario at ``path`` for ``law`` (default: the scenario's)."""
     try:
         scn = load_scenario(path)
+        if law is not None:
+            scn = scn.with_run(controller=law)
     except ScenarioError as e:
         return [Finding("error", i.key, "" if i.value is None else str(i.value), i.message)
                 for i in e.errors] or [Finding("error", "", "", str(e))]
+    law = scn.run.controller
     out: list[Finding] = []
     out += _check_model(scn)
     if any(f.level == "error" for f in out):
         return out
-    out += _check_initial_bound(scn)
-    out += _check_observer(scn)
-    out += _check_theorem1(scn, run_estimate)
+    out += _check_initial_bound(scn, law)
+    if law in OBSERVER_LAWS:
+        out += _check_observer(scn)
+    if law == "dsc-ppc":
+        out += _check_theorem1(scn, run_estimate)
     out += _check_feedforward(scn)
+    out += _check_fault_times(scn)
     return out
 
 
@@ -85,12 +104,12 @@ def _check_model(scn: Scenario) -> list[Finding]:
         out.append(Finding("ok", "spacecraft.Cbar", "", "a proper rotation of the paper's wheel layout C"))
     else:
         msg = str(w[0].message) if w else f"residual {fit.residual:.3g}"
-        out.append(Finding("warning", "spacecraft.Cbar", "",
+        out.append(Finding("note", "spacecraft.Cbar", "",
                            "compared with the paper's layout C = [e1, e2, e3, (1,1,1)/sqrt(3)]: " + msg))
     return out
 
 
-def _check_initial_bound(scn: Scenario) -> list[Finding]:
+def _check_initial_bound(scn: Scenario, law: str = "dsc-ppc") -> list[Finding]:
     x1 = _core.mrp_subtract(np.asarray(scn.initial.sigma_BN), np.asarray(scn.guidance.sigma_d0))
     p = scn.controller.ppc
     chi0, dmin, dmax = (np.asarray(v, float) for v in (p.chi0, p.dmin, p.dmax))
@@ -99,6 +118,10 @@ def _check_initial_bound(scn: Scenario) -> list[Finding]:
         return [Finding("ok", "controller.ppc.chi0", _fmt(chi0),
                         f"the initial error sigma_BD(0) = {_fmt(x1)} is inside the bound (29)")]
     axes = [i + 1 for i in range(3) if not inside[i]]
+    if law != "dsc-ppc":  # only DSC+PPC needs (31); the others start outside the bound's verdict
+        return [Finding("note", "controller.ppc.chi0", _fmt(chi0),
+                        f"the initial error sigma_BD(0) = {_fmt(x1)} is outside -dmin chi0 < x1 < dmax chi0 "
+                        f"on axis {axes}: a {law} run starts outside the prescribed bound (29)")]
     return [Finding("error", "controller.ppc.chi0", _fmt(chi0),
                     f"the initial error sigma_BD(0) = {_fmt(x1)} is outside -dmin chi0 < x1 < dmax chi0 "
                     f"on axis {axes}: the transform (31) has no value there; widen chi0 or dmin/dmax")]
@@ -184,6 +207,24 @@ def _check_feedforward(scn: Scenario) -> list[Finding]:
                     "beyond the wheel limits, no law can track it exactly")]
 
 
-def exit_code(findings: list[Finding]) -> int:
+def _check_fault_times(scn: Scenario) -> list[Finding]:
+    """A scheduled fault at or after the run's end never happens in it."""
+    out = []
+    end = float(scn.run.duration)
+    for i, f in enumerate(scn.actuators.faults):
+        if f.onset >= end:
+            out.append(Finding("warning", f"faults[{i}].onset", f"{f.onset:g}",
+                               f"wheel {f.wheel + 1}'s fault starts at or after the run's end "
+                               f"(run.duration = {end:g} s): the run never sees it"))
+    if scn.actuators.faults and not out:
+        out.append(Finding("ok", "faults", "", f"every scheduled fault starts within the run ({end:g} s)"))
+    return out
+
+
+def exit_code(findings: list[Finding], strict: bool = False) -> int:
+    """The exit code of ``sc-rt check``: 2 errors, 1 warnings (and notes with
+    ``strict``), else 0."""
     levels = {f.level for f in findings}
-    return 2 if "error" in levels else (1 if "warning" in levels else 0)
+    if "error" in levels:
+        return 2
+    return 1 if "warning" in levels or (strict and "note" in levels) else 0
