@@ -58,7 +58,7 @@ int packed_width(const T& v) {
 constexpr int kPackedSize = 45;
 
 // The columns of simulate_closed_loop's result, in the order of its dict
-// (then "flags", int): name, width, the ClosedLoopResult member.
+// (then "flags" and "ctrl_mode", int): name, width, the ClosedLoopResult member.
 struct ClosedLoopColumn {
   const char* name;
   py::ssize_t width;
@@ -377,6 +377,7 @@ PYBIND11_MODULE(_core, m) {
     py::list cols;
     for (const ClosedLoopColumn& c : kClosedLoopColumns) cols.append(py::make_tuple(c.name, c.width));
     cols.append(py::make_tuple("flags", 1));
+    cols.append(py::make_tuple("ctrl_mode", 1));
     m.attr("CLOSED_LOOP_FIELDS") = cols;
   }
 
@@ -400,9 +401,11 @@ PYBIND11_MODULE(_core, m) {
         d["rows"] = r.rows;
         d["diverged"] = r.diverged;
         for (const ClosedLoopColumn& c : kClosedLoopColumns) d[c.name] = arr(r.*(c.v), c.width);
-        py::array_t<int> flags(n);
+        py::array_t<int> flags(n), mode(n);
         std::copy(r.flags.begin(), r.flags.begin() + n, flags.mutable_data());
+        std::copy(r.ctrl_mode.begin(), r.ctrl_mode.begin() + n, mode.mutable_data());
         d["flags"] = flags;
+        d["ctrl_mode"] = mode;
         return d;
       },
       arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),

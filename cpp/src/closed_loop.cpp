@@ -28,6 +28,7 @@ ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantPa
     v->resize(3 * n);
   for (auto* v : {&r.wheel_speed, &r.u_cmd, &r.u_sat, &r.wheel_accel, &r.vs}) v->resize(4 * n);
   r.flags.resize(n);
+  r.ctrl_mode.resize(n);
 
   const double h = 1.0 / (rate * n_sub);
   PlantState x = x0;
@@ -55,6 +56,7 @@ ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantPa
     put(r.e2, k, c.e2);
     put(r.vs, k, c.vs);
     r.flags[static_cast<std::size_t>(k)] = c.flags;
+    r.ctrl_mode[static_cast<std::size_t>(k)] = c.mode;
     r.rows = k + 1;
     if (k == n_ctrl) break;
     for (int j = 0; j < n_sub; ++j) x = plant_rk4_step(plant, act, t + j * h, x, h, c.u_cmd);

@@ -18,6 +18,7 @@ struct ClosedLoopResult {
   std::vector<double> omega_BD_B, z1, z2, delta2, chi, lam, e1, e2;  // 3
   std::vector<double> wheel_speed, u_cmd, u_sat, wheel_accel, vs;  // 4
   std::vector<int> flags;                                          // 1
+  std::vector<int> ctrl_mode;                                      // 1 (MODE_*)
 };
 
 // n_ctrl control periods of 1/rate s (n_ctrl + 1 rows, t_k = k / rate), each

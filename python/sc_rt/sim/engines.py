@@ -92,6 +92,7 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     for name, packed in RECORDED.items():
         cols[name] = OUT[:, PACKED[packed]]
     cols["flags"] = np.nan_to_num(OUT[:, PACKED["flags"]][:, 0]).astype(np.int64)
+    cols["ctrl_mode"] = np.nan_to_num(OUT[:, PACKED["mode"]][:, 0], nan=-1).astype(np.int64)
     return cols, rows, diverged
 
 
