@@ -27,31 +27,24 @@ Units: SI (rad, rad/s, rad/s^2, s, Hz). Angles of margins in degrees.
 
 from __future__ import annotations
 
-from pathlib import Path as _Path
-
-# An editable install made before this package existed maps it as a plain
-# module (no submodule search path); give it its directory either way.
-if "__path__" not in globals():
-    __path__ = [str(_Path(__file__).parent)]
-
-from sc_rt.studies.design.linear import (  # noqa: E402
+from sc_rt.studies.design.linear import (
     AXES, INERTIAS, InputMatrices, error_model, error_state_space, error_system, inertia_matrix,
     input_matrices, linearize_error, mrp_add, wheel_effectiveness)
-from sc_rt.studies.design.pd import (  # noqa: E402
+from sc_rt.studies.design.pd import (
     SETTLING_TOL, PdDesign, default_pd_design, design_pd, settling_time_factor)
-from sc_rt.studies.design.margins import (  # noqa: E402
+from sc_rt.studies.design.margins import (
     CASES, DEFAULT_LATENCY_S, Margins, axis_loop, closed_form_pd_margins, coupling,
     frequency_response, loop_margins, pd_margins)
-from sc_rt.studies.design.sampled import (  # noqa: E402
+from sc_rt.studies.design.sampled import (
     CONTROLLER_OUTPUTS, SAMPLED_STATES, SampledLoop, controller_step, observer_gains, observer_map,
     ppc_gain, sampled_closed_loop, spectral_radius)
-from sc_rt.studies.design.stability import (  # noqa: E402
+from sc_rt.studies.design.stability import (
     StabilityLimit, compare_loss_of_stability, critical_r_estimate, simulated_loss_of_stability,
     stability_limit, without_wheel_limits)
-from sc_rt.studies.design.report import (  # noqa: E402
-    chiinf_check, design_report, format_chiinf_check, format_design_text, format_loss_of_stability,
+from sc_rt.studies.design.report import (
+    MARGINS_LOOP, chiinf_check, design_report, format_chiinf_check, format_design_text, format_loss_of_stability,
     format_margins_table, format_sampled_table, write_design)
-from sc_rt.studies.design.figures import plot_loops, plot_spectral  # noqa: E402
+from sc_rt.studies.design.figures import plot_loops, plot_spectral
 
 __all__ = [
     "CASES",
@@ -99,6 +92,7 @@ __all__ = [
     "controller_step",
     "without_wheel_limits",
     "compare_loss_of_stability",
+    "MARGINS_LOOP",
     "chiinf_check",
     "format_chiinf_check",
     "format_loss_of_stability",
