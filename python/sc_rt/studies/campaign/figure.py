@@ -52,7 +52,7 @@ def figure(summary: dict[str, Any], rows: list[dict[str, Any]]):
         axs[1].set_ylabel("runs")
     else:
         axs[1].set_axis_off()
-        text = f"no run left the bound\n({n} of {n} runs)"
+        text = f"no run left the bound\n({summary.get('holds_bound', n)} of {n} runs held it)"
         if invalid:
             text += f"\n{invalid} runs had no valid draw"
         axs[1].text(0.5, 0.5, text, ha="center", va="center", fontsize=13, transform=axs[1].transAxes)
