@@ -19,7 +19,7 @@ Conventions (shared with the C++ engine ``sc_rt._core.wheel_accel``):
   shell's job.
 
 The public functions take array-likes and return numpy arrays; the private
-``_sat4``/``_accel4`` work on plain floats for the plant's hot path
+``sat4``/``accel4`` work on plain floats for the plant's hot path
 (``sc_rt.model.plant.rk4_step``). Their C++ twins (``sat4``/``accel4`` in
 cpp/src/plant.cpp) repeat the same operations in the same order: the two
 engines give bit-identical accelerations, so edit them together.
@@ -39,12 +39,18 @@ __all__ = [
     "fault_Y",
     "wheel_accel",
     "actuator_params_to_cpp",
+    # the scalar fast path the plant's RK4 (plant.py) shares, and the checked
+    # conversions the parameter dataclasses of both modules use
+    "accel4",
+    "sat4",
+    "frozen",
+    "floats",
 ]
 
 _NWHEELS = 4
 
 
-def _frozen(value, shape: tuple[int, ...], name: str, errors: list[str], *,
+def frozen(value, shape: tuple[int, ...], name: str, errors: list[str], *,
             finite: bool = True) -> np.ndarray | None:
     """A read-only float64 copy of ``value`` with ``shape`` (finite values
     unless ``finite`` is False), or None with the problem added to ``errors``.
@@ -137,9 +143,9 @@ class ActuatorParams:
 
     def __post_init__(self) -> None:
         errs: list[str] = []
-        umin = _frozen(self.umin, (_NWHEELS,), "ActuatorParams.umin", errs, finite=False)
-        umax = _frozen(self.umax, (_NWHEELS,), "ActuatorParams.umax", errs, finite=False)
-        wmax = _frozen(self.max_wheel_speed, (_NWHEELS,), "ActuatorParams.max_wheel_speed", errs,
+        umin = frozen(self.umin, (_NWHEELS,), "ActuatorParams.umin", errs, finite=False)
+        umax = frozen(self.umax, (_NWHEELS,), "ActuatorParams.umax", errs, finite=False)
+        wmax = frozen(self.max_wheel_speed, (_NWHEELS,), "ActuatorParams.max_wheel_speed", errs,
                        finite=False)
         if umin is not None and umax is not None:
             for i in range(_NWHEELS):
@@ -221,7 +227,7 @@ class _ActuatorFast:
         self.any_limit = bool(self.limited)
 
 
-def _sat4(fa: _ActuatorFast, u) -> tuple[float, float, float, float]:
+def sat4(fa: _ActuatorFast, u) -> tuple[float, float, float, float]:
     """Saturation of (15), min(max(u, umin), umax), on 4 plain floats.
 
     Written as comparisons (a NaN command stays NaN, as with min/max).
@@ -237,7 +243,7 @@ def _sat4(fa: _ActuatorFast, u) -> tuple[float, float, float, float]:
     )
 
 
-def _accel4(fa: _ActuatorFast, t: float, sat, omega_w) -> list[float]:
+def accel4(fa: _ActuatorFast, t: float, sat, omega_w) -> list[float]:
     """Actual wheel accelerations (15),(16), then stuck wheels and the speed limit.
 
     ``sat`` are the saturated commands, ``omega_w`` the wheel speeds (only read
@@ -311,17 +317,17 @@ def wheel_accel(
     """
     fa = act._fast
     t = float(t)
-    u = _floats(u_cmd, _NWHEELS, "u_cmd")
-    w = _floats(wheel_speed, _NWHEELS, "wheel_speed")
-    sat = _sat4(fa, u)
-    acc = _accel4(fa, t, sat, w)
+    u = floats(u_cmd, _NWHEELS, "u_cmd")
+    w = floats(wheel_speed, _NWHEELS, "wheel_speed")
+    sat = sat4(fa, u)
+    acc = accel4(fa, t, sat, w)
     Y = [0.0] * _NWHEELS
     for f in act.faults:
         Y[f.wheel] = fault_Y(f, t)
     return np.array(sat), np.array(acc), np.array(Y)
 
 
-def _floats(x, n: int, name: str) -> list[float]:
+def floats(x, n: int, name: str) -> list[float]:
     """``x`` as a list of n plain floats (fast for 1-D float64 arrays)."""
     if type(x) is np.ndarray and x.dtype == np.float64 and x.shape == (n,):
         return x.tolist()

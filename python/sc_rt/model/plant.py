@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sc_rt.model.actuators import ActuatorParams, _accel4, _floats, _frozen, _sat4
+from sc_rt.model.actuators import ActuatorParams, accel4, floats, frozen, sat4
 
 __all__ = [
     "DisturbanceParams",
@@ -64,9 +64,9 @@ class DisturbanceParams:
 
     def __post_init__(self) -> None:
         errs: list[str] = []
-        amp = _frozen(self.amp, (3,), "DisturbanceParams.amp", errs)
-        freq = _frozen(self.freq, (3,), "DisturbanceParams.freq", errs)
-        bias = _frozen(self.bias, (3,), "DisturbanceParams.bias", errs)
+        amp = frozen(self.amp, (3,), "DisturbanceParams.amp", errs)
+        freq = frozen(self.freq, (3,), "DisturbanceParams.freq", errs)
+        bias = frozen(self.bias, (3,), "DisturbanceParams.bias", errs)
         if errs:
             raise ValueError("invalid DisturbanceParams: " + "; ".join(errs))
         object.__setattr__(self, "amp", amp)
@@ -94,10 +94,10 @@ class PlantParams:
 
     def __post_init__(self) -> None:
         errs: list[str] = []
-        J0 = _frozen(self.J0, (3, 3), "PlantParams.J0", errs)
-        dJ = _frozen(self.dJ, (3, 3), "PlantParams.dJ", errs)
-        Cbar = _frozen(self.Cbar, (3, 4), "PlantParams.Cbar", errs)
-        Jw = _frozen(self.Jw, (4,), "PlantParams.Jw", errs)
+        J0 = frozen(self.J0, (3, 3), "PlantParams.J0", errs)
+        dJ = frozen(self.dJ, (3, 3), "PlantParams.dJ", errs)
+        Cbar = frozen(self.Cbar, (3, 4), "PlantParams.Cbar", errs)
+        Jw = frozen(self.Jw, (4,), "PlantParams.Jw", errs)
         if J0 is not None:
             _check_spd(J0, "PlantParams.J0", errs)
         if dJ is not None and np.max(np.abs(dJ - dJ.T)) > 1e-9 * max(1.0, np.max(np.abs(dJ))):
@@ -327,8 +327,8 @@ def derivative(t: float, x, wheel_accel, p: PlantParams) -> np.ndarray:
         ``[sigma_dot (1),(2) [1/s], omega_dot (7) [rad/s^2], Omega_w_dot [rad/s^2]]``.
     """
     fp = p._fast
-    s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = _floats(x, _NX, "x")
-    acc = _floats(wheel_accel, 4, "wheel_accel")
+    s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = floats(x, _NX, "x")
+    acc = floats(wheel_accel, 4, "wheel_accel")
     out = fp.f(
         s1, s2, s3, w1, w2, w3, *fp.wheel(O1, O2, O3, O4), *fp.wheel(*acc), *fp.dist(float(t))
     )
@@ -385,8 +385,8 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
     dist = fp.dist
     t = float(t)
     h = float(h)
-    s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = _floats(x, _NX, "x")
-    sat = _sat4(fa, _floats(u_cmd, 4, "u_cmd"))
+    s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = floats(x, _NX, "x")
+    sat = sat4(fa, floats(u_cmd, 4, "u_cmd"))
     hh = 0.5 * h
     tm = t + hh
     te = t + h
@@ -397,17 +397,17 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
     # Stage accelerations a, b, c, e depend on the stage time (faults) and,
     # with a finite wheel-speed limit, on the stage's wheel speeds.
     # stage 1 at (t, x0)
-    a1, a2, a3, a4 = _accel4(fa, t, sat, (O1, O2, O3, O4)) if timed else sat
+    a1, a2, a3, a4 = accel4(fa, t, sat, (O1, O2, O3, O4)) if timed else sat
     ta1, ta2, ta3 = wheel(a1, a2, a3, a4)
     p1, p2, p3, q1, q2, q3 = f(s1, s2, s3, w1, w2, w3, hw1, hw2, hw3, ta1, ta2, ta3, *dist(t))
     # stage 2 at (t + h/2, x0 + h/2 k1)
     if limit:
-        b1, b2, b3, b4 = _accel4(
+        b1, b2, b3, b4 = accel4(
             fa, tm, sat, (O1 + hh * a1, O2 + hh * a2, O3 + hh * a3, O4 + hh * a4)
         )
         tb1, tb2, tb3 = wheel(b1, b2, b3, b4)
     elif timed:
-        b1, b2, b3, b4 = _accel4(fa, tm, sat, None)
+        b1, b2, b3, b4 = accel4(fa, tm, sat, None)
         tb1, tb2, tb3 = wheel(b1, b2, b3, b4)
     else:
         b1, b2, b3, b4, tb1, tb2, tb3 = a1, a2, a3, a4, ta1, ta2, ta3
@@ -417,7 +417,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
     )  # fmt: skip
     # stage 3 at (t + h/2, x0 + h/2 k2)
     if limit:
-        c1, c2, c3, c4 = _accel4(
+        c1, c2, c3, c4 = accel4(
             fa, tm, sat, (O1 + hh * b1, O2 + hh * b2, O3 + hh * b3, O4 + hh * b4)
         )
         tc1, tc2, tc3 = wheel(c1, c2, c3, c4)
@@ -429,7 +429,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
     )  # fmt: skip
     # stage 4 at (t + h, x0 + h k3)
     if timed:
-        e1, e2, e3, e4 = _accel4(fa, te, sat, (O1 + h * c1, O2 + h * c2, O3 + h * c3, O4 + h * c4))
+        e1, e2, e3, e4 = accel4(fa, te, sat, (O1 + h * c1, O2 + h * c2, O3 + h * c3, O4 + h * c4))
         te1, te2, te3 = wheel(e1, e2, e3, e4)
     else:
         e1, e2, e3, e4, te1, te2, te3 = a1, a2, a3, a4, ta1, ta2, ta3
@@ -492,16 +492,16 @@ def lumped_disturbance(p: PlantParams, t: float, x, u_sat, accel) -> np.ndarray:
     ndarray, shape (3,)
     """
     fp = p._fast
-    s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = _floats(x, _NX, "x")
+    s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = floats(x, _NX, "x")
     hw = fp.wheel(O1, O2, O3, O4)
     # omega_dot of (7) with the true J, the actual accelerations and d(t) ...
     _, _, _, a1, a2, a3 = fp.f(
-        s1, s2, s3, w1, w2, w3, *hw, *fp.wheel(*_floats(accel, 4, "accel")), *fp.dist(float(t))
+        s1, s2, s3, w1, w2, w3, *hw, *fp.wheel(*floats(accel, 4, "accel")), *fp.dist(float(t))
     )
     # ... minus the model of (21): the same right-hand side with J0 (u_g0 too),
     # the saturated commands and no d: J0^-1 [-W^ (J0 W + hw) + u_g0 - Cbar Jw u_sat]
     _, _, _, m1, m2, m3 = fp.f0(
-        s1, s2, s3, w1, w2, w3, *hw, *fp.wheel(*_floats(u_sat, 4, "u_sat")), 0.0, 0.0, 0.0
+        s1, s2, s3, w1, w2, w3, *hw, *fp.wheel(*floats(u_sat, 4, "u_sat")), 0.0, 0.0, 0.0
     )
     return np.array((a1 - m1, a2 - m2, a3 - m3))
 
