@@ -118,9 +118,11 @@ def parse_options(args: argparse.Namespace) -> dict[str, Any]:
         raise BadOption("--resume with --overwrite: give one of them")
     if args.rerun is not None and (args.resume or args.overwrite):
         raise BadOption(f"--rerun {args.rerun}: runs one run alone; --resume and --overwrite do not apply")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise BadOption(f"--out {args.out}: exists and is not a directory")
+    from sc_rt.results.output import check_out_dir  # not a directory, not writable
+
+    problem = check_out_dir(Path(args.out), "--out")
+    if problem:
+        raise BadOption(problem)
     return o
 
 
@@ -172,7 +174,10 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if o["rerun"] is not None:
         where = out / f"rerun-{o['rerun']}"
-        row = rerun(c, o["rerun"], where)
+        try:
+            row = rerun(c, o["rerun"], where)
+        except OSError as e:
+            return _fail(f"--out {args.out}: {e}")
         verdict = ("holds the bound" if row["holds_bound"] else
                    f"no valid draw ({row['message']})" if row["status"] == "invalid" else
                    f"leaves the bound at {row.get('first_bound_violation_s')} s")
@@ -197,6 +202,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         res = run_campaign(c, o["runs"], out, resume=args.resume, overwrite=args.overwrite,
                            batch_size=o["batch"], backend_obj=backend)
     except CampaignExists as e:
+        return _fail(f"--out {args.out}: {e}")
+    except OSError as e:  # the dataset cannot be written
         return _fail(f"--out {args.out}: {e}")
     finally:
         backend.close()
