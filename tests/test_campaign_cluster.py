@@ -125,3 +125,13 @@ def test_sigkill_loses_only_runs_in_flight_and_resume_completes(tmp_path):
     assert repr(resumed) == repr(whole)
     summary = json.loads((out / "montecarlo.json").read_text())
     assert summary["runs"] == runs and summary["complete"]
+
+
+def test_a_dask_localcluster_gives_the_same_rows(tmp_path):
+    scn = with_overrides(load_scenario(FEASIBLE), duration=30)
+    c = Campaign(scn, Dispersion(), seed=8)
+    run_campaign(c, 8, tmp_path / "serial", workers=1, progress=False)
+    res = run_campaign(c, 8, tmp_path / "dask", backend="dask", workers=2, batch_size=3, progress=False)
+    assert res["backend"] == "dask" and res["scheduler"] == "LocalCluster" and res["workers"] == 2
+    assert repr(RunStore(tmp_path / "dask", c.columns()).read().to_pylist()) == \
+        repr(RunStore(tmp_path / "serial", c.columns()).read().to_pylist())
