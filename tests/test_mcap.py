@@ -412,3 +412,42 @@ def test_bad_output_paths(run_dir, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.lcmlog", "file", "keep.mcap"]
     r = _export_cli(log, "--mcap", keep)
     assert r.returncode == 0 and keep.read_bytes()[:8] == b"\x89MCAP0\r\n"
+
+
+def test_the_file_is_indexed_as_the_mcap_spec_says(exported):
+    """Summary (statistics, chunk indexes) agrees with the messages; every
+    message index entry points at a message record of its channel and time
+    inside the decompressed chunk (what Foxglove's indexed reader uses)."""
+    import zstandard
+    from mcap.records import MessageIndex
+    from mcap.stream_reader import StreamReader
+
+    summary, out, msgs = exported
+    with open(out, "rb") as f:
+        kinds = Counter(type(r).__name__ for r in StreamReader(f, emit_chunks=False).records)
+    assert kinds["Message"] == len(msgs) == summary.messages and kinds["Footer"] == 1
+    with open(out, "rb") as f:
+        r = make_reader(f, validate_crcs=True)
+        s = r.get_summary()
+        assert s.statistics.message_count == len(msgs)
+        assert sum(s.statistics.channel_message_counts.values()) == len(msgs)
+        assert len(list(r.iter_messages(topics=["/derived/pointing"]))) == summary.derived["pointing"]
+        (meta,) = list(r.iter_metadata())
+        assert json.loads(meta.metadata["summary"])["events"] == summary.events
+    checked = 0
+    for ci in s.chunk_indexes:
+        with open(out, "rb") as f:
+            f.seek(ci.chunk_start_offset)
+            chunk = next(iter(StreamReader(f, skip_magic=True, emit_chunks=True).records))
+            body = zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+            assert len(body) == ci.uncompressed_size
+            for cid, off in ci.message_index_offsets.items():
+                f.seek(off)
+                mi = next(iter(StreamReader(f, skip_magic=True).records))
+                assert isinstance(mi, MessageIndex) and mi.channel_id == cid
+                for t, o in mi.records:
+                    op, _n, ch, _sq, lt, _pt = struct.unpack_from("<BQHIQQ", body, o)
+                    assert (op, ch, lt) == (5, cid, t)
+                    assert ci.message_start_time <= t <= ci.message_end_time
+                    checked += 1
+    assert checked == len(msgs)

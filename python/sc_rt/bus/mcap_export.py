@@ -209,17 +209,25 @@ class _Exporter:
                     out[i] = (c.raw_id, raw, None)
                 continue
             self._typed(c, [events[i] for i in idx], idx, out, extra)
-        written = 0
-        add = self.w.add_message
+        chans, logs, pubs, seqs, datas = [], [], [], [], []
         for i, e in enumerate(events):
-            log_ns = max(e[1], 0) * 1000
+            log_ns = e[1] * 1000 if e[1] > 0 else 0
             cid, data, pub = out[i]
-            add(cid, log_ns, data, pub if pub is not None else log_ns, e[0] & 0xFFFFFFFF)
-            written += 1
-            for cid2, data2 in extra.get(i, ()):
-                add(cid2, log_ns, data2, log_ns, 0)
-                written += 1
-        return written
+            chans.append(cid)
+            logs.append(log_ns)
+            pubs.append(log_ns if pub is None else pub)
+            seqs.append(e[0] & 0xFFFFFFFF)
+            datas.append(data)
+            more = extra.get(i)
+            if more:
+                for cid2, data2 in more:
+                    chans.append(cid2)
+                    logs.append(log_ns)
+                    pubs.append(log_ns)
+                    seqs.append(0)
+                    datas.append(data2)
+        self.w.add_messages(chans, logs, pubs, seqs, datas)
+        return len(datas)
 
     def _typed(self, c: _Chan, evs: list, idx: list[int], out: list, extra) -> None:
         cls = c.cls
@@ -330,7 +338,7 @@ def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
 
     Raises FileNotFoundError (no log), ExportError (bad output path, or a
     damaged log without ``partial``)."""
-    from mcap.writer import CompressionType, Writer
+    from sc_rt.bus.mcapwrite import BatchWriter
 
     log, out = Path(log), Path(out)
     if not log.exists():
@@ -338,14 +346,15 @@ def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
     if log.is_dir():
         raise ExportError(f"{log}: is a directory, not an LCM log")
     check_output(out)
-    comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}[compression]
+    if compression not in ("zstd", ""):
+        raise ExportError(f"compression must be 'zstd' or '' (none), got {compression!r}")
     tmp = out.parent / f".{out.name}.{os.getpid()}.partial"
     t0 = time.perf_counter()
     scan = LogScan()
     summ = ExportSummary(str(log), str(out))
     try:
         with open(tmp, "wb") as f:
-            w = Writer(f, compression=comp)
+            w = BatchWriter(f, compression=compression)
             w.start(profile="", library="sc-rt export")
             ex = _Exporter(w, log.name)
             batch: list = []
