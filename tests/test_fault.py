@@ -46,6 +46,11 @@ def cli(*args: str) -> subprocess.CompletedProcess:
     (["clear", "--wheel", "7"], "--wheel must be 1..4, got 7"),
     (["inject", "--wheel", "1", "--at", "1", "--now"], "not allowed with argument --at"),
     (["inject"], "the following arguments are required: --wheel"),
+    (["inject", "--wheel", "1"], "changes nothing"),
+    (["inject", "--wheel", "1", "--effectiveness", "1", "--bias", "0", "--at", "3"], "changes nothing"),
+    (["inject", "--wheel", "x"], "invalid int value: 'x'"),
+    (["inject", "--wheel", "1", "--bias", "0.1", "--timeout", "0"], "argument --timeout: 0: must be"),
+    (["clear", "--wheel", "1", "--timeout", "nan"], "argument --timeout: nan: must be"),
 ])
 def test_bad_arguments_exit_2_with_a_message(args, message):
     r = cli("fault", *args)
@@ -54,11 +59,54 @@ def test_bad_arguments_exit_2_with_a_message(args, message):
 
 
 def test_good_arguments_publish():
-    r = cli("fault", "inject", "--wheel", "2", "--effectiveness", "0.4", "--at", "3", "--until", "9")
+    r = cli("fault", "inject", "--wheel", "2", "--effectiveness", "0.4", "--at", "3", "--until", "9",
+            "--no-wait")
     assert r.returncode == 0, r.stderr
-    assert "inject wheel 2" in r.stdout and "SCRT_FAULT" in r.stdout
-    r = cli("fault", "clear", "--wheel", "2", "--prefix", "B1_")
+    assert "inject wheel 2" in r.stdout and "SCRT_FAULT" in r.stdout and "not waiting" in r.stdout
+    r = cli("fault", "clear", "--wheel", "2", "--prefix", "B1_", "--no-wait")
     assert r.returncode == 0 and "B1_SCRT_FAULT" in r.stdout
+
+
+def test_a_fault_no_emulator_echoes_exits_1_naming_url_and_channel():
+    r = cli("fault", "inject", "--wheel", "2", "--effectiveness", "0.4", "--timeout", "0.3",
+            "--prefix", "B1_")
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "not applied: no emulator echoed it on B1_SCRT_TRUTH within 0.3 s" in r.stderr
+    assert "memq://" in r.stderr and "B1_SCRT_FAULT" in r.stderr
+
+
+@pytest.mark.slow
+def test_fault_echo_applied_refused_and_unheard(tmp_path):
+    """Against a real emulator process: applied (exit 0, echoed in
+    plant_truth_t), an onset the emulator has passed (exit 2), and an
+    emulator that does not accept fault commands (exit 1)."""
+    lcmnet.require()
+    url = "udpm://239.255.76.67:7743?ttl=0"
+    url2 = "udpm://239.255.76.67:7744?ttl=0"
+    wait = f"{PY} {shlex.quote(str(HERE / 'buswait.py'))}"
+    fault = f"{PY} -m sc_rt.cli fault"
+    emu = f"{PY} -m sc_rt.cli emulator scenarios/paper_fault_free.toml --mode realtime --rate 20 --duration 60"
+    # the emulator is at t >= 1 s once buswait has seen the state of t = 1 (20 states)
+    script = f"""
+{emu} --accept-fault-commands --lcm-url '{url}' > {tmp_path}/emu1.log 2>&1 &
+E1=$!
+{emu} --lcm-url '{url2}' > {tmp_path}/emu2.log 2>&1 &
+E2=$!
+{wait} '{url}' state 60 > /dev/null && {wait} '{url2}' state 60 > /dev/null
+while [ "$({wait} '{url}' state 60 | cut -d. -f1)" -lt 1 ]; do :; done
+{fault} inject --wheel 2 --effectiveness 0.3 --timeout 20 --lcm-url '{url}'; echo "rc_applied=$?"
+{fault} inject --wheel 3 --bias 0.1 --at 0.5 --timeout 20 --lcm-url '{url}'; echo "rc_past=$?"
+{fault} inject --wheel 3 --bias 0.1 --timeout 1 --lcm-url '{url2}'; echo "rc_ignored=$?"
+{fault} clear --wheel 2 --timeout 20 --lcm-url '{url}'; echo "rc_clear=$?"
+kill -INT $E1 $E2; wait
+"""
+    r = lcmnet.run_script(script, timeout=180)
+    so, se = r.stdout, r.stderr
+    assert "rc_applied=0" in so and "applied: echoed on SCRT_TRUTH at t = " in so, so + se
+    assert "rc_past=2" in so and "--at 0.5: the onset is in the past" in se, so + se
+    assert "rc_ignored=1" in so and f"no emulator echoed it on SCRT_TRUTH within 1 s" in se, so + se
+    assert url2 in se
+    assert "rc_clear=0" in so, so + se
 
 
 def test_messages():

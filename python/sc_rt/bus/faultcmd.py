@@ -3,19 +3,25 @@
 An emulator applies it only when started with ``--accept-fault-commands``
 (``sc-rt hil`` / ``sc-rt emulator``): a bench is never faulted by accident.
 The emulator records what it applied (``faults_applied`` in timing.json) and
-echoes the fault state of every wheel in ``plant_truth_t``.
+echoes the fault state of every wheel in ``plant_truth_t``: ``send`` waits
+for that echo (applied, or not heard by any emulator), and refuses an onset
+the emulator's clock (``plant_truth_t.t``) has already passed.
 """
 
 from __future__ import annotations
 
 import math
+import select
 import time
+from collections import Counter
+from dataclasses import dataclass
 
 import sc_rt_lcm
 
 from sc_rt.bus.lcmio import channel, open_lcm
+from sc_rt.bus.wire import decode_as
 
-__all__ = ["FaultArgError", "inject_msg", "clear_msg", "publish"]
+__all__ = ["FaultArgError", "inject_msg", "clear_msg", "publish", "send", "Sent"]
 
 
 class FaultArgError(ValueError):
@@ -60,6 +66,9 @@ def inject_msg(wheel: int, *, effectiveness: float = 1.0, bias: float = 0.0, stu
             raise FaultArgError(f"--until must be a simulation time >= 0 s, got {until}")
         if at is not None and not until > at:
             raise FaultArgError(f"--until must be after --at, got --at {at} --until {until}")
+    if effectiveness == 1.0 and bias == 0.0 and not stuck:
+        raise FaultArgError("a fault with --effectiveness 1, --bias 0 and not --stuck changes nothing: "
+                            "give one of them (sc-rt fault clear heals a wheel)")
     m = _base(wheel, sc_rt_lcm.fault_cmd_t.ACTION_INJECT)
     m.now = at is None
     m.t_onset = 0.0 if at is None else float(at)
@@ -85,3 +94,67 @@ def publish(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "") -> str:
     ch = channel("SCRT_FAULT", prefix)
     open_lcm(url).publish(ch, msg.encode())
     return ch
+
+
+@dataclass
+class Sent:
+    """What became of a fault command (``send``)."""
+
+    channel: str  # where it was published
+    truth_channel: str  # where the echo was awaited
+    applied_at: float | None = None  # the emulator's simulation time of the echo
+    emulator_t: float | None = None  # the emulator's time when the command left (None: not heard)
+
+
+def _echoes(msg: sc_rt_lcm.fault_cmd_t, truth) -> bool:
+    """plant_truth_t ``truth`` shows ``msg``'s fault state on its wheel."""
+    w = msg.wheel - 1
+    if msg.action == sc_rt_lcm.fault_cmd_t.ACTION_CLEAR:
+        want = (1.0, 0.0, 0)
+    else:
+        want = (msg.effectiveness, msg.bias, 1 if msg.stuck else 0)
+    got = (truth.fault_effectiveness[w], truth.fault_bias[w], 1 if truth.fault_stuck[w] else 0)
+    return got == want
+
+
+def send(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "", timeout: float = 3.0,
+         wait: bool = True) -> Sent:
+    """Publish ``msg`` and wait up to ``timeout`` s for an emulator's
+    plant_truth_t to echo its fault state (``applied_at``). An onset in the
+    past of the emulator's clock (heard within the timeout before sending)
+    raises FaultArgError and nothing is sent."""
+    lc = open_lcm(url)
+    ch, tch = channel("SCRT_FAULT", prefix), channel("SCRT_TRUTH", prefix)
+    res = Sent(ch, tch)
+    seen: list = []
+    bad: Counter = Counter()
+    lc.subscribe(tch, lambda _c, data: seen.append(decode_as(sc_rt_lcm.plant_truth_t, data, bad)))
+
+    def listen(until: float, stop) -> bool:
+        fd = lc.fileno()
+        while time.monotonic() < until:
+            if select.select([fd], [], [], max(0.0, min(0.05, until - time.monotonic())))[0]:
+                lc.handle()
+            while seen:
+                m = seen.pop(0)
+                if m is not None and stop(m):
+                    return True
+        return False
+
+    if wait and msg.action == sc_rt_lcm.fault_cmd_t.ACTION_INJECT and not msg.now:
+        # the emulator's clock, to refuse an onset it has passed (one state period or the timeout)
+        t_now: list = []
+        listen(time.monotonic() + min(timeout, 1.0), lambda m: bool(t_now.append(m.t)) or True)
+        if t_now:
+            res.emulator_t = t_now[0]
+            if msg.t_onset < t_now[0]:
+                raise FaultArgError(f"--at {msg.t_onset:g}: the onset is in the past: the emulator on "
+                                    f"{url} ({tch}) is at t = {t_now[0]:.3f} s")
+    lc.publish(ch, msg.encode())
+    if not wait:
+        return res
+    hit: list = []
+    listen(time.monotonic() + timeout, lambda m: _echoes(msg, m) and not hit.append(m.t))
+    if hit:
+        res.applied_at = hit[0]
+    return res
