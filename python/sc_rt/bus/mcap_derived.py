@@ -77,8 +77,9 @@ def mrp_to_quaternion(sigma: np.ndarray) -> np.ndarray:
     of sigma (w = (1 - |s|^2) / (1 + |s|^2), v = 2 s / (1 + |s|^2)); their
     rotation matrix is [NB] = R(sigma)^T (B components to N)."""
     s = np.asarray(sigma, float).reshape(-1, 3)
-    s2 = np.sum(s * s, axis=1, keepdims=True)
-    return np.hstack([2.0 * s / (1.0 + s2), (1.0 - s2) / (1.0 + s2)])
+    with np.errstate(all="ignore"):  # hostile values give non-finite rows, left out by the callers
+        s2 = np.sum(s * s, axis=1, keepdims=True)
+        return np.hstack([2.0 * s / (1.0 + s2), (1.0 - s2) / (1.0 + s2)])
 
 
 
@@ -106,6 +107,11 @@ def _xyz(v) -> str:
 def pointing_messages(t, mode, sigma_BD, ppc) -> list[bytes | None]:
     """sc_rt.pointing rows; the bound fields need ``ppc`` (_core.PpcParams
     of the logged controller_config_t), else they are left out."""
+    with np.errstate(all="ignore"):  # hostile values: non-finite rows, left out
+        return _pointing(t, mode, sigma_BD, ppc)
+
+
+def _pointing(t, mode, sigma_BD, ppc) -> list[bytes | None]:
     from sc_rt import _core
 
     t = np.asarray(t, float)
@@ -142,9 +148,11 @@ def wheel_messages(t, speed) -> list[bytes | None]:
     """sc_rt.wheels rows (None where not finite)."""
     t = np.asarray(t, float)
     w = np.asarray(speed, float).reshape(-1, 4)
-    ok = (np.isfinite(t) & np.isfinite(w).all(axis=1)).tolist()
+    with np.errstate(all="ignore"):
+        r = w * RPM
+    ok = (np.isfinite(t) & np.isfinite(w).all(axis=1) & np.isfinite(r).all(axis=1)).tolist()
+    rpm = r.tolist()
     fmt = ('{"t":%r,"speed_rad_s":{"w1":%r,"w2":%r,"w3":%r,"w4":%r},'
            '"speed_rpm":{"w1":%r,"w2":%r,"w3":%r,"w4":%r}}')
-    rpm = (w * RPM).tolist()
     return [(fmt % (tk, *wk, *rk)).encode() if good else None
             for good, tk, wk, rk in zip(ok, t.tolist(), w.tolist(), rpm)]

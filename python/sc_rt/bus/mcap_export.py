@@ -51,6 +51,7 @@ BATCH = 1 << 15
 #: MCAP channel ids are 16 bit: further raw channels share one overflow channel
 MAX_CHANNELS = 60000
 _MAX_UTIME = (1 << 63) // 1000
+_MAX_LOG_US = ((1 << 64) - 1) // 1000
 
 RAW_SCHEMA = {
     "title": "sc_rt.lcm_raw_event",
@@ -81,6 +82,7 @@ class ExportSummary:
     foreign_events: int = 0
     derived: dict[str, int] = field(default_factory=dict)
     non_finite_as_null: int = 0
+    timestamps_clamped: int = 0
     skipped_bytes: int = 0
     torn_tail_bytes: int = 0
     damaged_at: list[int] = field(default_factory=list)
@@ -133,6 +135,7 @@ class _Exporter:
         self.configs: dict[str, Any] = {}  # prefix -> _core.PpcParams (first config)
         self.derived: Counter = Counter()
         self.non_finite = [0]
+        self.clamped = 0  # log timestamps outside the uint64 ns range of MCAP
         self.n_channels = 0
         self.encoders: dict[type, RowEncoder] = {}
         self.log_name = log_name
@@ -211,7 +214,12 @@ class _Exporter:
             self._typed(c, [events[i] for i in idx], idx, out, extra)
         chans, logs, pubs, seqs, datas = [], [], [], [], []
         for i, e in enumerate(events):
-            log_ns = e[1] * 1000 if e[1] > 0 else 0
+            ts = e[1]
+            if 0 <= ts <= _MAX_LOG_US:
+                log_ns = ts * 1000
+            else:  # MCAP times are uint64 ns: clamp, and count
+                log_ns = 0 if ts < 0 else _MAX_LOG_US * 1000
+                self.clamped += 1
             cid, data, pub = out[i]
             chans.append(cid)
             logs.append(log_ns)
@@ -396,5 +404,6 @@ def _fill(summ: ExportSummary, ex: _Exporter, scan: LogScan) -> None:
     summ.undecodable = int(sum(kinds.values()))
     summ.derived = dict(ex.derived)
     summ.non_finite_as_null = ex.non_finite[0]
+    summ.timestamps_clamped = ex.clamped
     summ.skipped_bytes, summ.torn_tail_bytes = scan.skipped_bytes, scan.torn_tail_bytes
     summ.damaged_at = list(scan.damaged_at)
