@@ -14,6 +14,7 @@ from sc_rt import __version__
 from sc_rt.cli.validate import (MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError, check_run_size,
                                 given_options, integer, lcm_url, number, out_dir, out_file, resolve_url,
                                 rounded)
+from sc_rt.cli.lawarg import LAW_HELP, law_choice
 from sc_rt.scenario.model import LAWS  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
@@ -80,12 +81,17 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     from sc_rt.scenario.overrides import with_overrides
 
+    from sc_rt.pylaw import is_python_law
+
     out = _out_dir(args.out)
-    scn = with_overrides(_scenario(args.scenario), law=args.law, control_rate_hz=args.control_rate,
-                         duration=args.duration, plant_step=args.plant_step)
+    pylaw = args.law if is_python_law(args.law) else None  # a Python law: sc_rt.pylaw
+    if pylaw and args.engine != "python":
+        raise UsageError(f"--engine {args.engine}: a Python law (--law {pylaw}) runs on the python engine only")
+    scn = with_overrides(_scenario(args.scenario), law=None if pylaw else args.law,
+                         control_rate_hz=args.control_rate, duration=args.duration, plant_step=args.plant_step)
     check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
                                       plant_step="--plant-step"))
-    res = simulate(scn, engine=args.engine)
+    res = simulate(scn, engine=args.engine, law=pylaw)
     files = write_run(res, out, figures=not args.no_plots)
     print(f"sc-rt sim: {scn.name} -> {out}/ ({len(files)} files: {', '.join(p.name for p in files)})")
     _print_metrics(res.metrics, res.meta.faults)
@@ -518,7 +524,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("sim", help="offline closed loop (plant + C++ controller core)")
     s.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
-    s.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES, help="control law (default: the scenario's; --controller is the old name)")
+    s.add_argument("--law", "--controller", dest="law", type=law_choice, metavar="LAW",
+                   help=LAW_HELP + "; --controller is the old name")
     s.add_argument("--engine", choices=("python", "cpp", "unsampled"), default="python",
                    help="unsampled: reference mode, the law inside every RK4 stage (no hold) "
                         "(default: %(default)s)")

@@ -17,6 +17,8 @@ same numbers to the last bit as ``engine="python"``.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import time
 
@@ -24,6 +26,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant
+from sc_rt.pylaw import PyController, is_python_law, law_label, load_law
 from sc_rt.results.metrics import finish_run
 from sc_rt.results.run import FIELD, Run, RunMeta
 from sc_rt.scenario.model import Scenario
@@ -50,11 +53,18 @@ for _k, _p in RECORDED.items():  # the run declares each with the packed width
     assert FIELD[_k].shape == (PACKED[_p].stop - PACKED[_p].start,), _k
 
 
-def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
+def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, np.ndarray], int, bool]:
     n_ctrl, n_sub, h, rate = grid(scn)
-    ctl = _core.Controller(scn.core_config())
     pp, act = scn.plant, scn.actuators
     x = initial_state(scn)
+    if law_cls is None:  # a law of the C++ core
+        ctl = _core.Controller(scn.core_config())
+        ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
+        step = functools.partial(_core.step_packed, ctl)
+    else:  # a Python law behind the same common parts (sc_rt.pylaw)
+        pyctl = PyController(scn.core_config(), law_cls)
+        pyctl.reset(0.0, x)
+        step = pyctl.step
     n = n_ctrl + 1
     # one row assignment per array and step; columns are split at the end
     T = np.full(n, np.nan)
@@ -62,16 +72,14 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     OUT = np.full((n, _core.PACKED_SIZE), np.nan)
     ACC = np.full((n, 4), np.nan)
     D2 = np.full((n, 3), np.nan)
-    ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
     u_slice = PACKED["u_cmd"]
     rows = 0
     diverged = False
-    step_packed, wheel_accel, lumped, rk4 = (_core.step_packed, actuators.wheel_accel,
-                                              plant.lumped_disturbance, plant.rk4_step)
+    wheel_accel, lumped, rk4 = actuators.wheel_accel, plant.lumped_disturbance, plant.rk4_step
     isfinite = math.isfinite
     for k in range(n):
         t = k / rate
-        out = step_packed(ctl, t, x)
+        out = step(t, x)
         u_cmd = out[u_slice]
         u_sat, accel, _ = wheel_accel(act, t, u_cmd, x[6:10])
         T[k] = t
@@ -118,8 +126,9 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     ----------
     scn : Scenario
         The scenario (``sc_rt.load_scenario``).
-    law : str, optional
-        "dsc-ppc", "dsc", "pd" or "rft" (default: the scenario's).
+    law : str or type, optional
+        "dsc-ppc", "dsc", "pd" or "rft" (default: the scenario's), or a Python law:
+        "module:Class", "file.py:Class" or the class itself (sc_rt.pylaw; python engine).
     engine : {"python", "cpp", "unsampled"}
         "python": the reference plant (sc_rt.model.plant) stepped from Python;
         "cpp": its compiled twin, the whole loop in C++ (bitwise equal);
@@ -138,11 +147,14 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration,
-                         plant_step=plant_step)
+    law_cls = law if isinstance(law, type) else load_law(law) if is_python_law(law) else None
+    if law_cls is not None and engine != "python":
+        raise ValueError(f"a Python law ({law_label(law_cls)}) runs on the python engine only, got {engine!r}")
+    scn = with_overrides(scn, law=None if law_cls else law, control_rate_hz=control_rate_hz,
+                         duration=duration, plant_step=plant_step)
     t0 = time.perf_counter()
     if engine == "python":
-        cols, rows, diverged = _run_python(scn)
+        cols, rows, diverged = _run_python(scn, law_cls)
     elif engine == "cpp":
         cols, rows, diverged = _run_cpp(scn)
     else:
@@ -151,6 +163,8 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         cols, rows, diverged = run_unsampled(scn)
     wall = time.perf_counter() - t0
     meta = RunMeta.of_scenario(scn, engine, wall_s=wall)
+    if law_cls is not None:
+        meta = dataclasses.replace(meta, law=law_label(law_cls))
     run = Run(meta, cols, rows=rows, diverged=diverged)
     if diverged:
         n_ctrl = grid(scn).n_ctrl
