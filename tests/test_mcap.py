@@ -36,8 +36,9 @@ def run_dir(tmp_path_factory):
     lcmnet.require()
     out = tmp_path_factory.mktemp("mcap") / "hil"
     r = lcmnet.run_cli(["hil", "scenarios/paper_faults.toml", "--mode", "lockstep", "--duration", "30",
-                        "--out", str(out), "--no-plots"])
+                        "--out", str(out), "--no-plots", "--mcap"])
     assert r.returncode == 0, r.stderr + r.stdout
+    assert f"-> {out / 'run.mcap'}" in r.stdout
     return out
 
 
@@ -503,3 +504,23 @@ def test_fuzzed_logs_export_or_are_refused_never_crash(run_dir, tmp_path, rng):
                 json.loads(m[6], parse_constant=lambda c: pytest.fail(f"{m[0]}: {c} in the JSON"))
             outcomes["exported"] += 1
     assert outcomes["refused"] > 10 and outcomes["exported"] > 100, outcomes
+
+
+def test_hil_and_report_write_the_same_mcap_as_export(run_dir, exported, tmp_path):
+    """sc-rt hil --mcap wrote run.mcap; sc-rt report LOG --mcap OUT too: the
+    same messages as sc-rt export (a bad --mcap path is refused before any work)."""
+    _s, _o, msgs = exported
+    strip = [(m[0], m[1], m[3], m[4], m[5], m[6]) for m in msgs]
+    assert [(m[0], m[1], m[3], m[4], m[5], m[6]) for m in read_mcap(run_dir / "run.mcap")] == strip
+    rep = tmp_path / "rep"
+    r = lcmnet.run_cli(["report", str(run_dir / "run.lcmlog"), "--out", str(rep), "--no-plots",
+                        "--mcap", str(rep / "log.mcap")], netns=False)
+    assert r.returncode == 0, r.stderr
+    assert [(m[0], m[1], m[3], m[4], m[5], m[6]) for m in read_mcap(rep / "log.mcap")] == strip
+    r = lcmnet.run_cli(["report", str(run_dir / "run.lcmlog"), "--out", str(tmp_path / "rep2"),
+                        "--mcap", str(tmp_path)], netns=False)
+    assert r.returncode == 2 and "is a directory" in r.stderr and not (tmp_path / "rep2").exists()
+    r = lcmnet.run_cli(["hil", "scenarios/paper_faults.toml", "--out", str(tmp_path / "hil2"),
+                        "--mcap", str(rep / "log.mcap" / "x.mcap")], netns=False)
+    assert r.returncode == 2 and "is not a directory" in r.stderr, r.stderr
+    assert not (tmp_path / "hil2" / "run.lcmlog").exists()
