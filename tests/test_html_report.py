@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.results.html_report import render_html, verdict_items, write_html_report
+from sc_rt.results.html_report import render_html, timing_text, verdict_items, write_html_report
 
 import lcmnet
 
@@ -196,6 +196,10 @@ def test_verdict_items_from_metrics_alone(tmp_path):
     assert "pointing error 4 atan|sigma_BD| at 10 s" in p.text["metrics"]
     # 1e-5 MRP -> 4 atan(1e-5) rad = 8.25 arcsec
     assert re.search(r"at 10 s\s*8\.25\s*arcsec", p.text["metrics"]), p.text["metrics"]
+    lat = {"state_to_cmd_latency_us": {"p50": 100.0, "p99": 400.0, "max": 900.0}}
+    assert "latency p99 is 2x the floor" in timing_text({**lat, "bench_floor_us": {"p99": 200.0}})
+    assert "bench floor (floor_us): state-to-command 80 us" in timing_text({**lat, "floor_us": {"state-to-command": 80.0}})
+    assert "no bench floor" in timing_text(lat)
     held, _head, _items = verdict_items({"metrics": json.loads((d / "metrics.json").read_text()), "traj": {},
                                          "timing": None, "report": None, "meta": {}, "figures": []})
     assert held is False  # diverged

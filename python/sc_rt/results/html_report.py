@@ -23,7 +23,7 @@ import numpy as np
 
 from sc_rt.results.html_timeline import MODE_NAMES, spans, timeline_svg
 
-__all__ = ["write_html_report", "render_html", "verdict_items", "pointing_arcsec_of_mrp_norm"]
+__all__ = ["write_html_report", "render_html", "verdict_items", "timing_text", "pointing_arcsec_of_mrp_norm"]
 
 AXES = "xyz"
 ARCSEC = 180.0 / math.pi * 3600.0
@@ -181,7 +181,7 @@ def _safe_text(d: dict[str, Any]) -> str:
     return s + (f" ({why})" if why else "")
 
 
-def _timing_text(timing: dict[str, Any] | None) -> str:
+def timing_text(timing: dict[str, Any] | None) -> str:
     if not timing:
         return "Timing: offline run (no bus, no timing.json)"
     lat = timing.get("state_to_cmd_latency_us") or {}
@@ -190,13 +190,26 @@ def _timing_text(timing: dict[str, Any] | None) -> str:
          + f"; state-to-command latency p50 {fmt(lat.get('p50'))} us, p99 {fmt(lat.get('p99'))} us, "
            f"max {fmt(lat.get('max'))} us; deadline misses {fmt(timing.get('deadline_misses'), 'int')}, "
            f"dropped {fmt(timing.get('dropped'), 'int')}, malformed {fmt(timing.get('malformed'), 'int')}")
-    floor = next((v for k, v in timing.items() if "floor" in k and isinstance(v, dict) and v.get("p50")), None)
-    if floor and lat.get("p50"):
-        s += (f"; bench floor (LCM round trip) p50 {fmt(floor['p50'])} us: latency p50 is "
-              f"{lat['p50'] / floor['p50']:.2g}x the floor")
-    else:
-        s += "; no bench floor in timing.json (bench/bench_hil.py measures the LCM round trip)"
-    return s
+    return s + "; " + _floor_text(timing, lat)
+
+
+def _floor_text(timing: dict[str, Any], lat: dict[str, Any]) -> str:
+    """The bench floor (LCM round trip) when timing.json carries one (a key
+    with "floor": percentiles, per-series numbers or one number [us])."""
+    key, floor = next(((k, v) for k, v in timing.items() if "floor" in k and v), (None, None))
+    if isinstance(floor, (int, float)) and not isinstance(floor, bool):
+        floor = {"p50": floor}
+    if isinstance(floor, dict):
+        for q in ("p50", "p99"):
+            if isinstance(floor.get(q), (int, float)) and floor[q] > 0:
+                out = f"bench floor ({key}) {q} {fmt(floor[q])} us"
+                if lat.get(q):
+                    out += f": latency {q} is {lat[q] / floor[q]:.2g}x the floor"
+                return out
+        nums = {k: v for k, v in floor.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        if nums:
+            return f"bench floor ({key}): " + ", ".join(f"{k} {fmt(v)} us" for k, v in nums.items())
+    return "no bench floor in timing.json (bench/bench_hil.py measures the LCM round trip)"
 
 
 def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
@@ -218,7 +231,7 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
         held = False
     items = [("verdict-safe", _safe_text(d))]
     items += [(f"verdict-faults-{i}", s) for i, s in enumerate(_fault_texts(d))]
-    items.append(("verdict-timing", _timing_text(d["timing"])))
+    items.append(("verdict-timing", timing_text(d["timing"])))
     if m.get("diverged") or m.get("finite") is False:
         after = m.get("diverged_after_s")
         items.append(("verdict-diverged", "The run diverged" + (f" after {fmt(after, 's')} s" if after is not None else "")
