@@ -15,6 +15,7 @@
 
 #include "sc_rt/plant.hpp"
 #include "sc_rt/util.hpp"
+#include "sensor_bindings.hpp"
 
 namespace py = pybind11;
 using namespace sc_rt;
@@ -175,4 +176,5 @@ void bind_plant(py::module_& m) {
         arg("u_cmd"), "One RK4 step from t to t + h [s], u_cmd held; then the MRP short set.");
   m.def("lumped_disturbance", &lumped_disturbance, arg("p"), arg("t"), arg("x"), arg("u_sat"),
         arg("accel"), "The true delta_2 of (20),(21) [rad/s^2].");
+  sc_rt_bind::bind_sensors(m);  // sensor_bindings.hpp
 }

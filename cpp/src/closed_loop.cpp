@@ -1,5 +1,6 @@
 #include "sc_rt/closed_loop.hpp"
 
+#include <memory>
 #include <stdexcept>
 
 namespace sc_rt {
@@ -16,7 +17,7 @@ bool finite(const PlantState& x) {
 
 ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantParams& plant,
                                       const ActuatorParams& act, const PlantState& x0, int n_ctrl,
-                                      int n_sub, double rate) {
+                                      int n_sub, double rate, const NavConfig* nav) {
   if (n_ctrl < 0 || n_sub < 1 || !(rate > 0.0))
     throw std::invalid_argument("simulate_closed_loop: need n_ctrl >= 0, n_sub >= 1, rate > 0");
   const auto ctl = Controller::create(cfg);
@@ -29,13 +30,31 @@ ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantPa
   for (auto* v : {&r.wheel_speed, &r.u_cmd, &r.u_sat, &r.wheel_accel, &r.vs}) v->resize(4 * n);
   r.flags.resize(n);
   r.ctrl_mode.resize(n);
+  std::unique_ptr<Navigation> nv;
+  if (nav) {
+    nv = std::make_unique<Navigation>(*nav);
+    for (auto* v : {&r.sigma_BN_est, &r.bias_est, &r.bias_true, &r.att_est_error, &r.innovation})
+      v->resize(3 * n);
+    r.P_diag.resize(6 * n);
+    r.nis.resize(n);
+  }
 
   const double h = 1.0 / (rate * n_sub);
   PlantState x = x0;
-  ctl->reset(Measurement{0.0, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
+  NavTelemetry tel;
+  if (nv) {
+    nv->reset(x);
+    nv->tick(0, 0.0, x);
+    ctl->reset(nv->measure(0.0, x));
+  } else {
+    ctl->reset(Measurement{0.0, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
+  }
+  const std::int64_t nsub64 = n_sub;
   for (int k = 0; k <= n_ctrl; ++k) {
     const double t = k / rate;
-    const Command c = ctl->step(Measurement{t, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
+    if (nv && k > 0) nv->tick(k * nsub64, t, x);
+    const Command c = ctl->step(nv ? nv->measure(t, x, &tel)
+                                   : Measurement{t, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
     const WheelOutput w = wheel_accel(act, t, c.u_cmd, x.wheel_speed);
     r.t[static_cast<std::size_t>(k)] = t;
     put(r.sigma_BN, k, x.sigma_BN);
@@ -55,11 +74,23 @@ ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantPa
     put(r.e1, k, c.e1);
     put(r.e2, k, c.e2);
     put(r.vs, k, c.vs);
-    r.flags[static_cast<std::size_t>(k)] = c.flags;
+    r.flags[static_cast<std::size_t>(k)] = nv ? (c.flags | tel.flags) : c.flags;
+    if (nv) {
+      put(r.sigma_BN_est, k, tel.sigma_est);
+      put(r.bias_est, k, tel.bias_est);
+      put(r.bias_true, k, tel.bias_true);
+      put(r.att_est_error, k, tel.att_error);
+      put(r.innovation, k, tel.innovation);
+      put(r.P_diag, k, tel.P_diag);
+      r.nis[static_cast<std::size_t>(k)] = tel.nis;
+    }
     r.ctrl_mode[static_cast<std::size_t>(k)] = c.mode;
     r.rows = k + 1;
     if (k == n_ctrl) break;
-    for (int j = 0; j < n_sub; ++j) x = plant_rk4_step(plant, act, t + j * h, x, h, c.u_cmd);
+    for (int j = 0; j < n_sub; ++j) {
+      if (nv && j > 0) nv->tick(k * nsub64 + j, t + j * h, x);
+      x = plant_rk4_step(plant, act, t + j * h, x, h, c.u_cmd);
+    }
     if (!finite(x)) {
       r.diverged = true;
       break;

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "sc_rt/controllers.hpp"
+#include "sc_rt/mekf.hpp"
 #include "sc_rt/plant.hpp"
 
 namespace sc_rt {
@@ -19,12 +20,20 @@ struct ClosedLoopResult {
   std::vector<double> wheel_speed, u_cmd, u_sat, wheel_accel, vs;  // 4
   std::vector<int> flags;                                          // 1
   std::vector<int> ctrl_mode;                                      // 1 (MODE_*)
+  // With sensors (nav given; empty otherwise): NavTelemetry per row.
+  std::vector<double> sigma_BN_est, bias_est, bias_true, att_est_error, innovation;  // 3
+  std::vector<double> P_diag;                                      // 6
+  std::vector<double> nis;                                         // 1
 };
 
 // n_ctrl control periods of 1/rate s (n_ctrl + 1 rows, t_k = k / rate), each
 // integrated with n_sub RK4 plant steps of 1/(rate n_sub) s.
+// nav (optional): sensors and estimator (mekf.hpp), ticked at every plant
+// step i = k n_sub + j from the state at its start; the law gets
+// nav->measure(), the row's flags include the navigation's. Without nav the
+// loop is exactly the one without sensors.
 ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantParams& plant,
                                       const ActuatorParams& act, const PlantState& x0, int n_ctrl,
-                                      int n_sub, double rate);
+                                      int n_sub, double rate, const NavConfig* nav = nullptr);
 
 }  // namespace sc_rt

@@ -1,0 +1,299 @@
+// Bindings of the sensors and the estimator (sc_rt/sensors.hpp, mekf.hpp)
+// into sc_rt._core, C++ names. Included once by plant_bindings.cpp
+// (bind_plant calls bind_sensors): the sensors are the plant side's.
+#pragma once
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "sc_rt/closed_loop.hpp"
+#include "sc_rt/mekf.hpp"
+#include "sc_rt/sensors.hpp"
+
+namespace sc_rt_bind {
+namespace py = pybind11;
+using namespace sc_rt;
+using py::arg;
+using Vec10 = Eigen::Matrix<double, 10, 1>;
+
+inline PlantState state_of(const Vec10& v) {
+  return PlantState{v.segment<3>(0), v.segment<3>(3), v.segment<4>(6)};
+}
+
+// The navigation telemetry of a row, in this order (NAV_FIELDS).
+struct NavColumn {
+  const char* name;
+  int width;
+};
+inline const NavColumn kNavColumns[] = {
+    {"sigma_BN_est", 3}, {"bias_est", 3}, {"bias_true", 3}, {"P_diag", 6},
+    {"att_est_error", 3}, {"innovation", 3}, {"nis", 1}, {"nav_flags", 1},
+};
+constexpr int kNavSize = 23;
+
+inline Eigen::Matrix<double, kNavSize, 1> pack(const NavTelemetry& t) {
+  Eigen::Matrix<double, kNavSize, 1> v;
+  v << t.sigma_est, t.bias_est, t.bias_true, t.P_diag, t.att_error, t.innovation, t.nis,
+      static_cast<double>(t.flags);
+  return v;
+}
+
+// The columns of simulate_closed_loop's result (as in core.cpp), then the
+// navigation's.
+struct LoopColumn {
+  const char* name;
+  py::ssize_t width;
+  std::vector<double> ClosedLoopResult::*v;
+};
+inline const LoopColumn kLoopColumns[] = {
+    {"t", 1, &ClosedLoopResult::t},
+    {"sigma_BN", 3, &ClosedLoopResult::sigma_BN},
+    {"omega_BN_B", 3, &ClosedLoopResult::omega_BN_B},
+    {"sigma_DN", 3, &ClosedLoopResult::sigma_DN},
+    {"sigma_BD", 3, &ClosedLoopResult::sigma_BD},
+    {"omega_BD_B", 3, &ClosedLoopResult::omega_BD_B},
+    {"z1", 3, &ClosedLoopResult::z1},
+    {"z2", 3, &ClosedLoopResult::z2},
+    {"delta2", 3, &ClosedLoopResult::delta2},
+    {"chi", 3, &ClosedLoopResult::chi},
+    {"lam", 3, &ClosedLoopResult::lam},
+    {"e1", 3, &ClosedLoopResult::e1},
+    {"e2", 3, &ClosedLoopResult::e2},
+    {"wheel_speed", 4, &ClosedLoopResult::wheel_speed},
+    {"u_cmd", 4, &ClosedLoopResult::u_cmd},
+    {"u_sat", 4, &ClosedLoopResult::u_sat},
+    {"wheel_accel", 4, &ClosedLoopResult::wheel_accel},
+    {"vs", 4, &ClosedLoopResult::vs},
+    {"sigma_BN_est", 3, &ClosedLoopResult::sigma_BN_est},
+    {"bias_est", 3, &ClosedLoopResult::bias_est},
+    {"bias_true", 3, &ClosedLoopResult::bias_true},
+    {"P_diag", 6, &ClosedLoopResult::P_diag},
+    {"att_est_error", 3, &ClosedLoopResult::att_est_error},
+    {"innovation", 3, &ClosedLoopResult::innovation},
+    {"nis", 1, &ClosedLoopResult::nis},
+};
+
+inline void bind_sensors(py::module_& m) {
+  py::class_<GyroParams>(m, "GyroParams", "Rate gyro (SI units; sensors.hpp).")
+      .def(py::init<>())
+      .def_readwrite("enabled", &GyroParams::enabled)
+      .def_readwrite("period_ticks", &GyroParams::period_ticks, "plant steps per sample")
+      .def_readwrite("arw", &GyroParams::arw, "[rad/sqrt(s)]")
+      .def_readwrite("bias_sigma", &GyroParams::bias_sigma, "[rad/s]")
+      .def_readwrite("bias_tau", &GyroParams::bias_tau, "[s]")
+      .def_readwrite("rrw", &GyroParams::rrw, "[rad/s^(3/2)]")
+      .def_readwrite("bias0", &GyroParams::bias0, "[rad/s]")
+      .def_readwrite("scale_factor", &GyroParams::scale_factor, "[-]")
+      .def_readwrite("misalignment", &GyroParams::misalignment, "[rad]")
+      .def_readwrite("quantization", &GyroParams::quantization, "[rad]")
+      .def_readwrite("saturation", &GyroParams::saturation, "[rad/s]");
+  py::class_<StarTrackerParams>(m, "StarTrackerParams", "Star tracker (SI units; sensors.hpp).")
+      .def(py::init<>())
+      .def_readwrite("enabled", &StarTrackerParams::enabled)
+      .def_readwrite("period_ticks", &StarTrackerParams::period_ticks)
+      .def_readwrite("sigma_cross", &StarTrackerParams::sigma_cross, "[rad]")
+      .def_readwrite("sigma_boresight", &StarTrackerParams::sigma_boresight, "[rad]")
+      .def_readwrite("boresight", &StarTrackerParams::boresight)
+      .def_readwrite("latency_ticks", &StarTrackerParams::latency_ticks)
+      .def_readwrite("loss_probability", &StarTrackerParams::loss_probability)
+      .def_readwrite("blackouts", &StarTrackerParams::blackouts, "[s] [(start, end)]");
+  py::class_<TachometerParams>(m, "TachometerParams", "Wheel tachometer (sensors.hpp).")
+      .def(py::init<>())
+      .def_readwrite("enabled", &TachometerParams::enabled)
+      .def_readwrite("period_ticks", &TachometerParams::period_ticks)
+      .def_readwrite("counts_per_rev", &TachometerParams::counts_per_rev)
+      .def_readwrite("period", &TachometerParams::period, "[s]");
+  py::class_<SensorParams>(m, "SensorParams")
+      .def(py::init<>())
+      .def_readwrite("gyro", &SensorParams::gyro)
+      .def_readwrite("star_tracker", &SensorParams::star_tracker)
+      .def_readwrite("tachometer", &SensorParams::tachometer)
+      .def_readwrite("seed", &SensorParams::seed)
+      .def_readwrite("dt", &SensorParams::dt, "[s] plant step (one tick)");
+  py::class_<MekfParams>(m, "MekfParams", "The MEKF's noise model and start (mekf.hpp).")
+      .def(py::init<>())
+      .def_readwrite("arw", &MekfParams::arw)
+      .def_readwrite("rrw", &MekfParams::rrw)
+      .def_readwrite("bias_sigma", &MekfParams::bias_sigma)
+      .def_readwrite("bias_tau", &MekfParams::bias_tau)
+      .def_readwrite("quantization", &MekfParams::quantization)
+      .def_readwrite("sigma_cross", &MekfParams::sigma_cross)
+      .def_readwrite("sigma_boresight", &MekfParams::sigma_boresight)
+      .def_readwrite("boresight", &MekfParams::boresight)
+      .def_readwrite("initial_attitude_sigma", &MekfParams::initial_attitude_sigma)
+      .def_readwrite("initial_bias_sigma", &MekfParams::initial_bias_sigma)
+      .def_readwrite("degraded_after", &MekfParams::degraded_after)
+      .def_readwrite("history", &MekfParams::history);
+  py::class_<NavConfig>(m, "NavConfig")
+      .def(py::init<>())
+      .def_readwrite("sensors", &NavConfig::sensors)
+      .def_readwrite("mekf", &NavConfig::mekf)
+      .def_readwrite("use_estimate", &NavConfig::use_estimate);
+
+  py::class_<Rng>(m, "Rng", "SplitMix64 stream with Box-Muller normals (sensors.hpp).")
+      .def(py::init<std::uint64_t, std::uint64_t>(), arg("seed") = 0, arg("stream") = 0)
+      .def("uniform", &Rng::uniform)
+      .def("normal", &Rng::normal)
+      .def("next_u64", &Rng::next_u64);
+  m.def("boresight_frame", &boresight_frame, arg("boresight"));
+  m.def("mrp_compose", &mrp_compose, arg("s1"), arg("s2"), "R(result) = R(s2) R(s1).");
+  m.def("mrp_rotate_body", &mrp_rotate_body, arg("sigma_BN"), arg("v"),
+        "R(result) = exp(-v^) R(sigma_BN), v [rad].");
+  m.def("mrp_error_vector", &mrp_error_vector, arg("s1"), arg("s2"),
+        "Rotation vector [rad] of R(s1) R(s2)'.");
+
+  py::class_<SensorSuite>(m, "SensorSuite", "Gyro, star tracker and tachometers (sensors.hpp).")
+      .def(py::init<const SensorParams&>(), arg("p"))
+      .def("reset", &SensorSuite::reset)
+      .def("tick", [](SensorSuite& s, std::int64_t i, double t,
+                      const Vec10& x) { s.tick(i, t, state_of(x)); },
+           arg("i"), arg("t"), arg("x"))
+      .def("next_tick", &SensorSuite::next_tick, arg("i"))
+      .def_property_readonly("gyro_new", &SensorSuite::gyro_new)
+      .def_property_readonly("star_new", &SensorSuite::star_new)
+      .def_property_readonly("tach_new", &SensorSuite::tach_new)
+      .def_property_readonly("gyro", [](const SensorSuite& s) {
+        return py::make_tuple(s.gyro().t, s.gyro().omega);
+      }, "(t, omega_m)")
+      .def_property_readonly("star", [](const SensorSuite& s) {
+        return py::make_tuple(s.star().t_exposure, s.star().t_delivery, s.star().sigma_BN);
+      }, "(t_exposure, t_delivery, sigma_BN)")
+      .def_property_readonly("tach", [](const SensorSuite& s) {
+        return py::make_tuple(s.tach().t, s.tach().wheel_speed);
+      }, "(t, wheel_speed)")
+      .def_property_readonly("gyro_bias", &SensorSuite::gyro_bias, "[rad/s] true bias now")
+      .def_property_readonly("lost", &SensorSuite::lost)
+      .def_property_readonly("blacked_out", &SensorSuite::blacked_out)
+      .def_property_readonly("delivered", &SensorSuite::delivered);
+  m.def(
+      "run_sensors",
+      [](const SensorParams& p, std::int64_t n_ticks, const Vec10& x) {
+        // Every sample of n_ticks plant steps from one constant state (t = i dt).
+        SensorSuite s(p);
+        const PlantState st = state_of(x);
+        std::vector<double> gt, g, bias, se, sd, ss, tt, tw;
+        {
+          py::gil_scoped_release release;
+          for (std::int64_t i = 0; i < n_ticks; ++i) {
+            const double t = static_cast<double>(i) * p.dt;
+            s.tick(i, t, st);
+            if (s.gyro_new()) {
+              gt.push_back(t);
+              for (int k = 0; k < 3; ++k) g.push_back(s.gyro().omega(k));
+              for (int k = 0; k < 3; ++k) bias.push_back(s.gyro_bias()(k));
+            }
+            if (s.star_new()) {
+              se.push_back(s.star().t_exposure);
+              sd.push_back(s.star().t_delivery);
+              for (int k = 0; k < 3; ++k) ss.push_back(s.star().sigma_BN(k));
+            }
+            if (s.tach_new()) {
+              tt.push_back(t);
+              for (int k = 0; k < 4; ++k) tw.push_back(s.tach().wheel_speed(k));
+            }
+          }
+        }
+        auto arr = [](const std::vector<double>& v, py::ssize_t w) {
+          const py::ssize_t n = static_cast<py::ssize_t>(v.size()) / w;
+          py::array_t<double> a = w == 1 ? py::array_t<double>(n) : py::array_t<double>({n, w});
+          std::copy(v.begin(), v.end(), a.mutable_data());
+          return a;
+        };
+        py::dict d;
+        d["gyro_t"] = arr(gt, 1);
+        d["gyro"] = arr(g, 3);
+        d["gyro_bias"] = arr(bias, 3);
+        d["star_t_exposure"] = arr(se, 1);
+        d["star_t_delivery"] = arr(sd, 1);
+        d["star_sigma"] = arr(ss, 3);
+        d["tach_t"] = arr(tt, 1);
+        d["tach"] = arr(tw, 4);
+        d["lost"] = s.lost();
+        d["blacked_out"] = s.blacked_out();
+        d["delivered"] = s.delivered();
+        return d;
+      },
+      arg("p"), arg("n_ticks"), arg("x"),
+      "Every sensor sample of n_ticks plant steps (t = i p.dt) from the constant state x (10,).");
+
+  py::class_<MekfState>(m, "MekfState")
+      .def_readonly("t", &MekfState::t)
+      .def_readonly("sigma", &MekfState::sigma)
+      .def_readonly("bias", &MekfState::bias)
+      .def_readonly("P", &MekfState::P);
+  py::class_<Mekf>(m, "Mekf", "Multiplicative EKF, attitude error + gyro bias (mekf.hpp).")
+      .def(py::init<const MekfParams&>(), arg("p"))
+      .def("reset", &Mekf::reset, arg("t"), arg("sigma"), arg("bias"))
+      .def("gyro", &Mekf::gyro, arg("t"), arg("omega_m"))
+      .def("star", &Mekf::star, arg("t_exposure"), arg("sigma_m"))
+      .def("predict", &Mekf::predict, arg("t"))
+      .def_property_readonly("state", &Mekf::state)
+      .def_property_readonly("innovation", &Mekf::innovation)
+      .def_property_readonly("nis", &Mekf::nis)
+      .def_property_readonly("updates", &Mekf::updates)
+      .def_property_readonly("dropped", &Mekf::dropped);
+
+  {
+    py::list cols;
+    for (const NavColumn& c : kNavColumns) cols.append(py::make_tuple(c.name, c.width));
+    m.attr("NAV_FIELDS") = cols;
+    m.attr("NAV_SIZE") = kNavSize;
+    m.attr("FLAG_NAV_DEGRADED") = FLAG_NAV_DEGRADED;
+  }
+  py::class_<Navigation>(m, "Navigation", "Sensors + MEKF -> the law's Measurement (mekf.hpp).")
+      .def(py::init<const NavConfig&>(), arg("c"))
+      .def("reset", [](Navigation& n, const Vec10& x) { n.reset(state_of(x)); }, arg("x0"))
+      .def("tick", [](Navigation& n, std::int64_t i, double t,
+                      const Vec10& x) { n.tick(i, t, state_of(x)); },
+           arg("i"), arg("t"), arg("x"))
+      .def("next_tick", &Navigation::next_tick, arg("i"))
+      .def("measure", [](Navigation& n, double t, const Vec10& x) {
+             NavTelemetry tel;
+             const Measurement m = n.measure(t, state_of(x), &tel);
+             return py::make_tuple(m, pack(tel));
+           }, arg("t"), arg("x"),
+           "(Measurement, telemetry (NAV_SIZE,)) at t from the plant state x (10,).")
+      .def("measure_only", [](Navigation& n, double t, const Vec10& x) {
+             return n.measure(t, state_of(x));
+           }, arg("t"), arg("x"), "The Measurement at t, no telemetry consumed.")
+      .def_property_readonly("filter", &Navigation::filter, py::return_value_policy::reference_internal)
+      .def_property_readonly("sensors", &Navigation::sensors, py::return_value_policy::reference_internal);
+
+  m.def(
+      "simulate_closed_loop_sensed",
+      [](const ControllerConfig& cfg, const PlantParams& plant, const ActuatorParams& act,
+         const Vec10& x0, int n_ctrl, int n_sub, double rate, const NavConfig& nav) {
+        ClosedLoopResult r;
+        {
+          py::gil_scoped_release release;
+          r = simulate_closed_loop(cfg, plant, act, state_of(x0), n_ctrl, n_sub, rate, &nav);
+        }
+        const py::ssize_t n = r.rows;
+        auto arr = [n](const std::vector<double>& v, py::ssize_t w) {
+          py::array_t<double> a = w == 1 ? py::array_t<double>(n) : py::array_t<double>({n, w});
+          std::copy(v.begin(), v.begin() + n * w, a.mutable_data());
+          return a;
+        };
+        py::dict d;
+        d["rows"] = r.rows;
+        d["diverged"] = r.diverged;
+        for (const LoopColumn& c : kLoopColumns) d[c.name] = arr(r.*(c.v), c.width);
+        py::array_t<int> flags(n), mode(n);
+        std::copy(r.flags.begin(), r.flags.begin() + n, flags.mutable_data());
+        std::copy(r.ctrl_mode.begin(), r.ctrl_mode.begin() + n, mode.mutable_data());
+        d["flags"] = flags;
+        d["ctrl_mode"] = mode;
+        return d;
+      },
+      arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),
+      arg("nav"),
+      "simulate_closed_loop with sensors and the estimator (nav): the same columns, then the\n"
+      "navigation's (sigma_BN_est, bias_est, bias_true, P_diag, att_est_error, innovation, nis).");
+}
+
+}  // namespace sc_rt_bind

@@ -1,0 +1,144 @@
+// Attitude estimation (docs/MODEL.md section 10): a multiplicative extended
+// Kalman filter, 6 error states (attitude error dtheta [rad] in the body,
+// gyro bias error db [rad/s]), gyro-propagated, star-tracker-updated, and
+// Navigation, which runs the sensors and the filter and builds the
+// Measurement the control law gets (from the truth or from the estimate).
+//
+// Error: R(sigma_true) = exp(-dtheta^) R(sigma_est); b_true = b_est + db.
+// Propagation over dt with the held rate w = omega_m - b_est:
+//   sigma <- exp(-(w dt)^) sigma (exact for a constant rate)
+//   Phi = [[exp(-(w dt)^), -dt I], [0, a I]], a = exp(-dt / bias_tau) (1 without Gauss-Markov)
+//   Q   = [[arw^2 dt + q^2/6 + rrw^2 dt^3/3, -rrw^2 dt^2/2], [., rrw^2 dt + bias_sigma^2 (1 - a^2)]]
+//         (q: the gyro's angle quantum; the Gauss-Markov cross terms are left out)
+// Update with a star tracker attitude sigma_m: residual z = rotation vector of
+// R(sigma_m) R(sigma_est)' (H = [I 0]), R = A diag(sc^2, sc^2, sb^2) A',
+// Joseph form; sigma_est <- exp(-dtheta^) sigma_est, b_est += db.
+//
+// Latency: a measurement exposed at t_e and delivered later is applied at
+// t_e. The filter keeps a ring of snapshots, one per gyro sample (time,
+// state, covariance, the rate held from it on); a delivery restores the last
+// snapshot at or before t_e, propagates to t_e, updates, and re-propagates
+// through every later snapshot with their own gyro rates to now. The ring
+// covers latency + 2 gyro periods; an exposure older than the ring is
+// dropped (counted). The star tracker's period must be >= the gyro's, so at
+// most one update falls between two snapshots.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "sc_rt/controllers.hpp"
+#include "sc_rt/sensors.hpp"
+
+namespace sc_rt {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+
+//! Navigation flag bit, OR-ed into the run's flags: the star tracker has
+//! been silent longer than degraded_after (gyro-only propagation).
+constexpr int FLAG_NAV_DEGRADED = 1024;
+
+struct MekfParams {
+  double arw = 0.0;               //!< [rad/sqrt(s)] gyro angle random walk
+  double rrw = 0.0;               //!< [rad/s^(3/2)] bias random walk
+  double bias_sigma = 0.0;        //!< [rad/s] Gauss-Markov sigma (0: none)
+  double bias_tau = 3600.0;       //!< [s]
+  double quantization = 0.0;      //!< [rad] gyro angle quantum
+  double sigma_cross = 0.0;       //!< [rad]
+  double sigma_boresight = 0.0;   //!< [rad]
+  Vec3 boresight = Vec3(0.0, 0.0, 1.0);
+  double initial_attitude_sigma = 0.0;  //!< [rad] per axis, P0 and the initial error drawn
+  double initial_bias_sigma = 0.0;      //!< [rad/s] per axis
+  double degraded_after = 1.0;    //!< [s] star tracker silence before FLAG_NAV_DEGRADED
+  int history = 8;                //!< snapshots kept (>= latency / gyro period + 2)
+};
+
+struct MekfState {
+  double t = 0.0;
+  Vec3 sigma = Vec3::Zero();  //!< sigma_BN estimate
+  Vec3 bias = Vec3::Zero();   //!< [rad/s]
+  Mat6 P = Mat6::Zero();
+};
+
+class Mekf {
+ public:
+  explicit Mekf(const MekfParams& p);
+  void reset(double t, const Vec3& sigma, const Vec3& bias);
+  // A gyro sample at t (>= the current time): propagate to t with the held
+  // rate, then hold this one.
+  void gyro(double t, const Vec3& omega_m);
+  // A star tracker attitude exposed at t_exposure <= now; false if dropped.
+  bool star(double t_exposure, const Vec3& sigma_m);
+  // The state propagated from now to t >= now with the held rate (not stored).
+  MekfState predict(double t) const;
+  const MekfState& state() const { return cur_; }
+  const Vec3& rate() const { return omega_m_; }  //!< the held gyro sample
+  const Vec3& innovation() const { return innov_; }  //!< [rad] last residual
+  double nis() const { return nis_; }              //!< last z' S^-1 z
+  double last_update_exposure() const { return last_exposure_; }
+  long updates() const { return updates_; }
+  long dropped() const { return dropped_; }
+
+ private:
+  struct Snap {
+    MekfState s;
+    Vec3 omega_m;
+  };
+  void propagate(MekfState& s, const Vec3& omega_m, double dt) const;
+  void update(MekfState& s, const Vec3& sigma_m);
+  MekfParams p_;
+  Mat3 R_;
+  std::vector<Snap> ring_;
+  std::size_t head_ = 0, size_ = 0;  // head_: oldest
+  MekfState cur_;
+  Vec3 omega_m_ = Vec3::Zero();
+  bool have_gyro_ = false;
+  Vec3 innov_ = Vec3::Zero();
+  double nis_ = 0.0;
+  double last_exposure_ = 0.0;
+  long updates_ = 0, dropped_ = 0;
+};
+
+struct NavConfig {
+  SensorParams sensors;
+  MekfParams mekf;
+  bool use_estimate = false;  //!< the law gets the estimate (else the truth)
+};
+
+// Per-row telemetry of the navigation (the run's estimator fields).
+struct NavTelemetry {
+  Vec3 sigma_est = Vec3::Zero();
+  Vec3 bias_est = Vec3::Zero();    //!< [rad/s]
+  Vec3 bias_true = Vec3::Zero();   //!< [rad/s]
+  Vec6 P_diag = Vec6::Zero();      //!< [rad^2, (rad/s)^2]
+  Vec3 att_error = Vec3::Zero();   //!< [rad] rotation vector of truth relative to the estimate
+  Vec3 innovation = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  //!< [rad] NaN: no update since the last row
+  double nis = std::numeric_limits<double>::quiet_NaN();
+  int flags = 0;
+};
+
+class Navigation {
+ public:
+  explicit Navigation(const NavConfig& c);
+  // Start at t = 0 from the true state: sensors reset, the estimate = the
+  // truth rotated by a draw of the initial covariance, bias estimate 0.
+  void reset(const PlantState& x0);
+  // Plant step i at time t with the plant state x (every tick, or only at
+  // next_tick(): the same numbers).
+  void tick(std::int64_t i, double t, const PlantState& x);
+  std::int64_t next_tick(std::int64_t i) const { return sensors_.next_tick(i); }
+  // The law's measurement at t (truth or estimate) and the row's telemetry.
+  Measurement measure(double t, const PlantState& x, NavTelemetry* tel = nullptr);
+  const SensorSuite& sensors() const { return sensors_; }
+  const Mekf& filter() const { return mekf_; }
+
+ private:
+  NavConfig c_;
+  SensorSuite sensors_;
+  Mekf mekf_;
+  Vec4 wheel_ = Vec4::Zero();
+  bool have_tach_ = false;
+  bool updated_ = false;
+};
+
+}  // namespace sc_rt

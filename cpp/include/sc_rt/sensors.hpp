@@ -1,0 +1,168 @@
+// Attitude sensors of the offline loop (docs/MODEL.md section 10): a rate
+// gyro, a star tracker and wheel tachometers, sampled on the plant's grid,
+// seeded, and the same numbers in both offline engines (the Python engine
+// calls these through the bindings; the C++ engine inside
+// simulate_closed_loop).
+//
+// Random numbers: one SplitMix64 stream per sensor and purpose (a stream is
+// SplitMix64 started at mix(seed, stream id), i.e. counter based: value n of
+// a stream is mix(start + n * golden)), normal deviates by Box-Muller. Integer
+// arithmetic is exact everywhere; the deviates use std::log, std::sqrt,
+// std::cos and std::sin, so two platforms with different libm may differ in
+// the last bit of a deviate (the same build always gives the same numbers).
+//
+// Times: a sensor samples at tick i (plant step i, t = the engine's time of
+// that step) when i is a multiple of its period in ticks. Every period and
+// the star tracker's latency are integer numbers of plant steps (the
+// scenario reader refuses other values, naming the nearest valid rates).
+#pragma once
+#include <cstdint>
+#include <limits>
+#include <utility>
+#include <vector>
+
+#include "sc_rt/plant.hpp"
+#include "sc_rt/types.hpp"
+
+namespace sc_rt {
+
+// SplitMix64 (Steele, Lea, Flood 2014) with Box-Muller normals.
+class Rng {
+ public:
+  explicit Rng(std::uint64_t seed = 0, std::uint64_t stream = 0);
+  std::uint64_t next_u64();
+  double uniform();   //!< [0, 1), 53 bits
+  double normal();    //!< N(0, 1)
+  static std::uint64_t mix(std::uint64_t z);
+
+ private:
+  std::uint64_t s_;
+  double spare_ = 0.0;
+  bool has_spare_ = false;
+};
+
+// Rate gyro (SI units; the scenario reader converts from deg/h, ppm, arcsec).
+//   omega_m = sat((I + diag(scale_factor)) (I - misalignment^) omega + b + n)
+//   n ~ N(0, arw^2 / dt) per sample (angle random walk, white rate noise)
+//   b: bias0 + b_gm + b_rw; b_gm first-order Gauss-Markov (steady-state
+//   sigma bias_sigma, time constant bias_tau), b_rw a random walk (rrw)
+//   quantisation: the delta angle omega_m dt is counted in quanta of
+//   `quantization` rad with the remainder carried to the next sample.
+struct GyroParams {
+  bool enabled = false;
+  int period_ticks = 1;                //!< plant steps per sample
+  double arw = 0.0;                    //!< [rad/sqrt(s)]
+  double bias_sigma = 0.0;             //!< [rad/s] Gauss-Markov steady-state sigma
+  double bias_tau = 3600.0;            //!< [s] Gauss-Markov time constant
+  double rrw = 0.0;                    //!< [rad/s^(3/2)] rate random walk
+  Vec3 bias0 = Vec3::Zero();           //!< [rad/s] constant part of the bias
+  Vec3 scale_factor = Vec3::Zero();    //!< [-] per axis
+  Vec3 misalignment = Vec3::Zero();    //!< [rad] small rotation of the gyro axes
+  double quantization = 0.0;           //!< [rad] angle quantum, 0: none
+  double saturation = std::numeric_limits<double>::infinity();  //!< [rad/s] per axis
+};
+
+// Star tracker: sigma_meas = sigma_true composed with a small body-frame
+// rotation v, v = A [sigma_cross n1, sigma_cross n2, sigma_boresight n3],
+// A = [x_s y_s boresight] an orthonormal sensor frame in the body. Exposed at
+// tick i, delivered latency_ticks later carrying its exposure time; none
+// exposed inside a blackout [start, end), each lost with loss_probability.
+struct StarTrackerParams {
+  bool enabled = false;
+  int period_ticks = 1;
+  double sigma_cross = 0.0;            //!< [rad] 1 sigma, each cross-boresight axis
+  double sigma_boresight = 0.0;        //!< [rad] 1 sigma about the boresight
+  Vec3 boresight = Vec3(0.0, 0.0, 1.0);  //!< [-] body frame, normalised on use
+  int latency_ticks = 0;
+  double loss_probability = 0.0;       //!< [-]
+  std::vector<std::pair<double, double>> blackouts;  //!< [s] exposure windows [start, end)
+};
+
+// Wheel tachometer: omega_m = q round(omega / q), q = 2 pi / (counts_per_rev T).
+struct TachometerParams {
+  bool enabled = false;
+  int period_ticks = 1;
+  double counts_per_rev = 0.0;  //!< [-] 0: no quantisation
+  double period = 0.1;          //!< [s] sample period T (sets the quantum)
+};
+
+struct SensorParams {
+  GyroParams gyro;
+  StarTrackerParams star_tracker;
+  TachometerParams tachometer;
+  std::uint64_t seed = 0;
+  double dt = 0.01;  //!< [s] plant step (one tick)
+};
+
+struct GyroSample {
+  double t = 0.0;
+  Vec3 omega = Vec3::Zero();  //!< [rad/s] measured
+};
+struct StarSample {
+  double t_exposure = 0.0;    //!< [s]
+  double t_delivery = 0.0;    //!< [s]
+  Vec3 sigma_BN = Vec3::Zero();
+};
+struct TachSample {
+  double t = 0.0;
+  Vec4 wheel_speed = Vec4::Zero();
+};
+
+// Orthonormal sensor frame [x y b] with b the normalised boresight.
+Mat3 boresight_frame(const Vec3& boresight);
+// The attitude sigma_BN rotated by the small body-frame rotation vector v:
+// R(result) = exp(-v^) R(sigma_BN) (v [rad]).
+Vec3 mrp_rotate_body(const Vec3& sigma_BN, const Vec3& v);
+// sigma'' composed after sigma': R(result) = R(s2) R(s1), short set.
+Vec3 mrp_compose(const Vec3& s1, const Vec3& s2);
+// Rotation vector [rad] of the small rotation R(s1) R(s2)' (s1 relative to s2).
+Vec3 mrp_error_vector(const Vec3& s1, const Vec3& s2);
+
+// The three sensors. tick() samples those due at tick i from the plant state
+// and queues the star tracker's exposures until their delivery tick. No
+// allocation after construction.
+class SensorSuite {
+ public:
+  explicit SensorSuite(const SensorParams& p);
+  void reset();
+  // Sample every sensor due at tick i (time t) from the plant state x.
+  void tick(std::int64_t i, double t, const PlantState& x);
+
+  // What the last tick produced (valid until the next tick).
+  bool gyro_new() const { return gyro_new_; }
+  bool star_new() const { return star_new_; }
+  bool tach_new() const { return tach_new_; }
+  const GyroSample& gyro() const { return gyro_; }
+  const StarSample& star() const { return star_; }
+  const TachSample& tach() const { return tach_; }
+  const Vec3& gyro_bias() const { return bias_; }  //!< [rad/s] the true bias now
+  // Counters: exposures lost at random, inside a blackout, delivered.
+  long lost() const { return lost_; }
+  long blacked_out() const { return blacked_; }
+  long delivered() const { return delivered_; }
+  const SensorParams& params() const { return p_; }
+  // The first tick > i at which some sensor samples or delivers.
+  std::int64_t next_tick(std::int64_t i) const;
+
+ private:
+  SensorParams p_;
+  Mat3 A_;  // star tracker frame
+  Mat3 gyro_M_;
+  Rng rng_gyro_, rng_bias_, rng_star_, rng_loss_;
+  Vec3 bias_ = Vec3::Zero(), gm_ = Vec3::Zero(), rw_ = Vec3::Zero(), carry_ = Vec3::Zero();
+  double a_gm_ = 1.0, q_gm_ = 0.0, q_rw_ = 0.0;
+  std::int64_t last_bias_tick_ = -1;
+  GyroSample gyro_;
+  StarSample star_;
+  TachSample tach_;
+  bool gyro_new_ = false, star_new_ = false, tach_new_ = false;
+  struct Pending {
+    std::int64_t deliver;
+    StarSample s;
+  };
+  std::vector<Pending> queue_;  // ring buffer
+  std::size_t q_head_ = 0, q_size_ = 0;
+  long lost_ = 0, blacked_ = 0, delivered_ = 0;
+};
+
+}  // namespace sc_rt

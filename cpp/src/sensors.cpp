@@ -1,0 +1,212 @@
+#include "sc_rt/sensors.hpp"
+
+#include <cmath>
+
+#include "sc_rt/mrp.hpp"
+
+namespace sc_rt {
+
+namespace {
+constexpr std::uint64_t kGolden = 0x9E3779B97F4A7C15ULL;
+constexpr double kTwoPi = 6.283185307179586476925286766559;
+// Stream ids: one per sensor and purpose, so that enabling one sensor does
+// not change another's numbers.
+enum Stream : std::uint64_t { S_GYRO = 1, S_BIAS = 2, S_STAR = 3, S_LOSS = 4 };
+}  // namespace
+
+std::uint64_t Rng::mix(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+  return z ^ (z >> 31);
+}
+
+Rng::Rng(std::uint64_t seed, std::uint64_t stream)
+    : s_(mix(mix(seed + kGolden) ^ (stream * 0xD1B54A32D192ED03ULL))) {}
+
+std::uint64_t Rng::next_u64() {
+  s_ += kGolden;
+  return mix(s_);
+}
+
+double Rng::uniform() { return static_cast<double>(next_u64() >> 11) * 0x1.0p-53; }
+
+double Rng::normal() {
+  if (has_spare_) {
+    has_spare_ = false;
+    return spare_;
+  }
+  const double u1 = static_cast<double>((next_u64() >> 11) + 1) * 0x1.0p-53;  // (0, 1]
+  const double u2 = uniform();
+  const double r = std::sqrt(-2.0 * std::log(u1));
+  spare_ = r * std::sin(kTwoPi * u2);
+  has_spare_ = true;
+  return r * std::cos(kTwoPi * u2);
+}
+
+Mat3 boresight_frame(const Vec3& boresight) {
+  const Vec3 b = boresight.normalized();
+  int k = 0;  // the body axis least aligned with b
+  for (int i = 1; i < 3; ++i)
+    if (std::abs(b(i)) < std::abs(b(k))) k = i;
+  const Vec3 x = Vec3::Unit(k).cross(b).normalized();
+  const Vec3 y = b.cross(x);
+  Mat3 A;
+  A.col(0) = x;
+  A.col(1) = y;
+  A.col(2) = b;
+  return A;
+}
+
+Vec3 mrp_compose(const Vec3& s1, const Vec3& s2) {
+  auto num_den = [&s2](const Vec3& a, double& den) {
+    const double aa = a.squaredNorm(), bb = s2.squaredNorm();
+    den = 1.0 + aa * bb - 2.0 * a.dot(s2);
+    return Vec3((1.0 - aa) * s2 + (1.0 - bb) * a - 2.0 * s2.cross(a));
+  };
+  double den;
+  const Vec3 num = num_den(s1, den);
+  if (den < 0.25 && s1.squaredNorm() > 0.0) {  // as mrp_subtract: the better-conditioned set
+    double den2;
+    const Vec3 num2 = num_den(mrp_shadow(s1), den2);
+    if (den2 > den) return mrp_short(num2 / den2);
+  }
+  return mrp_short(num / den);
+}
+
+Vec3 mrp_rotate_body(const Vec3& sigma_BN, const Vec3& v) {
+  const double a = v.norm();
+  const Vec3 d = a > 0.0 ? Vec3(v * (std::tan(0.25 * a) / a)) : Vec3(Vec3::Zero());
+  return mrp_compose(sigma_BN, d);
+}
+
+Vec3 mrp_error_vector(const Vec3& s1, const Vec3& s2) {
+  const Vec3 d = mrp_subtract(s1, s2);
+  const double n = d.norm();
+  return n > 0.0 ? Vec3(d * (4.0 * std::atan(n) / n)) : Vec3(Vec3::Zero());
+}
+
+SensorSuite::SensorSuite(const SensorParams& p)
+    : p_(p),
+      A_(boresight_frame(p.star_tracker.boresight)),
+      gyro_M_(Mat3::Identity()) {
+  const GyroParams& g = p_.gyro;
+  gyro_M_ = (Mat3::Identity() + Mat3(g.scale_factor.asDiagonal())) *
+            (Mat3::Identity() - skew(g.misalignment));
+  const double dtg = g.period_ticks * p_.dt;
+  if (g.bias_sigma > 0.0) {
+    a_gm_ = std::exp(-dtg / g.bias_tau);
+    q_gm_ = g.bias_sigma * std::sqrt(1.0 - a_gm_ * a_gm_);
+  }
+  q_rw_ = g.rrw * std::sqrt(dtg);
+  const StarTrackerParams& s = p_.star_tracker;
+  queue_.resize(static_cast<std::size_t>(s.latency_ticks / std::max(1, s.period_ticks) + 2));
+  reset();
+}
+
+void SensorSuite::reset() {
+  const std::uint64_t seed = p_.seed;
+  rng_gyro_ = Rng(seed, S_GYRO);
+  rng_bias_ = Rng(seed, S_BIAS);
+  rng_star_ = Rng(seed, S_STAR);
+  rng_loss_ = Rng(seed, S_LOSS);
+  const GyroParams& g = p_.gyro;
+  gm_.setZero();
+  rw_.setZero();
+  carry_.setZero();
+  if (g.bias_sigma > 0.0)  // stationary start
+    for (int i = 0; i < 3; ++i) gm_(i) = g.bias_sigma * rng_bias_.normal();
+  bias_ = g.bias0 + gm_ + rw_;
+  gyro_ = GyroSample{};
+  star_ = StarSample{};
+  tach_ = TachSample{};
+  gyro_new_ = star_new_ = tach_new_ = false;
+  q_head_ = q_size_ = 0;
+  lost_ = blacked_ = delivered_ = 0;
+  last_bias_tick_ = -1;
+}
+
+void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
+  gyro_new_ = star_new_ = tach_new_ = false;
+  const GyroParams& g = p_.gyro;
+  if (g.enabled && i % g.period_ticks == 0) {
+    if (last_bias_tick_ >= 0) {  // the bias moves one gyro period
+      for (int k = 0; k < 3; ++k) {
+        gm_(k) = a_gm_ * gm_(k) + q_gm_ * rng_bias_.normal();
+        rw_(k) += q_rw_ * rng_bias_.normal();
+      }
+    }
+    last_bias_tick_ = i;
+    bias_ = g.bias0 + gm_ + rw_;
+    const double dtg = g.period_ticks * p_.dt;
+    const double sn = g.arw / std::sqrt(dtg);
+    Vec3 w = gyro_M_ * x.omega_BN_B + bias_;
+    for (int k = 0; k < 3; ++k) {
+      w(k) += sn * rng_gyro_.normal();
+      w(k) = std::min(std::max(w(k), -g.saturation), g.saturation);
+    }
+    if (g.quantization > 0.0) {
+      for (int k = 0; k < 3; ++k) {
+        const double angle = w(k) * dtg + carry_(k);
+        const double counts = std::nearbyint(angle / g.quantization);
+        carry_(k) = angle - counts * g.quantization;
+        w(k) = counts * g.quantization / dtg;
+      }
+    }
+    gyro_ = GyroSample{t, w};
+    gyro_new_ = true;
+  }
+  const StarTrackerParams& s = p_.star_tracker;
+  if (s.enabled) {
+    if (i % s.period_ticks == 0) {
+      bool dark = false;
+      for (const auto& w : s.blackouts) dark = dark || (t >= w.first && t < w.second);
+      const double u = rng_loss_.uniform();  // drawn for every exposure: streams stay aligned
+      Vec3 n;
+      for (int k = 0; k < 3; ++k) n(k) = rng_star_.normal();
+      if (dark) {
+        ++blacked_;
+      } else if (u < s.loss_probability) {
+        ++lost_;
+      } else {
+        const Vec3 v = A_ * Vec3(s.sigma_cross * n(0), s.sigma_cross * n(1), s.sigma_boresight * n(2));
+        Pending pd{i + s.latency_ticks, StarSample{t, 0.0, mrp_rotate_body(x.sigma_BN, v)}};
+        if (q_size_ < queue_.size()) {
+          queue_[(q_head_ + q_size_) % queue_.size()] = pd;
+          ++q_size_;
+        }
+      }
+    }
+    if (q_size_ > 0 && queue_[q_head_].deliver == i) {
+      star_ = queue_[q_head_].s;
+      star_.t_delivery = t;
+      star_new_ = true;
+      q_head_ = (q_head_ + 1) % queue_.size();
+      --q_size_;
+      ++delivered_;
+    }
+  }
+  const TachometerParams& c = p_.tachometer;
+  if (c.enabled && i % c.period_ticks == 0) {
+    Vec4 w = x.wheel_speed;
+    if (c.counts_per_rev > 0.0) {
+      const double q = kTwoPi / (c.counts_per_rev * c.period);
+      for (int k = 0; k < 4; ++k) w(k) = q * std::nearbyint(w(k) / q);
+    }
+    tach_ = TachSample{t, w};
+    tach_new_ = true;
+  }
+}
+
+std::int64_t SensorSuite::next_tick(std::int64_t i) const {
+  std::int64_t best = std::numeric_limits<std::int64_t>::max();
+  auto next_multiple = [i](int period) { return (i / period + 1) * period; };
+  if (p_.gyro.enabled) best = std::min(best, next_multiple(p_.gyro.period_ticks));
+  if (p_.star_tracker.enabled) {
+    best = std::min(best, next_multiple(p_.star_tracker.period_ticks));
+    if (q_size_ > 0) best = std::min(best, queue_[q_head_].deliver);
+  }
+  if (p_.tachometer.enabled) best = std::min(best, next_multiple(p_.tachometer.period_ticks));
+  return best;
+}
+
+}  // namespace sc_rt
