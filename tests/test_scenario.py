@@ -40,7 +40,12 @@ CBAR = [
 # (docs/MODEL.md section 8; pd, rft, safety, substeps: this project's values).
 EXPECTED_MSG = {
     "scenario": "paper_fault_free",
-    "law": 0,
+    "law": "dsc-ppc",
+    "n_law_params": 0,
+    "law_param_keys": [],
+    "law_param_len": [],
+    "n_law_param_values": 0,
+    "law_param_values": [],
     "control_rate_hz": 10.0,
     "J0": [[10, 0, 0], [0, 15, 0], [0, 0, 20]],
     "Cbar": CBAR,
@@ -217,14 +222,14 @@ def test_controller_config_round_trips_through_the_cpp_decoder():
     np.testing.assert_array_equal(cfg.spacecraft.Cbar, CBAR)
     np.testing.assert_array_equal(cfg.ppc.chiinf, [4e-6, 2e-6, 1.4e-6])
     assert (cfg.dsc.k4, cfg.neso.alpha, cfg.guidance.omega_freq) == (22.0, 0.7, 0.01)
-    assert cfg.law == _core.Law.DscPpc
+    assert cfg.law == "dsc-ppc"
 
 
 @pytest.mark.parametrize("law", list(LAWS))
 def test_core_config_builds_a_working_controller(law):
     s = load_scenario(FAULTS)
     cfg = s.core_config(law, 20.0)
-    assert _core.law_name(cfg.law) == law and cfg.control_rate_hz == 20.0
+    assert cfg.law == law and cfg.control_rate_hz == 20.0
     ctl = _core.Controller(cfg)
     i = s.initial
     for k in range(3):
@@ -238,20 +243,19 @@ def test_core_config_builds_a_working_controller(law):
 
 
 def test_law_table_matches_the_wire_and_the_core():
-    assert LAWS == {
-        "dsc-ppc": controller_config_t.LAW_DSC_PPC,
-        "dsc": controller_config_t.LAW_DSC,
-        "pd": controller_config_t.LAW_PD,
-        "rft": controller_config_t.LAW_RFT,
-    }
-    for name, value in LAWS.items():
-        assert _core.law_name(_core.Law(value)) == name
+    # The table is the core's registry: the four built-ins in their order
+    # (their codes are controller_status_t.law).
+    assert LAWS == {"dsc-ppc": 0, "dsc": 1, "pd": 2, "rft": 3}
+    assert _core.law_names()[:4] == list(LAWS)
+    for name, code in LAWS.items():
+        assert _core.law_info(name) == {"name": name, "doc": _core.law_info(name)["doc"],
+                                        "source": "built-in", "code": code}
 
 
 def test_msg_overrides_and_their_errors():
     s = load_scenario(FAULT_FREE)
     msg = s.controller_config_msg(law="rft", control_rate_hz=50.0)
-    assert (msg.law, msg.control_rate_hz) == (controller_config_t.LAW_RFT, 50.0)
+    assert (msg.law, msg.control_rate_hz) == ("rft", 50.0)
     with pytest.raises(ValueError, match='controller must be one of "dsc-ppc"'):
         s.controller_config_msg(law="lqr")
     with pytest.raises(ValueError, match="control_rate_hz must be > 0"):
@@ -263,7 +267,7 @@ def test_with_run_overrides():
     r = s.with_run(controller="pd", control_rate_hz=5, duration=None)
     assert (r.run.controller, r.run.control_rate_hz, r.run.duration) == ("pd", 5.0, 300.0)
     assert r.run.plant_substeps == 2
-    assert r.core_config().law == _core.Law.Pd
+    assert r.core_config().law == "pd"
     assert s.run.controller == "dsc-ppc"  # the original is unchanged
     assert r.actuators is s.actuators and r.controller is s.controller
     with pytest.raises(ScenarioError) as e:

@@ -46,6 +46,9 @@ const char* kUsage =
     "                         from a scenario: sc-rt config SCENARIO --out FILE)\n"
     "  --config-channel       wait for the configuration on <prefix>SCRT_CONFIG\n"
     "  --check                validate the configuration, print it, exit\n"
+    "  --law-plugin PATH      run the law of this plugin library instead of the\n"
+    "                         configuration's (docs/LAWS.md; the config's law\n"
+    "                         parameters are handed to it)\n"
     "  --mode MODE            lockstep (default) or realtime\n"
     "  --lcm-url URL          default udpm://239.255.76.67:7667?ttl=0\n"
     "  --prefix P             channel name prefix (default none)\n"
@@ -112,6 +115,7 @@ struct Options {
   std::string prefix;
   int64_t max_steps = -1;
   std::string summary_path;
+  std::string law_plugin;  // --law-plugin: overrides the config's law
   // real time: lock the wake-up phase to the arrival of states (PLL), this
   // many microseconds after a state arrives (< 0: free-running clock)
   double phase_offset_us = 50.0;
@@ -255,7 +259,7 @@ class Shell {
     s.cmd_seq = cmd_seq_ - 1;
     s.session = session_;
     s.state_seq = state_seq;
-    sc_rt::fill_status(cmd, ctl_->law(), s);
+    sc_rt::fill_status(cmd, ctl_->law_code(), s);
     s.wake_lateness_us = late_us;
     s.compute_us = comp_us;
     s.state_age_us = age_us;
@@ -287,7 +291,7 @@ class Shell {
         "\"rejected\": {\"malformed\": %lld, \"trailing_bytes\": %lld, \"duplicate\": %lld, "
         "\"out_of_order\": %lld, \"invalid_state\": %lld, \"foreign_session\": %lld}, "
         "\"sessions_adopted\": %lld}",
-        opt_.realtime ? "realtime" : "lockstep", 1e9 / double(period_ns_), sc_rt::law_name(ctl_->law()),
+        opt_.realtime ? "realtime" : "lockstep", 1e9 / double(period_ns_), ctl_->law_name().c_str(),
         (long long)cnt_.steps, (long long)cnt_.deadline_misses, scheduler.c_str(), l.p50, l.p99,
         l.max, c.p50, c.p99, c.max, a.p50, a.p99, a.max, (long long)g.received,
         (long long)cnt_.stale_steps, (long long)cnt_.safe_steps, (long long)g.malformed,
@@ -355,6 +359,16 @@ std::string setup_scheduler(bool want_rt) {
   return s;
 }
 
+// The configuration with --law-plugin applied, its law checked (constructed
+// and probed once at rest): throws with the plugin's problem.
+sc_rt::ControllerConfig load_config(const std::vector<char>& bytes, const Options& o) {
+  sc_rt::ControllerConfig cfg = sc_rt::config_from_bytes(bytes.data(), int(bytes.size()));
+  if (!o.law_plugin.empty()) cfg.law = sc_rt::kPluginPrefix + o.law_plugin;
+  const auto problems = sc_rt::check_law(cfg);
+  if (!problems.empty()) throw std::invalid_argument(problems.front().second);
+  return cfg;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -378,6 +392,8 @@ int main(int argc, char** argv) {
       o.config_path = need("--config");
     } else if (a == "--config-channel") {
       o.config_channel = true;
+    } else if (a == "--law-plugin") {
+      o.law_plugin = need("--law-plugin");
     } else if (a == "--check") {
       o.check = true;
     } else if (a == "--mode") {
@@ -416,9 +432,9 @@ int main(int argc, char** argv) {
   }
   if (o.check) {
     try {
-      const sc_rt::ControllerConfig cfg = sc_rt::config_from_bytes(cfg_bytes.data(), int(cfg_bytes.size()));
-      sc_rt::Controller::create(cfg);
-      std::printf("sc-rt-controller: config ok: law %s, %.6g Hz\n", sc_rt::law_name(cfg.law), cfg.control_rate_hz);
+      const sc_rt::ControllerConfig cfg = load_config(cfg_bytes, o);
+      std::printf("sc-rt-controller: config ok: law %s, %.6g Hz\n",
+                  sc_rt::Controller::create(cfg)->law_name().c_str(), cfg.control_rate_hz);
       return 0;
     } catch (const std::exception& e) {
       std::fprintf(stderr, "sc-rt-controller: %s: %s\n", o.config_path.c_str(), e.what());
@@ -449,7 +465,7 @@ int main(int argc, char** argv) {
   }
   Shell shell(o, lcm);
   try {
-    shell.configure(sc_rt::config_from_bytes(cfg_bytes.data(), int(cfg_bytes.size())));
+    shell.configure(load_config(cfg_bytes, o));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sc-rt-controller: bad configuration: %s\n", e.what());
     return 2;

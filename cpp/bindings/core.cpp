@@ -228,18 +228,38 @@ PYBIND11_MODULE(_core, m) {
   m.def("ppc_inverse", &ppc_inverse, arg("p"), arg("e1"), arg("t"));
 
   // --- controllers
-  py::enum_<Law>(m, "Law")
-      .value("DscPpc", Law::DscPpc)
-      .value("Dsc", Law::Dsc)
-      .value("Pd", Law::Pd)
-      .value("Rft", Law::Rft);
-  m.def("law_name", &law_name, arg("law"));
+  // --- the law registry (docs/LAWS.md)
+  py::register_exception<LawError>(m, "LawError", PyExc_ValueError);
+  m.attr("LAW_API_VERSION") = SC_RT_LAW_API_VERSION;
+  m.attr("LAW_FINGERPRINT") = SC_RT_LAW_FINGERPRINT;
+  m.attr("LAW_MAX_TELEMETRY") = kLawMaxTelemetry;
+  m.attr("DEFAULT_LAW") = kDefaultLaw;
+  m.def("law_names", &law_names, "Every registered law name, registry order (the built-ins first).");
+  m.def("load_law_plugin", &load_law_plugin, arg("path_or_name"),
+        "Load a law plugin library (a path, or a name searched in SCRT_LAW_PATH); returns its\n"
+        "law name. LawError (a ValueError) names the plugin and the problem.");
+  m.def(
+      "law_info",
+      [](const std::string& spec) {
+        const LawEntry e = resolve_law(spec);
+        py::dict d;
+        d["name"] = e.name;
+        d["doc"] = e.doc;
+        d["source"] = e.source;
+        d["code"] = e.code;
+        return d;
+      },
+      arg("spec"), "name, doc, source (\"built-in\" or the library) and code of a law spec.");
+  m.def("check_law", &check_law, arg("c"),
+        "Construct the configured law once and probe one step at rest, without running:\n"
+        "[(key, message)] per problem; key \"law\" or \"params.<key>\" (empty: fine).");
   for (auto [name, v] : std::initializer_list<std::pair<const char*, int>>{
            {"MODE_INIT", MODE_INIT}, {"MODE_NORMAL", MODE_NORMAL}, {"MODE_SAFE", MODE_SAFE},
            {"FLAG_BOUND_X", FLAG_BOUND_X}, {"FLAG_BOUND_Y", FLAG_BOUND_Y},
            {"FLAG_BOUND_Z", FLAG_BOUND_Z}, {"FLAG_SAT_1", FLAG_SAT_1},
            {"FLAG_INVALID_STATE", FLAG_INVALID_STATE}, {"FLAG_STALE_STATE", FLAG_STALE_STATE},
-           {"FLAG_TIME_NOT_ADVANCING", FLAG_TIME_NOT_ADVANCING}})
+           {"FLAG_TIME_NOT_ADVANCING", FLAG_TIME_NOT_ADVANCING},
+           {"FLAG_LAW_INVALID", FLAG_LAW_INVALID}})
     m.attr(name) = v;
   py::class_<DscGains>(m, "DscGains")
       .def(py::init<>())
@@ -268,7 +288,10 @@ PYBIND11_MODULE(_core, m) {
       .def_readwrite("stale_periods", &SafetyLimits::stale_periods);
   py::class_<ControllerConfig>(m, "ControllerConfig", "Everything a controller needs.")
       .def(py::init<>())
-      .def_readwrite("law", &ControllerConfig::law)
+      .def_readwrite("law", &ControllerConfig::law,
+                     "law spec: a registered name or \"plugin:PATH_OR_NAME\"")
+      .def_readwrite("law_params", &ControllerConfig::law_params,
+                     "[controller.params]: [(key, [numbers])]")
       .def_readwrite("control_rate_hz", &ControllerConfig::control_rate_hz)
       .def_readwrite("spacecraft", &ControllerConfig::spacecraft)
       .def_readwrite("guidance", &ControllerConfig::guidance)
@@ -317,7 +340,8 @@ PYBIND11_MODULE(_core, m) {
       .def_readonly("lam", &Command::lam)
       .def_readonly("x2d", &Command::x2d)
       .def_readonly("vs", &Command::vs)
-      .def_readonly("rho_hat", &Command::rho_hat);
+      .def_readonly("rho_hat", &Command::rho_hat)
+      .def_readonly("telemetry", &Command::telemetry, "the law's named telemetry (Controller.telemetry_names)");
   py::class_<TrackingErrors>(m, "TrackingErrors")
       .def_readonly("sigma_BD", &TrackingErrors::sigma_BD)
       .def_readonly("omega_BD_B", &TrackingErrors::omega_BD_B)
@@ -334,7 +358,9 @@ PYBIND11_MODULE(_core, m) {
       .def("reset", &Controller::reset, arg("m"))
       .def("step", &Controller::step, arg("m"))
       .def("safe_command", &Controller::safe_command, arg("t"), arg("flags"))
-      .def_property_readonly("law", &Controller::law)
+      .def_property_readonly("law_name", &Controller::law_name, "the law's registry name")
+      .def_property_readonly("law_code", &Controller::law_code, "its registry code")
+      .def_property_readonly("telemetry_names", &Controller::telemetry_names)
       .def_property_readonly("config", &Controller::config)
       .def_property_readonly("model", &Controller::model)
       .def_property_readonly("t0", &Controller::t0);

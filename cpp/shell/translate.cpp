@@ -19,9 +19,19 @@ void put(double (&a)[N], const V& v) {
 
 ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   ControllerConfig c;
-  if (m.law < 0 || m.law > 3)
-    throw std::invalid_argument("controller_config_t.law must be 0..3, got " + std::to_string(m.law));
-  c.law = static_cast<Law>(m.law);
+  c.law = m.law;  // resolved (a plugin loaded) by the Controller
+  if (m.n_law_params < 0 || m.n_law_param_values < 0)
+    throw std::invalid_argument("controller_config_t: negative law parameter counts");
+  std::size_t at = 0;
+  for (int i = 0; i < m.n_law_params; ++i) {
+    const std::size_t n = m.law_param_len[i] < 0 ? 0 : static_cast<std::size_t>(m.law_param_len[i]);
+    if (at + n > m.law_param_values.size())
+      throw std::invalid_argument("controller_config_t: law_param_len exceeds law_param_values");
+    c.law_params.emplace_back(m.law_param_keys[i],
+                              std::vector<double>(m.law_param_values.begin() + at,
+                                                  m.law_param_values.begin() + at + n));
+    at += n;
+  }
   c.control_rate_hz = m.control_rate_hz;
   SpacecraftParams& s = c.spacecraft;
   for (int i = 0; i < 3; ++i) {
@@ -64,7 +74,14 @@ sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const st
   sc_rt_lcm::controller_config_t m{};
   m.utime = 0;
   m.scenario = scenario;
-  m.law = static_cast<int8_t>(c.law);
+  m.law = c.law;
+  m.n_law_params = static_cast<int32_t>(c.law_params.size());
+  for (const auto& [key, values] : c.law_params) {
+    m.law_param_keys.push_back(key);
+    m.law_param_len.push_back(static_cast<int32_t>(values.size()));
+    m.law_param_values.insert(m.law_param_values.end(), values.begin(), values.end());
+  }
+  m.n_law_param_values = static_cast<int32_t>(m.law_param_values.size());
   m.control_rate_hz = c.control_rate_hz;
   const SpacecraftParams& s = c.spacecraft;
   for (int i = 0; i < 3; ++i) {
@@ -139,7 +156,7 @@ void fill_wheel_cmd(const Command& c, sc_rt_lcm::wheel_cmd_t& msg) {
   msg.flags = c.flags;
 }
 
-void fill_status(const Command& c, Law law, sc_rt_lcm::controller_status_t& msg) {
+void fill_status(const Command& c, int law, sc_rt_lcm::controller_status_t& msg) {
   msg.t = c.t;
   msg.law = static_cast<int8_t>(law);
   msg.mode = static_cast<int8_t>(c.mode);

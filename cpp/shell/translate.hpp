@@ -10,7 +10,8 @@
 
 namespace sc_rt {
 
-// Throws std::invalid_argument when the message's law is unknown; the
+// Throws std::invalid_argument when the message is inconsistent; the law is
+// resolved (a plugin loaded) by the Controller; the
 // returned config still needs validate() (Controller's constructor does it).
 ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& msg);
 sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const std::string& scenario);
@@ -21,6 +22,7 @@ ControllerConfig config_from_bytes(const void* data, int size);
 Measurement measurement_from_lcm(const sc_rt_lcm::plant_state_t& msg);
 
 void fill_wheel_cmd(const Command& c, sc_rt_lcm::wheel_cmd_t& msg);
-void fill_status(const Command& c, Law law, sc_rt_lcm::controller_status_t& msg);
+// law: the controller's law code (Controller::law_code()).
+void fill_status(const Command& c, int law, sc_rt_lcm::controller_status_t& msg);
 
 }  // namespace sc_rt

@@ -8,16 +8,6 @@
 
 namespace sc_rt {
 
-const char* law_name(Law law) {
-  switch (law) {
-    case Law::DscPpc: return "dsc-ppc";
-    case Law::Dsc: return "dsc";
-    case Law::Pd: return "pd";
-    case Law::Rft: return "rft";
-  }
-  return "unknown";
-}
-
 namespace {
 void append(std::vector<std::string>& to, const std::vector<std::string>& from) {
   to.insert(to.end(), from.begin(), from.end());
@@ -31,8 +21,7 @@ void positive(std::vector<std::string>& errs, const char* key, double v, bool al
 
 std::vector<std::string> validate(const ControllerConfig& c) {
   std::vector<std::string> errs;
-  const int law = static_cast<int>(c.law);
-  if (law < 0 || law > 3) errs.push_back("law must be 0..3, got " + std::to_string(law));
+  if (c.law.empty()) errs.push_back("law must be a law name or plugin:PATH_OR_NAME, got \"\"");
   positive(errs, "control_rate_hz", c.control_rate_hz);
   append(errs, validate(c.spacecraft));
   append(errs, validate(c.guidance));
@@ -88,15 +77,79 @@ bool measurement_valid(const Measurement& m, const SafetyLimits& lim) {
   return true;
 }
 
+LawModel law_model(const SpacecraftModel& sc) {
+  const SpacecraftParams& p = sc.params();
+  LawModel m;
+  m.J0 = p.J0;
+  m.J0_inv = sc.J0_inverse();
+  m.Cbar = p.Cbar;
+  m.Jw = p.Jw;
+  m.umin = p.umin;
+  m.umax = p.umax;
+  m.w0 = p.w0;
+  m.B = sc.B();
+  m.B_pinv = sc.B_pinv();
+  return m;
+}
+
+namespace {
+std::string law_label(const LawEntry& e) {
+  return e.source == "built-in" ? e.name : e.name + " (" + e.source + ")";
+}
+}  // namespace
+
 Controller::Controller(const ControllerConfig& c)
     : cfg_((throw_if_errors("ControllerConfig", validate(c)), c)),
       model_(c.spacecraft),
-      guidance_(c.guidance, 1.0 / c.control_rate_hz) {}
+      law_model_(law_model(model_)),
+      guidance_(c.guidance, 1.0 / c.control_rate_hz),
+      entry_(resolve_law(c.law)) {
+  const std::string who = "law " + law_label(entry_) + ": ";
+  LawParams params(cfg_.law_params);
+  const LawSetup setup{law_model_, cfg_.control_rate_hz, params, &cfg_};
+  try {
+    law_ = entry_.create(setup);
+  } catch (const LawParamError& e) {
+    std::string d = e.what();
+    if (d.compare(0, e.key().size() + 2, e.key() + ": ") == 0) d = d.substr(e.key().size() + 2);
+    throw LawError("params." + e.key(), who + "controller.params." + e.key() + ": " + d, d);
+  } catch (const std::exception& e) {
+    throw LawError("law", who + "construction failed: " + e.what(),
+                   std::string("construction failed: ") + e.what());
+  } catch (...) {
+    throw LawError("law", who + "construction failed (not a std::exception)", "construction failed");
+  }
+  if (!law_) throw LawError("law", who + "its factory returned no law", "its factory returned no law");
+  for (const std::string& k : params.unused()) {
+    const std::string d = "unknown parameter of law " + entry_.name;
+    throw LawError("params." + k, who + "controller.params." + k + ": " + d, d);
+  }
+  telemetry_names_ = law_->telemetry_names();
+  if (telemetry_names_.size() > static_cast<std::size_t>(kLawMaxTelemetry)) {
+    const std::string d = "declares " + std::to_string(telemetry_names_.size()) +
+                          " telemetry names, at most " + std::to_string(kLawMaxTelemetry);
+    throw LawError("law", who + d, d);
+  }
+}
 
-TrackingErrors Controller::errors_at(const Measurement& m) {
-  const double t = m.t;
-  return tracking_errors(model_, m, guidance_.sigma_DN(), omega_d(cfg_.guidance, t),
-                         omega_d_dot(cfg_.guidance, t));
+std::unique_ptr<Controller> Controller::create(const ControllerConfig& c) {
+  return std::make_unique<Controller>(c);
+}
+
+LawInput Controller::input_at(const Measurement& m, double dt) {
+  LawInput in;
+  in.t = m.t;
+  in.t_engaged = m.t - t0_;
+  in.dt = dt;
+  in.m = m;
+  in.ref.sigma_DN = guidance_.sigma_DN();
+  in.ref.omega_DN_D = omega_d(cfg_.guidance, m.t);
+  in.ref.omega_dot_DN_D = omega_d_dot(cfg_.guidance, m.t);
+  in.e = tracking_errors(model_, m, in.ref.sigma_DN, in.ref.omega_DN_D, in.ref.omega_dot_DN_D);
+  // The prescribed bound is reported for every law.
+  in.ppc = ppc_transform(cfg_.ppc, in.e.sigma_BD, m.t - t0_);
+  in.u_sat_prev = u_sat_prev_;
+  return in;
 }
 
 void Controller::reset(const Measurement& m) {
@@ -104,8 +157,7 @@ void Controller::reset(const Measurement& m) {
   t_prev_ = m.t;
   guidance_.reset(m.t);
   u_sat_prev_.setZero();
-  const TrackingErrors e = errors_at(m);
-  law_reset(e, m);
+  law_->reset(input_at(m, 0.0));
   engaged_ = true;
   first_ = true;
 }
@@ -120,29 +172,26 @@ Command Controller::safe_command(double t, int flags) {
   return out;
 }
 
-void Controller::observe(const Measurement& m, Command& out, TrackingErrors& e, PpcResult& ppc) {
+void Controller::observe(const Measurement& m, Command& out, LawInput& in) {
   guidance_.advance(m.t);
-  e = errors_at(m);
-  out.sigma_DN = guidance_.sigma_DN();
-  out.sigma_BD = e.sigma_BD;
-  out.omega_BD_B = e.omega_BD_B;
-  // The prescribed bound is reported for every law.
-  ppc = ppc_transform(cfg_.ppc, e.sigma_BD, m.t - t0_);
-  out.chi = ppc.chi;
-  out.lam = ppc.lambda;
-  out.flags |= ppc.violated;  // FLAG_BOUND_X/Y/Z are bits 0..2
+  in = input_at(m, 0.0);
+  out.sigma_DN = in.ref.sigma_DN;
+  out.sigma_BD = in.e.sigma_BD;
+  out.omega_BD_B = in.e.omega_BD_B;
+  out.chi = in.ppc.chi;
+  out.lam = in.ppc.lambda;
+  out.flags |= in.ppc.violated;  // FLAG_BOUND_X/Y/Z are bits 0..2
 }
 
 Command Controller::step(const Measurement& m) {
-  TrackingErrors e;
-  PpcResult ppc;
+  LawInput in;
   if (!measurement_valid(m, cfg_.safety)) {
     Command out = safe_command(m.t, FLAG_INVALID_STATE);
     // Telemetry stays true in SAFE mode when the state is finite but out of
     // range (a tumble past max_rate): the errors are still well defined.
     if (std::isfinite(m.t) && m.sigma_BN.allFinite() && m.omega_BN_B.allFinite() &&
         m.wheel_speed.allFinite() && m.t >= guidance_.t())
-      observe(m, out, e, ppc);
+      observe(m, out, in);
     return out;
   }
   if (!engaged_) reset(m);  // (re-)engage from this measurement
@@ -155,159 +204,59 @@ Command Controller::step(const Measurement& m) {
     dt = 0.0;
   }
   first_ = false;
-  observe(m, out, e, ppc);
-  law_step(e, ppc, dt, out);
+  observe(m, out, in);
+  in.dt = dt;
+  LawOutput lo;
+  bool ok = true;
+  try {
+    law_->step(in, lo);
+  } catch (...) {
+    ok = false;
+  }
+  if (!ok || !lo.u_cmd.allFinite()) {
+    // A law that fails gives SAFE zeros; the next valid step re-engages it.
+    out.mode = MODE_SAFE;
+    out.flags |= FLAG_LAW_INVALID;
+    engaged_ = false;
+    return out;
+  }
+  out.u_cmd = lo.u_cmd;
+  out.e1 = lo.e1;
+  out.e2 = lo.e2;
+  out.z1 = lo.z1;
+  out.z2 = lo.z2;
+  out.x2d = lo.x2d;
+  out.vs = lo.vs;
+  out.rho_hat = lo.rho_hat;
+  out.telemetry = lo.telemetry;
 
   out.u_sat = model_.saturate(out.u_cmd);
   for (int i = 0; i < 4; ++i)
     if (out.u_sat(i) != out.u_cmd(i)) out.flags |= (FLAG_SAT_1 << i);
   u_sat_prev_ = out.u_sat;
-  law_after(out);
+  law_->after(out.u_cmd, out.u_sat);
   if (dt > 0.0) t_prev_ = m.t;
   return out;
 }
 
-namespace {
-
-// DSC with (DscPpc) or without (Dsc) the prescribed-performance transform.
-class DscController final : public Controller {
- public:
-  DscController(const ControllerConfig& c, bool use_ppc)
-      : Controller(c), use_ppc_(use_ppc), neso_(c.neso) {}
-
- protected:
-  // Virtual control (36): x2bar = -(r G)^-1 (k1 e1 - r Lambda chi_dot)
-  //                             = -G^-1 (k1 r^-1 e1 - Lambda chi_dot).
-  Vec3 virtual_control(const TrackingErrors& e, const PpcResult& p, Vec3& e1, Vec3& r) const {
-    const Mat3 Ginv = mrp_G_inverse(e.sigma_BD);
-    if (!use_ppc_) {  // DSC: e1 = x1, r = I, no chi_dot term
-      e1 = e.sigma_BD;
-      r.setOnes();
-      return -Ginv * (cfg_.dsc.k1 * e1);
-    }
-    e1 = p.e1;
-    r = p.r;
-    return -Ginv * (cfg_.dsc.k1 * e1.cwiseQuotient(r) - p.lambda.cwiseProduct(p.chi_dot));
+std::vector<std::pair<std::string, std::string>> check_law(const ControllerConfig& c) {
+  std::vector<std::pair<std::string, std::string>> out;
+  std::unique_ptr<Controller> ctl;
+  try {
+    ctl = Controller::create(c);
+  } catch (const LawError& e) {
+    out.emplace_back(e.key(), e.what());
+    return out;
+  } catch (const std::exception& e) {
+    out.emplace_back("", e.what());
+    return out;
   }
-
-  void law_reset(const TrackingErrors& e, const Measurement&) override {
-    Vec3 e1, r;
-    x2bar_prev_ = virtual_control(e, ppc_transform(cfg_.ppc, e.sigma_BD, 0.0), e1, r);
-    x2d_ = x2bar_prev_;  // (37): x2d(0) = x2bar(0)
-    vs_.setZero();       // (42): vs(0) = 0
-    du_prev_.setZero();
-    neso_.reset(cfg_.neso.init_from_measurement ? e.omega_BD_B : Vec3::Zero(), Vec3::Zero());
-    A_prev_ = e.A;
-    x2_prev_ = e.omega_BD_B;
-  }
-
-  void law_step(const TrackingErrors& e, const PpcResult& ppc, double dt, Command& out) override {
-    const DscGains& g = cfg_.dsc;
-    const Mat34& B = model_.B();
-    if (dt > 0.0) {
-      // Observer (22) over the period just ended: B sat(uc) held, A and x2 linear.
-      neso_.update(dt, A_prev_, e.A, x2_prev_, e.omega_BD_B, B * u_sat_prev_);
-      // Filter (37) and compensator (42) are linear with inputs held over the
-      // period: exact discretisation.
-      const double a = std::exp(-dt / g.tau);
-      x2d_ = a * x2d_ + (1.0 - a) * x2bar_prev_;
-      const double b = std::exp(-g.k4 * dt);
-      vs_ = b * vs_ + ((1.0 - b) / g.k4) * du_prev_;
-    }
-    Vec3 e1, r;
-    const Vec3 x2bar = virtual_control(e, ppc, e1, r);
-    const Vec3 x2d_dot = (x2bar - x2d_) / g.tau;  // (37) at t_k
-    const Vec3 e2 = e.omega_BD_B - x2d_;          // (27)
-    const Mat3 G = mrp_G(e.sigma_BD);
-    // (41), corrected (erratum 1): + x2d_dot
-    const Vec3 v = -e.A - g.k2 * e2 - G.transpose() * r.cwiseProduct(e1) - g.k3 * (B * vs_) -
-                   neso_.z2() + x2d_dot;
-    out.u_cmd = model_.B_pinv() * v;
-    out.e1 = e1;
-    out.e2 = e2;
-    out.z1 = neso_.z1();
-    out.z2 = neso_.z2();
-    out.x2d = x2d_;
-    out.vs = vs_;
-    x2bar_prev_ = x2bar;
-    A_prev_ = e.A;
-    x2_prev_ = e.omega_BD_B;
-  }
-
-  void law_after(const Command& out) override { du_prev_ = out.u_sat - out.u_cmd; }  // (42)
-
- private:
-  bool use_ppc_;
-  Neso neso_;
-  Vec3 x2d_ = Vec3::Zero();
-  Vec3 x2bar_prev_ = Vec3::Zero();
-  Vec4 vs_ = Vec4::Zero();
-  Vec4 du_prev_ = Vec4::Zero();
-  Vec3 A_prev_ = Vec3::Zero();
-  Vec3 x2_prev_ = Vec3::Zero();
-};
-
-class PdController final : public Controller {
- public:
-  using Controller::Controller;
-
- protected:
-  void law_reset(const TrackingErrors&, const Measurement&) override {}
-  void law_step(const TrackingErrors& e, const PpcResult&, double, Command& out) override {
-    out.u_cmd = -model_.B_pinv() * (cfg_.pd.beta1 * e.sigma_BD + cfg_.pd.beta2 * e.omega_BD_B);
-    out.e1 = e.sigma_BD;
-    out.e2 = e.omega_BD_B;
-  }
-};
-
-// Adaptive boundary-layer sliding mode (docs/CORE.md):
-//   s = x2 + c x1
-//   uc = B+ [ -A - c G(x1) x2 - k s - rho_hat sat(s / phi) ]
-//   rho_hat_dot = gain |s| - leak rho_hat   (exact with |s| held over a period)
-class RftController final : public Controller {
- public:
-  using Controller::Controller;
-
- protected:
-  void law_reset(const TrackingErrors& e, const Measurement&) override {
-    rho_ = cfg_.rft.rho0;
-    s_norm_prev_ = (e.omega_BD_B + cfg_.rft.c * e.sigma_BD).norm();
-  }
-  void law_step(const TrackingErrors& e, const PpcResult&, double dt, Command& out) override {
-    const RftGains& g = cfg_.rft;
-    if (dt > 0.0) {
-      if (g.leak > 0.0) {
-        const double a = std::exp(-g.leak * dt);
-        rho_ = a * rho_ + (1.0 - a) / g.leak * g.gain * s_norm_prev_;
-      } else {
-        rho_ += dt * g.gain * s_norm_prev_;
-      }
-    }
-    const Vec3 s = e.omega_BD_B + g.c * e.sigma_BD;
-    const Vec3 sat_s = (s / g.phi).cwiseMax(-1.0).cwiseMin(1.0);
-    const Vec3 v = -e.A - g.c * (mrp_G(e.sigma_BD) * e.omega_BD_B) - g.k * s - rho_ * sat_s;
-    out.u_cmd = model_.B_pinv() * v;
-    out.e1 = e.sigma_BD;
-    out.e2 = s;
-    out.rho_hat = rho_;
-    s_norm_prev_ = s.norm();
-  }
-
- private:
-  double rho_ = 0.0;
-  double s_norm_prev_ = 0.0;
-};
-
-}  // namespace
-
-std::unique_ptr<Controller> Controller::create(const ControllerConfig& c) {
-  switch (c.law) {
-    case Law::DscPpc: return std::make_unique<DscController>(c, true);
-    case Law::Dsc: return std::make_unique<DscController>(c, false);
-    case Law::Pd: return std::make_unique<PdController>(c);
-    case Law::Rft: return std::make_unique<RftController>(c);
-  }
-  throw std::invalid_argument("unknown law " + std::to_string(static_cast<int>(c.law)));
+  // The probe: one step at rest at t = 0 on a separate instance.
+  Measurement m;
+  const Command cmd = ctl->step(m);
+  if (cmd.flags & FLAG_LAW_INVALID)
+    out.emplace_back("law", "law " + law_label(resolve_law(ctl->law_name())) + ": returns a non-finite command (or throws) at rest (probe step at t = 0)");
+  return out;
 }
 
 }  // namespace sc_rt

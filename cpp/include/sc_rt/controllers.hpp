@@ -1,8 +1,8 @@
-// One small interface, four laws (docs/MODEL.md section 7):
-//   DSC+PPC: (36), (37), corrected (41), anti-windup (42), observer (22)
-//   DSC    : the same with e1 = x1, r = I and no chi_dot term
-//   PD     : uc = -B+ (beta1 x1 + beta2 x2)
-//   RFT    : adaptive boundary-layer sliding mode (docs/CORE.md)
+// The common controller (docs/CORE.md, docs/LAWS.md): guidance, tracking
+// errors, the PPC transform, saturation, validity and SAFE mode, around one
+// control law behind the interface of sc_rt/law.hpp, found by name in the
+// law registry (sc_rt/law_registry.hpp). The built-in laws (docs/MODEL.md
+// section 7) live in cpp/src/law_*.cpp; plugins are loaded at run time.
 // A controller is pure: it holds its states, takes a Measurement with its
 // time and returns a Command. No clocks, no I/O, no allocation in step().
 #pragma once
@@ -11,6 +11,8 @@
 #include <vector>
 
 #include "sc_rt/guidance.hpp"
+#include "sc_rt/law.hpp"
+#include "sc_rt/law_registry.hpp"
 #include "sc_rt/neso.hpp"
 #include "sc_rt/ppc.hpp"
 #include "sc_rt/spacecraft.hpp"
@@ -18,15 +20,13 @@
 
 namespace sc_rt {
 
-enum class Law : int { DscPpc = 0, Dsc = 1, Pd = 2, Rft = 3 };
-const char* law_name(Law law);
-
 // Modes and flags share their values with sc_rt_lcm::wheel_cmd_t.
 enum Mode : int { MODE_INIT = 0, MODE_NORMAL = 1, MODE_SAFE = 2 };
 enum Flags : int {
   FLAG_BOUND_X = 1, FLAG_BOUND_Y = 2, FLAG_BOUND_Z = 4,
   FLAG_SAT_1 = 8, FLAG_SAT_2 = 16, FLAG_SAT_3 = 32, FLAG_SAT_4 = 64,
   FLAG_INVALID_STATE = 128, FLAG_STALE_STATE = 256, FLAG_TIME_NOT_ADVANCING = 512,
+  FLAG_LAW_INVALID = 1024,  //!< the law returned a non-finite command or threw: SAFE
 };
 
 struct DscGains {
@@ -62,7 +62,10 @@ struct SafetyLimits {
 };
 
 struct ControllerConfig {
-  Law law = Law::DscPpc;
+  //! The law spec: a registered name or "plugin:PATH_OR_NAME" (docs/LAWS.md)
+  std::string law = kDefaultLaw;
+  //! [controller.params]: handed to the law's constructor (LawParams)
+  LawParams::Items law_params;
   double control_rate_hz = 10.0;  //!< [Hz]
   SpacecraftParams spacecraft;
   GuidanceParams guidance;
@@ -77,12 +80,7 @@ struct ControllerConfig {
 // Every problem of the configuration, each naming the key and the value.
 std::vector<std::string> validate(const ControllerConfig& c);
 
-struct Measurement {
-  double t = 0.0;                     //!< [s]
-  Vec3 sigma_BN = Vec3::Zero();       //!< [-]
-  Vec3 omega_BN_B = Vec3::Zero();     //!< [rad/s]
-  Vec4 wheel_speed = Vec4::Zero();    //!< [rad/s]
-};
+// Measurement, TrackingErrors and PpcResult: sc_rt/law.hpp.
 
 struct Command {
   double t = 0.0;                  //!< [s] time of the measurement used
@@ -102,17 +100,11 @@ struct Command {
   Vec3 x2d = Vec3::Zero();         //!< [rad/s] filtered virtual control (37)
   Vec4 vs = Vec4::Zero();          //!< anti-windup state (42)
   double rho_hat = 0.0;            //!< [rad/s^2] RFT adaptive gain
+  //! the law's named telemetry (Controller::telemetry_names())
+  std::array<double, kLawMaxTelemetry> telemetry{};
 };
 
 // Tracking errors (8)-(11) and the model terms of (21) for one measurement.
-struct TrackingErrors {
-  Vec3 sigma_BD;     //!< x1, short rotation
-  Vec3 omega_BD_B;   //!< [rad/s] x2 = omega - R(x1) omega_d
-  Mat3 R_BD;         //!< R(x1) (10)
-  Vec3 omega_DN_B;   //!< [rad/s] R(x1) omega_d
-  Vec3 A;            //!< [rad/s^2] A of (21)
-  Vec3 u_g0;         //!< [N m] nominal gravity gradient
-};
 TrackingErrors tracking_errors(const SpacecraftModel& sc, const Measurement& m,
                                const Vec3& sigma_DN, const Vec3& omega_DN_D,
                                const Vec3& omega_dot_DN_D);
@@ -120,50 +112,60 @@ TrackingErrors tracking_errors(const SpacecraftModel& sc, const Measurement& m,
 // True when every field is finite and within the safety limits.
 bool measurement_valid(const Measurement& m, const SafetyLimits& lim);
 
+// The law model of a spacecraft model (B, B+ and the limits, copied once).
+LawModel law_model(const SpacecraftModel& sc);
+
 class Controller {
  public:
+  // Resolves cfg.law in the registry (loading a plugin), constructs the law
+  // with cfg.law_params and checks that it read every parameter. Throws
+  // LawError (naming the plugin / the parameter key) or std::invalid_argument.
   explicit Controller(const ControllerConfig& c);
-  virtual ~Controller() = default;
-  Controller(const Controller&) = default;
+  Controller(const Controller&) = delete;
+  Controller& operator=(const Controller&) = delete;
 
   // Engage at m.t: guidance at t0, every internal state from the measurement
   // (or the paper's initial values). A reset mid-run equals a fresh start.
   void reset(const Measurement& m);
   // One control step at m.t >= the previous step's time. An invalid
-  // measurement gives a SAFE zero command and re-engages at the next valid one.
+  // measurement gives a SAFE zero command and re-engages at the next valid
+  // one; so does a law that returns a non-finite command (FLAG_LAW_INVALID).
   Command step(const Measurement& m);
   // Zero command in SAFE mode (for a shell whose input went stale); the next
   // valid step re-engages the law from its measurement.
   Command safe_command(double t, int flags);
 
-  Law law() const { return cfg_.law; }
+  //! The law's registry name and code (controller_status_t.law).
+  const std::string& law_name() const { return entry_.name; }
+  int law_code() const { return entry_.code; }
+  const std::vector<std::string>& telemetry_names() const { return telemetry_names_; }
   const ControllerConfig& config() const { return cfg_; }
   const SpacecraftModel& model() const { return model_; }
   double t0() const { return t0_; }
 
   static std::unique_ptr<Controller> create(const ControllerConfig& c);
 
- protected:
-  // Law hooks. e: errors at this step; dt: time since the previous step
-  // (0 at engagement); out: fill u_cmd and the law's telemetry.
-  virtual void law_reset(const TrackingErrors& e, const Measurement& m) = 0;
-  // ppc: the transform of x1 at this step (computed once, for every law).
-  virtual void law_step(const TrackingErrors& e, const PpcResult& ppc, double dt, Command& out) = 0;
-  virtual void law_after(const Command& out) { (void)out; }
-
+ private:
   ControllerConfig cfg_;
   SpacecraftModel model_;
+  LawModel law_model_;
   Guidance guidance_;
+  LawEntry entry_;
+  std::unique_ptr<ControlLaw> law_;
+  std::vector<std::string> telemetry_names_;
   double t0_ = 0.0;
   double t_prev_ = 0.0;
   bool engaged_ = false;
   bool first_ = true;
   Vec4 u_sat_prev_ = Vec4::Zero();  //!< held over the current period (ZOH)
 
- private:
-  TrackingErrors errors_at(const Measurement& m);
+  LawInput input_at(const Measurement& m, double dt);
   // Guidance to m.t, errors, the PPC transform, and their telemetry in out.
-  void observe(const Measurement& m, Command& out, TrackingErrors& e, PpcResult& ppc);
+  void observe(const Measurement& m, Command& out, LawInput& in);
 };
+
+// Construct the configured law once (and probe one step at rest) without
+// running: (key, message) per problem; key "law" or "params.<key>".
+std::vector<std::pair<std::string, std::string>> check_law(const ControllerConfig& c);
 
 }  // namespace sc_rt

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "sc_rt/law.hpp"
 #include "sc_rt/types.hpp"
 
 namespace sc_rt {
@@ -29,15 +30,7 @@ struct PpcParams {
 
 std::vector<std::string> validate(const PpcParams& p);
 
-struct PpcResult {
-  Vec3 chi;       //!< chi(t)
-  Vec3 chi_dot;   //!< [1/s] d chi / dt
-  Vec3 lambda;    //!< x1 / chi after clamping
-  Vec3 eps;       //!< (31)
-  Vec3 e1;        //!< (36)
-  Vec3 r;         //!< diagonal of r (35)
-  int violated = 0;  //!< bit i set: axis i outside its bound (lambda clamped)
-};
+// PpcResult (the transform at one time) is part of the law interface: sc_rt/law.hpp.
 
 Vec3 ppc_chi(const PpcParams& p, double t);
 Vec3 ppc_chi_dot(const PpcParams& p, double t);

@@ -50,14 +50,38 @@ from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIs
     _spec,
     _vec,
 )
+from sc_rt.scenario.guidance import (
+    FileGuidance,
+    Guidance,
+    GuidanceParams,
+    HoldGuidance,
+    SlewGuidance,
+    coverage_problem,
+    read_guidance,
+)
+from sc_rt.scenario.guidance import (
+    FileGuidance,
+    Guidance,
+    GuidanceParams,
+    HoldGuidance,
+    SlewGuidance,
+    coverage_problem,
+    read_guidance,
+)
 from sc_rt.scenario.shipped import resolve
 
 __all__ = [
     "LAWS",
     "LAW_NAMES",
+    "PLUGIN_PREFIX",
+    "law_problem",
+    "law_spec",
     "ControllerParams",
     "DscGains",
+    "FileGuidance",
+    "Guidance",
     "GuidanceParams",
+    "HoldGuidance",
     "InitialState",
     "NesoParams",
     "PdGains",
@@ -67,15 +91,19 @@ __all__ = [
     "SafetyLimits",
     "Scenario",
     "ScenarioError",
+    "SlewGuidance",
+    "SlewGuidance",
     "ScenarioIssue",
     "load_scenario",
     "scenario_from_data",
 ]
 
-# The law table: control-law names <-> sc_rt._core.Law (= controller_config_t.LAW_*),
-# from the core itself; every other module takes it from here.
-LAWS: dict[str, int] = {_core.law_name(v): int(v) for v in _core.Law.__members__.values()}
+# The law table: the core's law registry at import (the built-in laws: name ->
+# code, = controller_status_t.law); every other module takes it from here. A
+# plugin law is given as "plugin:PATH_OR_NAME" (docs/LAWS.md).
+LAWS: dict[str, int] = {name: code for code, name in enumerate(_core.law_names())}
 LAW_NAMES: dict[int, str] = {v: k for k, v in LAWS.items()}
+PLUGIN_PREFIX = "plugin:"
 
 _PAPER = _core.ControllerConfig()  # the paper's controller values (C++ defaults)
 _FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
@@ -98,7 +126,8 @@ class RunParams:
     control_rate_hz: float = field(metadata=_spec("number", gt=0))  # [Hz]
     # [s] plant integration step; the control period is an integer multiple
     plant_step: float = field(metadata=_spec("number", gt=0))
-    controller: str = field(metadata=_spec("str", choices=tuple(LAWS)))  # law name, LAWS
+    # law spec: a name of LAWS or "plugin:PATH_OR_NAME" (a plugin file's path made absolute)
+    controller: str = field(metadata=_spec("str"))
 
     @property
     def control_period(self) -> float:
@@ -118,19 +147,6 @@ class InitialState:
     sigma_BN: np.ndarray = field(metadata=_vec(3, mrp=True))  # [-] MRP, |sigma| <= 1
     omega_BN_B: np.ndarray = field(metadata=_vec(3))  # [rad/s]
     wheel_speed: np.ndarray = field(metadata=_vec(4))  # [rad/s] relative to the body
-
-
-@dataclass(frozen=True)
-class GuidanceParams:
-    """Desired trajectory (mirror of C++ sc_rt::GuidanceParams):
-    omega_DN_D(t) = omega_bias + omega_cos cos(omega_freq t) + omega_sin sin(omega_freq t).
-    """
-
-    sigma_d0: np.ndarray = field(metadata=_vec(3, mrp=True))  # [-] sigma_DN at t = 0
-    omega_bias: np.ndarray = field(metadata=_vec(3))  # [rad/s]
-    omega_cos: np.ndarray = field(metadata=_vec(3))  # [rad/s]
-    omega_sin: np.ndarray = field(metadata=_vec(3))  # [rad/s]
-    omega_freq: float = field(metadata=_spec("number", ge=0))  # [rad/s]
 
 
 @dataclass(frozen=True)
@@ -223,6 +239,9 @@ class ControllerParams:
     pinv_damping: float = field(
         default=_PAPER.spacecraft.pinv_damping, metadata=_spec("number", ge=0)
     )
+    # [controller.params]: the law's own parameters, ((key, (numbers...)), ...),
+    # handed to the law's constructor, which validates them (docs/LAWS.md)
+    law_params: tuple = field(default=(), metadata=_spec("params"))
 
 
 @dataclass(frozen=True)
@@ -236,7 +255,9 @@ class Scenario:
     plant: PlantParams
     actuators: ActuatorParams
     initial: InitialState
-    guidance: GuidanceParams
+    # the [guidance] table's kind: GuidanceParams (the paper's), HoldGuidance,
+    # SlewGuidance or FileGuidance (sc_rt.scenario.guidance)
+    guidance: Guidance
     controller: ControllerParams
     # the [montecarlo] table (sc_rt.scenario.dispersions.MonteCarloTable), None without one
     montecarlo: Any = None
@@ -249,11 +270,20 @@ class Scenario:
         Raises ScenarioError naming the override.
         """
         changes = {k: v for k, v in changes.items() if v is not None}
+        if isinstance(changes.get("controller"), str):  # a plugin file: relative to the working directory
+            changes["controller"] = law_spec(changes["controller"], Path.cwd())
         doc = _Doc(f"{self.path} (override)", {})
         run = _read_run(_Table(doc, "run", {**dataclasses.asdict(self.run), **changes}))
+        if run is not None and (problem := coverage_problem(self.guidance, run.duration)):
+            doc.error("run.duration", run.duration, problem)  # a reference file too short
         if doc.errors:
             raise ScenarioError(doc.path, doc.errors)
-        return dataclasses.replace(self, run=run)
+        scn = dataclasses.replace(self, run=run)
+        if run.controller != self.run.controller:
+            _check_law(doc, scn, "run.controller", "controller.params")
+            if doc.errors:
+                raise ScenarioError(doc.path, doc.errors)
+        return scn
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None
@@ -268,11 +298,18 @@ class Scenario:
             _, problem = _convert(value, _field_spec(RunParams, name))
             if problem:
                 raise ValueError(f"{name} {problem}, got {value!r}")
+        if problem := law_problem(law):
+            raise ValueError(f"controller {problem}, got {law!r}")
         p, a, g, c = self.plant, self.actuators, self.guidance, self.controller
         m = controller_config_t()
         m.utime = time.time_ns() // 1000
         m.scenario = self.name
-        m.law = LAWS[law]
+        m.law = law
+        m.n_law_params = len(c.law_params)
+        m.law_param_keys = [k for k, _ in c.law_params]
+        m.law_param_len = [len(v) for _, v in c.law_params]
+        m.law_param_values = [float(x) for _, v in c.law_params for x in v]
+        m.n_law_param_values = len(m.law_param_values)
         m.control_rate_hz = float(rate)
         m.J0 = p.J0.tolist()
         m.Cbar = p.Cbar.tolist()
@@ -280,11 +317,7 @@ class Scenario:
         m.umin = a.umin.tolist()
         m.umax = a.umax.tolist()
         m.w0 = float(p.w0)
-        m.sigma_d0 = g.sigma_d0.tolist()
-        m.omega_d_bias = g.omega_bias.tolist()
-        m.omega_d_cos = g.omega_cos.tolist()
-        m.omega_d_sin = g.omega_sin.tolist()
-        m.omega_d_freq = float(g.omega_freq)
+        g.fill_config(m)
         # The wire names are the field names with a prefix (safety: none).
         for prefix, group in (("ppc_", c.ppc), ("neso_", c.neso), ("dsc_", c.dsc),
                               ("pd_", c.pd), ("rft_", c.rft), ("", c.safety)):  # fmt: skip
@@ -303,8 +336,76 @@ class Scenario:
         return _core.ControllerConfig.from_lcm_bytes(msg.encode())
 
 
+def law_spec(spec: str, base: Path) -> str:
+    """``spec`` with a relative plugin file path made absolute against ``base``
+    (a path: has a "/" or ends in ".so"; a plugin name is searched in
+    SCRT_LAW_PATH by the core)."""
+    if not spec.startswith(PLUGIN_PREFIX):
+        return spec
+    target = spec[len(PLUGIN_PREFIX):]
+    if ("/" in target or target.endswith(".so")) and not Path(target).is_absolute():
+        return PLUGIN_PREFIX + str((base / target).resolve())
+    return spec
+
+
+def law_problem(spec: Any) -> str:
+    """Why ``spec`` cannot name a law ("" if it can: a name of LAWS or of a
+    loaded plugin, or "plugin:PATH_OR_NAME"; the plugin itself is checked by
+    :func:`check_law`)."""
+    if not isinstance(spec, str):
+        return "must be a string"
+    if spec.startswith(PLUGIN_PREFIX):
+        return "" if spec[len(PLUGIN_PREFIX):] else "plugin: needs a library path or name"
+    if spec in LAWS or spec in _core.law_names():
+        return ""
+    return ("must be one of " + ", ".join(f'"{n}"' for n in _core.law_names())
+            + ' or "plugin:PATH_OR_NAME" (docs/LAWS.md)')
+
+
+def _check_law(doc: _Doc, scn: Scenario, law_key: str, params_key: str) -> None:
+    """Load and construct the scenario's law once (a plugin, or any law given
+    parameters), probe one step at rest: its problems as scenario errors on
+    ``law_key`` / ``params_key.<key>``."""
+    c = scn.controller
+    if not (scn.run.controller.startswith(PLUGIN_PREFIX) or c.law_params):
+        return
+    try:
+        issues = _core.check_law(scn.core_config())
+    except ValueError as e:  # the config itself (LCM translation)
+        issues = [("law", str(e))]
+    params = dict(c.law_params)
+    for key, message in issues:
+        if key.startswith("params."):
+            name = key[len("params."):]
+            value = params.get(name)
+            doc.error(f"{params_key}.{name}", None if value is None else _param_value(value), message)
+        else:
+            doc.error(law_key, scn.run.controller, message)
+
+
+def _param_value(v: tuple) -> Any:
+    return v[0] if len(v) == 1 else list(v)
+
+
+def _read_params(t: _Table) -> tuple | None:
+    """[controller.params]: every value a number or a list of numbers."""
+    items, ok = [], True
+    for name, value in (t.data or {}).items():
+        t.used.add(name)
+        vals = value if isinstance(value, list) else [value]
+        if not vals or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in vals):
+            t.fail(name, f"{name} must be a number or a list of numbers (a law parameter)")
+            ok = False
+            continue
+        items.append((name, tuple(float(x) for x in vals)))
+    return tuple(items) if ok else None
+
+
 def _read_run(t: _Table) -> RunParams | None:
     v = _read_values(t, RunParams)
+    if v["controller"] is not None and (problem := law_problem(v["controller"])):
+        t.fail("controller", f"controller {problem}")
+        v["controller"] = None
     rate, step = v["control_rate_hz"], v["plant_step"]
     if rate is not None and step is not None:
         n = 1.0 / (rate * step)  # plant steps per control period
@@ -479,21 +580,46 @@ def _read_controller(t: _Table) -> ControllerParams | None:
         groups[name] = _read_fields(t.sub(name, required=False), cls)
     damping = t.read("pinv_damping", _field_spec(ControllerParams, "pinv_damping"),
                      default=_PAPER.spacecraft.pinv_damping)  # fmt: skip
+    params = _read_params(t.sub("params", required=False))
+    t.used.add("law")  # read by _read_scenario
     t.finish()
-    if damping is None or any(v is None for v in groups.values()):
+    if damping is None or params is None or any(v is None for v in groups.values()):
         return None
-    return ControllerParams(**groups, pinv_damping=damping)
+    return ControllerParams(**groups, pinv_damping=damping, law_params=params)
 
 
 def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | None:
     root = _Table(doc, "", data)
     name = root.read("name", _Spec("str"), default=path.stem)
     description = root.read("description", _Spec("str"), default="")
-    run = _read_run(root.sub("run"))
+    # The law: [controller] law, or the older [run] controller (one of them).
+    ctl_data = data.get("controller") if isinstance(data.get("controller"), dict) else {}
+    law = ctl_data.get("law")
+    run_table = root.sub("run")
+    if law is not None:
+        law_table = _Table(doc, "controller", ctl_data)
+        if run_table.has("controller") and run_table.raw("controller") != law:
+            law_table.fail("law", f'give the law once: [controller] law or [run] controller '
+                                  f'(= {_fmt(run_table.raw("controller"))}), not both')
+            law = None
+        elif problem := law_problem(law):
+            law_table.fail("law", f"law {problem}")
+            law = None
+        else:
+            law = law_spec(law, path.parent)
+        if run_table.data is not None:  # read the rest of [run] with a valid placeholder
+            run_table = _Table(doc, "run", {**run_table.data, "controller": next(iter(LAWS))})
+    run = _read_run(run_table)
+    if run is not None and law is not None:
+        run = dataclasses.replace(run, controller=law)
+    elif run is not None and "law" in ctl_data:
+        run = None  # the bad [controller] law (reported)
+    elif run is not None:
+        run = dataclasses.replace(run, controller=law_spec(run.controller, path.parent))
     plant, actuators = _read_spacecraft(root.sub("spacecraft"), root.sub("disturbance"))
     initial_table = root.sub("initial")
     initial = _read_fields(initial_table, InitialState)
-    guidance = _read_fields(root.sub("guidance"), GuidanceParams)
+    guidance = read_guidance(root.sub("guidance"), run.duration if run else None, path.parent)
     controller = _read_controller(root.sub("controller", required=False))
     faults = _read_faults(root)
     montecarlo = root.sub("montecarlo", required=False)  # read last: it names the others' keys
@@ -519,6 +645,10 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
         guidance=guidance,
         controller=controller,
     )
+    _check_law(doc, scenario, "controller.law" if "law" in ctl_data else "run.controller",
+               "controller.params")
+    if doc.errors:
+        return None
     return dataclasses.replace(scenario, montecarlo=read_montecarlo(montecarlo, scenario))
 
 

@@ -1,0 +1,56 @@
+// The law registry (docs/LAWS.md section 2): names -> factories. The
+// built-in laws register themselves (cpp/src/law_*.cpp); a plugin library is
+// loaded (dlopen) and checked (interface version, ABI fingerprint) by
+// load_law_plugin and registers the name it declares. Thread-safe.
+#pragma once
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "sc_rt/law.hpp"
+
+namespace sc_rt {
+
+//! The law of a default ControllerConfig (the paper's).
+extern const char* const kDefaultLaw;
+//! The prefix of a plugin spec: "plugin:PATH_OR_NAME".
+extern const char* const kPluginPrefix;
+
+using LawFactory = std::function<std::unique_ptr<ControlLaw>(const LawSetup&)>;
+
+struct LawEntry {
+  std::string name;    //!< registry name
+  std::string doc;     //!< one line
+  std::string source;  //!< "built-in" or the plugin library's path
+  int code = -1;       //!< registry order (controller_status_t.law)
+  LawFactory create;
+};
+
+// A bad law spec, plugin or parameter. key(): "law" or "params.<key>";
+// detail(): the problem without the law's name (what() has both).
+class LawError : public std::invalid_argument {
+ public:
+  LawError(std::string key, const std::string& what, std::string detail)
+      : std::invalid_argument(what), key_(std::move(key)), detail_(std::move(detail)) {}
+  const std::string& key() const { return key_; }
+  const std::string& detail() const { return detail_; }
+
+ private:
+  std::string key_, detail_;
+};
+
+// Register a law under a new name (std::invalid_argument if taken).
+void register_law(const std::string& name, const std::string& doc, LawFactory create);
+// Every registered name, registry order (the built-ins first).
+std::vector<std::string> law_names();
+// The entry of a registered name, or of "plugin:PATH_OR_NAME" (loaded on
+// first use). Throws LawError.
+LawEntry resolve_law(const std::string& spec);
+// Load a plugin library (a path, or a name searched in SCRT_LAW_PATH as
+// libNAME.so / NAME.so); returns its law name. Loading the same file again
+// returns the same name. Throws LawError naming the plugin and the problem.
+std::string load_law_plugin(const std::string& path_or_name);
+
+}  // namespace sc_rt

@@ -1,0 +1,188 @@
+#include "sc_rt/law_registry.hpp"
+
+#include <dlfcn.h>
+#include <limits.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+
+#include <cstring>
+#include <map>
+#include <mutex>
+
+namespace sc_rt {
+
+const char* const kDefaultLaw = "dsc-ppc";
+const char* const kPluginPrefix = "plugin:";
+
+// The built-in laws, each registered by its own file (in this order: the
+// codes 0..3 of controller_status_t.law).
+void register_dsc_laws();  // law_dsc.cpp: dsc-ppc, dsc
+void register_pd_law();    // law_pd.cpp: pd
+void register_rft_law();   // law_rft.cpp: rft
+
+namespace {
+
+struct Registry {
+  std::recursive_mutex mu;
+  std::vector<LawEntry> entries;
+  std::map<std::string, std::string> loaded;  // real path -> law name
+  bool builtins = false;
+};
+
+Registry& registry() {
+  static Registry r;
+  std::lock_guard<std::recursive_mutex> lock(r.mu);
+  if (!r.builtins) {
+    r.builtins = true;
+    register_dsc_laws();
+    register_pd_law();
+    register_rft_law();
+  }
+  return r;
+}
+
+const LawEntry* find(Registry& r, const std::string& name) {
+  for (const LawEntry& e : r.entries)
+    if (e.name == name) return &e;
+  return nullptr;
+}
+
+bool is_file(const std::string& p) {
+  struct stat st;
+  return ::stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+std::string fail_prefix(const std::string& spec) { return std::string("law ") + kPluginPrefix + spec + ": "; }
+
+[[noreturn]] void fail(const std::string& spec, const std::string& detail) {
+  throw LawError("law", fail_prefix(spec) + detail, detail);
+}
+
+// The file of a plugin spec: a path (it has a '/' or ends in .so), else a
+// name searched in SCRT_LAW_PATH.
+std::string locate(const std::string& spec) {
+  const bool path = spec.find('/') != std::string::npos ||
+                    (spec.size() > 3 && spec.compare(spec.size() - 3, 3, ".so") == 0);
+  if (path) {
+    if (!is_file(spec)) fail(spec, "no such file " + spec);
+    return spec;
+  }
+  const char* env = std::getenv("SCRT_LAW_PATH");
+  const std::string dirs = env ? env : "";
+  std::size_t a = 0;
+  while (a <= dirs.size()) {
+    std::size_t b = dirs.find(':', a);
+    if (b == std::string::npos) b = dirs.size();
+    const std::string d = dirs.substr(a, b - a);
+    if (!d.empty())
+      for (const std::string& f : {d + "/lib" + spec + ".so", d + "/" + spec + ".so"})
+        if (is_file(f)) return f;
+    a = b + 1;
+  }
+  fail(spec, "not found: no lib" + spec + ".so or " + spec + ".so in SCRT_LAW_PATH (" +
+                 (dirs.empty() ? std::string("unset") : dirs) + ")");
+}
+
+}  // namespace
+
+void register_law(const std::string& name, const std::string& doc, LawFactory create) {
+  // Also called by the built-ins from inside registry() (recursive mutex).
+  Registry& reg = registry();
+  std::lock_guard<std::recursive_mutex> lock(reg.mu);
+  if (name.empty() || name.find(':') != std::string::npos || name.find('/') != std::string::npos)
+    throw std::invalid_argument("law name must be non-empty without ':' or '/', got \"" + name + "\"");
+  if (const LawEntry* e = find(reg, name))
+    throw std::invalid_argument("law \"" + name + "\" is already registered (" + e->source + ")");
+  LawEntry e;
+  e.name = name;
+  e.doc = doc;
+  e.source = "built-in";
+  e.code = static_cast<int>(reg.entries.size());
+  e.create = std::move(create);
+  reg.entries.push_back(std::move(e));
+}
+
+std::vector<std::string> law_names() {
+  Registry& r = registry();
+  std::lock_guard<std::recursive_mutex> lock(r.mu);
+  std::vector<std::string> out;
+  for (const LawEntry& e : r.entries) out.push_back(e.name);
+  return out;
+}
+
+std::string load_law_plugin(const std::string& spec) {
+  Registry& r = registry();
+  std::lock_guard<std::recursive_mutex> lock(r.mu);
+  const std::string file = locate(spec);
+  char buf[PATH_MAX];
+  const std::string real = ::realpath(file.c_str(), buf) ? std::string(buf) : file;
+  if (auto it = r.loaded.find(real); it != r.loaded.end()) return it->second;
+  // RTLD_NOW: an unresolved symbol is reported here, not mid-run.
+  void* h = ::dlopen(real.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (!h) {
+    const char* err = ::dlerror();
+    fail(spec, "cannot load " + real + ": " + (err ? err : "dlopen failed"));
+  }
+  using VersionFn = int (*)();
+  using InfoFn = const LawPluginInfo* (*)();
+  auto version = reinterpret_cast<VersionFn>(::dlsym(h, SC_RT_LAW_ENTRY_VERSION));
+  if (!version) {
+    ::dlclose(h);
+    fail(spec, real + " has no " SC_RT_LAW_ENTRY_VERSION "(): not an sc-rt law plugin "
+                      "(SC_RT_LAW_PLUGIN(...) in one source file, docs/LAWS.md)");
+  }
+  const int v = version();
+  if (v != SC_RT_LAW_API_VERSION) {
+    ::dlclose(h);
+    fail(spec, "built against law interface version " + std::to_string(v) +
+                   ", this sc-rt has " + std::to_string(SC_RT_LAW_API_VERSION) +
+                   ": rebuild it against this sc-rt (-DCMAKE_PREFIX_PATH=$(sc-rt --cmake-dir))");
+  }
+  auto info_fn = reinterpret_cast<InfoFn>(::dlsym(h, SC_RT_LAW_ENTRY_INFO));
+  const LawPluginInfo* info = info_fn ? info_fn() : nullptr;
+  if (!info || !info->create || !info->name || !info->fingerprint) {
+    ::dlclose(h);
+    fail(spec, real + " has no usable " SC_RT_LAW_ENTRY_INFO "(): not an sc-rt law plugin");
+  }
+  if (std::strcmp(info->fingerprint, SC_RT_LAW_FINGERPRINT) != 0) {
+    const std::string fp = info->fingerprint;
+    ::dlclose(h);
+    fail(spec, "built with \"" + fp + "\", this sc-rt has \"" SC_RT_LAW_FINGERPRINT
+                   "\": rebuild it with the same compiler and flags");
+  }
+  const std::string name = info->name;
+  if (const LawEntry* e = find(r, name)) {
+    ::dlclose(h);
+    fail(spec, "its law name \"" + name + "\" is already registered (" + e->source + ")");
+  }
+  // The library stays loaded for the process's lifetime (laws may outlive any handle).
+  auto create = info->create;
+  register_law(name, info->doc ? info->doc : "", [create](const LawSetup& s) {
+    return std::unique_ptr<ControlLaw>(create(s));
+  });
+  r.entries.back().source = real;
+  r.loaded[real] = name;
+  return name;
+}
+
+LawEntry resolve_law(const std::string& spec) {
+  Registry& r = registry();
+  std::lock_guard<std::recursive_mutex> lock(r.mu);
+  const std::size_t n = std::strlen(kPluginPrefix);
+  std::string name = spec;
+  if (spec.compare(0, n, kPluginPrefix) == 0) {
+    if (spec.size() == n) fail("", "empty plugin path or name");
+    name = load_law_plugin(spec.substr(n));
+  }
+  const LawEntry* e = find(r, name);
+  if (!e) {
+    std::string known;
+    for (const LawEntry& x : r.entries) known += (known.empty() ? "" : ", ") + x.name;
+    const std::string detail = "unknown law \"" + spec + "\" (registered: " + known +
+                               "; a plugin: plugin:PATH_OR_NAME)";
+    throw LawError("law", detail, detail);
+  }
+  return *e;
+}
+
+}  // namespace sc_rt
