@@ -162,17 +162,39 @@ PYBIND11_MODULE(_core, m) {
         "Gravity-gradient torque (5),(6) [N m].");
 
   // --- guidance
+  py::enum_<GuidanceKind>(m, "GuidanceKind", "= controller_config_t.GUIDANCE_*")
+      .value("Paper", GuidanceKind::Paper)
+      .value("Hold", GuidanceKind::Hold)
+      .value("Slew", GuidanceKind::Slew)
+      .value("Table", GuidanceKind::Table);
+  m.def("guidance_kind_name", &guidance_kind_name, arg("kind"));
+  m.attr("GUIDANCE_TABLE_MAX") = kGuidanceTableMax;
   py::class_<GuidanceParams>(m, "GuidanceParams",
-                             "omega_DN_D(t) = bias + cos_amp cos(freq t) + sin_amp sin(freq t)")
+                             "The desired trajectory: the paper's omega_DN_D(t) = bias + cos_amp "
+                             "cos(freq t) + sin_amp sin(freq t) (kind Paper), a hold, a slew or a table")
       .def(py::init<>())
-      .def_readwrite("sigma_d0", &GuidanceParams::sigma_d0, "[-] sigma_DN(0)")
+      .def_readwrite("kind", &GuidanceParams::kind)
+      .def_readwrite("sigma_d0", &GuidanceParams::sigma_d0,
+                     "[-] sigma_DN(0) (Paper), the held attitude (Hold), the start (Slew)")
       .def_readwrite("omega_bias", &GuidanceParams::omega_bias, "[rad/s]")
       .def_readwrite("omega_cos", &GuidanceParams::omega_cos, "[rad/s]")
       .def_readwrite("omega_sin", &GuidanceParams::omega_sin, "[rad/s]")
-      .def_readwrite("omega_freq", &GuidanceParams::omega_freq, "[rad/s]");
+      .def_readwrite("omega_freq", &GuidanceParams::omega_freq, "[rad/s]")
+      .def_readwrite("slew_target", &GuidanceParams::slew_target, "[-] sigma_DN after the slew")
+      .def_readwrite("slew_start", &GuidanceParams::slew_start, "[s]")
+      .def_readwrite("slew_duration", &GuidanceParams::slew_duration, "[s]")
+      .def_readwrite("table_t", &GuidanceParams::table_t, "[s] sample times (n,)")
+      .def_readwrite("table_sigma", &GuidanceParams::table_sigma, "[-] sigma_DN samples (n, 3)")
+      .def_readwrite("table_omega", &GuidanceParams::table_omega, "[rad/s] omega_DN_D samples (n, 3)");
   m.def("validate", py::overload_cast<const GuidanceParams&>(&validate), arg("p"));
   m.def("omega_d", &omega_d, arg("p"), arg("t"), "omega_DN_D(t) [rad/s].");
   m.def("omega_d_dot", &omega_d_dot, arg("p"), arg("t"), "d omega_DN_D / dt [rad/s^2].");
+  m.def("guidance_integrated", &guidance_integrated, arg("p"),
+        "True for the paper's kind (sigma_DN integrated), False for the closed forms.");
+  m.def("sigma_d", &sigma_d, arg("p"), arg("t"),
+        "sigma_DN(t) of a closed-form kind (Hold, Slew, Table); ValueError for Paper.");
+  m.def("slew_axis", &slew_axis, arg("p"), "Eigenaxis of the slew (zero for no rotation).");
+  m.def("slew_angle", &slew_angle, arg("p"), "[rad] angle of the slew, in [0, pi].");
   m.def("guidance_rk4_step", &guidance_rk4_step, arg("p"), arg("sigma"), arg("t"), arg("h"),
         "One RK4 step of the desired attitude from t to t + h [s].");
   py::class_<Guidance>(m, "Guidance", "Desired attitude on the controller's time line.")
@@ -180,7 +202,8 @@ PYBIND11_MODULE(_core, m) {
       .def("reset", &Guidance::reset, arg("t0"))
       .def("advance", &Guidance::advance, arg("t"))
       .def_property_readonly("t", &Guidance::t)
-      .def_property_readonly("sigma_DN", &Guidance::sigma_DN);
+      .def_property_readonly("sigma_DN", &Guidance::sigma_DN)
+      .def_property_readonly("params", &Guidance::params);
 
   // --- NESO (22)
   py::class_<NesoParams>(m, "NesoParams", "Observer (22) gains; defaults are the paper's.")

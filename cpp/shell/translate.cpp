@@ -49,6 +49,26 @@ ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   g.omega_cos = vec(m.omega_d_cos);
   g.omega_sin = vec(m.omega_d_sin);
   g.omega_freq = m.omega_d_freq;
+  if (m.guidance_kind < 0 || m.guidance_kind > 3)
+    throw std::invalid_argument("controller_config_t.guidance_kind must be 0..3, got " +
+                                std::to_string(m.guidance_kind));
+  g.kind = static_cast<GuidanceKind>(m.guidance_kind);
+  g.slew_target = vec(m.slew_target);
+  g.slew_start = m.slew_start;
+  g.slew_duration = m.slew_duration;
+  if (m.ref_n < 0 || m.ref_n > kGuidanceTableMax)
+    throw std::invalid_argument("controller_config_t.ref_n must be 0.." +
+                                std::to_string(kGuidanceTableMax) + ", got " + std::to_string(m.ref_n));
+  g.table_t.resize(m.ref_n);
+  g.table_sigma.resize(m.ref_n, 3);
+  g.table_omega.resize(m.ref_n, 3);
+  for (int k = 0; k < m.ref_n; ++k) {
+    g.table_t(k) = m.ref_t[k];
+    for (int i = 0; i < 3; ++i) {
+      g.table_sigma(k, i) = m.ref_sigma[k][i];
+      g.table_omega(k, i) = m.ref_omega[k][i];
+    }
+  }
   PpcParams& p = c.ppc;
   p.chi0 = vec(m.ppc_chi0);
   p.chiinf = vec(m.ppc_chiinf);
@@ -98,6 +118,21 @@ sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const st
   put(m.omega_d_cos, c.guidance.omega_cos);
   put(m.omega_d_sin, c.guidance.omega_sin);
   m.omega_d_freq = c.guidance.omega_freq;
+  const GuidanceParams& g = c.guidance;
+  m.guidance_kind = static_cast<int8_t>(g.kind);
+  put(m.slew_target, g.slew_target);
+  m.slew_start = g.slew_start;
+  m.slew_duration = g.slew_duration;
+  m.ref_n = static_cast<int32_t>(g.table_t.size());
+  m.ref_t.assign(g.table_t.data(), g.table_t.data() + g.table_t.size());
+  m.ref_sigma.assign(m.ref_n, std::vector<double>(3, 0.0));
+  m.ref_omega.assign(m.ref_n, std::vector<double>(3, 0.0));
+  for (int k = 0; k < m.ref_n && k < g.table_sigma.rows() && k < g.table_omega.rows(); ++k) {
+    for (int i = 0; i < 3; ++i) {
+      m.ref_sigma[k][i] = g.table_sigma(k, i);
+      m.ref_omega[k][i] = g.table_omega(k, i);
+    }
+  }
   put(m.ppc_chi0, c.ppc.chi0);
   put(m.ppc_chiinf, c.ppc.chiinf);
   put(m.ppc_gamma, c.ppc.gamma);

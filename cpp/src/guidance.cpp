@@ -1,5 +1,6 @@
 #include "sc_rt/guidance.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -8,23 +9,189 @@
 
 namespace sc_rt {
 
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+// The MRP of R(rel) R(base): the rotation rel after base (short set).
+Vec3 compose(const Vec3& rel, const Vec3& base) { return mrp_subtract(rel, -base); }
+
+// Slew angle theta(t) [rad], its rate and acceleration, cycloidal profile.
+struct SlewAngle {
+  double theta, rate, accel;
+};
+SlewAngle slew_profile(const GuidanceParams& p, double phi, double t) {
+  if (!(t > p.slew_start)) return {0.0, 0.0, 0.0};
+  const double T = p.slew_duration;
+  const double s = (t - p.slew_start) / T;
+  if (s >= 1.0) return {phi, 0.0, 0.0};
+  const double w = 2.0 * kPi * s;
+  return {phi * (s - std::sin(w) / (2.0 * kPi)), phi / T * (1.0 - std::cos(w)),
+          2.0 * kPi * phi / (T * T) * std::sin(w)};
+}
+
+int table_size(const GuidanceParams& p) { return static_cast<int>(p.table_t.size()); }
+
+// k with t_k <= t < t_k+1, for t_0 <= t < t_n-1.
+int table_segment(const GuidanceParams& p, double t) {
+  const double* b = p.table_t.data();
+  const double* e = b + p.table_t.size();
+  return static_cast<int>(std::upper_bound(b, e, t) - b) - 1;
+}
+
+void append_vec3_errors(std::vector<std::string>& errs, const std::string& what, const MatX3& m,
+                        bool mrp) {
+  for (Eigen::Index k = 0; k < m.rows(); ++k) {
+    const Vec3 v = m.row(k).transpose();
+    if (!v.allFinite() || (mrp && v.norm() > 1.0 + 1e-12)) {
+      errs.push_back(what + " sample " + std::to_string(k) + " must be finite" +
+                     (mrp ? " with |sigma| <= 1" : "") + ", got " + format_matrix(v));
+      return;
+    }
+  }
+}
+}  // namespace
+
+const char* guidance_kind_name(GuidanceKind k) {
+  switch (k) {
+    case GuidanceKind::Paper: return "paper";
+    case GuidanceKind::Hold: return "hold";
+    case GuidanceKind::Slew: return "slew";
+    case GuidanceKind::Table: return "table";
+  }
+  return "unknown";
+}
+
 std::vector<std::string> validate(const GuidanceParams& p) {
   std::vector<std::string> errs;
-  if (!p.sigma_d0.allFinite() || p.sigma_d0.norm() > 1.0 + 1e-12)
+  const int kind = static_cast<int>(p.kind);
+  if (kind < 0 || kind > 3) {
+    errs.push_back("guidance kind must be 0..3 (paper, hold, slew, table), got " + std::to_string(kind));
+    return errs;
+  }
+  if (p.kind != GuidanceKind::Table &&
+      (!p.sigma_d0.allFinite() || p.sigma_d0.norm() > 1.0 + 1e-12))
     errs.push_back("sigma_d0 must be finite with |sigma_d0| <= 1, got " + format_matrix(p.sigma_d0));
-  if (!(p.omega_bias.allFinite() && p.omega_cos.allFinite() && p.omega_sin.allFinite()))
-    errs.push_back("omega_d amplitudes must be finite");
-  if (!std::isfinite(p.omega_freq))
-    errs.push_back("omega_d frequency must be finite, got " + format_double(p.omega_freq));
+  if (p.kind == GuidanceKind::Paper) {
+    if (!(p.omega_bias.allFinite() && p.omega_cos.allFinite() && p.omega_sin.allFinite()))
+      errs.push_back("omega_d amplitudes must be finite");
+    if (!std::isfinite(p.omega_freq))
+      errs.push_back("omega_d frequency must be finite, got " + format_double(p.omega_freq));
+  }
+  if (p.kind == GuidanceKind::Slew) {
+    if (!p.slew_target.allFinite() || p.slew_target.norm() > 1.0 + 1e-12)
+      errs.push_back("slew_target must be finite with |slew_target| <= 1, got " +
+                     format_matrix(p.slew_target));
+    if (!std::isfinite(p.slew_start))
+      errs.push_back("slew_start must be finite, got " + format_double(p.slew_start));
+    if (!(p.slew_duration > 0.0 && std::isfinite(p.slew_duration)))
+      errs.push_back("slew_duration must be > 0 and finite, got " + format_double(p.slew_duration));
+  }
+  if (p.kind == GuidanceKind::Table) {
+    const int n = table_size(p);
+    if (n < 2 || n > kGuidanceTableMax) {
+      errs.push_back("a table reference needs 2.." + std::to_string(kGuidanceTableMax) +
+                     " samples, got " + std::to_string(n));
+      return errs;
+    }
+    if (p.table_sigma.rows() != n || p.table_omega.rows() != n) {
+      errs.push_back("table_sigma and table_omega must have one row per time (" + std::to_string(n) +
+                     "), got " + std::to_string(p.table_sigma.rows()) + " and " +
+                     std::to_string(p.table_omega.rows()));
+      return errs;
+    }
+    for (int k = 0; k < n; ++k) {
+      if (!std::isfinite(p.table_t(k)) || (k > 0 && !(p.table_t(k) > p.table_t(k - 1)))) {
+        errs.push_back("table_t must be finite and strictly increasing, got " +
+                       format_double(p.table_t(k)) + " at sample " + std::to_string(k));
+        break;
+      }
+    }
+    append_vec3_errors(errs, "table_sigma", p.table_sigma, true);
+    append_vec3_errors(errs, "table_omega", p.table_omega, false);
+  }
   return errs;
 }
 
+bool guidance_integrated(const GuidanceParams& p) { return p.kind == GuidanceKind::Paper; }
+
+Vec3 slew_axis(const GuidanceParams& p) {
+  const Vec3 d = mrp_subtract(p.slew_target, p.sigma_d0);
+  const double n = d.norm();
+  return n > 0.0 ? Vec3(d / n) : Vec3(Vec3::Zero());
+}
+
+double slew_angle(const GuidanceParams& p) {
+  return 4.0 * std::atan(mrp_subtract(p.slew_target, p.sigma_d0).norm());
+}
+
+Vec3 sigma_d(const GuidanceParams& p, double t) {
+  switch (p.kind) {
+    case GuidanceKind::Hold:
+      return p.sigma_d0;
+    case GuidanceKind::Slew: {
+      if (!(t > p.slew_start)) return p.sigma_d0;
+      if (t >= p.slew_start + p.slew_duration) return mrp_short(p.slew_target);
+      const SlewAngle a = slew_profile(p, slew_angle(p), t);
+      return compose(std::tan(0.25 * a.theta) * slew_axis(p), p.sigma_d0);
+    }
+    case GuidanceKind::Table: {
+      const int n = table_size(p);
+      if (!(t > p.table_t(0))) return p.table_sigma.row(0).transpose();
+      if (t >= p.table_t(n - 1)) return p.table_sigma.row(n - 1).transpose();
+      const int k = table_segment(p, t);
+      const Vec3 s0 = p.table_sigma.row(k).transpose();
+      const Vec3 d = mrp_subtract(p.table_sigma.row(k + 1).transpose(), s0);
+      const double nd = d.norm();
+      if (nd == 0.0) return s0;
+      // SLERP: the fraction tau of the short rotation's angle 4 atan|d|
+      const double tau = (t - p.table_t(k)) / (p.table_t(k + 1) - p.table_t(k));
+      return compose((std::tan(tau * std::atan(nd)) / nd) * d, s0);
+    }
+    case GuidanceKind::Paper:
+      break;
+  }
+  throw std::invalid_argument(
+      "sigma_d: the paper's reference is integrated, not a closed form (use Guidance)");
+}
+
 Vec3 omega_d(const GuidanceParams& p, double t) {
+  switch (p.kind) {
+    case GuidanceKind::Hold:
+      return Vec3::Zero();
+    case GuidanceKind::Slew:
+      return slew_profile(p, slew_angle(p), t).rate * slew_axis(p);
+    case GuidanceKind::Table: {
+      const int n = table_size(p);
+      if (t < p.table_t(0) || t > p.table_t(n - 1)) return Vec3::Zero();
+      if (t == p.table_t(n - 1)) return p.table_omega.row(n - 1).transpose();
+      const int k = table_segment(p, t);
+      const double tau = (t - p.table_t(k)) / (p.table_t(k + 1) - p.table_t(k));
+      const Vec3 w0 = p.table_omega.row(k).transpose();
+      return w0 + tau * (Vec3(p.table_omega.row(k + 1).transpose()) - w0);
+    }
+    case GuidanceKind::Paper:
+      break;
+  }
   const double w = p.omega_freq;
   return p.omega_bias + p.omega_cos * std::cos(w * t) + p.omega_sin * std::sin(w * t);
 }
 
 Vec3 omega_d_dot(const GuidanceParams& p, double t) {
+  switch (p.kind) {
+    case GuidanceKind::Hold:
+      return Vec3::Zero();
+    case GuidanceKind::Slew:
+      return slew_profile(p, slew_angle(p), t).accel * slew_axis(p);
+    case GuidanceKind::Table: {
+      const int n = table_size(p);
+      if (t < p.table_t(0) || t > p.table_t(n - 1)) return Vec3::Zero();
+      const int k = std::min(table_segment(p, t), n - 2);  // t_n-1: the last segment's slope
+      return (Vec3(p.table_omega.row(k + 1).transpose()) - Vec3(p.table_omega.row(k).transpose())) /
+             (p.table_t(k + 1) - p.table_t(k));
+    }
+    case GuidanceKind::Paper:
+      break;
+  }
   const double w = p.omega_freq;
   return w * (-p.omega_cos * std::sin(w * t) + p.omega_sin * std::cos(w * t));
 }
@@ -42,10 +209,15 @@ Guidance::Guidance(const GuidanceParams& p, double max_step) : p_(p), max_step_(
   throw_if_errors("GuidanceParams", validate(p));
   if (!(max_step > 0.0 && std::isfinite(max_step)))
     throw std::invalid_argument("Guidance max_step must be > 0, got " + format_double(max_step));
-  sigma_ = p_.sigma_d0;
+  sigma_ = guidance_integrated(p_) ? p_.sigma_d0 : sigma_d(p_, 0.0);
 }
 
 void Guidance::reset(double t0) {
+  if (!guidance_integrated(p_)) {
+    t_ = t0;
+    sigma_ = sigma_d(p_, t0);
+    return;
+  }
   t_ = 0.0;
   sigma_ = p_.sigma_d0;
   if (t0 > 0.0) advance(t0);
@@ -54,6 +226,11 @@ void Guidance::reset(double t0) {
 
 void Guidance::advance(double t) {
   if (!(t > t_)) return;
+  if (!guidance_integrated(p_)) {
+    sigma_ = sigma_d(p_, t);
+    t_ = t;
+    return;
+  }
   const double span = t - t_;
   const int n = static_cast<int>(std::ceil(span / max_step_ - 1e-9));
   const double h = span / (n < 1 ? 1 : n);

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DscGains', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceParams', 'InputGate', 'Law', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'SafetyLimits', 'SpacecraftModel', 'SpacecraftParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_rk4_step', 'law_name', 'lumped_disturbance', 'measurement_valid', 'mrp_G', 'mrp_G_inverse', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_steps', 'sig_pow', 'simulate_closed_loop', 'skew', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DscGains', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -93,10 +93,64 @@ class SpacecraftModel:
     @property
     def params(self) -> SpacecraftParams:
         ...
+class GuidanceKind:
+    """
+    = controller_config_t.GUIDANCE_*
+    
+    Members:
+    
+      Paper
+    
+      Hold
+    
+      Slew
+    
+      Table
+    """
+    Hold: typing.ClassVar[GuidanceKind]
+    Paper: typing.ClassVar[GuidanceKind]
+    Slew: typing.ClassVar[GuidanceKind]
+    Table: typing.ClassVar[GuidanceKind]
+    __members__: typing.ClassVar[dict[str, GuidanceKind]]
+    @typing.overload
+    def __eq__(self, other: GuidanceKind) -> bool:
+        ...
+    @typing.overload
+    def __eq__(self, other: typing.Any) -> bool:
+        ...
+    def __getstate__(self) -> int:
+        ...
+    def __hash__(self) -> int:
+        ...
+    def __index__(self) -> int:
+        ...
+    def __init__(self, value: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __int__(self) -> int:
+        ...
+    @typing.overload
+    def __ne__(self, other: GuidanceKind) -> bool:
+        ...
+    @typing.overload
+    def __ne__(self, other: typing.Any) -> bool:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, state: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __str__(self) -> str:
+        ...
+    @property
+    def name(self) -> str:
+        ...
+    @property
+    def value(self) -> int:
+        ...
 class GuidanceParams:
     """
-    omega_DN_D(t) = bias + cos_amp cos(freq t) + sin_amp sin(freq t)
+    The desired trajectory: the paper's omega_DN_D(t) = bias + cos_amp cos(freq t) + sin_amp sin(freq t) (kind Paper), a hold, a slew or a table
     """
+    kind: GuidanceKind
     def __init__(self) -> None:
         ...
     @property
@@ -134,10 +188,58 @@ class GuidanceParams:
     @property
     def sigma_d0(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         """
-        [-] sigma_DN(0)
+        [-] sigma_DN(0) (Paper), the held attitude (Hold), the start (Slew)
         """
     @sigma_d0.setter
     def sigma_d0(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def slew_duration(self) -> float:
+        """
+        [s]
+        """
+    @slew_duration.setter
+    def slew_duration(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def slew_start(self) -> float:
+        """
+        [s]
+        """
+    @slew_start.setter
+    def slew_start(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def slew_target(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [-] sigma_DN after the slew
+        """
+    @slew_target.setter
+    def slew_target(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def table_omega(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 3]"]:
+        """
+        [rad/s] omega_DN_D samples (n, 3)
+        """
+    @table_omega.setter
+    def table_omega(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 3]"]) -> None:
+        ...
+    @property
+    def table_sigma(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 3]"]:
+        """
+        [-] sigma_DN samples (n, 3)
+        """
+    @table_sigma.setter
+    def table_sigma(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 3]"]) -> None:
+        ...
+    @property
+    def table_t(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 1]"]:
+        """
+        [s] sample times (n,)
+        """
+    @table_t.setter
+    def table_t(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 1]"]) -> None:
         ...
 class Guidance:
     """
@@ -148,6 +250,9 @@ class Guidance:
     def advance(self, t: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
     def reset(self, t0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def params(self) -> GuidanceParams:
         ...
     @property
     def sigma_DN(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
@@ -283,57 +388,8 @@ class PpcResult:
         """
         bit i: axis i outside its bound
         """
-class Law:
-    """
-    Members:
-    
-      DscPpc
-    
-      Dsc
-    
-      Pd
-    
-      Rft
-    """
-    Dsc: typing.ClassVar[Law]
-    DscPpc: typing.ClassVar[Law]
-    Pd: typing.ClassVar[Law]
-    Rft: typing.ClassVar[Law]
-    __members__: typing.ClassVar[dict[str, Law]]
-    @typing.overload
-    def __eq__(self, other: Law) -> bool:
-        ...
-    @typing.overload
-    def __eq__(self, other: typing.Any) -> bool:
-        ...
-    def __getstate__(self) -> int:
-        ...
-    def __hash__(self) -> int:
-        ...
-    def __index__(self) -> int:
-        ...
-    def __init__(self, value: typing.SupportsInt | typing.SupportsIndex) -> None:
-        ...
-    def __int__(self) -> int:
-        ...
-    @typing.overload
-    def __ne__(self, other: Law) -> bool:
-        ...
-    @typing.overload
-    def __ne__(self, other: typing.Any) -> bool:
-        ...
-    def __repr__(self) -> str:
-        ...
-    def __setstate__(self, state: typing.SupportsInt | typing.SupportsIndex) -> None:
-        ...
-    def __str__(self) -> str:
-        ...
-    @property
-    def name(self) -> str:
-        ...
-    @property
-    def value(self) -> int:
-        ...
+class LawError(ValueError):
+    pass
 class DscGains:
     def __init__(self) -> None:
         ...
@@ -464,7 +520,6 @@ class ControllerConfig:
     """
     dsc: DscGains
     guidance: GuidanceParams
-    law: Law
     neso: NesoParams
     pd: PdGains
     ppc: PpcParams
@@ -487,6 +542,22 @@ class ControllerConfig:
         ...
     @control_rate_hz.setter
     def control_rate_hz(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def law(self) -> str:
+        """
+        law spec: a registered name or "plugin:PATH_OR_NAME"
+        """
+    @law.setter
+    def law(self, arg0: str) -> None:
+        ...
+    @property
+    def law_params(self) -> list[tuple[str, list[float]]]:
+        """
+        [controller.params]: [(key, [numbers])]
+        """
+    @law_params.setter
+    def law_params(self, arg0: collections.abc.Sequence[tuple[str, collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex]]]) -> None:
         ...
 class Measurement:
     def __init__(self, t: typing.SupportsFloat | typing.SupportsIndex, sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], omega_BN_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> None:
@@ -556,6 +627,11 @@ class Command:
     def t(self) -> float:
         ...
     @property
+    def telemetry(self) -> typing.Annotated[list[float], "FixedSize(8)"]:
+        """
+        the law's named telemetry (Controller.telemetry_names)
+        """
+    @property
     def u_cmd(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
         """
         [rad/s^2] before saturation
@@ -612,13 +688,23 @@ class Controller:
     def config(self) -> ControllerConfig:
         ...
     @property
-    def law(self) -> Law:
-        ...
+    def law_code(self) -> int:
+        """
+        its registry code
+        """
+    @property
+    def law_name(self) -> str:
+        """
+        the law's registry name
+        """
     @property
     def model(self) -> SpacecraftModel:
         ...
     @property
     def t0(self) -> float:
+        ...
+    @property
+    def telemetry_names(self) -> list[str]:
         ...
 class PlantParams:
     """
@@ -847,6 +933,409 @@ class WheelOutput:
         """
         [rad/s^2] saturated commands
         """
+class GyroParams:
+    """
+    Rate gyro (SI units; sensors.hpp).
+    """
+    enabled: bool
+    def __init__(self) -> None:
+        ...
+    @property
+    def arw(self) -> float:
+        """
+        [rad/sqrt(s)]
+        """
+    @arw.setter
+    def arw(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def bias0(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [rad/s]
+        """
+    @bias0.setter
+    def bias0(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def bias_sigma(self) -> float:
+        """
+        [rad/s]
+        """
+    @bias_sigma.setter
+    def bias_sigma(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def bias_tau(self) -> float:
+        """
+        [s]
+        """
+    @bias_tau.setter
+    def bias_tau(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def misalignment(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [rad]
+        """
+    @misalignment.setter
+    def misalignment(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def period_ticks(self) -> int:
+        """
+        plant steps per sample
+        """
+    @period_ticks.setter
+    def period_ticks(self, arg0: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def quantization(self) -> float:
+        """
+        [rad]
+        """
+    @quantization.setter
+    def quantization(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def rrw(self) -> float:
+        """
+        [rad/s^(3/2)]
+        """
+    @rrw.setter
+    def rrw(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def saturation(self) -> float:
+        """
+        [rad/s]
+        """
+    @saturation.setter
+    def saturation(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def scale_factor(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [-]
+        """
+    @scale_factor.setter
+    def scale_factor(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+class StarTrackerParams:
+    """
+    Star tracker (SI units; sensors.hpp).
+    """
+    enabled: bool
+    def __init__(self) -> None:
+        ...
+    @property
+    def blackouts(self) -> list[tuple[float, float]]:
+        """
+        [s] [(start, end)]
+        """
+    @blackouts.setter
+    def blackouts(self, arg0: collections.abc.Sequence[tuple[typing.SupportsFloat | typing.SupportsIndex, typing.SupportsFloat | typing.SupportsIndex]]) -> None:
+        ...
+    @property
+    def boresight(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        ...
+    @boresight.setter
+    def boresight(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def latency_ticks(self) -> int:
+        ...
+    @latency_ticks.setter
+    def latency_ticks(self, arg0: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def loss_probability(self) -> float:
+        ...
+    @loss_probability.setter
+    def loss_probability(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def period_ticks(self) -> int:
+        ...
+    @period_ticks.setter
+    def period_ticks(self, arg0: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def sigma_boresight(self) -> float:
+        """
+        [rad]
+        """
+    @sigma_boresight.setter
+    def sigma_boresight(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def sigma_cross(self) -> float:
+        """
+        [rad]
+        """
+    @sigma_cross.setter
+    def sigma_cross(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+class TachometerParams:
+    """
+    Wheel tachometer (sensors.hpp).
+    """
+    enabled: bool
+    def __init__(self) -> None:
+        ...
+    @property
+    def counts_per_rev(self) -> float:
+        ...
+    @counts_per_rev.setter
+    def counts_per_rev(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def period(self) -> float:
+        """
+        [s]
+        """
+    @period.setter
+    def period(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def period_ticks(self) -> int:
+        ...
+    @period_ticks.setter
+    def period_ticks(self, arg0: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+class SensorParams:
+    gyro: GyroParams
+    star_tracker: StarTrackerParams
+    tachometer: TachometerParams
+    def __init__(self) -> None:
+        ...
+    @property
+    def dt(self) -> float:
+        """
+        [s] plant step (one tick)
+        """
+    @dt.setter
+    def dt(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def seed(self) -> int:
+        ...
+    @seed.setter
+    def seed(self, arg0: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+class MekfParams:
+    """
+    The MEKF's noise model and start (mekf.hpp).
+    """
+    def __init__(self) -> None:
+        ...
+    @property
+    def arw(self) -> float:
+        ...
+    @arw.setter
+    def arw(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def bias_sigma(self) -> float:
+        ...
+    @bias_sigma.setter
+    def bias_sigma(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def bias_tau(self) -> float:
+        ...
+    @bias_tau.setter
+    def bias_tau(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def boresight(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        ...
+    @boresight.setter
+    def boresight(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def degraded_after(self) -> float:
+        ...
+    @degraded_after.setter
+    def degraded_after(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def history(self) -> int:
+        ...
+    @history.setter
+    def history(self, arg0: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def initial_attitude_sigma(self) -> float:
+        ...
+    @initial_attitude_sigma.setter
+    def initial_attitude_sigma(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def initial_bias_sigma(self) -> float:
+        ...
+    @initial_bias_sigma.setter
+    def initial_bias_sigma(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def quantization(self) -> float:
+        ...
+    @quantization.setter
+    def quantization(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def rrw(self) -> float:
+        ...
+    @rrw.setter
+    def rrw(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def sigma_boresight(self) -> float:
+        ...
+    @sigma_boresight.setter
+    def sigma_boresight(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def sigma_cross(self) -> float:
+        ...
+    @sigma_cross.setter
+    def sigma_cross(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+class NavConfig:
+    mekf: MekfParams
+    sensors: SensorParams
+    use_estimate: bool
+    def __init__(self) -> None:
+        ...
+class Rng:
+    """
+    SplitMix64 stream with Box-Muller normals (sensors.hpp).
+    """
+    def __init__(self, seed: typing.SupportsInt | typing.SupportsIndex = 0, stream: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
+        ...
+    def next_u64(self) -> int:
+        ...
+    def normal(self) -> float:
+        ...
+    def uniform(self) -> float:
+        ...
+class SensorSuite:
+    """
+    Gyro, star tracker and tachometers (sensors.hpp).
+    """
+    def __init__(self, p: SensorParams) -> None:
+        ...
+    def next_tick(self, i: typing.SupportsInt | typing.SupportsIndex) -> int:
+        ...
+    def reset(self) -> None:
+        ...
+    def tick(self, i: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> None:
+        ...
+    @property
+    def blacked_out(self) -> int:
+        ...
+    @property
+    def delivered(self) -> int:
+        ...
+    @property
+    def gyro(self) -> tuple[float, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]]:
+        """
+        (t, omega_m)
+        """
+    @property
+    def gyro_bias(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [rad/s] true bias now
+        """
+    @property
+    def gyro_new(self) -> bool:
+        ...
+    @property
+    def lost(self) -> int:
+        ...
+    @property
+    def star(self) -> tuple[float, float, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]]:
+        """
+        (t_exposure, t_delivery, sigma_BN)
+        """
+    @property
+    def star_new(self) -> bool:
+        ...
+    @property
+    def tach(self) -> tuple[float, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]]:
+        """
+        (t, wheel_speed)
+        """
+    @property
+    def tach_new(self) -> bool:
+        ...
+class MekfState:
+    @property
+    def P(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[6, 6]"]:
+        ...
+    @property
+    def bias(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        ...
+    @property
+    def sigma(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        ...
+    @property
+    def t(self) -> float:
+        ...
+class Mekf:
+    """
+    Multiplicative EKF, attitude error + gyro bias (mekf.hpp).
+    """
+    def __init__(self, p: MekfParams) -> None:
+        ...
+    def gyro(self, t: typing.SupportsFloat | typing.SupportsIndex, omega_m: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    def predict(self, t: typing.SupportsFloat | typing.SupportsIndex) -> MekfState:
+        ...
+    def reset(self, t: typing.SupportsFloat | typing.SupportsIndex, sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    def star(self, t_exposure: typing.SupportsFloat | typing.SupportsIndex, sigma_m: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> bool:
+        ...
+    @property
+    def dropped(self) -> int:
+        ...
+    @property
+    def innovation(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        ...
+    @property
+    def nis(self) -> float:
+        ...
+    @property
+    def state(self) -> MekfState:
+        ...
+    @property
+    def updates(self) -> int:
+        ...
+class Navigation:
+    """
+    Sensors + MEKF -> the law's Measurement (mekf.hpp).
+    """
+    def __init__(self, c: NavConfig) -> None:
+        ...
+    def measure(self, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[23, 1]"]]:
+        """
+        (Measurement, telemetry (NAV_SIZE,)) at t from the plant state x (10,).
+        """
+    def measure_only(self, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> Measurement:
+        """
+        The Measurement at t, no telemetry consumed.
+        """
+    def next_tick(self, i: typing.SupportsInt | typing.SupportsIndex) -> int:
+        ...
+    def reset(self, x0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> None:
+        ...
+    def tick(self, i: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> None:
+        ...
+    @property
+    def filter(self) -> Mekf:
+        ...
+    @property
+    def sensors(self) -> SensorSuite:
+        ...
 class GateVerdict:
     """
     What the controller shell does with one received state.
@@ -1010,6 +1499,13 @@ class PhaseLock:
     @property
     def phase_offset_us(self) -> float:
         ...
+def boresight_frame(boresight: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
+    ...
+def check_law(c: ...) -> list[tuple[str, str]]:
+    """
+    Construct the configured law once and probe one step at rest, without running:
+    [(key, message)] per problem; key "law" or "params.<key>" (empty: fine).
+    """
 def disturbance(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     d(t) [N m] in B.
@@ -1022,12 +1518,29 @@ def gravity_gradient(J: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, 
     """
     Gravity-gradient torque (5),(6) [N m].
     """
+def guidance_integrated(p: GuidanceParams) -> bool:
+    """
+    True for the paper's kind (sigma_DN integrated), False for the closed forms.
+    """
+def guidance_kind_name(kind: GuidanceKind) -> str:
+    ...
 def guidance_rk4_step(p: GuidanceParams, sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], t: typing.SupportsFloat | typing.SupportsIndex, h: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     One RK4 step of the desired attitude from t to t + h [s].
     """
-def law_name(law: Law) -> str:
-    ...
+def law_info(spec: str) -> dict:
+    """
+    name, doc, source ("built-in" or the library) and code of a law spec.
+    """
+def law_names() -> list[str]:
+    """
+    Every registered law name, registry order (the built-ins first).
+    """
+def load_law_plugin(path_or_name: str) -> str:
+    """
+    Load a law plugin library (a path, or a name searched in SCRT_LAW_PATH); returns its
+    law name. LawError (a ValueError) names the plugin and the problem.
+    """
 def lumped_disturbance(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, u_sat: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], accel: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     The true delta_2 of (20),(21) [rad/s^2].
@@ -1041,6 +1554,18 @@ def mrp_G(sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]
 def mrp_G_inverse(sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
     """
     Inverse of G(sigma).
+    """
+def mrp_compose(s1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], s2: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    R(result) = R(s2) R(s1).
+    """
+def mrp_error_vector(s1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], s2: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    Rotation vector [rad] of R(s1) R(s2)'.
+    """
+def mrp_rotate_body(sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], v: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    R(result) = exp(-v^) R(sigma_BN), v [rad].
     """
 def mrp_shadow(sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
@@ -1086,6 +1611,10 @@ def ppc_inverse(p: PpcParams, e1: typing.Annotated[numpy.typing.ArrayLike, numpy
     ...
 def ppc_transform(p: PpcParams, x1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], t: typing.SupportsFloat | typing.SupportsIndex) -> PpcResult:
     ...
+def run_sensors(p: SensorParams, n_ticks: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> dict:
+    """
+    Every sensor sample of n_ticks plant steps (t = i p.dt) from the constant state x (10,).
+    """
 def run_steps(controller: Controller, t: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], omega_BN_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64]) -> dict:
     """
     Run N steps inside C++ on recorded measurements; returns u_cmd, u_sat, z2, flags.
@@ -1094,15 +1623,32 @@ def sig_pow(v: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]
     """
     sig^a(v) = |v|^a sign(v), element-wise.
     """
+def sigma_d(p: GuidanceParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    sigma_DN(t) of a closed-form kind (Hold, Slew, Table); ValueError for Paper.
+    """
 def simulate_closed_loop(c: ControllerConfig, plant: ..., act: ..., x0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], n_ctrl: typing.SupportsInt | typing.SupportsIndex, n_sub: typing.SupportsInt | typing.SupportsIndex, rate: typing.SupportsFloat | typing.SupportsIndex) -> dict:
     """
     The whole offline closed loop in C++ (sc-rt sim --engine cpp): n_ctrl periods at rate [Hz],
     n_sub plant RK4 steps each; returns rows, diverged and the trajectory arrays (one row per
     control instant; CLOSED_LOOP_FIELDS: (name, width) in dict order).
     """
+def simulate_closed_loop_sensed(c: ControllerConfig, plant: PlantParams, act: ActuatorParams, x0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], n_ctrl: typing.SupportsInt | typing.SupportsIndex, n_sub: typing.SupportsInt | typing.SupportsIndex, rate: typing.SupportsFloat | typing.SupportsIndex, nav: NavConfig) -> dict:
+    """
+    simulate_closed_loop with sensors and the estimator (nav): the same columns, then the
+    navigation's (sigma_BN_est, bias_est, bias_true, P_diag, att_est_error, innovation, nis).
+    """
 def skew(x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
     """
     Skew matrix x^ with x^ y = x cross y.
+    """
+def slew_angle(p: GuidanceParams) -> float:
+    """
+    [rad] angle of the slew, in [0, pi].
+    """
+def slew_axis(p: GuidanceParams) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    Eigenaxis of the slew (zero for no rotation).
     """
 def step_packed(controller: Controller, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> numpy.typing.NDArray[numpy.float64]:
     """
@@ -1155,17 +1701,26 @@ def wheel_accel(a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsInde
     """
     Saturation and faults (15),(16), stuck wheels and the speed limit.
     """
-CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('flags', 1)]
+CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('flags', 1), ('ctrl_mode', 1)]
+DEFAULT_LAW: str = 'dsc-ppc'
 FLAG_BOUND_X: int = 1
 FLAG_BOUND_Y: int = 2
 FLAG_BOUND_Z: int = 4
 FLAG_INVALID_STATE: int = 128
+FLAG_LAW_INVALID: int = 1024
+FLAG_NAV_DEGRADED: int = 1024
 FLAG_SAT_1: int = 8
 FLAG_STALE_STATE: int = 256
 FLAG_TIME_NOT_ADVANCING: int = 512
+GUIDANCE_TABLE_MAX: int = 20000
+LAW_API_VERSION: int = 1
+LAW_FINGERPRINT: str = 'api-1 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
+LAW_MAX_TELEMETRY: int = 8
 MODE_INIT: int = 0
 MODE_NORMAL: int = 1
 MODE_SAFE: int = 2
+NAV_FIELDS: list = [('sigma_BN_est', 3), ('bias_est', 3), ('bias_true', 3), ('P_diag', 6), ('att_est_error', 3), ('innovation', 3), ('nis', 1), ('nav_flags', 1)]
+NAV_SIZE: int = 23
 PACKED_FIELDS: list = [('u_cmd', 4), ('u_sat', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('e1', 3), ('e2', 3), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('x2d', 3), ('vs', 4), ('rho_hat', 1), ('mode', 1), ('flags', 1)]
 PACKED_SIZE: int = 45
 __version__: str = '0.1.0'

@@ -56,7 +56,7 @@ def scenario_data(scn: Any) -> dict[str, Any]:
         },  # fmt: skip
         "disturbance": _group(p.disturbance),
         "initial": _group(scn.initial),
-        "guidance": _group(scn.guidance),
+        "guidance": scn.guidance.data(),  # its kind's keys (sc_rt.scenario.guidance)
         "controller": controller,
         "faults": faults,
     }

@@ -59,15 +59,6 @@ from sc_rt.scenario.guidance import (
     coverage_problem,
     read_guidance,
 )
-from sc_rt.scenario.guidance import (
-    FileGuidance,
-    Guidance,
-    GuidanceParams,
-    HoldGuidance,
-    SlewGuidance,
-    coverage_problem,
-    read_guidance,
-)
 from sc_rt.scenario.shipped import resolve
 
 __all__ = [

@@ -38,12 +38,16 @@ class _Law:
         n = cfg.neso
         self.k1o, self.k2o, self.k3o, self.k4o = (np.asarray(v) for v in (n.k1, n.k2, n.k3, n.k4))
         self.alpha = n.alpha
+        # the paper's sigma_d is a state of the ODE; a hold, slew or table is a closed form
+        self.integrated = _core.guidance_integrated(cfg.guidance)
 
     def evaluate(self, t: float, X: np.ndarray):
         """(u_cmd, telemetry dict, derivative of the law's states)."""
         c = self.cfg
         sigma, omega, wheel = X[0:3], X[3:6], X[6:10]
         sd, z1, z2, x2d, vs, rho = X[10:13], X[13:16], X[16:19], X[19:22], X[22:26], X[26]
+        if not self.integrated:
+            sd = np.asarray(_core.sigma_d(c.guidance, t))
         od, odd = _core.omega_d(c.guidance, t), _core.omega_d_dot(c.guidance, t)
         e = _core.tracking_errors(self.model, _core.Measurement(t, sigma, omega, wheel), sd, od, odd)
         x1, x2, A = np.asarray(e.sigma_BD), np.asarray(e.omega_BD_B), np.asarray(e.A)
