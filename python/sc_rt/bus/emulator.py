@@ -25,7 +25,7 @@ import select
 import struct
 import time
 from collections import Counter
-from typing import Any, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 import sc_rt_lcm
@@ -79,7 +79,8 @@ class Emulator:
     def __init__(self, scn: Scenario, *, mode: str = "lockstep", url: str, prefix: str = "",
                  rate: float | None = None, time_scale: float = 1.0, duration: float | None = None,
                  accept_fault_commands: bool = False, cmd_timeout: float = 1.0, retries: int = 3,
-                 stale_periods: float | None = None, wait_status: bool = True):
+                 stale_periods: float | None = None, wait_status: bool = True,
+                 stop: Callable[[], str | None] | None = None):
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
         if not (time_scale > 0 and math.isfinite(time_scale)):
@@ -94,6 +95,11 @@ class Emulator:
         self.stale_periods = (scn.controller.safety.stale_periods if stale_periods is None
                               else stale_periods)
         self.wait_status = wait_status
+        #: asked every step (and while waiting for a command): a reason to stop
+        #: the run early (a signal, a dead logger), None to go on; a run stopped
+        #: so is returned with the rows done and marked partial
+        self.stop = stop
+        self.stopped: str | None = None
         self.lc = open_lcm(url)
         self.counters: Counter = Counter()
         self.act = scn.actuators
@@ -257,6 +263,11 @@ class Emulator:
             if select.select([fd], [], [], rem)[0]:
                 self.lc.handle()
 
+    def _should_stop(self) -> bool:
+        if self.stopped is None and self.stop is not None:
+            self.stopped = self.stop()
+        return self.stopped is not None
+
     # --- the loops -----------------------------------------------------------
     def run(self) -> Run:
         """The whole run; returns its record (metrics are the caller's:
@@ -319,15 +330,20 @@ class Emulator:
                     self.counters["state_resent"] += 1
                 self._publish_state(k, t, x)
                 deadline = time.monotonic_ns() + int(timeout * 1e9)
-                while time.monotonic_ns() < deadline:
+                while time.monotonic_ns() < deadline and not self._should_stop():
                     cmd = self._cmd.get(k)
                     if cmd is not None and (not self.wait_status or k in self._status):
                         break
                     rem_ms = max(1, (deadline - time.monotonic_ns()) // 1_000_000)
-                    self.lc.handle_timeout(int(min(rem_ms, 100)))
+                    try:
+                        self.lc.handle_timeout(int(min(rem_ms, 100)))
+                    except OSError:  # EINTR: a signal (self.stop decides), within the deadline
+                        continue
                 cmd = self._cmd.get(k)
-                if cmd is not None:
+                if cmd is not None or self.stopped:
                     break
+            if self.stopped:  # row k was not applied: the run ends with row k - 1
+                break
             stale = cmd is None
             silent = silent + 1 if stale else 0
             if stale:
@@ -335,7 +351,7 @@ class Emulator:
                 self.counters["cmd_timeout"] += 1
             x = self._apply(traj, k, t, x, cmd, n_sub, h)
             rows = k + 1
-            if k == n_ctrl or x is None:
+            if k == n_ctrl or x is None or self._should_stop():
                 break
         return self._finish(traj, rows, x is None and rows < n_ctrl + 1)
 
@@ -364,7 +380,7 @@ class Emulator:
                 cmd = None
             x = self._apply(traj, k, t, x, cmd, n_sub, h)
             rows = k + 1
-            if k == n_ticks or x is None:
+            if k == n_ticks or x is None or self._should_stop():
                 break
             self._publish_state(k + 1, (k + 1) * period, x)
         return self._finish(traj, rows, x is None and rows < n_ticks + 1)
@@ -393,7 +409,7 @@ class Emulator:
         return x if np.all(np.isfinite(x)) else None
 
     def _finish(self, run: Run, rows: int, diverged: bool) -> Run:
-        if self._gap_start is not None:
+        if self._gap_start is not None and rows > 0:
             self._gaps.append((self._gap_start, float(run["t"][rows - 1])))
             self._gap_start = None
         # let the last status arrive
@@ -404,4 +420,9 @@ class Emulator:
         run.gaps = list(self._gaps)
         run.faults_applied = list(self.faults_applied)
         run.diverged = diverged
+        if self.stopped is not None:
+            run.partial = True
+            run.message = self.stopped
+            run.metrics = {"stopped": self.stopped,
+                           "t_reached_s": float(run["t"][rows - 1]) if rows else None}
         return run

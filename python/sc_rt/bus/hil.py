@@ -14,6 +14,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,7 +30,7 @@ from sc_rt.results.run import Run
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
 
-__all__ = ["HilResult", "run_hil", "controller_binary", "percentiles"]
+__all__ = ["HilResult", "run_hil", "controller_binary", "percentiles", "Stopper", "child_kwargs"]
 
 
 def controller_binary() -> str:
@@ -61,6 +62,10 @@ class HilResult:
     run: Run
     controller_summary: dict[str, Any]
     files: list[Path]
+    #: why the run stopped before its end (a signal, the logger gone); None: it ran to its end
+    stopped: str | None = None
+    #: the signal that stopped it (exit code 128 + signum)
+    signum: int | None = None
 
     @property
     def metrics(self) -> dict[str, Any]:
@@ -82,6 +87,64 @@ def _probe_logger(url: str, path: Path, payload: bytes, timeout: float, name: st
     return False
 
 
+def _die_with_parent() -> None:  # pragma: no cover (runs in the child)
+    """The child gets SIGTERM when sc-rt dies, even by SIGKILL (Linux)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+def child_kwargs() -> dict[str, Any]:
+    """Popen arguments of the bench's children: their own process group (a
+    Ctrl-C at the terminal reaches sc-rt alone, which stops them in order:
+    controller, then the logger after its last flush) and stopped with sc-rt."""
+    return {"process_group": 0, "preexec_fn": _die_with_parent} if sys.platform == "linux" else {}
+
+
+class Stopper:
+    """Why a bench run should stop early, asked by the emulator every step:
+    SIGINT or SIGTERM received (handled while the run lasts, main thread
+    only), or ``lcm-logger`` gone (polled at most every ``poll_s``: a dead
+    logger is noticed within a second and the run stops, partial, rather
+    than go on with a log that no longer grows)."""
+
+    def __init__(self, logger: subprocess.Popen | None = None, poll_s: float = 0.25):
+        self.logger, self.poll_s = logger, poll_s
+        self.signum: int | None = None
+        self.logger_rc: int | None = None
+        self._next = 0.0
+        self._old: dict[int, Any] = {}
+
+    def __enter__(self) -> Stopper:
+        if threading.current_thread() is threading.main_thread():
+            for s in (signal.SIGINT, signal.SIGTERM):
+                self._old[s] = signal.signal(s, self._on_signal)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        for s, h in self._old.items():
+            signal.signal(s, h)
+
+    def _on_signal(self, signum: int, _frame: Any) -> None:
+        if self.signum is None:
+            self.signum = signum
+
+    def __call__(self) -> str | None:
+        if self.signum is not None:
+            return f"interrupted by {signal.Signals(self.signum).name}"
+        if self.logger is not None:
+            now = time.monotonic()
+            if now >= self._next:
+                self._next = now + self.poll_s
+                self.logger_rc = self.logger.poll()
+            if self.logger_rc is not None:
+                return f"lcm-logger exited (code {self.logger_rc}) during the run: the log ends there"
+        return None
+
+
 def _stop(proc: subprocess.Popen, sig: int = signal.SIGTERM, timeout: float = 5.0) -> int:
     if proc.poll() is None:
         proc.send_signal(sig)
@@ -101,15 +164,25 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
 
     url = lcm_url or free_port_url(ttl=0)
+    # everything that can fail before a child starts: the URL, both binaries, the directory
+    open_lcm(url)
+    ctl_bin, logger_bin = controller_binary(), lcm_binary("lcm-logger")
     out.mkdir(parents=True, exist_ok=True)
     cfg_path = out / "controller_config.bin"
     cfg_path.write_bytes(scn.controller_config_msg().encode())
     log_path = out / "run.lcmlog"
     if log_path.exists():
         log_path.unlink()
+    with Stopper() as stopper:
+        return _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale,
+                             accept_fault_commands, plots, stopper, ctl_bin, logger_bin, cfg_path, log_path)
 
-    logger = subprocess.Popen([lcm_binary("lcm-logger"), "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+
+def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, accept_fault_commands,
+                  plots, stopper, ctl_bin, logger_bin, cfg_path, log_path) -> HilResult:
+    logger = subprocess.Popen([logger_bin, "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs())
+    stopper.logger = logger
     # a non-empty log means the logger is listening: publish a marker until it
     # shows up (SCRT_HIL_START carries the scenario name; readers skip it)
     print(f"sc-rt hil: LCM URL {url}" + (f", channel prefix {prefix!r}" if prefix else ""),
@@ -122,13 +195,18 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     # listens to SCRT_CONFIG only with --config-channel
     open_lcm(url).publish(channel("SCRT_CONFIG", prefix), cfg_path.read_bytes())
 
-    cmd = [controller_binary(), "--config", str(cfg_path), "--mode", mode, "--lcm-url", url,
+    cmd = [ctl_bin, "--config", str(cfg_path), "--mode", mode, "--lcm-url", url,
            "--summary", str(out / "controller_summary.json")]
     if prefix:
         cmd += ["--prefix", prefix]
     if realtime_priority:
         cmd.append("--realtime-priority")
-    ctl = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        ctl = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                               **child_kwargs())
+    except BaseException:
+        _stop(logger, signal.SIGINT)
+        raise
     try:
         # the controller says on stderr when it has subscribed
         line = ctl.stderr.readline()
@@ -136,7 +214,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
             rest = ctl.stderr.read() if ctl.poll() is not None else ""
             raise RuntimeError(f"sc-rt-controller did not start: {line}{rest}")
         emu = Emulator(scn, mode=mode, url=url, prefix=prefix, time_scale=time_scale,
-                       accept_fault_commands=accept_fault_commands)
+                       accept_fault_commands=accept_fault_commands, stop=stopper)
         t0 = time.perf_counter()
         res = emu.run()
         wall = time.perf_counter() - t0
@@ -144,7 +222,17 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
         _stop(ctl, signal.SIGTERM)
         ctl_err = ctl.stderr.read() if ctl.stderr else ""
         time.sleep(0.15)  # one logger flush interval
-        _stop(logger, signal.SIGINT)
+        logger_rc = _stop(logger, signal.SIGINT)
+    logger_err = logger.stderr.read().decode(errors="replace").strip() if logger.stderr else ""
+    stopped = res.message if res.partial else None
+    if not res.partial and logger_rc not in (0, -signal.SIGINT):
+        # the logger failed at the very end (its last flush): the log may be short of the run
+        stopped = f"lcm-logger exited with code {logger_rc} at the end of the run"
+        res.partial = True
+        res.metrics = {"stopped": stopped, "t_reached_s": float(res.t[-1]) if len(res) else None}
+    if stopped and logger_err and logger_rc not in (0, -signal.SIGINT):
+        stopped += f" (lcm-logger: {logger_err.splitlines()[-1]})"
+        res.metrics["stopped"] = stopped
     summary_path = out / "controller_summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     if ctl_err.strip():
@@ -156,7 +244,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     res.timing = timing_report(res, summary, wall)
     files = write_run(res, out, figures=plots)
     files += [p for p in (log_path, cfg_path, summary_path, out / "controller_stderr.txt") if p.exists()]
-    return HilResult(out, res, summary, files)
+    return HilResult(out, res, summary, files, stopped, stopper.signum)
 
 
 def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, Any]:

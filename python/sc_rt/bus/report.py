@@ -28,6 +28,7 @@ start (or ``--scenario``).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import subprocess
@@ -395,7 +396,15 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     name, law, rate, duration, ppc, umin, umax, source = _params(d, scenario)
     t_build = time.perf_counter()
     r = rebuild(d, mode)
+    # a log cut short (an interrupted, crashed or full-disk run) ends with
+    # states whose command and truth never came: the complete rows only
+    complete = int(np.flatnonzero(r.has_truth)[-1]) + 1 if np.any(r.has_truth) else len(r.has_truth)
+    dropped = len(r.has_truth) - complete
+    if dropped:
+        r = dataclasses.replace(r, arrays={k: v[:complete] for k, v in r.arrays.items()},
+                                has_truth=r.has_truth[:complete])
     rows = len(r.arrays["t"])
+    short = duration is not None and rows and float(r.arrays["t"][-1]) < duration - 0.5 / rate
     if duration is None:
         duration = (rows - 1) / rate if rows else 0.0
     st = r.arrays["state_log_us"]
@@ -403,7 +412,10 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
                    wall_s=wall, mode=r.mode)
-    run = Run(meta, r.arrays, gaps=r.gaps)
+    run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(dropped or short))
+    if run.partial:
+        run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None,
+                       "incomplete_rows_dropped": dropped}
     fill_tracking_errors(run, _guidance(d, scenario))
     faults = fault_summary(d, r)
     run.faults_applied = faults["commands"]
@@ -415,6 +427,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     report = {"log": str(d.path), "events": d.events, "read_decode_s": d.decode_s,
               "events_per_s": d.events / d.decode_s if d.decode_s > 0 else None,
               "rebuild_s": build_s, "prefix": d.prefix, "mode": r.mode, "rows": rows,
+              "incomplete_rows_dropped": dropped, "partial": run.partial,
               "parameters_from": source, "undecodable": d.undecodable, "channels": d.channels,
               "skipped": d.skipped, "faults": faults}
     cfg = _config(d)

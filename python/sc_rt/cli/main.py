@@ -5,12 +5,15 @@ file, line, key and value."""
 from __future__ import annotations
 
 import argparse
+import errno
 import json
+import signal
 import sys
 from pathlib import Path
 
 from sc_rt import __version__
 
+from sc_rt.cli.interrupts import Interrupted, flag_signals, raise_on_signals
 from sc_rt.cli.validate import (MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError, check_run_size,
                                 given_options, integer, lcm_url, number, out_dir, out_file, resolve_url,
                                 rounded)
@@ -91,13 +94,28 @@ def cmd_sim(args: argparse.Namespace) -> int:
                          control_rate_hz=args.control_rate, duration=args.duration, plant_step=args.plant_step)
     check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
                                       plant_step="--plant-step"))
-    res = simulate(scn, engine=args.engine, law=pylaw)
+    from sc_rt.sim import engines
+
+    from sc_rt.scenario.overrides import grid
+
+    engines.STOP.clear()
+    print(f"sc-rt sim: {scn.name}: {args.engine} engine, {grid(scn).n_ctrl + 1} rows ...", file=sys.stderr,
+          flush=True)
+    with flag_signals(lambda _s: engines.STOP.set()) as signals:
+        res = simulate(scn, engine=args.engine, law=pylaw)
+    stopped = None
+    if signals:  # a signal: the rows done so far (the python engine stops at its next step)
+        stopped = f"interrupted by {signal.Signals(signals[0]).name}"
+        if len(res) < grid(scn).n_ctrl + 1:
+            mark_partial(res, stopped)
     files = write_run(res, out, figures=not args.no_plots)
     print(f"sc-rt sim: {scn.name} -> {out}/ ({len(files)} files: {', '.join(p.name for p in files)})")
     _print_metrics(res.metrics, res.meta.faults)
     _html_report(out, "sim")
     if res.diverged:
         print(f"sc-rt sim: DIVERGED: {res.message}", file=sys.stderr)
+    if stopped:
+        return _stopped(res, stopped, signals[0], out, "sim")
     return 0
 
 
@@ -109,9 +127,11 @@ def cmd_hil(args: argparse.Namespace) -> int:
     out = _out_dir(args.out)
     scn = with_overrides(_scenario(args.scenario), law=args.law, control_rate_hz=args.control_rate,
                          duration=args.duration)
-    check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
-                                      time_scale="--time-scale"),
-                   bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale)
+    sizes = dict(control_rate="--control-rate", duration="--duration")
+    if args.mode == "realtime":
+        sizes["time_scale"] = "--time-scale"
+    check_run_size(scn, given_options(args, **sizes), bus=True, realtime=args.mode == "realtime",
+                   time_scale=args.time_scale)
     url = resolve_url(args.lcm_url, None)
     mcap = getattr(args, "mcap", None)
     mcap = str(Path(args.out) / "run.mcap") if mcap == "" else mcap
@@ -124,15 +144,35 @@ def cmd_hil(args: argparse.Namespace) -> int:
     print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/ ({len(res.files)} files: "
           f"{', '.join(p.name for p in res.files)}, run.lcmlog)")
     _print_metrics(res.metrics, res.run.meta.faults)
-    t = res.timing
+    t = rounded(res.timing)
     lat = t["state_to_cmd_latency_us"]
     print(f"  state-to-command latency [us]  p50 {lat['p50']}  p99 {lat['p99']}  max {lat['max']}")
-    print(f"  steps/s {t['steps_per_s']:.0f}  deadline misses {t['deadline_misses']}  "
-          f"dropped {t['dropped']}  malformed {t['malformed']}  scheduler {t['scheduler']}")
+    print(f"  steps/s {t['steps_per_s'] or 0:.0f}  deadline misses {t['deadline_misses']}  "
+          f"stale states {t['stale_states']}  dropped {t['dropped']}  malformed {t['malformed']}  "
+          f"scheduler {t['scheduler']}")
+    if res.stopped:
+        return _stopped(res.run, res.stopped, res.signum, res.out, "hil")
     _html_report(Path(res.out), "hil")
     if mcap:
         return _export_mcap(Path(res.out) / "run.lcmlog", mcap, who="hil")
     return 0
+
+
+def mark_partial(run, why: str) -> None:
+    """A finished run record that ends before its duration: partial, why, and the time reached."""
+    run.partial = True
+    run.metrics.update(partial=True, stopped=why, t_reached_s=float(run.t[-1]) if len(run) else None)
+
+
+def _stopped(run, why: str, signum: int | None, out, who: str) -> int:
+    """Say that a run stopped early and where its outputs are; the exit
+    code: 128 + the signal, else 1."""
+    reached = run.metrics.get("t_reached_s", float(run.t[-1]) if len(run) else None)
+    what = (f"partial outputs in {out}/ (metrics.json \"partial\": true, {len(run)} complete rows)"
+            if run.partial else f"the run had ended: complete outputs in {out}/")
+    print(f"sc-rt {who}: STOPPED at t = {'-' if reached is None else f'{reached:.4g}'} s of "
+          f"{run.meta.duration_s:g} s: {why}; {what}", file=sys.stderr)
+    return 128 + signum if signum else 1
 
 
 #: The demo's two runs: the paper's law on the paper's fault scenario, and
@@ -180,15 +220,15 @@ def cmd_emulator(args: argparse.Namespace) -> int:
                    bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale)
     url = resolve_url(args.lcm_url, DEFAULT_URL)
     print(f"sc-rt emulator: LCM URL {url}", file=sys.stderr, flush=True)
+    sig: list[int] = []
     emu = Emulator(scn, mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,
-                   accept_fault_commands=args.accept_fault_commands)
-    try:
+                   accept_fault_commands=args.accept_fault_commands,
+                   stop=lambda: f"interrupted by {signal.Signals(sig[0]).name}" if sig else None)
+    with flag_signals(sig.append):  # the run stops at its next step, its rows kept
         res = emu.run()
-    except KeyboardInterrupt:
-        print("sc-rt emulator: interrupted", file=sys.stderr)
-        return 130
     summary = {"rows": len(res), "counters": dict(res.counters), "gaps_s": rounded(res.gaps),
-               "diverged": res.diverged}
+               "diverged": res.diverged, "partial": res.partial,
+               "t_reached_s": float(res.t[-1]) if len(res) else None}
     if args.out:
         from sc_rt.results.metrics import finish_run
         from sc_rt.results.output import write_run
@@ -197,6 +237,8 @@ def cmd_emulator(args: argparse.Namespace) -> int:
         write_run(finish_run(res), out, figures=False)
         (out / "emulator.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(json.dumps(summary))
+    if sig:
+        return _stopped(res, res.message or "interrupted", sig[0], args.out or "-", "emulator")
     return 0
 
 
@@ -363,6 +405,12 @@ def cmd_report(args: argparse.Namespace) -> int:
     print(f"sc-rt report: {args.log}: {rep['events']} events in {rep['read_decode_s']:.2f} s "
           f"({rep['events_per_s']:.3g} events/s), {rep['rows']} rows, mode {rep['mode']}, "
           f"{rep['undecodable']} undecodable, skipped {rep['skipped']} -> {out}/")
+    if rep.get("partial"):
+        m = rep["metrics"]
+        print(f"sc-rt report: PARTIAL: the log ends at t = {m.get('t_reached_s')} s"
+              + (f" of {m['duration_s']:g} s" if m.get("t_reached_s") != m.get("duration_s") else "")
+              + f" ({rep['incomplete_rows_dropped']} incomplete rows at its end left out); metrics.json "
+              "\"partial\": true")
     _print_metrics(rep["metrics"])
     for c in rep["faults"]["commands"]:
         print(f"  fault command: {c}")
@@ -635,6 +683,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    raise_on_signals()  # SIGINT, SIGTERM: Interrupted (exit 130, 143) unless a command handles them
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -650,9 +699,18 @@ def main(argv: list[str] | None = None) -> int:
     except UsageError as e:
         print(f"sc-rt {args.command}: {e}", file=sys.stderr)
         return 2
+    except Interrupted as e:
+        print(f"sc-rt {args.command}: {e}: stopped", file=sys.stderr)
+        return e.exit_code
     except (FileNotFoundError, RuntimeError) as e:
         print(f"sc-rt {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:
+        if e.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO):
+            raise
+        print(f"sc-rt {args.command}: error: cannot write {e.filename or 'the outputs'}: {e.strerror}; "
+              "the outputs are incomplete", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -157,6 +157,25 @@ def _fail(message: str) -> int:
     return 2
 
 
+def _interrupted(c: Any, o: dict[str, Any], out: Path, scn: Any, e: Any) -> int:
+    """A campaign stopped by a signal: the summary of the runs in the
+    dataset, marked partial; exit 128 + the signal."""
+    from sc_rt.studies.campaign import write_summary
+    from sc_rt.studies.campaign.runner import summarize
+    from sc_rt.studies.campaign.store import RunStore
+
+    store = RunStore(out, c.columns())
+    rows = store.read().to_pylist() if store.has_runs() else []
+    if rows:
+        res = summarize(c, store, o["runs"])
+        res.update(partial=True, stopped=str(e), runs_done=len(rows))
+        write_summary(res, rows, out)
+    print(f"sc-rt montecarlo: STOPPED ({e}): {len(rows)} of {o['runs']} runs of {scn.name} in {out}/runs"
+          + (" (montecarlo.json \"partial\": true); --resume continues the campaign" if rows else ""),
+          file=sys.stderr)
+    return e.exit_code
+
+
 def cmd_montecarlo(args: argparse.Namespace) -> int:
     try:
         o = parse_options(args)
@@ -198,6 +217,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     except SchedulerUnreachable as e:
         return _fail(f"--scheduler{'-file' if args.scheduler_file else ''} "
                      f"{args.scheduler or args.scheduler_file}: {e}")
+    from sc_rt.cli.interrupts import Interrupted
+
     try:
         res = run_campaign(c, o["runs"], out, resume=args.resume, overwrite=args.overwrite,
                            batch_size=o["batch"], backend_obj=backend)
@@ -205,6 +226,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         return _fail(f"--out {args.out}: {e}")
     except OSError as e:  # the dataset cannot be written
         return _fail(f"--out {args.out}: {e}")
+    except Interrupted as e:  # the batches already in the dataset stay: summarize them, --resume goes on
+        return _interrupted(c, o, out, scn, e)
     finally:
         backend.close()
     rows = RunStore(out, c.columns()).read().to_pylist()

@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import threading
 import time
 
 import numpy as np
@@ -32,7 +33,11 @@ from sc_rt.results.run import FIELD, Run, RunMeta
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
-__all__ = ["simulate", "PACKED", "ENGINES"]
+__all__ = ["simulate", "PACKED", "ENGINES", "STOP"]
+
+#: Set (by a signal handler of the CLI) to end the python engine's run at
+#: its next step: the rows done are returned (the caller marks them partial).
+STOP = threading.Event()
 
 ENGINES = ("python", "cpp", "unsampled")
 
@@ -88,7 +93,7 @@ def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, n
         ACC[k] = accel
         D2[k] = lumped(pp, t, x, u_sat, accel)
         rows = k + 1
-        if k == n_ctrl:
+        if k == n_ctrl or STOP.is_set():
             break
         for j in range(n_sub):
             x = rk4(pp, act, t + j * h, x, h, u_cmd)

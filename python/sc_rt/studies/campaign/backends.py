@@ -32,6 +32,12 @@ class SchedulerUnreachable(RuntimeError):
 def _init(shared: Any) -> None:
     global _SHARED
     _SHARED = shared
+    # a Ctrl-C at the terminal reaches the workers too: the parent decides
+    # (it stops the campaign and keeps the batches done), the workers finish
+    # the batch they have
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _call_with_shared(fn: Callable, batch: list[int]) -> Any:
@@ -60,19 +66,25 @@ class PoolBackend(Backend):
 
     def map(self, fn, shared, batches):
         with ProcessPoolExecutor(self.workers, initializer=_init, initargs=(shared,)) as ex:
-            # keep a bounded number of batches queued (a 10^5-run campaign has thousands)
-            pending, todo = set(), iter(batches)
-            for b in todo:
-                pending.add(ex.submit(_call_with_shared, fn, b))
-                if len(pending) >= 4 * self.workers:
-                    break
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for f in done:
-                    nxt = next(todo, None)
-                    if nxt is not None:
-                        pending.add(ex.submit(_call_with_shared, fn, nxt))
-                    yield f.result()
+            try:
+                yield from self._map(ex, fn, batches)
+            finally:  # stopped early (a signal): drop the queued batches, not wait for them
+                ex.shutdown(wait=True, cancel_futures=True)
+
+    def _map(self, ex, fn, batches):
+        # keep a bounded number of batches queued (a 10^5-run campaign has thousands)
+        pending, todo = set(), iter(batches)
+        for b in todo:
+            pending.add(ex.submit(_call_with_shared, fn, b))
+            if len(pending) >= 4 * self.workers:
+                break
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for f in done:
+                nxt = next(todo, None)
+                if nxt is not None:
+                    pending.add(ex.submit(_call_with_shared, fn, nxt))
+                yield f.result()
 
 
 class DaskBackend(Backend):
