@@ -33,6 +33,7 @@ import sc_rt_lcm
 from sc_rt.model import actuators, plant
 from sc_rt.model.actuators import WheelFault
 from sc_rt.bus.lcmio import channel, open_lcm
+from sc_rt.bus.peers import ControllerPeers, GuidancePublisher
 from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
 from sc_rt.results.run import Run, RunMeta
 from sc_rt.scenario.model import Scenario
@@ -79,7 +80,8 @@ class Emulator:
     def __init__(self, scn: Scenario, *, mode: str = "lockstep", url: str, prefix: str = "",
                  rate: float | None = None, time_scale: float = 1.0, duration: float | None = None,
                  accept_fault_commands: bool = False, cmd_timeout: float = 1.0, retries: int = 3,
-                 stale_periods: float | None = None, wait_status: bool = True,
+                 stale_periods: float | None = None, wait_status: bool | None = None,
+                 start_timeout: float | None = None,
                  stop: Callable[[], str | None] | None = None):
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
@@ -95,6 +97,12 @@ class Emulator:
         self.stale_periods = (scn.controller.safety.stale_periods if stale_periods is None
                               else stale_periods)
         self.wait_status = wait_status
+        #: the controllers' announcements and status senders (bus/peers.py):
+        #: lockstep waits for a status only from a controller that sends them
+        self.peers = ControllerPeers(wait_status)
+        #: [s] wait this long for a first answer to state 0 before the run
+        #: starts (a controller process still starting; None: no wait)
+        self.start_timeout = start_timeout
         #: asked every step (and while waiting for a command): a reason to stop
         #: the run early (a signal, a dead logger), None to go on; a run stopped
         #: so is returned with the rows done and marked partial
@@ -115,16 +123,19 @@ class Emulator:
         self._fault_fields: tuple = (None,)
         self._ch_state = channel("SCRT_STATE", prefix)
         self._ch_truth = channel("SCRT_TRUTH", prefix)
+        self._ch_guidance = channel("SCRT_GUIDANCE", prefix)
         self._gaps: list[tuple[float, float]] = []
         self._gap_start: float | None = None
         self.session = secrets.randbits(62)
+        self.guidance = GuidancePublisher(self.lc, self._ch_guidance, scn.core_config().guidance,
+                                          self.rate, self.session)
         self._pub_ns: dict[int, int] = {}
         self._t_now = 0.0
         self.faults_applied: list[dict[str, Any]] = []
         # LCM silently drops messages beyond a subscription's queue capacity
         # (30 by default): hold many, so every one is either used or counted
         for name, handler in (("SCRT_CMD", self._on_cmd), ("SCRT_CTRL_STATUS", self._on_status),
-                              ("SCRT_FAULT", self._on_fault)):
+                              ("SCRT_FAULT", self._on_fault), ("SCRT_CTRL_INFO", self._on_info)):
             self.lc.subscribe(channel(name, prefix), handler).set_queue_capacity(100_000)
 
     # --- handlers: never raise -------------------------------------------
@@ -189,8 +200,17 @@ class Emulator:
             self.counters["status_out_of_order"] += 1
             return
         self._last_status_seq = cmd_seq
+        self.peers.saw_status(session)
         if state_seq >= 0 and state_seq not in self._status:
             self._status[state_seq] = data
+
+    def _on_info(self, _ch: str, data: bytes) -> None:
+        self.peers.on_info(data, self.counters)
+
+    @property
+    def controller_info(self) -> dict[str, Any] | None:
+        """The controller_info_t of the session in use (None: none announced)."""
+        return self.peers.info.get(self._ctl_session) if self._ctl_session is not None else None
 
     def _on_fault(self, _ch: str, data: bytes) -> None:
         msg = decode_as(sc_rt_lcm.fault_cmd_t, data, self.counters)
@@ -228,6 +248,7 @@ class Emulator:
 
     # --- publishing --------------------------------------------------------
     def _publish_state(self, k: int, t: float, x: np.ndarray) -> None:
+        self.guidance.publish(k, t)  # the reference first: a controller has it with the state
         data = _STATE_FP + _STATE_LAYOUT.pack(time.time_ns() // 1000, k, self.session, t, *x[0:10])
         self._pub_ns[k] = time.monotonic_ns()
         self.lc.publish(self._ch_state, data)
@@ -272,9 +293,26 @@ class Emulator:
     def run(self) -> Run:
         """The whole run; returns its record (metrics are the caller's:
         ``sc_rt.results.metrics.finish_run``)."""
+        if self.start_timeout is not None:
+            self._await_controller(initial_state(self.scn))
         if self.mode == "lockstep":
             return self._run_lockstep()
         return self._run_realtime()
+
+    def _await_controller(self, x0: np.ndarray) -> None:
+        """Re-send state 0 until a controller answers it (raises RuntimeError
+        after ``start_timeout`` s): a process that is still starting, or one
+        a person starts by hand, gets the run from its first state."""
+        end = time.monotonic_ns() + int(self.start_timeout * 1e9)
+        while 0 not in self._cmd:
+            now = time.monotonic_ns()
+            if now >= end:
+                raise RuntimeError(f"no controller answered the first state within {self.start_timeout:g} s")
+            self.counters["start_state_sent"] += 1
+            self._publish_state(0, 0.0, x0)
+            resend = min(end, now + 250_000_000)
+            while 0 not in self._cmd and time.monotonic_ns() < resend:
+                self.lc.handle_timeout(20)
 
     def _allocate(self, n: int) -> Run:
         return Run.allocate(n, RunMeta.of_scenario(self.scn, f"hil-{self.mode}", mode=self.mode))
@@ -332,7 +370,7 @@ class Emulator:
                 deadline = time.monotonic_ns() + int(timeout * 1e9)
                 while time.monotonic_ns() < deadline and not self._should_stop():
                     cmd = self._cmd.get(k)
-                    if cmd is not None and (not self.wait_status or k in self._status):
+                    if cmd is not None and (k in self._status or not self.peers.wants_status(cmd.session)):
                         break
                     rem_ms = max(1, (deadline - time.monotonic_ns()) // 1_000_000)
                     try:
@@ -420,6 +458,9 @@ class Emulator:
         run.gaps = list(self._gaps)
         run.faults_applied = list(self.faults_applied)
         run.diverged = diverged
+        label = self.peers.label(self._ctl_session)  # the law's name, as the controller announced it
+        if label:
+            run.meta = dataclasses.replace(run.meta, law=label)
         if self.stopped is not None:
             run.partial = True
             run.message = self.stopped
