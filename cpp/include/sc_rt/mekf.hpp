@@ -36,7 +36,7 @@ using Mat6 = Eigen::Matrix<double, 6, 6>;
 
 //! Navigation flag bit, OR-ed into the run's flags: the star tracker has
 //! been silent longer than degraded_after (gyro-only propagation).
-constexpr int FLAG_NAV_DEGRADED = 1024;
+constexpr int FLAG_NAV_DEGRADED = 2048;  // after wheel_cmd_t FLAG_LAW_INVALID = 1024
 
 struct MekfParams {
   double arw = 0.0;               //!< [rad/sqrt(s)] gyro angle random walk

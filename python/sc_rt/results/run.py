@@ -24,7 +24,7 @@ import numpy as np
 
 __all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "RunMeta", "Run", "empty_arrays", "json_safe", "write_json"]
 
-SOURCES = ("plant", "controller", "truth", "timing", "derived")
+SOURCES = ("plant", "controller", "truth", "timing", "derived", "estimator")
 
 
 @dataclass(frozen=True)
@@ -81,6 +81,19 @@ FIELDS: tuple[Field, ...] = (
     _f("fault_effectiveness", (4,), "-", "truth", "wheel effectiveness L_i of the active fault"),
     _f("fault_bias", (4,), "rad/s^2", "truth", "wheel bias of the active fault"),
     _f("fault_stuck", (4,), "-", "truth", "1 when the wheel is stuck", dtype="i8", fill=0),
+    # With [sensors] (sc_rt.sim.sensed; the MEKF of cpp/include/sc_rt/mekf.hpp), NaN otherwise:
+    _f("sigma_BN_est", (3,), "-", "estimator", "MEKF attitude estimate at t_k (what the law gets with measurement = estimate)"),
+    _f("bias_est", (3,), "rad/s", "estimator", "MEKF gyro bias estimate"),
+    _f("bias_true", (3,), "rad/s", "truth", "the gyro's true bias (bias0 + Gauss-Markov + random walk)"),
+    _f("P_diag", (6,), "rad^2, (rad/s)^2", "estimator",
+       "MEKF covariance diagonal: attitude error (3, body) then bias error (3)"),
+    _f("att_est_error", (3,), "rad", "truth",
+       "estimation error: rotation vector of the true attitude relative to the estimate, body frame"),
+    _f("innovation", (3,), "rad", "estimator",
+       "star tracker residual of the last update since the previous row (NaN: none)"),
+    _f("nis", (), "-", "estimator", "normalised innovation squared z' S^-1 z of that update (NaN: none)"),
+    _f("sigma_BD_true", (3,), "-", "derived",
+       "true tracking error mrp_subtract(sigma_BN, sigma_DN) (sensor runs: the bound is judged on it)"),
     _f("latency_us", (), "us", "timing", "state publish to receipt of the command answering it"),
     _f("tick_lateness_us", (), "us", "timing", "real time: the emulator's tick behind its deadline"),
     _f("wake_lateness_us", (), "us", "timing", "the controller's wake behind its schedule"),
@@ -113,6 +126,10 @@ class RunMeta:
     wall_s: float = math.nan
     #: how the loop was clocked: offline, lockstep or realtime
     mode: str = "offline"
+    #: what the law was fed: "truth" (no [sensors], or measurement = "truth") or "estimate"
+    measurement: str = "truth"
+    #: the run had sensors (a [sensors] table): estimator fields filled, bound judged on sigma_BD_true
+    sensors: bool = False
 
     def to_json(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self))
@@ -139,6 +156,9 @@ class RunMeta:
                        for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")},
                   umin=tuple(float(x) for x in np.asarray(a.umin, float)),
                   umax=tuple(float(x) for x in np.asarray(a.umax, float)), faults=faults)
+        sensors = getattr(scn, "sensors", None)
+        if sensors is not None:
+            kw.update(sensors=True, measurement=sensors.measurement)
         kw.update(over)
         return cls(**kw)
 

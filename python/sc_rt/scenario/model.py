@@ -59,6 +59,7 @@ from sc_rt.scenario.guidance import (
     coverage_problem,
     read_guidance,
 )
+from sc_rt.scenario.sensors import read_sensors
 from sc_rt.scenario.shipped import resolve
 
 __all__ = [
@@ -252,6 +253,8 @@ class Scenario:
     controller: ControllerParams
     # the [montecarlo] table (sc_rt.scenario.dispersions.MonteCarloTable), None without one
     montecarlo: Any = None
+    # the [sensors] tables and [controller] measurement (sc_rt.scenario.sensors.Sensors), None without [sensors]
+    sensors: Any = None
 
     def with_run(self, **changes: Any) -> Scenario:
         """A copy with run fields replaced (CLI overrides), validated like the file.
@@ -611,7 +614,9 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
     initial_table = root.sub("initial")
     initial = _read_fields(initial_table, InitialState)
     guidance = read_guidance(root.sub("guidance"), run.duration if run else None, path.parent)
-    controller = _read_controller(root.sub("controller", required=False))
+    controller_table = root.sub("controller", required=False)
+    sensors = read_sensors(root, controller_table, run)  # [sensors], [controller] measurement, estimator
+    controller = _read_controller(controller_table)
     faults = _read_faults(root)
     montecarlo = root.sub("montecarlo", required=False)  # read last: it names the others' keys
     root.finish()
@@ -635,6 +640,7 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
         initial=initial,
         guidance=guidance,
         controller=controller,
+        sensors=sensors,
     )
     _check_law(doc, scenario, "controller.law" if "law" in ctl_data else "run.controller",
                "controller.params")

@@ -158,7 +158,13 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     scn = with_overrides(scn, law=None if law_cls else law, control_rate_hz=control_rate_hz,
                          duration=duration, plant_step=plant_step)
     t0 = time.perf_counter()
-    if engine == "python":
+    if scn.sensors is not None:  # sensors and the estimator in the loop (sc_rt.sim.sensed)
+        if law_cls is not None:
+            raise ValueError("a scenario with [sensors] runs the core's laws only (not a Python law, yet)")
+        from sc_rt.sim.sensed import run_sensed
+
+        cols, rows, diverged = run_sensed(scn, engine, PACKED, RECORDED)
+    elif engine == "python":
         cols, rows, diverged = _run_python(scn, law_cls)
     elif engine == "cpp":
         cols, rows, diverged = _run_cpp(scn)

@@ -1,0 +1,139 @@
+"""The offline closed loop with sensors and the estimator in it (a scenario
+with a ``[sensors]`` table; docs/MODEL.md section 10). Without one,
+sc_rt.sim.engines runs today's loop untouched.
+
+Loop (both engines, the same calls in the same order; the sensor models and
+the MEKF are the C++ core's ``_core.Navigation``):
+
+    nav.reset(x0); nav.tick(0, 0, x0); controller.reset(nav.measure(0, x0))
+    for k = 0..N:                               t_k = k / rate, tick i = k n_sub
+        if k > 0: nav.tick(i, t_k, x)
+        m = nav.measure(t_k, x)                 truth or estimate ([controller] measurement)
+        command = controller.step(m); record row k (+ the estimator's telemetry)
+        for j = 0..n_sub-1:
+            if j > 0: nav.tick(i + j, t_k + j h, x)
+            x = rk4_step(x, h, command.u_cmd)
+
+The python engine calls ``nav.tick`` only at the ticks where a sensor samples
+or delivers (``nav.next_tick``); a tick with nothing due changes nothing, so
+the two engines stay bitwise equal (tests/test_sensors.py).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sc_rt import _core
+from sc_rt.model import actuators, plant
+from sc_rt.results.run import FIELD
+from sc_rt.scenario.overrides import grid, initial_state
+from sc_rt.scenario.sensors import nav_config
+
+__all__ = ["run_sensed", "NAV", "NAV_RECORDED"]
+
+#: Layout of Navigation.measure's telemetry (name -> slice), from _core.NAV_FIELDS.
+NAV: dict[str, slice] = {}
+_o = 0
+for _name, _n in _core.NAV_FIELDS:
+    NAV[_name] = slice(_o, _o + _n)
+    _o += _n
+assert _o == _core.NAV_SIZE
+
+#: The navigation telemetry the run records (run field = telemetry name).
+NAV_RECORDED = ("sigma_BN_est", "bias_est", "bias_true", "P_diag", "att_est_error", "innovation", "nis")
+for _k in NAV_RECORDED:
+    assert FIELD[_k].shape == ((NAV[_k].stop - NAV[_k].start,) if NAV[_k].stop - NAV[_k].start > 1 else ()), _k
+
+
+def _config(scn):
+    return nav_config(scn.sensors, scn.run.plant_step, f"{scn.path}")
+
+
+def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
+    n_ctrl, n_sub, h, rate = grid(scn)
+    pp, act = scn.plant, scn.actuators
+    x = initial_state(scn)
+    ctl = _core.Controller(scn.core_config())
+    nav = _core.Navigation(_config(scn))
+    nav.reset(x)
+    nav.tick(0, 0.0, x)
+    ctl.reset(nav.measure_only(0.0, x))
+    nxt = nav.next_tick(0)
+    n = n_ctrl + 1
+    T = np.full(n, np.nan)
+    X = np.full((n, 10), np.nan)
+    OUT = np.full((n, _core.PACKED_SIZE), np.nan)
+    NAVT = np.full((n, _core.NAV_SIZE), np.nan)
+    ACC = np.full((n, 4), np.nan)
+    D2 = np.full((n, 3), np.nan)
+    items = list(packed.items())
+    rows, diverged = 0, False
+    wheel_accel, lumped, rk4 = actuators.wheel_accel, plant.lumped_disturbance, plant.rk4_step
+    isfinite = math.isfinite
+    for k in range(n):
+        t = k / rate
+        i0 = k * n_sub
+        if k > 0 and i0 == nxt:
+            nav.tick(i0, t, x)
+            nxt = nav.next_tick(i0)
+        m, tel = nav.measure(t, x)
+        c = ctl.step(m)
+        row = OUT[k]
+        for name, sl in items:
+            row[sl] = getattr(c, name)
+        u_cmd = row[packed["u_cmd"]].copy()
+        u_sat, accel, _ = wheel_accel(act, t, u_cmd, x[6:10])
+        T[k] = t
+        X[k] = x
+        NAVT[k] = tel
+        ACC[k] = accel
+        D2[k] = lumped(pp, t, x, u_sat, accel)
+        rows = k + 1
+        if k == n_ctrl:
+            break
+        for j in range(n_sub):
+            if j > 0 and i0 + j == nxt:
+                nav.tick(i0 + j, t + j * h, x)
+                nxt = nav.next_tick(i0 + j)
+            x = rk4(pp, act, t + j * h, x, h, u_cmd)
+        if not all(map(isfinite, x)):
+            diverged = True
+            break
+    cols = {"t": T, "sigma_BN": X[:, 0:3], "omega_BN_B": X[:, 3:6], "wheel_speed": X[:, 6:10],
+            "wheel_accel": ACC, "delta2": D2}
+    for name, p in recorded.items():
+        cols[name] = OUT[:, packed[p]]
+    for name in NAV_RECORDED:
+        v = NAVT[:, NAV[name]]
+        cols[name] = v[:, 0] if v.shape[1] == 1 else v
+    flags = np.nan_to_num(OUT[:, packed["flags"]][:, 0]).astype(np.int64)
+    cols["flags"] = flags | np.nan_to_num(NAVT[:, NAV["nav_flags"]][:, 0]).astype(np.int64)
+    cols["ctrl_mode"] = np.nan_to_num(OUT[:, packed["mode"]][:, 0], nan=-1).astype(np.int64)
+    return cols, rows, diverged
+
+
+def _run_cpp(scn):
+    n_ctrl, n_sub, _, rate = grid(scn)
+    res = _core.simulate_closed_loop_sensed(
+        scn.core_config(), plant.plant_params_to_cpp(scn.plant),
+        actuators.actuator_params_to_cpp(scn.actuators), initial_state(scn), n_ctrl, n_sub, rate,
+        _config(scn))
+    rows = int(res.pop("rows"))
+    diverged = bool(res.pop("diverged"))
+    unknown = set(res) - set(FIELD)
+    if unknown:
+        raise RuntimeError(f"simulate_closed_loop_sensed returned columns the run does not declare: {sorted(unknown)}")
+    return dict(res), rows, diverged
+
+
+def run_sensed(scn, engine: str, packed: dict[str, slice], recorded: dict[str, str]):
+    """(columns, rows, diverged) of the scenario's loop with its sensors on
+    ``engine`` ("python" or "cpp"); ``packed``/``recorded``: the engines'
+    packed-row layout and the telemetry they record."""
+    if engine == "python":
+        return _run_python(scn, packed, recorded)
+    if engine == "cpp":
+        return _run_cpp(scn)
+    raise ValueError(f"a scenario with [sensors] runs on the python or cpp engine, not {engine!r}")
