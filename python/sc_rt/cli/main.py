@@ -17,7 +17,7 @@ from sc_rt.cli.interrupts import Interrupted, flag_signals, raise_on_signals
 from sc_rt.cli.validate import (MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError, check_run_size,
                                 given_options, integer, lcm_url, number, out_dir, out_file, resolve_url,
                                 rounded)
-from sc_rt.cli.lawarg import LAW_HELP, law_choice
+from sc_rt.cli.lawarg import LAW_HELP, core_law_choice, law_choice
 from sc_rt.scenario.model import LAWS  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
@@ -568,6 +568,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "reaction-wheel spacecraft, offline and over LCM.",
     )
     p.add_argument("--version", action="version", version=f"sc-rt {__version__}")
+    from sc_rt.cli.newlaw import CmakeDirAction, add_parser as add_new_law
+
+    p.add_argument("--cmake-dir", action=CmakeDirAction,
+                   help="print the directory of the installed sc_rtConfig.cmake (law plugins, docs/LAWS.md) and exit")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     s = sub.add_parser("sim", help="offline closed loop (plant + C++ controller core)")
@@ -593,7 +597,8 @@ def build_parser() -> argparse.ArgumentParser:
     h = sub.add_parser("hil", help="controller process + plant emulator + lcm-logger over LCM")
     h.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     h.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep", help="default: %(default)s")
-    h.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES, help="control law (default: the scenario's)")
+    h.add_argument("--law", "--controller", dest="law", type=core_law_choice, metavar="LAW",
+                   help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME (default: the scenario's)")
     h.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
     h.add_argument("--duration", type=number(unit="s"), metavar="S", help="default: the scenario's")
     h.add_argument("--out", default="out/hil", type=out_dir, metavar="DIR", help="default: %(default)s")
@@ -649,11 +654,16 @@ def build_parser() -> argparse.ArgumentParser:
     from sc_rt.cli.montecarlo import add_parser as add_montecarlo
 
     add_montecarlo(sub)  # its options and their checks: sc_rt/cli/montecarlo.py
+    add_new_law(sub)  # sc-rt new-law: sc_rt/cli/newlaw.py
+    from sc_rt.cli.compare import add_parser as add_compare
+
+    add_compare(sub)  # sc-rt compare: sc_rt/cli/compare.py
 
     c = sub.add_parser("config", help="write the scenario's controller_config_t for sc-rt-controller")
     c.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     c.add_argument("--out", required=True, type=out_file, metavar="FILE", help="the file to write")
-    c.add_argument("--law", "--controller", dest="law", choices=LAW_CHOICES, help="control law (default: the scenario's)")
+    c.add_argument("--law", "--controller", dest="law", type=core_law_choice, metavar="LAW",
+                   help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME (default: the scenario's)")
     c.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
     c.set_defaults(func=cmd_config)
 

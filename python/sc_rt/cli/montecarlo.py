@@ -18,6 +18,7 @@ from typing import Any
 __all__ = ["add_parser", "cmd_montecarlo"]
 
 from sc_rt.scenario.model import LAWS  # noqa: E402
+from sc_rt.cli.lawarg import core_law_choice  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 SHORTCUTS = ("inertia", "onset", "effectiveness", "attitude", "rate")
@@ -102,8 +103,13 @@ def parse_options(args: argparse.Namespace) -> dict[str, Any]:
         "attitude": _float("--attitude", args.attitude, 0.0, math.pi),
         "rate": _float("--rate", args.rate, 0.0),
     }
-    if args.law is not None and args.law not in LAW_CHOICES:
-        raise BadOption(f"--law {args.law}: must be one of " + ", ".join(LAW_CHOICES))
+    if args.law is not None and args.law.startswith("plugin:"):  # a C++ law plugin, loaded now
+        try:
+            args.law = core_law_choice(args.law)
+        except argparse.ArgumentTypeError as e:
+            raise BadOption(f"--law {args.law}: {e}") from None
+    elif args.law is not None and args.law not in LAW_CHOICES:
+        raise BadOption(f"--law {args.law}: must be one of " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME")
     if args.backend not in ("local", "dask"):
         raise BadOption(f"--backend {args.backend}: must be local or dask")
     if args.scheduler and args.scheduler_file:

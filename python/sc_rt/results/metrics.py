@@ -157,6 +157,8 @@ def finish_run(run: Run) -> Run:
     run["bound_ok"][:] = bound_ok(run.meta.ppc, run["t"], run["sigma_BD"])
     metrics = compute_metrics(run)
     metrics.update(safe_summary(run["t"], run["ctrl_mode"], run["flags"]))
+    # steps where the law failed (FLAG_LAW_INVALID, wheel_cmd_t): SAFE zeros instead
+    metrics["law_invalid_steps"] = int(np.sum((np.asarray(run["flags"]) & 1024) != 0))
     lam = run["lam"]
     ok_lam = np.isfinite(lam)
     # |lambda| = |sigma_BD| / chi of the controller; its worst value says how close the bound came

@@ -14,7 +14,8 @@ __all__ = ["SAFE_FLAGS", "safe_summary", "verdict_line", "pointing_arcsec"]
 
 #: Controller flags that put it in SAFE (zero command), from wheel_cmd_t.
 SAFE_FLAGS = {128: "invalid state (non-finite or beyond the safety limits)", 256: "stale state",
-              512: "time not advancing"}
+              512: "time not advancing",
+              1024: "the law returned a non-finite command (or threw)"}
 MODE_SAFE = 2
 AXES = "xyz"
 

@@ -1,0 +1,135 @@
+"""``sc-rt compare SCENARIO --law a --law b ...``: the laws on one scenario,
+side by side (docs/LAWS.md): verdict, bound violations, settling, peak wheel
+acceleration, SAFE and law-invalid steps. Markdown table on stdout,
+``compare.json`` with --out."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sc_rt.cli.lawarg import LAW_HELP, law_choice
+
+__all__ = ["add_parser", "cmd_compare", "compare_row", "settling_time", "COLUMNS"]
+
+#: (key, header, format) of the table's columns.
+COLUMNS = (
+    ("law", "law", "{}"),
+    ("bound_held", "bound held", "{}"),
+    ("first_bound_violation_s", "first violation [s]", "{:.1f}"),
+    ("bound_violation_fraction", "rows outside bound", "{:.3f}"),
+    ("settling_s", "settling [s]", "{:.1f}"),
+    ("final_pointing_arcsec", "final error [arcsec]", "{:.3g}"),
+    ("max_abs_wheel_accel", "peak wheel accel [rad/s^2]", "{:.3g}"),
+    ("safe_steps", "SAFE steps", "{}"),
+    ("law_invalid_steps", "law invalid", "{}"),
+)
+
+
+def settling_time(t: np.ndarray, sigma_BD: np.ndarray, frac: float) -> float | None:
+    """[s] the first time after which the pointing error stays within ``frac``
+    of its initial value (None if it does not settle by the end)."""
+    from sc_rt.results.verdict import pointing_arcsec
+
+    e = pointing_arcsec(sigma_BD)
+    if not len(e) or not np.all(np.isfinite(e)):
+        return None
+    out = np.flatnonzero(e > frac * e[0])
+    if not len(out):
+        return float(t[0])
+    k = int(out[-1]) + 1
+    return float(t[k]) if k < len(t) else None
+
+
+def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
+    from sc_rt.results.verdict import pointing_arcsec
+
+    m = run.metrics
+    ok = np.all(run["bound_ok"], axis=1)
+    return {
+        "law": label,
+        "bound_held": bool(np.all(ok)),
+        "first_bound_violation_s": m.get("first_bound_violation_s"),
+        "bound_violation_fraction": float(np.mean(~ok)) if len(ok) else None,
+        "settling_s": settling_time(run["t"], run["sigma_BD"], settle_frac),
+        "final_pointing_arcsec": float(pointing_arcsec(run["sigma_BD"][-1:])[0]) if len(ok) else None,
+        "max_abs_wheel_accel": m.get("max_abs_wheel_accel"),
+        "safe_steps": m.get("safe_steps"),
+        "law_invalid_steps": m.get("law_invalid_steps"),
+        "diverged": bool(m.get("diverged", False)),
+    }
+
+
+def _cell(v: Any, fmt: str) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    return fmt.format(v)
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    head = "| " + " | ".join(h for _, h, _ in COLUMNS) + " |"
+    sep = "|" + "|".join("---" for _ in COLUMNS) + "|"
+    body = ["| " + " | ".join(_cell(r.get(k), f) for k, _, f in COLUMNS) + " |" for r in rows]
+    return "\n".join([head, sep, *body])
+
+
+def add_parser(sub) -> None:
+    c = sub.add_parser("compare", help="several laws on one scenario: a table of verdicts and metrics")
+    c.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
+    c.add_argument("--law", dest="laws", action="append", type=law_choice, metavar="LAW", required=True,
+                   help=LAW_HELP + "; repeat for each law")
+    c.add_argument("--engine", choices=("python", "cpp"), default="cpp",
+                   help="offline engine (default cpp; a Python law runs on python)")
+    c.add_argument("--duration", type=float, metavar="S", help="[s] default: the scenario's")
+    c.add_argument("--settle", type=float, default=0.02, metavar="FRAC",
+                   help="settling: the pointing error stays within FRAC of its initial value (default 0.02)")
+    c.add_argument("--out", metavar="DIR", help="also write DIR/compare.json and DIR/compare.md")
+    c.set_defaults(func=cmd_compare)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from sc_rt.pylaw import is_python_law
+    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.overrides import with_overrides
+    from sc_rt.sim.engines import simulate
+
+    if args.duration is not None and not args.duration > 0:
+        print(f"sc-rt compare: --duration {args.duration:g}: must be > 0", file=sys.stderr)
+        return 2
+    if not 0 < args.settle < 1:
+        print(f"sc-rt compare: --settle {args.settle:g}: must be in (0, 1)", file=sys.stderr)
+        return 2
+    scn = load_scenario(args.scenario)
+    # every law checked (a plugin constructed with the scenario's params) before any run
+    scns = {}
+    for law in args.laws:
+        if not is_python_law(law):
+            scns[law] = with_overrides(scn, law=law, duration=args.duration)
+    rows = []
+    for law in args.laws:
+        py = is_python_law(law)
+        run = simulate(scn if py else scns[law], law=law if py else None,
+                       engine="python" if py else args.engine, duration=args.duration if py else None)
+        label = law
+        if law.startswith("plugin:"):
+            from sc_rt import _core
+
+            label = _core.law_info(law)["name"]
+        rows.append(compare_row(run, label, args.settle))
+        print(f"sc-rt compare: {scn.name}: {label} done", file=sys.stderr, flush=True)
+    text = table(rows)
+    print(f"{scn.name} ({args.engine} engine, settling within {args.settle:g} of the initial error)\n")
+    print(text)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "compare.json").write_text(json.dumps({"scenario": scn.name, "rows": rows}, indent=2) + "\n")
+        (out / "compare.md").write_text(text + "\n")
+    return 0

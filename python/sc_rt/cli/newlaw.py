@@ -1,0 +1,241 @@
+"""``sc-rt new-law NAME [--lang cpp|python]``: a buildable law project
+(docs/LAWS.md section 3) with a PD law filled in, a pytest test that runs it
+in ``sc-rt sim`` and a README; and ``sc-rt --cmake-dir``."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from pathlib import Path
+
+__all__ = ["add_parser", "cmd_new_law", "CmakeDirAction", "scaffold"]
+
+_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,63}$")
+
+
+class CmakeDirAction(argparse.Action):
+    """``sc-rt --cmake-dir``: print the installed package config's directory, exit."""
+
+    def __init__(self, option_strings, dest, **kw):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kw)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from sc_rt.cmake import cmake_dir
+
+        try:
+            print(cmake_dir())
+        except FileNotFoundError as e:
+            parser.exit(2, f"sc-rt: --cmake-dir: {e}\n")
+        parser.exit(0)
+
+
+def add_parser(sub) -> None:
+    n = sub.add_parser("new-law", help="scaffold a control-law project (C++ plugin or Python class) with a test")
+    n.add_argument("name", help="the law's name (letters, digits, - and _; e.g. my-pd)")
+    n.add_argument("--lang", choices=("cpp", "python"), default="cpp", help="cpp: a plugin built with CMake (default); "
+                   "python: a Python law class (docs/LAWS.md)")
+    n.add_argument("--out", metavar="DIR", help="the project directory to create (default: ./NAME)")
+    n.set_defaults(func=cmd_new_law)
+
+
+def cmd_new_law(args: argparse.Namespace) -> int:
+    if not _NAME_RE.match(args.name):
+        print(f"sc-rt new-law: name {args.name!r}: must start with a letter and hold only letters, "
+              "digits, - and _ (at most 64)", file=sys.stderr)
+        return 2
+    out = Path(args.out or args.name)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        print(f"sc-rt new-law: --out {out}: exists and is not an empty directory", file=sys.stderr)
+        return 2
+    files = scaffold(args.name, out, args.lang)
+    print(f"sc-rt new-law: {args.name} ({args.lang}) -> {out}/: " + ", ".join(p.name for p in files))
+    print(f"next: see {out / 'README.md'}")
+    return 0
+
+
+def scaffold(name: str, out: Path, lang: str = "cpp") -> list[Path]:
+    """Write the project; returns the files written."""
+    ident = re.sub(r"[^A-Za-z0-9_]", "_", name)
+    cls = "".join(p.capitalize() for p in re.split(r"[-_]", name) if p) or "Law"
+    out.mkdir(parents=True, exist_ok=True)
+    subst = {"@NAME@": name, "@IDENT@": ident, "@CLASS@": cls}
+    templates = _CPP if lang == "cpp" else _PYTHON
+    written = []
+    for fname, text in templates.items():
+        for k, v in subst.items():
+            fname, text = fname.replace(k, v), text.replace(k, v)
+        p = out / fname
+        p.write_text(text, encoding="utf-8")
+        written.append(p)
+    return written
+
+
+_CPP = {
+    "CMakeLists.txt": """\
+# The control law @NAME@ as an sc-rt law plugin (docs/LAWS.md in sc-rt).
+#   cmake -S . -B build -DCMAKE_PREFIX_PATH="$(sc-rt --cmake-dir)"
+#   cmake --build build
+cmake_minimum_required(VERSION 3.24)
+project(@IDENT@ LANGUAGES CXX)
+find_package(sc_rt CONFIG REQUIRED)
+sc_rt_add_law(@IDENT@ @IDENT@.cpp)
+""",
+    "@IDENT@.cpp": """\
+// The control law @NAME@: an sc-rt law plugin (docs/LAWS.md). It starts as a
+// PD on the tracking errors the core computes,
+//   u_cmd = -B+ (kp sigma_BD + kd omega_BD_B)        [rad/s^2 per wheel]
+// with kp [1/s^2] and kd [1/s] from the scenario's [controller.params].
+// Change step() to your law; keep reset() and step() free of allocation.
+#include <sc_rt/law.hpp>
+
+namespace {
+
+class @CLASS@ final : public sc_rt::ControlLaw {
+ public:
+  explicit @CLASS@(const sc_rt::LawSetup& s)
+      : model_(s.model), kp_(s.params.positive("kp", 0.05693)), kd_(s.params.positive("kd", 0.2386)) {}
+
+  // Engage: set every state of the law (this PD has none).
+  void reset(const sc_rt::LawInput&) override {}
+
+  void step(const sc_rt::LawInput& in, sc_rt::LawOutput& out) override {
+    out.u_cmd = -model_.B_pinv * (kp_ * in.e.sigma_BD + kd_ * in.e.omega_BD_B);
+    out.e1 = in.e.sigma_BD;    // recorded as the run's e1, e2
+    out.e2 = in.e.omega_BD_B;
+  }
+
+ private:
+  sc_rt::LawModel model_;
+  double kp_, kd_;
+};
+
+}  // namespace
+
+SC_RT_LAW_PLUGIN("@NAME@", @CLASS@, "@NAME@: PD on sigma_BD and omega_BD_B (sc-rt new-law)")
+""",
+    "test_@IDENT@.py": """\
+\"\"\"Builds the plugin (if needed) and runs it in `sc-rt sim`: pytest test_@IDENT@.py\"\"\"
+
+import json
+import subprocess
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+LIB = HERE / "build" / "lib@IDENT@.so"
+
+
+def build():
+    cmake_dir = subprocess.run(["sc-rt", "--cmake-dir"], check=True, capture_output=True, text=True).stdout.strip()
+    subprocess.run(["cmake", "-S", str(HERE), "-B", str(HERE / "build"), f"-DCMAKE_PREFIX_PATH={cmake_dir}"],
+                   check=True, capture_output=True)
+    subprocess.run(["cmake", "--build", str(HERE / "build")], check=True, capture_output=True)
+
+
+def test_runs_in_sc_rt_sim(tmp_path):
+    build()
+    assert LIB.exists()
+    out = tmp_path / "run"
+    r = subprocess.run(["sc-rt", "sim", "paper_fault_free", "--law", f"plugin:{LIB}", "--duration", "60",
+                        "--no-plots", "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["law_invalid_steps"] == 0
+    # the PD brings the attitude error down: |sigma_BD| at the end < at 30 s
+    norms = list(m["sigma_e_norm"].values())
+    assert m["finite"] and norms[-1] < norms[0]
+""",
+    "README.md": """\
+# @NAME@: an sc-rt control law (C++ plugin)
+
+Written by `sc-rt new-law @NAME@`. The law is in `@IDENT@.cpp` (a PD to
+start from); the interface is `sc_rt/law.hpp`, documented in sc-rt's
+docs/LAWS.md.
+
+Build (one command, against the installed sc-rt):
+
+```sh
+cmake -S . -B build -DCMAKE_PREFIX_PATH="$(sc-rt --cmake-dir)" && cmake --build build
+```
+
+Run it:
+
+```sh
+sc-rt sim paper_faults --law plugin:build/lib@IDENT@.so --out out/@IDENT@
+sc-rt compare paper_faults --law dsc-ppc --law pd --law plugin:build/lib@IDENT@.so
+sc-rt hil paper_faults --law plugin:build/lib@IDENT@.so --mode lockstep --out out/@IDENT@-hil
+```
+
+or from a scenario file:
+
+```toml
+[controller]
+law = "plugin:build/lib@IDENT@.so"   # relative to the scenario file
+[controller.params]
+kp = 0.05693   # [1/s^2]
+kd = 0.2386    # [1/s]
+```
+
+Test: `pytest test_@IDENT@.py` (builds, then runs `sc-rt sim`).
+""",
+}
+
+_PYTHON = {
+    "@IDENT@.py": """\
+\"\"\"The control law @NAME@ as a Python law (sc-rt docs/LAWS.md, "Python laws"):
+the same inputs and outputs as the C++ interface, numpy arrays. It starts as a
+PD on the tracking errors the core computes:
+    u_cmd = -B+ (kp sigma_BD + kd omega_BD_B)        [rad/s^2 per wheel]
+\"\"\"
+
+import numpy as np
+
+
+class @CLASS@:
+    name = "@NAME@"
+
+    def __init__(self, setup):
+        self.B_pinv = np.asarray(setup.model.B_pinv)
+        self.kp = float(setup.params.get("kp", 0.05693))  # [1/s^2]
+        self.kd = float(setup.params.get("kd", 0.2386))  # [1/s]
+
+    def reset(self, inp):
+        pass  # engage: set every state of the law (this PD has none)
+
+    def step(self, inp):
+        x1, x2 = np.asarray(inp.e.sigma_BD), np.asarray(inp.e.omega_BD_B)
+        u_cmd = -self.B_pinv @ (self.kp * x1 + self.kd * x2)
+        return u_cmd, {"e1": x1, "e2": x2}
+""",
+    "test_@IDENT@.py": """\
+\"\"\"Runs the law in `sc-rt sim`: pytest test_@IDENT@.py\"\"\"
+
+import json
+import subprocess
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def test_runs_in_sc_rt_sim(tmp_path):
+    out = tmp_path / "run"
+    r = subprocess.run(["sc-rt", "sim", "paper_fault_free", "--law", f"{HERE / '@IDENT@.py'}:@CLASS@",
+                        "--duration", "60", "--no-plots", "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    m = json.loads((out / "metrics.json").read_text())
+    norms = list(m["sigma_e_norm"].values())  # |sigma_BD| at 30 s, ..., the end
+    assert m["finite"] and norms[-1] < norms[0]
+""",
+    "README.md": """\
+# @NAME@: an sc-rt control law (Python)
+
+Written by `sc-rt new-law @NAME@ --lang python`. The law is the class
+`@CLASS@` in `@IDENT@.py` (a PD to start from); the contract is in sc-rt's
+docs/LAWS.md ("Python laws").
+
+```sh
+sc-rt sim paper_faults --law @IDENT@.py:@CLASS@ --out out/@IDENT@
+pytest test_@IDENT@.py
+```
+""",
+}
