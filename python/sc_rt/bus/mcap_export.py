@@ -65,6 +65,8 @@ RAW_SCHEMA = {
     },
     "required": ["lcm_channel", "reason", "size", "data"], "additionalProperties": False,
 }
+
+
 class ExportError(ValueError):
     """Bad input or output of an export (one line, names the option)."""
 
@@ -108,7 +110,7 @@ class _Chan:
         self.kinds: Counter = Counter()
 
 
-_BY_BASE = {base: TYPES[tn] for base, (tn, _w, _r) in CHANNELS.items()}
+_BY_BASE = {base: TYPES[tn] for base, (tn, _w, _r) in CHANNELS.items() if tn in TYPES}
 
 
 def _named_type(name: str):
@@ -375,6 +377,7 @@ def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
                 summ.messages += ex.batch(batch)
             summ.events = scan.events
             _fill(summ, ex, scan)
+            summ.seconds = time.perf_counter() - t0  # so far (the metadata's copy)
             w.add_metadata("sc_rt.export", {"source_log": log.name,
                                              "summary": json.dumps(summ.as_dict(), default=str)})
             w.finish()
@@ -383,6 +386,8 @@ def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
         hint = " (--partial exports the events that can be read)" if e.recoverable else ""
         raise ExportError(f"{e}{hint}") from None
     except OSError as e:
+        if e.filename is not None and Path(e.filename) == log:
+            raise ExportError(f"{log}: cannot read: {e.strerror or e}") from None
         raise ExportError(f"--mcap {out}: cannot write: {e.strerror or e}") from None
     finally:
         if tmp.exists():
