@@ -78,7 +78,8 @@ void Mekf::propagate(MekfState& s, const Vec3& omega_m, double dt) const {
 
 void Mekf::update(MekfState& s, const Vec3& sigma_m) {
   const Vec3 z = mrp_error_vector(sigma_m, s.sigma);
-  const Mat3 S = s.P.topLeftCorner<3, 3>() + R_;
+  // S stays invertible with noiseless sensors (R = 0, P -> 0): a floor of (1e-12 rad)^2
+  const Mat3 S = s.P.topLeftCorner<3, 3>() + R_ + 1e-24 * Mat3::Identity();
   const Eigen::LDLT<Mat3> Sf(S);
   const Eigen::Matrix<double, 6, 3> PHt = s.P.leftCols<3>();
   const Eigen::Matrix<double, 6, 3> K = Sf.solve(PHt.transpose()).transpose();
