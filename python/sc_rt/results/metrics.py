@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from sc_rt.results.estimation import estimation_metrics, fill_true_tracking_error
 from sc_rt.results.run import CORE_FIELDS, Run, json_safe
 from sc_rt.results.verdict import pointing_arcsec, safe_summary
 
@@ -154,7 +155,10 @@ def compute_metrics(run: Run) -> dict[str, Any]:
 def finish_run(run: Run) -> Run:
     """The derived fields and the metrics of a run its producer has filled:
     ``bound_ok`` from the envelope in ``run.meta``, then ``run.metrics``."""
-    run["bound_ok"][:] = bound_ok(run.meta.ppc, run["t"], run["sigma_BD"])
+    sensed = getattr(run.meta, "sensors", False)
+    if sensed:  # with sensors the bound is judged on the true attitude (sc_rt.results.estimation)
+        fill_true_tracking_error(run)
+    run["bound_ok"][:] = bound_ok(run.meta.ppc, run["t"], run["sigma_BD_true"] if sensed else run["sigma_BD"])
     metrics = compute_metrics(run)
     metrics.update(safe_summary(run["t"], run["ctrl_mode"], run["flags"]))
     # steps where the law failed (FLAG_LAW_INVALID, wheel_cmd_t): SAFE zeros instead
@@ -166,6 +170,9 @@ def finish_run(run: Run) -> Run:
     metrics["max_pointing_error_arcsec_after_30s"] = (
         float(np.max(pointing_arcsec(run["sigma_BD"][run["t"] >= 30.0 - 1e-9])))
         if np.any(run["t"] >= 30.0 - 1e-9) else None)
+    if sensed:
+        metrics.update(estimation_metrics(run))
+        metrics["max_pointing_error_arcsec_after_30s"] = metrics["pointing_error_arcsec"]["true"]["max"]
     if run.diverged:
         metrics["diverged"] = True
         metrics["diverged_after_s"] = float(run["t"][-1]) if len(run) else 0.0
