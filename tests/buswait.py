@@ -7,15 +7,26 @@
 
 Prints the simulation time of the last message it used (plant_state_t.t,
 plant_truth_t.t; for cmd the newest state's) and exits 0; exits 1 with a
-message after TIMEOUT seconds."""
+message after TIMEOUT seconds, or as soon as the process SCRT_WAIT_PID names
+(when set: the run being waited on) has ended."""
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 
 import lcm
 import sc_rt_lcm
+
+
+def _alive(pid: int) -> bool:
+    """Whether pid runs (a zombie, exited but not reaped, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
 
 
 def main(argv: list[str]) -> int:
@@ -55,9 +66,12 @@ def main(argv: list[str]) -> int:
         if what == "cmd":
             lc.subscribe("SCRT_CMD", on_cmd)
     end = time.monotonic() + timeout
+    watched = os.environ.get("SCRT_WAIT_PID")
     while not done[0]:
-        if time.monotonic() > end:
-            print(f"buswait: no {' '.join(argv[1:-1])} on {url} in {timeout} s", file=sys.stderr)
+        gone = watched is not None and not _alive(int(watched))
+        if gone or time.monotonic() > end:
+            why = "the run has ended" if gone else f"in {timeout} s"
+            print(f"buswait: no {' '.join(argv[1:-1])} on {url}: {why}", file=sys.stderr)
             return 1
         lc.handle_timeout(50)
     print(t_sim[-1])

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import random
 import sys
 import threading
@@ -30,6 +31,15 @@ TARGETS = {  # channel -> the type its subscriber expects
 START_TIMEOUT_S = 120.0
 OTHER = [sc_rt_lcm.plant_state_t, sc_rt_lcm.wheel_cmd_t, sc_rt_lcm.controller_status_t,
          sc_rt_lcm.plant_truth_t, sc_rt_lcm.fault_cmd_t]
+
+
+def _alive(pid: int) -> bool:
+    """Whether pid runs (a zombie, exited but not reaped, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
 
 
 def valid(cls, rng: random.Random, bad: float | None = None):
@@ -67,10 +77,12 @@ def main(url: str, n: int, out: str, seed: int = 1) -> None:
     th = threading.Thread(target=pump, daemon=True)
     th.start()
     t_wait = time.monotonic()
+    watched = os.environ.get("SCRT_WAIT_PID")  # the run's process: stop waiting if it dies
     while min(len(recent["SCRT_STATE"]), len(recent["SCRT_CMD"])) < 5:
-        if time.monotonic() - t_wait > START_TIMEOUT_S:
+        if time.monotonic() - t_wait > START_TIMEOUT_S or (watched and not _alive(int(watched))):
             stop.set()
-            sys.exit(f"fuzz_lcm: no genuine SCRT_STATE/SCRT_CMD traffic on {url} in {START_TIMEOUT_S} s")
+            why = "the run has ended" if watched and not _alive(int(watched)) else f"in {START_TIMEOUT_S} s"
+            sys.exit(f"fuzz_lcm: no genuine SCRT_STATE/SCRT_CMD traffic on {url}: {why}")
         time.sleep(0.01)
     waited = time.monotonic() - t_wait
     kinds = ["empty", "random", "truncated", "other_type", "trailing", "nan", "inf", "absurd", "replay"]

@@ -159,6 +159,7 @@ def test_emulator_applies_faults_only_when_it_accepts_them():
     assert emu.faults_applied[0]["t"] == 12.5 and emu.faults_applied[0]["onset"] == 20.0
 
 
+@pytest.mark.slow  # ~10-16 s: an 8 s real-time run and its report with figures
 def test_fault_injected_live_shows_in_log_truth_and_report(tmp_path, monkeypatch):
     lcmnet.require()
     rate = 50.0
@@ -173,6 +174,7 @@ set -e
 {PY} -m sc_rt.cli hil scenarios/paper_fault_free.toml --mode realtime --control-rate {rate} \\
     --duration 8 --accept-fault-commands --out {out} --no-plots --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
 HIL=$!
+export SCRT_WAIT_PID=$HIL
 {wait} state 60 > /dev/null
 {PY} -m sc_rt.cli fault inject --wheel 2 --effectiveness 0.3 --bias 0.05 --rate 5 --at 6 --until 7 \\
     --lcm-url '{url}'

@@ -25,6 +25,7 @@ pytestmark = pytest.mark.lcm
 PY = shlex.quote(sys.executable)
 
 
+@pytest.mark.slow  # ~7-11 s: a 20001-step lockstep run under a 100 000-message fuzzer
 def test_fuzz_during_lockstep_run_changes_nothing(tmp_path):
     # 4 MB socket buffers (the host's rmem_max) make overflows rare; UDP may
     # still drop some of the burst on a loaded machine, so what the receivers
@@ -40,7 +41,7 @@ set -e
 {PY} -m sc_rt.cli hil scenarios/paper_faults.toml --controller dsc --duration 2000 --no-plots \\
     --out {out} --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
 HIL=$!
-{PY} {HERE / 'fuzz_lcm.py'} '{url}' {n} {sent}
+SCRT_WAIT_PID=$HIL {PY} {HERE / 'fuzz_lcm.py'} '{url}' {n} {sent}
 wait $HIL
 """
     r = lcmnet.run_script(script, timeout=600)
@@ -153,6 +154,7 @@ def test_stale_states_give_safe_mode_and_recovery(tmp_path):
     assert d["summary"]["stale_states"] >= len(stale)
 
 
+@pytest.mark.slow  # ~7-9 s: an 8 s real-time run
 def test_killed_controller_is_replaced_and_the_log_keeps_everything(tmp_path):
     url = "udpm://239.255.76.67:7713?ttl=0&recv_buf_size=4194304"
     out = tmp_path / "hil"
@@ -166,6 +168,7 @@ def test_killed_controller_is_replaced_and_the_log_keeps_everything(tmp_path):
 {PY} -m sc_rt.cli hil scenarios/paper_faults.toml --controller pd --mode realtime --control-rate 50 \\
     --duration {duration} --no-plots --out {out} --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
 HIL=$!
+export SCRT_WAIT_PID=$HIL
 {wait} cmd 60 > /dev/null || exit 3
 T_KILL=$({wait} state 60) || exit 3
 pkill -KILL -f '^[^ ]*sc-rt-controller --config {out}'

@@ -27,6 +27,7 @@ PY = shlex.quote(sys.executable)
 PERIODIC = ("SCRT_STATE", "SCRT_CMD", "SCRT_CTRL_STATUS", "SCRT_TRUTH")
 
 
+@pytest.mark.slow  # ~8-10 s: a 9 s real-time run
 def test_spy_sees_every_channel_at_the_configured_rate(tmp_path):
     lcmnet.require()
     rate = 100.0
@@ -40,7 +41,7 @@ set -e
 {PY} -m sc_rt.cli hil scenarios/paper_fault_free.toml --mode realtime --control-rate {rate} \\
     --duration 9 --out {out} --no-plots --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
 HIL=$!
-{PY} {shlex.quote(str(HERE / 'buswait.py'))} '{url}' state 60 > /dev/null
+SCRT_WAIT_PID=$HIL {PY} {shlex.quote(str(HERE / 'buswait.py'))} '{url}' state 60 > /dev/null
 {PY} -m sc_rt.cli spy --lcm-url '{url}' --once --json --duration {listen} > {tmp_path}/spy.json
 wait $HIL
 """
@@ -136,6 +137,7 @@ def _synthetic_log(path: Path, seconds: float, rate: float) -> None:
     log.close()
 
 
+@pytest.mark.slow  # ~11-12 s: Xvfb, a JDK build of the types jar, lcm-spy, an 8 s replay
 def test_lcm_spy_finds_our_types_under_xvfb(tmp_path):
     """The real lcm-spy, started by sc-rt lcm-spy, while sc-rt replay plays a
     log: it loads our types jar (built here from the .lcm files into a fresh
