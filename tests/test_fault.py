@@ -146,10 +146,10 @@ def test_emulator_applies_faults_only_when_it_accepts_them():
     assert [x.wheel for x in emu.act.faults] == [3]
     # hostile: undecodable, a wheel out of range, an effectiveness out of range
     emu._on_fault("SCRT_FAULT", b"nonsense")
-    bad = inject_msg(1)
+    bad = inject_msg(1, bias=0.1)
     bad.wheel = 9
     emu._on_fault("SCRT_FAULT", bad.encode())
-    bad = inject_msg(1)
+    bad = inject_msg(1, bias=0.1)
     bad.effectiveness = 3.0
     emu._on_fault("SCRT_FAULT", bad.encode())
     assert emu.counters["malformed"] == 1 and emu.counters["fault_rejected"] == 2

@@ -258,3 +258,13 @@ def test_lcm_spy_without_java_says_what_to_install(tmp_path):
                        text=True, env=env, cwd=ROOT)
     assert r.returncode == 2
     assert "default-jdk-headless" in r.stderr and "javac" in r.stderr
+
+
+@pytest.mark.parametrize("mode", [["--once"], ["--once", "--json"], []])
+def test_spy_says_when_nothing_is_heard(mode):
+    """Nothing on the bus: the spy names the URL and exits 1 (--once, or
+    live with --duration), so a script can tell an empty bus from a quiet one."""
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "spy", "--lcm-url", "memq://", "--duration", "0.3",
+                        *mode], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "sc-rt spy: nothing heard on memq://" in r.stderr

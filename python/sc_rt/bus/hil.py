@@ -234,7 +234,10 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         stopped += f" (lcm-logger: {logger_err.splitlines()[-1]})"
         res.metrics["stopped"] = stopped
     summary_path = out / "controller_summary.json"
-    summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
+    try:  # (empty when the controller could not write it: a full disk)
+        summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
+    except ValueError:
+        summary = {}
     if ctl_err.strip():
         (out / "controller_stderr.txt").write_text(ctl_err)
 
@@ -242,7 +245,11 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     fill_tracking_errors(res, scn.core_config().guidance)
     finish_run(res)
     res.timing = timing_report(res, summary, wall)
-    files = write_run(res, out, figures=plots)
+    try:
+        files = write_run(res, out, figures=plots)
+    except OSError as e:  # a full disk: say where, and why the run had stopped
+        raise OSError(e.errno, e.strerror + (f" (the run had stopped: {stopped})" if stopped else ""),
+                      str(e.filename or out)) from e
     files += [p for p in (log_path, cfg_path, summary_path, out / "controller_stderr.txt") if p.exists()]
     return HilResult(out, res, summary, files, stopped, stopper.signum)
 

@@ -190,7 +190,8 @@ class Spy:
             return "[" + " ".join(fmt.format(x) for x in v) + "]"
 
         lines = [f"sc-rt spy  {self.url}  channels {self.pattern!r}  "
-                 f"{time.monotonic() - self.start:.0f} s  (Ctrl-C quits)", "",
+                 f"{time.monotonic() - self.start:.0f} s  (Ctrl-C quits)"
+                 + ("" if self.stats else "  -- nothing heard yet on this URL"), "",
                  f"{'channel':<22} {'type':<20} {'Hz':>8} {'jitter ms':>10} {'count':>9} {'bad':>6}"]
         for name in sorted(self.stats):
             s = self.stats[name]
@@ -242,7 +243,7 @@ def main_loop(url: str, channels: str = ".*", once: bool = False, as_json: bool 
         spy.listen(1.5 if duration is None else duration)
         snap = spy.snapshot()
         out.write(json.dumps(json_safe(snap), indent=2, default=float) + "\n" if as_json else spy.render() + "\n")
-        return 0
+        return _heard(spy)
     spy = Spy(url, channels, window=window)
     end = math.inf if duration is None else time.monotonic() + duration
     tty = out.isatty() if hasattr(out, "isatty") else False
@@ -266,4 +267,21 @@ def main_loop(url: str, channels: str = ".*", once: bool = False, as_json: bool 
         if tty:
             out.write("\x1b[?25h\n")
             out.flush()
-    return 0
+    return _heard(spy) if duration is not None else 0
+
+
+def nothing_heard(spy: Spy) -> str | None:
+    """The line that says nothing was heard (None: something was)."""
+    if spy.stats:
+        return None
+    return (f"sc-rt spy: nothing heard on {spy.url} (channels {spy.pattern!r}) in "
+            f"{time.monotonic() - spy.start:.1f} s: is a bench running there? (sc-rt hil prints its URL; "
+            "--lcm-url or $SCRT_LCM_URL)")
+
+
+def _heard(spy: Spy) -> int:
+    """0 when something was heard; else the line on stderr and 1."""
+    line = nothing_heard(spy)
+    if line:
+        print(line, file=sys.stderr)
+    return 1 if line else 0

@@ -59,15 +59,21 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     return m
 
 
-def _int(option: str, value: str | None, lo: int, default: int | None = None) -> int | None:
+#: Counts beyond these cannot be held (one dataset row per run) or run (processes).
+MAX_RUNS, MAX_WORKERS, MAX_BATCH, MAX_SEED = 10_000_000, 1024, 100_000, 2**63 - 1
+
+
+def _int(option: str, value: str | None, lo: int, default: int | None = None,
+         hi: int | None = None) -> int | None:
     if value is None:
         return default
+    want = f">= {lo}" if hi is None else f"in {lo}..{hi}"
     try:
         v = int(value)
     except ValueError:
-        raise BadOption(f"{option} {value}: must be an integer >= {lo}") from None
-    if v < lo:
-        raise BadOption(f"{option} {value}: must be an integer >= {lo}")
+        raise BadOption(f"{option} {value}: must be an integer {want}") from None
+    if v < lo or (hi is not None and v > hi):
+        raise BadOption(f"{option} {value}: must be an integer {want}")
     return v
 
 
@@ -91,10 +97,10 @@ def _float(option: str, value: str | None, lo: float, hi: float = math.inf, *,
 def parse_options(args: argparse.Namespace) -> dict[str, Any]:
     """The checked options (BadOption on the first bad one)."""
     o: dict[str, Any] = {
-        "runs": _int("--runs", args.runs, 1),
-        "workers": _int("--workers", args.workers, 1),
+        "runs": _int("--runs", args.runs, 1, hi=MAX_RUNS),
+        "workers": _int("--workers", args.workers, 1, hi=MAX_WORKERS),
         "seed": _int("--seed", args.seed, 0),
-        "batch": _int("--batch", args.batch, 1),
+        "batch": _int("--batch", args.batch, 1, hi=MAX_BATCH),
         "rerun": _int("--rerun", args.rerun, 0),
         "control_rate": _float("--control-rate", args.control_rate, 0.0, open_lo=True),
         "inertia": _float("--inertia", args.inertia, 0.0, 1.0, open_hi=True),
@@ -194,6 +200,15 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     from sc_rt.studies.campaign.store import RunStore
 
     scn = load_scenario(args.scenario)  # ScenarioError: exit 2 with file, line, key, value
+    from sc_rt.cli.validate import UsageError, check_run_size
+    from sc_rt.scenario.overrides import with_overrides
+
+    try:  # a run of each worker held at once
+        check_run_size(with_overrides(scn, control_rate_hz=o["control_rate"]),
+                       f"--control-rate {args.control_rate}" if args.control_rate else "",
+                       copies=o["workers"] or 1)
+    except UsageError as e:
+        return _fail(str(e))
     c = Campaign(scn, _dispersion(o, scn.montecarlo is not None and bool(scn.montecarlo.disperse)),
                  o["seed"], args.law, o["control_rate"])
     out = Path(args.out)
