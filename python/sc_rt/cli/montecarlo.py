@@ -36,7 +36,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     m.add_argument("--runs", default="200", metavar="N", help="runs 0..N-1 (default 200)")
     m.add_argument("--workers", metavar="K", help="local worker processes (default: all cores)")
     m.add_argument("--seed", default="0", metavar="S", help="campaign seed, an integer >= 0 (default 0)")
-    m.add_argument("--law", "--controller", dest="law", metavar="LAW", help="control law: " + ", ".join(LAW_CHOICES))
+    m.add_argument("--law", "--controller", dest="law", metavar="LAW", help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME")
     m.add_argument("--control-rate", metavar="HZ")
     m.add_argument("--backend", default="local", metavar="NAME",
                    help="local (process pool, the default), dask (a Dask LocalCluster of --workers)")

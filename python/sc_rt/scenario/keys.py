@@ -35,6 +35,8 @@ def scenario_data(scn: Any) -> dict[str, Any]:
     controller = {name: _group(getattr(c, name))
                   for name in ("ppc", "neso", "dsc", "pd", "rft", "safety")}  # fmt: skip
     controller["pinv_damping"] = float(c.pinv_damping)
+    if c.law_params:  # [controller.params] of the law (a plugin's): one number as a scalar
+        controller["params"] = {k: (v[0] if len(v) == 1 else list(v)) for k, v in c.law_params}
     faults = []
     for f in a.faults:
         entry: dict[str, Any] = {"wheel": int(f.wheel) + 1, "onset": float(f.onset),
