@@ -36,8 +36,11 @@ namespace sc_rt {
 enum class GuidanceKind : int { Paper = 0, Hold = 1, Slew = 2, Table = 3 };
 const char* guidance_kind_name(GuidanceKind k);  //!< "paper", "hold", "slew", "table"
 
-//! Most samples of a Table reference (the controller_config_t carries them).
-constexpr int kGuidanceTableMax = 20000;
+//! Most samples of a Table reference. controller_config_t carries them (56 B
+//! each): 2000 keep the message near 113 kB, within the 212992-byte default
+//! socket receive buffer of Linux, so the config survives LCM UDP multicast
+//! (lcm-logger's copy, --config-channel); larger messages were lost.
+constexpr int kGuidanceTableMax = 2000;
 
 using MatX3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
 
