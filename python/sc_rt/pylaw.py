@@ -218,6 +218,13 @@ class PyController:
         self._engaged = True
         self._first = True
 
+    def safe_command(self, t: float, flags: int) -> np.ndarray:
+        """A SAFE zero command (the law re-engages at the next valid step), as
+        ``Controller::safe_command``: the packed row."""
+        out = np.zeros(_core.PACKED_SIZE)
+        out[PACKED_SLICES["sigma_DN"]] = self.guidance.sigma_DN
+        return self._safe(out, flags)
+
     def _safe(self, out: np.ndarray, flags: int) -> np.ndarray:
         out[PACKED_SLICES["u_cmd"]] = 0.0
         out[PACKED_SLICES["u_sat"]] = 0.0

@@ -103,6 +103,7 @@ class Emulator:
         #: [s] wait this long for a first answer to state 0 before the run
         #: starts (a controller process still starting; None: no wait)
         self.start_timeout = start_timeout
+        self.start_wait_s = 0.0  # [s] how long the first answer took (start_timeout)
         #: asked every step (and while waiting for a command): a reason to stop
         #: the run early (a signal, a dead logger), None to go on; a run stopped
         #: so is returned with the rows done and marked partial
@@ -303,16 +304,20 @@ class Emulator:
         """Re-send state 0 until a controller answers it (raises RuntimeError
         after ``start_timeout`` s): a process that is still starting, or one
         a person starts by hand, gets the run from its first state."""
-        end = time.monotonic_ns() + int(self.start_timeout * 1e9)
+        t_start = time.monotonic_ns()
+        end = t_start + int(self.start_timeout * 1e9)
         while 0 not in self._cmd:
             now = time.monotonic_ns()
             if now >= end:
                 raise RuntimeError(f"no controller answered the first state within {self.start_timeout:g} s")
             self.counters["start_state_sent"] += 1
             self._publish_state(0, 0.0, x0)
-            resend = min(end, now + 250_000_000)
+            resend = min(end, now + 100_000_000)
             while 0 not in self._cmd and time.monotonic_ns() < resend:
+                if self._should_stop():
+                    return  # the run loop ends at once, with no rows
                 self.lc.handle_timeout(20)
+        self.start_wait_s = (time.monotonic_ns() - t_start) / 1e9
 
     def _allocate(self, n: int) -> Run:
         return Run.allocate(n, RunMeta.of_scenario(self.scn, f"hil-{self.mode}", mode=self.mode))

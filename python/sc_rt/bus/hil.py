@@ -23,9 +23,11 @@ from typing import Any
 import numpy as np
 
 from sc_rt.bus.emulator import Emulator
+from sc_rt.bus.external import ExternalController, python_controller_command
 from sc_rt.bus.lcmio import channel, free_port_url, lcm_binary, open_lcm
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
+from sc_rt.pylaw import is_python_law
 from sc_rt.results.run import Run
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
@@ -160,26 +162,37 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
             control_rate_hz: float | None = None, duration: float | None = None,
             lcm_url: str | None = None, prefix: str = "", realtime_priority: bool = False,
             time_scale: float = 1.0, accept_fault_commands: bool = False,
-            plots: bool = True) -> HilResult:
+            plots: bool = True, external: str | None = None, external_wait: bool = False,
+            start_timeout: float | None = None) -> HilResult:
+    """A bench run. The controller is sc-rt-controller, or (bus/external.py)
+    ``external``: a command line started instead (a Python law ``law`` =
+    "module:Class" runs as ``sc-rt controller``), or, with ``external_wait``,
+    a controller started by hand that speaks the protocol (docs/PROTOCOL.md)."""
+    if is_python_law(law):
+        external, law = python_controller_command(law, realtime_priority), None
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
 
     url = lcm_url or free_port_url(ttl=0)
     # everything that can fail before a child starts: the URL, both binaries, the directory
     open_lcm(url)
-    ctl_bin, logger_bin = controller_binary(), lcm_binary("lcm-logger")
+    ctl_bin = None if external or external_wait else controller_binary()
+    logger_bin = lcm_binary("lcm-logger")
     out.mkdir(parents=True, exist_ok=True)
     cfg_path = out / "controller_config.bin"
     cfg_path.write_bytes(scn.controller_config_msg().encode())
     log_path = out / "run.lcmlog"
     if log_path.exists():
         log_path.unlink()
+    ext = ExternalController(external, external_wait, start_timeout, url=url, prefix=prefix, mode=mode,
+                             out=out, config=cfg_path) if external or external_wait else None
     with Stopper() as stopper:
         return _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale,
-                             accept_fault_commands, plots, stopper, ctl_bin, logger_bin, cfg_path, log_path)
+                             accept_fault_commands, plots, stopper, ctl_bin, logger_bin, cfg_path, log_path,
+                             ext)
 
 
 def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, accept_fault_commands,
-                  plots, stopper, ctl_bin, logger_bin, cfg_path, log_path) -> HilResult:
+                  plots, stopper, ctl_bin, logger_bin, cfg_path, log_path, ext=None) -> HilResult:
     logger = subprocess.Popen([logger_bin, "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs())
     stopper.logger = logger
@@ -202,25 +215,32 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     if realtime_priority:
         cmd.append("--realtime-priority")
     try:
-        ctl = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                               **child_kwargs())
+        ctl = (ext.start(child_kwargs()) if ext else
+               subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                **child_kwargs()))
     except BaseException:
         _stop(logger, signal.SIGINT)
         raise
     try:
-        # the controller says on stderr when it has subscribed
-        line = ctl.stderr.readline()
-        if "mode on" not in line:
-            rest = ctl.stderr.read() if ctl.poll() is not None else ""
-            raise RuntimeError(f"sc-rt-controller did not start: {line}{rest}")
+        if ext is None:
+            # the controller says on stderr when it has subscribed
+            line = ctl.stderr.readline()
+            if "mode on" not in line:
+                rest = ctl.stderr.read() if ctl.poll() is not None else ""
+                raise RuntimeError(f"sc-rt-controller did not start: {line}{rest}")
         emu = Emulator(scn, mode=mode, url=url, prefix=prefix, time_scale=time_scale,
-                       accept_fault_commands=accept_fault_commands, stop=stopper)
+                       accept_fault_commands=accept_fault_commands,
+                       stop=ext.stop_check(stopper) if ext else stopper,
+                       start_timeout=ext.start_timeout if ext else None)
         t0 = time.perf_counter()
         res = emu.run()
-        wall = time.perf_counter() - t0
+        wall = time.perf_counter() - t0 - emu.start_wait_s  # the run, not the wait for its controller
+        if ext is not None and stopper.signum is None:
+            ext.check_started(res)
     finally:
-        _stop(ctl, signal.SIGTERM)
-        ctl_err = ctl.stderr.read() if ctl.stderr else ""
+        if ctl is not None:
+            _stop(ctl, signal.SIGTERM)
+        ctl_err = ext.stderr_text() if ext else ctl.stderr.read() if ctl.stderr else ""
         time.sleep(0.15)  # one logger flush interval
         logger_rc = _stop(logger, signal.SIGINT)
     logger_err = logger.stderr.read().decode(errors="replace").strip() if logger.stderr else ""
@@ -238,8 +258,10 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     except ValueError:
         summary = {}
-    if ctl_err.strip():
+    if ctl_err.strip() and ext is None:
         (out / "controller_stderr.txt").write_text(ctl_err)
+    if ext is not None:
+        ext.label(res, emu.controller_info)  # the law's name from its controller_info_t
 
     res.meta = dataclasses.replace(res.meta, wall_s=wall)
     fill_tracking_errors(res, scn.core_config().guidance)
@@ -250,7 +272,8 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     except OSError as e:  # a full disk: say where, and why the run had stopped
         raise OSError(e.errno, e.strerror + (f" (the run had stopped: {stopped})" if stopped else ""),
                       str(e.filename or out)) from e
-    files += [p for p in (log_path, cfg_path, summary_path, out / "controller_stderr.txt") if p.exists()]
+    files += [p for p in (log_path, cfg_path, summary_path, out / "controller_stderr.txt",
+                          out / "controller_stdout.txt") if p.exists()]
     return HilResult(out, res, summary, files, stopped, stopper.signum)
 
 

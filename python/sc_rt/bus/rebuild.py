@@ -17,7 +17,7 @@ from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
 from sc_rt.results.run import RunMeta, empty_arrays
 from sc_rt.scenario.model import LAW_NAMES
 
-__all__ = ["Rebuilt", "rebuild", "logged_config", "run_params", "logged_guidance", "fault_summary",
+__all__ = ["Rebuilt", "rebuild", "logged_config", "run_params", "controller_label", "logged_guidance", "fault_summary",
            "MAX_FAULT_CHANGES"]
 
 #: fault state changes listed per wheel in report.json (a hostile log could have one per row)
@@ -194,6 +194,20 @@ def run_params(d: LogData, scenario_path: str | None):
     raise ValueError(f"{d.path}: no controller_config_t on {d.prefix}SCRT_CONFIG (a log from "
                      "before sc-rt hil logged it, or from another bench): pass --scenario FILE "
                      "for the PPC envelope, the law and the rate")
+
+
+def controller_label(d: LogData, configured: str) -> str:
+    """The law that answered, as the log tells it: the name the controller
+    announced (controller_info_t, the newest), else the law code of its
+    status messages (a built-in law; else the configured one), else
+    "external" when commands came from a controller that sent neither."""
+    infos = [m for _stamp, m in d.messages.get("SCRT_CTRL_INFO", []) if m.law]
+    if infos:
+        return infos[-1].law
+    st = d.records["SCRT_CTRL_STATUS"]
+    if st.size:
+        return LAW_NAMES.get(int(st["law"][-1]), configured)
+    return "external" if d.records["SCRT_CMD"].size else configured
 
 
 def logged_guidance(d: LogData, scenario_path: str | None):

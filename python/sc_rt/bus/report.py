@@ -40,7 +40,7 @@ import numpy as np
 
 from sc_rt.bus.lcmio import lcm_binary
 from sc_rt.bus.logread import LogData, read_log
-from sc_rt.bus.rebuild import Rebuilt, fault_summary, logged_config, logged_guidance, rebuild, run_params
+from sc_rt.bus.rebuild import Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild, run_params
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
 from sc_rt.results.run import Run, RunMeta, json_safe
@@ -73,6 +73,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     if d.records["SCRT_STATE"].size == 0:
         raise ValueError(f"{d.path}: no plant_state_t on {d.prefix}SCRT_STATE: nothing to report")
     name, law, rate, duration, ppc, umin, umax, source = run_params(d, scenario)
+    law = controller_label(d, law)  # the law that answered (its announcement), not only the configured one
     t_build = time.perf_counter()
     r = rebuild(d, mode)
     # a log cut short (an interrupted, crashed or full-disk run) ends with

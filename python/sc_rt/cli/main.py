@@ -18,6 +18,7 @@ from sc_rt.cli.validate import (MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, Usag
                                 given_options, integer, lcm_url, number, out_dir, out_file, resolve_url,
                                 rounded)
 from sc_rt.cli.lawarg import LAW_HELP, core_law_choice, law_choice
+from sc_rt.cli.controller import add_external_options, external_choice
 from sc_rt.scenario.model import LAWS  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
@@ -125,8 +126,9 @@ def cmd_hil(args: argparse.Namespace) -> int:
     from sc_rt.scenario.overrides import with_overrides
 
     out = _out_dir(args.out)
-    scn = with_overrides(_scenario(args.scenario), law=args.law, control_rate_hz=args.control_rate,
-                         duration=args.duration)
+    pylaw = external_choice(args)  # a Python law, --external or --external-wait (checked here)
+    scn = with_overrides(_scenario(args.scenario), law=None if pylaw else args.law,
+                         control_rate_hz=args.control_rate, duration=args.duration)
     sizes = dict(control_rate="--control-rate", duration="--duration")
     if args.mode == "realtime":
         sizes["time_scale"] = "--time-scale"
@@ -140,7 +142,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
     res = run_hil(scn, out=out, mode=args.mode, lcm_url=url,
                   prefix=args.prefix, realtime_priority=args.realtime_priority,
                   time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
-                  plots=not args.no_plots)
+                  plots=not args.no_plots, law=pylaw, external=args.external,
+                  external_wait=args.external_wait, start_timeout=args.start_timeout)
     print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/ ({len(res.files)} files: "
           f"{', '.join(p.name for p in res.files)}, run.lcmlog)")
     _print_metrics(res.metrics, res.run.meta.faults)
@@ -597,8 +600,8 @@ def build_parser() -> argparse.ArgumentParser:
     h = sub.add_parser("hil", help="controller process + plant emulator + lcm-logger over LCM")
     h.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     h.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep", help="default: %(default)s")
-    h.add_argument("--law", "--controller", dest="law", type=core_law_choice, metavar="LAW",
-                   help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME (default: the scenario's)")
+    h.add_argument("--law", "--controller", dest="law", type=law_choice, metavar="LAW",
+                   help=LAW_HELP + "; a Python law runs in `sc-rt controller`")
     h.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
     h.add_argument("--duration", type=number(unit="s"), metavar="S", help="default: the scenario's")
     h.add_argument("--out", default="out/hil", type=out_dir, metavar="DIR", help="default: %(default)s")
@@ -611,6 +614,7 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     h.add_argument("--mcap", nargs="?", const="", metavar="OUT",
                    help="also write the run's log as MCAP (default OUT: run.mcap in --out; as sc-rt export)")
+    add_external_options(h)  # --external, --external-wait, --start-timeout (sc_rt/cli/controller.py)
     lcm_opts(h)
     h.set_defaults(func=cmd_hil)
 
@@ -654,6 +658,9 @@ def build_parser() -> argparse.ArgumentParser:
     from sc_rt.cli.montecarlo import add_parser as add_montecarlo
 
     add_montecarlo(sub)  # its options and their checks: sc_rt/cli/montecarlo.py
+    from sc_rt.cli.controller import add_parser as add_controller
+
+    add_controller(sub)  # sc-rt controller --law module:Class: sc_rt/cli/controller.py
     add_new_law(sub)  # sc-rt new-law: sc_rt/cli/newlaw.py
     from sc_rt.cli.compare import add_parser as add_compare
 

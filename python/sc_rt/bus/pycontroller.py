@@ -1,0 +1,243 @@
+"""``sc-rt controller --law module:Class``: a Python law as a real LCM
+controller process, for prototyping at 10-100 Hz.
+
+The same shell as sc-rt-controller (cpp/app/controller_main.cpp), with the
+C++ shell's policy through the bindings: ``_core.InputGate`` (session
+adoption, duplicates, order, rejection counters) and ``_core.PhaseLock``
+(real-time deadlines phase-locked to the state arrivals). Two modes:
+
+- lockstep: one command per state, on arrival, answering its seq; a re-sent
+  state (a duplicate) is answered again with the same command;
+- realtime: wakes on its own deadlines at the control rate, uses the newest
+  state (stale after ``stale_periods`` periods: SAFE zero command), publishes.
+
+It publishes wheel_cmd_t and controller_status_t per step, announces itself
+with controller_info_t (at start and at each new plant session), and writes
+the exit summary with the C++ process's keys (controller_summary.json). The
+law runs behind ``sc_rt.pylaw.PyController``, so a lockstep run equals
+``sc-rt sim --law module:Class`` to the last bit.
+"""
+
+from __future__ import annotations
+
+import json
+import secrets
+import select
+import signal
+import sys
+import time
+from collections import Counter
+from typing import Any
+
+import numpy as np
+import sc_rt_lcm
+
+from sc_rt import _core
+from sc_rt.bus.lcmio import channel, open_lcm
+from sc_rt.bus.wire import decode_as
+from sc_rt.pylaw import PACKED_SLICES as P, PyController
+
+__all__ = ["PyControllerProcess", "nearest_rank", "write_summary"]
+
+_STATE_SIZE = len(sc_rt_lcm.plant_state_t().encode())
+_V = _core.GateVerdict
+
+
+def nearest_rank(v: list[float]) -> dict[str, float]:
+    """p50, p99 and max as the C++ controller computes them (nearest rank)."""
+    if not v:
+        return {"p50": 0.0, "p99": 0.0, "max": 0.0}
+    s = sorted(v)
+
+    def q(p: float) -> float:
+        return s[min(len(s) - 1, int(p * (len(s) - 1) + 0.5))]
+
+    return {"p50": round(q(0.5), 3), "p99": round(q(0.99), 3), "max": round(s[-1], 3)}
+
+
+class PyControllerProcess:
+    def __init__(self, config, law_cls: type, *, url: str, prefix: str = "", mode: str = "lockstep",
+                 max_steps: int | None = None, phase_offset_us: float = 50.0):
+        if mode not in ("lockstep", "realtime"):
+            raise ValueError(f"--mode must be lockstep or realtime, got {mode!r}")
+        self.ctl = PyController(config, law_cls)
+        self.realtime = mode == "realtime"
+        self.mode, self.prefix, self.max_steps = mode, prefix, max_steps
+        self.phase_offset_us = phase_offset_us
+        self.period_ns = int(round(1e9 / config.control_rate_hz))
+        self.stale_ns = int(config.safety.stale_periods * self.period_ns)
+        self.gate = _core.InputGate(_core.InputGate.session_timeout_for(self.stale_ns))
+        self.session = secrets.randbits(62)
+        self.lc = open_lcm(url)
+        self.url = url
+        self.cnt: Counter = Counter()
+        self.lat: list[float] = []
+        self.comp: list[float] = []
+        self.age: list[float] = []
+        self._state = None
+        self._fresh = self._reengage = False
+        self._announced: int | None = None
+        self._last: np.ndarray | None = None
+        self._used_fresh, self._used_rx = False, 0
+        self._cmd_seq = 0
+        self.stop = False
+        self._ch_cmd, self._ch_status = channel("SCRT_CMD", prefix), channel("SCRT_CTRL_STATUS", prefix)
+        self._ch_info = channel("SCRT_CTRL_INFO", prefix)
+        self.lc.subscribe(channel("SCRT_STATE", prefix), self._on_state).set_queue_capacity(100_000)
+
+    # --- input --------------------------------------------------------------
+    def _on_state(self, _ch: str, data: bytes) -> None:
+        now = time.monotonic_ns()
+        bad: Counter = Counter()
+        msg = decode_as(sc_rt_lcm.plant_state_t, data, bad)
+        if msg is None:
+            (self.gate.trailing_bytes if bad["trailing_bytes"] else self.gate.malformed)()
+            return
+        x = np.array([*msg.sigma_BN, *msg.omega_BN_B, *msg.wheel_speed])
+        m = _core.Measurement(msg.t, x[0:3], x[3:6], x[6:10])
+        valid = _core.measurement_valid(m, self.ctl.config.safety)
+        v = self.gate.offer(now, msg.session, msg.seq, valid)
+        if v == _V.Duplicate:
+            # lockstep: the plant re-sent a state it had no answer to: answer again
+            if not self.realtime and self._last is not None:
+                self._publish(self._last, msg.seq, 0.0, 0.0, 0.0)
+            return
+        if v not in (_V.Accept, _V.Adopt):
+            return
+        if v == _V.Adopt:
+            self._reengage = True  # a restarted plant: start the law afresh
+        if msg.session != self._announced:
+            self._announced = msg.session
+            self.announce()
+        self._state = (msg.seq, msg.t, x)
+        self._fresh = True
+        if not self.realtime:
+            self.step(now, now)
+
+    # --- one step -------------------------------------------------------------
+    def step(self, now: int, deadline: int) -> None:
+        t_start = time.monotonic_ns()
+        have, fresh, rx = self.gate.have_state, self._fresh, self.gate.last_rx_ns
+        self._fresh = False
+        st = self._state
+        stale = not have or (self.realtime and t_start - rx > self.stale_ns)
+        if stale:
+            out = self.ctl.safe_command(st[1] if have else 0.0, _core.FLAG_STALE_STATE)
+            self.cnt["stale_steps"] += 1
+            self.cnt["safe_steps"] += 1
+        elif not fresh:  # real time, no new state yet: hold the last command
+            self.cnt["stale_steps"] += 1
+            out = self._last.copy()
+            out[P["flags"]] = int(out[P["flags"]][0]) | _core.FLAG_STALE_STATE
+        else:
+            if self._reengage:
+                self._reengage = False
+                self.ctl.reset(st[1], st[2])
+            out = self.ctl.step(st[1], st[2])
+            if int(out[P["mode"]][0]) == _core.MODE_SAFE:
+                self.cnt["safe_steps"] += 1
+        self._used_fresh, self._used_rx = fresh and not stale, rx
+        age_us = (t_start - rx) / 1e3 if have else 0.0
+        t_end = time.monotonic_ns()
+        self._last = out
+        comp_us, late_us = (t_end - t_start) / 1e3, (now - deadline) / 1e3
+        self.cnt["steps"] += 1
+        used_seq = st[0] if have else -1
+        self._publish(out, used_seq, late_us, comp_us, age_us)
+        if self.realtime and time.monotonic_ns() > deadline + self.period_ns:
+            self.cnt["deadline_misses"] += 1
+        self.lat.append(late_us)
+        self.comp.append(comp_us)
+        self.age.append(age_us)
+        if self.max_steps is not None and self.cnt["steps"] >= self.max_steps:
+            self.stop = True
+
+    # --- output ---------------------------------------------------------------
+    def announce(self) -> None:
+        m = sc_rt_lcm.controller_info_t()
+        m.utime, m.session = time.time_ns() // 1000, self.session
+        m.protocol = sc_rt_lcm.controller_info_t.PROTOCOL_VERSION
+        m.sends_status, m.law = True, self.ctl.name
+        m.description = f"sc-rt controller (Python law {type(self.ctl.law).__module__}.{type(self.ctl.law).__name__})"
+        self.lc.publish(self._ch_info, m.encode())
+
+    def _publish(self, out: np.ndarray, state_seq: int, late_us: float, comp_us: float, age_us: float) -> None:
+        c = sc_rt_lcm.wheel_cmd_t()
+        c.utime, c.seq, c.session, c.state_seq = time.time_ns() // 1000, self._cmd_seq, self.session, state_seq
+        c.t = float(self._state[1]) if self._state is not None else 0.0
+        c.u_cmd, c.u_sat = out[P["u_cmd"]].tolist(), out[P["u_sat"]].tolist()
+        c.mode, c.flags = int(out[P["mode"]][0]), int(out[P["flags"]][0])
+        self.lc.publish(self._ch_cmd, c.encode())
+        s = sc_rt_lcm.controller_status_t()
+        s.utime, s.cmd_seq, s.session, s.state_seq, s.t = c.utime, self._cmd_seq, self.session, state_seq, c.t
+        s.law, s.mode, s.flags = -1, c.mode, c.flags  # -1: not a registry law (its name: controller_info_t)
+        for name in ("sigma_DN", "sigma_BD", "omega_BD_B", "e1", "e2", "z1", "z2", "chi", "lam", "u_cmd",
+                     "u_sat", "vs"):
+            setattr(s, name, out[P[name]].tolist())
+        s.wake_lateness_us, s.compute_us, s.state_age_us = late_us, comp_us, age_us
+        s.steps, s.deadline_misses = self.cnt["steps"], self.cnt["deadline_misses"]
+        s.stale_states, s.rejected = self.cnt["stale_steps"], self.gate.counts().rejected
+        self.lc.publish(self._ch_status, s.encode())
+        self._cmd_seq += 1
+
+    # --- the loops ------------------------------------------------------------
+    def run(self) -> dict[str, Any]:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._on_signal)
+        self.announce()
+        print(f"sc-rt controller: {self.mode} mode on {self.url}, law {self.ctl.name}, SCHED_OTHER",
+              file=sys.stderr, flush=True)
+        if not self.realtime:
+            while not self.stop:
+                self._handle(100)
+        else:
+            fd = self.lc.fileno()
+            lock = _core.PhaseLock(self.period_ns, self.phase_offset_us, time.monotonic_ns())
+            while not self.stop:
+                deadline = lock.deadline
+                while not self.stop:
+                    rem = (deadline - time.monotonic_ns()) / 1e9
+                    if rem <= 0:
+                        break
+                    if select.select([fd], [], [], rem)[0]:
+                        self._handle()
+                if self.stop:
+                    break
+                # what arrived by the deadline is in (handled on arrival)
+                while select.select([fd], [], [], 0)[0] and not self.stop:
+                    self._handle()
+                self.step(time.monotonic_ns(), deadline)
+                lock.advance(self._used_fresh, self._used_rx, time.monotonic_ns())
+        return self.summary()
+
+    def _handle(self, timeout_ms: int | None = None) -> None:
+        try:  # a signal interrupts LCM's wait (EINTR: OSError; the handler runs just after)
+            self.lc.handle() if timeout_ms is None else self.lc.handle_timeout(timeout_ms)
+            self._errors = 0
+        except OSError:
+            self._errors = getattr(self, "_errors", 0) + 1
+            if self._errors > 100:  # not a signal: LCM itself fails
+                raise
+
+    def _on_signal(self, _signum, _frame) -> None:
+        self.stop = True
+
+    def summary(self) -> dict[str, Any]:
+        g = self.gate.counts()
+        return {"mode": self.mode, "control_rate_hz": 1e9 / self.period_ns, "law": self.ctl.name,
+                "steps": self.cnt["steps"], "deadline_misses": self.cnt["deadline_misses"],
+                "scheduler": "SCHED_OTHER", "wake_lateness_us": nearest_rank(self.lat),
+                "compute_us": nearest_rank(self.comp), "state_age_us": nearest_rank(self.age),
+                "received": g.received, "stale_states": self.cnt["stale_steps"],
+                "safe_steps": self.cnt["safe_steps"],
+                "rejected": {k: g.as_dict()[k] for k in ("malformed", "trailing_bytes", "duplicate",
+                                                         "out_of_order", "invalid_state", "foreign_session")},
+                "sessions_adopted": g.sessions_adopted}
+
+
+def write_summary(summary: dict[str, Any], path: str | None) -> None:
+    text = json.dumps(summary)
+    print(text, flush=True)
+    if path:
+        with open(path, "w") as f:
+            f.write(text + "\n")

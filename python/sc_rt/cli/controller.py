@@ -1,0 +1,110 @@
+"""``sc-rt controller``: a Python law as an LCM controller process
+(sc_rt.bus.pycontroller), and the options of ``sc-rt hil`` that put any
+controller process on the bench: ``--external COMMAND``, ``--external-wait``,
+``--start-timeout`` (sc_rt.bus.external, docs/PROTOCOL.md)."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import shutil
+import sys
+
+from sc_rt.cli.lawarg import law_choice
+from sc_rt.cli.validate import MAX_RATE_HZ, UsageError, integer, lcm_url, number, resolve_url
+from sc_rt.pylaw import is_python_law
+
+__all__ = ["add_parser", "add_external_options", "external_choice", "cmd_controller"]
+
+
+def add_external_options(h: argparse.ArgumentParser) -> None:
+    g = h.add_mutually_exclusive_group()
+    g.add_argument("--external", metavar="COMMAND",
+                   help="start COMMAND as the controller instead of sc-rt-controller: any process that "
+                        "speaks the protocol (docs/PROTOCOL.md); placeholders {url} {prefix} {mode} "
+                        "{config} {summary} {python}, the same values in $SCRT_LCM_URL, $SCRT_PREFIX, "
+                        "$SCRT_MODE, $SCRT_CONFIG, $SCRT_SUMMARY")
+    g.add_argument("--external-wait", action="store_true",
+                   help="start no controller: wait for one started by hand on the printed URL")
+    h.add_argument("--start-timeout", type=number(0, 86400, unit="s"), metavar="S",
+                   help="--external/--external-wait: wait this long for the controller's first answer "
+                        "(default 30 s, --external-wait 300 s)")
+
+
+def external_choice(args: argparse.Namespace) -> str | None:
+    """The Python law of ``sc-rt hil --law`` (run as ``sc-rt controller``), or
+    None; a Python law with --external/--external-wait is refused."""
+    pylaw = args.law if is_python_law(args.law) else None
+    if pylaw and (args.external or args.external_wait):
+        raise UsageError(f"--law {pylaw}: a Python law runs in sc-rt controller; it cannot be combined "
+                         f"with {'--external' if args.external else '--external-wait'}")
+    if args.start_timeout is not None and not (pylaw or args.external or args.external_wait):
+        raise UsageError("--start-timeout applies to --external, --external-wait or a Python --law only")
+    if args.external is not None:
+        try:
+            argv = shlex.split(args.external)
+        except ValueError as e:
+            raise UsageError(f"--external {args.external!r}: {e}") from e
+        if not argv:
+            raise UsageError("--external: empty command")
+        prog = argv[0]
+        if "{" not in prog and shutil.which(prog) is None:
+            raise UsageError(f"--external {args.external!r}: cannot start {prog!r}: not found or not executable")
+    return pylaw
+
+
+def add_parser(sub) -> None:
+    c = sub.add_parser("controller", help="a Python law as an LCM controller process (lockstep or real time)")
+    c.add_argument("scenario", nargs="?", help="a scenario file or shipped name (or --config)")
+    c.add_argument("--law", type=law_choice, required=True, metavar="MODULE:CLASS",
+                   help="the Python law: module:Class or path/file.py:Class (docs/LAWS.md)")
+    c.add_argument("--config", metavar="FILE",
+                   help="controller_config_t file instead of a scenario (sc-rt config, sc-rt hil writes one)")
+    c.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit="Hz"), metavar="HZ",
+                   help="with a scenario: the rate (default: the scenario's; 10-100 Hz is what Python keeps)")
+    c.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep", help="default: %(default)s")
+    c.add_argument("--lcm-url", metavar="URL", type=lcm_url,
+                   help="default: $SCRT_LCM_URL, else udpm://239.255.76.67:7667?ttl=0")
+    c.add_argument("--prefix", default="", help="channel name prefix (default: none)")
+    c.add_argument("--phase-offset", type=number(-1e6, 1e6, unit="us"), default=50.0, metavar="US",
+                   help="real time: wake at least US after a state arrives (as sc-rt-controller; "
+                        "default %(default)s)")
+    c.add_argument("--max-steps", type=integer(1, 10**12), metavar="N", help="stop after N steps")
+    c.add_argument("--summary", metavar="FILE", help="write the exit summary (JSON) there too")
+    c.add_argument("--realtime-priority", action="store_true",
+                   help="accepted for sc-rt hil; a Python process keeps SCHED_OTHER")
+    c.set_defaults(func=cmd_controller)
+
+
+def cmd_controller(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from sc_rt import _core
+    from sc_rt.bus.lcmio import DEFAULT_URL
+    from sc_rt.bus.pycontroller import PyControllerProcess, write_summary
+    from sc_rt.pylaw import load_law
+
+    if not is_python_law(args.law):
+        raise UsageError(f"--law {args.law}: sc-rt controller runs Python laws (module:Class); "
+                         "the core's laws run in sc-rt-controller")
+    if (args.scenario is None) == (args.config is None):
+        raise UsageError("give exactly one of SCENARIO and --config FILE")
+    if args.config:
+        try:
+            cfg = _core.ControllerConfig.from_lcm_bytes(Path(args.config).read_bytes())
+        except (OSError, ValueError, RuntimeError) as e:
+            raise UsageError(f"--config {args.config}: {e}") from e
+    else:
+        from sc_rt.scenario.model import load_scenario
+        from sc_rt.scenario.overrides import with_overrides
+
+        cfg = with_overrides(load_scenario(args.scenario), control_rate_hz=args.control_rate).core_config()
+    try:
+        proc = PyControllerProcess(cfg, load_law(args.law), url=resolve_url(args.lcm_url, DEFAULT_URL),
+                                   prefix=args.prefix, mode=args.mode, max_steps=args.max_steps,
+                                   phase_offset_us=args.phase_offset)
+    except ValueError as e:
+        raise UsageError(str(e)) from e
+    write_summary(proc.run(), args.summary)
+    print(f"sc-rt controller: {proc.cnt['steps']} steps", file=sys.stderr)
+    return 0
