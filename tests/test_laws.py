@@ -482,3 +482,20 @@ def test_compare_table(plugins, tmp_path):
     assert rows[0]["max_abs_wheel_accel"] == pd.metrics["max_abs_wheel_accel"]
     assert rows[0]["bound_violation_fraction"] == float(np.mean(~np.all(pd["bound_ok"], axis=1)))
     assert "| pd |" in r.stdout and "| quaternion-feedback |" in r.stdout
+
+
+def test_montecarlo_and_check_take_a_plugin(plugins, tmp_path):
+    from sc_rt.scenario.keys import scenario_data
+
+    # a Monte Carlo draw re-reads the scenario from its data: the law and its params survive
+    scn, _ = _slew_scenario(plugins["qf"])
+    again = scenario_from_data(scenario_data(scn), scn.path)
+    assert (again.run.controller, again.controller.law_params) == (scn.run.controller, scn.controller.law_params)
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "montecarlo", "paper_fault_free", "--runs", "2",
+                        "--law", _spec(plugins["version99"]), "--out", str(tmp_path / "mc")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "built against law interface version 99" in r.stderr, r.stderr
+    assert not (tmp_path / "mc").exists()
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "check", "paper_fault_free", "--fast", "--law",
+                        _spec(plugins["qf"])], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
