@@ -79,6 +79,7 @@ def test_vectorised_decode_equals_generated_decode(name, rng):
             assert np.array_equal(a.astype(b.dtype), b), (name, f)
 
 
+@pytest.mark.slow  # ~2-10 s: sc-rt report with its seven figures
 def test_report_reproduces_the_lockstep_runs_metrics_exactly(lockstep_run, tmp_path):
     out = tmp_path / "report"
     r = lcmnet.run_cli(["report", str(lockstep_run / "run.lcmlog"), "--out", str(out)], netns=False)

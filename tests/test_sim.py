@@ -201,6 +201,7 @@ def test_diverging_plant_stops_with_a_message(scenarios):
     assert np.all(np.isfinite(res.trajectory["sigma_BN"]))
 
 
+@pytest.mark.slow  # ~1.5-6 s: two sc-rt sim processes and the figures
 def test_cli_sim_writes_results_and_rejects_bad_scenarios(tmp_path):
     out = tmp_path / "sim"
     r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", "scenarios/paper_faults.toml",

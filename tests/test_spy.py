@@ -208,6 +208,7 @@ wait $PLAY
     assert len(img.getcolors(1 << 16) or []) > 5
 
 
+@pytest.mark.slow  # ~1-6 s: javac builds the types jar and a checker
 def test_types_jar_decodes_messages_encoded_by_python(tmp_path, monkeypatch):
     """Java and Python agree on the wire: each class of the jar decodes a
     Python-encoded message of its type (the fingerprints match)."""
