@@ -24,7 +24,7 @@ from sc_rt import _core  # noqa: E402
 from sc_rt.scenario.model import load_scenario  # noqa: E402
 from sc_rt.sim.engines import simulate  # noqa: E402
 
-LAWS = {"dsc-ppc": _core.Law.DscPpc, "dsc": _core.Law.Dsc, "pd": _core.Law.Pd, "rft": _core.Law.Rft}
+LAWS = {name: name for name in _core.law_names()[:4]}  # the built-in laws, registry order
 
 
 def main() -> None:
