@@ -35,7 +35,8 @@ from sc_rt.scenario.schema import (  # the schema machinery, as model.py uses it
 )
 
 __all__ = ["GyroSpec", "StarTrackerSpec", "TachometerSpec", "EstimatorSpec", "Sensors",
-           "MEASUREMENTS", "read_sensors", "nav_config", "period_ticks", "ARCSEC", "DEG_PER_H"]
+           "MEASUREMENTS", "read_sensors", "nav_config", "period_ticks", "ARCSEC", "DEG_PER_H",
+           "DEG_PER_RT_H"]
 
 ARCSEC = math.pi / 180.0 / 3600.0  #: [rad] one arcsecond
 DEG_PER_H = math.pi / 180.0 / 3600.0  #: [rad/s] one deg/h

@@ -79,7 +79,29 @@ def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | No
         out += _check_theorem1(scn, run_estimate)
     out += _check_feedforward(scn)
     out += _check_fault_times(scn)
+    out += _check_noise_floor(scn, law)
     return out
+
+
+def _check_noise_floor(scn: Scenario, law: str) -> list[Finding]:
+    """chiinf against the sensors' noise floor (sc_rt.studies.design.noise)."""
+    if scn.sensors is None:
+        return []
+    from sc_rt.studies.design.noise import NOISE_SIGMAS, noise_floor
+
+    nf = noise_floor(scn, law=law)
+    key, value = "controller.ppc.chiinf", _fmt(scn.controller.ppc.chiinf)
+    if nf is None:
+        return [Finding("note", "sensors", "", f"no noise floor for law {law!r} (no linear model)")]
+    if not nf.stable:
+        return [Finding("warning", key, value, "the linearised loop is unstable at this chiinf: no noise floor")]
+    low = np.flatnonzero(nf.margin < 1)
+    text = (f"noise floor from the sensors alone: RMS {_fmt(nf.rms_arcsec)} arcsec "
+            f"(MRP {_fmt(nf.rms_mrp)}); bound min(dmin, dmax) chiinf / ({NOISE_SIGMAS:g} RMS) = {_fmt(nf.margin)}")
+    if low.size:
+        return [Finding("warning", key, value, f"chiinf is below the sensor noise floor on axis "
+                        + ", ".join("xyz"[i] for i in low) + ": " + text)]
+    return [Finding("ok", key, value, text)]
 
 
 def _check_model(scn: Scenario) -> list[Finding]:

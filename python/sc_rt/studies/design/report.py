@@ -14,6 +14,7 @@ from sc_rt.scenario.model import Scenario
 from sc_rt.studies.design.figures import plot_loops, plot_spectral
 from sc_rt.studies.design.linear import AXES, INERTIAS, input_matrices
 from sc_rt.studies.design.margins import DEFAULT_LATENCY_S, closed_form_pd_margins, coupling, pd_margins
+from sc_rt.studies.design.noise import noise_floor_report
 from sc_rt.studies.design.pd import PdDesign, default_pd_design
 from sc_rt.studies.design.stability import (compare_loss_of_stability, simulated_loss_of_stability,
                                             stability_limit, without_wheel_limits)
@@ -87,6 +88,7 @@ def design_report(scn: Scenario, rate: float | None = None, *, latency: float = 
         "sampled_data": {"inertia": inertia, "faults": True, "observer": observer,
                          "limits": sampled},
         "chiinf_check": chiinf_check(scn, limit),
+        "noise_floor": noise_floor_report(scn, rate),  # sc_rt.studies.design.noise
     }
     if simulate:
         sim = simulated_loss_of_stability(scn, "dsc-ppc", rate)
@@ -190,6 +192,8 @@ def format_design_text(rep: dict[str, Any], out: Path | None = None,
         lines += ["", format_chiinf_check(rep["chiinf_check"])]
     if "loss_of_stability" in rep:
         lines += ["", format_loss_of_stability(rep["loss_of_stability"])]
+    if "noise_floor" in rep:
+        lines += ["", rep["noise_floor"]["text"]]
     lines += [f"  {p}" for p in paths]
     return "\n".join(lines)
 
