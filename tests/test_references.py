@@ -559,3 +559,16 @@ def test_every_offline_engine_follows_the_slew():
             theta = math.pi / 2 * (s_ - math.sin(2 * math.pi * s_) / (2 * math.pi))
             np.testing.assert_allclose(r["sigma_DN"][k], mrp_of_dcm(rot(e, theta)), atol=1e-12, err_msg=engine)
         assert np.abs(r["sigma_BD"]).max() < 1e-6, engine  # it tracks (feedforward of omega_d, omega_d_dot)
+
+
+def test_an_unvalidated_table_is_refused_not_read_out_of_bounds():
+    p = _core.GuidanceParams()
+    p.kind = _core.GuidanceKind.Table
+    for f in (_core.sigma_d, _core.omega_d, _core.omega_d_dot):
+        with pytest.raises(ValueError, match="table reference needs"):
+            f(p, 0.0)
+    p = table_params([0.0, 1.0], np.zeros((3, 3)), np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="table reference needs"):
+        _core.omega_d(p, 0.5)
+    with pytest.raises(ValueError, match="one row per time"):
+        _core.Guidance(p, 0.1)

@@ -31,6 +31,16 @@ SlewAngle slew_profile(const GuidanceParams& p, double phi, double t) {
 
 int table_size(const GuidanceParams& p) { return static_cast<int>(p.table_t.size()); }
 
+// The sizes a Table's evaluation relies on (validate() checks the rest);
+// without them an unvalidated table would be read out of bounds.
+int checked_table_size(const GuidanceParams& p) {
+  const int n = table_size(p);
+  if (n < 2 || p.table_sigma.rows() != n || p.table_omega.rows() != n)
+    throw std::invalid_argument("a table reference needs >= 2 samples with one sigma and omega row each "
+                                "(validate() the GuidanceParams)");
+  return n;
+}
+
 // k with t_k <= t < t_k+1, for t_0 <= t < t_n-1.
 int table_segment(const GuidanceParams& p, double t) {
   const double* b = p.table_t.data();
@@ -135,7 +145,7 @@ Vec3 sigma_d(const GuidanceParams& p, double t) {
       return compose(std::tan(0.25 * a.theta) * slew_axis(p), p.sigma_d0);
     }
     case GuidanceKind::Table: {
-      const int n = table_size(p);
+      const int n = checked_table_size(p);
       if (!(t > p.table_t(0))) return p.table_sigma.row(0).transpose();
       if (t >= p.table_t(n - 1)) return p.table_sigma.row(n - 1).transpose();
       const int k = table_segment(p, t);
@@ -161,7 +171,7 @@ Vec3 omega_d(const GuidanceParams& p, double t) {
     case GuidanceKind::Slew:
       return slew_profile(p, slew_angle(p), t).rate * slew_axis(p);
     case GuidanceKind::Table: {
-      const int n = table_size(p);
+      const int n = checked_table_size(p);
       if (t < p.table_t(0) || t > p.table_t(n - 1)) return Vec3::Zero();
       if (t == p.table_t(n - 1)) return p.table_omega.row(n - 1).transpose();
       const int k = table_segment(p, t);
@@ -183,7 +193,7 @@ Vec3 omega_d_dot(const GuidanceParams& p, double t) {
     case GuidanceKind::Slew:
       return slew_profile(p, slew_angle(p), t).accel * slew_axis(p);
     case GuidanceKind::Table: {
-      const int n = table_size(p);
+      const int n = checked_table_size(p);
       if (t < p.table_t(0) || t > p.table_t(n - 1)) return Vec3::Zero();
       const int k = std::min(table_segment(p, t), n - 2);  // t_n-1: the last segment's slope
       return (Vec3(p.table_omega.row(k + 1).transpose()) - Vec3(p.table_omega.row(k).transpose())) /
