@@ -32,12 +32,12 @@ class BadOption(Exception):
 def add_parser(sub: Any) -> argparse.ArgumentParser:
     m = sub.add_parser("montecarlo", help="dispersed runs of a scenario (C++ engine): local pool or "
                                           "Dask, resumable Parquet dataset, confidence intervals")
-    m.add_argument("scenario")
+    m.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     m.add_argument("--runs", default="200", metavar="N", help="runs 0..N-1 (default 200)")
     m.add_argument("--workers", metavar="K", help="local worker processes (default: all cores)")
     m.add_argument("--seed", default="0", metavar="S", help="campaign seed, an integer >= 0 (default 0)")
     m.add_argument("--law", "--controller", dest="law", metavar="LAW", help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME")
-    m.add_argument("--control-rate", metavar="HZ")
+    m.add_argument("--control-rate", metavar="HZ", help="default: the scenario's")
     m.add_argument("--backend", default="local", metavar="NAME",
                    help="local (process pool, the default), dask (a Dask LocalCluster of --workers)")
     m.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="run on this running Dask cluster")
@@ -54,7 +54,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     g.add_argument("--effectiveness", metavar="E", help="spread of fault effectiveness, in [0, 1] (0.2)")
     g.add_argument("--attitude", metavar="RAD", help="[rad] initial attitude spread, in [0, pi] (0.01)")
     g.add_argument("--rate", metavar="RAD/S", help="[rad/s] initial rate spread per axis, >= 0 (0.002)")
-    m.add_argument("--out", default="out/montecarlo", metavar="DIR")
+    m.add_argument("--out", default="out/montecarlo", metavar="DIR", help="default: %(default)s")
     m.set_defaults(func=cmd_montecarlo)
     return m
 

@@ -1,0 +1,124 @@
+"""``sc-rt spy``, ``lcm-spy``, ``fault``, ``report``, ``export``, ``replay``:
+the commands on the bus and its logs."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from sc_rt.cli.common import bus_url, html_report, mcap_problem, print_metrics, write_mcap
+
+
+def cmd_spy(args: argparse.Namespace) -> int:
+    from sc_rt.bus.spy import main_loop
+
+    if args.duration is not None and not args.duration > 0:
+        print(f"sc-rt spy: error: --duration must be > 0, got {args.duration}", file=sys.stderr)
+        return 2
+    return main_loop(bus_url(args), args.channels, once=args.once, as_json=args.json,
+                     duration=args.duration, refresh=args.refresh, window=args.window)
+
+
+def cmd_lcm_spy(args: argparse.Namespace) -> int:
+    import os
+
+    from sc_rt.bus.lcmspy import JavaMissing, spy_command, types_jar
+
+    try:
+        if args.build_only:
+            print(types_jar(rebuild=args.rebuild, log=lambda m: print(m, file=sys.stderr)))
+            return 0
+        if args.rebuild:
+            types_jar(rebuild=True)
+        cmd, env = spy_command(bus_url(args), title=args.title)
+    except JavaMissing as e:
+        print(f"sc-rt lcm-spy: error: {e}", file=sys.stderr)
+        return 2
+    print(f"sc-rt lcm-spy: CLASSPATH={env['CLASSPATH']}\nsc-rt lcm-spy: {' '.join(cmd)}", flush=True)
+    os.execvpe(cmd[0], cmd, env)  # the real tool replaces this process (signals reach it)
+    return 0  # pragma: no cover
+
+
+def cmd_fault(args: argparse.Namespace) -> int:
+    from sc_rt.bus.faultcmd import FaultArgError, clear_msg, inject_msg, send
+
+    try:
+        if args.action == "inject":
+            msg = inject_msg(args.wheel, effectiveness=args.effectiveness, bias=args.bias,
+                             stuck=args.stuck, at=args.at, until=args.until, rate=args.rate)
+        else:
+            msg = clear_msg(args.wheel)
+        url = bus_url(args)
+        sent = send(msg, url, args.prefix, timeout=args.timeout, wait=not args.no_wait)
+    except FaultArgError as e:
+        print(f"sc-rt fault {args.action}: error: {e}", file=sys.stderr)
+        return 2
+    ch = sent.channel
+    when = "now" if msg.now else f"at t = {msg.t_onset:g} s"
+    what = (f"effectiveness {msg.effectiveness:g}, bias {msg.bias:g} rad/s^2, rate {msg.rate:g} 1/s"
+            f"{', stuck' if msg.stuck else ''}, {when}"
+            f"{'' if msg.t_end < 0 else f' until t = {msg.t_end:g} s'}") if args.action == "inject" else "now"
+    head = f"sc-rt fault: {args.action} wheel {msg.wheel} ({what}) -> {ch} on {url} (seq {msg.seq})"
+    if args.no_wait:
+        print(f"{head}; not waiting for the echo (applied only by an emulator started with "
+              "--accept-fault-commands)")
+        return 0
+    if sent.applied_at is None:
+        print(f"{head}\nsc-rt fault: not applied: no emulator echoed it on {sent.truth_channel} within "
+              f"{args.timeout:g} s (none running on {url}, or not started with --accept-fault-commands)",
+              file=sys.stderr)
+        return 1
+    print(f"{head}; applied: echoed on {sent.truth_channel} at t = {sent.applied_at:.3f} s")
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from sc_rt.bus.report import write_report
+
+    out = Path(args.out) if args.out else Path(args.log).parent / "report"
+    if mcap_problem(args.mcap, "report"):
+        return 2
+    try:
+        rep = write_report(args.log, out, scenario=args.scenario, prefix=args.prefix,
+                           mode=args.mode, plots=not args.no_plots)
+    except ValueError as e:
+        print(f"sc-rt report: error: {e}", file=sys.stderr)
+        return 2
+    print(f"sc-rt report: {args.log}: {rep['events']} events in {rep['read_decode_s']:.2f} s "
+          f"({rep['events_per_s']:.3g} events/s), {rep['rows']} rows, mode {rep['mode']}, "
+          f"{rep['undecodable']} undecodable, skipped {rep['skipped']} -> {out}/")
+    if rep.get("partial"):
+        m = rep["metrics"]
+        print(f"sc-rt report: PARTIAL: the log ends at t = {m.get('t_reached_s')} s"
+              + (f" of {m['duration_s']:g} s" if m.get("t_reached_s") != m.get("duration_s") else "")
+              + f" ({rep['incomplete_rows_dropped']} incomplete rows at its end left out); metrics.json "
+              "\"partial\": true")
+    print_metrics(rep["metrics"])
+    for c in rep["faults"]["commands"]:
+        print(f"  fault command: {c}")
+    html_report(out, "report")
+    if args.mcap:  # the report reads damaged logs as far as it can: so does its MCAP
+        return write_mcap(args.log, args.mcap, partial=True, who="report")
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    return write_mcap(args.log, args.mcap, args.partial)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    import subprocess
+
+    from sc_rt.bus.report import replay_command
+
+    try:
+        cmd = replay_command(args.log, bus_url(args), args.speed, args.channels, args.verbose)
+    except ValueError as e:
+        print(f"sc-rt replay: error: {e}", file=sys.stderr)
+        return 2
+    try:
+        return subprocess.call(cmd)
+    except KeyboardInterrupt:
+        return 130

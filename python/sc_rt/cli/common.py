@@ -1,0 +1,128 @@
+"""What the ``sc-rt`` commands share: the scenario argument, the metrics
+summary, output checks, the stopped-run summary, the bus URL, the MCAP export."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+from pathlib import Path
+
+from sc_rt.cli.validate import UsageError, resolve_url
+from sc_rt.scenario.model import LAWS  # noqa: E402
+
+
+LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
+
+
+def scenario_arg(path: str, args: argparse.Namespace | None = None):
+    from sc_rt.scenario.model import load_scenario
+
+    return load_scenario(path)
+
+
+def print_metrics(m: dict, faults=()) -> None:
+    from sc_rt.results.verdict import verdict_line
+
+    def f(v):
+        return "-" if v is None else (f"{v:.3g}" if isinstance(v, float) else str(v))
+
+    marks = list(m["sigma_e_norm"])
+    faults = ", ".join(f"wheel {x['wheel']} from {x['onset']:g} s (L {x['effectiveness']:g}, "
+                       f"bias {x['bias']:g} rad/s^2)" for x in faults) or "none"
+    safe = m.get("safe_steps", 0)
+    why = "; ".join(f"{k}: {v}" for k, v in m.get("safe_reasons", {}).items())
+    rows = [
+        ("verdict", verdict_line(m, m["controller"])),
+        ("controller", m["controller"]), ("engine", m["engine"]),
+        ("steps", m["steps"]), ("wall [s]", f"{m['wall_s']:.3f}"), ("finite", m["finite"]),
+        ("first bound violation [s]", f(m["first_bound_violation_s"])),
+        ("  axis", "-" if m["first_bound_violation_axis"] is None else "xyz"[m["first_bound_violation_axis"] - 1]),
+        (f"|sigma_BD| at {'/'.join(marks)} s", " / ".join(f(m["sigma_e_norm"][k]) for k in marks)),
+        ("max pointing error after 30 s [arcsec]", f(m.get("max_pointing_error_arcsec_after_30s"))),
+        ("max |omega_BD_B| after 70 s [rad/s]", f(m["max_abs_omega_e_after_70s"])),
+        ("max observer error after 30 s [rad/s^2]", f(m["max_observer_error_after_30s"])),
+        ("max |u_cmd| before saturation [rad/s^2]", f(m["max_abs_u_cmd"])),
+        ("max |wheel accel| applied [rad/s^2]", f(m["max_abs_wheel_accel"])),
+        ("saturated fraction", f(m["saturated_fraction"])),
+        ("SAFE steps", f"{safe}" + (f" from {m['safe_from_s']:.1f} s ({why})" if safe else "")),
+        ("faults scheduled", faults),
+    ]
+    w = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        print(f"  {k:<{w}}  {v}")
+
+
+def checked_out(value: str, option: str = "--out") -> Path:
+    """The output directory, checked before anything runs (exit 2 if unusable)."""
+    from sc_rt.results.output import check_out_dir
+
+    problem = check_out_dir(Path(value), option)
+    if problem:
+        raise UsageError(problem)
+    return Path(value)
+
+
+def html_report(out: Path, who: str) -> None:
+    """report.html of the run in ``out`` (sc_rt.results.html_report)."""
+    from sc_rt.results.html_report import write_html_report
+
+    print(f"sc-rt {who}: report for reading: {write_html_report(out)}")
+
+
+def mark_partial(run, why: str) -> None:
+    """A finished run record that ends before its duration: partial, why, and the time reached."""
+    run.partial = True
+    run.metrics.update(partial=True, stopped=why, t_reached_s=float(run.t[-1]) if len(run) else None)
+
+
+def report_stopped(run, why: str, signum: int | None, out, who: str) -> int:
+    """Say that a run stopped early and where its outputs are; the exit
+    code: 128 + the signal, else 1."""
+    reached = run.metrics.get("t_reached_s", float(run.t[-1]) if len(run) else None)
+    what = (f"partial outputs in {out}/ (metrics.json \"partial\": true, {len(run)} complete rows)"
+            if run.partial else f"the run had ended: complete outputs in {out}/")
+    print(f"sc-rt {who}: STOPPED at t = {'-' if reached is None else f'{reached:.4g}'} s of "
+          f"{run.meta.duration_s:g} s: {why}; {what}", file=sys.stderr)
+    return 128 + signum if signum else 1
+
+
+# --- monitoring and reports (issue 8): spy, lcm-spy, fault, report, replay ---
+def bus_url(args: argparse.Namespace) -> str:
+    """--lcm-url, else $SCRT_LCM_URL (checked), else LCM's usual port."""
+    from sc_rt.bus.lcmio import DEFAULT_URL
+
+    return resolve_url(args.lcm_url, DEFAULT_URL)
+
+
+def write_mcap(log, out, partial: bool = False, who: str = "export") -> int:
+    """Write the MCAP of ``log`` (sc-rt export, report --mcap, hil --mcap)."""
+    from sc_rt.bus.mcap_export import ExportError, export_mcap
+
+    try:
+        s = export_mcap(log, out, partial=partial)
+    except ExportError as e:
+        print(f"sc-rt {who}: error: {e}", file=sys.stderr)
+        return 2
+    damaged = (f", damaged log: {s.skipped_bytes} bytes skipped, torn tail {s.torn_tail_bytes} bytes"
+               if s.skipped_bytes or s.torn_tail_bytes else "")
+    print(f"sc-rt {who}: {log}: {s.events} events -> {out} ({s.messages} messages, derived "
+          f"{sum(s.derived.values())}) in {s.seconds:.2f} s ({s.events_per_s or 0:.3g} events/s); "
+          f"{s.undecodable} undecodable{' ' + str(s.undecodable_kinds) if s.undecodable else ''} and "
+          f"{s.foreign_events} events of foreign "
+          f"channels carried raw{damaged}")
+    return 0
+
+
+def mcap_problem(path: str | None, who: str) -> bool:
+    """Print why ``--mcap path`` cannot be written (checked before any work)."""
+    from sc_rt.bus.mcap_export import ExportError, check_output
+
+    try:
+        if path:
+            check_output(Path(path))
+    except ExportError as e:
+        print(f"sc-rt {who}: error: {e}", file=sys.stderr)
+        return True
+    return False
