@@ -323,7 +323,9 @@ def test_file_reference_csv_quaternions_and_npz_mrps(tmp_path):
     omega = [spin(x)[1] for x in t]
     _write_csv(tmp_path / "ref.csv", t, _quats(t), omega, ["q_w", "q_x", "q_y", "q_z"])
     np.savez(tmp_path / "ref.npz", t=t, sigma=np.array([spin(x)[0] for x in t]), omega=np.array(omega))
-    for name in ("ref.csv", "ref.npz"):
+    np.savez(tmp_path / "ref_q.npz", t=t, q=-np.array(_quats(t)), omega=np.array(omega))  # the other sign
+    _write_csv(tmp_path / "ref_s.csv", t, [spin(x)[0] for x in t], omega, ["sigma_x", "sigma_y", "sigma_z"])
+    for name in ("ref.csv", "ref.npz", "ref_q.npz", "ref_s.csv"):
         s = load_scenario(_scenario(tmp_path, f'kind = "file"\nfile = "{name}"\n'))
         assert s.guidance.kind == "file" and s.guidance.t.size == t.size
         np.testing.assert_allclose(s.guidance.sigma_d0, spin(0.0)[0], atol=1e-12)
