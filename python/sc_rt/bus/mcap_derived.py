@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-__all__ = ["ARCSEC", "FOXGLOVE_SCHEMAS", "POINTING_SCHEMA", "WHEELS_SCHEMA", "mrp_to_quaternion",
+__all__ = ["ARCSEC", "FOXGLOVE_SCHEMAS", "POINTING_SCHEMA", "WHEELS_SCHEMA", "Deriver", "mrp_to_quaternion",
            "frame_messages", "pointing_messages", "wheel_messages"]
 
 #: [arcsec / rad]
@@ -156,3 +156,46 @@ def wheel_messages(t, speed) -> list[bytes | None]:
            '"speed_rpm":{"w1":%r,"w2":%r,"w3":%r,"w4":%r}}')
     return [(fmt % (tk, *wk, *rk)).encode() if good else None
             for good, tk, wk, rk in zip(ok, t.tolist(), w.tolist(), rpm)]
+
+
+class Deriver:
+    """Which derived messages the decoded records of one channel give, per
+    bench (channel prefix): frame B and the wheels from plant_state_t;
+    frame D from guidance_t where the log has it (it comes first in each
+    step), else from controller_status_t; the pointing from the status, with
+    the bound of the bench's first controller_config_t."""
+
+    def __init__(self):
+        self.ppc: dict[str, object] = {}  # prefix -> _core.PpcParams
+        self.guidance: set[str] = set()
+        self.rejected_configs = 0
+
+    def config(self, prefix: str, data: bytes) -> None:
+        if prefix in self.ppc:
+            return
+        from sc_rt import _core
+
+        try:
+            self.ppc[prefix] = _core.ControllerConfig.from_lcm_bytes(bytes(data)).ppc
+        except (ValueError, RuntimeError, TypeError):
+            self.rejected_configs += 1
+
+    def messages(self, type_name: str, prefix: str | None, rec, stamps: list[int]) -> list[tuple]:
+        """[(counter, topic, schema, one message or None per record)]."""
+        if prefix is None or not len(rec):
+            return []
+        p = prefix
+        root = "/derived" + ("/" + p.strip("_/.") if p.strip("_/.") else "")
+        tf = FOXGLOVE_SCHEMAS["foxglove.FrameTransform"]
+        if type_name == "plant_state_t":
+            return [("frame_B", "/tf", tf, frame_messages(rec["sigma_BN"], stamps, p + "N", p + "B")),
+                    ("wheels", root + "/wheels", WHEELS_SCHEMA, wheel_messages(rec["t"], rec["wheel_speed"]))]
+        if type_name == "guidance_t":
+            self.guidance.add(p)
+            return [("frame_D", "/tf", tf, frame_messages(rec["sigma_DN"], stamps, p + "N", p + "D"))]
+        if type_name == "controller_status_t":
+            out = [] if p in self.guidance else [
+                ("frame_D", "/tf", tf, frame_messages(rec["sigma_DN"], stamps, p + "N", p + "D"))]
+            return out + [("pointing", root + "/pointing", POINTING_SCHEMA,
+                           pointing_messages(rec["t"], rec["mode"], rec["sigma_BD"], self.ppc.get(p)))]
+        return []

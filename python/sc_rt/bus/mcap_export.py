@@ -40,8 +40,7 @@ import numpy as np
 from sc_rt.bus.lcmdefs import json_schema, load_definitions
 from sc_rt.bus.lcmio import CHANNELS
 from sc_rt.bus.lcmjson import RowEncoder, count_none, dumps, json_value
-from sc_rt.bus.mcap_derived import (FOXGLOVE_SCHEMAS, POINTING_SCHEMA, WHEELS_SCHEMA, frame_messages,
-                                    pointing_messages, wheel_messages)
+from sc_rt.bus.mcap_derived import Deriver
 from sc_rt.bus.lcmlog import LogDamaged, LogScan, read_events
 from sc_rt.bus.wire import TYPES, decode_any, decode_array, identify, numpy_dtype
 
@@ -134,7 +133,7 @@ class _Exporter:
         self.schemas: dict[str, int] = {}
         self.chans: dict[bytes, _Chan] = {}
         self.derived_ids: dict[str, int] = {}
-        self.configs: dict[str, Any] = {}  # prefix -> _core.PpcParams (first config)
+        self.deriver = Deriver()
         self.derived: Counter = Counter()
         self.non_finite = [0]
         self.clamped = 0  # log timestamps outside the uint64 ns range of MCAP
@@ -202,7 +201,8 @@ class _Exporter:
         for i, e in enumerate(events):
             groups[e[2]].append(i)
         # configs first: the bound of the statuses of this batch needs it
-        order = sorted(groups, key=lambda ch: not ch.endswith(b"SCRT_CONFIG"))
+        # configs first (the bound of this batch's statuses), then guidance (frame D)
+        order = sorted(groups, key=lambda ch: (not ch.endswith(b"SCRT_CONFIG"), not ch.endswith(b"SCRT_GUIDANCE")))
         for ch in order:
             idx = groups[ch]
             c = self._chan(ch, events[idx[0]][3])
@@ -274,55 +274,23 @@ class _Exporter:
                 out[idx[j]] = (c.json_id, dumps(obj), u * 1000 if isinstance(u, int) and 0 < u < _MAX_UTIME else None)
                 good[j] = True
                 if cls.__name__ == "controller_config_t" and c.prefix is not None:
-                    self._config(c.prefix, d)
+                    self.deriver.config(c.prefix, d)
         c.json += int(good.sum())
         c.kinds.update(kinds)
         for j in np.nonzero(~good)[0]:
             raw = self._raw(c, datas[j], bad_kind.get(int(j)) or _kind(cls, datas[j], dt))
             out[idx[j]] = (c.raw_id, raw, None)
 
-    def _config(self, prefix: str, data: bytes) -> None:
-        if prefix in self.configs:
-            return
-        from sc_rt import _core
-
-        try:
-            self.configs[prefix] = _core.ControllerConfig.from_lcm_bytes(bytes(data)).ppc
-        except (ValueError, RuntimeError, TypeError):
-            self.derived["config_rejected"] += 1
-
-    # --- derived channels ----------------------------------------------------
+    # --- derived channels (mcap_derived.Deriver says which) ------------------
     def _derive(self, c: _Chan, rec: np.ndarray, where: list[int], stamps: list[int], extra) -> None:
-        name = c.cls.__name__
-        if c.prefix is None or name not in ("plant_state_t", "controller_status_t") or not len(rec):
-            return
-
-        p = c.prefix
-        root = "/derived" + ("/" + p.strip("_/.") if p.strip("_/.") else "")
-        tf = self._derived("/tf", "foxglove.FrameTransform", FOXGLOVE_SCHEMAS["foxglove.FrameTransform"])
-        if name == "plant_state_t":
-            frames = frame_messages(rec["sigma_BN"], stamps, p + "N", p + "B")
-            wheels = wheel_messages(rec["t"], rec["wheel_speed"])
-            wid = self._derived(root + "/wheels", WHEELS_SCHEMA["title"], WHEELS_SCHEMA)
-            for i, f, w in zip(where, frames, wheels):
-                if f is not None:
-                    extra[i].append((tf, f))
-                    self.derived["frame_B"] += 1
-                if w is not None:
-                    extra[i].append((wid, w))
-                    self.derived["wheels"] += 1
-        else:
-            frames = frame_messages(rec["sigma_DN"], stamps, p + "N", p + "D")
-            pts = pointing_messages(rec["t"], rec["mode"], rec["sigma_BD"], self.configs.get(p))
-            pid = self._derived(root + "/pointing", POINTING_SCHEMA["title"], POINTING_SCHEMA)
-            for i, f, m in zip(where, frames, pts):
-                if f is not None:
-                    extra[i].append((tf, f))
-                    self.derived["frame_D"] += 1
-                if m is not None:
-                    extra[i].append((pid, m))
-                    self.derived["pointing"] += 1
-            self.derived["skipped_non_finite"] += sum(f is None for f in frames) + sum(m is None for m in pts)
+        for counter, topic, schema, msgs in self.deriver.messages(c.cls.__name__, c.prefix, rec, stamps):
+            cid = self._derived(topic, schema["title"], schema)
+            for i, m in zip(where, msgs):
+                if m is None:
+                    self.derived["skipped_non_finite"] += 1
+                else:
+                    extra[i].append((cid, m))
+                    self.derived[counter] += 1
 
 
 def check_output(out: Path) -> None:
@@ -408,6 +376,8 @@ def _fill(summ: ExportSummary, ex: _Exporter, scan: LogScan) -> None:
     summ.undecodable_kinds = dict(kinds)
     summ.undecodable = int(sum(kinds.values()))
     summ.derived = dict(ex.derived)
+    if ex.deriver.rejected_configs:  # a controller_config_t the core refused: no bound from it
+        summ.derived["config_rejected"] = ex.deriver.rejected_configs
     summ.non_finite_as_null = ex.non_finite[0]
     summ.timestamps_clamped = ex.clamped
     summ.skipped_bytes, summ.torn_tail_bytes = scan.skipped_bytes, scan.torn_tail_bytes
