@@ -14,9 +14,10 @@ an MCAP file for Foxglove and PlotJuggler.
   counted by kind and carried as raw bytes (base64, schema
   ``sc_rt.lcm_raw_event``) on ``<channel>/undecodable``; channels of no
   type of ours are carried raw under their own name. Nothing is dropped.
-- Derived channels: ``/tf`` (``foxglove.FrameTransform``: frames B and D
-  relative to N, from ``plant_state_t.sigma_BN`` and
-  ``controller_status_t.sigma_DN``), ``/derived/pointing`` (pointing error
+- Derived channels (``mcap_derived``): ``/tf`` (``foxglove.FrameTransform``:
+  frames B and D relative to N, from ``plant_state_t.sigma_BN`` and
+  ``guidance_t.sigma_DN``, or ``controller_status_t.sigma_DN`` in a log
+  without guidance), ``/derived/pointing`` (pointing error
   4 atan|sigma_BD| and the PPC bound chi(t) of the logged
   ``controller_config_t``, in arcsec) and ``/derived/wheels`` (wheel speeds).
 
