@@ -210,3 +210,46 @@ def test_bad_external_options_are_one_line(argv, word, tmp_path):
     assert r.returncode == 2, r.stderr
     lines = [x for x in r.stderr.splitlines() if not x.startswith("sc-rt hil: LCM URL")]
     assert len(lines) == 1 and word in lines[0], r.stderr
+
+
+def test_emulator_with_a_hand_started_controller_records_errors_and_label(tmp_path):
+    """`sc-rt emulator --start-timeout` waits for a controller started after
+    it; its run has the tracking errors (from the plant side: the example
+    sends no status), metrics and the announced law's name."""
+    out = tmp_path / "emu"
+    cfg = tmp_path / "cfg.bin"
+    url = "udpm://239.255.76.67:7772?ttl=0"
+    script = (f"{sys.executable} -m sc_rt.cli config paper_faults --out {cfg} >/dev/null || exit 3\n"
+              f"{sys.executable} -m sc_rt.cli emulator paper_faults --duration 5 --out {out} --lcm-url '{url}' "
+              f"--start-timeout 60 >{tmp_path}/emu.out 2>{tmp_path}/emu.err & E=$!; "
+              f"SCRT_LCM_URL='{url}' {sys.executable} {EXAMPLE} {cfg} 2>/dev/null & C=$!; "
+              f"wait $E; R=$?; kill $C; exit $R")
+    r = lcmnet.run_script(script, timeout=120)
+    assert r.returncode == 0, (tmp_path / "emu.err").read_text()
+    tr = np.load(out / "trajectory.npz")
+    assert len(tr["t"]) == 51 and not np.any(tr["cmd_stale"])
+    assert np.all(np.isfinite(tr["sigma_BD"])) and np.all(np.isfinite(tr["omega_BD_B"]))
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["controller"] == "quaternion-feedback" and m["finite"]
+    off = simulate(load_scenario("paper_faults"), duration=5, law=QFB_OFFLINE)
+    assert np.allclose(tr["sigma_BD"], off["sigma_BD"], rtol=0, atol=1e-12)
+
+
+@pytest.mark.slow  # a 3 s real-time run
+def test_python_law_in_real_time(tmp_path):
+    """sc-rt controller in real time: its own deadlines (PhaseLock), the C++
+    process's summary, the timing report from its status messages."""
+    out = tmp_path / "rt"
+    r = lcmnet.run_cli(["hil", "paper_faults", "--mode", "realtime", "--control-rate", "20", "--duration", "3",
+                        "--law", PD_SPEC, "--out", str(out), "--no-plots"], timeout=120)
+    assert r.returncode == 0, r.stderr + r.stdout
+    s = json.loads((out / "controller_summary.json").read_text())
+    t = json.loads((out / "timing.json").read_text())
+    m = json.loads((out / "metrics.json").read_text())
+    assert s["mode"] == "realtime" and s["control_rate_hz"] == 20.0 and s["law"] == "python-pd"
+    assert s["steps"] >= 50 and s["received"] >= 50  # it ran on its own clock through the run
+    assert t["rows"] == 61 and t["mode"] == "realtime" and m["controller"] == "python-pd" and m["finite"]
+    assert t["compute_us"]["p50"] > 0 and t["wake_lateness_us"]["p50"] is not None
+    hil = np.load(out / "trajectory.npz")
+    used = ~np.isnan(hil["compute_us"])  # rows whose state the controller used (its status)
+    assert used.sum() >= 50 and np.all(np.isfinite(hil["sigma_BD"]))

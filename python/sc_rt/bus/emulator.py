@@ -464,6 +464,8 @@ class Emulator:
         run.faults_applied = list(self.faults_applied)
         run.diverged = diverged
         label = self.peers.label(self._ctl_session)  # the law's name, as the controller announced it
+        if label is None and self._ctl_session is not None and self._ctl_session not in self.peers.status_sessions:
+            label = "external"  # commands only: not sc-rt-controller, and no name announced
         if label:
             run.meta = dataclasses.replace(run.meta, law=label)
         if self.stopped is not None:

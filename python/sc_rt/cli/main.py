@@ -185,6 +185,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="apply fault_cmd_t from SCRT_FAULT (default: ignored)")
     e.add_argument("--out", metavar="DIR", type=out_dir,
                    help="write trajectory.npz and emulator.json there (default: nothing written)")
+    e.add_argument("--start-timeout", type=number(0, 86400, unit="s"), metavar="S",
+                   help="re-send the first state until a controller answers it, up to S s (a controller "
+                        "started after the emulator; default: no wait)")
     lcm_opts(e, "default: $SCRT_LCM_URL, else udpm://239.255.76.67:7667?ttl=0 (the port sc-rt-controller "
                 "uses by default)")
     e.set_defaults(func=cmd_emulator)

@@ -144,7 +144,7 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     print(f"sc-rt emulator: LCM URL {url}", file=sys.stderr, flush=True)
     sig: list[int] = []
     emu = Emulator(scn, mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,
-                   accept_fault_commands=args.accept_fault_commands,
+                   accept_fault_commands=args.accept_fault_commands, start_timeout=args.start_timeout,
                    stop=lambda: f"interrupted by {signal.Signals(sig[0]).name}" if sig else None)
     with flag_signals(sig.append):  # the run stops at its next step, its rows kept
         res = emu.run()
@@ -152,10 +152,11 @@ def cmd_emulator(args: argparse.Namespace) -> int:
                "diverged": res.diverged, "partial": res.partial,
                "t_reached_s": float(res.t[-1]) if len(res) else None}
     if args.out:
-        from sc_rt.results.metrics import finish_run
+        from sc_rt.results.metrics import fill_tracking_errors, finish_run
         from sc_rt.results.output import write_run
 
         out = Path(args.out)
+        fill_tracking_errors(res, scn.core_config().guidance)  # rows without a status: from the plant side
         write_run(finish_run(res), out, figures=False)
         (out / "emulator.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(json.dumps(summary))
