@@ -129,7 +129,7 @@ struct LawOutput {
   Vec3 e1 = Vec3::Zero();     //!< first error the law works on (default slot: x1)
   Vec3 e2 = Vec3::Zero();     //!< second error (a rate error, a sliding variable)
   Vec3 z1 = Vec3::Zero();     //!< [rad/s] observer state 1, if any
-  Vec3 z2 = Vec3::Zero();     //!< [rad/s^2] observer state 2 (disturbance estimate), if any
+  Vec3 z2 = Vec3::Zero();     //!< [rad/s^2] observer state 2 (disturbance estimate), if any: a run reports its error
   Vec3 x2d = Vec3::Zero();    //!< [rad/s] filtered virtual control, if any
   Vec4 vs = Vec4::Zero();     //!< anti-windup state, if any
   double rho_hat = 0.0;       //!< an adaptive gain, if any

@@ -127,7 +127,8 @@ def compute_metrics(run: Run) -> dict[str, Any]:
         first_axis = int(np.argmax(bad[k])) + 1  # 1-based axis
     sat = np.any(run["u_cmd"] != run["u_sat"], axis=1) if len(t) else np.zeros(0, bool)
     obs = None
-    if m.law in LAWS_WITH_OBSERVER:
+    z2 = run["z2"]
+    if m.law in LAWS_WITH_OBSERVER or bool(np.any(np.nan_to_num(z2) != 0.0)):  # any law that reports an observer
         obs = _max_after(t, run["z2"] - run["delta2"], 30.0)
     marks = checkpoints(m.duration_s)
     return {
