@@ -67,3 +67,13 @@ def test_check_warns_when_chiinf_is_below_the_noise_floor(tmp_path):
 
 def test_check_says_nothing_of_noise_without_sensors():
     assert not [x for x in check_scenario("paper_faults", run_estimate=False) if "noise floor" in x.message]
+
+
+def test_check_warns_when_the_noise_saturates_the_wheels():
+    """The 100 Hz design (k2 = 160, r ~ 1 / chiinf) with 42-like sensors: the linear floor
+    is within the bound, the command noise is not within the wheels' limits, and the
+    closed loop with sensors indeed leaves its bound (docs/REPRODUCTION.md)."""
+    found = [x for x in check_scenario("ppc_feasible_100hz_sensors", run_estimate=False)
+             if x.key == "sensors"]
+    assert len(found) == 1 and found[0].level == "warning" and "saturates the wheels" in found[0].message
+    assert not [x for x in check_scenario(SENSED, run_estimate=False) if x.key == "sensors"]

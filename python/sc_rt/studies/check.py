@@ -98,10 +98,17 @@ def _check_noise_floor(scn: Scenario, law: str) -> list[Finding]:
     low = np.flatnonzero(nf.margin < 1)
     text = (f"noise floor from the sensors alone: RMS {_fmt(nf.rms_arcsec)} arcsec "
             f"(MRP {_fmt(nf.rms_mrp)}); bound min(dmin, dmax) chiinf / ({NOISE_SIGMAS:g} RMS) = {_fmt(nf.margin)}")
+    out = []
     if low.size:
-        return [Finding("warning", key, value, f"chiinf is below the sensor noise floor on axis "
-                        + ", ".join("xyz"[i] for i in low) + ": " + text)]
-    return [Finding("ok", key, value, text)]
+        out.append(Finding("warning", key, value, f"chiinf is below the sensor noise floor on axis "
+                           + ", ".join("xyz"[i] for i in low) + ": " + text))
+    else:
+        out.append(Finding("ok", key, value, text))
+    if nf.u_rms is not None and np.any(nf.u_margin < 1):
+        out.append(Finding("warning", "sensors", "", f"the sensor noise alone saturates the wheels: wheel "
+                           f"command RMS {_fmt(nf.u_rms)} rad/s^2, limit / ({NOISE_SIGMAS:g} RMS) = "
+                           f"{_fmt(nf.u_margin)} (the loop leaves its linear range; lower the gains or the noise)"))
+    return out
 
 
 def _check_model(scn: Scenario) -> list[Finding]:

@@ -27,9 +27,12 @@ The loop's noise input matrix is the part of Phi(t) that acts through the
 measured x1, x2 (Phi minus the plant's own propagation of x1, x2), so the
 controller's map is SampledLoop's, not a copy. Sigma = A Sigma A' + B W B'
 (``scipy.linalg.solve_discrete_lyapunov``); the RMS of the true x1 per axis,
-4 sqrt(Sigma_x1x1) rad, is the floor. ``sc-rt check`` warns when
-min(dmin, dmax) chiinf < 3 x that RMS (a per-sample exceedance of the bound
-then has a probability above ~0.3 %).
+4 sqrt(Sigma_x1x1) rad, is the floor. The wheel command's RMS from the
+noise alone comes with it (u = the law's row of the same map): when 3 x it
+exceeds the wheel limit the loop saturates on noise and the linear floor
+does not describe it. ``sc-rt check`` warns when min(dmin, dmax) chiinf < 3 x
+the floor's RMS (a per-sample exceedance of the bound then has a probability
+above ~0.3 %), and when the noise saturates the wheels.
 """
 
 from __future__ import annotations
@@ -66,6 +69,15 @@ class NoiseFloor:
     rate_noise: np.ndarray  # [rad/s] gyro white noise per sample
     bound_mrp: np.ndarray  # min(dmin, dmax) chiinf
     spectral_radius: float
+    u_rms: np.ndarray = None  # [rad/s^2] RMS of the wheel command from noise alone (4 wheels)
+    u_limit: np.ndarray = None  # [rad/s^2] min(|umin|, umax) per wheel
+
+    @property
+    def u_margin(self) -> np.ndarray:
+        """u_limit / (NOISE_SIGMAS x u_rms): < 1 means the noise alone saturates the wheels
+        (the linear floor is then not what the loop does)."""
+        with np.errstate(divide="ignore"):
+            return self.u_limit / (NOISE_SIGMAS * self.u_rms)
 
     @property
     def stable(self) -> bool:
@@ -190,16 +202,25 @@ def noise_floor(scn: Scenario, sensors: Sensors | None = None, *, law: str | Non
     for A, W, _ in events:
         AL, QL = A @ AL, A @ QL @ A.T + W
     S = scipy.linalg.solve_discrete_lyapunov(AL, QL)
-    x1_var, th_var = [], []
+    # the command of step k: u = Cu s + Cu[x1] theta / 4 + Cu[x2] n2 (the law sees the measured x1, x2)
+    Cu = loop.law(t)[0:4]
+    Lu = np.zeros((4, N))
+    Lu[:, :n] = Cu
+    Lu[:, th] = Cu[:, 0:3] / 4.0
+    Lw = Cu[:, 3:6] * sigma_w
+    x1_var, th_var, u_var = [], [], []
     for A, W, control_step in events:
         if control_step:  # the state at t_k, just before step k
             x1_var.append(np.diag(S)[0:3])
             th_var.append(np.diag(S)[th])
+            u_var.append(np.diag(Lu @ S @ Lu.T + Lw @ Lw.T))
         S = A @ S @ A.T + W
     rms_mrp = np.sqrt(np.mean(x1_var, axis=0))
     est = np.sqrt(np.mean(th_var, axis=0))
     del bi
-    return NoiseFloor(law, loop.rate, t, 4.0 * rms_mrp / ARCSEC, rms_mrp, est / ARCSEC, K, sigma_w, bound, rad)
+    act = scn.actuators
+    return NoiseFloor(law, loop.rate, t, 4.0 * rms_mrp / ARCSEC, rms_mrp, est / ARCSEC, K, sigma_w, bound, rad,
+                      np.sqrt(np.mean(u_var, axis=0)), np.minimum(np.abs(act.umin), np.abs(act.umax)))
 
 
 def format_noise_floor(nf: NoiseFloor | None, scn: Scenario) -> str:
@@ -217,11 +238,17 @@ def format_noise_floor(nf: NoiseFloor | None, scn: Scenario) -> str:
              f"  attitude error RMS from noise alone [arcsec]: {f(nf.rms_arcsec)} (MRP {f(nf.rms_mrp)})",
              f"  bound min(dmin, dmax) chiinf [MRP]: {f(nf.bound_mrp)}; "
              f"bound / ({NOISE_SIGMAS:g} RMS): {f(nf.margin)}"]
+    if nf.u_rms is not None:
+        lines.append(f"  wheel command RMS from noise alone [rad/s^2]: {f(nf.u_rms)}; "
+                     f"limit / ({NOISE_SIGMAS:g} RMS): {f(nf.u_margin)}")
     if not nf.stable:
         lines.append("  the linearised loop is unstable at this chiinf: no floor (see the stability limit)")
     elif np.any(nf.margin < 1):
         lines.append(f"  chiinf is BELOW the noise floor on axis "
                      + ", ".join("xyz"[i] for i in np.flatnonzero(nf.margin < 1)))
+    if nf.u_rms is not None and np.any(nf.u_margin < 1):
+        lines.append("  the noise alone SATURATES the wheels: the loop leaves its linear range "
+                     "(the floor above does not hold)")
     return "\n".join(lines)
 
 
@@ -233,5 +260,7 @@ def noise_floor_report(scn: Scenario, rate: float | None = None) -> dict:
         d.update(law=nf.law, rate_hz=nf.rate_hz, t_s=nf.t, rms_arcsec=list(nf.rms_arcsec),
                  rms_mrp=list(nf.rms_mrp), estimator_rms_arcsec=list(nf.est_rms_arcsec),
                  bound_mrp=list(nf.bound_mrp), margin=list(nf.margin),
-                 spectral_radius=nf.spectral_radius, sigmas=NOISE_SIGMAS)
+                 spectral_radius=nf.spectral_radius, sigmas=NOISE_SIGMAS,
+                 u_rms=None if nf.u_rms is None else list(nf.u_rms),
+                 u_margin=None if nf.u_rms is None else list(nf.u_margin))
     return d
