@@ -323,7 +323,8 @@ def _slew_scenario(lib: Path, gyro: int = 1) -> tuple:
     """Rest to rest, 60 deg about a non-principal axis: no disturbance, the
     plant's inertia = J0, no faults, no gravity gradient (w0 = 0), limits far
     beyond the commands, a constant desired attitude (omega_d = 0), and a
-    momentum bias in the wheels (so that omega x h is not zero)."""
+    momentum bias in the wheels (so that omega x h is not zero). The desired
+    attitude is the guidance's inertial hold ([guidance] kind = "hold")."""
     data = tomllib.loads((ROOT / "scenarios" / "paper_fault_free.toml").read_text())
     e = np.array([1.0, 2.0, 3.0]) / math.sqrt(14.0)
     phi = math.radians(60.0)
@@ -332,8 +333,7 @@ def _slew_scenario(lib: Path, gyro: int = 1) -> tuple:
     data["disturbance"].update(amp=[0.0] * 3, bias=[0.0] * 3)
     data["initial"].update(sigma_BN=list(math.tan(phi / 4) * e), omega_BN_B=[0.0] * 3,
                            wheel_speed=[60.0, -40.0, 30.0, 20.0])
-    data["guidance"] = {"sigma_d0": [0.0] * 3, "omega_bias": [0.0] * 3, "omega_cos": [0.0] * 3,
-                        "omega_sin": [0.0] * 3, "omega_freq": 0.0}
+    data["guidance"] = {"kind": "hold", "sigma_d0": [0.0] * 3}  # C's inertial hold: omega_d = 0
     data["controller"]["params"] = {"k": 0.08, "c": 0.4, "gyro": float(gyro)}
     data.pop("faults", None)
     return scenario_from_data(data, ROOT / "scenarios" / "slew.toml"), e
