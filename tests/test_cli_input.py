@@ -175,6 +175,24 @@ def test_a_run_too_large_is_refused_with_the_numbers(cli, args, names, why):
     assert names in lines[0] and why in lines[0], lines
 
 
+@pytest.mark.parametrize("cmd", [["sim"], ["hil"], ["emulator"], ["check"], ["montecarlo"]])
+def test_a_scenario_too_long_is_refused(cli, tmp_path, cmd):
+    """A scenario value, not an option: its run's size is checked the same way."""
+    text = (lcmnet.ROOT / "scenarios" / "paper_faults.toml").read_text()
+    assert "duration = 300.0" in text
+    (tmp_path / "afile").write_text(text.replace("duration = 300.0", "duration = 1e8", 1))
+    rc, lines = cli([*cmd, "afile"])
+    assert rc == 2 and len(lines) == 1, lines
+    assert "rows (1e+08 s at 10 Hz)" in lines[0] and "of memory available" in lines[0], lines
+
+
+@pytest.mark.parametrize("args", [["reproduce", "--control-rate", "100000"],
+                                  ["reproduce", "--plant-step", "1e-9"]])
+def test_reproduce_refuses_runs_that_cannot_fit(cli, args):
+    rc, lines = cli(args)
+    assert rc == 2 and len(lines) == 1 and args[1] in lines[0], lines
+
+
 def test_readonly_out_dir_exits_2(cli, tmp_path):
     if os.geteuid() == 0:  # root writes anywhere but on a read-only mount: use one
         r = subprocess.run(["unshare", "-m", "sh", "-c",

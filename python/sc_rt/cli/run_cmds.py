@@ -159,7 +159,7 @@ def cmd_emulator(args: argparse.Namespace) -> int:
         fill_tracking_errors(res, scn.core_config().guidance)  # rows without a status: from the plant side
         write_run(finish_run(res), out, figures=False)
         (out / "emulator.json").write_text(json.dumps(summary, indent=2) + "\n")
-    print(json.dumps(summary))
+    print(json.dumps(rounded(summary)))
     if sig:
         return report_stopped(res, res.message or "interrupted", sig[0], args.out or "-", "emulator")
     return 0

@@ -11,8 +11,17 @@ from sc_rt.cli.common import scenario_arg
 
 
 def cmd_check(args: argparse.Namespace) -> int:
+    from sc_rt.cli.validate import check_run_size
+    from sc_rt.scenario.model import ScenarioError, load_scenario
     from sc_rt.studies.check import LEVELS, check_scenario, exit_code
 
+    if not args.fast:  # the offline run that bounds ||r|| must fit (file errors: the findings below)
+        try:
+            scn = load_scenario(args.scenario)
+        except ScenarioError:
+            scn = None
+        if scn is not None:
+            check_run_size(scn, f"{args.scenario}'s run (--fast checks without it)")
     findings = check_scenario(args.scenario, run_estimate=not args.fast, law=args.law)
     for f in findings:
         if f.level != "ok" or args.verbose:
@@ -75,8 +84,15 @@ def cmd_design(args: argparse.Namespace) -> int:
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
     """The paper's claims checked with numbers (sc_rt.studies.reproduce, docs/REPRODUCTION.md)."""
+    from sc_rt.cli.validate import check_run_size, given_options
+    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.overrides import with_overrides
     from sc_rt.studies.reproduce import reproduce
 
+    # the paper's scenarios at the rate and plant step asked for: each of their runs must fit
+    check_run_size(with_overrides(load_scenario("paper_faults"), control_rate_hz=args.control_rate,
+                                  plant_step=args.plant_step),
+                   given_options(args, control_rate="--control-rate", plant_step="--plant-step"))
     out = Path(args.out)
     doc = reproduce(out, engine=args.engine, control_rate_hz=args.control_rate,
                     plant_step=args.plant_step, plots=not args.no_plots,

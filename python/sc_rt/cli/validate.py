@@ -213,7 +213,8 @@ def check_run_size(scn: Any, given: str, *, bus: bool = False, realtime: bool = 
     need = float(rows) * per_row * copies
     have = available_memory()
     if need > MEMORY_FRACTION * have:
-        raise UsageError(f"{what}{rows:.6g} rows x {_size(per_row)} per row"
+        raise UsageError(f"{what}{rows:.6g} rows ({run.duration:g} s at {run.control_rate_hz:g} Hz) x "
+                         f"{_size(per_row)} per row"
                          + (f" x {copies} runs" if copies > 1 else "")
                          + f" = {_size(need)}, more than the {_size(have)} of memory available")
     if realtime:
