@@ -321,3 +321,18 @@ def test_without_sensors_the_paper_runs_are_todays(scenario, law):
     assert _digest(a) == _digest(b)
     assert _digest(a) == GOLDEN[(scenario, law)], _digest(a)
     assert np.isnan(a["sigma_BN_est"]).all() and np.isnan(a["sigma_BD_true"]).all()
+
+
+def test_sensors_round_trip_through_the_scenario_data_and_campaign_seeds_differ():
+    from sc_rt.scenario.keys import scenario_data
+    from sc_rt.scenario.model import scenario_from_data
+    from sc_rt.studies.campaign.draws import NO_SHORTCUTS, draw_run
+
+    scn = load_scenario(SENSED)
+    data = scenario_data(scn)
+    back = scenario_from_data(data, scn.path)
+    assert scenario_data(back) == data and back.sensors.measurement == "estimate"
+    assert "sensors" not in scenario_data(load_scenario("paper_faults"))
+    seeds = {draw_run(scn, NO_SHORTCUTS, 0, i)[0].sensors.seed for i in range(20)}
+    assert len(seeds) == 20  # each run its own sensor noise
+    assert draw_run(scn, NO_SHORTCUTS, 0, 3)[0].sensors.seed == draw_run(scn, NO_SHORTCUTS, 0, 3)[0].sensors.seed

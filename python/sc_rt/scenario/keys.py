@@ -61,7 +61,19 @@ def scenario_data(scn: Any) -> dict[str, Any]:
         "guidance": scn.guidance.data(),  # its kind's keys (sc_rt.scenario.guidance)
         "controller": controller,
         "faults": faults,
+        **_sensors(scn, controller),
     }
+
+
+def _sensors(scn: Any, controller: dict[str, Any]) -> dict[str, Any]:
+    """The [sensors] table (and [controller] measurement, estimator), if any."""
+    if getattr(scn, "sensors", None) is None:
+        return {}
+    from sc_rt.scenario.sensors import sensors_data
+
+    table, extra = sensors_data(scn.sensors)
+    controller.update(extra)
+    return {"sensors": table}
 
 
 _PART_RE = re.compile(r"^([A-Za-z_][\w-]*)((?:\[\d+\])*)$")

@@ -36,7 +36,7 @@ from sc_rt.scenario.schema import (  # the schema machinery, as model.py uses it
 
 __all__ = ["GyroSpec", "StarTrackerSpec", "TachometerSpec", "EstimatorSpec", "Sensors",
            "MEASUREMENTS", "read_sensors", "nav_config", "period_ticks", "ARCSEC", "DEG_PER_H",
-           "DEG_PER_RT_H"]
+           "DEG_PER_RT_H", "sensors_data"]
 
 ARCSEC = math.pi / 180.0 / 3600.0  #: [rad] one arcsecond
 DEG_PER_H = math.pi / 180.0 / 3600.0  #: [rad/s] one deg/h
@@ -290,3 +290,23 @@ def nav_config(sensors: Sensors, plant_step: float, where: str = "scenario") -> 
     m.history = int(p.star_tracker.latency_ticks // g_ticks + 3) if p.star_tracker.enabled else 3
     c.use_estimate = sensors.measurement == "estimate"
     return c
+
+
+def sensors_data(sensors: Sensors) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(the [sensors] table, the [controller] keys measurement and estimator) as
+    parsed TOML that reads back to ``sensors`` (sc_rt.scenario.keys.scenario_data)."""
+
+    def table(spec: Any) -> dict[str, Any]:
+        out = {}
+        for f in dataclasses.fields(spec):
+            v = getattr(spec, f.name)
+            out[f.name] = (v.tolist() if isinstance(v, np.ndarray)
+                           else [list(w) for w in v] if f.name == "blackouts" else v)
+        return out
+
+    data: dict[str, Any] = {"seed": int(sensors.seed)}
+    for name in ("gyro", "star_tracker", "tachometer"):
+        spec = getattr(sensors, name)
+        if spec is not None:
+            data[name] = table(spec)
+    return data, {"measurement": sensors.measurement, "estimator": table(sensors.estimator)}

@@ -24,6 +24,10 @@ gain out of bounds) is redrawn up to ``max_redraws`` times (``on_invalid =
 "redraw"``, the default: the campaign samples the distributions conditioned
 on a valid scenario) or counted at once (``"fail"``); a run whose attempts
 all fail is a failed run (status "invalid") with the values of its last draw.
+
+A scenario with ``[sensors]``: run i's sensors seed is drawn from
+``SeedSequence([seed, sensors.seed], spawn_key=(i, 2))`` (63 bits), so every
+run has its own sensor noise and initial estimation error.
 """
 
 from __future__ import annotations
@@ -163,10 +167,24 @@ def _values(data: dict[str, Any], keys: list[str]) -> dict[str, float]:
     return out
 
 
+def _with_sensor_seed(s: Scenario | None, seed: int, run: int) -> Scenario | None:
+    if s is None or s.sensors is None:
+        return s
+    ss = np.random.SeedSequence([int(seed), int(s.sensors.seed)], spawn_key=(int(run), 2))
+    new = int(ss.generate_state(1, np.uint64)[0] >> np.uint64(1))
+    return dataclasses.replace(s, sensors=dataclasses.replace(s.sensors, seed=new))
+
+
 def draw_run(scn: Scenario, d: Dispersion, seed: int, run: int
              ) -> tuple[Scenario | None, dict[str, float], int, str]:  # fmt: skip
     """Run ``run``'s scenario: (scenario or None if no valid draw, dispersed
     values by column, redraws used, message of the last invalid draw)."""
+    s, values, redraws, message = _draw_run(scn, d, seed, run)
+    return _with_sensor_seed(s, seed, run), values, redraws, message
+
+
+def _draw_run(scn: Scenario, d: Dispersion, seed: int, run: int
+              ) -> tuple[Scenario | None, dict[str, float], int, str]:  # fmt: skip
     s = scn
     active = d != NO_SHORTCUTS
     if active:
