@@ -237,8 +237,7 @@ wait $HIL
         assert abs(c["t_sim_at_receipt"] - a["t"]) <= tol, (c, a, tol)
     # the fault figure shows what happened: one panel per wheel; wheel 2's
     # effectiveness L drops to 0.3 and its Y(t) rises inside (6 s, 7 s) with a
-    # red onset line at 6 s; wheel 3 has a stuck span from t_stuck to t_clear;
-    # a black line at each command's receipt
+    # red onset line at 6 s; wheel 3 has a stuck span from t_stuck to t_clear
     png = tmp_path / "report" / "faults.png"
     figcheck.assert_png_is_a_plot(png)
     fig = figs[png.name]
