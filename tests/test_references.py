@@ -574,3 +574,23 @@ def test_an_unvalidated_table_is_refused_not_read_out_of_bounds():
         _core.omega_d(p, 0.5)
     with pytest.raises(ValueError, match="one row per time"):
         _core.Guidance(p, 0.1)
+
+
+def test_the_core_validates_what_it_is_sent():
+    """A controller_config_t not made by the scenario reader is checked by the core."""
+    p = table_params([0.0, 1.0, 1.0], np.zeros((3, 3)), np.zeros((3, 3)))
+    assert any("strictly increasing" in e and "sample 2" in e for e in _core.validate(p))
+    p = table_params([0.0, 1.0], [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]], np.zeros((2, 3)))
+    assert any("table_sigma sample 1" in e for e in _core.validate(p))
+    p = table_params([0.0, 1.0], np.zeros((2, 3)), [[0.0, np.nan, 0.0], [0.0, 0.0, 0.0]])
+    assert any("table_omega sample 0" in e for e in _core.validate(p))
+    p = slew_params([0.0, 0.0, 0.0], [0.0, 0.0, 0.5], 0.0, 0.0)
+    assert any("slew_duration must be > 0" in e for e in _core.validate(p))
+    p = slew_params([0.0, 0.0, 0.0], [0.0, 0.0, 1.5], 0.0, 10.0)
+    assert any("slew_target must be finite with |slew_target| <= 1" in e for e in _core.validate(p))
+    # and the wire's kind must be one of GUIDANCE_*
+    s = load_scenario("slew_rest_to_rest")
+    m = s.controller_config_msg()
+    m.guidance_kind = 7
+    with pytest.raises(ValueError, match="guidance_kind must be 0..3"):
+        _core.ControllerConfig.from_lcm_bytes(m.encode())
