@@ -521,6 +521,16 @@ def test_a_file_reference_reaches_the_controller_process_and_the_log(tmp_path):
     compared_fields(hil, sim)
     for k in range(0, 201, 20):
         np.testing.assert_allclose(hil["sigma_DN"][k], mrp_of_dcm(rot(E, w * hil["t"][k])), atol=1e-12)
+    # external processes get it on the bus: the emulator's guidance_t (from _core.Guidance)
+    from sc_rt_lcm import guidance_t
+
+    refs = [guidance_t.decode(e.data) for e in lcm.EventLog(str(out / "run.lcmlog"), "r")
+            if e.channel == "SCRT_GUIDANCE"]
+    assert len(refs) > 100  # the logger may miss a few on a loaded machine
+    for m in refs:
+        np.testing.assert_allclose(m.sigma_DN, mrp_of_dcm(rot(E, w * m.t)), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(m.omega_DN_D, w * E, rtol=0, atol=1e-15)
+        np.testing.assert_array_equal(m.omega_dot_DN_D, np.zeros(3))
     configs = [e.data for e in lcm.EventLog(str(out / "run.lcmlog"), "r") if e.channel == "SCRT_CONFIG"]
     assert len(configs) == 1
     logged = _core.ControllerConfig.from_lcm_bytes(configs[0]).guidance
