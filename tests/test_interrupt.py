@@ -219,3 +219,25 @@ def test_report_on_a_log_cut_mid_step(tmp_path):
     assert m["steps"] == whole["steps"] - 1
     assert_complete_rows(tmp_path / "cut")
     assert m["finite"] is whole["finite"]
+
+
+@pytest.mark.slow
+def test_hil_killed_leaves_no_orphans(tmp_path):
+    """SIGKILL cannot be handled: the children still go (parent-death signal)."""
+    lcmnet.require()
+    out = tmp_path / "hil-KILL"
+    log = out / "run.lcmlog"
+    script = f"""
+{CLI} hil paper_fault_free --control-rate 1000 --out {out} --no-plots --lcm-url '{url(7813)}' \\
+    > {tmp_path}/o.txt 2> {tmp_path}/e.txt &
+P=$!
+{GROW.format(f=log, n=300_000)}
+kill -KILL $P
+wait $P
+echo "rc=$?"
+i=0; while pgrep -f '^[^ ]*(sc-rt-controller|lcm-logger) .*{out}' > /dev/null; do
+  i=$((i+1)); [ $i -gt 600 ] && break; sleep 0.1; done
+"""
+    r = lcmnet.run_script(script, timeout=300)
+    assert "rc=137" in r.stdout, r.stdout + r.stderr
+    assert not leftovers(str(out)), leftovers(str(out))

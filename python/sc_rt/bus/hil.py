@@ -89,21 +89,27 @@ def _probe_logger(url: str, path: Path, payload: bytes, timeout: float, name: st
     return False
 
 
-def _die_with_parent() -> None:  # pragma: no cover (runs in the child)
-    """The child gets SIGTERM when sc-rt dies, even by SIGKILL (Linux)."""
+def _pdeathsig():
+    """prctl(PR_SET_PDEATHSIG, SIGTERM) for a child, looked up in the parent
+    (the child, between fork and exec, only calls it); None off Linux."""
     try:
         import ctypes
 
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
     except (OSError, AttributeError):
-        pass
+        return None
+    return lambda: prctl(1, int(signal.SIGTERM))  # 1: PR_SET_PDEATHSIG
 
 
 def child_kwargs() -> dict[str, Any]:
     """Popen arguments of the bench's children: their own process group (a
     Ctrl-C at the terminal reaches sc-rt alone, which stops them in order:
-    controller, then the logger after its last flush) and stopped with sc-rt."""
-    return {"process_group": 0, "preexec_fn": _die_with_parent} if sys.platform == "linux" else {}
+    controller, then the logger after its last flush) and SIGTERM when sc-rt
+    dies, even by SIGKILL (Linux)."""
+    if sys.platform != "linux":
+        return {}
+    hook = _pdeathsig()
+    return {"process_group": 0, **({"preexec_fn": hook} if hook else {})}
 
 
 class Stopper:

@@ -118,7 +118,16 @@ def cmd_replay(args: argparse.Namespace) -> int:
     except ValueError as e:
         print(f"sc-rt replay: error: {e}", file=sys.stderr)
         return 2
+    from sc_rt.bus.hil import child_kwargs
+    from sc_rt.cli.interrupts import Interrupted
+
+    proc = subprocess.Popen(cmd, **child_kwargs())  # its own group: stopped here, never orphaned
     try:
-        return subprocess.call(cmd)
-    except KeyboardInterrupt:
-        return 130
+        return proc.wait()
+    except Interrupted:
+        proc.terminate()
+        try:
+            proc.wait(5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+        raise

@@ -251,6 +251,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import signal
+
+    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return _main(argv)
+    finally:  # main() called in a process that goes on (tests, notebooks): its handlers back
+        for s, h in old.items():
+            if h is not None:
+                signal.signal(s, h)
+
+
+def _main(argv: list[str] | None) -> int:
     raise_on_signals()  # SIGINT, SIGTERM: Interrupted (exit 130, 143) unless a command handles them
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -114,8 +114,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
     for label, name, sub in DEMO_RUNS:
         scn = scenario_arg(name)
         print(f"sc-rt demo: {label} ({scn.name}) through LCM, lockstep ...", file=sys.stderr, flush=True)
-        results.append((label, run_hil(scn, out=out / sub, mode="lockstep",
-                                       lcm_url=resolve_url(args.lcm_url, None))))
+        res = run_hil(scn, out=out / sub, mode="lockstep", lcm_url=resolve_url(args.lcm_url, None))
+        if res.stopped:  # interrupted (or the logger died): no further run
+            return report_stopped(res.run, res.stopped, res.signum, res.out, "demo")
+        results.append((label, res))
     for label, res in results:
         print(verdict_line(res.metrics, label))
     for label, res in results:
