@@ -49,12 +49,20 @@ def lcm_binary(name: str) -> str:
     return str(p)
 
 
+#: Socket receive buffer asked for on the URLs the bench makes [bytes]: a
+#: lockstep run publishes ~20,000 messages/s, and lcm-logger on a loaded
+#: machine falls behind a default 208 kB buffer (seen: 50 of 201 states lost).
+#: The kernel caps it at net.core.rmem_max.
+RECV_BUF_SIZE = 4_194_304
+
+
 def free_port_url(ttl: int = 0, group: str = "239.255.76.67") -> str:
-    """A udpm URL on a port free on this machine, so parallel runs never cross."""
+    """A udpm URL on a port free on this machine, so parallel runs never
+    cross, with room in every subscriber's socket buffer."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("", 0))
         port = s.getsockname()[1]
-    return f"udpm://{group}:{port}?ttl={ttl}"
+    return f"udpm://{group}:{port}?ttl={ttl}&recv_buf_size={RECV_BUF_SIZE}"
 
 
 def open_lcm(url: str) -> lcm.LCM:
