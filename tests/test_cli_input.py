@@ -68,6 +68,12 @@ OPTIONS = [
     (["montecarlo", "paper_faults"], "--effectiveness", UNIT),
     (["montecarlo", "paper_faults"], "--attitude", ("-0.1", "4", "nan", "inf", "abc")),
     (["montecarlo", "paper_faults"], "--rate", ("-1", "nan", "inf", "abc")),
+    (["compare", "paper_faults", "--law", "pd", "--law", "dsc"], "--duration", LENGTH),
+    (["compare", "paper_faults", "--law", "pd", "--law", "dsc"], "--settle", ("0", "-1", "1", "nan", "inf", "abc")),
+    (["controller", "--law", str(lcmnet.ROOT / "examples/python_laws/pd.py") + ":PythonPD", "paper_faults"],
+     "--control-rate", POSITIVE),
+    (["controller", "--law", str(lcmnet.ROOT / "examples/python_laws/pd.py") + ":PythonPD", "paper_faults"],
+     "--max-steps", ("0", "-1", "abc", "1e99")),
 ]
 NUMERIC = [(pre, opt, v) for pre, opt, values in OPTIONS for v in values]
 
@@ -89,6 +95,8 @@ SIZES = [
     (["emulator", "paper_faults", "--rate", "100000", "--duration", "5000"], "--rate 100000",
      "of memory available"),
     (["montecarlo", "paper_faults", "--control-rate", "100000", "--workers", "1000"], "--control-rate 100000",
+     "of memory available"),
+    (["compare", "paper_faults", "--law", "pd", "--law", "dsc", "--duration", "1e8"], "--duration 1e+08",
      "of memory available"),
 ]
 
@@ -149,7 +157,8 @@ def test_bad_scrt_lcm_url_is_named(cli, monkeypatch):
 
 
 OUT_DIRS = [["sim", "paper_faults"], ["hil", "paper_faults"], ["demo"], ["emulator", "paper_faults"],
-            ["design", "paper_faults"], ["reproduce"], ["report", LOG], ["montecarlo", "paper_faults"]]
+            ["design", "paper_faults"], ["reproduce"], ["report", LOG], ["montecarlo", "paper_faults"],
+            ["compare", "paper_faults", "--law", "pd", "--law", "dsc"], ["new-law", "my-law"]]
 
 
 @pytest.mark.parametrize("pre", OUT_DIRS, ids=[p[0] for p in OUT_DIRS])

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.cli.lawarg import LAW_HELP, law_choice
+from sc_rt.cli.validate import check_run_size, given_options, number, out_dir
 
 __all__ = ["add_parser", "cmd_compare", "compare_row", "settling_time", "COLUMNS"]
 
@@ -87,10 +88,10 @@ def add_parser(sub) -> None:
                    help=LAW_HELP + "; repeat for each law")
     c.add_argument("--engine", choices=("python", "cpp"), default="cpp",
                    help="offline engine (default cpp; a Python law runs on python)")
-    c.add_argument("--duration", type=float, metavar="S", help="[s] default: the scenario's")
+    c.add_argument("--duration", type=number(unit="s"), metavar="S", help="[s] default: the scenario's")
     c.add_argument("--settle", type=float, default=0.02, metavar="FRAC",
                    help="settling: the pointing error stays within FRAC of its initial value (default 0.02)")
-    c.add_argument("--out", metavar="DIR", help="also write DIR/compare.json and DIR/compare.md")
+    c.add_argument("--out", metavar="DIR", type=out_dir, help="also write DIR/compare.json and DIR/compare.md")
     c.set_defaults(func=cmd_compare)
 
 
@@ -107,6 +108,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         print(f"sc-rt compare: --settle {args.settle:g}: must be in (0, 1)", file=sys.stderr)
         return 2
     scn = load_scenario(args.scenario)
+    check_run_size(with_overrides(scn, duration=args.duration), given_options(args, duration="--duration"))
     # every law checked (a plugin constructed with the scenario's params) before any run
     scns = {}
     for law in args.laws:

@@ -9,6 +9,8 @@ import re
 import sys
 from pathlib import Path
 
+from sc_rt.cli.validate import out_dir
+
 __all__ = ["add_parser", "cmd_new_law", "CmakeDirAction", "scaffold"]
 
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_-]{0,63}$")
@@ -35,7 +37,7 @@ def add_parser(sub) -> None:
     n.add_argument("name", help="the law's name (letters, digits, - and _; e.g. my-pd)")
     n.add_argument("--lang", choices=("cpp", "python"), default="cpp", help="cpp: a plugin built with CMake (default); "
                    "python: a Python law class (docs/LAWS.md)")
-    n.add_argument("--out", metavar="DIR", help="the project directory to create (default: ./NAME)")
+    n.add_argument("--out", metavar="DIR", type=out_dir, help="the project directory to create (default: ./NAME)")
     n.set_defaults(func=cmd_new_law)
 
 
