@@ -232,3 +232,17 @@ def test_hil_refused_starts_no_process(tmp_path):
     assert not out.exists()
     left = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True)
     assert left.returncode == 1, left.stdout
+
+
+def test_scrt_lcm_url_is_the_url_of_hil_and_emulator(tmp_path):
+    """$SCRT_LCM_URL when no --lcm-url: the run is on that URL (it says so)."""
+    lcmnet.require()
+    url = "udpm://239.255.76.67:7831?ttl=0"
+    env = dict(os.environ, SCRT_LCM_URL=url)
+    cli = [sys.executable, "-m", "sc_rt.cli"]
+    r = lcmnet.run([*cli, "hil", "paper_fault_free", "--duration", "2", "--no-plots", "--out", str(tmp_path / "h")],
+                   timeout=120, env=env)
+    assert r.returncode == 0 and f"sc-rt hil: LCM URL {url}" in r.stderr, r.stderr
+    r = lcmnet.run([*cli, "emulator", "paper_fault_free", "--mode", "realtime", "--rate", "20", "--duration",
+                    "0.2"], timeout=120, env=env)
+    assert r.returncode == 0 and f"sc-rt emulator: LCM URL {url}" in r.stderr, r.stderr
