@@ -15,6 +15,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdio>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -175,7 +176,7 @@ class LawParams {
   //! A number > 0 (def when absent).
   double positive(const std::string& key, double def) const {
     const double v = number(key, def);
-    if (!(v > 0.0)) fail(key, "must be > 0, got " + std::to_string(v));
+    if (!(v > 0.0)) fail(key, "must be > 0, got " + text(v));
     return v;
   }
   //! A 3-vector: three numbers, or one number for all three axes.
@@ -194,6 +195,12 @@ class LawParams {
   }
   [[noreturn]] static void fail(const std::string& key, const std::string& what) {
     throw LawParamError(key, key + ": " + what);
+  }
+  //! A number as a message shows it (%.10g).
+  static std::string text(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.10g", v);
+    return buf;
   }
   const Items& items() const { return items_; }
   //! The keys no read touched (after construction: unknown parameters).

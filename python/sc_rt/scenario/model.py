@@ -372,6 +372,7 @@ def _check_law(doc: _Doc, scn: Scenario, law_key: str, params_key: str) -> None:
         if key.startswith("params."):
             name = key[len("params."):]
             value = params.get(name)
+            message = message.replace(f"controller.params.{name}: ", "")  # the key is the issue's
             doc.error(f"{params_key}.{name}", None if value is None else _param_value(value), message)
         else:
             doc.error(law_key, scn.run.controller, message)
