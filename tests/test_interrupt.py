@@ -82,7 +82,7 @@ echo "rc=$?"
     err = (tmp_path / "e.txt").read_text()
     assert f"rc={code}" in r.stdout, r.stdout + r.stderr + err
     assert not leftovers(str(out)), leftovers(str(out))
-    assert f"STOPPED at t = " in err and f"interrupted by SIG{sig}" in err and "Traceback" not in err, err
+    assert "STOPPED at t = " in err and f"interrupted by SIG{sig}" in err and "Traceback" not in err, err
     m = metrics(out)
     assert m["partial"] is True and m["stopped"] == f"interrupted by SIG{sig}"
     assert 0 < m["t_reached_s"] < 300 and m["steps"] == round(m["t_reached_s"] * 1000) + 1

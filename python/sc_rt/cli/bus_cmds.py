@@ -4,7 +4,6 @@ the commands on the bus and its logs."""
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 

@@ -4,8 +4,6 @@ summary, output checks, the stopped-run summary, the bus URL, the MCAP export.""
 from __future__ import annotations
 
 import argparse
-import json
-import signal
 import sys
 from pathlib import Path
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import argparse
 import errno
-import json
 import sys
 
 from sc_rt import __version__
@@ -15,7 +14,6 @@ from sc_rt.cli.validate import (MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, Usag
                                 number, out_dir, out_file)
 from sc_rt.cli.lawarg import LAW_HELP, core_law_choice, law_choice
 from sc_rt.cli.controller import add_external_options
-from sc_rt.scenario.model import LAWS  # noqa: E402
 from sc_rt.cli.common import LAW_CHOICES
 from sc_rt.cli.run_cmds import cmd_demo, cmd_emulator, cmd_hil, cmd_sim
 from sc_rt.cli.study_cmds import cmd_check, cmd_config, cmd_design, cmd_reproduce, cmd_scenarios
