@@ -89,6 +89,18 @@ def test_external_controller_in_lockstep_equals_the_offline_law(tmp_path):
     assert rm["controller"] == "quaternion-feedback"
     for k in ("first_bound_violation_s", "sigma_e_norm", "max_abs_u_cmd", "saturated_fraction"):
         assert rm[k] == m[k], k
+    ch = json.loads((rep / "report.json").read_text())["channels"]
+    assert ch["SCRT_GUIDANCE"]["type"] == "guidance_t" and ch["SCRT_GUIDANCE"]["count"] >= rows
+    assert ch["SCRT_CTRL_INFO"]["count"] >= 1
+    assert all(c["undecodable"] == 0 for c in ch.values()), ch
+    # the MCAP export decodes the new types like any other (one JSON channel each)
+    from mcap.reader import make_reader
+
+    r = lcmnet.run_cli(["export", str(out / "run.lcmlog"), "--mcap", str(tmp_path / "run.mcap")], netns=False)
+    assert r.returncode == 0 and " 0 undecodable" in r.stdout, r.stdout + r.stderr
+    with open(tmp_path / "run.mcap", "rb") as f:
+        topics = {c.topic for c in make_reader(f).get_summary().channels.values()}
+    assert {"SCRT_GUIDANCE", "SCRT_CTRL_INFO", "SCRT_STATE", "SCRT_CMD"} <= topics, topics
 
 
 def test_guidance_on_the_bus_is_the_controllers(tmp_path):
@@ -247,9 +259,26 @@ def test_python_law_in_real_time(tmp_path):
     t = json.loads((out / "timing.json").read_text())
     m = json.loads((out / "metrics.json").read_text())
     assert s["mode"] == "realtime" and s["control_rate_hz"] == 20.0 and s["law"] == "python-pd"
-    assert s["steps"] >= 50 and s["received"] >= 50  # it ran on its own clock through the run
+    assert s["steps"] >= 40 and s["received"] >= 40  # it ran on its own clock through the run (61 ticks)
     assert t["rows"] == 61 and t["mode"] == "realtime" and m["controller"] == "python-pd" and m["finite"]
     assert t["compute_us"]["p50"] > 0 and t["wake_lateness_us"]["p50"] is not None
     hil = np.load(out / "trajectory.npz")
     used = ~np.isnan(hil["compute_us"])  # rows whose state the controller used (its status)
-    assert used.sum() >= 50 and np.all(np.isfinite(hil["sigma_BD"]))
+    assert used.sum() >= 30 and np.all(np.isfinite(hil["sigma_BD"]))  # most ticks, even on a loaded machine
+
+
+@pytest.mark.slow  # a 3 s real-time run
+def test_external_controller_in_real_time(tmp_path):
+    """The example answers each state on arrival, which is all real time
+    needs: every tick has a fresh command once it runs, and the run is
+    labelled and measured like any other."""
+    out = tmp_path / "rt"
+    r = lcmnet.run_cli(["hil", "paper_faults", "--mode", "realtime", "--control-rate", "20", "--duration", "3",
+                        "--external", f"{{python}} {EXAMPLE}", "--out", str(out), "--no-plots"], timeout=120)
+    assert r.returncode == 0, r.stderr + r.stdout
+    m = json.loads((out / "metrics.json").read_text())
+    t = json.loads((out / "timing.json").read_text())
+    assert m["controller"] == "quaternion-feedback" and m["finite"] and t["rows"] == 61
+    tr = np.load(out / "trajectory.npz")
+    assert np.all(np.isfinite(tr["sigma_BD"]))
+    assert np.count_nonzero(tr["cmd_stale"] == 0) >= 30  # commands applied on most of the 61 ticks
