@@ -1,12 +1,14 @@
 """The plant as an LCM process (``sc-rt emulator``).
 
-Publishes ``plant_state_t`` (SCRT_STATE) and ``plant_truth_t`` (SCRT_TRUTH),
+Publishes ``guidance_t`` (SCRT_GUIDANCE, the reference, just before each
+state), ``plant_state_t`` (SCRT_STATE) and ``plant_truth_t`` (SCRT_TRUTH),
 applies the newest valid ``wheel_cmd_t`` it holds (zero-order hold), with the
-scenario's saturation and faults, and records the run.
+scenario's saturation and faults, and records the run (docs/PROTOCOL.md).
 
 - lockstep: publish state k, wait for the command answering k (and the
-  controller's status for k), apply it over one control period. The same
-  loop and arithmetic as ``sim.simulate(engine="python")``: same numbers.
+  controller's status for k from a controller that sends them: bus/peers.py),
+  apply it over one control period. The same loop and arithmetic as
+  ``sim.simulate(engine="python")``: same numbers.
 - realtime: a tick every 1/rate s of wall clock divided by the time scale;
   at each tick the newest command is applied over the next period; commands
   older than ``stale_periods`` periods, or invalid, are replaced by zero and
