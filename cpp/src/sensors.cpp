@@ -35,12 +35,17 @@ double Rng::normal() {
     has_spare_ = false;
     return spare_;
   }
-  const double u1 = static_cast<double>((next_u64() >> 11) + 1) * 0x1.0p-53;  // (0, 1]
-  const double u2 = uniform();
-  const double r = std::sqrt(-2.0 * std::log(u1));
-  spare_ = r * std::sin(kTwoPi * u2);
+  // Marsaglia's polar form of Box-Muller: no sin/cos, 21.5 % of the pairs rejected.
+  double x, y, r2;
+  do {
+    x = 2.0 * uniform() - 1.0;
+    y = 2.0 * uniform() - 1.0;
+    r2 = x * x + y * y;
+  } while (r2 >= 1.0 || r2 == 0.0);
+  const double f = std::sqrt(-2.0 * std::log(r2) / r2);
+  spare_ = y * f;
   has_spare_ = true;
-  return r * std::cos(kTwoPi * u2);
+  return x * f;
 }
 
 Mat3 boresight_frame(const Vec3& boresight) {
@@ -130,10 +135,11 @@ void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
   const GyroParams& g = p_.gyro;
   if (g.enabled && i % g.period_ticks == 0) {
     if (last_bias_tick_ >= 0) {  // the bias moves one gyro period
-      for (int k = 0; k < 3; ++k) {
-        gm_(k) = a_gm_ * gm_(k) + q_gm_ * rng_bias_.normal();
-        rw_(k) += q_rw_ * rng_bias_.normal();
-      }
+      // (a zero-variance part draws nothing)
+      if (q_gm_ > 0.0)
+        for (int k = 0; k < 3; ++k) gm_(k) = a_gm_ * gm_(k) + q_gm_ * rng_bias_.normal();
+      if (q_rw_ > 0.0)
+        for (int k = 0; k < 3; ++k) rw_(k) += q_rw_ * rng_bias_.normal();
     }
     last_bias_tick_ = i;
     bias_ = g.bias0 + gm_ + rw_;
@@ -141,7 +147,7 @@ void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
     const double sn = g.arw / std::sqrt(dtg);
     Vec3 w = gyro_M_ * x.omega_BN_B + bias_;
     for (int k = 0; k < 3; ++k) {
-      w(k) += sn * rng_gyro_.normal();
+      if (sn > 0.0) w(k) += sn * rng_gyro_.normal();
       w(k) = std::min(std::max(w(k), -g.saturation), g.saturation);
     }
     if (g.quantization > 0.0) {

@@ -6,9 +6,10 @@
 //
 // Random numbers: one SplitMix64 stream per sensor and purpose (a stream is
 // SplitMix64 started at mix(seed, stream id), i.e. counter based: value n of
-// a stream is mix(start + n * golden)), normal deviates by Box-Muller. Integer
-// arithmetic is exact everywhere; the deviates use std::log, std::sqrt,
-// std::cos and std::sin, so two platforms with different libm may differ in
+// a stream is mix(start + n * golden)), normal deviates by Marsaglia's polar
+// method (Box-Muller without sin/cos; a rejected pair consumes its draws). Integer
+// arithmetic is exact everywhere; the deviates use std::log and std::sqrt
+// (sqrt is correctly rounded, log is not required to be), so two platforms with different libm may differ in
 // the last bit of a deviate (the same build always gives the same numbers).
 //
 // Times: a sensor samples at tick i (plant step i, t = the engine's time of
@@ -26,7 +27,7 @@
 
 namespace sc_rt {
 
-// SplitMix64 (Steele, Lea, Flood 2014) with Box-Muller normals.
+// SplitMix64 (Steele, Lea, Flood 2014) with normals by Marsaglia's polar method.
 class Rng {
  public:
   explicit Rng(std::uint64_t seed = 0, std::uint64_t stream = 0);
