@@ -16,6 +16,11 @@ default, where chi = chiinf) with the law fed x1 + n1 and x2 + n2:
   star tracker period T_st, the star tracker's noise about that body axis).
   This is the documented approximation of the MEKF (a low-pass of the star
   tracker's noise with the steady-state gain), not the MEKF itself;
+- the observer's sig^alpha terms (alpha < 1) have an unbounded slope at 0: the
+  loop is linearised with their local gain at the size of the noise they see,
+  |e| = sigma_w (SampledLoop's "local-gain" observer; "linear-part", the
+  design tool's default for stability, underestimates the noise the NESO
+  passes by an order of magnitude at the paper's gains);
 - n2, the rate error, is the gyro's white noise at its sample rate,
   sigma^2 = ARW^2 / T_gyro + q^2 / (6 T_gyro^2) per axis (the second term:
   the delta-angle quantum q with its remainder carried), taken as white at
@@ -131,7 +136,8 @@ def estimator_gains(sensors: Sensors) -> tuple[np.ndarray, np.ndarray]:
 
 
 def noise_floor(scn: Scenario, sensors: Sensors | None = None, *, law: str | None = None,
-                rate: float | None = None, t: float | None = None) -> NoiseFloor | None:
+                rate: float | None = None, t: float | None = None,
+                observer: str = "local-gain") -> NoiseFloor | None:
     """The noise floor of ``scn``'s loop with ``sensors`` (default: the
     scenario's [sensors]); None without sensors or for a law other than
     dsc-ppc / dsc (no linear model)."""
@@ -140,24 +146,29 @@ def noise_floor(scn: Scenario, sensors: Sensors | None = None, *, law: str | Non
     if sensors is None or sensors.gyro is None or law not in ("dsc-ppc", "dsc"):
         return None
     t = float(scn.run.duration) if t is None else float(t)
-    loop = SampledLoop(scn, law, rate)
+    g = sensors.gyro
+    # white: ARW / sqrt(T_g), and the quantisation's rate error (carry_k - carry_k-1) / T_g, variance q^2 / (6 T_g^2)
+    sigma_w = np.full(3, math.sqrt((g.arw * DEG_PER_RT_H) ** 2 * g.rate_hz
+                                   + (g.quantization * ARCSEC * g.rate_hz) ** 2 / 6.0))
+    # the observer's sig^alpha terms at the size of the noise they see (e = z1 - x2 ~ the rate noise)
+    loop = SampledLoop(scn, law, rate, observer=observer, observer_amplitude=max(float(sigma_w[0]), 1e-12))
     M = loop.phi(t)
     n = len(SAMPLED_STATES)
     P0 = np.zeros((n, n))
     P0[0:6, 0:6] = loop.Phi  # the plant's own propagation of x1, x2
     Gn = (M - P0)[:, 0:6]  # what acts through the measured x1, x2
-    g = sensors.gyro
-    # white: ARW / sqrt(T_g), and the quantisation's rate error (carry_k - carry_k-1) / T_g, variance q^2 / (6 T_g^2)
-    sigma_w = np.full(3, math.sqrt((g.arw * DEG_PER_RT_H) ** 2 * g.rate_hz
-                                   + (g.quantization * ARCSEC * g.rate_hz) ** 2 / 6.0))
     rad = float(np.max(np.abs(np.linalg.eigvals(M))))
     ppc = scn.controller.ppc
     bound = np.minimum(ppc.dmin, ppc.dmax) * ppc.chiinf
     inf = np.full(3, np.inf)
-    if sensors.star_tracker is None or not rad < 1.0:
+    if sensors.star_tracker is None:
         return NoiseFloor(law, loop.rate, t, inf, inf, inf, np.full((3, 2), np.nan), sigma_w, bound, rad)
-    K, _ = estimator_gains(sensors)
+    K, prior = estimator_gains(sensors)
     r_axis = _axis_star_sigma(sensors)
+    if not rad < 1.0:  # no floor; the estimator's error alone: the cycle average of the filter's variances
+        post = prior - prior**2 / (prior + r_axis**2)
+        est = np.sqrt(0.5 * (prior + post)) / ARCSEC
+        return NoiseFloor(law, loop.rate, t, inf, inf, est, K, sigma_w, bound, rad)
     # the lifted period: control every nc, star fixes every ns base steps of dt
     Tc, Ts = loop.T, 1.0 / sensors.star_tracker.rate_hz
     dt = math.gcd(round(Tc * 1e6), round(Ts * 1e6)) * 1e-6  # [s] on a 1 us grid
