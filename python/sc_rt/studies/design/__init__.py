@@ -18,7 +18,10 @@ from here, ``sc_rt.studies.design.<name>``):
    predicted loss of stability, the smallest stable chiinf
    (:func:`stability_limit`) and the simulated one
    (:func:`simulated_loss_of_stability`, :func:`compare_loss_of_stability`).
-5. :mod:`~sc_rt.studies.design.report`: :func:`design_report`, the text
+5. :mod:`~sc_rt.studies.design.noise`: the sensor noise floor
+   (:func:`noise_floor`, :func:`predicted_tightest_chiinf`; docs/DESIGN.md
+   section 5), printed by the report;
+   :mod:`~sc_rt.studies.design.report`: :func:`design_report`, the text
    tables, :func:`write_design` (``sc-rt design``);
    :mod:`~sc_rt.studies.design.figures`: its figures.
 
@@ -41,12 +44,16 @@ from sc_rt.studies.design.sampled import (
 from sc_rt.studies.design.stability import (
     StabilityLimit, compare_loss_of_stability, critical_r_estimate, simulated_loss_of_stability,
     stability_limit, without_wheel_limits)
+from sc_rt.studies.design.noise import NoiseFloor, noise_floor, predicted_tightest_chiinf
 from sc_rt.studies.design.report import (
     MARGINS_LOOP, chiinf_check, design_report, format_chiinf_check, format_design_text, format_loss_of_stability,
     format_margins_table, format_sampled_table, write_design)
 from sc_rt.studies.design.figures import plot_loops, plot_spectral
 
 __all__ = [
+    "NoiseFloor",
+    "noise_floor",
+    "predicted_tightest_chiinf",
     "CASES",
     "INERTIAS",
     "DEFAULT_LATENCY_S",

@@ -1,5 +1,5 @@
 """The sensor noise floor of the linearised sampled loop (docs/DESIGN.md,
-section 6; docs/REPRODUCTION.md, "Sensor noise against the envelope").
+section 5; docs/REPRODUCTION.md, "Sensor noise against the envelope").
 
 What RMS attitude error does measurement noise alone produce in the
 DSC(+PPC) loop, and is the prescribed bound chiinf above it? An H2 /
@@ -19,8 +19,8 @@ default, where chi = chiinf) with the law fed x1 + n1 and x2 + n2:
 - the observer's sig^alpha terms (alpha < 1) have an unbounded slope at 0: the
   loop is linearised with their local gain at the size of the noise they see,
   |e| = sigma_w (SampledLoop's "local-gain" observer; "linear-part", the
-  design tool's default for stability, underestimates the noise the NESO
-  passes by an order of magnitude at the paper's gains);
+  design tool's default for stability, gives about half the floor at the
+  paper's gains);
 - n2, the rate error, is the gyro's white noise at its sample rate,
   sigma^2 = ARW^2 / T_gyro + q^2 / (6 T_gyro^2) per axis (the second term:
   the delta-angle quantum q with its remainder carried), taken as white at
