@@ -30,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "hmac.hpp"
 #include "input_gate.hpp"
 #include "phase_lock.hpp"
 #include "translate.hpp"
@@ -61,6 +62,9 @@ const char* kUsage =
     "  --max-steps N          stop after N control steps (default: run until\n"
     "                         SIGINT/SIGTERM)\n"
     "  --summary FILE         write the exit summary as JSON to FILE\n"
+    "  --auth-key FILE        authenticate every message with HMAC-SHA256 under\n"
+    "                         the key in FILE (a 32-byte trailer; states that do\n"
+    "                         not verify are dropped and counted, auth_failed)\n"
     "  --version              print the version and exit\n"
     "  --help                 this text\n";
 
@@ -116,6 +120,7 @@ struct Options {
   int64_t max_steps = -1;
   std::string summary_path;
   std::string law_plugin;  // --law-plugin: overrides the config's law
+  std::string auth_key;    // --auth-key: the key's bytes (empty: no authentication)
   // real time: lock the wake-up phase to the arrival of states (PLL), this
   // many microseconds after a state arrives (< 0: free-running clock)
   double phase_offset_us = 50.0;
@@ -139,6 +144,9 @@ class Shell {
     session_ = (int64_t(rd()) << 31 ^ int64_t(rd()) ^ mono_ns()) & 0x7fffffffffffffffLL;
   }
 
+  // --auth-key: every message carries HMAC-SHA256(key, channel || 0 || payload)
+  void set_auth_key(const std::string& key) { auth_ = std::make_unique<sc_rt::HmacSha256>(key); }
+
   // Raw handler: decode by hand; the gate counts every kind of bad input and
   // decides; the newest accepted state goes to the mailbox.
   static void on_state(const lcm::ReceiveBuffer* rb, const std::string&, Shell* self) {
@@ -150,13 +158,21 @@ class Shell {
   void handle_state(const lcm::ReceiveBuffer* rb) {
     const int64_t now = mono_ns();
     std::unique_lock<std::mutex> lock(mu_);
+    int size = int(rb->data_size);
+    if (auth_) {  // the trailer first: what does not verify is never decoded
+      if (!auth_->verify(opt_.prefix + "SCRT_STATE", rb->data, rb->data_size)) {
+        ++auth_failed_;
+        return;
+      }
+      size -= int(sc_rt::HmacSha256::kSize);
+    }
     sc_rt_lcm::plant_state_t msg;
-    const int n = msg.decode(rb->data, 0, int(rb->data_size));
+    const int n = msg.decode(rb->data, 0, size);
     if (n < 0) {
       gate_->malformed();
       return;
     }
-    if (n != int(rb->data_size)) {
+    if (n != size) {
       gate_->trailing_bytes();
       return;
     }
@@ -177,6 +193,9 @@ class Shell {
     }
     if (v != sc_rt::GateVerdict::Accept && v != sc_rt::GateVerdict::Adopt) return;
     if (v == sc_rt::GateVerdict::Adopt) reengage_ = true;  // a restarted plant: start the law afresh
+    // the plant sessions followed, in order (the bench checks they are its own)
+    if ((plant_sessions_.empty() || plant_sessions_.back() != msg.session) && plant_sessions_.size() < 16)
+      plant_sessions_.push_back(msg.session);
     state_ = msg;
     fresh_ = true;
     lock.unlock();
@@ -248,7 +267,7 @@ class Shell {
     m.session = session_;
     m.state_seq = state_seq;
     sc_rt::fill_wheel_cmd(cmd, m);
-    lcm_.publish(opt_.prefix + "SCRT_CMD", &m);
+    send(opt_.prefix + "SCRT_CMD", m);
     ++cmd_seq_;
   }
 
@@ -267,7 +286,22 @@ class Shell {
     s.deadline_misses = cnt_.deadline_misses;
     s.stale_states = cnt_.stale_steps;
     s.rejected = gate_->counts().rejected();
-    lcm_.publish(opt_.prefix + "SCRT_CTRL_STATUS", &s);
+    send(opt_.prefix + "SCRT_CTRL_STATUS", s);
+  }
+
+  // Without a key exactly LCM's publish; with one, the message and its tag.
+  template <class M>
+  void send(const std::string& channel, const M& m) {
+    if (!auth_) {
+      lcm_.publish(channel, &m);
+      return;
+    }
+    const int n = m.getEncodedSize();
+    tx_.resize(std::size_t(n) + sc_rt::HmacSha256::kSize);
+    m.encode(tx_.data(), 0, n);
+    const sc_rt::Sha256::Digest tag = auth_->message_tag(channel, tx_.data(), std::size_t(n));
+    std::copy(tag.begin(), tag.end(), tx_.begin() + n);
+    lcm_.publish(channel, tx_.data(), unsigned(tx_.size()));
   }
 
   bool done() const { return g_stop || (opt_.max_steps >= 0 && cnt_.steps >= opt_.max_steps); }
@@ -298,7 +332,16 @@ class Shell {
         (long long)g.trailing_bytes, (long long)g.duplicate, (long long)g.out_of_order,
         (long long)g.invalid_state, (long long)g.foreign_session,
         (long long)g.sessions_adopted);
-    return buf;
+    std::string js(buf);
+    js.pop_back();  // the closing brace: then the authentication and the plant sessions
+    js += ", \"auth\": " + std::string(auth_ ? "true" : "false") +
+          ", \"auth_failed\": " + std::to_string(auth_failed_.load()) + ", \"plant_sessions\": [";
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      for (std::size_t i = 0; i < plant_sessions_.size(); ++i)
+        js += (i ? ", " : "") + std::to_string(plant_sessions_[i]);
+    }
+    return js + "]}";
   }
 
  private:
@@ -313,7 +356,11 @@ class Shell {
   std::atomic<bool> reengage_{false};
   int64_t session_ = 0;
   std::unique_ptr<sc_rt::InputGate> gate_;  // session, seq and arrival of the newest state
-  std::mutex mu_;  // guards the mailbox: state_, fresh_ and the gate's state
+  std::unique_ptr<sc_rt::HmacSha256> auth_;  // --auth-key
+  std::atomic<int64_t> auth_failed_{0};      // states whose tag did not verify
+  std::vector<int64_t> plant_sessions_;     // plant sessions followed, in order (under mu_)
+  std::vector<uint8_t> tx_;                 // an authenticated message being sent (main thread)
+  mutable std::mutex mu_;  // guards the mailbox: state_, fresh_ and the gate's state
   sc_rt::Command last_cmd_;
   int64_t cmd_seq_ = 0;
   Counters cnt_;
@@ -415,6 +462,15 @@ int main(int argc, char** argv) {
       o.max_steps = std::atoll(need("--max-steps").c_str());
     } else if (a == "--summary") {
       o.summary_path = need("--summary");
+    } else if (a == "--auth-key") {
+      const std::string path = need("--auth-key");
+      std::vector<char> k;
+      if (!read_file(path, k) || k.empty()) {
+        std::fprintf(stderr, "sc-rt-controller: --auth-key %s: cannot read the key (or it is empty)\n",
+                     path.c_str());
+        return 2;
+      }
+      o.auth_key.assign(k.begin(), k.end());
     } else {
       std::fprintf(stderr, "sc-rt-controller: unknown argument '%s'\n%s", a.c_str(), kUsage);
       return 2;
@@ -464,6 +520,7 @@ int main(int argc, char** argv) {
     cfg_bytes = w.bytes;
   }
   Shell shell(o, lcm);
+  if (!o.auth_key.empty()) shell.set_auth_key(o.auth_key);
   try {
     shell.configure(load_config(cfg_bytes, o));
   } catch (const std::exception& e) {

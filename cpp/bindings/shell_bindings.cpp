@@ -3,6 +3,7 @@
 // scheduler without LCM or a clock. Times are monotonic ns (int).
 #include <pybind11/pybind11.h>
 
+#include "hmac.hpp"
 #include "input_gate.hpp"
 #include "phase_lock.hpp"
 
@@ -43,6 +44,25 @@ void bind_shell(py::module_& m) {
         d["sessions_adopted"] = c.sessions_adopted;
         return d;
       });
+
+  // cpp/shell/hmac.hpp, for its test vectors (RFC 4231, FIPS 180-4) and the
+  // Python side's agreement with the controller's tags
+  auto bytes_of = [](const Sha256::Digest& d) {
+    return py::bytes(reinterpret_cast<const char*>(d.data()), d.size());
+  };
+  m.def("sha256", [bytes_of](py::bytes data) {
+        const std::string s = data;
+        return bytes_of(Sha256::of(s.data(), s.size()));
+      }, arg("data"), "SHA-256 of data (the controller's own, cpp/shell/hmac.hpp).");
+  m.def("hmac_sha256", [bytes_of](py::bytes key, py::bytes data) {
+        const std::string d = data;
+        return bytes_of(HmacSha256(std::string(key)).mac(d.data(), d.size()));
+      }, arg("key"), arg("data"), "HMAC-SHA256(key, data) (the controller's own, cpp/shell/hmac.hpp).");
+  m.def("message_tag", [bytes_of](py::bytes key, const std::string& channel, py::bytes payload) {
+        const std::string p = payload;
+        return bytes_of(HmacSha256(std::string(key)).message_tag(channel, p.data(), p.size()));
+      }, arg("key"), arg("channel"), arg("payload"),
+      "The 32-byte trailer the controller appends: HMAC-SHA256(key, channel || 0x00 || payload).");
 
   py::class_<InputGate>(m, "InputGate",
                         "The controller's input gate: session adoption, duplicates, order, counters.")

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DscGains', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'hmac_sha256', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -1528,6 +1528,10 @@ def guidance_rk4_step(p: GuidanceParams, sigma: typing.Annotated[numpy.typing.Ar
     """
     One RK4 step of the desired attitude from t to t + h [s].
     """
+def hmac_sha256(key: bytes, data: bytes) -> bytes:
+    """
+    HMAC-SHA256(key, data) (the controller's own, cpp/shell/hmac.hpp).
+    """
 def law_info(spec: str) -> dict:
     """
     name, doc, source ("built-in" or the library) and code of a law spec.
@@ -1547,6 +1551,10 @@ def lumped_disturbance(p: PlantParams, t: typing.SupportsFloat | typing.Supports
     """
 def measurement_valid(m: Measurement, lim: SafetyLimits) -> bool:
     ...
+def message_tag(key: bytes, channel: str, payload: bytes) -> bytes:
+    """
+    The 32-byte trailer the controller appends: HMAC-SHA256(key, channel || 0x00 || payload).
+    """
 def mrp_G(sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
     """
     G(sigma) of (1),(2): sigma_dot = G(sigma) omega [rad/s -> 1/s].
@@ -1618,6 +1626,10 @@ def run_sensors(p: SensorParams, n_ticks: typing.SupportsInt | typing.SupportsIn
 def run_steps(controller: Controller, t: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], omega_BN_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64]) -> dict:
     """
     Run N steps inside C++ on recorded measurements; returns u_cmd, u_sat, z2, flags.
+    """
+def sha256(data: bytes) -> bytes:
+    """
+    SHA-256 of data (the controller's own, cpp/shell/hmac.hpp).
     """
 def sig_pow(v: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], a: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
@@ -1703,6 +1715,7 @@ def wheel_accel(a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsInde
     """
 CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('flags', 1), ('ctrl_mode', 1)]
 DEFAULT_LAW: str = 'dsc-ppc'
+DEFAULT_LCM_URL: str = 'udpm://239.255.76.67:7667?ttl=0'
 FLAG_BOUND_X: int = 1
 FLAG_BOUND_Y: int = 2
 FLAG_BOUND_Z: int = 4

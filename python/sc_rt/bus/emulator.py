@@ -34,10 +34,12 @@ import sc_rt_lcm
 
 from sc_rt.model import actuators, plant
 from sc_rt.model.actuators import WheelFault
-from sc_rt.bus.lcmio import channel, open_lcm
+from sc_rt.bus.auth import open_bus
+from sc_rt.bus.collision import CollisionGuard
+from sc_rt.bus.lcmio import channel
 from sc_rt.bus.peers import ControllerPeers, GuidancePublisher
 from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
-from sc_rt.results.run import Run, RunMeta
+from sc_rt.results.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
@@ -84,7 +86,7 @@ class Emulator:
                  accept_fault_commands: bool = False, cmd_timeout: float = 1.0, retries: int = 3,
                  stale_periods: float | None = None, wait_status: bool | None = None,
                  start_timeout: float | None = None,
-                 stop: Callable[[], str | None] | None = None):
+                 stop: Callable[[], str | None] | None = None, auth_key: bytes | None = None):
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
         if not (time_scale > 0 and math.isfinite(time_scale)):
@@ -111,8 +113,10 @@ class Emulator:
         #: so is returned with the rows done and marked partial
         self.stop = stop
         self.stopped: str | None = None
-        self.lc = open_lcm(url)
+        self.url = url
         self.counters: Counter = Counter()
+        #: with auth_key every message carries an HMAC trailer; failures count as auth_failed (bus/auth.py)
+        self.lc = open_bus(url, auth_key, self.counters)
         self.act = scn.actuators
         self._cmd: dict[int, Any] = {}  # state seq -> first valid command answering it
         self._cmd_rx: dict[int, int] = {}  # state seq -> monotonic ns of receipt
@@ -122,6 +126,7 @@ class Emulator:
         self._last_cmd_seq = -1
         self._last_status_seq = -1
         self._ctl_session: int | None = None
+        self._ctl_last_ns = 0  # monotonic ns of the adopted controller's newest message
         self._peer_lost = False
         self._fault_fields: tuple = (None,)
         self._ch_state = channel("SCRT_STATE", prefix)
@@ -130,6 +135,10 @@ class Emulator:
         self._gaps: list[tuple[float, float]] = []
         self._gap_start: float | None = None
         self.session = secrets.randbits(62)
+        #: a second bench on our URL and prefix stops the run, marked invalid (bus/collision.py)
+        self.guard = CollisionGuard(url, prefix, self.session, alive_s=max(
+            0.5, self.stale_periods / self.rate / time_scale))
+        self.invalid: str | None = None
         self.guidance = GuidancePublisher(self.lc, self._ch_guidance, scn.core_config().guidance,
                                           self.rate, self.session)
         self._pub_ns: dict[int, int] = {}
@@ -138,26 +147,45 @@ class Emulator:
         # LCM silently drops messages beyond a subscription's queue capacity
         # (30 by default): hold many, so every one is either used or counted
         for name, handler in (("SCRT_CMD", self._on_cmd), ("SCRT_CTRL_STATUS", self._on_status),
-                              ("SCRT_FAULT", self._on_fault), ("SCRT_CTRL_INFO", self._on_info)):
+                              ("SCRT_FAULT", self._on_fault), ("SCRT_CTRL_INFO", self._on_info),
+                              ("SCRT_STATE", self._on_plant_state)):
             self.lc.subscribe(channel(name, prefix), handler).set_queue_capacity(100_000)
 
     # --- handlers: never raise -------------------------------------------
-    def _session_ok(self, session: int, now: int) -> bool:
+    def _collision(self, reason: str | None) -> None:
+        if reason is not None and self.invalid is None:
+            self.invalid = reason
+            self.counters["bench_collision"] += 1
+            if self.stopped is None:
+                self.stopped = reason  # the loop stops at its next check: partial and invalid
+
+    def _on_plant_state(self, _ch: str, data: bytes) -> None:
+        """Our own states come back (multicast loopback); another plant's mean another bench."""
+        if len(data) == _STATE_LAYOUT.size + 8 and data[:8] == _STATE_FP:
+            _, seq, session = struct.unpack_from(">qqq", data, 8)
+            if session != self.session:
+                self._collision(self.guard.plant_state(session, seq, self._ctl_session))
+
+    def _session_ok(self, session: int, now: int, seq: int = -1, kind: str = "cmd") -> bool:
         """Commands and status come from one controller session at a time; a
         new session is adopted only once the current controller is lost (the
         loop saw an unanswered state in lockstep or a stale command in real
         time: a crashed or restarted controller), never while it answers."""
         if session == self._ctl_session:
+            self._ctl_last_ns = now
             return True
         if self._ctl_session is None or self._peer_lost:
             if self._ctl_session is not None:
                 self.counters["controller_sessions_adopted"] += 1
             self._ctl_session = session
+            self._ctl_last_ns = now
             self._peer_lost = False
             self._last_cmd_seq = -1
             self._last_status_seq = -1
             return True
         self.counters["foreign_session"] += 1
+        self._collision(self.guard.controller_msg(session, seq, self._ctl_session, self._ctl_last_ns,
+                                                  now, kind))
         return False
 
     def _on_cmd(self, _ch: str, data: bytes) -> None:
@@ -175,7 +203,7 @@ class Emulator:
         if not all(math.isfinite(v) for v in msg.u_cmd):
             self.counters["invalid_command"] += 1
             return
-        if not self._session_ok(msg.session, now):
+        if not self._session_ok(msg.session, now, msg.seq, "cmd"):
             return
         if msg.seq <= self._last_cmd_seq:
             self.counters["duplicate" if msg.seq == self._last_cmd_seq else "out_of_order"] += 1
@@ -197,7 +225,7 @@ class Emulator:
             if msg is None:
                 return
             cmd_seq, session, state_seq = msg.cmd_seq, msg.session, msg.state_seq
-        if not self._session_ok(session, now):
+        if not self._session_ok(session, now, cmd_seq, "status"):
             return
         if cmd_seq <= self._last_status_seq:
             self.counters["status_out_of_order"] += 1
@@ -475,4 +503,5 @@ class Emulator:
             run.message = self.stopped
             run.metrics = {"stopped": self.stopped,
                            "t_reached_s": float(run["t"][rows - 1]) if rows else None}
+        run.metrics.update(provenance(self.session, self._ctl_session, self.invalid))
         return run

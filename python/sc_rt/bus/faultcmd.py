@@ -18,7 +18,8 @@ from dataclasses import dataclass
 
 import sc_rt_lcm
 
-from sc_rt.bus.lcmio import channel, open_lcm
+from sc_rt.bus.auth import open_bus
+from sc_rt.bus.lcmio import channel
 from sc_rt.bus.wire import decode_as
 
 __all__ = ["FaultArgError", "inject_msg", "clear_msg", "publish", "send", "Sent"]
@@ -89,10 +90,10 @@ def clear_msg(wheel: int) -> sc_rt_lcm.fault_cmd_t:
     return m
 
 
-def publish(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "") -> str:
-    """Publish once on ``prefix + SCRT_FAULT``; returns the channel."""
+def publish(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "", auth_key: bytes | None = None) -> str:
+    """Publish once on ``prefix + SCRT_FAULT`` (tagged with auth_key, bus/auth.py); returns the channel."""
     ch = channel("SCRT_FAULT", prefix)
-    open_lcm(url).publish(ch, msg.encode())
+    open_bus(url, auth_key).publish(ch, msg.encode())
     return ch
 
 
@@ -118,12 +119,12 @@ def _echoes(msg: sc_rt_lcm.fault_cmd_t, truth) -> bool:
 
 
 def send(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "", timeout: float = 3.0,
-         wait: bool = True) -> Sent:
+         wait: bool = True, auth_key: bytes | None = None) -> Sent:
     """Publish ``msg`` and wait up to ``timeout`` s for an emulator's
     plant_truth_t to echo its fault state (``applied_at``). An onset in the
     past of the emulator's clock (heard within the timeout before sending)
     raises FaultArgError and nothing is sent."""
-    lc = open_lcm(url)
+    lc = open_bus(url, auth_key)
     ch, tch = channel("SCRT_FAULT", prefix), channel("SCRT_TRUTH", prefix)
     res = Sent(ch, tch)
     seen: list = []

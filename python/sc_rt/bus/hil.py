@@ -22,13 +22,14 @@ from typing import Any
 
 import numpy as np
 
+from sc_rt.bus.auth import load_key, open_bus
 from sc_rt.bus.emulator import Emulator
 from sc_rt.bus.external import ExternalController, python_controller_command
 from sc_rt.bus.lcmio import channel, free_port_url, lcm_binary, open_lcm
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
 from sc_rt.pylaw import is_python_law
-from sc_rt.results.run import Run
+from sc_rt.results.run import Run, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
 
@@ -169,7 +170,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
             lcm_url: str | None = None, prefix: str = "", realtime_priority: bool = False,
             time_scale: float = 1.0, accept_fault_commands: bool = False,
             plots: bool = True, external: str | None = None, external_wait: bool = False,
-            start_timeout: float | None = None) -> HilResult:
+            start_timeout: float | None = None, auth_key: str | Path | None = None) -> HilResult:
     """A bench run. The controller is sc-rt-controller, or (bus/external.py)
     ``external``: a command line started instead (a Python law ``law`` =
     "module:Class" runs as ``sc-rt controller``), or, with ``external_wait``,
@@ -179,6 +180,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
 
     url = lcm_url or free_port_url(ttl=0)
+    key = load_key(auth_key)  # --auth-key: read (and refused when empty) before anything starts
     # everything that can fail before a child starts: the URL, both binaries, the directory
     open_lcm(url)
     ctl_bin = None if external or external_wait else controller_binary()
@@ -191,14 +193,17 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
         log_path.unlink()
     ext = ExternalController(external, external_wait, start_timeout, url=url, prefix=prefix, mode=mode,
                              out=out, config=cfg_path) if external or external_wait else None
+    if ext is not None and auth_key is not None:
+        ext.env["SCRT_AUTH_KEY"] = str(Path(auth_key).resolve())  # sc-rt controller reads it
     with Stopper() as stopper:
         return _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale,
                              accept_fault_commands, plots, stopper, ctl_bin, logger_bin, cfg_path, log_path,
-                             ext)
+                             ext, key, auth_key)
 
 
 def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, accept_fault_commands,
-                  plots, stopper, ctl_bin, logger_bin, cfg_path, log_path, ext=None) -> HilResult:
+                  plots, stopper, ctl_bin, logger_bin, cfg_path, log_path, ext=None, key=None,
+                  key_path=None) -> HilResult:
     logger = subprocess.Popen([logger_bin, "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs())
     stopper.logger = logger
@@ -212,7 +217,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     # the run's controller_config_t goes into the log (sc-rt report takes the law,
     # the rate and the PPC envelope from it); the controller reads its file and
     # listens to SCRT_CONFIG only with --config-channel
-    open_lcm(url).publish(channel("SCRT_CONFIG", prefix), cfg_path.read_bytes())
+    open_bus(url, key).publish(channel("SCRT_CONFIG", prefix), cfg_path.read_bytes())
 
     cmd = [ctl_bin, "--config", str(cfg_path), "--mode", mode, "--lcm-url", url,
            "--summary", str(out / "controller_summary.json")]
@@ -220,6 +225,8 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         cmd += ["--prefix", prefix]
     if realtime_priority:
         cmd.append("--realtime-priority")
+    if key_path is not None:
+        cmd += ["--auth-key", str(key_path)]
     try:
         ctl = (ext.start(child_kwargs()) if ext else
                subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
@@ -237,7 +244,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         emu = Emulator(scn, mode=mode, url=url, prefix=prefix, time_scale=time_scale,
                        accept_fault_commands=accept_fault_commands,
                        stop=ext.stop_check(stopper) if ext else stopper,
-                       start_timeout=ext.start_timeout if ext else None)
+                       start_timeout=ext.start_timeout if ext else None, auth_key=key)
         t0 = time.perf_counter()
         res = emu.run()
         wall = time.perf_counter() - t0 - emu.start_wait_s  # the run, not the wait for its controller
@@ -268,6 +275,17 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         (out / "controller_stderr.txt").write_text(ctl_err)
     if ext is not None:
         ext.label(res, emu.controller_info)  # the law's name from its controller_info_t
+    # a controller that followed another plant than ours (it adopted another
+    # bench's states before ours, docs/HIL.md "Bench isolation"): invalid
+    others = [s for s in summary.get("plant_sessions", []) if s != emu.session]
+    if others and emu.invalid is None:
+        why = (
+            f"bench collision on {url}" + (f" (prefix {prefix!r})" if prefix else "")
+            + f": the controller (session {res.metrics.get('controller_session') or 0:#x}) also followed "
+            f"another plant (session {others[0]:#x}) besides this bench's ({emu.session:#x}): another bench "
+            "runs on the same URL and prefix. The run is invalid")
+        res.metrics.update(provenance(emu.session, res.metrics.get("controller_session"), why))
+        stopped = stopped or why
 
     res.meta = dataclasses.replace(res.meta, wall_s=wall)
     fill_tracking_errors(res, scn.core_config().guidance)

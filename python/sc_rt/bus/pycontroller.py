@@ -33,7 +33,8 @@ import numpy as np
 import sc_rt_lcm
 
 from sc_rt import _core
-from sc_rt.bus.lcmio import channel, open_lcm
+from sc_rt.bus.auth import open_bus
+from sc_rt.bus.lcmio import channel
 from sc_rt.bus.wire import decode_as
 from sc_rt.pylaw import PACKED_SLICES as P, PyController
 
@@ -57,7 +58,8 @@ def nearest_rank(v: list[float]) -> dict[str, float]:
 
 class PyControllerProcess:
     def __init__(self, config, law_cls: type, *, url: str, prefix: str = "", mode: str = "lockstep",
-                 max_steps: int | None = None, phase_offset_us: float = 50.0):
+                 max_steps: int | None = None, phase_offset_us: float = 50.0,
+                 auth_key: bytes | None = None):
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"--mode must be lockstep or realtime, got {mode!r}")
         self.ctl = PyController(config, law_cls)
@@ -68,9 +70,10 @@ class PyControllerProcess:
         self.stale_ns = int(config.safety.stale_periods * self.period_ns)
         self.gate = _core.InputGate(_core.InputGate.session_timeout_for(self.stale_ns))
         self.session = secrets.randbits(62)
-        self.lc = open_lcm(url)
-        self.url = url
         self.cnt: Counter = Counter()
+        self.lc = open_bus(url, auth_key, self.cnt)  # with a key: auth_failed in cnt (bus/auth.py)
+        self.auth = auth_key is not None
+        self.url = url
         self.lat: list[float] = []
         self.comp: list[float] = []
         self.age: list[float] = []
@@ -230,6 +233,7 @@ class PyControllerProcess:
                 "compute_us": nearest_rank(self.comp), "state_age_us": nearest_rank(self.age),
                 "received": g.received, "stale_states": self.cnt["stale_steps"],
                 "safe_steps": self.cnt["safe_steps"],
+                "auth": self.auth, "auth_failed": self.cnt["auth_failed"],
                 "rejected": {k: g.as_dict()[k] for k in ("malformed", "trailing_bytes", "duplicate",
                                                          "out_of_order", "invalid_state", "foreign_session")},
                 "sessions_adopted": g.sessions_adopted}

@@ -43,7 +43,7 @@ from sc_rt.bus.logread import LogData, read_log
 from sc_rt.bus.rebuild import Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild, run_params
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
-from sc_rt.results.run import Run, RunMeta, json_safe
+from sc_rt.results.run import Run, RunMeta, json_safe, provenance
 
 __all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command"]
 
@@ -62,6 +62,15 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"
     return out
+
+
+def _main_session(records: np.ndarray) -> int | None:
+    """The session of the run's end: the most frequent among the channel's
+    last 1000 messages (a hostile publisher draws a new one per message)."""
+    if records.size == 0 or "session" not in (records.dtype.names or ()):
+        return None
+    v, n = np.unique(records["session"][-1000:], return_counts=True)
+    return int(v[np.argmax(n)])
 
 
 def write_report(log: str | Path, out: str | Path, *, scenario: str | None = None,
@@ -96,6 +105,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     if run.partial:
         run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None,
                        "incomplete_rows_dropped": dropped}
+    run.metrics.update(provenance(_main_session(d.records["SCRT_STATE"]), _main_session(d.records["SCRT_CMD"])))
     fill_tracking_errors(run, logged_guidance(d, scenario))
     faults = fault_summary(d, r)
     run.faults_applied = faults["commands"]

@@ -26,7 +26,7 @@ import numpy as np
 
 from sc_rt.scenario.model import LAW_NAMES
 from sc_rt.results.metrics import json_safe
-from sc_rt.bus.lcmio import open_lcm
+from sc_rt.bus.auth import open_bus
 from sc_rt.bus.wire import decode_any, identify, numpy_dtype, to_plain
 
 __all__ = ["Spy", "ChannelStats", "main_loop"]
@@ -151,9 +151,11 @@ class Spy:
     """Listens on ``url`` to every channel matching ``channels`` (LCM's
     regex: the whole name must match) and keeps per-channel statistics."""
 
-    def __init__(self, url: str, channels: str = ".*", window: float = 2.0):
+    def __init__(self, url: str, channels: str = ".*", window: float = 2.0, auth_key: bytes | None = None):
         self.url, self.pattern, self.window = url, channels, window
-        self.lc = open_lcm(url)
+        #: with a key only verified messages are shown; the others are counted here (bus/auth.py)
+        self.auth_failed: Counter = Counter()
+        self.lc = open_bus(url, auth_key, self.auth_failed)
         self.stats: dict[str, ChannelStats] = {}
         self.start = time.monotonic()
         # a burst must not be dropped silently by LCM's default queue of 30
@@ -237,14 +239,14 @@ class Spy:
 
 def main_loop(url: str, channels: str = ".*", once: bool = False, as_json: bool = False,
               duration: float | None = None, refresh: float = 0.5, window: float = 2.0,
-              out=sys.stdout) -> int:
+              out=sys.stdout, auth_key: bytes | None = None) -> int:
     if once:
-        spy = Spy(url, channels, window=math.inf)
+        spy = Spy(url, channels, window=math.inf, auth_key=auth_key)
         spy.listen(1.5 if duration is None else duration)
         snap = spy.snapshot()
         out.write(json.dumps(json_safe(snap), indent=2, default=float) + "\n" if as_json else spy.render() + "\n")
         return _heard(spy)
-    spy = Spy(url, channels, window=window)
+    spy = Spy(url, channels, window=window, auth_key=auth_key)
     end = math.inf if duration is None else time.monotonic() + duration
     tty = out.isatty() if hasattr(out, "isatty") else False
     try:

@@ -16,8 +16,11 @@ def cmd_spy(args: argparse.Namespace) -> int:
     if args.duration is not None and not args.duration > 0:
         print(f"sc-rt spy: error: --duration must be > 0, got {args.duration}", file=sys.stderr)
         return 2
+    from sc_rt.bus.auth import load_key
+
     return main_loop(bus_url(args), args.channels, once=args.once, as_json=args.json,
-                     duration=args.duration, refresh=args.refresh, window=args.window)
+                     duration=args.duration, refresh=args.refresh, window=args.window,
+                     auth_key=load_key(args.auth_key))
 
 
 def cmd_lcm_spy(args: argparse.Namespace) -> int:
@@ -50,7 +53,10 @@ def cmd_fault(args: argparse.Namespace) -> int:
         else:
             msg = clear_msg(args.wheel)
         url = bus_url(args)
-        sent = send(msg, url, args.prefix, timeout=args.timeout, wait=not args.no_wait)
+        from sc_rt.bus.auth import load_key
+
+        sent = send(msg, url, args.prefix, timeout=args.timeout, wait=not args.no_wait,
+                    auth_key=load_key(args.auth_key))
     except FaultArgError as e:
         print(f"sc-rt fault {args.action}: error: {e}", file=sys.stderr)
         return 2

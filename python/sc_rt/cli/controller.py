@@ -6,12 +6,13 @@ controller process on the bench: ``--external COMMAND``, ``--external-wait``,
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import shutil
 import sys
 
 from sc_rt.cli.lawarg import law_choice
-from sc_rt.cli.validate import MAX_RATE_HZ, UsageError, integer, lcm_url, number, resolve_url
+from sc_rt.cli.validate import AUTH_KEY_HELP, MAX_RATE_HZ, auth_key_file, UsageError, integer, lcm_url, number, resolve_url
 from sc_rt.pylaw import is_python_law
 
 __all__ = ["add_parser", "add_external_options", "external_choice", "cmd_controller"]
@@ -66,6 +67,9 @@ def add_parser(sub) -> None:
     c.add_argument("--lcm-url", metavar="URL", type=lcm_url,
                    help="default: $SCRT_LCM_URL, else udpm://239.255.76.67:7667?ttl=0")
     c.add_argument("--prefix", default="", help="channel name prefix (default: none)")
+    c.add_argument("--auth-key", metavar="FILE", type=auth_key_file,
+                   default=os.environ.get("SCRT_AUTH_KEY") or None,
+                   help=AUTH_KEY_HELP + " ($SCRT_AUTH_KEY: set by sc-rt hil --auth-key)")
     c.add_argument("--phase-offset", type=number(-1e6, 1e6, unit="us"), default=50.0, metavar="US",
                    help="real time: wake at least US after a state arrives (as sc-rt-controller; "
                         "default %(default)s)")
@@ -81,6 +85,7 @@ def cmd_controller(args: argparse.Namespace) -> int:
 
     from sc_rt import _core
     from sc_rt.bus.lcmio import DEFAULT_URL
+    from sc_rt.bus.auth import load_key
     from sc_rt.bus.pycontroller import PyControllerProcess, write_summary
     from sc_rt.pylaw import load_law
 
@@ -102,7 +107,7 @@ def cmd_controller(args: argparse.Namespace) -> int:
     try:
         proc = PyControllerProcess(cfg, load_law(args.law), url=resolve_url(args.lcm_url, DEFAULT_URL),
                                    prefix=args.prefix, mode=args.mode, max_steps=args.max_steps,
-                                   phase_offset_us=args.phase_offset)
+                                   phase_offset_us=args.phase_offset, auth_key=load_key(args.auth_key))
     except ValueError as e:
         raise UsageError(str(e)) from e
     write_summary(proc.run(), args.summary)

@@ -10,7 +10,7 @@ import sys
 
 from sc_rt import __version__
 from sc_rt.cli.interrupts import Interrupted, raise_on_signals
-from sc_rt.cli.validate import (MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError, integer, lcm_url,
+from sc_rt.cli.validate import (AUTH_KEY_HELP, auth_key_file, MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError, integer, lcm_url,
                                 number, out_dir, out_file)
 from sc_rt.cli.lawarg import LAW_HELP, core_law_choice, law_choice
 from sc_rt.cli.controller import add_external_options
@@ -26,6 +26,7 @@ def _add_monitoring(sub) -> None:
 
     y = sub.add_parser("spy", help="terminal monitor of the bus: rates, jitter, newest values")
     y.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
+    y.add_argument("--auth-key", metavar="FILE", type=auth_key_file, help=AUTH_KEY_HELP)
     y.add_argument("--channels", default=".*", metavar="REGEX",
                    help="channels to watch (LCM regex: the whole name must match; default: %(default)s, all)")
     y.add_argument("--once", action="store_true",
@@ -70,6 +71,7 @@ def _add_monitoring(sub) -> None:
     for q in (fi, fc):
         q.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
         q.add_argument("--prefix", default="", help="channel name prefix (default: none)")
+        q.add_argument("--auth-key", metavar="FILE", type=auth_key_file, help=AUTH_KEY_HELP)
         q.add_argument("--timeout", type=number(0, 600, unit="s"), default=3.0, metavar="S",
                        help="wait this long for an emulator's plant_truth_t to echo the fault "
                             "(default: %(default)s s); exit 1 if none does")
@@ -141,6 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "(printed; nothing leaves the machine)"):
         q.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
         q.add_argument("--prefix", default="", help="channel name prefix (default: none)")
+        q.add_argument("--auth-key", metavar="FILE", type=auth_key_file, help=AUTH_KEY_HELP)
 
     h = sub.add_parser("hil", help="controller process + plant emulator + lcm-logger over LCM")
     h.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")

@@ -79,7 +79,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
                   prefix=args.prefix, realtime_priority=args.realtime_priority,
                   time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
                   plots=not args.no_plots, law=pylaw, external=args.external,
-                  external_wait=args.external_wait, start_timeout=args.start_timeout)
+                  external_wait=args.external_wait, start_timeout=args.start_timeout,
+                  auth_key=args.auth_key)
     print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/ ({len(res.files)} files: "
           f"{', '.join(p.name for p in res.files)}, run.lcmlog)")
     print_metrics(res.metrics, res.run.meta.faults)
@@ -132,6 +133,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_emulator(args: argparse.Namespace) -> int:
+    from sc_rt.bus.auth import load_key
     from sc_rt.bus.emulator import Emulator
     from sc_rt.bus.lcmio import DEFAULT_URL
 
@@ -147,7 +149,7 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     sig: list[int] = []
     emu = Emulator(scn, mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,
                    accept_fault_commands=args.accept_fault_commands, start_timeout=args.start_timeout,
-                   stop=lambda: f"interrupted by {signal.Signals(sig[0]).name}" if sig else None)
+                   auth_key=load_key(args.auth_key), stop=lambda: f"interrupted by {signal.Signals(sig[0]).name}" if sig else None)
     with flag_signals(sig.append):  # the run stops at its next step, its rows kept
         res = emu.run()
     summary = {"rows": len(res), "counters": dict(res.counters), "gaps_s": rounded(res.gaps),
@@ -164,4 +166,6 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     print(json.dumps(rounded(summary)))
     if sig:
         return report_stopped(res, res.message or "interrupted", sig[0], args.out or "-", "emulator")
+    if emu.invalid:  # another bench on our channels (bus/collision.py): partial, invalid
+        return report_stopped(res, emu.invalid, None, args.out or "-", "emulator")
     return 0

@@ -21,7 +21,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["UsageError", "OneLineParser", "number", "integer", "out_dir", "out_file", "lcm_url",
+__all__ = ["UsageError", "OneLineParser", "number", "integer", "out_dir", "out_file", "lcm_url", "auth_key_file",
            "resolve_url", "bytes_per_row", "available_memory", "check_run_size", "rounded",
            "MAX_RATE_HZ", "MAX_TIME_SCALE", "MAX_PLANT_STEPS", "MIN_WALL_TICK_S", "ENGINE_COPIES"]
 
@@ -148,6 +148,26 @@ def lcm_url(text: str) -> str:
     problem = url_problem(text)
     if problem:
         raise argparse.ArgumentTypeError(problem)
+    return text
+
+
+#: --auth-key's help (every bus command has it)
+AUTH_KEY_HELP = ("authenticate every message with HMAC-SHA256 under the key in FILE (give the same file "
+                 "to every process of the bench; docs/PROTOCOL.md, 'Authentication'); default: none")
+
+
+def auth_key_file(text: str) -> str:
+    """type=: a readable, non-empty key file (its path: sc-rt hil passes it on)."""
+    from pathlib import Path
+
+    try:
+        size = Path(text).stat().st_size
+        with open(text, "rb"):
+            pass
+    except OSError as e:
+        raise argparse.ArgumentTypeError(f"{text}: cannot read the key: {e.strerror}") from e
+    if size == 0:
+        raise argparse.ArgumentTypeError(f"{text}: the key file is empty")
     return text
 
 

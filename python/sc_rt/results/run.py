@@ -22,7 +22,8 @@ from typing import Any, Iterator
 
 import numpy as np
 
-__all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "RunMeta", "Run", "empty_arrays", "json_safe", "write_json"]
+__all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "RunMeta", "Run", "empty_arrays", "json_safe", "write_json",
+           "provenance"]
 
 SOURCES = ("plant", "controller", "truth", "timing", "derived", "estimator")
 
@@ -270,6 +271,19 @@ class Run:
             if p.exists():
                 setattr(run, attr, json.loads(p.read_text()))
         return run
+
+
+def provenance(plant_session: int | None, controller_session: int | None,
+               invalid: str | None = None) -> dict[str, Any]:
+    """The bench run's metrics keys saying where its numbers came from: the
+    plant and controller sessions (LCM ids, None: none) and whether the run
+    is valid (False, with the reason: another bench on the same channels
+    mixed into it, bus/collision.py)."""
+    out: dict[str, Any] = {"valid": invalid is None, "plant_session": plant_session,
+                           "controller_session": controller_session}
+    if invalid is not None:
+        out["invalid_reason"] = invalid
+    return out
 
 
 def json_safe(obj: Any) -> Any:
