@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "hmac.hpp"
+#include "defaults.hpp"
 #include "input_gate.hpp"
 #include "phase_lock.hpp"
 #include "translate.hpp"
@@ -51,7 +52,7 @@ const char* kUsage =
     "                         configuration's (docs/LAWS.md; the config's law\n"
     "                         parameters are handed to it)\n"
     "  --mode MODE            lockstep (default) or realtime\n"
-    "  --lcm-url URL          default udpm://239.255.76.67:7667?ttl=0\n"
+    "  --lcm-url URL          default " SCRT_DEFAULT_LCM_URL "\n"
     "  --prefix P             channel name prefix (default none)\n"
     "  --realtime-priority    ask for SCHED_FIFO and mlockall (falls back with a\n"
     "                         warning when not permitted)\n"
@@ -115,7 +116,7 @@ struct Options {
   bool check = false;
   bool realtime = false;
   bool rt_priority = false;
-  std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  std::string url = SCRT_DEFAULT_LCM_URL;
   std::string prefix;
   int64_t max_steps = -1;
   std::string summary_path;

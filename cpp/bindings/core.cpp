@@ -9,6 +9,7 @@
 #include <string>
 #include <type_traits>
 
+#include "defaults.hpp"
 #include "sc_rt/closed_loop.hpp"
 #include "sc_rt/controllers.hpp"
 #include "sc_rt/guidance.hpp"
@@ -125,6 +126,7 @@ std::vector<Measurement> measurements(const RowsD& t, const RowsD& sigma, const 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "sc-rt control core (C++, Eigen), see docs/CORE.md";
   m.attr("__version__") = SCRT_VERSION;
+  m.attr("DEFAULT_LCM_URL") = SCRT_DEFAULT_LCM_URL;  // cpp/shell/defaults.hpp, the processes' default
 
   // --- MRP (MODEL.md sections 1, 3)
   m.def("skew", &skew, arg("x"), "Skew matrix x^ with x^ y = x cross y.");

@@ -13,6 +13,8 @@
 #include <sc_rt_lcm/plant_state_t.hpp>
 #include <sc_rt_lcm/wheel_cmd_t.hpp>
 #include <string>
+
+#include "defaults.hpp"
 #include <vector>
 
 namespace {
@@ -39,7 +41,7 @@ struct Ping {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string role, url = "udpm://239.255.76.67:7667?ttl=0";
+  std::string role, url = SCRT_DEFAULT_LCM_URL;
   long count = 20000;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];

@@ -9,11 +9,15 @@ from pathlib import Path
 
 import lcm
 
+from sc_rt import _core
+
 __all__ = ["DEFAULT_URL", "CHANNELS", "channel", "lcm_prefix", "lcm_binary",
            "free_port_url", "open_lcm"]
 
 #: Nothing leaves the machine: ttl=0.
-DEFAULT_URL = "udpm://239.255.76.67:7667?ttl=0"
+#: The default URL of every process (one constant for both languages: the
+#: C++ processes' cpp/shell/defaults.hpp, through the bindings).
+DEFAULT_URL: str = _core.DEFAULT_LCM_URL
 
 #: Channel -> (LCM type name, who publishes, rate).
 CHANNELS = {
