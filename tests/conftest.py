@@ -54,3 +54,11 @@ def measurement(t, sigma, omega, wheel=None) -> _core.Measurement:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20191001)
+
+
+def pytest_collection_modifyitems(items):
+    """Tests that need the out-of-tree plugin builds (the ``plugins`` fixture of
+    test_laws.py: a cmake build of every example plugin, 10-20 s once) are slow."""
+    for item in items:
+        if "plugins" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.slow)

@@ -13,7 +13,7 @@ import pytest
 import lcmnet
 
 ROOT = Path(__file__).resolve().parent.parent
-pytestmark = pytest.mark.lcm
+pytestmark = [pytest.mark.lcm, pytest.mark.slow]
 
 
 def test_api_walkthrough_runs_as_written(tmp_path):

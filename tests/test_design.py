@@ -417,6 +417,7 @@ def test_smallest_stable_chiinf_brackets_the_simulation(paper, paper_faults, whi
 # Command line
 
 
+@pytest.mark.slow
 def test_design_cli_writes_its_files(tmp_path, capsys):
     out = tmp_path / "design"
     assert main(["design", str(FAULT_FREE), "--rate", "100", "--out", str(out)]) == 0

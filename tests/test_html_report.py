@@ -121,6 +121,7 @@ def check_verdict(p: Page, m: dict) -> None:
         assert abs(shown - m["max_pointing_error_arcsec_after_30s"]) <= 0.5
 
 
+@pytest.mark.slow
 def test_sim_writes_a_report_that_chromium_renders(tmp_path):
     out = tmp_path / "sim"
     r = lcmnet.run_cli(["sim", "scenarios/paper_faults.toml", "--duration", "30", "--out", str(out)], netns=False)
