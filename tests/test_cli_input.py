@@ -111,6 +111,7 @@ def cli(tmp_path, capsys, monkeypatch):
 
     def run(args: list[str]) -> tuple[int, list[str]]:
         capsys.readouterr()
+        before = {p.pid for p in psutil.Process().children(recursive=True)}
         try:
             rc = main(args)
         except SystemExit as e:
@@ -119,7 +120,8 @@ def cli(tmp_path, capsys, monkeypatch):
             for s, h in handlers.items():
                 signal.signal(s, h)
         err = capsys.readouterr().err
-        assert psutil.Process().children(recursive=True) == []
+        started = [p for p in psutil.Process().children(recursive=True) if p.pid not in before]
+        assert started == [], f"{args} left {started}"
         assert sorted(os.listdir(tmp_path)) == sorted(set(os.listdir(tmp_path)) & {"afile"}), \
             f"{args} wrote {os.listdir(tmp_path)}"
         return rc, err.strip().splitlines()
