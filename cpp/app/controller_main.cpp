@@ -60,6 +60,12 @@ const char* kUsage =
     "                         arrivals and wake at least US microseconds after\n"
     "                         one (the guard widens with the plant's jitter;\n"
     "                         default 50; negative: free-running)\n"
+    "  --trigger T            real time: timer (default: the own clock above) or\n"
+    "                         event (step on each state's arrival, as software\n"
+    "                         triggered by a sensor's data-ready)\n"
+    "  --null-law             the bench's floor (sc-rt floor): answer every state\n"
+    "                         with a zero command, no law step (same messages)\n"
+    "  --cpu N                pin the process to CPU N (sched_setaffinity)\n"
     "  --max-steps N          stop after N control steps (default: run until\n"
     "                         SIGINT/SIGTERM)\n"
     "  --summary FILE         write the exit summary as JSON to FILE\n"
@@ -125,6 +131,9 @@ struct Options {
   // real time: lock the wake-up phase to the arrival of states (PLL), this
   // many microseconds after a state arrives (< 0: free-running clock)
   double phase_offset_us = 50.0;
+  bool event_trigger = false;  // --trigger event: step on each state's arrival (real time)
+  bool null_law = false;       // --null-law: zero commands, no law step (the bench floor)
+  int cpu = -1;                // --cpu N: pin to this CPU (< 0: no pinning)
 };
 
 class Shell {
@@ -200,7 +209,7 @@ class Shell {
     state_ = msg;
     fresh_ = true;
     lock.unlock();
-    if (!opt_.realtime) step(now, now);
+    if (!opt_.realtime || opt_.event_trigger) step(now, now);  // event-triggered: at once
   }
 
   // One control step at monotonic time `now` (wake-up at `deadline` in real time).
@@ -236,7 +245,13 @@ class Shell {
         reengage_ = false;
         ctl_->reset(m);
       }
-      cmd = ctl_->step(m);
+      if (opt_.null_law) {  // the floor: the same messages, zero compute
+        cmd = sc_rt::Command{};
+        cmd.t = st.t;
+        cmd.mode = sc_rt::MODE_NORMAL;
+      } else {
+        cmd = ctl_->step(m);
+      }
       if (cmd.mode == sc_rt::MODE_SAFE) ++cnt_.safe_steps;
     }
     used_fresh_ = fresh && !stale;
@@ -335,6 +350,8 @@ class Shell {
         (long long)g.sessions_adopted);
     std::string js(buf);
     js.pop_back();  // the closing brace: then the authentication and the plant sessions
+    js += std::string(", \"trigger\": \"") + (opt_.event_trigger ? "event" : "timer") +
+          "\", \"null_law\": " + (opt_.null_law ? "true" : "false");
     js += ", \"auth\": " + std::string(auth_ ? "true" : "false") +
           ", \"auth_failed\": " + std::to_string(auth_failed_.load()) + ", \"plant_sessions\": [";
     {
@@ -385,10 +402,21 @@ struct ConfigWait {
   }
 };
 
-std::string setup_scheduler(bool want_rt) {
+std::string setup_scheduler(bool want_rt, int cpu) {
   // Timer slack 1 ns: wake-ups as close to the deadline as the kernel can.
   prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
-  if (!want_rt) return "SCHED_OTHER";
+  std::string pin;
+  if (cpu >= 0) {  // before any thread starts: the receive thread inherits it
+    cpu_set_t set;
+    CPU_ZERO(&set);
+    CPU_SET(cpu, &set);
+    if (sched_setaffinity(0, sizeof set, &set) == 0) {
+      pin = ", CPU " + std::to_string(cpu);
+    } else {
+      std::fprintf(stderr, "sc-rt-controller: warning: cannot pin to CPU %d (%s)\n", cpu, std::strerror(errno));
+    }
+  }
+  if (!want_rt) return "SCHED_OTHER" + pin;
   std::string s;
   sched_param sp{};
   sp.sched_priority = 80;
@@ -404,7 +432,7 @@ std::string setup_scheduler(bool want_rt) {
   } else {
     std::fprintf(stderr, "sc-rt-controller: warning: mlockall not permitted (%s)\n", std::strerror(errno));
   }
-  return s;
+  return s + pin;
 }
 
 // The configuration with --law-plugin applied, its law checked (constructed
@@ -459,6 +487,17 @@ int main(int argc, char** argv) {
       o.rt_priority = true;
     } else if (a == "--phase-offset") {
       o.phase_offset_us = std::atof(need("--phase-offset").c_str());
+    } else if (a == "--trigger") {
+      const std::string t = need("--trigger");
+      if (t != "timer" && t != "event") {
+        std::fprintf(stderr, "sc-rt-controller: --trigger must be timer or event, got '%s'\n", t.c_str());
+        return 2;
+      }
+      o.event_trigger = (t == "event");
+    } else if (a == "--null-law") {
+      o.null_law = true;
+    } else if (a == "--cpu") {
+      o.cpu = std::atoi(need("--cpu").c_str());
     } else if (a == "--max-steps") {
       o.max_steps = std::atoll(need("--max-steps").c_str());
     } else if (a == "--summary") {
@@ -528,15 +567,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "sc-rt-controller: bad configuration: %s\n", e.what());
     return 2;
   }
-  const std::string sched = setup_scheduler(o.rt_priority);
+  const std::string sched = setup_scheduler(o.rt_priority, o.cpu);
   // LCM drops messages beyond a subscription's queue capacity (30 by
   // default) without a word: under a burst of hostile traffic that would lose
   // genuine states. Hold many; every one is counted or used.
   lcm.subscribeFunction(o.prefix + "SCRT_STATE", &Shell::on_state, &shell)->setQueueCapacity(100000);
-  std::fprintf(stderr, "sc-rt-controller: %s mode on %s, %s\n", o.realtime ? "realtime" : "lockstep",
-               o.url.c_str(), sched.c_str());
+  std::fprintf(stderr, "sc-rt-controller: %s mode on %s, %s%s%s\n", o.realtime ? "realtime" : "lockstep",
+               o.url.c_str(), sched.c_str(), o.realtime && o.event_trigger ? ", event-triggered" : "",
+               o.null_law ? ", null law" : "");
 
-  if (!o.realtime) {
+  if (!o.realtime || o.event_trigger) {  // one step per state, on its arrival
     while (!shell.done()) lcm.handleTimeout(100);
   } else {
     // A receive thread timestamps every state as it arrives (the newest wins);
