@@ -501,7 +501,6 @@ class Emulator:
         if self.stopped is not None:
             run.partial = True
             run.message = self.stopped
-            run.metrics = {"stopped": self.stopped,
-                           "t_reached_s": float(run["t"][rows - 1]) if rows else None}
+            run.metrics.update(stopped=self.stopped, t_reached_s=float(run["t"][rows - 1]) if rows else None)
         run.metrics.update(provenance(self.session, self._ctl_session, self.invalid))
         return run

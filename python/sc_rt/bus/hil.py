@@ -262,7 +262,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         # the logger failed at the very end (its last flush): the log may be short of the run
         stopped = f"lcm-logger exited with code {logger_rc} at the end of the run"
         res.partial = True
-        res.metrics = {"stopped": stopped, "t_reached_s": float(res.t[-1]) if len(res) else None}
+        res.metrics.update(stopped=stopped, t_reached_s=float(res.t[-1]) if len(res) else None)
     if stopped and logger_err and logger_rc not in (0, -signal.SIGINT):
         stopped += f" (lcm-logger: {logger_err.splitlines()[-1]})"
         res.metrics["stopped"] = stopped
