@@ -104,7 +104,7 @@ kill -INT $E1 $E2; wait
     so, se = r.stdout, r.stderr
     assert "rc_applied=0" in so and "applied: echoed on SCRT_TRUTH at t = " in so, so + se
     assert "rc_past=2" in so and "--at 0.5: the onset is in the past" in se, so + se
-    assert "rc_ignored=1" in so and f"no emulator echoed it on SCRT_TRUTH within 1 s" in se, so + se
+    assert "rc_ignored=1" in so and "no emulator echoed it on SCRT_TRUTH within 1 s" in se, so + se
     assert url2 in se
     assert "rc_clear=0" in so, so + se
 
