@@ -241,3 +241,25 @@ i=0; while pgrep -f '^[^ ]*(sc-rt-controller|lcm-logger) .*{out}' > /dev/null; d
     r = lcmnet.run_script(script, timeout=300)
     assert "rc=137" in r.stdout, r.stdout + r.stderr
     assert not leftovers(str(out)), leftovers(str(out))
+
+
+@pytest.mark.parametrize("sig, code", [("INT", 130), ("TERM", 143)])
+def test_emulator_interrupted_before_its_first_row(tmp_path, sig, code):
+    """No controller: lockstep waits for the answer to state 0 and the signal
+    stops it there: a run of no row, written and marked partial."""
+    out = tmp_path / "emu"
+    script = f"""
+{CLI} emulator paper_fault_free --lcm-url memq:// --out {out} > {tmp_path}/o.txt 2> {tmp_path}/e.txt &
+P=$!
+{SAYS.format(f=tmp_path / 'e.txt', t='LCM URL')}
+kill -{sig} $P
+wait $P
+echo "rc=$?"
+"""
+    r = lcmnet.run_script(script, timeout=120)
+    err = (tmp_path / "e.txt").read_text()
+    assert f"rc={code}" in r.stdout, r.stdout + r.stderr + err
+    assert "STOPPED at t = - s" in err and "Traceback" not in err, err
+    m = metrics(out)
+    assert m["partial"] is True and m["steps"] == 0 and m["t_reached_s"] is None
+    assert json.loads((out / "emulator.json").read_text())["partial"] is True

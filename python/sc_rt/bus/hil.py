@@ -292,7 +292,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     finish_run(res)
     res.timing = timing_report(res, summary, wall)
     try:
-        files = write_run(res, out, figures=plots)
+        files = write_run(res, out, figures=plots and len(res) > 1)  # (no figure of a run stopped at once)
     except OSError as e:  # a full disk: say where, and why the run had stopped
         raise OSError(e.errno, e.strerror + (f" (the run had stopped: {stopped})" if stopped else ""),
                       str(e.filename or out)) from e

@@ -145,12 +145,13 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     check_run_size(scn, given_options(args, rate="--rate", duration="--duration", time_scale="--time-scale"),
                    bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale)
     url = resolve_url(args.lcm_url, DEFAULT_URL)
-    print(f"sc-rt emulator: LCM URL {url}", file=sys.stderr, flush=True)
     sig: list[int] = []
-    emu = Emulator(scn, mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,
-                   accept_fault_commands=args.accept_fault_commands, start_timeout=args.start_timeout,
-                   auth_key=load_key(args.auth_key), stop=lambda: f"interrupted by {signal.Signals(sig[0]).name}" if sig else None)
-    with flag_signals(sig.append):  # the run stops at its next step, its rows kept
+    with flag_signals(sig.append):  # from here the run stops at its next step, its rows kept
+        emu = Emulator(scn, mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,
+                       accept_fault_commands=args.accept_fault_commands, start_timeout=args.start_timeout,
+                       auth_key=load_key(args.auth_key),
+                       stop=lambda: f"interrupted by {signal.Signals(sig[0]).name}" if sig else None)
+        print(f"sc-rt emulator: LCM URL {url}", file=sys.stderr, flush=True)
         res = emu.run()
     summary = {"rows": len(res), "counters": dict(res.counters), "gaps_s": rounded(res.gaps),
                "diverged": res.diverged, "partial": res.partial,

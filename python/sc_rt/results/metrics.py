@@ -89,6 +89,8 @@ def _at(t: np.ndarray, values: np.ndarray, when: float) -> float | None:
 
 
 def _max_after(t: np.ndarray, values: np.ndarray, after: float) -> float | None:
+    if len(t) == 0:  # a run stopped before its first row
+        return None
     sel = (t >= after - 1e-9) & ~np.all(np.isnan(values.reshape(len(t), -1)), axis=1)
     if not np.any(sel):
         return None
