@@ -14,6 +14,14 @@ scenario's saturation and faults, and records the run (docs/PROTOCOL.md).
   older than ``stale_periods`` periods, or invalid, are replaced by zero and
   flagged (watchdog).
 
+Both loops publish the next state first, then the truth of the row just
+applied (the controller computes while the emulator records), integrate with
+the C++ plant twin (``_core.plant_rk4_step``, bitwise the Python
+``model.plant.rk4_step``; ``cpp_plant=False`` runs the Python one, for a
+changed model/plant.py), and run with the garbage collector frozen
+(bus/rtproc.py). Real time sleeps in ``select`` until ``spin_us`` before
+the tick and polls from there.
+
 Bad input never stops the loop: every message is decoded under guard and
 counted by kind (``counters``).
 """
@@ -32,12 +40,14 @@ from typing import Any, Callable, NamedTuple
 import numpy as np
 import sc_rt_lcm
 
+from sc_rt import _core
 from sc_rt.model import actuators, plant
 from sc_rt.model.actuators import WheelFault
 from sc_rt.bus.auth import open_bus
 from sc_rt.bus.collision import CollisionGuard
 from sc_rt.bus.lcmio import channel
 from sc_rt.bus.peers import ControllerPeers, GuidancePublisher
+from sc_rt.bus.rtproc import RealtimeThread
 from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
 from sc_rt.results.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
@@ -86,7 +96,9 @@ class Emulator:
                  accept_fault_commands: bool = False, cmd_timeout: float = 1.0, retries: int = 3,
                  stale_periods: float | None = None, wait_status: bool | None = None,
                  start_timeout: float | None = None,
-                 stop: Callable[[], str | None] | None = None, auth_key: bytes | None = None):
+                 stop: Callable[[], str | None] | None = None, auth_key: bytes | None = None,
+                 spin_us: float = 100.0, cpu: int | None = None, realtime_priority: bool = False,
+                 freeze_gc: bool = True, cpp_plant: bool = True):
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
         if not (time_scale > 0 and math.isfinite(time_scale)):
@@ -96,6 +108,17 @@ class Emulator:
         self.rate = scn.run.control_rate_hz
         self.duration = scn.run.duration
         self.time_scale = time_scale
+        #: real time: poll (no sleep) for the last spin_us before each tick
+        self._spin_ns = int(max(0.0, spin_us) * 1e3)
+        #: the emulator thread's CPU, SCHED_FIFO + mlockall, gc (bus/rtproc.py)
+        self._rt = RealtimeThread(freeze_gc=freeze_gc, cpu=cpu, fifo=realtime_priority)
+        self.cpp_plant = cpp_plant
+        self._cpp_params: tuple = (None,)
+        #: per row, monotonic ns: [tick or answer, integrated, state published, truth done]
+        self._stamps: np.ndarray | None = None
+        self._guidance_next: tuple | None = None  # guidance values of the next state, computed ahead
+        self._next_published = -1
+        self._guidance_sent: tuple = (-1, None)  # (seq, guidance values) of the newest state out
         self.accept_faults = accept_fault_commands
         self.cmd_timeout, self.retries = cmd_timeout, retries
         self.stale_periods = (scn.controller.safety.stale_periods if stale_periods is None
@@ -278,8 +301,11 @@ class Emulator:
         self.faults_applied.append(rec)
 
     # --- publishing --------------------------------------------------------
-    def _publish_state(self, k: int, t: float, x: np.ndarray) -> None:
-        self.guidance.publish(k, t)  # the reference first: a controller has it with the state
+    def _publish_state(self, k: int, t: float, x: np.ndarray, guidance: tuple | None = None) -> None:
+        if guidance is None:  # computed now, or the values state k went out with (a re-sent state)
+            guidance = self._guidance_sent[1] if self._guidance_sent[0] == k else self.guidance.values(t)
+        self._guidance_sent = (k, guidance)
+        self.guidance.publish(k, t, guidance)  # the reference first: a controller has it with the state
         data = _STATE_FP + _STATE_LAYOUT.pack(time.time_ns() // 1000, k, self.session, t, *x[0:10])
         self._pub_ns[k] = time.monotonic_ns()
         self.lc.publish(self._ch_state, data)
@@ -303,16 +329,19 @@ class Emulator:
         run["fault_bias"][k] = eff_bias_stuck[4:8]
         run["fault_stuck"][k] = eff_bias_stuck[8:12]
 
-    def _handle_until(self, deadline_ns: int) -> None:
+    def _handle_until(self, deadline_ns: int, spin_ns: int = 0) -> None:
+        """Handle messages until ``deadline_ns``: asleep in ``select`` until
+        ``spin_ns`` before it, then polling (a wake-up from sleep is late by
+        the scheduler's latency; a poll is not)."""
         fd = self.lc.fileno()
         while True:
-            rem = (deadline_ns - time.monotonic_ns()) / 1e9
+            rem = deadline_ns - time.monotonic_ns()
             if rem <= 0:
                 # drain what is already there without waiting
                 while select.select([fd], [], [], 0)[0]:
                     self.lc.handle()
                 return
-            if select.select([fd], [], [], rem)[0]:
+            if select.select([fd], [], [], (rem - spin_ns) / 1e9 if rem > spin_ns else 0)[0]:
                 self.lc.handle()
 
     def _should_stop(self) -> bool:
@@ -326,9 +355,37 @@ class Emulator:
         ``sc_rt.results.metrics.finish_run``)."""
         if self.start_timeout is not None:
             self._await_controller(initial_state(self.scn))
-        if self.mode == "lockstep":
-            return self._run_lockstep()
-        return self._run_realtime()
+        with self._rt:
+            if self.mode == "lockstep":
+                return self._run_lockstep()
+            return self._run_realtime()
+
+    @property
+    def scheduler(self) -> str:
+        """What the emulator's thread got (bus/rtproc.py)."""
+        return self._rt.description
+
+    def breakdown(self) -> dict[str, Any]:
+        """Where each row's microseconds went in the emulator (p50, p99, max):
+        ``integrate`` (the tick, or in lockstep the answer, to the next state
+        integrated), ``publish_state`` (guidance and state), ``truth_record``
+        (the row recorded, its truth published) and, in lockstep,
+        ``wait_answer`` (the state out to the command and status in: the
+        round trip and the controller)."""
+        def percentiles(v):
+            return ({"p50": float(np.percentile(v, 50)), "p99": float(np.percentile(v, 99)),
+                     "max": float(np.max(v))} if len(v) else {"p50": None, "p99": None, "max": None})
+
+        s = self._stamps
+        if s is None or len(s) == 0:
+            return {}
+        s = s[np.all(s > 0, axis=1)]
+        d = np.diff(s, axis=1) / 1e3
+        out = {"integrate": percentiles(d[:, 0]), "publish_state": percentiles(d[:, 1]),
+               "truth_record": percentiles(d[:, 2]), "rows": int(len(s))}
+        if self.mode == "lockstep" and len(s) > 1:
+            out["wait_answer"] = percentiles((s[1:, 0] - s[:-1, 2]) / 1e3)
+        return out
 
     def _await_controller(self, x0: np.ndarray) -> None:
         """Re-send state 0 until a controller answers it (raises RuntimeError
@@ -386,9 +443,11 @@ class Emulator:
         scn = self.scn
         n_ctrl, n_sub, h, rate = grid(scn)
         traj = self._allocate(n_ctrl + 1)
+        self._stamps = stamps = np.zeros((n_ctrl + 1, 4), np.int64)
         x = initial_state(scn)
         rows = 0
         silent = 0  # consecutive states without an answer
+        self._next_published = -1  # the state _apply published already (the state first)
         for k in range(n_ctrl + 1):
             t = k / rate
             self._t_now = t
@@ -401,7 +460,10 @@ class Emulator:
             for attempt in range(retries + 1):
                 if attempt:
                     self.counters["state_resent"] += 1
-                self._publish_state(k, t, x)
+                if attempt or self._next_published != k:
+                    self._publish_state(k, t, x)
+                if attempt == 0 and k < n_ctrl:  # the next state's guidance while the controller works
+                    self._guidance_next = self.guidance.values((k + 1) / rate)
                 deadline = time.monotonic_ns() + int(timeout * 1e9)
                 while time.monotonic_ns() < deadline and not self._should_stop():
                     cmd = self._cmd.get(k)
@@ -422,7 +484,9 @@ class Emulator:
             if stale:
                 # watchdog: no answer to this state: apply zero, flag, go on
                 self.counters["cmd_timeout"] += 1
-            x = self._apply(traj, k, t, x, cmd, n_sub, h)
+            stamps[k, 0] = time.monotonic_ns()
+            x = self._apply(traj, k, t, x, cmd, n_sub, h, None if k == n_ctrl else (k + 1, (k + 1) / rate),
+                            stamps[k])
             rows = k + 1
             if k == n_ctrl or x is None or self._should_stop():
                 break
@@ -435,33 +499,58 @@ class Emulator:
         wall_period_ns = int(round(period / self.time_scale * 1e9))
         stale_ns = int(self.stale_periods * wall_period_ns)
         traj = self._allocate(n_ticks + 1)
+        self._stamps = stamps = np.zeros((n_ticks + 1, 4), np.int64)
         x = initial_state(scn)
         lateness = traj["tick_lateness_us"]
         rows = 0
         self._publish_state(0, 0.0, x)
         start = time.monotonic_ns()
+        spin = self._spin_ns
         for k in range(n_ticks + 1):
             t = k * period
             self._t_now = t
             deadline = start + (k + 1) * wall_period_ns
-            self._handle_until(deadline)
+            # the next state's guidance while there is time (it needs no command)
+            self._guidance_next = (self.guidance.values((k + 1) * period) if k < n_ticks else None)
+            self._handle_until(deadline, spin)
             now = time.monotonic_ns()
+            stamps[k, 0] = now
             lateness[k] = (now - deadline) / 1e3
             cmd = self._newest_cmd
             if cmd is None or now - self._newest_cmd_ns > stale_ns:
                 self.counters["cmd_stale_ticks"] += 1
                 cmd = None
-            x = self._apply(traj, k, t, x, cmd, n_sub, h)
+            x = self._apply(traj, k, t, x, cmd, n_sub, h, None if k == n_ticks else (k + 1, (k + 1) * period),
+                            stamps[k])
             rows = k + 1
             if k == n_ticks or x is None or self._should_stop():
                 break
-            self._publish_state(k + 1, (k + 1) * period, x)
         return self._finish(traj, rows, x is None and rows < n_ticks + 1)
 
-    def _apply(self, traj, k: int, t: float, x: np.ndarray, cmd, n_sub: int, h: float):
-        """Row k: apply ``cmd`` (None: the watchdog's zero), record it with the
-        truth at t, publish the truth, and integrate one control period.
-        Returns the next state, or None when it is not finite."""
+    def _integrate(self, t: float, x: np.ndarray, u_cmd: np.ndarray, n_sub: int, h: float) -> np.ndarray:
+        """n_sub RK4 steps of h from t with u_cmd held: the C++ twin (bitwise
+        the Python reference, tests/test_plant.py) or model.plant.rk4_step."""
+        if not self.cpp_plant:
+            for j in range(n_sub):
+                x = plant.rk4_step(self.scn.plant, self.act, t + j * h, x, h, u_cmd)
+            return x
+        if self._cpp_params[0] is not self.act:  # the fault set changed (live injection)
+            self._cpp_params = (self.act, plant.plant_params_to_cpp(self.scn.plant),
+                                actuators.actuator_params_to_cpp(self.act))
+        _, pp, ap = self._cpp_params
+        xs = _core.PlantState.from_vector(x)
+        for j in range(n_sub):
+            xs = _core.plant_rk4_step(pp, ap, t + j * h, xs, h, u_cmd)
+        return xs.to_vector()
+
+    def _apply(self, traj, k: int, t: float, x: np.ndarray, cmd, n_sub: int, h: float,
+               next_state: tuple[int, float] | None = None, stamps=None):
+        """Row k: apply ``cmd`` (None: the watchdog's zero) over one control
+        period; publish the next state (``next_state``: its seq and t; not when
+        the run stops or diverged) first, then record row k with the truth at t and publish the
+        truth. ``stamps``: the row's monotonic ns (integrated, state out, truth
+        out) go to stamps[1:4]. Returns the next state, or None when it is not
+        finite."""
         stale = cmd is None
         self._peer_lost = stale
         if stale:
@@ -473,13 +562,24 @@ class Emulator:
             if self._gap_start is not None:
                 self._gaps.append((self._gap_start, t))
                 self._gap_start = None
-        u_sat, accel, _ = actuators.wheel_accel(self.act, t, u_cmd, x[6:10])
+        act = self.act  # the row's faults (a handler may change self.act only while we wait)
+        x_next = self._integrate(t, x, u_cmd, n_sub, h)
+        finite = bool(np.all(np.isfinite(x_next)))
+        if stamps is not None:
+            stamps[1] = time.monotonic_ns()
+        if next_state is not None and finite and not self._should_stop():
+            guidance, self._guidance_next = self._guidance_next, None
+            self._publish_state(next_state[0], next_state[1], x_next, guidance)
+            self._next_published = next_state[0]
+        if stamps is not None:
+            stamps[2] = time.monotonic_ns()
+        u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
         delta2 = plant.lumped_disturbance(self.scn.plant, t, x, u_sat, accel)
         self._record(traj, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2)
         self._publish_truth(traj, k, t, cmd_seq, u_cmd, accel, delta2, stale)
-        for j in range(n_sub):
-            x = plant.rk4_step(self.scn.plant, self.act, t + j * h, x, h, u_cmd)
-        return x if np.all(np.isfinite(x)) else None
+        if stamps is not None:
+            stamps[3] = time.monotonic_ns()
+        return x_next if finite else None
 
     def _finish(self, run: Run, rows: int, diverged: bool) -> Run:
         if self._gap_start is not None and rows > 0:

@@ -48,8 +48,11 @@ class GuidancePublisher:
         return (tuple(self.guidance.sigma_DN), tuple(_core.omega_d(self.params, t)),
                 tuple(_core.omega_d_dot(self.params, t)))
 
-    def publish(self, seq: int, t: float) -> None:
-        sd, wd, wdd = self.values(t)
+    def publish(self, seq: int, t: float, values: tuple | None = None) -> None:
+        """guidance_t for the state ``seq`` at ``t``; ``values``: ``values(t)``
+        computed ahead (the real-time emulator does it while it waits, so that
+        only the publish stands between its tick and the state)."""
+        sd, wd, wdd = self.values(t) if values is None else values
         self.lc.publish(self.channel, GUIDANCE_FP + GUIDANCE_LAYOUT.pack(
             time.time_ns() // 1000, seq, self.session, t, *sd, *wd, *wdd))
 
