@@ -53,6 +53,22 @@ def main(quick: bool = False) -> None:
                                        and res["overhead_gyro_10hz_fraction"] <= 0.30 else "miss")
     res["target_nav_step_le_1us"] = ("pass" if max(res["nav_gyro_100hz_per_control_step_us"],
                                                    res["nav_gyro_10hz_per_control_step_us"]) <= 1.0 else "miss")
+    # a law at the gyro's rate: ppc_feasible_100hz_sensors (100 Hz law, 100 Hz gyro, one plant step
+    # per period) against itself without [sensors]; its truth-fed variant so that the loop holds
+    s100 = load_scenario(ROOT / "scenarios" / "ppc_feasible_100hz_sensors.toml")
+    s100 = dataclasses.replace(s100, sensors=dataclasses.replace(s100.sensors, measurement="truth"))
+    c100 = {"no_sensors": dataclasses.replace(s100, sensors=None), "gyro_100hz": s100}
+    l100: dict[str, list[float]] = {k: [] for k in c100}
+    alternate({k: (lambda k=k: l100[k].append(simulate(c100[k], engine="cpp").metrics["wall_s"]))
+               for k in c100}, runs=runs)
+    l100 = {k: v[1:] for k, v in l100.items()}
+    steps100 = int(round(s100.run.duration * s100.run.control_rate_hz)) + 1
+    b100 = summary(l100["no_sensors"], "s")
+    res["law_100hz_loop_no_sensors_s"] = b100
+    res["law_100hz_loop_gyro_100hz_s"] = summary(l100["gyro_100hz"], "s")
+    res["law_100hz_overhead_fraction"] = res["law_100hz_loop_gyro_100hz_s"]["median"] / b100["median"] - 1.0
+    res["law_100hz_nav_per_control_step_us"] = (
+        (res["law_100hz_loop_gyro_100hz_s"]["median"] - b100["median"]) / steps100 * 1e6)
     write("sensors", res)
 
 
