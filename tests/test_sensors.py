@@ -336,3 +336,34 @@ def test_sensors_round_trip_through_the_scenario_data_and_campaign_seeds_differ(
     seeds = {draw_run(scn, NO_SHORTCUTS, 0, i)[0].sensors.seed for i in range(20)}
     assert len(seeds) == 20  # each run its own sensor noise
     assert draw_run(scn, NO_SHORTCUTS, 0, 3)[0].sensors.seed == draw_run(scn, NO_SHORTCUTS, 0, 3)[0].sensors.seed
+
+
+def test_cli_refuses_bad_sensor_input_with_exit_2(tmp_path):
+    import subprocess
+    import sys
+
+    text = SENSED.read_text().replace("sigma_cross = 2.0 ", "sigma_cross = -2.0 ", 1)
+    f = tmp_path / "bad.toml"
+    f.write_text(text)
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", str(f), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stdout + r.stderr
+    line = _line_of(f, "sigma_cross = -2.0")
+    assert f"{f}:{line}: sensors.star_tracker.sigma_cross = -2.0" in r.stdout + r.stderr
+
+
+def test_a_run_without_the_estimators_fields_gets_no_estimation_metrics():
+    """A producer that does not run the sensors (the LCM emulator, for now) on a
+    [sensors] scenario: the bound is judged on sigma_BD, no estimation metrics."""
+    import dataclasses
+
+    from sc_rt.results.metrics import finish_run
+    from sc_rt.results.run import Run, RunMeta
+
+    scn = load_scenario(SENSED)
+    base = simulate(dataclasses.replace(scn, sensors=None), engine="cpp", duration=5.0)
+    run = Run(RunMeta.of_scenario(scn, "hil-lockstep"), {k: base[k] for k in base.trajectory})
+    assert run.meta.sensors
+    finish_run(run)
+    assert "estimation_error_arcsec" not in run.metrics
+    assert np.array_equal(run["bound_ok"], base["bound_ok"])

@@ -158,7 +158,8 @@ def compute_metrics(run: Run) -> dict[str, Any]:
 def finish_run(run: Run) -> Run:
     """The derived fields and the metrics of a run its producer has filled:
     ``bound_ok`` from the envelope in ``run.meta``, then ``run.metrics``."""
-    sensed = getattr(run.meta, "sensors", False)
+    # a producer that ran the sensors filled the estimator's fields (the LCM emulator does not, yet)
+    sensed = bool(getattr(run.meta, "sensors", False)) and bool(run.present("sigma_BN_est").any())
     if sensed:  # with sensors the bound is judged on the true attitude (sc_rt.results.estimation)
         fill_true_tracking_error(run)
     run["bound_ok"][:] = bound_ok(run.meta.ppc, run["t"], run["sigma_BD_true"] if sensed else run["sigma_BD"])
