@@ -13,7 +13,8 @@ import numpy as np  # noqa: E402
 from sc_rt.results.metrics import prescribed_chi  # noqa: E402
 from sc_rt.results.run import Run  # noqa: E402
 
-__all__ = ["tracking_figures", "timing_figures", "fault_figure", "mark_events", "run_title", "save_figure"]
+__all__ = ["tracking_figures", "timing_figures", "fault_figure", "estimation_figure", "mark_events", "run_title",
+           "save_figure"]
 
 AXES = ("x", "y", "z")
 
@@ -138,7 +139,11 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     fig, ax = plt.subplots(figsize=(9, 4))
     ang = pointing_arcsec(sig)
     env = pointing_arcsec(dmax * chi)  # the angle of the envelope's corner (all axes at dmax chi)
-    ax.semilogy(t, ang + 1e-300, lw=0.9, label="pointing error 4 atan|sigma_BD|")
+    sensed = _sensed(run)
+    ax.semilogy(t, ang + 1e-300, lw=0.9,
+                label="pointing error 4 atan|sigma_BD|" + (" (the law's, estimated)" if sensed else ""))
+    if sensed:
+        ax.semilogy(t, pointing_arcsec(run["sigma_BD_true"]) + 1e-300, lw=0.9, label="true pointing error")
     ax.semilogy(t, env, "r--", lw=0.8, label="envelope corner 4 atan|dmax chi(t)|")
     mark_events(ax, run, labels=True)
     ax.set_xlabel("t [s]")
@@ -195,7 +200,39 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     paths.append(save_figure(fig, out / "disturbance_observer.png"))
     if fault_onsets(run) or np.any(np.isfinite(run["fault_Y"])):
         paths.append(fault_figure(run, out, title))
+    if sensed:
+        paths.append(estimation_figure(run, out, title))
     return paths
+
+
+def _sensed(run: Run) -> bool:
+    return bool(getattr(run.meta, "sensors", False)) and bool(run.present("sigma_BN_est").any())
+
+
+def estimation_figure(run: Run, out: Path, title: str = "") -> Path:
+    """estimation.png: the MEKF's attitude error per axis with its 3-sigma, and the bias error."""
+    arcsec = np.pi / 180 / 3600
+    t = run["t"]
+    fig, axs = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    err, sd = run["att_est_error"] / arcsec, np.sqrt(run["P_diag"][:, 0:3]) / arcsec
+    for i in range(3):
+        line, = axs[0].plot(t, err[:, i], lw=0.7, label=f"dtheta_{AXES[i]}")
+        axs[0].plot(t, 3 * sd[:, i], ":", lw=0.8, color=line.get_color())
+        axs[0].plot(t, -3 * sd[:, i], ":", lw=0.8, color=line.get_color())
+    axs[0].set_ylabel("estimation error [arcsec]\n(dotted: +-3 sigma)")
+    axs[0].set_title(_two_line("Attitude estimation error (MEKF) and gyro bias error", run, title))
+    axs[0].grid(alpha=0.3)
+    mark_events(axs[0], run, labels=True)
+    _legend_outside(axs[0])
+    deg_h = np.pi / 180 / 3600
+    for i in range(3):
+        axs[1].plot(t, (run["bias_est"][:, i] - run["bias_true"][:, i]) / deg_h, lw=0.8,
+                    label=f"b_est - b_true, {AXES[i]}")
+    axs[1].set_ylabel("bias error [deg/h]")
+    axs[1].set_xlabel("t [s]")
+    axs[1].grid(alpha=0.3)
+    _legend_outside(axs[1])
+    return save_figure(fig, out / "estimation.png")
 
 
 def scheduled_fault_state(run: Run) -> dict[str, np.ndarray]:
@@ -257,8 +294,14 @@ def timing_figures(run: Run, out: Path, floor: dict | None = None) -> list[Path]
     """The bench's timing over time and as histograms: state-to-command
     latency, controller compute and (real time only) the controller's wake
     lateness and the emulator's tick lateness. The control period is drawn,
-    and the bench floor (``floor``: {series: p99 [us]}) when there is one."""
+    and the bench floor (``floor``: {series: p99 [us]}; by default the
+    ``floor`` of ``run.timing``, bus/floor.py) when there is one, with the
+    line "bench floor p99 X us; this controller added Y us" in the title."""
     out.mkdir(parents=True, exist_ok=True)
+    timing = run.timing or {}
+    if floor is None and timing.get("floor"):
+        floor = {k: (v or {}).get("p99") for k, v in timing["floor"].items()
+                 if k.endswith("_us") and isinstance(v, dict) and "p99" in v}
     t = run["t"]
     period_us = 1e6 / run.meta.control_rate_hz
     series = {"state-to-command latency [us]": "latency_us", "controller compute [us]": "compute_us"}
@@ -288,5 +331,13 @@ def timing_figures(run: Run, out: Path, floor: dict | None = None) -> list[Path]
         row[1].set_ylabel("count")
         for a in row:
             a.grid(alpha=0.3)
-    axs[0][0].set_title(_two_line(f"Bench timing, {run.meta.mode}, {run.meta.control_rate_hz:g} Hz", run))
+    what = f"Bench timing, {run.meta.mode}, {run.meta.control_rate_hz:g} Hz"
+    if timing.get("trigger") and run.meta.mode == "realtime":
+        what += f", {timing['trigger']}-triggered controller"
+    if timing.get("scheduler"):
+        what += f", {timing['scheduler']}"
+    title = _two_line(what, run)
+    if (timing.get("over_floor") or {}).get("line"):
+        title += "\n" + timing["over_floor"]["line"]
+    axs[0][0].set_title(title, fontsize=9, loc="left")
     return [save_figure(fig, out / "timing.png")]
