@@ -29,6 +29,7 @@ from sc_rt import _core
 from sc_rt.model import actuators, plant
 from sc_rt.results.run import FIELD
 from sc_rt.scenario.overrides import grid, initial_state
+from sc_rt.scenario.schema import ScenarioError, ScenarioIssue
 from sc_rt.scenario.sensors import nav_config
 
 __all__ = ["run_sensed", "NAV", "NAV_RECORDED"]
@@ -136,4 +137,6 @@ def run_sensed(scn, engine: str, packed: dict[str, slice], recorded: dict[str, s
         return _run_python(scn, packed, recorded)
     if engine == "cpp":
         return _run_cpp(scn)
-    raise ValueError(f"a scenario with [sensors] runs on the python or cpp engine, not {engine!r}")
+    # a ScenarioError, so that the CLI reports it in one line (exit 2)
+    raise ScenarioError(scn.path, [ScenarioIssue(0, "sensors", None, f"a scenario with [sensors] runs on the "
+                                                 f"python or cpp engine, not {engine!r}")])
