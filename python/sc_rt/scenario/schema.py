@@ -330,3 +330,13 @@ def _build(t: _Table, cls: type, nullable: tuple[str, ...] = (), **fields: Any) 
     except ValueError as e:
         t.doc.error(t.key, None, str(e))
         return None
+
+
+# Public names of the machinery for the scenario's other readers (sc_rt.scenario.sensors):
+# a field spec, a table being read, a value's conversion, a read-only array, spec metadata.
+Spec = _Spec
+Table = _Table
+convert = _convert
+read_only = _ro
+spec = _spec
+vector_spec = _vec

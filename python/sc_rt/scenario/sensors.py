@@ -23,16 +23,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.scenario.schema import (  # the schema machinery, as model.py uses it
-    ScenarioError,
-    ScenarioIssue,
-    _convert,
-    _ro,
-    _spec,
-    _Spec,
-    _Table,
-    _vec,
-)
+from sc_rt.scenario.schema import ScenarioError, ScenarioIssue, Spec, Table, convert, read_only, spec, vector_spec
 
 __all__ = ["GyroSpec", "StarTrackerSpec", "TachometerSpec", "EstimatorSpec", "Sensors",
            "MEASUREMENTS", "read_sensors", "nav_config", "period_ticks", "ARCSEC", "DEG_PER_H",
@@ -45,35 +36,35 @@ MEASUREMENTS = ("truth", "estimate")
 
 
 def _zeros3() -> np.ndarray:
-    return _ro(np.zeros(3))
+    return read_only(np.zeros(3))
 
 
 @dataclass(frozen=True)
 class GyroSpec:
     """[sensors.gyro], data-sheet units (docs/SCENARIOS.md)."""
 
-    rate_hz: float = field(default=10.0, metadata=_spec("number", gt=0))  # [Hz]
-    arw: float = field(default=0.0, metadata=_spec("number", ge=0))  # [deg/sqrt(h)]
-    bias_sigma: float = field(default=0.0, metadata=_spec("number", ge=0))  # [deg/h] Gauss-Markov
-    bias_tau: float = field(default=3600.0, metadata=_spec("number", gt=0))  # [s]
-    rrw: float = field(default=0.0, metadata=_spec("number", ge=0))  # [deg/h/sqrt(h)]
-    bias0: np.ndarray = field(default_factory=_zeros3, metadata=_vec(3, scalar_ok=True))  # [deg/h]
-    scale_factor: np.ndarray = field(default_factory=_zeros3, metadata=_vec(3, scalar_ok=True))  # [ppm]
-    misalignment: np.ndarray = field(default_factory=_zeros3, metadata=_vec(3, scalar_ok=True))  # [arcsec]
-    quantization: float = field(default=0.0, metadata=_spec("number", ge=0))  # [arcsec]
-    saturation: float = field(default=math.inf, metadata=_spec("number", gt=0, allow_inf=True))  # [deg/s]
+    rate_hz: float = field(default=10.0, metadata=spec("number", gt=0))  # [Hz]
+    arw: float = field(default=0.0, metadata=spec("number", ge=0))  # [deg/sqrt(h)]
+    bias_sigma: float = field(default=0.0, metadata=spec("number", ge=0))  # [deg/h] Gauss-Markov
+    bias_tau: float = field(default=3600.0, metadata=spec("number", gt=0))  # [s]
+    rrw: float = field(default=0.0, metadata=spec("number", ge=0))  # [deg/h/sqrt(h)]
+    bias0: np.ndarray = field(default_factory=_zeros3, metadata=vector_spec(3, scalar_ok=True))  # [deg/h]
+    scale_factor: np.ndarray = field(default_factory=_zeros3, metadata=vector_spec(3, scalar_ok=True))  # [ppm]
+    misalignment: np.ndarray = field(default_factory=_zeros3, metadata=vector_spec(3, scalar_ok=True))  # [arcsec]
+    quantization: float = field(default=0.0, metadata=spec("number", ge=0))  # [arcsec]
+    saturation: float = field(default=math.inf, metadata=spec("number", gt=0, allow_inf=True))  # [deg/s]
 
 
 @dataclass(frozen=True)
 class StarTrackerSpec:
     """[sensors.star_tracker]."""
 
-    rate_hz: float = field(default=4.0, metadata=_spec("number", gt=0))  # [Hz]
-    sigma_cross: float = field(default=0.0, metadata=_spec("number", ge=0))  # [arcsec] 1 sigma
-    sigma_boresight: float = field(default=0.0, metadata=_spec("number", ge=0))  # [arcsec]
-    boresight: np.ndarray = field(default_factory=lambda: _ro([0.0, 0.0, 1.0]), metadata=_vec(3))
-    latency: float = field(default=0.0, metadata=_spec("number", ge=0))  # [s]
-    loss_probability: float = field(default=0.0, metadata=_spec("number", ge=0, le=1))  # [-]
+    rate_hz: float = field(default=4.0, metadata=spec("number", gt=0))  # [Hz]
+    sigma_cross: float = field(default=0.0, metadata=spec("number", ge=0))  # [arcsec] 1 sigma
+    sigma_boresight: float = field(default=0.0, metadata=spec("number", ge=0))  # [arcsec]
+    boresight: np.ndarray = field(default_factory=lambda: read_only([0.0, 0.0, 1.0]), metadata=vector_spec(3))
+    latency: float = field(default=0.0, metadata=spec("number", ge=0))  # [s]
+    loss_probability: float = field(default=0.0, metadata=spec("number", ge=0, le=1))  # [-]
     blackouts: tuple[tuple[float, float], ...] = ()  # [s] [start, end) exposure windows
 
 
@@ -81,8 +72,8 @@ class StarTrackerSpec:
 class TachometerSpec:
     """[sensors.tachometer]."""
 
-    rate_hz: float = field(default=10.0, metadata=_spec("number", gt=0))  # [Hz]
-    counts_per_rev: float = field(default=0.0, metadata=_spec("number", ge=0))  # [-] 0: exact
+    rate_hz: float = field(default=10.0, metadata=spec("number", gt=0))  # [Hz]
+    counts_per_rev: float = field(default=0.0, metadata=spec("number", ge=0))  # [-] 0: exact
 
 
 @dataclass(frozen=True)
@@ -90,9 +81,9 @@ class EstimatorSpec:
     """[controller.estimator]: the MEKF's start and degraded mode (its noise
     model is the sensors' configured one)."""
 
-    initial_attitude_sigma: float = field(default=30.0, metadata=_spec("number", ge=0))  # [arcsec]
-    initial_bias_sigma: float = field(default=1.0, metadata=_spec("number", ge=0))  # [deg/h]
-    degraded_after: float = field(default=2.0, metadata=_spec("number", gt=0))  # [s]
+    initial_attitude_sigma: float = field(default=30.0, metadata=spec("number", ge=0))  # [arcsec]
+    initial_bias_sigma: float = field(default=1.0, metadata=spec("number", ge=0))  # [deg/h]
+    degraded_after: float = field(default=2.0, metadata=spec("number", gt=0))  # [s]
 
 
 @dataclass(frozen=True)
@@ -129,18 +120,18 @@ def _latency_ticks(latency: float, plant_step: float) -> tuple[int, str]:
                f"whole number (nearest: {math.floor(n) * plant_step:g} s or {math.ceil(n) * plant_step:g} s)")
 
 
-def _read_blackouts(t: _Table) -> tuple[tuple[float, float], ...] | None:
+def _read_blackouts(t: Table) -> tuple[tuple[float, float], ...] | None:
     t.used.add("blackouts")
     raw = t.raw("blackouts")
     if raw is None:
         return ()
-    pair = _Spec("vector", shape=(2,))
+    pair = Spec("vector", shape=(2,))
     if not isinstance(raw, list):
         t.fail("blackouts", "blackouts must be a list of [start, end] pairs [s]")
         return None
     out = []
     for i, w in enumerate(raw):
-        v, problem = _convert(w, pair)
+        v, problem = convert(w, pair)
         key = f"blackouts[{i}]"
         if problem:
             t.doc.error(t.dotted("blackouts"), w, f"{key} {problem}")
@@ -152,7 +143,7 @@ def _read_blackouts(t: _Table) -> tuple[tuple[float, float], ...] | None:
     return tuple(out)
 
 
-def _read_values_except(t: _Table, cls: type, skip: tuple[str, ...]) -> dict[str, Any]:
+def _read_values_except(t: Table, cls: type, skip: tuple[str, ...]) -> dict[str, Any]:
     values = {}
     for f in dataclasses.fields(cls):
         if f.name in skip:
@@ -162,11 +153,11 @@ def _read_values_except(t: _Table, cls: type, skip: tuple[str, ...]) -> dict[str
     return values
 
 
-def read_sensors(root: _Table, controller: _Table, run: Any) -> Sensors | None:
+def read_sensors(root: Table, controller: Table, run: Any) -> Sensors | None:
     """The [sensors] tables and [controller] measurement / [controller.estimator];
     None when there is no [sensors] table (then ``measurement`` must be "truth").
     ``run``: the RunParams read (None if it failed: the grid checks are skipped)."""
-    measurement = controller.read("measurement", _Spec("str", choices=MEASUREMENTS), default="truth")
+    measurement = controller.read("measurement", Spec("str", choices=MEASUREMENTS), default="truth")
     est_t = controller.sub("estimator", required=False)
     est_v = _read_values_except(est_t, EstimatorSpec, ())
     est_t.finish()
@@ -179,7 +170,7 @@ def read_sensors(root: _Table, controller: _Table, run: Any) -> Sensors | None:
             controller.fail("estimator", "[controller.estimator] without a [sensors] table")
         return None
     s = root.sub("sensors")
-    seed = s.read("seed", _Spec("int", ge=0), default=0)
+    seed = s.read("seed", Spec("int", ge=0), default=0)
     step = None if run is None else run.plant_step
     duration = None if run is None else run.duration
     specs: dict[str, Any] = {}
@@ -296,17 +287,17 @@ def sensors_data(sensors: Sensors) -> tuple[dict[str, Any], dict[str, Any]]:
     """(the [sensors] table, the [controller] keys measurement and estimator) as
     parsed TOML that reads back to ``sensors`` (sc_rt.scenario.keys.scenario_data)."""
 
-    def table(spec: Any) -> dict[str, Any]:
+    def table(part: Any) -> dict[str, Any]:
         out = {}
-        for f in dataclasses.fields(spec):
-            v = getattr(spec, f.name)
+        for f in dataclasses.fields(part):
+            v = getattr(part, f.name)
             out[f.name] = (v.tolist() if isinstance(v, np.ndarray)
                            else [list(w) for w in v] if f.name == "blackouts" else v)
         return out
 
     data: dict[str, Any] = {"seed": int(sensors.seed)}
     for name in ("gyro", "star_tracker", "tachometer"):
-        spec = getattr(sensors, name)
-        if spec is not None:
-            data[name] = table(spec)
+        part = getattr(sensors, name)
+        if part is not None:
+            data[name] = table(part)
     return data, {"measurement": sensors.measurement, "estimator": table(sensors.estimator)}
