@@ -85,13 +85,14 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     law = controller_label(d, law)  # the law that answered (its announcement), not only the configured one
     t_build = time.perf_counter()
     r = rebuild(d, mode)
-    # a log cut short (an interrupted, crashed or full-disk run) ends with
-    # states whose command and truth never came: the complete rows only
-    complete = int(np.flatnonzero(r.has_truth)[-1]) + 1 if np.any(r.has_truth) else len(r.has_truth)
-    dropped = len(r.has_truth) - complete
+    # the complete rows only: a log cut short (an interrupted, crashed or
+    # full-disk run) ends with states whose command and truth never came, and
+    # a logger that fell behind lost some rows' plant_truth_t
+    keep = r.has_truth.copy() if np.any(r.has_truth) else np.ones(len(r.has_truth), bool)
+    at_end = len(keep) - (int(np.flatnonzero(keep)[-1]) + 1) if len(keep) else 0
+    dropped = int(len(keep) - np.count_nonzero(keep))
     if dropped:
-        r = dataclasses.replace(r, arrays={k: v[:complete] for k, v in r.arrays.items()},
-                                has_truth=r.has_truth[:complete])
+        r = dataclasses.replace(r, arrays={k: v[keep] for k, v in r.arrays.items()}, has_truth=r.has_truth[keep])
     rows = len(r.arrays["t"])
     short = duration is not None and rows and float(r.arrays["t"][-1]) < duration - 0.5 / rate
     if duration is None:
@@ -101,10 +102,11 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
                    wall_s=wall, mode=r.mode)
-    run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(dropped or short))
+    run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:
-        run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None,
-                       "incomplete_rows_dropped": dropped}
+        run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None}
+    if dropped:
+        run.metrics.update(incomplete_rows_dropped=dropped, incomplete_rows_at_end=at_end)
     run.metrics.update(provenance(_main_session(d.records["SCRT_STATE"]), _main_session(d.records["SCRT_CMD"])))
     fill_tracking_errors(run, logged_guidance(d, scenario))
     faults = fault_summary(d, r)
@@ -117,7 +119,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     report = {"log": str(d.path), "events": d.events, "read_decode_s": d.decode_s,
               "events_per_s": d.events / d.decode_s if d.decode_s > 0 else None,
               "rebuild_s": build_s, "prefix": d.prefix, "mode": r.mode, "rows": rows,
-              "incomplete_rows_dropped": dropped, "partial": run.partial,
+              "incomplete_rows_dropped": dropped, "incomplete_rows_at_end": at_end, "partial": run.partial,
               "parameters_from": source, "undecodable": d.undecodable, "channels": d.channels,
               "skipped": d.skipped, "faults": faults}
     cfg = logged_config(d)

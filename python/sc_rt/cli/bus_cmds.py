@@ -98,8 +98,11 @@ def cmd_report(args: argparse.Namespace) -> int:
         m = rep["metrics"]
         print(f"sc-rt report: PARTIAL: the log ends at t = {m.get('t_reached_s')} s"
               + (f" of {m['duration_s']:g} s" if m.get("t_reached_s") != m.get("duration_s") else "")
-              + f" ({rep['incomplete_rows_dropped']} incomplete rows at its end left out); metrics.json "
+              + f" ({rep['incomplete_rows_at_end']} incomplete rows at its end left out); metrics.json "
               "\"partial\": true")
+    lost = rep.get("incomplete_rows_dropped", 0) - rep.get("incomplete_rows_at_end", 0)
+    if lost:
+        print(f"sc-rt report: {lost} rows without their plant_truth_t (lost by the logger) left out")
     print_metrics(rep["metrics"])
     for c in rep["faults"]["commands"]:
         print(f"  fault command: {c}")
