@@ -50,9 +50,13 @@ ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantPa
     ctl->reset(Measurement{0.0, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
   }
   const std::int64_t nsub64 = n_sub;
+  std::int64_t next = nv ? nv->next_tick(0) : 0;  // a tick with nothing due changes nothing: skip it
   for (int k = 0; k <= n_ctrl; ++k) {
     const double t = k / rate;
-    if (nv && k > 0) nv->tick(k * nsub64, t, x);
+    if (nv && k > 0 && k * nsub64 == next) {
+      nv->tick(next, t, x);
+      next = nv->next_tick(next);
+    }
     const Command c = ctl->step(nv ? nv->measure(t, x, &tel)
                                    : Measurement{t, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
     const WheelOutput w = wheel_accel(act, t, c.u_cmd, x.wheel_speed);
@@ -88,7 +92,10 @@ ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantPa
     r.rows = k + 1;
     if (k == n_ctrl) break;
     for (int j = 0; j < n_sub; ++j) {
-      if (nv && j > 0) nv->tick(k * nsub64 + j, t + j * h, x);
+      if (nv && j > 0 && k * nsub64 + j == next) {
+        nv->tick(next, t + j * h, x);
+        next = nv->next_tick(next);
+      }
       x = plant_rk4_step(plant, act, t + j * h, x, h, c.u_cmd);
     }
     if (!finite(x)) {

@@ -53,7 +53,11 @@ void Mekf::propagate(MekfState& s, const Vec3& omega_m, double dt) const {
   const Mat3 F11 = rot_exp_minus(theta);
   double a = 1.0, qb = 0.0;
   if (p_.bias_sigma > 0.0) {
-    a = std::exp(-dt / p_.bias_tau);
+    if (dt != gm_dt_) {  // the same dt at every gyro sample: exp once
+      gm_dt_ = dt;
+      gm_a_ = std::exp(-dt / p_.bias_tau);
+    }
+    a = gm_a_;
     qb = p_.bias_sigma * p_.bias_sigma * (1.0 - a * a);
   }
   const double r2 = p_.rrw * p_.rrw;

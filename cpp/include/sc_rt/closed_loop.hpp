@@ -28,8 +28,9 @@ struct ClosedLoopResult {
 
 // n_ctrl control periods of 1/rate s (n_ctrl + 1 rows, t_k = k / rate), each
 // integrated with n_sub RK4 plant steps of 1/(rate n_sub) s.
-// nav (optional): sensors and estimator (mekf.hpp), ticked at every plant
-// step i = k n_sub + j from the state at its start; the law gets
+// nav (optional): sensors and estimator (mekf.hpp), ticked at the plant
+// steps i = k n_sub + j where a sensor samples or delivers (next_tick), from
+// the state at the step's start; the law gets
 // nav->measure(), the row's flags include the navigation's. Without nav the
 // loop is exactly the one without sensors.
 ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantParams& plant,

@@ -97,6 +97,7 @@ class Mekf {
   double nis_ = 0.0;
   double last_exposure_ = 0.0;
   long updates_ = 0, dropped_ = 0;
+  mutable double gm_dt_ = -1.0, gm_a_ = 1.0;  // exp(-dt / bias_tau) of the last dt
 };
 
 struct NavConfig {

@@ -14,9 +14,9 @@ the MEKF are the C++ core's ``_core.Navigation``):
             if j > 0: nav.tick(i + j, t_k + j h, x)
             x = rk4_step(x, h, command.u_cmd)
 
-The python engine calls ``nav.tick`` only at the ticks where a sensor samples
-or delivers (``nav.next_tick``); a tick with nothing due changes nothing, so
-the two engines stay bitwise equal (tests/test_sensors.py).
+Both engines call ``nav.tick`` only at the ticks where a sensor samples or
+delivers (``nav.next_tick``; a tick with nothing due would change nothing),
+and stay bitwise equal (tests/test_sensors.py).
 """
 
 from __future__ import annotations
