@@ -94,7 +94,15 @@ def _check_noise_floor(scn: Scenario, law: str) -> list[Finding]:
     if nf is None:
         return [Finding("note", "sensors", "", f"no noise floor for law {law!r} (no linear model)")]
     if not nf.stable:
-        return [Finding("warning", key, value, "the linearised loop is unstable at this chiinf: no noise floor")]
+        out = [Finding("warning", key, value, "the linearised loop is unstable at this chiinf: no noise floor")]
+        est_mrp = nf.est_rms_arcsec * (math.pi / 180 / 3600) / 4.0  # the estimate's own error, as MRP
+        low = np.flatnonzero(nf.bound_mrp < NOISE_SIGMAS * est_mrp)
+        if low.size:
+            out.append(Finding("warning", key, value, "chiinf is below the noise of the attitude estimate itself "
+                               f"on axis {', '.join('xyz'[i] for i in low)}: bound min(dmin, dmax) chiinf "
+                               f"{_fmt(nf.bound_mrp)} MRP against {NOISE_SIGMAS:g} x the estimator's RMS "
+                               f"{_fmt(nf.est_rms_arcsec)} arcsec (MRP {_fmt(est_mrp)})"))
+        return out
     low = np.flatnonzero(nf.margin < 1)
     text = (f"noise floor from the sensors alone: RMS {_fmt(nf.rms_arcsec)} arcsec "
             f"(MRP {_fmt(nf.rms_mrp)}); bound min(dmin, dmax) chiinf / ({NOISE_SIGMAS:g} RMS) = {_fmt(nf.margin)}")
