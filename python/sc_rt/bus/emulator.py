@@ -114,11 +114,19 @@ class Emulator:
         self._rt = RealtimeThread(freeze_gc=freeze_gc, cpu=cpu, fifo=realtime_priority)
         self.cpp_plant = cpp_plant
         self._cpp_params: tuple = (None,)
-        #: per row, monotonic ns: [tick or answer, integrated, state published, truth done]
+        #: per row, monotonic ns: [tick or answer, integrated, state published, truth started, truth done]
         self._stamps: np.ndarray | None = None
+        #: real time: row k's record and truth wait (bounded) until the answer to
+        #: state k + 1 is in, so the command is handled as it arrives
+        self._pending: tuple | None = None
+        self._pending_by_ns = 0
+        self._cmd_utime: dict[int, int] = {}  # state seq -> the answer's utime (controller's publish) [us]
+        self._pub_wall_us: dict[int, int] = {}  # state seq -> its utime (our publish) [us]
         self._guidance_next: tuple | None = None  # guidance values of the next state, computed ahead
         self._next_published = -1
         self._guidance_sent: tuple = (-1, None)  # (seq, guidance values) of the newest state out
+        #: real time: ticks that applied the answer to the state of the period just ended
+        self.fresh_ticks = 0
         self.accept_faults = accept_fault_commands
         self.cmd_timeout, self.retries = cmd_timeout, retries
         self.stale_periods = (scn.controller.safety.stale_periods if stale_periods is None
@@ -236,6 +244,8 @@ class Emulator:
         if msg.state_seq >= 0 and msg.state_seq not in self._cmd:
             self._cmd[msg.state_seq] = msg
             self._cmd_rx[msg.state_seq] = now
+            if len(data) == _CMD_SIZE:
+                self._cmd_utime[msg.state_seq] = v[0]
 
     def _on_status(self, _ch: str, data: bytes) -> None:
         # The loop needs only the header (session, seqs) now; the full decode
@@ -306,15 +316,25 @@ class Emulator:
             guidance = self._guidance_sent[1] if self._guidance_sent[0] == k else self.guidance.values(t)
         self._guidance_sent = (k, guidance)
         self.guidance.publish(k, t, guidance)  # the reference first: a controller has it with the state
-        data = _STATE_FP + _STATE_LAYOUT.pack(time.time_ns() // 1000, k, self.session, t, *x[0:10])
+        utime = time.time_ns() // 1000
+        data = _STATE_FP + _STATE_LAYOUT.pack(utime, k, self.session, t, *x[0:10])
+        self._pub_wall_us.setdefault(k, utime)
         self._pub_ns[k] = time.monotonic_ns()
         self.lc.publish(self._ch_state, data)
+        self._drain()  # our own guidance and state come back (loopback): handled while the controller works
 
-    def _publish_truth(self, run, k, t, cmd_seq, u_cmd, accel, delta2, stale) -> None:
-        if self._fault_fields[0] is not self.act:  # the fault set changed (live injection)
-            faults = {f.wheel: f for f in self.act.faults}
+    def _drain(self) -> None:
+        """Handle what is already in the socket, without waiting."""
+        fd = self.lc.fileno()
+        while select.select([fd], [], [], 0)[0]:
+            self.lc.handle()
+
+    def _publish_truth(self, run, k, t, cmd_seq, u_cmd, accel, delta2, stale, act=None) -> None:
+        act = self.act if act is None else act  # the faults row k was applied with
+        if self._fault_fields[0] is not act:  # the fault set changed (live injection)
+            faults = {f.wheel: f for f in act.faults}
             self._fault_fields = (
-                self.act, [faults.get(i) for i in range(4)],
+                act, [faults.get(i) for i in range(4)],
                 [faults[i].effectiveness if i in faults else 1.0 for i in range(4)]
                 + [faults[i].bias if i in faults else 0.0 for i in range(4)]
                 + [1 if i in faults and faults[i].stuck else 0 for i in range(4)])
@@ -335,13 +355,17 @@ class Emulator:
         the scheduler's latency; a poll is not)."""
         fd = self.lc.fileno()
         while True:
+            if self._pending is not None and (self._next_published in self._cmd
+                                              or time.monotonic_ns() >= self._pending_by_ns):
+                self._flush_pending()  # the answer is in (or half a period passed): now the truth
             rem = deadline_ns - time.monotonic_ns()
             if rem <= 0:
-                # drain what is already there without waiting
-                while select.select([fd], [], [], 0)[0]:
-                    self.lc.handle()
+                self._drain()  # what is already there, without waiting
                 return
-            if select.select([fd], [], [], (rem - spin_ns) / 1e9 if rem > spin_ns else 0)[0]:
+            wait = rem - spin_ns
+            if self._pending is not None:  # wake for the deferred truth at the latest
+                wait = min(wait, self._pending_by_ns - time.monotonic_ns())
+            if select.select([fd], [], [], wait / 1e9 if wait > 0 else 0)[0]:
                 self.lc.handle()
 
     def _should_stop(self) -> bool:
@@ -382,9 +406,16 @@ class Emulator:
         s = s[np.all(s > 0, axis=1)]
         d = np.diff(s, axis=1) / 1e3
         out = {"integrate": percentiles(d[:, 0]), "publish_state": percentiles(d[:, 1]),
-               "truth_record": percentiles(d[:, 2]), "rows": int(len(s))}
+               "truth_record": percentiles(d[:, 3]), "rows": int(len(s))}
         if self.mode == "lockstep" and len(s) > 1:
-            out["wait_answer"] = percentiles((s[1:, 0] - s[:-1, 2]) / 1e3)
+            out["wait_answer"] = percentiles((s[1:, 0] - s[:-1, 4]) / 1e3)
+        # the state-to-command latency split at the controller's publish (wall clock, us)
+        ks = [k for k in self._cmd_utime if k in self._pub_wall_us and k in self._cmd_rx and k in self._pub_ns]
+        if ks:
+            there = np.array([self._cmd_utime[k] - self._pub_wall_us[k] for k in ks], float)
+            total = np.array([(self._cmd_rx[k] - self._pub_ns[k]) / 1e3 for k in ks])
+            out["state_to_controller_publish"] = percentiles(there)
+            out["controller_publish_to_handled"] = percentiles(total - there)
         return out
 
     def _await_controller(self, x0: np.ndarray) -> None:
@@ -443,7 +474,7 @@ class Emulator:
         scn = self.scn
         n_ctrl, n_sub, h, rate = grid(scn)
         traj = self._allocate(n_ctrl + 1)
-        self._stamps = stamps = np.zeros((n_ctrl + 1, 4), np.int64)
+        self._stamps = stamps = np.zeros((n_ctrl + 1, 5), np.int64)
         x = initial_state(scn)
         rows = 0
         silent = 0  # consecutive states without an answer
@@ -499,7 +530,8 @@ class Emulator:
         wall_period_ns = int(round(period / self.time_scale * 1e9))
         stale_ns = int(self.stale_periods * wall_period_ns)
         traj = self._allocate(n_ticks + 1)
-        self._stamps = stamps = np.zeros((n_ticks + 1, 4), np.int64)
+        self._stamps = stamps = np.zeros((n_ticks + 1, 5), np.int64)
+        defer_ns = wall_period_ns // 2  # a row's truth waits at most half a period for the answer
         x = initial_state(scn)
         lateness = traj["tick_lateness_us"]
         rows = 0
@@ -520,8 +552,10 @@ class Emulator:
             if cmd is None or now - self._newest_cmd_ns > stale_ns:
                 self.counters["cmd_stale_ticks"] += 1
                 cmd = None
+            elif cmd.state_seq == k:  # computed from the state of the period that just ended
+                self.fresh_ticks += 1
             x = self._apply(traj, k, t, x, cmd, n_sub, h, None if k == n_ticks else (k + 1, (k + 1) * period),
-                            stamps[k])
+                            stamps[k], defer_ns=defer_ns)
             rows = k + 1
             if k == n_ticks or x is None or self._should_stop():
                 break
@@ -544,12 +578,14 @@ class Emulator:
         return xs.to_vector()
 
     def _apply(self, traj, k: int, t: float, x: np.ndarray, cmd, n_sub: int, h: float,
-               next_state: tuple[int, float] | None = None, stamps=None):
+               next_state: tuple[int, float] | None = None, stamps=None, defer_ns: int | None = None):
         """Row k: apply ``cmd`` (None: the watchdog's zero) over one control
         period; publish the next state (``next_state``: its seq and t; not when
         the run stops or diverged) first, then record row k with the truth at t and publish the
         truth. ``stamps``: the row's monotonic ns (integrated, state out, truth
-        out) go to stamps[1:4]. Returns the next state, or None when it is not
+        out) go to stamps[1:5]. ``defer_ns``: the record and the truth wait
+        until the answer to the next state is in, at most this long
+        (``_handle_until``). Returns the next state, or None when it is not
         finite."""
         stale = cmd is None
         self._peer_lost = stale
@@ -568,20 +604,35 @@ class Emulator:
         if stamps is not None:
             stamps[1] = time.monotonic_ns()
         if next_state is not None and finite and not self._should_stop():
+            self._t_now = next_state[1]  # what arrives from now on arrives during the next row
             guidance, self._guidance_next = self._guidance_next, None
             self._publish_state(next_state[0], next_state[1], x_next, guidance)
             self._next_published = next_state[0]
         if stamps is not None:
             stamps[2] = time.monotonic_ns()
+        self._pending = (traj, k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps)
+        if defer_ns is None or next_state is None or not finite:
+            self._flush_pending()
+        else:
+            self._pending_by_ns = time.monotonic_ns() + defer_ns
+        return x_next if finite else None
+
+    def _flush_pending(self) -> None:
+        """The deferred part of a row: its record and its truth."""
+        traj, k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps = self._pending
+        self._pending = None
+        if stamps is not None:
+            stamps[3] = time.monotonic_ns()
         u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
         delta2 = plant.lumped_disturbance(self.scn.plant, t, x, u_sat, accel)
         self._record(traj, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2)
-        self._publish_truth(traj, k, t, cmd_seq, u_cmd, accel, delta2, stale)
+        self._publish_truth(traj, k, t, cmd_seq, u_cmd, accel, delta2, stale, act)
         if stamps is not None:
-            stamps[3] = time.monotonic_ns()
-        return x_next if finite else None
+            stamps[4] = time.monotonic_ns()
 
     def _finish(self, run: Run, rows: int, diverged: bool) -> Run:
+        if self._pending is not None:
+            self._flush_pending()
         if self._gap_start is not None and rows > 0:
             self._gaps.append((self._gap_start, float(run["t"][rows - 1])))
             self._gap_start = None

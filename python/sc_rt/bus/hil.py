@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -25,6 +26,7 @@ import numpy as np
 from sc_rt.bus.auth import load_key, open_bus
 from sc_rt.bus.emulator import Emulator
 from sc_rt.bus.external import ExternalController, python_controller_command
+from sc_rt.bus.floor import TimingSetup, compare_to_floor, floor_for
 from sc_rt.bus.lcmio import channel, free_port_url, lcm_binary, open_lcm
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
@@ -170,14 +172,22 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
             lcm_url: str | None = None, prefix: str = "", realtime_priority: bool = False,
             time_scale: float = 1.0, accept_fault_commands: bool = False,
             plots: bool = True, external: str | None = None, external_wait: bool = False,
-            start_timeout: float | None = None, auth_key: str | Path | None = None) -> HilResult:
+            start_timeout: float | None = None, auth_key: str | Path | None = None,
+            setup: TimingSetup | None = None, floor: dict | str | None = None) -> HilResult:
     """A bench run. The controller is sc-rt-controller, or (bus/external.py)
     ``external``: a command line started instead (a Python law ``law`` =
     "module:Class" runs as ``sc-rt controller``), or, with ``external_wait``,
-    a controller started by hand that speaks the protocol (docs/PROTOCOL.md)."""
+    a controller started by hand that speaks the protocol (docs/PROTOCOL.md).
+    ``setup``: trigger, CPUs, the emulator's spin (bus/floor.py); ``floor``:
+    the bench floor timing.json compares the run with (a dict, or "auto",
+    "cached", "measure": bus/floor.py ``floor_for``; None: none)."""
     if is_python_law(law):
         external, law = python_controller_command(law, realtime_priority), None
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
+    setup = setup or TimingSetup()
+    if isinstance(floor, str):  # the floor's own short run first, before this run's children
+        floor = floor_for(scn, mode=mode, control_rate_hz=None, realtime_priority=realtime_priority,
+                          setup=setup, policy=floor)
 
     url = lcm_url or free_port_url(ttl=0)
     key = load_key(auth_key)  # --auth-key: read (and refused when empty) before anything starts
@@ -198,12 +208,12 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     with Stopper() as stopper:
         return _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale,
                              accept_fault_commands, plots, stopper, ctl_bin, logger_bin, cfg_path, log_path,
-                             ext, key, auth_key)
+                             ext, key, auth_key, setup=setup, floor=floor)
 
 
 def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, accept_fault_commands,
                   plots, stopper, ctl_bin, logger_bin, cfg_path, log_path, ext=None, key=None,
-                  key_path=None) -> HilResult:
+                  key_path=None, setup: TimingSetup = TimingSetup(), floor: dict | None = None) -> HilResult:
     logger = subprocess.Popen([logger_bin, "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs())
     stopper.logger = logger
@@ -227,6 +237,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         cmd.append("--realtime-priority")
     if key_path is not None:
         cmd += ["--auth-key", str(key_path)]
+    cmd += setup.controller_args()  # --trigger, --cpu, --null-law
     try:
         ctl = (ext.start(child_kwargs()) if ext else
                subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
@@ -244,7 +255,8 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         emu = Emulator(scn, mode=mode, url=url, prefix=prefix, time_scale=time_scale,
                        accept_fault_commands=accept_fault_commands,
                        stop=ext.stop_check(stopper) if ext else stopper,
-                       start_timeout=ext.start_timeout if ext else None, auth_key=key)
+                       start_timeout=ext.start_timeout if ext else None, auth_key=key,
+                       spin_us=setup.spin_us, cpu=setup.emulator_cpu, realtime_priority=realtime_priority)
         t0 = time.perf_counter()
         res = emu.run()
         wall = time.perf_counter() - t0 - emu.start_wait_s  # the run, not the wait for its controller
@@ -291,6 +303,10 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     fill_tracking_errors(res, scn.core_config().guidance)
     finish_run(res)
     res.timing = timing_report(res, summary, wall)
+    res.timing.update(_bench_timing(res, summary, emu, setup))
+    if floor:
+        res.timing["floor"] = floor
+        res.timing["over_floor"] = compare_to_floor(res.timing, floor)
     try:
         files = write_run(res, out, figures=plots and len(res) > 1)  # (no figure of a run stopped at once)
     except OSError as e:  # a full disk: say where, and why the run had stopped
@@ -299,6 +315,30 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     files += [p for p in (log_path, cfg_path, summary_path, out / "controller_stderr.txt",
                           out / "controller_stdout.txt") if p.exists()]
     return HilResult(out, res, summary, files, stopped, stopper.signum)
+
+
+def _bench_timing(res: Run, summary: dict[str, Any], emu: Emulator, setup: TimingSetup) -> dict[str, Any]:
+    """How the run was scheduled and how fresh its commands were: the share
+    of rows that applied the answer to the state of the period just ended
+    (real time: the command in hand at the tick answers the previous tick's
+    state; lockstep: every answered state), the share of controller steps
+    that had a new state, and where the emulator's microseconds went."""
+    rows = len(res)
+    if res.meta.mode == "realtime":
+        fresh = emu.fresh_ticks / rows if rows else None
+    else:
+        fresh = 1.0 - res.counters.get("cmd_timeout", 0) / rows if rows else None
+    steps = int(summary.get("steps", 0))
+    return {
+        "trigger": summary.get("trigger", setup.trigger),
+        "null_law": bool(summary.get("null_law", setup.null_law)),
+        "timing_setup": dataclasses.asdict(setup),
+        "emulator_scheduler": emu.scheduler,
+        "fresh_fraction": fresh,
+        "controller_fresh_fraction": 1.0 - int(summary.get("stale_states", 0)) / steps if steps else None,
+        "emulator_breakdown_us": emu.breakdown(),
+        "load_avg": list(os.getloadavg()),
+    }
 
 
 def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, Any]:
@@ -332,4 +372,11 @@ def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, A
         "emulator_counters": dict(c),
         "command_gaps_s": [list(g) for g in res.gaps],
         "faults_applied": res.faults_applied,
+        # how the run was scheduled and how fresh it was: filled by sc-rt hil
+        # (_bench_timing); a log does not say (sc-rt report: None)
+        "trigger": summary.get("trigger"), "null_law": summary.get("null_law"), "timing_setup": None,
+        "emulator_scheduler": None, "fresh_fraction": None,
+        "controller_fresh_fraction": (1.0 - int(summary.get("stale_states", 0)) / int(summary["steps"])
+                                      if summary.get("steps") else None),
+        "emulator_breakdown_us": None, "load_avg": None,
     }

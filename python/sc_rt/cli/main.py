@@ -14,6 +14,7 @@ from sc_rt.cli.validate import (AUTH_KEY_HELP, auth_key_file, MAX_RATE_HZ, MAX_T
                                 number, out_dir, out_file)
 from sc_rt.cli.lawarg import LAW_HELP, core_law_choice, law_choice
 from sc_rt.cli.controller import add_external_options
+from sc_rt.cli.floor_cmd import add_floor_parser, add_timing_options
 from sc_rt.cli.common import LAW_CHOICES
 from sc_rt.cli.run_cmds import cmd_demo, cmd_emulator, cmd_hil, cmd_sim
 from sc_rt.cli.study_cmds import cmd_check, cmd_config, cmd_design, cmd_reproduce, cmd_scenarios
@@ -147,7 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     h = sub.add_parser("hil", help="controller process + plant emulator + lcm-logger over LCM")
     h.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
-    h.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep", help="default: %(default)s")
+    h.add_argument("--mode", choices=("lockstep", "realtime"),
+                   help="default: lockstep (--self-test: realtime)")
     h.add_argument("--law", "--controller", dest="law", type=law_choice, metavar="LAW",
                    help=LAW_HELP + "; a Python law runs in `sc-rt controller`")
     h.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
@@ -163,8 +165,10 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--mcap", nargs="?", const="", metavar="OUT",
                    help="also write the run's log as MCAP (default OUT: run.mcap in --out; as sc-rt export)")
     add_external_options(h)  # --external, --external-wait, --start-timeout (sc_rt/cli/controller.py)
+    add_timing_options(h)  # --trigger, CPUs, --spin-us, --floor, --self-test (sc_rt/cli/floor_cmd.py)
     lcm_opts(h)
     h.set_defaults(func=cmd_hil)
+    add_floor_parser(sub)  # sc-rt floor
 
     d = sub.add_parser("demo", help="the main job: the paper's DSC+PPC and the feasible 10 Hz design "
                        "on the paper's fault scenario, each through the real LCM loop")

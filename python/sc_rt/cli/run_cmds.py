@@ -58,6 +58,13 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
 def cmd_hil(args: argparse.Namespace) -> int:
     from sc_rt.bus.hil import run_hil
+    from sc_rt.cli.floor_cmd import cmd_floor, timing_setup
+
+    if args.mode is None:
+        args.mode = "realtime" if args.self_test else "lockstep"
+    if args.self_test:  # the bench floor only (sc-rt floor), a short run
+        args.duration, args.rtt_count, args.json, args.no_cache = args.duration or 2.0, 2000, False, False
+        return cmd_floor(args)
 
     from sc_rt.scenario.overrides import with_overrides
 
@@ -80,7 +87,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
                   time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
                   plots=not args.no_plots, law=pylaw, external=args.external,
                   external_wait=args.external_wait, start_timeout=args.start_timeout,
-                  auth_key=args.auth_key)
+                  auth_key=args.auth_key, setup=timing_setup(args),
+                  floor=None if args.floor == "off" or args.mode != "realtime" else args.floor)
     print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/ ({len(res.files)} files: "
           f"{', '.join(p.name for p in res.files)}, run.lcmlog)")
     print_metrics(res.metrics, res.run.meta.faults)
@@ -90,6 +98,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
     print(f"  steps/s {t['steps_per_s'] or 0:.0f}  deadline misses {t['deadline_misses']}  "
           f"stale states {t['stale_states']}  dropped {t['dropped']}  malformed {t['malformed']}  "
           f"scheduler {t['scheduler']}")
+    if t.get("over_floor"):
+        print(f"  {t['over_floor']['line']}")
     if res.stopped:
         return report_stopped(res.run, res.stopped, res.signum, res.out, "hil")
     html_report(Path(res.out), "hil")
