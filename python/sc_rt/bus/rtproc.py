@@ -10,8 +10,12 @@ real-time run, and gives back afterwards (docs/HIL.md, "The emulator's loop").
   (root or CAP_SYS_NICE / CAP_IPC_LOCK; refused: the run goes on without and
   says so).
 
-Only the calling thread (the emulator's) is changed: Linux applies the
-scheduler, the affinity and the slack per thread.
+Linux applies the scheduler and the affinity per thread: they are given to
+every thread of the process (the emulator's, and the receive thread that
+LCM's udpm provider runs inside ``lcm.LCM``, which reads the socket and
+wakes the emulator through a pipe: left at SCHED_OTHER it delays every
+command by a scheduler's wake-up), and given back afterwards. The timer
+slack is the calling thread's.
 """
 
 from __future__ import annotations
@@ -29,6 +33,13 @@ __all__ = ["RealtimeThread", "EMULATOR_FIFO_PRIORITY"]
 EMULATOR_FIFO_PRIORITY = 70
 _PR_SET_TIMERSLACK, _PR_GET_TIMERSLACK = 29, 30
 _MCL_CURRENT, _MCL_FUTURE = 1, 2
+
+
+def _threads() -> list[int]:
+    try:
+        return [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:
+        return [0]
 
 
 def _libc():
@@ -59,9 +70,10 @@ class RealtimeThread:
         libc = _libc()
         if self.fifo:
             try:
-                old = (os.sched_getscheduler(0), os.sched_getparam(0))
-                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(EMULATOR_FIFO_PRIORITY))
-                self._undo.append(lambda: os.sched_setscheduler(0, old[0], old[1]))
+                for tid in _threads():
+                    old = (os.sched_getscheduler(tid), os.sched_getparam(tid))
+                    os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(EMULATOR_FIFO_PRIORITY))
+                    self._undo.append(lambda tid=tid, old=old: os.sched_setscheduler(tid, old[0], old[1]))
                 self.got.append(f"SCHED_FIFO {EMULATOR_FIFO_PRIORITY}")
             except (OSError, AttributeError) as e:
                 self.warnings.append(f"SCHED_FIFO not permitted ({e}): running SCHED_OTHER")
@@ -76,9 +88,10 @@ class RealtimeThread:
             self.got.append("SCHED_OTHER")
         if self.cpu is not None:
             try:
-                old_cpus = os.sched_getaffinity(0)
-                os.sched_setaffinity(0, {self.cpu})
-                self._undo.append(lambda: os.sched_setaffinity(0, old_cpus))
+                for tid in _threads():
+                    old_cpus = os.sched_getaffinity(tid)
+                    os.sched_setaffinity(tid, {self.cpu})
+                    self._undo.append(lambda tid=tid, old_cpus=old_cpus: os.sched_setaffinity(tid, old_cpus))
                 self.got.append(f"CPU {self.cpu}")
             except (OSError, ValueError) as e:
                 self.warnings.append(f"cannot pin to CPU {self.cpu} ({e})")
