@@ -8,10 +8,11 @@
 // Propagation over dt with the held rate w = omega_m - b_est:
 //   sigma <- exp(-(w dt)^) sigma (exact for a constant rate)
 //   Phi = [[exp(-(w dt)^), -dt I], [0, a I]], a = exp(-dt / bias_tau) (1 without Gauss-Markov)
-//   Q   = [[arw^2 dt + q^2/6 + rrw^2 dt^3/3, -rrw^2 dt^2/2], [., rrw^2 dt + bias_sigma^2 (1 - a^2)]]
-//         (q: the gyro's angle quantum; the Gauss-Markov cross terms are left out)
+//   Q   = [[arw^2 dt + rrw^2 dt^3/3, -rrw^2 dt^2/2], [., rrw^2 dt + bias_sigma^2 (1 - a^2)]]
+//         (the Gauss-Markov cross terms are left out)
 // Update with a star tracker attitude sigma_m: residual z = rotation vector of
-// R(sigma_m) R(sigma_est)' (H = [I 0]), R = A diag(sc^2, sc^2, sb^2) A',
+// R(sigma_m) R(sigma_est)' (H = [I 0]), R = A diag(sc^2, sc^2, sb^2) A' + q^2/12 I
+// (q: the gyro's angle quantum, whose carried remainder is a bounded attitude error),
 // Joseph form; sigma_est <- exp(-dtheta^) sigma_est, b_est += db.
 //
 // Latency: a measurement exposed at t_e and delivered later is applied at

@@ -102,7 +102,8 @@ def _axis_star_sigma(sensors: Sensors) -> np.ndarray:
     b = np.asarray(st.boresight, float)
     b = b / np.linalg.norm(b)
     sc2, sb2 = (st.sigma_cross * ARCSEC) ** 2, (st.sigma_boresight * ARCSEC) ** 2
-    return np.sqrt(sc2 * (1 - b * b) + sb2 * b * b)
+    q2 = (sensors.gyro.quantization * ARCSEC) ** 2 / 12.0 if sensors.gyro is not None else 0.0
+    return np.sqrt(sc2 * (1 - b * b) + sb2 * b * b + q2)  # + the MEKF's q^2/12 (mekf.hpp)
 
 
 def _error_model(sensors: Sensors, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -114,7 +115,7 @@ def _error_model(sensors: Sensors, dt: float) -> tuple[np.ndarray, np.ndarray]:
         a = math.exp(-dt / g.bias_tau)
         bias_q = (g.bias_sigma * DEG_PER_H) ** 2 * (1 - a * a)
     F = np.array([[1.0, -dt], [0.0, a]])
-    Q = np.array([[arw**2 * dt + rrw**2 * dt**3 / 3 + (g.quantization * ARCSEC) ** 2 / 6, -rrw**2 * dt**2 / 2],
+    Q = np.array([[arw**2 * dt + rrw**2 * dt**3 / 3, -rrw**2 * dt**2 / 2],
                   [-rrw**2 * dt**2 / 2, rrw**2 * dt + bias_q]])
     return F, Q + 1e-30 * np.eye(2)  # a noiseless gyro: keep the Riccati equation well posed
 
