@@ -156,6 +156,30 @@ class Stopper:
         return None
 
 
+def _wait_logged(url: str, path: Path, logger: subprocess.Popen, channel_name: str, payload: bytes,
+                 timeout_s: float = 10.0) -> bool:
+    """Publish an end marker and wait until lcm-logger has written it: the
+    logger receives in send order, so everything the run published is in the
+    log before it (a loaded machine can leave the logger seconds behind a
+    lockstep run; stopping it at once lost the last states). False when the
+    marker did not appear within ``timeout_s`` (said in timing.json)."""
+    lc = open_lcm(url)
+    needle = channel_name.encode()
+    end = time.monotonic() + timeout_s
+    next_pub = 0.0
+    while time.monotonic() < end and logger.poll() is None:
+        if time.monotonic() >= next_pub:  # again now and then: a datagram can be lost
+            lc.publish(channel_name, payload)
+            next_pub = time.monotonic() + 1.0
+        if path.exists():
+            with open(path, "rb") as f:
+                f.seek(max(0, path.stat().st_size - 4096))
+                if needle in f.read():
+                    return True
+        time.sleep(0.01)
+    return False
+
+
 def _stop(proc: subprocess.Popen, sig: int = signal.SIGTERM, timeout: float = 5.0) -> int:
     if proc.poll() is None:
         proc.send_signal(sig)
@@ -266,7 +290,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         if ctl is not None:
             _stop(ctl, signal.SIGTERM)
         ctl_err = ext.stderr_text() if ext else ctl.stderr.read() if ctl.stderr else ""
-        time.sleep(0.15)  # one logger flush interval
+        log_complete = _wait_logged(url, log_path, logger, prefix + "SCRT_HIL_END", scn.name.encode())
         logger_rc = _stop(logger, signal.SIGINT)
     logger_err = logger.stderr.read().decode(errors="replace").strip() if logger.stderr else ""
     stopped = res.message if res.partial else None
@@ -303,6 +327,8 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     fill_tracking_errors(res, scn.core_config().guidance)
     finish_run(res)
     res.timing = timing_report(res, summary, wall)
+    # the end marker reached the log: every message published before it is there too
+    res.timing["log_complete"] = bool(log_complete)
     res.timing.update(_bench_timing(res, summary, emu, setup))
     if floor:
         res.timing["floor"] = floor

@@ -59,6 +59,8 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
                "stale_states": ls.get("stale_states", 0), "scheduler": "unknown (not in the log)"}
     out = timing_report(run, summary, wall)
     out["source"] = "log"
+    # sc-rt hil's end marker in the log: everything published before it was logged
+    out["log_complete"] = d.skipped.get(d.prefix + "SCRT_HIL_END", 0) > 0
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"
     return out
