@@ -398,7 +398,8 @@ class Emulator:
         round trip and the controller)."""
         def percentiles(v):
             return ({"p50": float(np.percentile(v, 50)), "p99": float(np.percentile(v, 99)),
-                     "max": float(np.max(v))} if len(v) else {"p50": None, "p99": None, "max": None})
+                     "max": float(np.max(v)), "mean": float(np.mean(v))} if len(v)
+                    else {"p50": None, "p99": None, "max": None, "mean": None})
 
         s = self._stamps
         if s is None or len(s) == 0:
@@ -416,6 +417,13 @@ class Emulator:
             total = np.array([(self._cmd_rx[k] - self._pub_ns[k]) / 1e3 for k in ks])
             out["state_to_controller_publish"] = percentiles(there)
             out["controller_publish_to_handled"] = percentiles(total - there)
+            if self.mode == "realtime":  # the answers that came after the tick that needed them
+                st = self._stamps
+                late = [i for i, k in enumerate(ks) if k < len(st) and st[k, 0] > 0 and self._cmd_rx[k] > st[k, 0]]
+                out["late_answers"] = {
+                    "count": len(late), "of": len(ks),
+                    "state_to_controller_publish": percentiles(there[late]),
+                    "controller_publish_to_handled": percentiles((total - there)[late])}
         return out
 
     def _await_controller(self, x0: np.ndarray) -> None:
@@ -610,6 +618,8 @@ class Emulator:
             self._next_published = next_state[0]
         if stamps is not None:
             stamps[2] = time.monotonic_ns()
+        if self._pending is not None:  # a late tick: the previous row's record and truth first, never lost
+            self._flush_pending()
         self._pending = (traj, k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps)
         if defer_ns is None or next_state is None or not finite:
             self._flush_pending()

@@ -93,11 +93,15 @@ def _pingpong() -> str:
     return str(here) if here.exists() else "sc-rt-lcm-pingpong"
 
 
-def lcm_round_trip(count: int = 2000, url: str | None = None) -> dict[str, Any]:
+def lcm_round_trip(count: int = 2000, url: str | None = None, fifo: bool = False) -> dict[str, Any]:
     """The C++ <-> C++ LCM round trip with the loop's message sizes
-    (sc-rt-lcm-pingpong): {"n", "lost", "rtt_us": {p50, p99, max, min}}."""
+    (sc-rt-lcm-pingpong): {"n", "lost", "rtt_us": {p50, p99, max, min}};
+    ``fifo``: both ends at SCHED_FIFO 80 (chrt), as the controller with
+    --realtime-priority (falls back to SCHED_OTHER when refused)."""
     url = url or free_port_url(ttl=0)
     exe = shlex.quote(_pingpong())
+    if fifo and subprocess.run(["chrt", "-f", "80", "true"], capture_output=True).returncode == 0:
+        exe = "chrt -f 80 " + exe
     script = (f"{exe} --role pong --lcm-url {shlex.quote(url)} 2>/dev/null & P=$!; sleep 0.3; "
               f"{exe} --role ping --lcm-url {shlex.quote(url)} --count {int(count)}; kill $P")
     r = subprocess.run(["sh", "-c", script], capture_output=True, text=True, timeout=300)
@@ -117,7 +121,7 @@ def measure_floor(scn: Scenario, *, mode: str = "realtime", control_rate_hz: flo
     setup = setup or TimingSetup()
     null = TimingSetup(**{**asdict(setup), "null_law": True})
     rate = control_rate_hz or scn.run.control_rate_hz
-    rtt = lcm_round_trip(rtt_count)
+    rtt = lcm_round_trip(rtt_count, fifo=realtime_priority)
     with tempfile.TemporaryDirectory(prefix="sc-rt-floor-") as d:
         t0 = time.time()
         res = run_hil(scn, out=Path(d), mode=mode, control_rate_hz=rate, duration=duration,
@@ -140,7 +144,7 @@ def measure_floor(scn: Scenario, *, mode: str = "realtime", control_rate_hz: flo
 
 def floor_for(scn: Scenario, *, mode: str, control_rate_hz: float | None, realtime_priority: bool,
               setup: TimingSetup | None = None, policy: str = "auto", duration: float = DEFAULT_FLOOR_S,
-              max_age_s: float = DEFAULT_MAX_AGE_S) -> dict[str, Any]:
+              max_age_s: float = DEFAULT_MAX_AGE_S, rtt_count: int = 2000) -> dict[str, Any]:
     """The floor a run is compared with. ``policy``: ``measure`` (now, then
     cached), ``cached`` (the cache's, else measured), ``auto`` (the cache's
     when younger than ``max_age_s``, else measured). The result says which
@@ -159,7 +163,7 @@ def floor_for(scn: Scenario, *, mode: str, control_rate_hz: float | None, realti
         except (OSError, ValueError):
             pass  # unreadable: measure again
     f = measure_floor(scn, mode=mode, control_rate_hz=rate, duration=duration,
-                      realtime_priority=realtime_priority, setup=setup)
+                      realtime_priority=realtime_priority, setup=setup, rtt_count=rtt_count)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(f, indent=2) + "\n")

@@ -95,7 +95,7 @@ def cmd_floor(args: argparse.Namespace) -> int:
     else:
         f = floor_for(scn, mode=args.mode, control_rate_hz=args.control_rate,
                       realtime_priority=args.realtime_priority, setup=setup, policy="measure",
-                      duration=args.duration)
+                      duration=args.duration, rtt_count=args.rtt_count)
     if args.json:
         json.dump(f, sys.stdout, indent=2)
         print()

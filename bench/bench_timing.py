@@ -1,0 +1,257 @@
+"""The bench's timing targets (issue #16), each the median of 3 runs:
+
+  100 Hz real time  : >= 99.99 % of control steps use a state of the current
+                      period; latency p99 <= 250 us
+  1 kHz real time   : >= 99.9 % fresh; latency p50 <= 100 us, p99 <= 250 us;
+                      deadline misses <= 0.1 %; emulator tick lateness p99 <= 100 us
+  lockstep + logger : >= 5,000 steps/s; latency p99 <= 2 x the LCM floor's p99
+                      (sc-rt-lcm-pingpong, measured before each run)
+
+Real-time rows: 60 s runs (--quick: 10 s), the event-triggered controller,
+SCHED_FIFO + mlockall for the controller and the emulator when permitted
+(--no-priority: without), each run with its bench floor (sc-rt hil --floor
+auto). The timer-triggered controller is run once per rate for the trade-off.
+Lockstep: 30,001 steps (--quick: 3,001). Each row prints target / measured /
+miss-by and the breakdown (the emulator's stamps, the controller's status,
+the LCM floor); a missed row is profiled (cProfile of the emulator process,
+a 5 s run: the top functions by own time). The load average is recorded
+next to every run.
+
+    .venv/bin/python bench/bench_timing.py [--quick] [--no-priority] [--rows 100hz,1khz,lockstep]
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pstats
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from common import ROOT, machine, write
+
+sys.path.insert(0, str(ROOT / "tests"))
+import lcmnet  # noqa: E402
+
+SCENARIO = "scenarios/paper_faults.toml"
+
+
+def hil(args: list[str], profile: Path | None = None) -> dict:
+    with tempfile.TemporaryDirectory() as d:
+        pre = [sys.executable] + (["-m", "cProfile", "-o", str(profile)] if profile else []) + ["-m", "sc_rt.cli"]
+        cmd = lcmnet.wrap(pre + ["hil", SCENARIO, "--no-plots", "--out", d, *args])
+        load = os.getloadavg()
+        r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=1800)
+        if r.returncode != 0:
+            raise RuntimeError(f"{' '.join(args)}: {r.stderr[-2000:]}")
+        t = json.loads((Path(d) / "timing.json").read_text())
+        t["load_avg_before"] = list(load)
+        return t
+
+
+def lcm_floor(count: int, fifo: bool) -> dict:
+    """The C++ LCM round trip (sc-rt-lcm-pingpong), in the same namespace as
+    the runs, at the controller's scheduler."""
+    code = ("import json; from sc_rt.bus.floor import lcm_round_trip; "
+            f"print(json.dumps(lcm_round_trip({count}, 'udpm://239.255.76.67:7721?ttl=0', fifo={fifo})))")
+    r = subprocess.run(lcmnet.wrap([sys.executable, "-c", code]), capture_output=True, text=True, timeout=600)
+    if r.returncode != 0:
+        raise RuntimeError(r.stderr)
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def med(runs: list[dict], *path: str):
+    vals = []
+    for r in runs:
+        v = r
+        for p in path:
+            v = (v or {}).get(p) if isinstance(v, dict) else None
+        if v is not None:
+            vals.append(v)
+    return statistics.median(vals) if vals else None
+
+
+def check(name: str, measured, op: str, target: float, unit: str) -> dict:
+    ok = measured is not None and (measured >= target if op == ">=" else measured <= target)
+    if measured is None:
+        miss = "not measured"
+    elif ok:
+        miss = ""
+    elif op == ">=":
+        miss = f"short by {target - measured:.4g} {unit}".strip()
+    else:
+        miss = f"over by {measured - target:.4g} {unit} ({measured / target:.2f}x)".strip()
+    return {"figure": name, "target": f"{op} {target:g} {unit}".strip(), "measured": measured,
+            "unit": unit, "pass": ok, "miss_by": miss}
+
+
+def breakdown(runs: list[dict]) -> dict:
+    """Medians over the runs of the p50 / p99 of each part [us]."""
+    out = {}
+    for part in ("integrate", "publish_state", "truth_record", "wait_answer", "state_to_controller_publish",
+                 "controller_publish_to_handled"):
+        p50, p99 = med(runs, "emulator_breakdown_us", part, "p50"), med(runs, "emulator_breakdown_us", part, "p99")
+        if p50 is not None:
+            out[f"emulator {part}"] = {"p50": p50, "p99": p99}
+    for key, name in (("compute_us", "controller compute"), ("state_age_us", "controller state age"),
+                      ("wake_lateness_us", "controller wake lateness"),
+                      ("emulator_tick_lateness_us", "emulator tick lateness")):
+        p50 = med(runs, key, "p50")
+        if p50 is not None:
+            out[name] = {"p50": p50, "p99": med(runs, key, "p99")}
+    f50 = med(runs, "floor", "latency_us", "p50")
+    if f50 is not None:
+        out["floor latency (null controller)"] = {"p50": f50, "p99": med(runs, "floor", "latency_us", "p99")}
+        out["floor LCM round trip"] = {"p50": med(runs, "floor", "lcm_rtt_us", "p50"),
+                                       "p99": med(runs, "floor", "lcm_rtt_us", "p99")}
+    return out
+
+
+def profile_row(args: list[str]) -> list[dict]:
+    """cProfile of the sc-rt hil process (the emulator's loop) for a 5 s run:
+    the top functions by own time, per call [us]."""
+    with tempfile.TemporaryDirectory() as d:
+        prof = Path(d) / "emu.prof"
+        hil(args, profile=prof)
+        st = pstats.Stats(str(prof))
+        rows = []
+        for (file, line, fn), (cc, nc, tt, ct, _callers) in st.stats.items():
+            rows.append({"function": f"{Path(file).name}:{line}({fn})", "calls": nc, "own_s": tt, "cum_s": ct,
+                         "own_us_per_call": 1e6 * tt / nc if nc else None})
+        rows.sort(key=lambda r: -r["own_s"])
+        return rows[:15]
+
+
+def why(row: str, runs: list[dict], checks: list[dict]) -> str:
+    """The measured reason of a miss, from the breakdown."""
+    b = breakdown(runs)
+    missed = [c["figure"] for c in checks if not c["pass"]]
+    if not missed:
+        return ""
+    parts = []
+    for k in ("emulator state_to_controller_publish", "emulator controller_publish_to_handled",
+              "emulator publish_state", "emulator truth_record", "emulator wait_answer", "emulator tick lateness",
+              "floor latency (null controller)"):
+        if k in b:
+            parts.append(f"{k} p50/p99 {b[k]['p50']:.0f}/{b[k]['p99']:.0f} us")
+    late = [r.get("emulator_breakdown_us", {}).get("late_answers") for r in runs]
+    late = [x for x in late if x and x.get("count")]
+    if late:
+        n = sum(x["count"] for x in late)
+        of = sum(x["of"] for x in late)
+        s = statistics.median(x["state_to_controller_publish"]["p50"] for x in late)
+        b_ = statistics.median(x["controller_publish_to_handled"]["p50"] for x in late)
+        parts.append(f"{n} of {of} answers came after the tick that needed them; in those, state to the "
+                     f"controller's publish p50 {s:.0f} us, back to the emulator p50 {b_:.0f} us")
+    return f"missed {', '.join(missed)}; measured: " + "; ".join(parts)
+
+
+def realtime_row(rate: int, runs_n: int, dur: float, prio: list[str], trigger: str = "event") -> dict:
+    args = ["--mode", "realtime", "--control-rate", str(rate), "--duration", f"{dur:g}", "--trigger", trigger,
+            "--floor", "auto", *prio]
+    runs = [hil(args) for _ in range(runs_n)]
+    lat50, lat99 = med(runs, "state_to_cmd_latency_us", "p50"), med(runs, "state_to_cmd_latency_us", "p99")
+    fresh = med(runs, "fresh_fraction")
+    miss = statistics.median([r["deadline_misses"] / max(1, r["steps"]) for r in runs])
+    checks = [check("fresh (plant applied the answer to the period's state)",
+                    None if fresh is None else 100 * fresh, ">=", 99.99 if rate == 100 else 99.9, "%")]
+    if rate == 1000:
+        checks.append(check("latency p50", lat50, "<=", 100, "us"))
+    checks.append(check("latency p99", lat99, "<=", 250, "us"))
+    if rate == 1000:
+        checks.append(check("deadline misses", 100 * miss, "<=", 0.1, "%"))
+        checks.append(check("emulator tick lateness p99", med(runs, "emulator_tick_lateness_us", "p99"), "<=", 100,
+                            "us"))
+    return {"args": args, "runs": len(runs), "duration_s": dur, "trigger": trigger,
+            "scheduler": runs[-1]["scheduler"], "emulator_scheduler": runs[-1].get("emulator_scheduler"),
+            "load_avg": [r["load_avg_before"] for r in runs],
+            "controller_fresh_pct": None if med(runs, "controller_fresh_fraction") is None
+            else 100 * med(runs, "controller_fresh_fraction"),
+            "latency_us": {"p50": lat50, "p99": lat99}, "deadline_miss_fraction": miss,
+            "floor_line": [r.get("over_floor", {}).get("line") for r in runs],
+            "checks": checks, "breakdown_us": breakdown(runs), "why": why(f"{rate} Hz", runs, checks),
+            "per_run": [{k: r.get(k) for k in ("steps", "deadline_misses", "fresh_fraction",
+                                                "controller_fresh_fraction", "state_to_cmd_latency_us",
+                                                "emulator_tick_lateness_us", "load_avg_before")} for r in runs]}
+
+
+def lockstep_row(runs_n: int, dur: float, prio: list[str]) -> dict:
+    args = ["--mode", "lockstep", "--duration", f"{dur:g}", *prio]
+    runs, floors = [], []
+    for _ in range(runs_n):  # the floor and the loop alternately: the machine drifts
+        floors.append(lcm_floor(5000, bool(prio)))
+        runs.append(hil(args))
+    sps = med(runs, "steps_per_s")
+    lat99 = med(runs, "state_to_cmd_latency_us", "p99")
+    ratios = [r["state_to_cmd_latency_us"]["p99"] / f["rtt_us"]["p99"] for r, f in zip(runs, floors)]
+    checks = [check("steps/s with lcm-logger", sps, ">=", 5000, "steps/s"),
+              check("latency p99 / LCM floor p99 (same run)", statistics.median(ratios), "<=", 2.0, "x")]
+    b = breakdown(runs)
+    b["LCM floor round trip"] = {"p50": statistics.median(f["rtt_us"]["p50"] for f in floors),
+                                 "p99": statistics.median(f["rtt_us"]["p99"] for f in floors)}
+    return {"args": args, "runs": len(runs), "steps": runs[-1]["rows"],
+            "scheduler": runs[-1]["scheduler"], "emulator_scheduler": runs[-1].get("emulator_scheduler"),
+            "load_avg": [r["load_avg_before"] for r in runs],
+            "steps_per_s_runs": [r["steps_per_s"] for r in runs],
+            "latency_us": {"p50": med(runs, "state_to_cmd_latency_us", "p50"), "p99": lat99},
+            "lcm_floor_rtt_us": [f["rtt_us"] for f in floors], "latency_p99_over_floor_p99": ratios,
+            "checks": checks, "breakdown_us": b, "why": why("lockstep", runs, checks)}
+
+
+def table(res: dict) -> str:
+    lines = [f"{'row':<26} {'figure':<52} {'target':>14} {'measured':>12}  result",
+             "-" * 120]
+    for name, row in res["rows"].items():
+        for c in row["checks"]:
+            m = "-" if c["measured"] is None else f"{c['measured']:.4g}"
+            lines.append(f"{name:<26} {c['figure']:<52} {c['target']:>14} {m:>12}  "
+                         + ("pass" if c["pass"] else f"MISS: {c['miss_by']}"))
+        lines.append(f"{'':<26} load {' | '.join(' '.join(f'{x:.1f}' for x in la) for la in row['load_avg'])}; "
+                     f"controller {row['scheduler']}; emulator {row.get('emulator_scheduler')}")
+        for part, v in row["breakdown_us"].items():
+            lines.append(f"{'':<26}   {part:<48} p50 {v['p50']:8.1f}  p99 {v['p99'] or 0:8.1f} us")
+        if row.get("why"):
+            lines.append(f"{'':<26} why: {row['why']}")
+        for p in row.get("profile_top", [])[:6]:
+            lines.append(f"{'':<26}   profile {p['function']:<60} {p['calls']:>8} calls "
+                         f"{p['own_us_per_call'] or 0:8.1f} us own/call")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    quick = "--quick" in sys.argv
+    prio = [] if "--no-priority" in sys.argv else ["--realtime-priority"]
+    want = "100hz,1khz,lockstep,timer"
+    if "--rows" in sys.argv:
+        want = sys.argv[sys.argv.index("--rows") + 1]
+    want = want.split(",")
+    n, dur = (1, 10.0) if quick else (3, 60.0)
+    res = {"machine": machine(), "scenario": "paper_faults", "netns": lcmnet.can_unshare(), "quick": quick,
+           "priority": bool(prio), "rows": {}}
+    if "100hz" in want:
+        res["rows"]["100 Hz, event, " + ("FIFO" if prio else "OTHER")] = realtime_row(100, n, dur, prio)
+    if "1khz" in want:
+        res["rows"]["1 kHz, event, " + ("FIFO" if prio else "OTHER")] = realtime_row(1000, n, dur, prio)
+    if "lockstep" in want:
+        res["rows"]["lockstep + lcm-logger"] = lockstep_row(n, 300.0 if quick else 3000.0, prio)
+    if "timer" in want:  # the trade-off: the own-clock controller, one run per rate
+        for rate in (100, 1000):
+            res["rows"][f"{rate:g} Hz, timer, " + ("FIFO" if prio else "OTHER")] = realtime_row(
+                rate, 1, dur, prio, trigger="timer")
+    if "--profile" in sys.argv or not quick:
+        for name, row in res["rows"].items():
+            if any(not c["pass"] for c in row["checks"]):
+                args = list(row["args"])
+                args[args.index("--duration") + 1] = "5" if "realtime" in args else "300"
+                if "--floor" in args:
+                    args[args.index("--floor") + 1] = "off"
+                row["profile_top"] = profile_row(args)
+    write("timing", res)
+    print(table(res))
+
+
+if __name__ == "__main__":
+    main()
