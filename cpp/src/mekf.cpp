@@ -103,7 +103,8 @@ void Mekf::update(MekfState& s, const Vec3& sigma_m) {
 }
 
 void Mekf::gyro(double t, const Vec3& omega_m) {
-  propagate(cur_, omega_m_, t - cur_.t);
+  // over the interval the two samples bound: their mean (the held sample beyond the newest)
+  propagate(cur_, have_gyro_ ? Vec3(0.5 * (omega_m_ + omega_m)) : omega_m, t - cur_.t);
   omega_m_ = omega_m;
   have_gyro_ = true;
   const std::size_t n = ring_.size();
@@ -138,7 +139,7 @@ bool Mekf::star(double t_exposure, const Vec3& sigma_m) {
     if (s.t == ring_[k].s.t) ring_[k].s = s;
     for (std::size_t m = j; m < size_; ++m) {  // re-propagate the later snapshots
       const std::size_t prev = (head_ + m - 1) % n, here = (head_ + m) % n;
-      propagate(s, ring_[prev].omega_m, ring_[here].s.t - s.t);
+      propagate(s, Vec3(0.5 * (ring_[prev].omega_m + ring_[here].omega_m)), ring_[here].s.t - s.t);
       ring_[here].s = s;
     }
     const double target = std::max(cur_.t, s.t);

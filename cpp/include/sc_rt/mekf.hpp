@@ -5,7 +5,9 @@
 // Measurement the control law gets (from the truth or from the estimate).
 //
 // Error: R(sigma_true) = exp(-dtheta^) R(sigma_est); b_true = b_est + db.
-// Propagation over dt with the held rate w = omega_m - b_est:
+// Propagation over dt with w = omega_m - b_est, omega_m the mean of the two
+// gyro samples that bound the interval (the held newest sample beyond it,
+// for the prediction to a control instant):
 //   sigma <- exp(-(w dt)^) sigma (exact for a constant rate)
 //   Phi = [[exp(-(w dt)^), -dt I], [0, a I]], a = exp(-dt / bias_tau) (1 without Gauss-Markov)
 //   Q   = [[arw^2 dt + rrw^2 dt^3/3, -rrw^2 dt^2/2], [., rrw^2 dt + bias_sigma^2 (1 - a^2)]]
