@@ -72,7 +72,7 @@ class Mekf {
   void gyro(double t, const Vec3& omega_m);
   // A star tracker attitude exposed at t_exposure <= now; false if dropped.
   bool star(double t_exposure, const Vec3& sigma_m);
-  // The state propagated from now to t >= now with the held rate (not stored).
+  // The state propagated from now to t >= now with the newest sample held (not stored).
   MekfState predict(double t) const;
   const MekfState& state() const { return cur_; }
   const Vec3& rate() const { return omega_m_; }  //!< the held gyro sample
