@@ -149,9 +149,10 @@ def why(row: str, runs: list[dict], checks: list[dict]) -> str:
     return f"missed {', '.join(missed)}; measured: " + "; ".join(parts)
 
 
-def realtime_row(rate: int, runs_n: int, dur: float, prio: list[str], trigger: str = "event") -> dict:
+def realtime_row(rate: int, runs_n: int, dur: float, prio: list[str], trigger: str = "event",
+                 extra: tuple[str, ...] = ()) -> dict:
     args = ["--mode", "realtime", "--control-rate", str(rate), "--duration", f"{dur:g}", "--trigger", trigger,
-            "--floor", "auto", *prio]
+            "--floor", "auto", *prio, *extra]
     runs = [hil(args) for _ in range(runs_n)]
     lat50, lat99 = med(runs, "state_to_cmd_latency_us", "p50"), med(runs, "state_to_cmd_latency_us", "p99")
     fresh = med(runs, "fresh_fraction")
@@ -224,7 +225,7 @@ def table(res: dict) -> str:
 def main() -> None:
     quick = "--quick" in sys.argv
     prio = [] if "--no-priority" in sys.argv else ["--realtime-priority"]
-    want = "100hz,1khz,lockstep,timer"
+    want = "100hz,1khz,lockstep,timer,pin"
     if "--rows" in sys.argv:
         want = sys.argv[sys.argv.index("--rows") + 1]
     want = want.split(",")
@@ -241,6 +242,11 @@ def main() -> None:
         for rate in (100, 1000):
             res["rows"][f"{rate:g} Hz, timer, " + ("FIFO" if prio else "OTHER")] = realtime_row(
                 rate, 1, dur, prio, trigger="timer")
+    if "pin" in want:  # CPU placement, one run each: both on CPU 0, or the controller on CPU 1
+        for label, extra in (("same CPU 0", ("--controller-cpu", "0", "--emulator-cpu", "0")),
+                             ("controller CPU 1, emulator CPU 0", ("--controller-cpu", "1", "--emulator-cpu", "0"))):
+            res["rows"][f"1 kHz, event, {'FIFO' if prio else 'OTHER'}, {label}"] = realtime_row(
+                1000, 1, dur, prio, extra=extra)
     if "--profile" in sys.argv or not quick:
         for name, row in res["rows"].items():
             if any(not c["pass"] for c in row["checks"]):

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-BENCHES = ["bench_core.py", "bench_sim.py", "bench_montecarlo.py", "bench_hil.py", "bench_external.py", "bench_report.py", "bench_mcap.py",
+BENCHES = ["bench_core.py", "bench_sim.py", "bench_montecarlo.py", "bench_hil.py", "bench_timing.py", "bench_external.py", "bench_report.py", "bench_mcap.py",
            "bench_sensors.py"]
 
 
