@@ -571,7 +571,7 @@ class Emulator:
 
     def _integrate(self, t: float, x: np.ndarray, u_cmd: np.ndarray, n_sub: int, h: float) -> np.ndarray:
         """n_sub RK4 steps of h from t with u_cmd held: the C++ twin (bitwise
-        the Python reference, tests/test_plant.py) or model.plant.rk4_step."""
+        the Python reference) or model.plant.rk4_step."""
         if not self.cpp_plant:
             for j in range(n_sub):
                 x = plant.rk4_step(self.scn.plant, self.act, t + j * h, x, h, u_cmd)
@@ -633,9 +633,19 @@ class Emulator:
         self._pending = None
         if stamps is not None:
             stamps[3] = time.monotonic_ns()
-        u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
-        delta2 = plant.lumped_disturbance(self.scn.plant, t, x, u_sat, accel)
+        if self.cpp_plant:  # the C++ twins (bitwise the Python functions below)
+            if self._cpp_params[0] is not act:
+                self._cpp_params = (act, plant.plant_params_to_cpp(self.scn.plant),
+                                    actuators.actuator_params_to_cpp(act))
+            _, pp, ap = self._cpp_params
+            w = _core.wheel_accel(ap, t, u_cmd, x[6:10])
+            u_sat, accel = w.u_sat, w.accel
+            delta2 = _core.lumped_disturbance(pp, t, _core.PlantState.from_vector(x), u_sat, accel)
+        else:
+            u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
+            delta2 = plant.lumped_disturbance(self.scn.plant, t, x, u_sat, accel)
         self._record(traj, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2)
+        self._drain()  # an answer that came meanwhile is received now, not after the truth's publish
         self._publish_truth(traj, k, t, cmd_seq, u_cmd, accel, delta2, stale, act)
         if stamps is not None:
             stamps[4] = time.monotonic_ns()
