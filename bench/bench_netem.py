@@ -1,0 +1,117 @@
+"""A lossy, slow link between controller and plant (issue #20): real-time
+runs at 100 Hz across two network namespaces joined by a veth pair, the
+link impaired on both ends, each case compared with what the impairment was
+configured to do (binomial bounds, bench/netem_lab.py) and with a clean
+link, and the added delay with ``sc-rt design --latency``.
+
+    python bench/bench_netem.py [--duration 30] [--out bench/results/netem.json] [--backend auto|netem|nft]
+
+The impairment is ``tc netem`` where the kernel has it (CONFIG_NET_SCH_NETEM);
+otherwise nftables on the veth's egress (loss, duplication, corruption of
+one payload byte; no delay or reordering: those cases are reported as not
+run). Needs root.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+
+import netem_lab  # noqa: E402
+
+CASES = [
+    ("clean link", None),
+    ("loss 1 %", "loss 1%"),
+    ("loss 5 %", "loss 5%"),
+    ("loss 20 %", "loss 20%"),
+    ("loss 50 % (SAFE engages)", "loss 50%"),
+    ("delay 2 ms +- 1 ms", "delay 2ms 1ms"),
+    ("delay 2 ms, reordering 25 %", "delay 2ms reorder 25% 50%"),
+    ("duplication 5 %", "duplicate 5%"),
+    ("corruption 1 %", "corrupt 1%"),
+    ("corruption 1 %, --auth-key", "corrupt 1%"),
+]
+
+
+def design_margins(scenario: str, latency_s: float, work: Path) -> dict:
+    """The PD baseline loop's margins with the Pade delay (sc-rt design --latency)."""
+    out = work / f"design_{latency_s:g}"
+    subprocess.run([sys.executable, "-m", "sc_rt.cli", "design", str(ROOT / "scenarios" / f"{scenario}.toml"),
+                    "--latency", f"{latency_s:g}", "--no-plots", "--out", str(out)],
+                   check=True, capture_output=True, cwd=ROOT)
+    d = json.loads((out / "design.json").read_text())
+    pade = [m for m in d["margins"] if m["case"] == "pade" and m["inertia"] == "true"]
+    return {"latency_s": latency_s, "min_phase_margin_deg": min(m["pm"] for m in pade),
+            "min_delay_margin_s": min(m["delay_margin"] for m in pade)}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration", type=float, default=30.0)
+    ap.add_argument("--rate", type=float, default=100.0)
+    ap.add_argument("--scenario", default="ppc_feasible_100hz")
+    ap.add_argument("--backend", choices=("auto", "netem", "nft"), default="auto")
+    ap.add_argument("--out", default=str(HERE / "results" / "netem.json"))
+    args = ap.parse_args()
+    backend = args.backend
+    if backend == "auto":
+        backend = "netem" if netem_lab.netem_available() is None else "nft"
+    why = netem_lab.netem_available() if backend == "netem" else netem_lab.nft_available()
+    if why:
+        print(f"bench_netem: cannot impair a link here: {why}", file=sys.stderr)
+        return 2
+    results = {"backend": backend, "netem_here": netem_lab.netem_available() or "available",
+               "duration_s": args.duration, "rate_hz": args.rate, "scenario": args.scenario, "cases": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        key = work / "lab.key"
+        key.write_bytes(b"bench_netem's shared key, not a secret")
+        base = None
+        for i, (label, spec) in enumerate(CASES):
+            p = netem_lab.parse_netem(spec or "")
+            if backend == "nft" and (p["delay_ms"] or p["reorder"]):
+                results["cases"].append({"case": label, "netem": spec, "run": False,
+                                         "why": f"needs tc netem ({results['netem_here']})"})
+                print(f"{label:32s} not run: needs tc netem", flush=True)
+                continue
+            t0 = time.monotonic()
+            r = netem_lab.run_case(work / f"c{i}", spec, duration=args.duration, rate=args.rate,
+                                   scenario=args.scenario, port=7741 + i, tag=str(i), backend=backend,
+                                   auth_key=key if "auth" in label else None)
+            r["case"], r["run"], r["wall_s"] = label, True, time.monotonic() - t0
+            if base is None:
+                base = r["result"]["max_sigma_BD_after_10s"]
+            r["result"]["worst_error_vs_clean"] = (r["result"]["max_sigma_BD_after_10s"] / base
+                                                   if base else None)
+            results["cases"].append(r)
+            c = r["checks"]
+            print(f"{label:32s} lost to ctl {c['to_controller']['lost']:4d} "
+                  f"(exp {c['to_controller']['lost_expected'][0]:.0f}-{c['to_controller']['lost_expected'][1]:.0f}) "
+                  f"to emu {c['to_emulator']['lost']:4d}  dup {c['to_controller']['duplicates']}/"
+                  f"{c['to_emulator']['duplicates']}  ok {c['to_controller']['lost_ok'] and c['to_emulator']['lost_ok'] and c['to_controller']['dup_ok'] and c['to_emulator']['dup_ok']}  "
+                  f"hold {r['stale']['controller_stale_steps']} SAFE rows {r['stale']['rows_safe']}  "
+                  f"bound {'held' if r['result']['first_bound_violation_s'] is None else 'LOST'}  "
+                  f"worst |sigma_BD| x{r['result']['worst_error_vs_clean'] or 0:.3f}  "
+                  f"latency p50/p99 {r['latency_us']['p50']:.0f}/{r['latency_us']['p99']:.0f} us", flush=True)
+        results["design"] = [design_margins(args.scenario, lat, work) for lat in (1e-6, 0.002, 0.003)]
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(results, indent=2, default=float) + "\n")
+    print(f"bench_netem: {out}")
+    for d in results["design"]:
+        print(f"  sc-rt design --latency {d['latency_s']:g}: min phase margin {d['min_phase_margin_deg']:.3f} deg, "
+              f"min delay margin {d['min_delay_margin_s']:.3f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
