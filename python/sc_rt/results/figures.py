@@ -308,7 +308,9 @@ def timing_figures(run: Run, out: Path, floor: dict | None = None) -> list[Path]
     if run.meta.mode == "realtime":
         series["controller wake lateness [us]"] = "wake_lateness_us"
         series["emulator tick lateness [us]"] = "tick_lateness_us"
-    series = {k: v for k, v in series.items() if np.any(np.isfinite(run[v]))}
+    # no empty panels: a series with no positive value (an event-triggered
+    # controller has no wake-up to be late for) has nothing to draw on a log axis
+    series = {k: v for k, v in series.items() if np.any(np.asarray(run[v], float) > 0)}
     if not series:
         series = {"state-to-command latency [us]": "latency_us"}
     fig, axs = plt.subplots(len(series), 2, figsize=(11, 2.6 * len(series) + 1), squeeze=False,
