@@ -103,3 +103,19 @@ def test_a_realtime_run_carries_its_cached_floor_and_the_null_law_answers_zero(t
     assert len(z["u_cmd"]) == 21 and not np.any(z["u_cmd"]) and not np.any(z["cmd_stale"])
     s = json.loads((null / "controller_summary.json").read_text())
     assert s["null_law"] is True and s["steps"] == 21
+
+
+def test_the_emulators_thread_setup_is_given_back():
+    import gc
+
+    from sc_rt.bus.rtproc import RealtimeThread
+
+    cpus = os.sched_getaffinity(0)
+    was = gc.isenabled()
+    with RealtimeThread(freeze_gc=True, cpu=min(cpus)) as rt:
+        assert not gc.isenabled() and gc.get_freeze_count() > 0
+        assert os.sched_getaffinity(0) == {min(cpus)}
+        assert "gc frozen" in rt.description and f"CPU {min(cpus)}" in rt.description
+    assert gc.isenabled() == was and gc.get_freeze_count() == 0
+    assert os.sched_getaffinity(0) == cpus
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER
