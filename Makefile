@@ -23,6 +23,8 @@ all: install
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
+	@# install's -C needs pip >= 23.1 (Debian 12's venv seeds pip 23.0.1)
+	$(PIP) install -q "pip>=23.1"
 
 $(VENV)/.build-reqs: $(PY)
 	$(PIP) install -q $(BUILD_REQS)

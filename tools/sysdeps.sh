@@ -40,6 +40,11 @@ check_packages() {
     fi
   fi
   have g++ || need g++
+  # the extension compiles against Python.h: Debian splits it off (python3-dev)
+  if have "$PYTHON"; then
+    "$PYTHON" -c 'import os, sys, sysconfig; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' >/dev/null 2>&1 || need python3-dev
+  else need python3-dev
+  fi
   sbin ldconfig -p 2>/dev/null | grep 'libglib-2\.0\.so\.0 ' >/dev/null || need libglib2.0-0
   have ip || need iproute2
   [ "$mode" = test ] || return 0
