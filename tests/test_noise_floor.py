@@ -45,8 +45,8 @@ def test_predicted_floor_against_the_simulated_noise():
     sel = run["t"] >= 100.0
     sim = np.sqrt(np.mean(((run["sigma_BD_true"] - base["sigma_BD"])[sel] * 4 / ARCSEC) ** 2, axis=0))
     # the model leaves out the scale factor, the bias transient, latency and losses
-    # (docs/REPRODUCTION.md): the simulated noise is within [0.8, 2] x the prediction
-    assert np.all(sim >= 0.8 * nf.rms_arcsec) and np.all(sim <= 2.0 * nf.rms_arcsec), (sim, nf.rms_arcsec)
+    # (docs/REPRODUCTION.md): the simulated noise is within [0.8, 1.5] x the prediction
+    assert np.all(sim >= 0.8 * nf.rms_arcsec) and np.all(sim <= 1.5 * nf.rms_arcsec), (sim, nf.rms_arcsec)
 
 
 def test_check_warns_when_chiinf_is_below_the_noise_floor(tmp_path):
@@ -72,11 +72,15 @@ def test_check_says_nothing_of_noise_without_sensors():
 def test_check_warns_when_the_noise_saturates_the_wheels():
     """The 100 Hz design (k2 = 160, r ~ 1 / chiinf) with 42-like sensors: the linear floor
     is within the bound, the command noise is not within the wheels' limits, and the
-    closed loop with sensors indeed leaves its bound (docs/REPRODUCTION.md)."""
+    closed loop with sensors indeed saturates its wheels most of the time (it still
+    holds its bound; the 1 kHz design does not: docs/REPRODUCTION.md section 7)."""
     found = [x for x in check_scenario("ppc_feasible_100hz_sensors", run_estimate=False)
              if x.key == "sensors"]
     assert len(found) == 1 and found[0].level == "warning" and "saturates the wheels" in found[0].message
     assert not [x for x in check_scenario(SENSED, run_estimate=False) if x.key == "sensors"]
+    run = simulate(load_scenario("ppc_feasible_100hz_sensors"), engine="cpp")
+    assert run.metrics["saturated_fraction"] > 0.5  # the noise saturates the wheels
+    assert run.metrics["first_bound_violation_s"] is None  # and the bound holds (seed 1)
 
 
 def test_check_says_the_papers_bound_is_below_the_estimates_own_noise():
