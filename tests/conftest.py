@@ -62,3 +62,17 @@ def pytest_collection_modifyitems(items):
     for item in items:
         if "plugins" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """Figures a test keeps open to inspect (tests/figcheck.py, test_figures.py)
+    are closed after it, as matplotlib's own suite does: otherwise they pile up
+    across the session and pyplot's more-than-20-figures warning (an error
+    here, filterwarnings) fails an unrelated later test."""
+    yield
+    import sys
+
+    plt = sys.modules.get("matplotlib.pyplot")
+    if plt is not None:
+        plt.close("all")
