@@ -23,9 +23,9 @@ from sc_rt.scenario.model import (
     ControllerParams,
     Scenario,
     ScenarioError,
-    _key_lines,
     load_scenario,
 )
+from sc_rt.scenario.schema import key_lines
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 FAULT_FREE = SCENARIOS / "paper_fault_free.toml"
@@ -596,7 +596,7 @@ k = 1
 [[f]]
 k = 2
 """
-    assert _key_lines(text) == {
+    assert key_lines(text) == {
         "top": 2, "a": 3, "a.x": 4, "a.q.z": 6, "a.b.c": 7, "a.sub": 8, "a.sub.y": 9,
         "a.sub.w": 12, "f[0]": 13, "f[0].k": 14, "f[1]": 15, "f[1].k": 16,
     }  # fmt: skip

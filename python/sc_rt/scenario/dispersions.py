@@ -84,7 +84,7 @@ class MonteCarloTable:
 
 
 # --------------------------------------------------------------------------- #
-# Reading the table (called by the scenario reader with its _Table objects).
+# Reading the table (called by the scenario reader with its Table objects).
 
 
 def _fmt_shape(shape: tuple[int, ...]) -> str:

@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.scenario.schema import _read_fields, _ro, _spec, _Spec, _Table, _vec
+from sc_rt.scenario.schema import read_fields, read_only, spec, Spec, Table, vector_spec
 
 __all__ = [
     "KINDS",
@@ -58,11 +58,11 @@ class GuidanceParams:
     """
 
     kind: ClassVar[str] = "paper"
-    sigma_d0: np.ndarray = field(metadata=_vec(3, mrp=True))  # [-] sigma_DN at t = 0
-    omega_bias: np.ndarray = field(metadata=_vec(3))  # [rad/s]
-    omega_cos: np.ndarray = field(metadata=_vec(3))  # [rad/s]
-    omega_sin: np.ndarray = field(metadata=_vec(3))  # [rad/s]
-    omega_freq: float = field(metadata=_spec("number", ge=0))  # [rad/s]
+    sigma_d0: np.ndarray = field(metadata=vector_spec(3, mrp=True))  # [-] sigma_DN at t = 0
+    omega_bias: np.ndarray = field(metadata=vector_spec(3))  # [rad/s]
+    omega_cos: np.ndarray = field(metadata=vector_spec(3))  # [rad/s]
+    omega_sin: np.ndarray = field(metadata=vector_spec(3))  # [rad/s]
+    omega_freq: float = field(metadata=spec("number", ge=0))  # [rad/s]
 
     def data(self) -> dict[str, Any]:
         """The table as TOML data (no ``kind``: the files of the paper have none)."""
@@ -83,7 +83,7 @@ class HoldGuidance:
     """Inertial hold: sigma_DN = sigma_d0 for all t, omega_DN_D = 0."""
 
     kind: ClassVar[str] = "hold"
-    sigma_d0: np.ndarray = field(metadata=_vec(3, mrp=True))  # [-] the held attitude
+    sigma_d0: np.ndarray = field(metadata=vector_spec(3, mrp=True))  # [-] the held attitude
 
     def data(self) -> dict[str, Any]:
         return {"kind": self.kind, "sigma_d0": self.sigma_d0.tolist()}
@@ -103,10 +103,10 @@ class SlewGuidance:
     :attr:`max_accel`)."""
 
     kind: ClassVar[str] = "slew"
-    sigma_d0: np.ndarray = field(metadata=_vec(3, mrp=True))  # [-] before the slew
-    target: np.ndarray = field(metadata=_vec(3, mrp=True))  # [-] after the slew
-    duration: float = field(metadata=_spec("number", gt=0))  # [s]
-    start: float = field(default=0.0, metadata=_spec("number", ge=0))  # [s]
+    sigma_d0: np.ndarray = field(metadata=vector_spec(3, mrp=True))  # [-] before the slew
+    target: np.ndarray = field(metadata=vector_spec(3, mrp=True))  # [-] after the slew
+    duration: float = field(metadata=spec("number", gt=0))  # [s]
+    start: float = field(default=0.0, metadata=spec("number", ge=0))  # [s]
 
     @property
     def angle(self) -> float:
@@ -190,13 +190,13 @@ def coverage_problem(g: Guidance, duration: float) -> str:
             "(run.duration)")
 
 
-def read_guidance(t: _Table, duration: float | None, base: Path) -> Guidance | None:
+def read_guidance(t: Table, duration: float | None, base: Path) -> Guidance | None:
     """The reference of the table ``t`` (None after reporting its problems).
 
     ``duration``: the run's, for the coverage of a file (None: not checked);
     ``base``: the folder a relative ``file`` is taken from.
     """
-    kind = t.read("kind", _Spec("str", choices=KINDS), default="paper")
+    kind = t.read("kind", Spec("str", choices=KINDS), default="paper")
     if t.data is None:
         return None
     if kind is None:
@@ -210,8 +210,8 @@ def read_guidance(t: _Table, duration: float | None, base: Path) -> Guidance | N
                        f"kind {kind!r} (its keys: {', '.join(_KEYS[kind])})")  # fmt: skip
                 t.used.add(name)
     if kind != "file":
-        return _read_fields(t, _CLASSES[kind])
-    name = t.read("file", _Spec("str"))
+        return read_fields(t, _CLASSES[kind])
+    name = t.read("file", Spec("str"))
     t.finish()
     if name is None:
         return None
@@ -222,7 +222,7 @@ def read_guidance(t: _Table, duration: float | None, base: Path) -> Guidance | N
     if ref is None:
         return None
     g = FileGuidance(file=name, path=path, t=ref[0], sigma=ref[1], omega=ref[2],
-                     sigma_d0=_ro(_core.sigma_d(_table_params(*ref), 0.0)))  # fmt: skip
+                     sigma_d0=read_only(_core.sigma_d(_table_params(*ref), 0.0)))  # fmt: skip
     if duration is not None and (problem := coverage_problem(g, duration)):
         t.fail("file", problem)
         return None
@@ -397,7 +397,7 @@ def _validate(cols: dict[str, np.ndarray], where: list[str]) -> tuple[Any, list[
     if problems:
         return None, _cap(problems)
     omega = np.stack([cols[c] for c in _RATE], axis=1)
-    return (_ro(t), _ro(sigma), _ro(omega)), []
+    return (read_only(t), read_only(sigma), read_only(omega)), []
 
 
 def _cap(problems: list[str]) -> list[str]:

@@ -36,19 +36,19 @@ from sc_rt.scenario.dispersions import read_montecarlo
 from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIssue are public here)
     ScenarioError,
     ScenarioIssue,
-    _Doc,
-    _Spec,
-    _Table,
-    _build,
-    _convert,
-    _field_spec,
-    _fmt,
-    _key_lines,
-    _read_fields,
-    _read_values,
-    _ro,
-    _spec,
-    _vec,
+    Doc,
+    Spec,
+    Table,
+    build,
+    convert,
+    field_spec,
+    format_value,
+    key_lines,
+    read_fields,
+    read_values,
+    read_only,
+    spec,
+    vector_spec,
 )
 from sc_rt.scenario.guidance import (
     FileGuidance,
@@ -101,9 +101,9 @@ _PAPER = _core.ControllerConfig()  # the paper's controller values (C++ defaults
 _FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
 
 
-def _paper(get: Any, metadata: dict[str, _Spec]) -> Any:
+def _paper(get: Any, metadata: dict[str, Spec]) -> Any:
     """A vector field whose default comes from the C++ config structs (the paper's values)."""
-    return field(default_factory=lambda: _ro(get(_PAPER)), metadata=metadata)
+    return field(default_factory=lambda: read_only(get(_PAPER)), metadata=metadata)
 
 
 # --------------------------------------------------------------------------- #
@@ -114,12 +114,12 @@ def _paper(get: Any, metadata: dict[str, _Spec]) -> Any:
 class RunParams:
     """Run timing and the control law."""
 
-    duration: float = field(metadata=_spec("number", gt=0))  # [s]
-    control_rate_hz: float = field(metadata=_spec("number", gt=0))  # [Hz]
+    duration: float = field(metadata=spec("number", gt=0))  # [s]
+    control_rate_hz: float = field(metadata=spec("number", gt=0))  # [Hz]
     # [s] plant integration step; the control period is an integer multiple
-    plant_step: float = field(metadata=_spec("number", gt=0))
+    plant_step: float = field(metadata=spec("number", gt=0))
     # law spec: a name of LAWS or "plugin:PATH_OR_NAME" (a plugin file's path made absolute)
-    controller: str = field(metadata=_spec("str"))
+    controller: str = field(metadata=spec("str"))
 
     @property
     def control_period(self) -> float:
@@ -136,36 +136,36 @@ class RunParams:
 class InitialState:
     """Plant state at t = 0."""
 
-    sigma_BN: np.ndarray = field(metadata=_vec(3, mrp=True))  # [-] MRP, |sigma| <= 1
-    omega_BN_B: np.ndarray = field(metadata=_vec(3))  # [rad/s]
-    wheel_speed: np.ndarray = field(metadata=_vec(4))  # [rad/s] relative to the body
+    sigma_BN: np.ndarray = field(metadata=vector_spec(3, mrp=True))  # [-] MRP, |sigma| <= 1
+    omega_BN_B: np.ndarray = field(metadata=vector_spec(3))  # [rad/s]
+    wheel_speed: np.ndarray = field(metadata=vector_spec(4))  # [rad/s] relative to the body
 
 
 @dataclass(frozen=True)
 class PpcParams:
     """Prescribed performance (29)-(35), per axis; defaults: Table 1."""
 
-    chi0: np.ndarray = _paper(lambda c: c.ppc.chi0, _vec(3, gt=0))  # [-] chi(0) >= chiinf
-    chiinf: np.ndarray = _paper(lambda c: c.ppc.chiinf, _vec(3, gt=0))  # [-] chi(inf)
-    gamma: np.ndarray = _paper(lambda c: c.ppc.gamma, _vec(3, ge=0))  # [1/s] decay rate
-    dmin: np.ndarray = _paper(lambda c: c.ppc.dmin, _vec(3, gt=0))  # [-] lower bound factor
-    dmax: np.ndarray = _paper(lambda c: c.ppc.dmax, _vec(3, gt=0))  # [-] upper bound factor
+    chi0: np.ndarray = _paper(lambda c: c.ppc.chi0, vector_spec(3, gt=0))  # [-] chi(0) >= chiinf
+    chiinf: np.ndarray = _paper(lambda c: c.ppc.chiinf, vector_spec(3, gt=0))  # [-] chi(inf)
+    gamma: np.ndarray = _paper(lambda c: c.ppc.gamma, vector_spec(3, ge=0))  # [1/s] decay rate
+    dmin: np.ndarray = _paper(lambda c: c.ppc.dmin, vector_spec(3, gt=0))  # [-] lower bound factor
+    dmax: np.ndarray = _paper(lambda c: c.ppc.dmax, vector_spec(3, gt=0))  # [-] upper bound factor
 
 
 @dataclass(frozen=True)
 class NesoParams:
     """Observer (22); defaults: the paper's kappa1..kappa4 = 0.2, 0.03, 0.08, 0.06 I, alpha 0.7."""
 
-    k1: np.ndarray = _paper(lambda c: c.neso.k1, _vec(3, scalar_ok=True, gt=0))  # kappa1 diag
-    k2: np.ndarray = _paper(lambda c: c.neso.k2, _vec(3, scalar_ok=True, gt=0))  # kappa2 diag
-    k3: np.ndarray = _paper(lambda c: c.neso.k3, _vec(3, scalar_ok=True, gt=0))  # kappa3 diag
-    k4: np.ndarray = _paper(lambda c: c.neso.k4, _vec(3, scalar_ok=True, gt=0))  # kappa4 diag
-    alpha: float = field(default=_PAPER.neso.alpha, metadata=_spec("number", ge=0.5, le=1.0))
+    k1: np.ndarray = _paper(lambda c: c.neso.k1, vector_spec(3, scalar_ok=True, gt=0))  # kappa1 diag
+    k2: np.ndarray = _paper(lambda c: c.neso.k2, vector_spec(3, scalar_ok=True, gt=0))  # kappa2 diag
+    k3: np.ndarray = _paper(lambda c: c.neso.k3, vector_spec(3, scalar_ok=True, gt=0))  # kappa3 diag
+    k4: np.ndarray = _paper(lambda c: c.neso.k4, vector_spec(3, scalar_ok=True, gt=0))  # kappa4 diag
+    alpha: float = field(default=_PAPER.neso.alpha, metadata=spec("number", ge=0.5, le=1.0))
     # RK4 steps of the observer per control period
-    substeps: int = field(default=_PAPER.neso.substeps, metadata=_spec("int", ge=1, le=10000))
+    substeps: int = field(default=_PAPER.neso.substeps, metadata=spec("int", ge=1, le=10000))
     # z1(t0) = measured x2(t0) instead of 0 (paper: 0)
     init_from_measurement: bool = field(
-        default=_PAPER.neso.init_from_measurement, metadata=_spec("bool")
+        default=_PAPER.neso.init_from_measurement, metadata=spec("bool")
     )
 
 
@@ -173,32 +173,32 @@ class NesoParams:
 class DscGains:
     """Dynamic surface control (36)-(42); defaults: the paper's."""
 
-    k1: float = field(default=_PAPER.dsc.k1, metadata=_spec("number", gt=0))  # [1/s] (36)
-    k2: float = field(default=_PAPER.dsc.k2, metadata=_spec("number", gt=0))  # [1/s] (41)
-    k3: float = field(default=_PAPER.dsc.k3, metadata=_spec("number", ge=0))  # [-] (41)
-    k4: float = field(default=_PAPER.dsc.k4, metadata=_spec("number", gt=0))  # [1/s] (42)
-    k6: float = field(default=_PAPER.dsc.k6, metadata=_spec("number", gt=0))  # [-] Theorem 1
-    tau: float = field(default=_PAPER.dsc.tau, metadata=_spec("number", gt=0))  # [s] (37)
+    k1: float = field(default=_PAPER.dsc.k1, metadata=spec("number", gt=0))  # [1/s] (36)
+    k2: float = field(default=_PAPER.dsc.k2, metadata=spec("number", gt=0))  # [1/s] (41)
+    k3: float = field(default=_PAPER.dsc.k3, metadata=spec("number", ge=0))  # [-] (41)
+    k4: float = field(default=_PAPER.dsc.k4, metadata=spec("number", gt=0))  # [1/s] (42)
+    k6: float = field(default=_PAPER.dsc.k6, metadata=spec("number", gt=0))  # [-] Theorem 1
+    tau: float = field(default=_PAPER.dsc.tau, metadata=spec("number", gt=0))  # [s] (37)
 
 
 @dataclass(frozen=True)
 class PdGains:
     """PD baseline uc = -B+ (beta1 x1 + beta2 x2); not from the paper."""
 
-    beta1: float = field(default=_PAPER.pd.beta1, metadata=_spec("number", gt=0))  # [1/s^2]
-    beta2: float = field(default=_PAPER.pd.beta2, metadata=_spec("number", gt=0))  # [1/s]
+    beta1: float = field(default=_PAPER.pd.beta1, metadata=spec("number", gt=0))  # [1/s^2]
+    beta2: float = field(default=_PAPER.pd.beta2, metadata=spec("number", gt=0))  # [1/s]
 
 
 @dataclass(frozen=True)
 class RftGains:
     """RFT baseline, adaptive sliding mode (docs/CORE.md); not from the paper."""
 
-    c: float = field(default=_PAPER.rft.c, metadata=_spec("number", gt=0))  # [1/s]
-    k: float = field(default=_PAPER.rft.k, metadata=_spec("number", gt=0))  # [1/s]
-    gain: float = field(default=_PAPER.rft.gain, metadata=_spec("number", ge=0))  # [1/s]
-    leak: float = field(default=_PAPER.rft.leak, metadata=_spec("number", ge=0))  # [1/s]
-    phi: float = field(default=_PAPER.rft.phi, metadata=_spec("number", gt=0))  # [rad/s]
-    rho0: float = field(default=_PAPER.rft.rho0, metadata=_spec("number", ge=0))  # [rad/s^2]
+    c: float = field(default=_PAPER.rft.c, metadata=spec("number", gt=0))  # [1/s]
+    k: float = field(default=_PAPER.rft.k, metadata=spec("number", gt=0))  # [1/s]
+    gain: float = field(default=_PAPER.rft.gain, metadata=spec("number", ge=0))  # [1/s]
+    leak: float = field(default=_PAPER.rft.leak, metadata=spec("number", ge=0))  # [1/s]
+    phi: float = field(default=_PAPER.rft.phi, metadata=spec("number", gt=0))  # [rad/s]
+    rho0: float = field(default=_PAPER.rft.rho0, metadata=spec("number", ge=0))  # [rad/s^2]
 
 
 @dataclass(frozen=True)
@@ -206,14 +206,14 @@ class SafetyLimits:
     """The controller's safe-mode limits; not from the paper."""
 
     # [rad/s] a measured |omega| beyond this is rejected
-    max_rate: float = field(default=_PAPER.safety.max_rate, metadata=_spec("number", gt=0))
+    max_rate: float = field(default=_PAPER.safety.max_rate, metadata=spec("number", gt=0))
     # [rad/s] a measured |wheel speed| beyond this is rejected
     max_wheel_speed: float = field(
-        default=_PAPER.safety.max_wheel_speed, metadata=_spec("number", gt=0)
+        default=_PAPER.safety.max_wheel_speed, metadata=spec("number", gt=0)
     )
     # control periods without a fresh state before SAFE
     stale_periods: float = field(
-        default=_PAPER.safety.stale_periods, metadata=_spec("number", gt=0)
+        default=_PAPER.safety.stale_periods, metadata=spec("number", gt=0)
     )
 
 
@@ -229,11 +229,11 @@ class ControllerParams:
     safety: SafetyLimits = field(default_factory=SafetyLimits)
     # [-] damping of B+ = B'(BB' + damping^2 I)^-1; 0: exact pseudo-inverse
     pinv_damping: float = field(
-        default=_PAPER.spacecraft.pinv_damping, metadata=_spec("number", ge=0)
+        default=_PAPER.spacecraft.pinv_damping, metadata=spec("number", ge=0)
     )
     # [controller.params]: the law's own parameters, ((key, (numbers...)), ...),
     # handed to the law's constructor, which validates them (docs/LAWS.md)
-    law_params: tuple = field(default=(), metadata=_spec("params"))
+    law_params: tuple = field(default=(), metadata=spec("params"))
 
 
 @dataclass(frozen=True)
@@ -266,8 +266,8 @@ class Scenario:
         changes = {k: v for k, v in changes.items() if v is not None}
         if isinstance(changes.get("controller"), str):  # a plugin file: relative to the working directory
             changes["controller"] = law_spec(changes["controller"], Path.cwd())
-        doc = _Doc(f"{self.path} (override)", {})
-        run = _read_run(_Table(doc, "run", {**dataclasses.asdict(self.run), **changes}))
+        doc = Doc(f"{self.path} (override)", {})
+        run = _read_run(Table(doc, "run", {**dataclasses.asdict(self.run), **changes}))
         if run is not None and (problem := coverage_problem(self.guidance, run.duration)):
             doc.error("run.duration", run.duration, problem)  # a reference file too short
         if doc.errors:
@@ -289,7 +289,7 @@ class Scenario:
         law = self.run.controller if law is None else law
         rate = self.run.control_rate_hz if control_rate_hz is None else control_rate_hz
         for name, value in (("controller", law), ("control_rate_hz", rate)):
-            _, problem = _convert(value, _field_spec(RunParams, name))
+            _, problem = convert(value, field_spec(RunParams, name))
             if problem:
                 raise ValueError(f"{name} {problem}, got {value!r}")
         if problem := law_problem(law):
@@ -356,7 +356,7 @@ def law_problem(spec: Any) -> str:
             + ' or "plugin:PATH_OR_NAME" (docs/LAWS.md)')
 
 
-def _check_law(doc: _Doc, scn: Scenario, law_key: str, params_key: str) -> None:
+def _check_law(doc: Doc, scn: Scenario, law_key: str, params_key: str) -> None:
     """Load and construct the scenario's law once (a plugin, or any law given
     parameters), probe one step at rest: its problems as scenario errors on
     ``law_key`` / ``params_key.<key>``."""
@@ -382,7 +382,7 @@ def _param_value(v: tuple) -> Any:
     return v[0] if len(v) == 1 else list(v)
 
 
-def _read_params(t: _Table) -> tuple | None:
+def _read_params(t: Table) -> tuple | None:
     """[controller.params]: every value a number or a list of numbers."""
     items, ok = [], True
     for name, value in (t.data or {}).items():
@@ -396,8 +396,8 @@ def _read_params(t: _Table) -> tuple | None:
     return tuple(items) if ok else None
 
 
-def _read_run(t: _Table) -> RunParams | None:
-    v = _read_values(t, RunParams)
+def _read_run(t: Table) -> RunParams | None:
+    v = read_values(t, RunParams)
     if v["controller"] is not None and (problem := law_problem(v["controller"])):
         t.fail("controller", f"controller {problem}")
         v["controller"] = None
@@ -414,10 +414,10 @@ def _read_run(t: _Table) -> RunParams | None:
     return None if any(x is None for x in v.values()) else RunParams(**v)
 
 
-_MAT33 = _Spec("matrix", shape=(3, 3))
-_MAT34 = _Spec("matrix", shape=(3, 4))
-_WHEELS = _Spec("vector", shape=(4,), scalar_ok=True)
-_V3 = _Spec("vector", shape=(3,))
+_MAT33 = Spec("matrix", shape=(3, 3))
+_MAT34 = Spec("matrix", shape=(3, 4))
+_WHEELS = Spec("vector", shape=(4,), scalar_ok=True)
+_V3 = Spec("vector", shape=(3,))
 
 
 def _inertia_problem(J: np.ndarray) -> str:
@@ -426,10 +426,10 @@ def _inertia_problem(J: np.ndarray) -> str:
         return "must be symmetric"
     moments = np.linalg.eigvalsh(J)
     if moments[0] <= 0:
-        return f"must be positive definite (eigenvalues {_fmt(np.round(moments, 6))})"
+        return f"must be positive definite (eigenvalues {format_value(np.round(moments, 6))})"
     if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
         return (
-            f"is not a rigid body's inertia: principal moments {_fmt(np.round(moments, 6))} "
+            f"is not a rigid body's inertia: principal moments {format_value(np.round(moments, 6))} "
             "break the triangle inequality I1 + I2 >= I3"
         )
     return ""
@@ -439,14 +439,14 @@ def _wheel_axes_problem(C: np.ndarray) -> str:
     """Why C cannot be a wheel matrix ("" if it can); the checks of C++ validate()."""
     norms = np.linalg.norm(C, axis=0)
     if np.any(np.abs(norms - 1.0) > 1e-2):
-        return f"columns must be unit spin axes (norms {_fmt(np.round(norms, 4))})"
+        return f"columns must be unit spin axes (norms {format_value(np.round(norms, 4))})"
     sv = np.linalg.svd(C, compute_uv=False)
     if sv[2] < 1e-6 * sv[0]:
         return "is rank-deficient: the wheels cannot produce torque about every axis"
     return ""
 
 
-def _read_checked(t: _Table, name: str, spec: _Spec, problem_of: Any, missing: str = "") -> Any:
+def _read_checked(t: Table, name: str, spec: Spec, problem_of: Any, missing: str = "") -> Any:
     """A required value that must also pass ``problem_of`` (returns "" when fine)."""
     value = t.read(name, spec, missing=missing)
     if value is not None and (problem := problem_of(value)):
@@ -455,11 +455,11 @@ def _read_checked(t: _Table, name: str, spec: _Spec, problem_of: Any, missing: s
     return value
 
 
-def _read_capture(t: _Table) -> tuple[np.ndarray | None, np.ndarray | None]:
+def _read_capture(t: Table) -> tuple[np.ndarray | None, np.ndarray | None]:
     """(J0, Cbar) of the combined spacecraft from [spacecraft.capture]."""
-    frame = t.read("frame", _Spec("str", choices=("service", "principal")), default="service")
+    frame = t.read("frame", Spec("str", choices=("service", "principal")), default="service")
     s, g = t.sub("service"), t.sub("target")
-    mass = _Spec("number", gt=0)
+    mass = Spec("number", gt=0)
     service = (
         s.read("mass", mass),
         _read_checked(s, "inertia", _MAT33, _inertia_problem),
@@ -468,8 +468,8 @@ def _read_capture(t: _Table) -> tuple[np.ndarray | None, np.ndarray | None]:
     target = (
         g.read("mass", mass),
         _read_checked(g, "inertia", _MAT33, _inertia_problem),
-        g.read("position", _Spec("vector", shape=(3,))),
-        g.read("attitude", _Spec("vector", shape=(3,), mrp=True)),
+        g.read("position", Spec("vector", shape=(3,))),
+        g.read("attitude", Spec("vector", shape=(3,), mrp=True)),
     )
     for sub in (s, g, t):
         sub.finish()
@@ -479,10 +479,10 @@ def _read_capture(t: _Table) -> tuple[np.ndarray | None, np.ndarray | None]:
         RigidBody(service[0], service[1]), service[2],
         RigidBody(target[0], target[1]), target[2], mrp_to_dcm(target[3]), frame,
     )  # fmt: skip
-    return _ro(c.J_C), _ro(c.Cbar)
+    return read_only(c.J_C), read_only(c.Cbar)
 
 
-def _read_spacecraft(t: _Table, dist: _Table) -> tuple[PlantParams | None, ActuatorParams | None]:
+def _read_spacecraft(t: Table, dist: Table) -> tuple[PlantParams | None, ActuatorParams | None]:
     if t.has("capture"):
         for name in ("J0", "Cbar"):
             if t.has(name):
@@ -498,32 +498,32 @@ def _read_spacecraft(t: _Table, dist: _Table) -> tuple[PlantParams | None, Actua
         t.fail("dJ", "dJ must be symmetric")
         dJ = None
     if J0 is not None and dJ is not None and (problem := _inertia_problem(J0 + dJ)):
-        t.fail("dJ", f"the true inertia J0 + dJ = {_fmt(J0 + dJ)} {problem}")
+        t.fail("dJ", f"the true inertia J0 + dJ = {format_value(J0 + dJ)} {problem}")
         dJ = None
     Jw = t.read("Jw", dataclasses.replace(_WHEELS, gt=0))
     umin, umax = t.read("umin", _WHEELS), t.read("umax", _WHEELS)
     if umin is not None and umax is not None and np.any(umin >= umax):
         bad = ", ".join(str(i + 1) for i in np.flatnonzero(umin >= umax))
-        t.fail("umin", f"umin must be < umax = {_fmt(t.raw('umax'))} for every wheel "
+        t.fail("umin", f"umin must be < umax = {format_value(t.raw('umax'))} for every wheel "
                        f"(not for wheel {bad})")  # fmt: skip
         umin = None
-    w0 = t.read("w0", _Spec("number", ge=0))
+    w0 = t.read("w0", Spec("number", ge=0))
     max_speed = t.read(
         "max_wheel_speed",
         dataclasses.replace(_WHEELS, gt=0, allow_inf=True),
-        default=_ro(np.full(4, np.inf)),
+        default=read_only(np.full(4, np.inf)),
     )
     t.finish()
     amp, freq = dist.read("amp", _V3), dist.read("freq", dataclasses.replace(_V3, ge=0))
-    bias = dist.read("bias", _V3, default=_ro(np.zeros(3)))
+    bias = dist.read("bias", _V3, default=read_only(np.zeros(3)))
     dist.finish()
-    disturbance = _build(dist, DisturbanceParams, amp=amp, freq=freq, bias=bias)
-    plant = _build(t, PlantParams, J0=J0, dJ=dJ, Cbar=Cbar, Jw=Jw, w0=w0, disturbance=disturbance)
-    actuators = _build(t, ActuatorParams, umin=umin, umax=umax, max_wheel_speed=max_speed)
+    disturbance = build(dist, DisturbanceParams, amp=amp, freq=freq, bias=bias)
+    plant = build(t, PlantParams, J0=J0, dJ=dJ, Cbar=Cbar, Jw=Jw, w0=w0, disturbance=disturbance)
+    actuators = build(t, ActuatorParams, umin=umin, umax=umax, max_wheel_speed=max_speed)
     return plant, actuators
 
 
-def _read_faults(root: _Table) -> tuple[WheelFault, ...] | None:
+def _read_faults(root: Table) -> tuple[WheelFault, ...] | None:
     root.used.add("faults")
     raw = root.raw("faults") if root.has("faults") else []
     if not (isinstance(raw, list) and all(isinstance(f, dict) for f in raw)):
@@ -531,14 +531,14 @@ def _read_faults(root: _Table) -> tuple[WheelFault, ...] | None:
         return None
     faults, first_of_wheel = [], {}
     for i, entry in enumerate(raw):
-        t = _Table(root.doc, f"faults[{i}]", entry)
-        wheel = t.read("wheel", _Spec("int", ge=1, le=4))
-        eff = t.read("effectiveness", _Spec("number", ge=0, le=1), default=_FAULT.effectiveness)
-        bias = t.read("bias", _Spec("number"), default=_FAULT.bias)
-        onset = t.read("onset", _Spec("number", ge=0))
-        end = t.read("end", _Spec("number"), default=_FAULT.end)
-        rate = t.read("rate", _Spec("number", gt=0), default=_FAULT.rate)
-        stuck = t.read("stuck", _Spec("bool"), default=_FAULT.stuck)
+        t = Table(root.doc, f"faults[{i}]", entry)
+        wheel = t.read("wheel", Spec("int", ge=1, le=4))
+        eff = t.read("effectiveness", Spec("number", ge=0, le=1), default=_FAULT.effectiveness)
+        bias = t.read("bias", Spec("number"), default=_FAULT.bias)
+        onset = t.read("onset", Spec("number", ge=0))
+        end = t.read("end", Spec("number"), default=_FAULT.end)
+        rate = t.read("rate", Spec("number", gt=0), default=_FAULT.rate)
+        stuck = t.read("stuck", Spec("bool"), default=_FAULT.stuck)
         t.finish()
         if wheel is not None and wheel in first_of_wheel:
             t.fail("wheel", f"wheel {wheel} already has a fault (faults[{first_of_wheel[wheel]}]): "
@@ -554,7 +554,7 @@ def _read_faults(root: _Table) -> tuple[WheelFault, ...] | None:
             stuck = None
         if t.has("end") and end is None:  # end was given but is bad (reported)
             continue
-        fault = _build(
+        fault = build(
             t, WheelFault, ("end",), wheel=None if wheel is None else wheel - 1,
             effectiveness=eff, bias=bias, onset=onset, end=end, rate=rate, stuck=stuck,
         )  # fmt: skip
@@ -563,17 +563,17 @@ def _read_faults(root: _Table) -> tuple[WheelFault, ...] | None:
     return tuple(faults) if len(faults) == len(raw) else None
 
 
-def _read_controller(t: _Table) -> ControllerParams | None:
+def _read_controller(t: Table) -> ControllerParams | None:
     ppc_table = t.sub("ppc", required=False)
-    ppc = _read_fields(ppc_table, PpcParams)
+    ppc = read_fields(ppc_table, PpcParams)
     if ppc is not None and np.any(ppc.chi0 < ppc.chiinf):
-        ppc_table.fail("chi0", f"chi0 must be >= chiinf = {_fmt(ppc.chiinf)} on every axis")
+        ppc_table.fail("chi0", f"chi0 must be >= chiinf = {format_value(ppc.chiinf)} on every axis")
         ppc = None
     groups = {"ppc": ppc}
     for name, cls in (("neso", NesoParams), ("dsc", DscGains), ("pd", PdGains),
                       ("rft", RftGains), ("safety", SafetyLimits)):  # fmt: skip
-        groups[name] = _read_fields(t.sub(name, required=False), cls)
-    damping = t.read("pinv_damping", _field_spec(ControllerParams, "pinv_damping"),
+        groups[name] = read_fields(t.sub(name, required=False), cls)
+    damping = t.read("pinv_damping", field_spec(ControllerParams, "pinv_damping"),
                      default=_PAPER.spacecraft.pinv_damping)  # fmt: skip
     params = _read_params(t.sub("params", required=False))
     t.used.add("law")  # read by _read_scenario
@@ -583,19 +583,19 @@ def _read_controller(t: _Table) -> ControllerParams | None:
     return ControllerParams(**groups, pinv_damping=damping, law_params=params)
 
 
-def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | None:
-    root = _Table(doc, "", data)
-    name = root.read("name", _Spec("str"), default=path.stem)
-    description = root.read("description", _Spec("str"), default="")
+def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | None:
+    root = Table(doc, "", data)
+    name = root.read("name", Spec("str"), default=path.stem)
+    description = root.read("description", Spec("str"), default="")
     # The law: [controller] law, or the older [run] controller (one of them).
     ctl_data = data.get("controller") if isinstance(data.get("controller"), dict) else {}
     law = ctl_data.get("law")
     run_table = root.sub("run")
     if law is not None:
-        law_table = _Table(doc, "controller", ctl_data)
+        law_table = Table(doc, "controller", ctl_data)
         if run_table.has("controller") and run_table.raw("controller") != law:
             law_table.fail("law", f'give the law once: [controller] law or [run] controller '
-                                  f'(= {_fmt(run_table.raw("controller"))}), not both')
+                                  f'(= {format_value(run_table.raw("controller"))}), not both')
             law = None
         elif problem := law_problem(law):
             law_table.fail("law", f"law {problem}")
@@ -603,7 +603,7 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
         else:
             law = law_spec(law, path.parent)
         if run_table.data is not None:  # read the rest of [run] with a valid placeholder
-            run_table = _Table(doc, "run", {**run_table.data, "controller": next(iter(LAWS))})
+            run_table = Table(doc, "run", {**run_table.data, "controller": next(iter(LAWS))})
     run = _read_run(run_table)
     if run is not None and law is not None:
         run = dataclasses.replace(run, controller=law)
@@ -613,7 +613,7 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
         run = dataclasses.replace(run, controller=law_spec(run.controller, path.parent))
     plant, actuators = _read_spacecraft(root.sub("spacecraft"), root.sub("disturbance"))
     initial_table = root.sub("initial")
-    initial = _read_fields(initial_table, InitialState)
+    initial = read_fields(initial_table, InitialState)
     guidance = read_guidance(root.sub("guidance"), run.duration if run else None, path.parent)
     controller_table = root.sub("controller", required=False)
     sensors = read_sensors(root, controller_table, run)  # [sensors], [controller] measurement, estimator
@@ -626,7 +626,7 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
             initial_table.fail(
                 "wheel_speed",
                 "|wheel_speed| must be <= spacecraft.max_wheel_speed = "
-                f"{_fmt(actuators.max_wheel_speed)}",
+                f"{format_value(actuators.max_wheel_speed)}",
             )
     if doc.errors:
         read_montecarlo(montecarlo, None)  # its own problems, reported with the others
@@ -653,7 +653,7 @@ def _read_scenario(doc: _Doc, data: dict[str, Any], path: Path) -> Scenario | No
 def scenario_from_data(data: dict[str, Any], path: str | Path, where: str = "") -> Scenario:
     """A scenario from parsed TOML data (e.g. a dispersed copy), validated as a
     file is; ScenarioError (no line numbers) names ``path`` + ``where``."""
-    doc = _Doc(f"{path}{where}", {})
+    doc = Doc(f"{path}{where}", {})
     scenario = _read_scenario(doc, data, Path(path))
     if doc.errors:
         raise ScenarioError(doc.path, doc.errors)
@@ -674,7 +674,7 @@ def load_scenario(path: str | Path) -> Scenario:
         m = re.search(r"at line (\d+)", str(e))
         issue = ScenarioIssue(int(m.group(1)) if m else 0, "", None, f"TOML syntax error: {e}")
         raise ScenarioError(path, [issue]) from None
-    doc = _Doc(str(path), _key_lines(text))
+    doc = Doc(str(path), key_lines(text))
     scenario = _read_scenario(doc, data, path)
     if doc.errors:
         raise ScenarioError(path, doc.errors)

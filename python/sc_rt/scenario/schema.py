@@ -21,7 +21,7 @@ import numpy as np
 
 
 @dataclass(frozen=True)
-class _Spec:
+class Spec:
     kind: str  # "number" | "int" | "bool" | "str" | "vector" | "matrix"
     shape: tuple[int, ...] = ()  # (n,) for a vector, (rows, cols) for a matrix
     scalar_ok: bool = False  # a vector may be given as one number for all
@@ -33,15 +33,15 @@ class _Spec:
     choices: tuple[str, ...] = ()
 
 
-def _spec(kind: str, **kw: Any) -> dict[str, _Spec]:
-    return {"spec": _Spec(kind, **kw)}
+def spec(kind: str, **kw: Any) -> dict[str, Spec]:
+    return {"spec": Spec(kind, **kw)}
 
 
-def _vec(n: int, **kw: Any) -> dict[str, _Spec]:
-    return _spec("vector", shape=(n,), **kw)
+def vector_spec(n: int, **kw: Any) -> dict[str, Spec]:
+    return spec("vector", shape=(n,), **kw)
 
 
-def _ro(a: Any) -> np.ndarray:
+def read_only(a: Any) -> np.ndarray:
     """A read-only float copy: the dataclasses holding it are frozen."""
     a = np.array(a, dtype=float)
     a.setflags(write=False)
@@ -72,18 +72,18 @@ class ScenarioError(ValueError):
 
 def _format_issue(path: str, e: ScenarioIssue) -> str:
     where = f"{path}:{e.line}: " if e.line else f"{path}: "
-    what = e.key + ("" if e.value is None else f" = {_fmt(e.value)}")
+    what = e.key + ("" if e.value is None else f" = {format_value(e.value)}")
     return f"{where}{what}: {e.message}" if what else f"{where}{e.message}"
 
 
-def _fmt(v: Any) -> str:
+def format_value(v: Any) -> str:
     """A value as TOML would write it."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
         return f'"{v}"'
     if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(_fmt(x) for x in v) + "]"
+        return "[" + ", ".join(format_value(x) for x in v) + "]"
     if isinstance(v, dict):
         return "{...}"  # a table: its keys are reported one by one
     return str(v)
@@ -109,7 +109,7 @@ def _bracket_depth(text: str) -> int:
     return code.count("[") + code.count("{") - code.count("]") - code.count("}")
 
 
-def _key_lines(text: str) -> dict[str, int]:
+def key_lines(text: str) -> dict[str, int]:
     """Dotted key (``a.b.c``, ``faults[0].wheel``) -> its 1-based line."""
     lines: dict[str, int] = {}
     table: list[str] = []
@@ -143,7 +143,7 @@ def _key_lines(text: str) -> dict[str, int]:
 _REQUIRED = object()
 
 
-class _Doc:
+class Doc:
     """The file being read: its path, key lines and the problems found."""
 
     def __init__(self, path: str, lines: dict[str, int]):
@@ -163,14 +163,14 @@ class _Doc:
         self.errors.append(ScenarioIssue(self.line_of(key), key, value, message))
 
 
-def _bounds(s: _Spec) -> str:
+def _bounds(s: Spec) -> str:
     lo = f"[{s.ge:g}" if s.ge is not None else f"({s.gt:g}" if s.gt is not None else None
     if lo and s.le is not None:
         return f"in {lo}, {s.le:g}]"
     return f">= {s.ge:g}" if s.ge is not None else f"> {s.gt:g}" if s.gt is not None else ""
 
 
-def _in_bounds(x: float, s: _Spec) -> bool:
+def _in_bounds(x: float, s: Spec) -> bool:
     return (
         (s.gt is None or x > s.gt) and (s.ge is None or x >= s.ge) and (s.le is None or x <= s.le)
     )
@@ -180,7 +180,7 @@ def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _convert(v: Any, s: _Spec) -> tuple[Any, str]:
+def convert(v: Any, s: Spec) -> tuple[Any, str]:
     """(typed value, "") or (None, what is wrong)."""
     if s.kind == "bool":
         return (v, "") if isinstance(v, bool) else (None, "must be true or false")
@@ -224,13 +224,13 @@ def _convert(v: Any, s: _Spec) -> tuple[Any, str]:
     if s.mrp and np.linalg.norm(a) > 1.0 + 1e-12:
         norm = np.linalg.norm(a)
         return None, f"must be an MRP with norm <= 1, got norm {norm:.4g} (MRP, not degrees?)"
-    return _ro(a), ""
+    return read_only(a), ""
 
 
-class _Table:
+class Table:
     """One TOML table being read. data None: missing or broken (reported once)."""
 
-    def __init__(self, doc: _Doc, key: str, data: dict[str, Any] | None):
+    def __init__(self, doc: Doc, key: str, data: dict[str, Any] | None):
         self.doc, self.key, self.data = doc, key, data
         self.used: set[str] = set()
 
@@ -243,23 +243,23 @@ class _Table:
     def raw(self, name: str) -> Any:
         return self.data.get(name) if self.data is not None else None
 
-    def sub(self, name: str, required: bool = True) -> _Table:
+    def sub(self, name: str, required: bool = True) -> Table:
         """The sub-table ``name``; an optional missing one reads as empty."""
         self.used.add(name)
         key = self.dotted(name)
         if self.data is None:
-            return _Table(self.doc, key, None)
+            return Table(self.doc, key, None)
         if name not in self.data:
             if required:
                 self.doc.error(key, None, "required table is missing")
-            return _Table(self.doc, key, None if required else {})
+            return Table(self.doc, key, None if required else {})
         value = self.data[name]
         if not isinstance(value, dict):
             self.doc.error(key, value, f"{name} must be a table")
-            return _Table(self.doc, key, None)
-        return _Table(self.doc, key, value)
+            return Table(self.doc, key, None)
+        return Table(self.doc, key, value)
 
-    def read(self, name: str, spec: _Spec, default: Any = _REQUIRED, missing: str = "") -> Any:
+    def read(self, name: str, spec: Spec, default: Any = _REQUIRED, missing: str = "") -> Any:
         """The typed value of ``name``, its default, or None after reporting a problem."""
         self.used.add(name)
         if self.data is None:
@@ -269,7 +269,7 @@ class _Table:
                 self.doc.error(self.dotted(name), None, missing or "required key is missing")
                 return None
             return default
-        value, problem = _convert(self.data[name], spec)
+        value, problem = convert(self.data[name], spec)
         if problem:
             self.doc.error(self.dotted(name), self.data[name], f"{name} {problem}")
         return value
@@ -288,17 +288,17 @@ class _Table:
                 self.doc.error(self.dotted(name), value, f"unknown {kind}{hint}")
 
 
-def _field_spec(cls: type, name: str) -> _Spec:
+def field_spec(cls: type, name: str) -> Spec:
     return next(f.metadata["spec"] for f in dataclasses.fields(cls) if f.name == name)
 
 
-def _read_fields(t: _Table, cls: type) -> Any:
+def read_fields(t: Table, cls: type) -> Any:
     """An instance of dataclass ``cls`` from table ``t`` (None if any field failed)."""
-    values = _read_values(t, cls)
+    values = read_values(t, cls)
     return None if any(v is None for v in values.values()) else cls(**values)
 
 
-def _read_values(t: _Table, cls: type) -> dict[str, Any]:
+def read_values(t: Table, cls: type) -> dict[str, Any]:
     """The fields of dataclass ``cls`` from table ``t``, None for each that failed.
 
     The fields' metadata hold the specs, their defaults the defaults.
@@ -316,7 +316,7 @@ def _read_values(t: _Table, cls: type) -> dict[str, Any]:
     return values
 
 
-def _build(t: _Table, cls: type, nullable: tuple[str, ...] = (), **fields: Any) -> Any:
+def build(t: Table, cls: type, nullable: tuple[str, ...] = (), **fields: Any) -> Any:
     """``cls(**fields)`` once every field read well (is not None, but for
     ``nullable`` ones), else None.
 
@@ -330,13 +330,3 @@ def _build(t: _Table, cls: type, nullable: tuple[str, ...] = (), **fields: Any) 
     except ValueError as e:
         t.doc.error(t.key, None, str(e))
         return None
-
-
-# Public names of the machinery for the scenario's other readers (sc_rt.scenario.sensors):
-# a field spec, a table being read, a value's conversion, a read-only array, spec metadata.
-Spec = _Spec
-Table = _Table
-convert = _convert
-read_only = _ro
-spec = _spec
-vector_spec = _vec
