@@ -182,7 +182,7 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
     import sc_rt_lcm
 
     from sc_rt.bus.lcmio import lcm_binary
-    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.reader import load_scenario
     from sc_rt.scenario.overrides import with_overrides
 
     work.mkdir(parents=True, exist_ok=True)
@@ -229,6 +229,11 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
             if time.monotonic() > end:
                 raise RuntimeError("the loggers did not start")
             time.sleep(0.05)
+        # lcm-logger's 30-message LCM queue drops bursts when it is descheduled
+        # (bench/soak.py): its threads at SCHED_FIFO, so the logs count the link
+        from soak import lift
+
+        lifted = [lift(p.pid) for p in procs[:2]]
         out = work / "emu"
         r = subprocess.run(["ip", "netns", "exec", b, sys.executable, "-m", "sc_rt.cli", "emulator",
                             str(ROOT / "scenarios" / f"{scenario}.toml"), "--mode", "realtime", "--rate", f"{rate:g}",
@@ -288,7 +293,7 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
     late = tr["t"] >= min(10.0, duration / 2)
     res = {
         "netem": netem or "none", "duration_s": duration, "rate_hz": rate, "rows": rows,
-        "expected": p, "controller_alive": ctl_alive,
+        "expected": p, "controller_alive": ctl_alive, "loggers": lifted,
         "to_controller": {**to_ctl, "undecodable_in_log": st_bad,
                           "controller_received": summary["received"],
                           "controller_rejected": summary["rejected"]},

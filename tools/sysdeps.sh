@@ -6,7 +6,8 @@
 #                          processes talk over udpm with ttl=0)
 #   tools/sysdeps.sh test  the build, plus what the tests run: Xvfb, a JDK
 #                          (javac, jar) with the JRE's X11 AWT for lcm-spy's
-#                          window, a headless Chromium, iproute2 (ip, tc); a
+#                          window, a headless Chromium, iproute2 (ip, tc),
+#                          nftables (a lossy link where tc has no netem); a
 #                          multicast route only when the tests cannot make
 #                          their own network namespace (tests/lcmnet.py)
 # When something is missing: as root with apt-get, install it (Debian
@@ -56,6 +57,8 @@ check_packages() {
   [ -n "$java_home" ] && [ -e "$java_home/lib/libawt_xawt.so" ] || need default-jre
   have chromium || have chromium-browser || need chromium
   have tc || need iproute2
+  # tests/test_netem.py impairs a veth with nftables where the kernel has no netem
+  have nft || need nftables
 }
 
 check_packages
