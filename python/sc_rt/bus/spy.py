@@ -181,6 +181,8 @@ class Spy:
     def snapshot(self) -> dict:
         return {"url": self.url, "channels_regex": self.pattern,
                 "listened_s": time.monotonic() - self.start,
+                # --auth-key: messages whose tag did not verify, dropped before the statistics
+                "auth_failed": int(self.auth_failed["auth_failed"]),
                 "channels": {k: self.stats[k].snapshot() for k in sorted(self.stats)}}
 
     # --- terminal view ---------------------------------------------------
