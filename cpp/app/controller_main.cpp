@@ -395,9 +395,19 @@ bool read_file(const std::string& path, std::vector<char>& buf) {
 struct ConfigWait {
   bool got = false;
   std::vector<char> bytes;
-  static void on(const lcm::ReceiveBuffer* rb, const std::string&, ConfigWait* self) {
+  const sc_rt::HmacSha256* auth = nullptr;  // --auth-key: only a configuration whose tag verifies
+  int64_t auth_failed = 0;
+  static void on(const lcm::ReceiveBuffer* rb, const std::string& channel, ConfigWait* self) {
     const char* p = static_cast<const char*>(rb->data);
-    self->bytes.assign(p, p + rb->data_size);
+    std::size_t n = rb->data_size;
+    if (self->auth) {
+      if (!self->auth->verify(channel, rb->data, n)) {
+        ++self->auth_failed;
+        return;
+      }
+      n -= sc_rt::HmacSha256::kSize;
+    }
+    self->bytes.assign(p, p + n);
     self->got = true;
   }
 };
@@ -552,6 +562,11 @@ int main(int argc, char** argv) {
 
   if (o.config_channel) {
     ConfigWait w;
+    std::unique_ptr<sc_rt::HmacSha256> config_auth;
+    if (!o.auth_key.empty()) {
+      config_auth = std::make_unique<sc_rt::HmacSha256>(o.auth_key);
+      w.auth = config_auth.get();
+    }
     auto* sub = lcm.subscribeFunction(o.prefix + "SCRT_CONFIG", &ConfigWait::on, &w);
     std::fprintf(stderr, "sc-rt-controller: waiting for %sSCRT_CONFIG\n", o.prefix.c_str());
     while (!w.got && !g_stop) lcm.handleTimeout(100);
