@@ -232,21 +232,30 @@ def main() -> None:
     n, dur = (1, 10.0) if quick else (3, 60.0)
     res = {"machine": machine(), "scenario": "paper_faults", "netns": lcmnet.can_unshare(), "quick": quick,
            "priority": bool(prio), "rows": {}}
+    sched = "FIFO" if prio else "OTHER"
+    jobs = []
     if "100hz" in want:
-        res["rows"]["100 Hz, event, " + ("FIFO" if prio else "OTHER")] = realtime_row(100, n, dur, prio)
+        jobs.append((f"100 Hz, event, {sched}", lambda: realtime_row(100, n, dur, prio)))
     if "1khz" in want:
-        res["rows"]["1 kHz, event, " + ("FIFO" if prio else "OTHER")] = realtime_row(1000, n, dur, prio)
+        jobs.append((f"1 kHz, event, {sched}", lambda: realtime_row(1000, n, dur, prio)))
     if "lockstep" in want:
-        res["rows"]["lockstep + lcm-logger"] = lockstep_row(n, 300.0 if quick else 3000.0, prio)
+        jobs.append(("lockstep + lcm-logger", lambda: lockstep_row(n, 300.0 if quick else 3000.0, prio)))
     if "timer" in want:  # the trade-off: the own-clock controller, one run per rate
         for rate in (100, 1000):
-            res["rows"][f"{rate:g} Hz, timer, " + ("FIFO" if prio else "OTHER")] = realtime_row(
-                rate, 1, dur, prio, trigger="timer")
+            jobs.append((f"{rate:g} Hz, timer, {sched}",
+                         lambda rate=rate: realtime_row(rate, 1, dur, prio, trigger="timer")))
     if "pin" in want:  # CPU placement, one run each: both on CPU 0, or the controller on CPU 1
         for label, extra in (("same CPU 0", ("--controller-cpu", "0", "--emulator-cpu", "0")),
                              ("controller CPU 1, emulator CPU 0", ("--controller-cpu", "1", "--emulator-cpu", "0"))):
-            res["rows"][f"1 kHz, event, {'FIFO' if prio else 'OTHER'}, {label}"] = realtime_row(
-                1000, 1, dur, prio, extra=extra)
+            jobs.append((f"1 kHz, event, {sched}, {label}",
+                         lambda extra=extra: realtime_row(1000, 1, dur, prio, extra=extra)))
+    for name, job in jobs:
+        try:
+            res["rows"][name] = job()
+        except RuntimeError as e:  # one row failing (a broken tree, a crash) keeps the others
+            res.setdefault("failed", {})[name] = str(e)[-1500:]
+            print(f"{name}: failed: {str(e)[-300:]}", file=sys.stderr)
+        write("timing", res)  # after every row: a late failure loses nothing
     if "--profile" in sys.argv or not quick:
         for name, row in res["rows"].items():
             if any(not c["pass"] for c in row["checks"]):
