@@ -21,7 +21,7 @@ from common import ROOT, machine, summary, write
 sys.path.insert(0, str(ROOT / "tests"))
 
 from sc_rt import _core  # noqa: E402
-from sc_rt.scenario.model import load_scenario  # noqa: E402
+from sc_rt.scenario.reader import load_scenario  # noqa: E402
 from sc_rt.sim.engines import simulate  # noqa: E402
 
 LAWS = {name: name for name in _core.law_names()[:4]}  # the built-in laws, registry order

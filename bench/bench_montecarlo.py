@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from common import ROOT, machine, write
 
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 from sc_rt.studies.campaign import Campaign, Dispersion, RunStore, run_campaign, run_one, run_seed_sequence
 from sc_rt.studies.campaign.backends import DaskBackend, PoolBackend

@@ -25,7 +25,7 @@ import sc_rt_lcm
 from common import ROOT, machine, write
 
 from sc_rt.bus.report import read_log, rebuild, write_report  # noqa: E402
-from sc_rt.scenario.model import load_scenario  # noqa: E402
+from sc_rt.scenario.reader import load_scenario  # noqa: E402
 from sc_rt.bus.wire import numpy_dtype  # noqa: E402
 
 CHANNELS = (("SCRT_STATE", sc_rt_lcm.plant_state_t), ("SCRT_CMD", sc_rt_lcm.wheel_cmd_t),

@@ -18,7 +18,7 @@ import sys
 
 from common import ROOT, alternate, machine, summary, write
 
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 

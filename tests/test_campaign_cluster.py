@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import with_overrides
 from sc_rt.studies.campaign import Campaign, Dispersion, RunStore, run_campaign
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sc_rt import _core
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.overrides import with_overrides
 
 import lcmnet

@@ -15,7 +15,7 @@ from sc_rt import _core
 from sc_rt.studies import design as D
 from sc_rt.cli import main
 from sc_rt.model.plant import DisturbanceParams
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 ROOT = Path(__file__).resolve().parents[1]

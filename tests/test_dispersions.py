@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from sc_rt.scenario.keys import get_key, scenario_data
-from sc_rt.scenario.model import ScenarioError, load_scenario, scenario_from_data
+from sc_rt.scenario.model import ScenarioError
+from sc_rt.scenario.reader import load_scenario, scenario_from_data
 from sc_rt.sim.engines import with_overrides
 from sc_rt.studies.campaign import NO_SHORTCUTS, Campaign, RunStore, draw_run, run_campaign, run_one
 

@@ -22,7 +22,7 @@ import pytest
 import sc_rt_lcm
 
 from sc_rt import _core
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet
@@ -176,7 +176,7 @@ sys.path.insert(0, {str(ROOT / 'tests')!r})
 from test_external import _statusless_controller
 from sc_rt.bus.emulator import Emulator
 from sc_rt.bus.lcmio import free_port_url
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 url = free_port_url()
 stop, answered = threading.Event(), []
 th = threading.Thread(target=_statusless_controller, args=(url, stop, answered), daemon=True)

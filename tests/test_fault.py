@@ -18,7 +18,7 @@ import sc_rt_lcm
 from sc_rt.bus.emulator import Emulator
 from sc_rt.bus.faultcmd import clear_msg, inject_msg
 from sc_rt.bus.report import read_log, write_report
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 
 import figcheck
 import lcmnet

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sc_rt.results import figures
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 

@@ -94,7 +94,7 @@ def test_a_realtime_run_carries_its_cached_floor_and_the_null_law_answers_zero(t
     # the floor's own controller: zero commands, the same messages
     null = tmp_path / "null"
     code = (f"from pathlib import Path; from sc_rt.bus.hil import run_hil; from sc_rt.bus.floor import TimingSetup; "
-            f"from sc_rt.scenario.model import load_scenario; "
+            f"from sc_rt.scenario.reader import load_scenario; "
             f"run_hil(load_scenario('paper_faults'), out=Path({str(null)!r}), mode='lockstep', duration=2.0, "
             f"plots=False, setup=TimingSetup(null_law=True))")
     r = lcmnet.run([sys.executable, "-c", code], timeout=300)

@@ -16,7 +16,7 @@ import lcm
 import numpy as np
 import pytest
 
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from sc_rt.bus.collision import COLLISION_MESSAGES, CollisionGuard
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet

@@ -22,7 +22,8 @@ import pytest
 
 import sc_rt.cmake
 from sc_rt import _core
-from sc_rt.scenario.model import ScenarioError, load_scenario, scenario_from_data
+from sc_rt.scenario.model import ScenarioError
+from sc_rt.scenario.reader import load_scenario, scenario_from_data
 from sc_rt.sim.engines import simulate
 
 import lcmnet

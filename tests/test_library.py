@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.scenario.model import ScenarioError, load_scenario
+from sc_rt.scenario.model import ScenarioError
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.shipped import LIBRARY, resolve, shipped
 
 ROOT = Path(__file__).resolve().parent.parent

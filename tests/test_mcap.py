@@ -200,7 +200,7 @@ def test_frames_are_the_logged_attitudes(run_dir, exported):
 
 
 def test_pointing_error_and_bound_in_arcsec(run_dir, exported):
-    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.reader import load_scenario
 
     ppc = load_scenario(ROOT / "scenarios" / "paper_faults.toml").controller.ppc
     chi0, chiinf, gamma, dmin, dmax = (np.asarray(getattr(ppc, k), float)

@@ -17,7 +17,7 @@ from scipy import stats
 
 from refmath import dcm_to_mrp, mrp_dcm, rotation_exp
 from sc_rt import _core
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 ROOT = Path(__file__).resolve().parent.parent

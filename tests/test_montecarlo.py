@@ -17,7 +17,7 @@ import pytest
 
 from sc_rt import _core
 from sc_rt.cli.main import main
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate, with_overrides
 from sc_rt.studies.campaign import (Campaign, Dispersion, RunStore, clopper_pearson,
                                     draw_run, rerun, run_campaign, run_one, run_seed_sequence,

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 from sc_rt.studies.check import check_scenario
 from sc_rt.studies.design.noise import estimator_gains, noise_floor

@@ -11,7 +11,7 @@ import pytest
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim import engines
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -13,7 +13,7 @@ import pytest
 
 from sc_rt import _core
 from sc_rt.pylaw import FLAG_LAW_INVALID, PACKED_SLICES, PyController, load_law
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 from conftest import core_config

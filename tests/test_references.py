@@ -18,7 +18,8 @@ import pytest
 from sc_rt import _core
 from sc_rt.results.metrics import fill_tracking_errors
 from sc_rt.results.run import Run
-from sc_rt.scenario.model import ScenarioError, load_scenario
+from sc_rt.scenario.model import ScenarioError
+from sc_rt.scenario.reader import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 SLEW = ROOT / "scenarios" / "slew_rest_to_rest.toml"

@@ -190,7 +190,7 @@ def test_a_restarted_controller_and_a_replayed_command_map_to_the_right_command(
     command is replayed: the applied one is the one the emulator used."""
     import sc_rt_lcm
 
-    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.reader import load_scenario
 
     if "session" not in sc_rt_lcm.wheel_cmd_t.__slots__:  # pragma: no cover
         pytest.skip("wheel_cmd_t has no session field in this build")

@@ -18,13 +18,8 @@ from sc_rt_lcm import controller_config_t
 
 from sc_rt import _core
 from sc_rt.model.actuators import WheelFault
-from sc_rt.scenario.model import (
-    LAWS,
-    ControllerParams,
-    Scenario,
-    ScenarioError,
-    load_scenario,
-)
+from sc_rt.scenario.model import LAWS, ControllerParams, Scenario, ScenarioError
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.schema import key_lines
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"

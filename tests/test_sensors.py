@@ -21,7 +21,8 @@ from scipy import stats
 
 from refmath import mrp_dcm, skew
 from sc_rt import _core
-from sc_rt.scenario.model import ScenarioError, load_scenario
+from sc_rt.scenario.model import ScenarioError
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -325,7 +326,7 @@ def test_without_sensors_the_paper_runs_are_todays(scenario, law):
 
 def test_sensors_round_trip_through_the_scenario_data_and_campaign_seeds_differ():
     from sc_rt.scenario.keys import scenario_data
-    from sc_rt.scenario.model import scenario_from_data
+    from sc_rt.scenario.reader import scenario_from_data
     from sc_rt.studies.campaign.draws import NO_SHORTCUTS, draw_run
 
     scn = load_scenario(SENSED)

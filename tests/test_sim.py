@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from sc_rt.results.run import CORE_FIELDS
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.results.output import write_run
 from sc_rt.scenario.overrides import with_overrides
 from sc_rt.sim.engines import simulate

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.scenario.model import load_scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -34,7 +34,7 @@ except PackageNotFoundError:  # running from a source tree without install
 #: The public Python API: name -> (module, attribute). Imported on first use,
 #: so that ``import sc_rt`` stays cheap (the CLI imports only what it runs).
 _API = {
-    "load_scenario": ("sc_rt.scenario.model", "load_scenario"),
+    "load_scenario": ("sc_rt.scenario.reader", "load_scenario"),
     "Scenario": ("sc_rt.scenario.model", "Scenario"),
     "ScenarioError": ("sc_rt.scenario.schema", "ScenarioError"),
     "with_overrides": ("sc_rt.scenario.overrides", "with_overrides"),

@@ -177,7 +177,7 @@ def run_params(d: LogData, scenario_path: str | None):
     cfg = logged_config(d)
     scn = None
     if scenario_path:
-        from sc_rt.scenario.model import load_scenario
+        from sc_rt.scenario.reader import load_scenario
 
         scn = load_scenario(scenario_path)
     if cfg is not None:
@@ -218,7 +218,7 @@ def logged_guidance(d: LogData, scenario_path: str | None):
     cfg = logged_config(d)
     if cfg is not None:
         return _core.ControllerConfig.from_lcm_bytes(cfg.encode()).guidance
-    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.reader import load_scenario
 
     return load_scenario(scenario_path).core_config().guidance
 

@@ -15,7 +15,7 @@ LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 
 
 def scenario_arg(path: str, args: argparse.Namespace | None = None):
-    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.reader import load_scenario
 
     return load_scenario(path)
 

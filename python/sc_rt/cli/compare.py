@@ -97,7 +97,7 @@ def add_parser(sub) -> None:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from sc_rt.pylaw import is_python_law
-    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.reader import load_scenario
     from sc_rt.scenario.overrides import with_overrides
     from sc_rt.sim.engines import simulate
 

@@ -100,7 +100,7 @@ def cmd_controller(args: argparse.Namespace) -> int:
         except (OSError, ValueError, RuntimeError) as e:
             raise UsageError(f"--config {args.config}: {e}") from e
     else:
-        from sc_rt.scenario.model import load_scenario
+        from sc_rt.scenario.reader import load_scenario
         from sc_rt.scenario.overrides import with_overrides
 
         cfg = with_overrides(load_scenario(args.scenario), control_rate_hz=args.control_rate).core_config()

@@ -193,7 +193,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         o = parse_options(args)
     except BadOption as e:
         return _fail(str(e))
-    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.reader import load_scenario
     from sc_rt.studies.campaign import (Campaign, CampaignExists, SchedulerUnreachable, make_backend,
                                         rerun, run_campaign, write_summary)
     from sc_rt.studies.campaign.runner import check_out

@@ -12,7 +12,8 @@ from sc_rt.cli.common import scenario_arg
 
 def cmd_check(args: argparse.Namespace) -> int:
     from sc_rt.cli.validate import check_run_size
-    from sc_rt.scenario.model import ScenarioError, load_scenario
+    from sc_rt.scenario.model import ScenarioError
+    from sc_rt.scenario.reader import load_scenario
     from sc_rt.studies.check import LEVELS, check_scenario, exit_code
 
     if not args.fast:  # the offline run that bounds ||r|| must fit (file errors: the findings below)
@@ -85,7 +86,7 @@ def cmd_design(args: argparse.Namespace) -> int:
 def cmd_reproduce(args: argparse.Namespace) -> int:
     """The paper's claims checked with numbers (sc_rt.studies.reproduce, docs/REPRODUCTION.md)."""
     from sc_rt.cli.validate import check_run_size, given_options
-    from sc_rt.scenario.model import load_scenario
+    from sc_rt.scenario.reader import load_scenario
     from sc_rt.scenario.overrides import with_overrides
     from sc_rt.studies.reproduce import reproduce
 

@@ -17,9 +17,7 @@ decodes those bytes with the same C++ translator as the real-time process.
 from __future__ import annotations
 
 import dataclasses
-import re
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,24 +26,16 @@ import numpy as np
 from sc_rt_lcm import controller_config_t
 
 from sc_rt import _core
-from sc_rt._core import mrp_to_dcm
-from sc_rt.model.actuators import ActuatorParams, WheelFault
-from sc_rt.model.combined import RigidBody, combine
-from sc_rt.model.plant import DisturbanceParams, PlantParams
-from sc_rt.scenario.dispersions import read_montecarlo
+from sc_rt.model.actuators import ActuatorParams
+from sc_rt.model.plant import PlantParams
 from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIssue are public here)
+    Doc,
     ScenarioError,
     ScenarioIssue,
-    Doc,
     Spec,
     Table,
-    build,
     convert,
     field_spec,
-    format_value,
-    key_lines,
-    read_fields,
-    read_values,
     read_only,
     spec,
     vector_spec,
@@ -57,15 +47,13 @@ from sc_rt.scenario.guidance import (
     HoldGuidance,
     SlewGuidance,
     coverage_problem,
-    read_guidance,
 )
-from sc_rt.scenario.sensors import read_sensors
-from sc_rt.scenario.shipped import resolve
 
 __all__ = [
     "LAWS",
     "LAW_NAMES",
     "PLUGIN_PREFIX",
+    "PAPER_DEFAULTS",
     "law_problem",
     "law_spec",
     "ControllerParams",
@@ -84,10 +72,7 @@ __all__ = [
     "Scenario",
     "ScenarioError",
     "SlewGuidance",
-    "SlewGuidance",
     "ScenarioIssue",
-    "load_scenario",
-    "scenario_from_data",
 ]
 
 # The law table: the core's law registry at import (the built-in laws: name ->
@@ -97,13 +82,13 @@ LAWS: dict[str, int] = {name: code for code, name in enumerate(_core.law_names()
 LAW_NAMES: dict[int, str] = {v: k for k, v in LAWS.items()}
 PLUGIN_PREFIX = "plugin:"
 
-_PAPER = _core.ControllerConfig()  # the paper's controller values (C++ defaults)
-_FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
+#: The paper's controller values (the C++ defaults): the defaults of every gain.
+PAPER_DEFAULTS = _core.ControllerConfig()
 
 
 def _paper(get: Any, metadata: dict[str, Spec]) -> Any:
     """A vector field whose default comes from the C++ config structs (the paper's values)."""
-    return field(default_factory=lambda: read_only(get(_PAPER)), metadata=metadata)
+    return field(default_factory=lambda: read_only(get(PAPER_DEFAULTS)), metadata=metadata)
 
 
 # --------------------------------------------------------------------------- #
@@ -160,12 +145,12 @@ class NesoParams:
     k2: np.ndarray = _paper(lambda c: c.neso.k2, vector_spec(3, scalar_ok=True, gt=0))  # kappa2 diag
     k3: np.ndarray = _paper(lambda c: c.neso.k3, vector_spec(3, scalar_ok=True, gt=0))  # kappa3 diag
     k4: np.ndarray = _paper(lambda c: c.neso.k4, vector_spec(3, scalar_ok=True, gt=0))  # kappa4 diag
-    alpha: float = field(default=_PAPER.neso.alpha, metadata=spec("number", ge=0.5, le=1.0))
+    alpha: float = field(default=PAPER_DEFAULTS.neso.alpha, metadata=spec("number", ge=0.5, le=1.0))
     # RK4 steps of the observer per control period
-    substeps: int = field(default=_PAPER.neso.substeps, metadata=spec("int", ge=1, le=10000))
+    substeps: int = field(default=PAPER_DEFAULTS.neso.substeps, metadata=spec("int", ge=1, le=10000))
     # z1(t0) = measured x2(t0) instead of 0 (paper: 0)
     init_from_measurement: bool = field(
-        default=_PAPER.neso.init_from_measurement, metadata=spec("bool")
+        default=PAPER_DEFAULTS.neso.init_from_measurement, metadata=spec("bool")
     )
 
 
@@ -173,32 +158,32 @@ class NesoParams:
 class DscGains:
     """Dynamic surface control (36)-(42); defaults: the paper's."""
 
-    k1: float = field(default=_PAPER.dsc.k1, metadata=spec("number", gt=0))  # [1/s] (36)
-    k2: float = field(default=_PAPER.dsc.k2, metadata=spec("number", gt=0))  # [1/s] (41)
-    k3: float = field(default=_PAPER.dsc.k3, metadata=spec("number", ge=0))  # [-] (41)
-    k4: float = field(default=_PAPER.dsc.k4, metadata=spec("number", gt=0))  # [1/s] (42)
-    k6: float = field(default=_PAPER.dsc.k6, metadata=spec("number", gt=0))  # [-] Theorem 1
-    tau: float = field(default=_PAPER.dsc.tau, metadata=spec("number", gt=0))  # [s] (37)
+    k1: float = field(default=PAPER_DEFAULTS.dsc.k1, metadata=spec("number", gt=0))  # [1/s] (36)
+    k2: float = field(default=PAPER_DEFAULTS.dsc.k2, metadata=spec("number", gt=0))  # [1/s] (41)
+    k3: float = field(default=PAPER_DEFAULTS.dsc.k3, metadata=spec("number", ge=0))  # [-] (41)
+    k4: float = field(default=PAPER_DEFAULTS.dsc.k4, metadata=spec("number", gt=0))  # [1/s] (42)
+    k6: float = field(default=PAPER_DEFAULTS.dsc.k6, metadata=spec("number", gt=0))  # [-] Theorem 1
+    tau: float = field(default=PAPER_DEFAULTS.dsc.tau, metadata=spec("number", gt=0))  # [s] (37)
 
 
 @dataclass(frozen=True)
 class PdGains:
     """PD baseline uc = -B+ (beta1 x1 + beta2 x2); not from the paper."""
 
-    beta1: float = field(default=_PAPER.pd.beta1, metadata=spec("number", gt=0))  # [1/s^2]
-    beta2: float = field(default=_PAPER.pd.beta2, metadata=spec("number", gt=0))  # [1/s]
+    beta1: float = field(default=PAPER_DEFAULTS.pd.beta1, metadata=spec("number", gt=0))  # [1/s^2]
+    beta2: float = field(default=PAPER_DEFAULTS.pd.beta2, metadata=spec("number", gt=0))  # [1/s]
 
 
 @dataclass(frozen=True)
 class RftGains:
     """RFT baseline, adaptive sliding mode (docs/CORE.md); not from the paper."""
 
-    c: float = field(default=_PAPER.rft.c, metadata=spec("number", gt=0))  # [1/s]
-    k: float = field(default=_PAPER.rft.k, metadata=spec("number", gt=0))  # [1/s]
-    gain: float = field(default=_PAPER.rft.gain, metadata=spec("number", ge=0))  # [1/s]
-    leak: float = field(default=_PAPER.rft.leak, metadata=spec("number", ge=0))  # [1/s]
-    phi: float = field(default=_PAPER.rft.phi, metadata=spec("number", gt=0))  # [rad/s]
-    rho0: float = field(default=_PAPER.rft.rho0, metadata=spec("number", ge=0))  # [rad/s^2]
+    c: float = field(default=PAPER_DEFAULTS.rft.c, metadata=spec("number", gt=0))  # [1/s]
+    k: float = field(default=PAPER_DEFAULTS.rft.k, metadata=spec("number", gt=0))  # [1/s]
+    gain: float = field(default=PAPER_DEFAULTS.rft.gain, metadata=spec("number", ge=0))  # [1/s]
+    leak: float = field(default=PAPER_DEFAULTS.rft.leak, metadata=spec("number", ge=0))  # [1/s]
+    phi: float = field(default=PAPER_DEFAULTS.rft.phi, metadata=spec("number", gt=0))  # [rad/s]
+    rho0: float = field(default=PAPER_DEFAULTS.rft.rho0, metadata=spec("number", ge=0))  # [rad/s^2]
 
 
 @dataclass(frozen=True)
@@ -206,14 +191,14 @@ class SafetyLimits:
     """The controller's safe-mode limits; not from the paper."""
 
     # [rad/s] a measured |omega| beyond this is rejected
-    max_rate: float = field(default=_PAPER.safety.max_rate, metadata=spec("number", gt=0))
+    max_rate: float = field(default=PAPER_DEFAULTS.safety.max_rate, metadata=spec("number", gt=0))
     # [rad/s] a measured |wheel speed| beyond this is rejected
     max_wheel_speed: float = field(
-        default=_PAPER.safety.max_wheel_speed, metadata=spec("number", gt=0)
+        default=PAPER_DEFAULTS.safety.max_wheel_speed, metadata=spec("number", gt=0)
     )
     # control periods without a fresh state before SAFE
     stale_periods: float = field(
-        default=_PAPER.safety.stale_periods, metadata=spec("number", gt=0)
+        default=PAPER_DEFAULTS.safety.stale_periods, metadata=spec("number", gt=0)
     )
 
 
@@ -229,7 +214,7 @@ class ControllerParams:
     safety: SafetyLimits = field(default_factory=SafetyLimits)
     # [-] damping of B+ = B'(BB' + damping^2 I)^-1; 0: exact pseudo-inverse
     pinv_damping: float = field(
-        default=_PAPER.spacecraft.pinv_damping, metadata=spec("number", ge=0)
+        default=PAPER_DEFAULTS.spacecraft.pinv_damping, metadata=spec("number", ge=0)
     )
     # [controller.params]: the law's own parameters, ((key, (numbers...)), ...),
     # handed to the law's constructor, which validates them (docs/LAWS.md)
@@ -267,14 +252,18 @@ class Scenario:
         if isinstance(changes.get("controller"), str):  # a plugin file: relative to the working directory
             changes["controller"] = law_spec(changes["controller"], Path.cwd())
         doc = Doc(f"{self.path} (override)", {})
-        run = _read_run(Table(doc, "run", {**dataclasses.asdict(self.run), **changes}))
+        from sc_rt.scenario.reader import read_run  # the reader builds on these types
+
+        run = read_run(Table(doc, "run", {**dataclasses.asdict(self.run), **changes}))
         if run is not None and (problem := coverage_problem(self.guidance, run.duration)):
             doc.error("run.duration", run.duration, problem)  # a reference file too short
         if doc.errors:
             raise ScenarioError(doc.path, doc.errors)
         scn = dataclasses.replace(self, run=run)
         if run.controller != self.run.controller:
-            _check_law(doc, scn, "run.controller", "controller.params")
+            from sc_rt.scenario.reader import check_law
+
+            check_law(doc, scn, "run.controller", "controller.params")
             if doc.errors:
                 raise ScenarioError(doc.path, doc.errors)
         return scn
@@ -354,328 +343,3 @@ def law_problem(spec: Any) -> str:
         return ""
     return ("must be one of " + ", ".join(f'"{n}"' for n in _core.law_names())
             + ' or "plugin:PATH_OR_NAME" (docs/LAWS.md)')
-
-
-def _check_law(doc: Doc, scn: Scenario, law_key: str, params_key: str) -> None:
-    """Load and construct the scenario's law once (a plugin, or any law given
-    parameters), probe one step at rest: its problems as scenario errors on
-    ``law_key`` / ``params_key.<key>``."""
-    c = scn.controller
-    if not (scn.run.controller.startswith(PLUGIN_PREFIX) or c.law_params):
-        return
-    try:
-        issues = _core.check_law(scn.core_config())
-    except ValueError as e:  # the config itself (LCM translation)
-        issues = [("law", str(e))]
-    params = dict(c.law_params)
-    for key, message in issues:
-        if key.startswith("params."):
-            name = key[len("params."):]
-            value = params.get(name)
-            message = message.replace(f"controller.params.{name}: ", "")  # the key is the issue's
-            doc.error(f"{params_key}.{name}", None if value is None else _param_value(value), message)
-        else:
-            doc.error(law_key, scn.run.controller, message)
-
-
-def _param_value(v: tuple) -> Any:
-    return v[0] if len(v) == 1 else list(v)
-
-
-def _read_params(t: Table) -> tuple | None:
-    """[controller.params]: every value a number or a list of numbers."""
-    items, ok = [], True
-    for name, value in (t.data or {}).items():
-        t.used.add(name)
-        vals = value if isinstance(value, list) else [value]
-        if not vals or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in vals):
-            t.fail(name, f"{name} must be a number or a list of numbers (a law parameter)")
-            ok = False
-            continue
-        items.append((name, tuple(float(x) for x in vals)))
-    return tuple(items) if ok else None
-
-
-def _read_run(t: Table) -> RunParams | None:
-    v = read_values(t, RunParams)
-    if v["controller"] is not None and (problem := law_problem(v["controller"])):
-        t.fail("controller", f"controller {problem}")
-        v["controller"] = None
-    rate, step = v["control_rate_hz"], v["plant_step"]
-    if rate is not None and step is not None:
-        n = 1.0 / (rate * step)  # plant steps per control period
-        if abs(n - round(n)) > 1e-9 * n:  # also catches n < 1/2 (round(n) = 0)
-            t.fail(
-                "plant_step",
-                f"the control period 1/control_rate_hz = {1.0 / rate:g} s must be an "
-                f"integer multiple of plant_step (it is {n:.6g} steps)",
-            )
-            return None
-    return None if any(x is None for x in v.values()) else RunParams(**v)
-
-
-_MAT33 = Spec("matrix", shape=(3, 3))
-_MAT34 = Spec("matrix", shape=(3, 4))
-_WHEELS = Spec("vector", shape=(4,), scalar_ok=True)
-_V3 = Spec("vector", shape=(3,))
-
-
-def _inertia_problem(J: np.ndarray) -> str:
-    """Why J is not a rigid body's inertia matrix ("" if it is one)."""
-    if np.abs(J - J.T).max() > 1e-9 * np.abs(J).max():
-        return "must be symmetric"
-    moments = np.linalg.eigvalsh(J)
-    if moments[0] <= 0:
-        return f"must be positive definite (eigenvalues {format_value(np.round(moments, 6))})"
-    if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
-        return (
-            f"is not a rigid body's inertia: principal moments {format_value(np.round(moments, 6))} "
-            "break the triangle inequality I1 + I2 >= I3"
-        )
-    return ""
-
-
-def _wheel_axes_problem(C: np.ndarray) -> str:
-    """Why C cannot be a wheel matrix ("" if it can); the checks of C++ validate()."""
-    norms = np.linalg.norm(C, axis=0)
-    if np.any(np.abs(norms - 1.0) > 1e-2):
-        return f"columns must be unit spin axes (norms {format_value(np.round(norms, 4))})"
-    sv = np.linalg.svd(C, compute_uv=False)
-    if sv[2] < 1e-6 * sv[0]:
-        return "is rank-deficient: the wheels cannot produce torque about every axis"
-    return ""
-
-
-def _read_checked(t: Table, name: str, spec: Spec, problem_of: Any, missing: str = "") -> Any:
-    """A required value that must also pass ``problem_of`` (returns "" when fine)."""
-    value = t.read(name, spec, missing=missing)
-    if value is not None and (problem := problem_of(value)):
-        t.fail(name, f"{name} {problem}")
-        return None
-    return value
-
-
-def _read_capture(t: Table) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """(J0, Cbar) of the combined spacecraft from [spacecraft.capture]."""
-    frame = t.read("frame", Spec("str", choices=("service", "principal")), default="service")
-    s, g = t.sub("service"), t.sub("target")
-    mass = Spec("number", gt=0)
-    service = (
-        s.read("mass", mass),
-        _read_checked(s, "inertia", _MAT33, _inertia_problem),
-        _read_checked(s, "C", _MAT34, _wheel_axes_problem),
-    )
-    target = (
-        g.read("mass", mass),
-        _read_checked(g, "inertia", _MAT33, _inertia_problem),
-        g.read("position", Spec("vector", shape=(3,))),
-        g.read("attitude", Spec("vector", shape=(3,), mrp=True)),
-    )
-    for sub in (s, g, t):
-        sub.finish()
-    if any(v is None for v in (frame, *service, *target)):
-        return None, None
-    c = combine(
-        RigidBody(service[0], service[1]), service[2],
-        RigidBody(target[0], target[1]), target[2], mrp_to_dcm(target[3]), frame,
-    )  # fmt: skip
-    return read_only(c.J_C), read_only(c.Cbar)
-
-
-def _read_spacecraft(t: Table, dist: Table) -> tuple[PlantParams | None, ActuatorParams | None]:
-    if t.has("capture"):
-        for name in ("J0", "Cbar"):
-            if t.has(name):
-                t.fail(name, f"give either {name} or [{t.key}.capture], not both")
-            t.used.add(name)
-        J0, Cbar = _read_capture(t.sub("capture"))
-    else:
-        either = f"required key is missing (or give a [{t.key}.capture] table)"
-        J0 = _read_checked(t, "J0", _MAT33, _inertia_problem, either)
-        Cbar = _read_checked(t, "Cbar", _MAT34, _wheel_axes_problem, either)
-    dJ = t.read("dJ", _MAT33)
-    if dJ is not None and np.abs(dJ - dJ.T).max() > 1e-9 * max(np.abs(dJ).max(), 1.0):
-        t.fail("dJ", "dJ must be symmetric")
-        dJ = None
-    if J0 is not None and dJ is not None and (problem := _inertia_problem(J0 + dJ)):
-        t.fail("dJ", f"the true inertia J0 + dJ = {format_value(J0 + dJ)} {problem}")
-        dJ = None
-    Jw = t.read("Jw", dataclasses.replace(_WHEELS, gt=0))
-    umin, umax = t.read("umin", _WHEELS), t.read("umax", _WHEELS)
-    if umin is not None and umax is not None and np.any(umin >= umax):
-        bad = ", ".join(str(i + 1) for i in np.flatnonzero(umin >= umax))
-        t.fail("umin", f"umin must be < umax = {format_value(t.raw('umax'))} for every wheel "
-                       f"(not for wheel {bad})")  # fmt: skip
-        umin = None
-    w0 = t.read("w0", Spec("number", ge=0))
-    max_speed = t.read(
-        "max_wheel_speed",
-        dataclasses.replace(_WHEELS, gt=0, allow_inf=True),
-        default=read_only(np.full(4, np.inf)),
-    )
-    t.finish()
-    amp, freq = dist.read("amp", _V3), dist.read("freq", dataclasses.replace(_V3, ge=0))
-    bias = dist.read("bias", _V3, default=read_only(np.zeros(3)))
-    dist.finish()
-    disturbance = build(dist, DisturbanceParams, amp=amp, freq=freq, bias=bias)
-    plant = build(t, PlantParams, J0=J0, dJ=dJ, Cbar=Cbar, Jw=Jw, w0=w0, disturbance=disturbance)
-    actuators = build(t, ActuatorParams, umin=umin, umax=umax, max_wheel_speed=max_speed)
-    return plant, actuators
-
-
-def _read_faults(root: Table) -> tuple[WheelFault, ...] | None:
-    root.used.add("faults")
-    raw = root.raw("faults") if root.has("faults") else []
-    if not (isinstance(raw, list) and all(isinstance(f, dict) for f in raw)):
-        root.fail("faults", "faults must be an array of tables ([[faults]])")
-        return None
-    faults, first_of_wheel = [], {}
-    for i, entry in enumerate(raw):
-        t = Table(root.doc, f"faults[{i}]", entry)
-        wheel = t.read("wheel", Spec("int", ge=1, le=4))
-        eff = t.read("effectiveness", Spec("number", ge=0, le=1), default=_FAULT.effectiveness)
-        bias = t.read("bias", Spec("number"), default=_FAULT.bias)
-        onset = t.read("onset", Spec("number", ge=0))
-        end = t.read("end", Spec("number"), default=_FAULT.end)
-        rate = t.read("rate", Spec("number", gt=0), default=_FAULT.rate)
-        stuck = t.read("stuck", Spec("bool"), default=_FAULT.stuck)
-        t.finish()
-        if wheel is not None and wheel in first_of_wheel:
-            t.fail("wheel", f"wheel {wheel} already has a fault (faults[{first_of_wheel[wheel]}]): "
-                   "one fault per wheel")  # fmt: skip
-            wheel = None
-        elif wheel is not None:
-            first_of_wheel[wheel] = i
-        if end is not None and onset is not None and end <= onset:
-            t.fail("end", f"end must be > onset ({onset:g} s)")
-            onset = None
-        if stuck and (t.has("effectiveness") or t.has("bias")):
-            t.fail("stuck", "a stuck wheel ignores effectiveness and bias: give stuck or those")
-            stuck = None
-        if t.has("end") and end is None:  # end was given but is bad (reported)
-            continue
-        fault = build(
-            t, WheelFault, ("end",), wheel=None if wheel is None else wheel - 1,
-            effectiveness=eff, bias=bias, onset=onset, end=end, rate=rate, stuck=stuck,
-        )  # fmt: skip
-        if fault is not None:
-            faults.append(fault)
-    return tuple(faults) if len(faults) == len(raw) else None
-
-
-def _read_controller(t: Table) -> ControllerParams | None:
-    ppc_table = t.sub("ppc", required=False)
-    ppc = read_fields(ppc_table, PpcParams)
-    if ppc is not None and np.any(ppc.chi0 < ppc.chiinf):
-        ppc_table.fail("chi0", f"chi0 must be >= chiinf = {format_value(ppc.chiinf)} on every axis")
-        ppc = None
-    groups = {"ppc": ppc}
-    for name, cls in (("neso", NesoParams), ("dsc", DscGains), ("pd", PdGains),
-                      ("rft", RftGains), ("safety", SafetyLimits)):  # fmt: skip
-        groups[name] = read_fields(t.sub(name, required=False), cls)
-    damping = t.read("pinv_damping", field_spec(ControllerParams, "pinv_damping"),
-                     default=_PAPER.spacecraft.pinv_damping)  # fmt: skip
-    params = _read_params(t.sub("params", required=False))
-    t.used.add("law")  # read by _read_scenario
-    t.finish()
-    if damping is None or params is None or any(v is None for v in groups.values()):
-        return None
-    return ControllerParams(**groups, pinv_damping=damping, law_params=params)
-
-
-def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | None:
-    root = Table(doc, "", data)
-    name = root.read("name", Spec("str"), default=path.stem)
-    description = root.read("description", Spec("str"), default="")
-    # The law: [controller] law, or the older [run] controller (one of them).
-    ctl_data = data.get("controller") if isinstance(data.get("controller"), dict) else {}
-    law = ctl_data.get("law")
-    run_table = root.sub("run")
-    if law is not None:
-        law_table = Table(doc, "controller", ctl_data)
-        if run_table.has("controller") and run_table.raw("controller") != law:
-            law_table.fail("law", f'give the law once: [controller] law or [run] controller '
-                                  f'(= {format_value(run_table.raw("controller"))}), not both')
-            law = None
-        elif problem := law_problem(law):
-            law_table.fail("law", f"law {problem}")
-            law = None
-        else:
-            law = law_spec(law, path.parent)
-        if run_table.data is not None:  # read the rest of [run] with a valid placeholder
-            run_table = Table(doc, "run", {**run_table.data, "controller": next(iter(LAWS))})
-    run = _read_run(run_table)
-    if run is not None and law is not None:
-        run = dataclasses.replace(run, controller=law)
-    elif run is not None and "law" in ctl_data:
-        run = None  # the bad [controller] law (reported)
-    elif run is not None:
-        run = dataclasses.replace(run, controller=law_spec(run.controller, path.parent))
-    plant, actuators = _read_spacecraft(root.sub("spacecraft"), root.sub("disturbance"))
-    initial_table = root.sub("initial")
-    initial = read_fields(initial_table, InitialState)
-    guidance = read_guidance(root.sub("guidance"), run.duration if run else None, path.parent)
-    controller_table = root.sub("controller", required=False)
-    sensors = read_sensors(root, controller_table, run)  # [sensors], [controller] measurement, estimator
-    controller = _read_controller(controller_table)
-    faults = _read_faults(root)
-    montecarlo = root.sub("montecarlo", required=False)  # read last: it names the others' keys
-    root.finish()
-    if initial is not None and actuators is not None:
-        if np.any(np.abs(initial.wheel_speed) > actuators.max_wheel_speed):
-            initial_table.fail(
-                "wheel_speed",
-                "|wheel_speed| must be <= spacecraft.max_wheel_speed = "
-                f"{format_value(actuators.max_wheel_speed)}",
-            )
-    if doc.errors:
-        read_montecarlo(montecarlo, None)  # its own problems, reported with the others
-        return None
-    scenario = Scenario(
-        name=name,
-        description=description,
-        path=path,
-        run=run,
-        plant=plant,
-        actuators=dataclasses.replace(actuators, faults=faults),
-        initial=initial,
-        guidance=guidance,
-        controller=controller,
-        sensors=sensors,
-    )
-    _check_law(doc, scenario, "controller.law" if "law" in ctl_data else "run.controller",
-               "controller.params")
-    if doc.errors:
-        return None
-    return dataclasses.replace(scenario, montecarlo=read_montecarlo(montecarlo, scenario))
-
-
-def scenario_from_data(data: dict[str, Any], path: str | Path, where: str = "") -> Scenario:
-    """A scenario from parsed TOML data (e.g. a dispersed copy), validated as a
-    file is; ScenarioError (no line numbers) names ``path`` + ``where``."""
-    doc = Doc(f"{path}{where}", {})
-    scenario = _read_scenario(doc, data, Path(path))
-    if doc.errors:
-        raise ScenarioError(doc.path, doc.errors)
-    return scenario
-
-
-def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario file, or a shipped scenario by name
-    (``paper_faults``: sc_rt.scenario.shipped); raise ScenarioError listing every problem."""
-    path = resolve(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise ScenarioError(path, [ScenarioIssue(0, "", None, f"cannot read the file: {e}")]) from e
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        m = re.search(r"at line (\d+)", str(e))
-        issue = ScenarioIssue(int(m.group(1)) if m else 0, "", None, f"TOML syntax error: {e}")
-        raise ScenarioError(path, [issue]) from None
-    doc = Doc(str(path), key_lines(text))
-    scenario = _read_scenario(doc, data, path)
-    if doc.errors:
-        raise ScenarioError(path, doc.errors)
-    return scenario

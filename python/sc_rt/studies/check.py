@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.scenario.model import Scenario, ScenarioError, load_scenario
+from sc_rt.scenario.model import Scenario, ScenarioError
+from sc_rt.scenario.reader import load_scenario
 
 __all__ = ["Finding", "check_scenario", "exit_code", "LEVELS", "PAPER_C"]
 

@@ -41,7 +41,8 @@ import numpy as np
 
 from sc_rt.scenario.dispersions import draw
 from sc_rt.scenario.keys import element_names, get_key, scenario_data, set_key
-from sc_rt.scenario.model import Scenario, ScenarioError, scenario_from_data
+from sc_rt.scenario.model import Scenario, ScenarioError
+from sc_rt.scenario.reader import scenario_from_data
 
 __all__ = ["Dispersion", "NO_SHORTCUTS", "disperse", "draw_run", "run_seed_sequence", "value_columns"]
 

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from sc_rt.scenario.model import LAWS as LAW_TABLE
-from sc_rt.scenario.model import Scenario, load_scenario
+from sc_rt.scenario.model import Scenario
+from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.shipped import shipped
 from sc_rt.sim.engines import simulate
 
