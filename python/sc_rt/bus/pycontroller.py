@@ -70,6 +70,7 @@ class PyControllerProcess:
         self.stale_ns = int(config.safety.stale_periods * self.period_ns)
         self.gate = _core.InputGate(_core.InputGate.session_timeout_for(self.stale_ns))
         self.session = secrets.randbits(62)
+        self.plant_sessions: list[int] = []
         self.cnt: Counter = Counter()
         self.lc = open_bus(url, auth_key, self.cnt)  # with a key: auth_failed in cnt (bus/auth.py)
         self.auth = auth_key is not None
@@ -109,6 +110,9 @@ class PyControllerProcess:
             return
         if v == _V.Adopt:
             self._reengage = True  # a restarted plant: start the law afresh
+        # the plant sessions followed, in order (the bench checks they are its own), as sc-rt-controller
+        if (not self.plant_sessions or self.plant_sessions[-1] != msg.session) and len(self.plant_sessions) < 16:
+            self.plant_sessions.append(msg.session)
         if msg.session != self._announced:
             self._announced = msg.session
             self.announce()
@@ -237,7 +241,7 @@ class PyControllerProcess:
                 "auth": self.auth, "auth_failed": self.cnt["auth_failed"],
                 "rejected": {k: g.as_dict()[k] for k in ("malformed", "trailing_bytes", "duplicate",
                                                          "out_of_order", "invalid_state", "foreign_session")},
-                "sessions_adopted": g.sessions_adopted}
+                "sessions_adopted": g.sessions_adopted, "plant_sessions": list(self.plant_sessions)}
 
 
 def write_summary(summary: dict[str, Any], path: str | None) -> None:
