@@ -156,6 +156,41 @@ class Stopper:
         return None
 
 
+#: lcm-logger's real-time priority when permitted: above every ordinary
+#: process, below the bench's own real-time processes (controller 80, emulator).
+LOGGER_FIFO_PRIORITY = 10
+
+
+def _lift_logger(pid: int) -> str:
+    """SCHED_FIFO for lcm-logger when this process may set it (root): its LCM
+    subscription queue holds 30 messages, a lockstep run publishes ~20,000
+    a second, and a logger descheduled for a millisecond by other load drops
+    the overflow silently. Returns the policy it runs with."""
+    try:
+        os.sched_setscheduler(pid, os.SCHED_FIFO, os.sched_param(LOGGER_FIFO_PRIORITY))
+        return f"SCHED_FIFO {LOGGER_FIFO_PRIORITY}"
+    except (PermissionError, OSError, AttributeError):
+        return "SCHED_OTHER"
+
+
+def log_missing(path: Path, prefix: str, rows: int) -> dict[str, int]:
+    """Per channel the emulator publishes once per row (state, truth,
+    guidance): how many of the run's ``rows`` messages the log lacks (by
+    count; re-sent states count once). Zero everywhere for a complete log."""
+    from sc_rt.bus.lcmlog import LogDamaged, read_events
+
+    want = {prefix + c: set() for c in ("SCRT_STATE", "SCRT_TRUTH", "SCRT_GUIDANCE")}
+    try:
+        for _n, _t, ch, data in read_events(path, partial=True):
+            s = want.get(ch.decode("utf-8", "replace"))
+            if s is not None and len(data) >= 24:
+                s.add(int.from_bytes(data[16:24], "big", signed=True))  # the seq after fingerprint, utime
+    except (LogDamaged, OSError):
+        return {c[len(prefix):]: rows for c in want}
+    seen = {c[len(prefix):]: len(s) for c, s in want.items()}
+    return {c: max(0, rows - n) if n or c != "SCRT_GUIDANCE" else 0 for c, n in seen.items()}
+
+
 def _wait_logged(url: str, path: Path, logger: subprocess.Popen, channel_name: str, payload: bytes,
                  timeout_s: float = 10.0) -> bool:
     """Publish an end marker and wait until lcm-logger has written it: the
@@ -241,6 +276,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     logger = subprocess.Popen([logger_bin, "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs())
     stopper.logger = logger
+    logger_policy = _lift_logger(logger.pid)
     # a non-empty log means the logger is listening: publish a marker until it
     # shows up (SCRT_HIL_START carries the scenario name; readers skip it)
     print(f"sc-rt hil: LCM URL {url}" + (f", channel prefix {prefix!r}" if prefix else ""),
@@ -329,6 +365,11 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     res.timing = timing_report(res, summary, wall)
     # the end marker reached the log: every message published before it is there too
     res.timing["log_complete"] = bool(log_complete)
+    res.timing["logger_scheduler"] = logger_policy
+    res.timing["log_missing"] = log_missing(log_path, prefix, len(res))
+    if any(res.timing["log_missing"].values()):
+        print(f"sc-rt hil: WARNING: lcm-logger missed messages of this run: {res.timing['log_missing']} "
+              f"(it runs {logger_policy}; docs/HIL.md, 'A complete log')", file=sys.stderr)
     res.timing.update(_bench_timing(res, summary, emu, setup))
     if floor:
         res.timing["floor"] = floor

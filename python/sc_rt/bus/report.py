@@ -61,6 +61,10 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     out["source"] = "log"
     # sc-rt hil's end marker in the log: everything published before it was logged
     out["log_complete"] = d.skipped.get(d.prefix + "SCRT_HIL_END", 0) > 0
+    out["logger_scheduler"] = "unknown (not in the log)"
+    from sc_rt.bus.hil import log_missing
+
+    out["log_missing"] = log_missing(d.path, d.prefix, len(run))
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"
     return out
