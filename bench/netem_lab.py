@@ -296,6 +296,7 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
         "expected": p, "controller_alive": ctl_alive, "loggers": lifted,
         "to_controller": {**to_ctl, "undecodable_in_log": st_bad,
                           "controller_received": summary["received"],
+                          "controller_auth_failed": summary.get("auth_failed", 0),
                           "controller_rejected": summary["rejected"]},
         "to_emulator": {**to_emu, "undecodable_in_log": cm_bad,
                         "emulator_counters": emu["counters"]},
@@ -331,7 +332,8 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
     # the receiving processes' own counters against the log of their side
     rej = summary["rejected"]
     checks["controller_counters_match_log"] = {
-        "received": [summary["received"], to_ctl["copies"] + st_bad],
+        # (a state whose tag fails is counted as auth_failed, not received)
+        "received": [summary["received"] + summary.get("auth_failed", 0), to_ctl["copies"] + st_bad],
         "duplicate": [rej["duplicate"], to_ctl["gate_duplicate"]],
         "out_of_order": [rej["out_of_order"], to_ctl["gate_out_of_order"]]}
     c = emu["counters"]
