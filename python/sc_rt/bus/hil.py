@@ -166,11 +166,14 @@ def _lift_logger(pid: int) -> str:
     subscription queue holds 30 messages, a lockstep run publishes ~20,000
     a second, and a logger descheduled for a millisecond by other load drops
     the overflow silently. Returns the policy it runs with."""
-    try:
-        os.sched_setscheduler(pid, os.SCHED_FIFO, os.sched_param(LOGGER_FIFO_PRIORITY))
-        return f"SCHED_FIFO {LOGGER_FIFO_PRIORITY}"
-    except (PermissionError, OSError, AttributeError):
-        return "SCHED_OTHER"
+    lifted = 0
+    for task in Path(f"/proc/{pid}/task").glob("*"):  # the policy is per thread on Linux
+        try:
+            os.sched_setscheduler(int(task.name), os.SCHED_FIFO, os.sched_param(LOGGER_FIFO_PRIORITY))
+            lifted += 1
+        except (PermissionError, OSError, AttributeError, ValueError):
+            pass
+    return f"SCHED_FIFO {LOGGER_FIFO_PRIORITY} ({lifted} threads)" if lifted else "SCHED_OTHER"
 
 
 def log_missing(path: Path, prefix: str, rows: int) -> dict[str, int]:
@@ -276,7 +279,6 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     logger = subprocess.Popen([logger_bin, "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs())
     stopper.logger = logger
-    logger_policy = _lift_logger(logger.pid)
     # a non-empty log means the logger is listening: publish a marker until it
     # shows up (SCRT_HIL_START carries the scenario name; readers skip it)
     print(f"sc-rt hil: LCM URL {url}" + (f", channel prefix {prefix!r}" if prefix else ""),
@@ -284,6 +286,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     if not _probe_logger(url, log_path, scn.name.encode(), 5.0, prefix + "SCRT_HIL_START"):
         _stop(logger, signal.SIGINT)
         raise RuntimeError(f"lcm-logger did not start on {url}: {logger.stderr.read().decode()}")
+    logger_policy = _lift_logger(logger.pid)  # now that it runs: all its threads exist
     # the run's controller_config_t goes into the log (sc-rt report takes the law,
     # the rate and the PPC envelope from it); the controller reads its file and
     # listens to SCRT_CONFIG only with --config-channel
