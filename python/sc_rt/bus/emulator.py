@@ -46,6 +46,7 @@ from sc_rt.model.actuators import WheelFault
 from sc_rt.bus.auth import open_bus
 from sc_rt.bus.collision import CollisionGuard
 from sc_rt.bus.lcmio import channel
+from sc_rt.bus.loopstats import loop_breakdown
 from sc_rt.bus.peers import ControllerPeers, GuidancePublisher
 from sc_rt.bus.rtproc import RealtimeThread
 from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
@@ -390,41 +391,9 @@ class Emulator:
         return self._rt.description
 
     def breakdown(self) -> dict[str, Any]:
-        """Where each row's microseconds went in the emulator (p50, p99, max):
-        ``integrate`` (the tick, or in lockstep the answer, to the next state
-        integrated), ``publish_state`` (guidance and state), ``truth_record``
-        (the row recorded, its truth published) and, in lockstep,
-        ``wait_answer`` (the state out to the command and status in: the
-        round trip and the controller)."""
-        def percentiles(v):
-            return ({"p50": float(np.percentile(v, 50)), "p99": float(np.percentile(v, 99)),
-                     "max": float(np.max(v)), "mean": float(np.mean(v))} if len(v)
-                    else {"p50": None, "p99": None, "max": None, "mean": None})
-
-        s = self._stamps
-        if s is None or len(s) == 0:
-            return {}
-        s = s[np.all(s > 0, axis=1)]
-        d = np.diff(s, axis=1) / 1e3
-        out = {"integrate": percentiles(d[:, 0]), "publish_state": percentiles(d[:, 1]),
-               "truth_record": percentiles(d[:, 3]), "rows": int(len(s))}
-        if self.mode == "lockstep" and len(s) > 1:
-            out["wait_answer"] = percentiles((s[1:, 0] - s[:-1, 4]) / 1e3)
-        # the state-to-command latency split at the controller's publish (wall clock, us)
-        ks = [k for k in self._cmd_utime if k in self._pub_wall_us and k in self._cmd_rx and k in self._pub_ns]
-        if ks:
-            there = np.array([self._cmd_utime[k] - self._pub_wall_us[k] for k in ks], float)
-            total = np.array([(self._cmd_rx[k] - self._pub_ns[k]) / 1e3 for k in ks])
-            out["state_to_controller_publish"] = percentiles(there)
-            out["controller_publish_to_handled"] = percentiles(total - there)
-            if self.mode == "realtime":  # the answers that came after the tick that needed them
-                st = self._stamps
-                late = [i for i, k in enumerate(ks) if k < len(st) and st[k, 0] > 0 and self._cmd_rx[k] > st[k, 0]]
-                out["late_answers"] = {
-                    "count": len(late), "of": len(ks),
-                    "state_to_controller_publish": percentiles(there[late]),
-                    "controller_publish_to_handled": percentiles((total - there)[late])}
-        return out
+        """Where each row's microseconds went (bus/loopstats.py)."""
+        return loop_breakdown(self._stamps, self.mode, self._cmd_utime, self._pub_wall_us, self._cmd_rx,
+                              self._pub_ns)
 
     def _await_controller(self, x0: np.ndarray) -> None:
         """Re-send state 0 until a controller answers it (raises RuntimeError
