@@ -181,13 +181,17 @@ def compare_to_floor(timing: dict[str, Any], floor: dict[str, Any]) -> dict[str,
         added[series] = {q: (run[q] - fl[q]) if run.get(q) is not None and fl.get(q) is not None else None
                          for q in ("p50", "p99")}
     lat, fl = timing.get("state_to_cmd_latency_us") or {}, floor.get("latency_us") or {}
+    src = floor.get("source")
+    if src == "cached" and floor.get("measured_at"):
+        src = f"cached, measured {floor['measured_at']}" + (
+            f" at load {floor['load_avg'][0]:.1f}" if floor.get("load_avg") else "")
     if lat.get("p99") is not None and fl.get("p99") is not None:
         more = lat["p99"] - fl["p99"]
         line = (f"bench floor p99 {fl['p99']:.0f} us; this controller added {more:.0f} us "
-                f"(latency p99 {lat['p99']:.0f} us; floor {floor.get('source')})" if more >= 0 else
+                f"(latency p99 {lat['p99']:.0f} us; floor {src})" if more >= 0 else
                 f"bench floor p99 {fl['p99']:.0f} us; this controller added nothing measurable (latency p99 "
                 f"{lat['p99']:.0f} us, {-more:.0f} us below the floor's: the machine's load moved; floor "
-                f"{floor.get('source')})")
+                f"{src})")
     else:
         line = "bench floor: no latency figures"
     return {"added_us": added, "line": line}

@@ -321,7 +321,7 @@ def timing_figures(run: Run, out: Path, floor: dict | None = None) -> list[Path]
         row[0].plot(t[ok], v[ok], lw=0.5)
         row[0].axhline(period_us, color="r", ls="--", lw=0.8, label=f"period {period_us:g} us")
         if floor and floor.get(key) is not None:
-            row[0].axhline(floor[key], color="g", ls=":", lw=0.9, label=f"bench floor p99 {floor[key]:.0f} us")
+            row[0].axhline(floor[key], color="g", ls=":", lw=0.9, label=f"bench floor p99 {floor[key]:.3g} us")
         row[0].set_yscale("log")
         row[0].set_xlabel("t [s]")
         row[0].set_ylabel(name)
