@@ -127,6 +127,9 @@ def measure_floor(scn: Scenario, *, mode: str = "realtime", control_rate_hz: flo
         res = run_hil(scn, out=Path(d), mode=mode, control_rate_hz=rate, duration=duration,
                       realtime_priority=realtime_priority, plots=False, setup=null, lcm_url=lcm_url)
         t = res.timing
+    if res.stopped:  # interrupted (or the logger died): no floor, and no run after it
+        print(f"sc-rt: the bench floor's run stopped: {res.stopped}", file=sys.stderr)
+        raise SystemExit(128 + res.signum if res.signum else 1)
     out = {
         "host": socket.gethostname(), "measured_at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(t0)),
         "load_avg": list(os.getloadavg()), "mode": mode, "control_rate_hz": rate, "duration_s": duration,
