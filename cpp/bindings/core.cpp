@@ -9,6 +9,7 @@
 #include <string>
 #include <type_traits>
 
+#include "closed_loop_dict.hpp"
 #include "defaults.hpp"
 #include "sc_rt/closed_loop.hpp"
 #include "sc_rt/controllers.hpp"
@@ -58,33 +59,6 @@ int packed_width(const T& v) {
 }
 constexpr int kPackedSize = 45;
 
-// The columns of simulate_closed_loop's result, in the order of its dict
-// (then "flags" and "ctrl_mode", int): name, width, the ClosedLoopResult member.
-struct ClosedLoopColumn {
-  const char* name;
-  py::ssize_t width;
-  std::vector<double> ClosedLoopResult::*v;
-};
-const ClosedLoopColumn kClosedLoopColumns[] = {
-    {"t", 1, &ClosedLoopResult::t},
-    {"sigma_BN", 3, &ClosedLoopResult::sigma_BN},
-    {"omega_BN_B", 3, &ClosedLoopResult::omega_BN_B},
-    {"sigma_DN", 3, &ClosedLoopResult::sigma_DN},
-    {"sigma_BD", 3, &ClosedLoopResult::sigma_BD},
-    {"omega_BD_B", 3, &ClosedLoopResult::omega_BD_B},
-    {"z1", 3, &ClosedLoopResult::z1},
-    {"z2", 3, &ClosedLoopResult::z2},
-    {"delta2", 3, &ClosedLoopResult::delta2},
-    {"chi", 3, &ClosedLoopResult::chi},
-    {"lam", 3, &ClosedLoopResult::lam},
-    {"e1", 3, &ClosedLoopResult::e1},
-    {"e2", 3, &ClosedLoopResult::e2},
-    {"wheel_speed", 4, &ClosedLoopResult::wheel_speed},
-    {"u_cmd", 4, &ClosedLoopResult::u_cmd},
-    {"u_sat", 4, &ClosedLoopResult::u_sat},
-    {"wheel_accel", 4, &ClosedLoopResult::wheel_accel},
-    {"vs", 4, &ClosedLoopResult::vs},
-};
 
 template <typename T>
 py::bytes encode_lcm(const T& msg) {
@@ -426,7 +400,8 @@ PYBIND11_MODULE(_core, m) {
 
   {
     py::list cols;
-    for (const ClosedLoopColumn& c : kClosedLoopColumns) cols.append(py::make_tuple(c.name, c.width));
+    for (std::size_t i = 0; i < sc_rt_bind::kPlainLoopColumns; ++i)
+      cols.append(py::make_tuple(sc_rt_bind::kLoopColumns[i].name, sc_rt_bind::kLoopColumns[i].width));
     cols.append(py::make_tuple("flags", 1));
     cols.append(py::make_tuple("ctrl_mode", 1));
     m.attr("CLOSED_LOOP_FIELDS") = cols;
@@ -442,22 +417,7 @@ PYBIND11_MODULE(_core, m) {
           py::gil_scoped_release release;
           r = simulate_closed_loop(cfg, plant, act, x, n_ctrl, n_sub, rate);
         }
-        const py::ssize_t n = r.rows;
-        auto arr = [n](const std::vector<double>& v, py::ssize_t w) {
-          py::array_t<double> a = w == 1 ? py::array_t<double>(n) : py::array_t<double>({n, w});
-          std::copy(v.begin(), v.begin() + n * w, a.mutable_data());
-          return a;
-        };
-        py::dict d;
-        d["rows"] = r.rows;
-        d["diverged"] = r.diverged;
-        for (const ClosedLoopColumn& c : kClosedLoopColumns) d[c.name] = arr(r.*(c.v), c.width);
-        py::array_t<int> flags(n), mode(n);
-        std::copy(r.flags.begin(), r.flags.begin() + n, flags.mutable_data());
-        std::copy(r.ctrl_mode.begin(), r.ctrl_mode.begin() + n, mode.mutable_data());
-        d["flags"] = flags;
-        d["ctrl_mode"] = mode;
-        return d;
+        return sc_rt_bind::closed_loop_dict(r, sc_rt_bind::kPlainLoopColumns);
       },
       arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),
       "The whole offline closed loop in C++ (sc-rt sim --engine cpp): n_ctrl periods at rate [Hz],\n"

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "closed_loop_dict.hpp"
 #include "sc_rt/closed_loop.hpp"
 #include "sc_rt/mekf.hpp"
 #include "sc_rt/sensors.hpp"
@@ -43,40 +44,6 @@ inline Eigen::Matrix<double, kNavSize, 1> pack(const NavTelemetry& t) {
   return v;
 }
 
-// The columns of simulate_closed_loop's result (as in core.cpp), then the
-// navigation's.
-struct LoopColumn {
-  const char* name;
-  py::ssize_t width;
-  std::vector<double> ClosedLoopResult::*v;
-};
-inline const LoopColumn kLoopColumns[] = {
-    {"t", 1, &ClosedLoopResult::t},
-    {"sigma_BN", 3, &ClosedLoopResult::sigma_BN},
-    {"omega_BN_B", 3, &ClosedLoopResult::omega_BN_B},
-    {"sigma_DN", 3, &ClosedLoopResult::sigma_DN},
-    {"sigma_BD", 3, &ClosedLoopResult::sigma_BD},
-    {"omega_BD_B", 3, &ClosedLoopResult::omega_BD_B},
-    {"z1", 3, &ClosedLoopResult::z1},
-    {"z2", 3, &ClosedLoopResult::z2},
-    {"delta2", 3, &ClosedLoopResult::delta2},
-    {"chi", 3, &ClosedLoopResult::chi},
-    {"lam", 3, &ClosedLoopResult::lam},
-    {"e1", 3, &ClosedLoopResult::e1},
-    {"e2", 3, &ClosedLoopResult::e2},
-    {"wheel_speed", 4, &ClosedLoopResult::wheel_speed},
-    {"u_cmd", 4, &ClosedLoopResult::u_cmd},
-    {"u_sat", 4, &ClosedLoopResult::u_sat},
-    {"wheel_accel", 4, &ClosedLoopResult::wheel_accel},
-    {"vs", 4, &ClosedLoopResult::vs},
-    {"sigma_BN_est", 3, &ClosedLoopResult::sigma_BN_est},
-    {"bias_est", 3, &ClosedLoopResult::bias_est},
-    {"bias_true", 3, &ClosedLoopResult::bias_true},
-    {"P_diag", 6, &ClosedLoopResult::P_diag},
-    {"att_est_error", 3, &ClosedLoopResult::att_est_error},
-    {"innovation", 3, &ClosedLoopResult::innovation},
-    {"nis", 1, &ClosedLoopResult::nis},
-};
 
 inline void bind_sensors(py::module_& m) {
   py::class_<GyroParams>(m, "GyroParams", "Rate gyro (SI units; sensors.hpp).")
@@ -273,22 +240,7 @@ inline void bind_sensors(py::module_& m) {
           py::gil_scoped_release release;
           r = simulate_closed_loop(cfg, plant, act, state_of(x0), n_ctrl, n_sub, rate, &nav);
         }
-        const py::ssize_t n = r.rows;
-        auto arr = [n](const std::vector<double>& v, py::ssize_t w) {
-          py::array_t<double> a = w == 1 ? py::array_t<double>(n) : py::array_t<double>({n, w});
-          std::copy(v.begin(), v.begin() + n * w, a.mutable_data());
-          return a;
-        };
-        py::dict d;
-        d["rows"] = r.rows;
-        d["diverged"] = r.diverged;
-        for (const LoopColumn& c : kLoopColumns) d[c.name] = arr(r.*(c.v), c.width);
-        py::array_t<int> flags(n), mode(n);
-        std::copy(r.flags.begin(), r.flags.begin() + n, flags.mutable_data());
-        std::copy(r.ctrl_mode.begin(), r.ctrl_mode.begin() + n, mode.mutable_data());
-        d["flags"] = flags;
-        d["ctrl_mode"] = mode;
-        return d;
+        return closed_loop_dict(r, kAllLoopColumns);
       },
       arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),
       arg("nav"),
