@@ -27,7 +27,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant
-from sc_rt.pylaw import PyController, is_python_law, law_label, load_law
+from sc_rt.pylaw import PACKED_SLICES, PyController, is_python_law, law_label, load_law
 from sc_rt.results.metrics import finish_run
 from sc_rt.results.run import FIELD, Run, RunMeta
 from sc_rt.scenario.model import Scenario
@@ -42,13 +42,9 @@ STOP = threading.Event()
 ENGINES = ("python", "cpp", "unsampled")
 
 #: Layout of _core.step_packed's output (name -> slice), from the C++ list
-#: _core.PACKED_FIELDS ((name, width) in the order the C++ writes them).
-PACKED: dict[str, slice] = {}
-_o = 0
-for _name, _n in _core.PACKED_FIELDS:
-    PACKED[_name] = slice(_o, _o + _n)
-    _o += _n
-assert _o == _core.PACKED_SIZE
+#: _core.PACKED_FIELDS ((name, width) in the order the C++ writes them);
+#: built once, in sc_rt.pylaw, which writes the same row for Python laws.
+PACKED: dict[str, slice] = PACKED_SLICES
 
 #: Packed telemetry recorded in the run: run field -> packed name.
 RECORDED = {"u_cmd": "u_cmd", "u_sat": "u_sat", "sigma_DN": "sigma_DN", "sigma_BD": "sigma_BD",
