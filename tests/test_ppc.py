@@ -109,3 +109,17 @@ def test_validation_names_the_bad_value(field, value, fragment):
     setattr(p, field, np.array(value))
     errs = _core.validate(p)
     assert any(fragment in e for e in errs), errs
+
+
+def test_vectorised_envelope_equals_the_cores():
+    """results.metrics.prescribed_chi (numpy over all rows, used by the bound
+    check and the figures) is the core's chi(t) (29) at every sample."""
+    from sc_rt.results.metrics import prescribed_chi
+    from sc_rt.scenario.reader import load_scenario
+
+    scn = load_scenario("paper_faults")
+    p = scn.core_config().ppc
+    t = np.concatenate([[0.0], np.random.default_rng(7).uniform(0.0, 400.0, 200)])
+    got = prescribed_chi(scn.controller.ppc, t)
+    want = np.array([np.asarray(_core.ppc_chi(p, float(tk))) for tk in t])
+    np.testing.assert_allclose(got, want, rtol=1e-14, atol=0)
