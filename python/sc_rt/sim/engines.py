@@ -29,6 +29,7 @@ from sc_rt import _core
 from sc_rt.model import actuators, plant
 from sc_rt.pylaw import PACKED_SLICES, PyController, is_python_law, law_label, load_law
 from sc_rt.results.metrics import finish_run
+from sc_rt.sim.columns import loop_columns
 from sc_rt.results.run import FIELD, Run, RunMeta
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
@@ -96,13 +97,7 @@ def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, n
         if not all(map(isfinite, x)):
             diverged = True
             break
-    cols = {"t": T, "sigma_BN": X[:, 0:3], "omega_BN_B": X[:, 3:6], "wheel_speed": X[:, 6:10],
-            "wheel_accel": ACC, "delta2": D2}
-    for name, packed in RECORDED.items():
-        cols[name] = OUT[:, PACKED[packed]]
-    cols["flags"] = np.nan_to_num(OUT[:, PACKED["flags"]][:, 0]).astype(np.int64)
-    cols["ctrl_mode"] = np.nan_to_num(OUT[:, PACKED["mode"]][:, 0], nan=-1).astype(np.int64)
-    return cols, rows, diverged
+    return loop_columns(T, X, ACC, D2, OUT, PACKED, RECORDED), rows, diverged
 
 
 def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:

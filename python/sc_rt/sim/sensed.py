@@ -31,6 +31,7 @@ from sc_rt.results.run import FIELD
 from sc_rt.scenario.overrides import grid, initial_state
 from sc_rt.scenario.schema import ScenarioError, ScenarioIssue
 from sc_rt.scenario.sensors import nav_config
+from sc_rt.sim.columns import loop_columns
 
 __all__ = ["run_sensed", "NAV", "NAV_RECORDED"]
 
@@ -102,16 +103,11 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
         if not all(map(isfinite, x)):
             diverged = True
             break
-    cols = {"t": T, "sigma_BN": X[:, 0:3], "omega_BN_B": X[:, 3:6], "wheel_speed": X[:, 6:10],
-            "wheel_accel": ACC, "delta2": D2}
-    for name, p in recorded.items():
-        cols[name] = OUT[:, packed[p]]
+    cols = loop_columns(T, X, ACC, D2, OUT, packed, recorded)
     for name in NAV_RECORDED:
         v = NAVT[:, NAV[name]]
         cols[name] = v[:, 0] if v.shape[1] == 1 else v
-    flags = np.nan_to_num(OUT[:, packed["flags"]][:, 0]).astype(np.int64)
-    cols["flags"] = flags | np.nan_to_num(NAVT[:, NAV["nav_flags"]][:, 0]).astype(np.int64)
-    cols["ctrl_mode"] = np.nan_to_num(OUT[:, packed["mode"]][:, 0], nan=-1).astype(np.int64)
+    cols["flags"] |= np.nan_to_num(NAVT[:, NAV["nav_flags"]][:, 0]).astype(np.int64)
     return cols, rows, diverged
 
 

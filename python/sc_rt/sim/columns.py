@@ -1,0 +1,21 @@
+"""The run columns of a Python-stepped closed loop: the plant rows and the
+packed telemetry rows (``_core.step_packed``'s layout) split into run fields,
+once for the plain and the sensed loop."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["loop_columns"]
+
+
+def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[str, str]) -> dict[str, np.ndarray]:
+    """t, the plant state, wheel_accel, delta2, the recorded telemetry, flags
+    and ctrl_mode (-1 where no step ran)."""
+    cols = {"t": T, "sigma_BN": X[:, 0:3], "omega_BN_B": X[:, 3:6], "wheel_speed": X[:, 6:10],
+            "wheel_accel": ACC, "delta2": D2}
+    for name, p in recorded.items():
+        cols[name] = OUT[:, packed[p]]
+    cols["flags"] = np.nan_to_num(OUT[:, packed["flags"]][:, 0]).astype(np.int64)
+    cols["ctrl_mode"] = np.nan_to_num(OUT[:, packed["mode"]][:, 0], nan=-1).astype(np.int64)
+    return cols
