@@ -8,6 +8,7 @@
 #include <pybind11/stl.h>
 
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -230,6 +231,32 @@ inline void bind_sensors(py::module_& m) {
            }, arg("t"), arg("x"), "The Measurement at t, no telemetry consumed.")
       .def_property_readonly("filter", &Navigation::filter, py::return_value_policy::reference_internal)
       .def_property_readonly("sensors", &Navigation::sensors, py::return_value_policy::reference_internal);
+
+  m.def("initial_estimate", &initial_estimate, arg("seed"), arg("sigma"), arg("sigma_true0"),
+        "The run's initial attitude estimate: sigma_true0 rotated by a draw of N(0, sigma^2 I) [rad].");
+  py::class_<Estimator>(m, "Estimator",
+                        "The controller's half of the navigation: MEKF fed with sensor samples (mekf.hpp).")
+      .def(py::init<const MekfParams&, bool>(), arg("p"), arg("use_estimate"))
+      .def("reset", &Estimator::reset, arg("sigma0"))
+      .def("gyro", [](Estimator& e, double t, const Vec3& w) { return e.gyro(GyroSample{t, w}); },
+           arg("t"), arg("omega"))
+      .def("star", [](Estimator& e, double te, double td, const Vec3& s) {
+             return e.star(StarSample{te, td, s});
+           }, arg("t_exposure"), arg("t_delivery"), arg("sigma_BN"))
+      .def("tach", [](Estimator& e, double t, const Vec4& w) { e.tach(TachSample{t, w}); },
+           arg("t"), arg("wheel_speed"))
+      .def("measure", [](Estimator& e, const Measurement& truth) {
+             NavTelemetry tel;
+             tel.bias_true.setConstant(std::numeric_limits<double>::quiet_NaN());
+             tel.att_error.setConstant(std::numeric_limits<double>::quiet_NaN());
+             const Measurement m = e.measure(truth, &tel);
+             return py::make_tuple(m, pack(tel));
+           }, arg("truth"),
+           "(Measurement, telemetry (NAV_SIZE,); bias_true and att_est_error NaN: they need the truth).")
+      .def("measure_only", [](Estimator& e, const Measurement& truth) { return e.measure(truth); },
+           arg("truth"))
+      .def_property_readonly("filter", &Estimator::filter, py::return_value_policy::reference_internal)
+      .def_property_readonly("use_estimate", &Estimator::use_estimate);
 
   m.def(
       "simulate_closed_loop_sensed",

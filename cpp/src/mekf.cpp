@@ -157,55 +157,81 @@ MekfState Mekf::predict(double t) const {
   return s;
 }
 
-namespace {
-PlantState no_state() { return PlantState{}; }
-}  // namespace
-
-Navigation::Navigation(const NavConfig& c) : c_(c), sensors_(c.sensors), mekf_(c.mekf) {
-  reset(no_state());
+Vec3 initial_estimate(std::uint64_t seed, double sigma, const Vec3& sigma_true0) {
+  Rng rng(seed, kStreamInit);
+  Vec3 d;
+  for (int k = 0; k < 3; ++k) d(k) = sigma * rng.normal();
+  return mrp_rotate_body(sigma_true0, -d);
 }
 
-void Navigation::reset(const PlantState& x0) {
-  sensors_.reset();
-  Rng rng(c_.sensors.seed, kStreamInit);
-  Vec3 d;
-  for (int k = 0; k < 3; ++k) d(k) = c_.mekf.initial_attitude_sigma * rng.normal();
-  mekf_.reset(0.0, mrp_rotate_body(x0.sigma_BN, -d), Vec3::Zero());
+Estimator::Estimator(const MekfParams& p, bool use_estimate)
+    : mekf_(p), p_(p), use_estimate_(use_estimate) {}
+
+void Estimator::reset(const Vec3& sigma0) {
+  mekf_.reset(0.0, sigma0, Vec3::Zero());
   wheel_.setZero();
   have_tach_ = false;
   updated_ = false;
 }
 
-void Navigation::tick(std::int64_t i, double t, const PlantState& x) {
-  sensors_.tick(i, t, x);
-  if (sensors_.gyro_new()) mekf_.gyro(t, sensors_.gyro().omega);
-  if (sensors_.star_new()) {
-    mekf_.star(sensors_.star().t_exposure, sensors_.star().sigma_BN);
-    updated_ = true;
-  }
-  if (sensors_.tach_new()) {
-    wheel_ = sensors_.tach().wheel_speed;
-    have_tach_ = true;
-  }
+bool Estimator::gyro(const GyroSample& g) {
+  if (!(g.t >= mekf_.state().t)) return false;
+  mekf_.gyro(g.t, g.omega);
+  return true;
 }
 
-Measurement Navigation::measure(double t, const PlantState& x, NavTelemetry* tel) {
+bool Estimator::star(const StarSample& s) {
+  updated_ = true;
+  return mekf_.star(s.t_exposure, s.sigma_BN);
+}
+
+void Estimator::tach(const TachSample& s) {
+  wheel_ = s.wheel_speed;
+  have_tach_ = true;
+}
+
+Measurement Estimator::measure(const Measurement& truth, NavTelemetry* tel) {
+  const double t = truth.t;
   const MekfState s = mekf_.predict(t);
-  const bool degraded = t - mekf_.last_update_exposure() > c_.mekf.degraded_after;
   if (tel) {
+    const bool degraded = t - mekf_.last_update_exposure() > p_.degraded_after;
     tel->sigma_est = s.sigma;
     tel->bias_est = s.bias;
-    tel->bias_true = sensors_.gyro_bias();
     tel->P_diag = s.P.diagonal();
-    tel->att_error = mrp_error_vector(x.sigma_BN, s.sigma);
     const double nan = std::numeric_limits<double>::quiet_NaN();
     tel->innovation = updated_ ? mekf_.innovation() : Vec3::Constant(nan);
     tel->nis = updated_ ? mekf_.nis() : nan;
     tel->flags = degraded ? FLAG_NAV_DEGRADED : 0;
     updated_ = false;  // the next row reports the next update
   }
-  if (!c_.use_estimate) return Measurement{t, x.sigma_BN, x.omega_BN_B, x.wheel_speed};
-  return Measurement{t, s.sigma, Vec3(mekf_.rate() - s.bias), have_tach_ ? wheel_ : x.wheel_speed};
+  if (!use_estimate_) return truth;
+  return Measurement{t, s.sigma, Vec3(mekf_.rate() - s.bias), have_tach_ ? wheel_ : truth.wheel_speed};
+}
+
+Navigation::Navigation(const NavConfig& c)
+    : c_(c), sensors_(c.sensors), est_(c.mekf, c.use_estimate) {
+  reset(PlantState{});
+}
+
+void Navigation::reset(const PlantState& x0) {
+  sensors_.reset();
+  est_.reset(initial_estimate(c_.sensors.seed, c_.mekf.initial_attitude_sigma, x0.sigma_BN));
+}
+
+void Navigation::tick(std::int64_t i, double t, const PlantState& x) {
+  sensors_.tick(i, t, x);
+  if (sensors_.gyro_new()) est_.gyro(sensors_.gyro());
+  if (sensors_.star_new()) est_.star(sensors_.star());
+  if (sensors_.tach_new()) est_.tach(sensors_.tach());
+}
+
+Measurement Navigation::measure(double t, const PlantState& x, NavTelemetry* tel) {
+  const Measurement m = est_.measure(Measurement{t, x.sigma_BN, x.omega_BN_B, x.wheel_speed}, tel);
+  if (tel) {
+    tel->bias_true = sensors_.gyro_bias();
+    tel->att_error = mrp_error_vector(x.sigma_BN, tel->sigma_est);
+  }
+  return m;
 }
 
 }  // namespace sc_rt

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'hmac_sha256', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -1336,6 +1336,32 @@ class Navigation:
     @property
     def sensors(self) -> SensorSuite:
         ...
+class Estimator:
+    """
+    The controller's half of the navigation: MEKF fed with sensor samples (mekf.hpp).
+    """
+    def __init__(self, p: MekfParams, use_estimate: bool) -> None:
+        ...
+    def gyro(self, t: typing.SupportsFloat | typing.SupportsIndex, omega: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> bool:
+        ...
+    def measure(self, truth: Measurement) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[23, 1]"]]:
+        """
+        (Measurement, telemetry (NAV_SIZE,); bias_true and att_est_error NaN: they need the truth).
+        """
+    def measure_only(self, truth: Measurement) -> Measurement:
+        ...
+    def reset(self, sigma0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    def star(self, t_exposure: typing.SupportsFloat | typing.SupportsIndex, t_delivery: typing.SupportsFloat | typing.SupportsIndex, sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> bool:
+        ...
+    def tach(self, t: typing.SupportsFloat | typing.SupportsIndex, wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> None:
+        ...
+    @property
+    def filter(self) -> Mekf:
+        ...
+    @property
+    def use_estimate(self) -> bool:
+        ...
 class GateVerdict:
     """
     What the controller shell does with one received state.
@@ -1531,6 +1557,10 @@ def guidance_rk4_step(p: GuidanceParams, sigma: typing.Annotated[numpy.typing.Ar
 def hmac_sha256(key: bytes, data: bytes) -> bytes:
     """
     HMAC-SHA256(key, data) (the controller's own, cpp/shell/hmac.hpp).
+    """
+def initial_estimate(seed: typing.SupportsInt | typing.SupportsIndex, sigma: typing.SupportsFloat | typing.SupportsIndex, sigma_true0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    The run's initial attitude estimate: sigma_true0 rotated by a draw of N(0, sigma^2 I) [rad].
     """
 def law_info(spec: str) -> dict:
     """

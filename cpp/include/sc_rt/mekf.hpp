@@ -121,6 +121,45 @@ struct NavTelemetry {
   int flags = 0;
 };
 
+// The initial attitude estimate of a run: the true sigma_BN(0) rotated by a
+// draw of N(0, sigma^2 I) per axis [rad] from the seed's initialisation
+// stream (the offline loop and the bench compute it the same way).
+Vec3 initial_estimate(std::uint64_t seed, double sigma, const Vec3& sigma_true0);
+
+// The controller's half of the navigation: the filter fed with sensor
+// samples (from the SensorSuite offline, from the sensor messages on the
+// bus) and the law's Measurement built from the truth or from the estimate.
+// It never sees the plant state except through `truth`, which in estimate
+// mode only lends its time (and the wheel speeds when no tachometer runs).
+class Estimator {
+ public:
+  Estimator(const MekfParams& p, bool use_estimate);
+  // t = 0: attitude estimate sigma0, bias estimate 0, no tachometer yet.
+  void reset(const Vec3& sigma0);
+  // A gyro sample; false (not applied) when older than the filter's time.
+  bool gyro(const GyroSample& g);
+  // A star tracker attitude; false when dropped (older than the ring).
+  bool star(const StarSample& s);
+  void tach(const TachSample& s);
+  // The law's measurement at truth.t and (tel) the estimator's telemetry:
+  // estimate, bias, covariance diagonal, the innovation and NIS of the
+  // updates since the last call (NaN: none), FLAG_NAV_DEGRADED. Leaves
+  // tel->bias_true and tel->att_error alone (they need the truth).
+  Measurement measure(const Measurement& truth, NavTelemetry* tel = nullptr);
+  const Mekf& filter() const { return mekf_; }
+  bool use_estimate() const { return use_estimate_; }
+
+ private:
+  Mekf mekf_;
+  MekfParams p_;
+  bool use_estimate_;
+  Vec4 wheel_ = Vec4::Zero();
+  bool have_tach_ = false;
+  bool updated_ = false;
+};
+
+// Sensors + estimator: the offline loop's navigation (the bench splits it:
+// the SensorSuite runs in the plant emulator, the Estimator in the controller).
 class Navigation {
  public:
   explicit Navigation(const NavConfig& c);
@@ -134,15 +173,13 @@ class Navigation {
   // The law's measurement at t (truth or estimate) and the row's telemetry.
   Measurement measure(double t, const PlantState& x, NavTelemetry* tel = nullptr);
   const SensorSuite& sensors() const { return sensors_; }
-  const Mekf& filter() const { return mekf_; }
+  const Mekf& filter() const { return est_.filter(); }
+  const Estimator& estimator() const { return est_; }
 
  private:
   NavConfig c_;
   SensorSuite sensors_;
-  Mekf mekf_;
-  Vec4 wheel_ = Vec4::Zero();
-  bool have_tach_ = false;
-  bool updated_ = false;
+  Estimator est_;
 };
 
 }  // namespace sc_rt
