@@ -91,6 +91,11 @@ EXPECTED_MSG = {
     "max_rate": 10.0,
     "max_wheel_speed": 1e4,
     "stale_periods": 5.0,
+    # no [sensors]: the estimator is off and its fields zero
+    "nav_enabled": False, "nav_use_estimate": False, "nav_arw": 0.0, "nav_rrw": 0.0,
+    "nav_bias_sigma": 0.0, "nav_bias_tau": 0.0, "nav_quantization": 0.0, "nav_sigma_cross": 0.0,
+    "nav_sigma_boresight": 0.0, "nav_boresight": [0.0, 0.0, 0.0], "nav_initial_attitude_sigma": 0.0,
+    "nav_initial_bias_sigma": 0.0, "nav_degraded_after": 0.0, "nav_history": 0, "nav_sigma0": [0.0, 0.0, 0.0],
 }
 
 

@@ -34,6 +34,7 @@
 #include "defaults.hpp"
 #include "input_gate.hpp"
 #include "phase_lock.hpp"
+#include "sensor_intake.hpp"
 #include "translate.hpp"
 
 namespace {
@@ -144,8 +145,10 @@ class Shell {
     age_.reserve(1 << 20);
   }
 
-  void configure(const sc_rt::ControllerConfig& cfg) {
+  void configure(const sc_rt::ControllerConfig& cfg, const sc_rt::NavSetup& nav) {
     ctl_ = sc_rt::Controller::create(cfg);
+    // [sensors]: the estimator runs here on the emulator's sensor messages (sensor_intake.hpp)
+    if (nav.enabled) intake_ = std::make_unique<sc_rt::SensorIntake>(nav.mekf, nav.use_estimate, nav.sigma0);
     period_ns_ = int64_t(std::llround(1e9 / cfg.control_rate_hz));
     stale_ns_ = int64_t(cfg.safety.stale_periods * double(period_ns_));
     // a silent plant is replaced after max(stale time, 2 s)
@@ -161,6 +164,37 @@ class Shell {
   // decides; the newest accepted state goes to the mailbox.
   static void on_state(const lcm::ReceiveBuffer* rb, const std::string&, Shell* self) {
     self->handle_state(rb);
+  }
+  bool nav() const { return intake_ != nullptr; }
+
+  // A sensor message (gyro_t, star_tracker_t, tachometer_t): verified,
+  // decoded by hand and handed to the intake, which decides (sensor_intake.hpp).
+  template <class Msg>
+  static void on_sensor(const lcm::ReceiveBuffer* rb, const std::string& channel, Shell* self) {
+    std::lock_guard<std::mutex> lock(self->mu_);
+    int size = int(rb->data_size);
+    if (self->auth_) {
+      if (!self->auth_->verify(channel, rb->data, rb->data_size)) {
+        ++self->auth_failed_;
+        self->intake_->malformed();
+        return;
+      }
+      size -= int(sc_rt::HmacSha256::kSize);
+    }
+    Msg msg;
+    const int n = msg.decode(rb->data, 0, size);
+    if (n < 0 || n != size) {
+      self->intake_->malformed();
+      return;
+    }
+    self->offer(msg);
+  }
+  void offer(const sc_rt_lcm::gyro_t& m) { intake_->offer_gyro(m.session, m.seq, sc_rt::gyro_from_lcm(m)); }
+  void offer(const sc_rt_lcm::star_tracker_t& m) {
+    intake_->offer_star(m.session, m.seq, sc_rt::star_from_lcm(m));
+  }
+  void offer(const sc_rt_lcm::tachometer_t& m) {
+    intake_->offer_tach(m.session, m.seq, sc_rt::tach_from_lcm(m));
   }
 
   // Lockstep: called on the main thread and steps at once. Real time: called
@@ -206,6 +240,7 @@ class Shell {
     // the plant sessions followed, in order (the bench checks they are its own)
     if ((plant_sessions_.empty() || plant_sessions_.back() != msg.session) && plant_sessions_.size() < 16)
       plant_sessions_.push_back(msg.session);
+    if (intake_) intake_->follow(msg.session);  // its sensor samples (queued ones first) feed the estimator
     state_ = msg;
     fresh_ = true;
     lock.unlock();
@@ -217,8 +252,9 @@ class Shell {
     const int64_t t_start = mono_ns();
     // take the newest state from the mailbox
     sc_rt_lcm::plant_state_t st;
-    bool have, fresh;
+    bool have, fresh, nav_ready = true;
     int64_t rx;
+    sc_rt::Measurement m_nav;
     {
       std::lock_guard<std::mutex> lock(mu_);
       st = state_;
@@ -226,6 +262,11 @@ class Shell {
       fresh = fresh_;
       rx = gate_->last_rx_ns();
       fresh_ = false;
+      // the law's measurement: the truth of the state, or the estimate at its time
+      if (intake_ && have && fresh) {
+        nav_ready = !intake_->use_estimate() || intake_->ready();
+        if (nav_ready) m_nav = intake_->measure(sc_rt::measurement_from_lcm(st), &tel_);
+      }
     }
     sc_rt::Command cmd;
     const bool stale = !have || (opt_.realtime && t_start - rx > stale_ns_);
@@ -239,8 +280,13 @@ class Shell {
       ++cnt_.stale_steps;
       cmd = last_cmd_;
       cmd.flags |= sc_rt::FLAG_STALE_STATE;
+    } else if (!nav_ready) {
+      // estimate mode, no attitude yet (a controller that joined a run): SAFE until the first fix
+      cmd = ctl_->safe_command(st.t, sc_rt::FLAG_NAV_DEGRADED);
+      ++cnt_.safe_steps;
+      reengage_ = true;  // the law starts afresh from the first estimate
     } else {
-      const sc_rt::Measurement m = sc_rt::measurement_from_lcm(st);
+      const sc_rt::Measurement m = intake_ ? m_nav : sc_rt::measurement_from_lcm(st);
       if (reengage_) {  // a new plant session: start the law afresh
         reengage_ = false;
         ctl_->reset(m);
@@ -302,6 +348,15 @@ class Shell {
     s.deadline_misses = cnt_.deadline_misses;
     s.stale_states = cnt_.stale_steps;
     s.rejected = gate_->counts().rejected();
+    if (intake_) {
+      std::lock_guard<std::mutex> lock(mu_);
+      sc_rt::fill_nav_status(tel_, s);
+      const sc_rt::SensorCounts& c = intake_->counts();
+      s.gyro_used = c.used[0];
+      s.star_used = c.used[1];
+      s.tach_used = c.used[2];
+      s.sensor_rejected = c.rejected();
+    }
     send(opt_.prefix + "SCRT_CTRL_STATUS", s);
   }
 
@@ -352,6 +407,21 @@ class Shell {
     js.pop_back();  // the closing brace: then the authentication and the plant sessions
     js += std::string(", \"trigger\": \"") + (opt_.event_trigger ? "event" : "timer") +
           "\", \"null_law\": " + (opt_.null_law ? "true" : "false");
+    if (intake_) {
+      std::lock_guard<std::mutex> lock(mu_);
+      const sc_rt::SensorCounts& c = intake_->counts();
+      char nb[512];
+      std::snprintf(nb, sizeof nb,
+                    ", \"nav\": {\"measurement\": \"%s\", \"gyro_used\": %lld, \"star_used\": %lld, "
+                    "\"tach_used\": %lld, \"star_dropped\": %ld, \"rejected\": {\"malformed\": %lld, "
+                    "\"invalid\": %lld, \"out_of_order\": %lld, \"too_old\": %lld, \"foreign\": %lld, "
+                    "\"before_fix\": %lld}}",
+                    intake_->use_estimate() ? "estimate" : "truth", (long long)c.used[0], (long long)c.used[1],
+                    (long long)c.used[2], intake_->estimator().filter().dropped(), (long long)c.malformed,
+                    (long long)c.invalid, (long long)c.out_of_order, (long long)c.too_old, (long long)c.foreign,
+                    (long long)c.before_fix);
+      js += nb;
+    }
     js += ", \"auth\": " + std::string(auth_ ? "true" : "false") +
           ", \"auth_failed\": " + std::to_string(auth_failed_.load()) + ", \"plant_sessions\": [";
     {
@@ -375,6 +445,8 @@ class Shell {
   int64_t session_ = 0;
   std::unique_ptr<sc_rt::InputGate> gate_;  // session, seq and arrival of the newest state
   std::unique_ptr<sc_rt::HmacSha256> auth_;  // --auth-key
+  std::unique_ptr<sc_rt::SensorIntake> intake_;  // [sensors]: the estimator (under mu_)
+  sc_rt::NavTelemetry tel_;                      // the estimator's telemetry of the last step (under mu_)
   std::atomic<int64_t> auth_failed_{0};      // states whose tag did not verify
   std::vector<int64_t> plant_sessions_;     // plant sessions followed, in order (under mu_)
   std::vector<uint8_t> tx_;                 // an authenticated message being sent (main thread)
@@ -577,7 +649,7 @@ int main(int argc, char** argv) {
   Shell shell(o, lcm);
   if (!o.auth_key.empty()) shell.set_auth_key(o.auth_key);
   try {
-    shell.configure(load_config(cfg_bytes, o));
+    shell.configure(load_config(cfg_bytes, o), sc_rt::nav_from_bytes(cfg_bytes.data(), int(cfg_bytes.size())));
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sc-rt-controller: bad configuration: %s\n", e.what());
     return 2;
@@ -587,6 +659,14 @@ int main(int argc, char** argv) {
   // default) without a word: under a burst of hostile traffic that would lose
   // genuine states. Hold many; every one is counted or used.
   lcm.subscribeFunction(o.prefix + "SCRT_STATE", &Shell::on_state, &shell)->setQueueCapacity(100000);
+  if (shell.nav()) {  // the sensors of a [sensors] scenario (docs/PROTOCOL.md)
+    lcm.subscribeFunction(o.prefix + "SCRT_GYRO", &Shell::on_sensor<sc_rt_lcm::gyro_t>, &shell)
+        ->setQueueCapacity(100000);
+    lcm.subscribeFunction(o.prefix + "SCRT_STAR", &Shell::on_sensor<sc_rt_lcm::star_tracker_t>, &shell)
+        ->setQueueCapacity(100000);
+    lcm.subscribeFunction(o.prefix + "SCRT_TACH", &Shell::on_sensor<sc_rt_lcm::tachometer_t>, &shell)
+        ->setQueueCapacity(100000);
+  }
   std::fprintf(stderr, "sc-rt-controller: %s mode on %s, %s%s%s\n", o.realtime ? "realtime" : "lockstep",
                o.url.c_str(), sched.c_str(), o.realtime && o.event_trigger ? ", event-triggered" : "",
                o.null_law ? ", null law" : "");

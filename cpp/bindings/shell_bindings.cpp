@@ -1,11 +1,18 @@
 // Bindings of the controller shell's policy classes (cpp/shell/input_gate.hpp,
-// phase_lock.hpp) into sc_rt._core, for unit tests of the gate and the
+// phase_lock.hpp, sensor_intake.hpp) into sc_rt._core, for unit tests of the gate and the
 // scheduler without LCM or a clock. Times are monotonic ns (int).
+#include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
+
+#include <limits>
+#include <string>
 
 #include "hmac.hpp"
 #include "input_gate.hpp"
 #include "phase_lock.hpp"
+#include "sensor_bindings.hpp"
+#include "sensor_intake.hpp"
+#include "translate.hpp"
 
 namespace py = pybind11;
 using namespace sc_rt;
@@ -91,4 +98,50 @@ void bind_shell(py::module_& m) {
       .def_property_readonly("period_ns", &PhaseLock::period_ns)
       .def_property_readonly("phase_offset_us", &PhaseLock::phase_offset_us)
       .def_property_readonly("locked", &PhaseLock::locked);
+
+  py::class_<SensorCounts>(m, "SensorCounts", "The sensor intake's counters (sensor_intake.hpp).")
+      .def_property_readonly("used", [](const SensorCounts& c) {
+        return py::make_tuple(c.used[0], c.used[1], c.used[2]);
+      }, "(gyro, star tracker, tachometer) samples applied")
+      .def_readonly("malformed", &SensorCounts::malformed)
+      .def_readonly("invalid", &SensorCounts::invalid)
+      .def_readonly("out_of_order", &SensorCounts::out_of_order)
+      .def_readonly("too_old", &SensorCounts::too_old)
+      .def_readonly("foreign", &SensorCounts::foreign)
+      .def_readonly("before_fix", &SensorCounts::before_fix)
+      .def_property_readonly("rejected", &SensorCounts::rejected);
+  py::class_<SensorIntake>(m, "SensorIntake",
+                           "The controller's sensor intake: sessions, order, checks, into the Estimator.")
+      .def(py::init<const MekfParams&, bool, const Vec3&, std::size_t>(), arg("p"), arg("use_estimate"),
+           arg("sigma0"), arg("queue") = 4096)
+      .def("offer_gyro", [](SensorIntake& s, int64_t session, int64_t seq, double t, const Vec3& w) {
+             s.offer_gyro(session, seq, GyroSample{t, w});
+           }, arg("session"), arg("seq"), arg("t"), arg("omega"))
+      .def("offer_star", [](SensorIntake& s, int64_t session, int64_t seq, double te, double td,
+                            const Vec3& sigma) { s.offer_star(session, seq, StarSample{te, td, sigma}); },
+           arg("session"), arg("seq"), arg("t_exposure"), arg("t_delivery"), arg("sigma_BN"))
+      .def("offer_tach", [](SensorIntake& s, int64_t session, int64_t seq, double t, const Vec4& w) {
+             s.offer_tach(session, seq, TachSample{t, w});
+           }, arg("session"), arg("seq"), arg("t"), arg("wheel_speed"))
+      .def("malformed", &SensorIntake::malformed)
+      .def("follow", &SensorIntake::follow, arg("session"))
+      .def_property_readonly("ready", &SensorIntake::ready)
+      .def_property_readonly("use_estimate", &SensorIntake::use_estimate)
+      .def_property_readonly("session", &SensorIntake::session)
+      .def_property_readonly("queued", &SensorIntake::queued)
+      .def("measure", [](SensorIntake& s, const Measurement& truth) {
+             NavTelemetry tel;
+             tel.bias_true.setConstant(std::numeric_limits<double>::quiet_NaN());
+             tel.att_error.setConstant(std::numeric_limits<double>::quiet_NaN());
+             const Measurement m = s.measure(truth, &tel);
+             return py::make_tuple(m, sc_rt_bind::pack(tel));
+           }, arg("truth"), "(Measurement, telemetry (NAV_SIZE,)) as the controller uses them.")
+      .def("counts", &SensorIntake::counts)
+      .def_property_readonly("estimator", &SensorIntake::estimator, py::return_value_policy::reference_internal);
+  m.def("nav_from_config_bytes", [](py::bytes data) {
+        const std::string b = data;
+        const NavSetup n = nav_from_bytes(b.data(), int(b.size()));
+        return py::make_tuple(n.enabled, n.use_estimate, n.mekf, n.sigma0);
+      }, arg("data"),
+      "(enabled, use_estimate, MekfParams, sigma0) of an encoded controller_config_t, as the controller reads it.");
 }

@@ -1,5 +1,6 @@
 #include "translate.hpp"
 
+#include <cmath>
 #include <stdexcept>
 
 namespace sc_rt {
@@ -208,6 +209,65 @@ void fill_status(const Command& c, int law, sc_rt_lcm::controller_status_t& msg)
   put(msg.u_cmd, c.u_cmd);
   put(msg.u_sat, c.u_sat);
   put(msg.vs, c.vs);
+}
+
+NavSetup nav_from_lcm(const sc_rt_lcm::controller_config_t& m) {
+  NavSetup n;
+  n.enabled = m.nav_enabled;
+  if (!n.enabled) return n;
+  n.use_estimate = m.nav_use_estimate;
+  MekfParams& k = n.mekf;
+  k.arw = m.nav_arw;
+  k.rrw = m.nav_rrw;
+  k.bias_sigma = m.nav_bias_sigma;
+  k.bias_tau = m.nav_bias_tau;
+  k.quantization = m.nav_quantization;
+  k.sigma_cross = m.nav_sigma_cross;
+  k.sigma_boresight = m.nav_sigma_boresight;
+  k.boresight = vec(m.nav_boresight);
+  k.initial_attitude_sigma = m.nav_initial_attitude_sigma;
+  k.initial_bias_sigma = m.nav_initial_bias_sigma;
+  k.degraded_after = m.nav_degraded_after;
+  k.history = m.nav_history;
+  n.sigma0 = vec(m.nav_sigma0);
+  const double nonneg[] = {k.arw, k.rrw, k.bias_sigma, k.quantization, k.sigma_cross, k.sigma_boresight,
+                           k.initial_attitude_sigma, k.initial_bias_sigma, k.degraded_after};
+  for (double v : nonneg)
+    if (!(v >= 0.0) || !std::isfinite(v))
+      throw std::invalid_argument("controller_config_t: a nav_* noise value is negative or not finite");
+  if (!(k.bias_tau > 0.0) || !(k.boresight.norm() > 0.0) || !k.boresight.allFinite())
+    throw std::invalid_argument("controller_config_t: nav_bias_tau <= 0 or a zero/non-finite nav_boresight");
+  if (k.history < 2 || k.history > 100000)
+    throw std::invalid_argument("controller_config_t: nav_history must be 2..100000");
+  if (!n.sigma0.allFinite() || n.sigma0.norm() > 1.0 + 1e-9)
+    throw std::invalid_argument("controller_config_t: nav_sigma0 is not a finite MRP (|sigma| <= 1)");
+  return n;
+}
+
+NavSetup nav_from_bytes(const void* data, int size) {
+  sc_rt_lcm::controller_config_t m;
+  if (m.decode(data, 0, size) < 0) throw std::invalid_argument("cannot decode controller_config_t");
+  return nav_from_lcm(m);
+}
+
+GyroSample gyro_from_lcm(const sc_rt_lcm::gyro_t& msg) { return GyroSample{msg.t, vec(msg.omega)}; }
+
+StarSample star_from_lcm(const sc_rt_lcm::star_tracker_t& msg) {
+  return StarSample{msg.t_exposure, msg.t_delivery, vec(msg.sigma_BN)};
+}
+
+TachSample tach_from_lcm(const sc_rt_lcm::tachometer_t& msg) {
+  return TachSample{msg.t, vec(msg.wheel_speed)};
+}
+
+void fill_nav_status(const NavTelemetry& t, sc_rt_lcm::controller_status_t& msg) {
+  msg.nav = true;
+  put(msg.sigma_BN_est, t.sigma_est);
+  put(msg.bias_est, t.bias_est);
+  put(msg.P_diag, t.P_diag);
+  put(msg.innovation, t.innovation);
+  msg.nis = t.nis;
+  msg.nav_flags = t.flags;
 }
 
 }  // namespace sc_rt

@@ -3,10 +3,14 @@
 #pragma once
 #include <sc_rt_lcm/controller_config_t.hpp>
 #include <sc_rt_lcm/controller_status_t.hpp>
+#include <sc_rt_lcm/gyro_t.hpp>
 #include <sc_rt_lcm/plant_state_t.hpp>
+#include <sc_rt_lcm/star_tracker_t.hpp>
+#include <sc_rt_lcm/tachometer_t.hpp>
 #include <sc_rt_lcm/wheel_cmd_t.hpp>
 
 #include "sc_rt/controllers.hpp"
+#include "sc_rt/mekf.hpp"
 
 namespace sc_rt {
 
@@ -24,5 +28,23 @@ Measurement measurement_from_lcm(const sc_rt_lcm::plant_state_t& msg);
 void fill_wheel_cmd(const Command& c, sc_rt_lcm::wheel_cmd_t& msg);
 // law: the controller's law code (Controller::law_code()).
 void fill_status(const Command& c, int law, sc_rt_lcm::controller_status_t& msg);
+
+// The estimator's part of a controller_config_t (nav_*): enabled only for a
+// scenario with [sensors]. Throws std::invalid_argument when inconsistent.
+struct NavSetup {
+  bool enabled = false;
+  bool use_estimate = false;
+  MekfParams mekf;
+  Vec3 sigma0 = Vec3::Zero();  //!< the initial attitude estimate
+};
+NavSetup nav_from_lcm(const sc_rt_lcm::controller_config_t& msg);
+NavSetup nav_from_bytes(const void* data, int size);
+
+// Sensor messages to the core's samples (no checks: the shell's gate checks).
+GyroSample gyro_from_lcm(const sc_rt_lcm::gyro_t& msg);
+StarSample star_from_lcm(const sc_rt_lcm::star_tracker_t& msg);
+TachSample tach_from_lcm(const sc_rt_lcm::tachometer_t& msg);
+// The estimator's telemetry into the status message (nav = 1).
+void fill_nav_status(const NavTelemetry& t, sc_rt_lcm::controller_status_t& msg);
 
 }  // namespace sc_rt

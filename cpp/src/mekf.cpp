@@ -10,9 +10,8 @@ namespace sc_rt {
 namespace {
 constexpr std::uint64_t kStreamInit = 5;  // the initial estimation error (sensors use 1-4)
 
-// exp(-v^) by Rodrigues' formula.
-Mat3 rot_exp_minus(const Vec3& v) {
-  const double a = v.norm();
+// exp(-v^) by Rodrigues' formula, a = |v|.
+inline Mat3 rot_exp_minus(const Vec3& v, double a) {
   const Mat3 S = skew(v);
   if (a < 1e-8) return Mat3::Identity() - S + 0.5 * S * S;
   return Mat3::Identity() - (std::sin(a) / a) * S + ((1.0 - std::cos(a)) / (a * a)) * S * S;
@@ -51,9 +50,10 @@ void Mekf::reset(double t, const Vec3& sigma, const Vec3& bias) {
 void Mekf::propagate(MekfState& s, const Vec3& omega_m, double dt) const {
   if (!(dt > 0.0)) return;
   const Vec3 theta = (omega_m - s.bias) * dt;
-  s.sigma = mrp_rotate_body(s.sigma, theta);
+  const double an = theta.norm();  // once for the attitude and Phi
+  s.sigma = mrp_rotate_body_by(s.sigma, theta, an);
   s.t += dt;
-  const Mat3 F11 = rot_exp_minus(theta);
+  const Mat3 F11 = rot_exp_minus(theta, an);
   double a = 1.0, qb = 0.0;
   if (p_.bias_sigma > 0.0) {
     if (dt != gm_dt_) {  // the same dt at every gyro sample: exp once
@@ -171,6 +171,11 @@ void Estimator::reset(const Vec3& sigma0) {
   mekf_.reset(0.0, sigma0, Vec3::Zero());
   wheel_.setZero();
   have_tach_ = false;
+  updated_ = false;
+}
+
+void Estimator::reset_at(double t, const Vec3& sigma) {
+  mekf_.reset(t, sigma, Vec3::Zero());
   updated_ = false;
 }
 

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -1525,6 +1525,73 @@ class PhaseLock:
     @property
     def phase_offset_us(self) -> float:
         ...
+class SensorCounts:
+    """
+    The sensor intake's counters (sensor_intake.hpp).
+    """
+    @property
+    def before_fix(self) -> int:
+        ...
+    @property
+    def foreign(self) -> int:
+        ...
+    @property
+    def invalid(self) -> int:
+        ...
+    @property
+    def malformed(self) -> int:
+        ...
+    @property
+    def out_of_order(self) -> int:
+        ...
+    @property
+    def rejected(self) -> int:
+        ...
+    @property
+    def too_old(self) -> int:
+        ...
+    @property
+    def used(self) -> tuple[int, int, int]:
+        """
+        (gyro, star tracker, tachometer) samples applied
+        """
+class SensorIntake:
+    """
+    The controller's sensor intake: sessions, order, checks, into the Estimator.
+    """
+    def __init__(self, p: MekfParams, use_estimate: bool, sigma0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], queue: typing.SupportsInt | typing.SupportsIndex = 4096) -> None:
+        ...
+    def counts(self) -> SensorCounts:
+        ...
+    def follow(self, session: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def malformed(self) -> None:
+        ...
+    def measure(self, truth: Measurement) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[23, 1]"]]:
+        """
+        (Measurement, telemetry (NAV_SIZE,)) as the controller uses them.
+        """
+    def offer_gyro(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex, omega: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    def offer_star(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t_exposure: typing.SupportsFloat | typing.SupportsIndex, t_delivery: typing.SupportsFloat | typing.SupportsIndex, sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    def offer_tach(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex, wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> None:
+        ...
+    @property
+    def estimator(self) -> Estimator:
+        ...
+    @property
+    def queued(self) -> int:
+        ...
+    @property
+    def ready(self) -> bool:
+        ...
+    @property
+    def session(self) -> int:
+        ...
+    @property
+    def use_estimate(self) -> bool:
+        ...
 def boresight_frame(boresight: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
     ...
 def check_law(c: ...) -> list[tuple[str, str]]:
@@ -1620,6 +1687,10 @@ def mrp_subtract(sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float6
 def mrp_to_dcm(sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
     """
     Direction cosine matrix R(sigma) (10): maps N components to B for sigma_BN.
+    """
+def nav_from_config_bytes(data: bytes) -> tuple[bool, bool, MekfParams, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]]:
+    """
+    (enabled, use_estimate, MekfParams, sigma0) of an encoded controller_config_t, as the controller reads it.
     """
 def neso_condition_26(p: NesoParams) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """

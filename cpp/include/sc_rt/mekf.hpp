@@ -136,6 +136,9 @@ class Estimator {
   Estimator(const MekfParams& p, bool use_estimate);
   // t = 0: attitude estimate sigma0, bias estimate 0, no tachometer yet.
   void reset(const Vec3& sigma0);
+  // Restart at time t from the attitude sigma (a first fix), bias estimate 0,
+  // the initial covariance; the held tachometer reading is kept.
+  void reset_at(double t, const Vec3& sigma);
   // A gyro sample; false (not applied) when older than the filter's time.
   bool gyro(const GyroSample& g);
   // A star tracker attitude; false when dropped (older than the ring).

@@ -309,7 +309,30 @@ class Scenario:
                 wire = value.tolist() if isinstance(value, np.ndarray) else value
                 setattr(m, prefix + f.name, wire)
         m.pinv_damping = float(c.pinv_damping)
+        self._fill_nav(m)
         return m
+
+    def _fill_nav(self, m: controller_config_t) -> None:
+        """The estimator's part of the controller's configuration (a scenario
+        with [sensors]; else nav_enabled 0 and zeros): the MEKF's noise model
+        and the run's initial estimate, computed here from the seed as the
+        offline loop does (``_core.initial_estimate``)."""
+        if self.sensors is None:
+            return
+        from sc_rt.scenario.sensors import nav_config  # builds on these types
+
+        nav = nav_config(self.sensors, self.run.plant_step, f"{self.path}")
+        k = nav.mekf
+        m.nav_enabled = True
+        m.nav_use_estimate = bool(nav.use_estimate)
+        for name in ("arw", "rrw", "bias_sigma", "bias_tau", "quantization", "sigma_cross",
+                     "sigma_boresight", "initial_attitude_sigma", "initial_bias_sigma", "degraded_after"):
+            setattr(m, "nav_" + name, float(getattr(k, name)))
+        m.nav_boresight = [float(v) for v in k.boresight]
+        m.nav_history = int(k.history)
+        sigma0 = _core.initial_estimate(nav.sensors.seed, k.initial_attitude_sigma,
+                                        np.asarray(self.initial.sigma_BN, float))
+        m.nav_sigma0 = [float(v) for v in sigma0]
 
     def core_config(
         self, law: str | None = None, control_rate_hz: float | None = None

@@ -1,0 +1,82 @@
+// The controller's sensor intake (docs/PROTOCOL.md, "Sensors"): the sensor
+// messages of the plant emulator (gyro_t, star_tracker_t, tachometer_t)
+// into the core's Estimator, with the shell's policy: which session's
+// samples are used, what is rejected, when the estimate is ready. Policy
+// only: no I/O, no clock, no LCM (the shell decodes; the core estimates).
+//
+// Sessions: the intake follows the plant session the input gate follows
+// (follow(), called with each accepted state). Samples of another session
+// wait in a bounded queue, because a run's first samples go out just before
+// its first state: when a state adopts their session the estimator restarts
+// and the queued samples are applied in order; the rest are dropped and
+// counted as foreign.
+//
+// Start: a session whose samples begin at seq 0 starts the filter at t = 0
+// from the configured initial estimate (the run's start: lockstep equals the
+// offline loop). A controller that joins a run later (its samples start at
+// seq > 0) has no estimate until the first star tracker attitude: it resets
+// the filter there (ready() false until then; the shell commands SAFE).
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "sc_rt/mekf.hpp"
+
+namespace sc_rt {
+
+enum class SensorKind { Gyro = 0, Star = 1, Tach = 2 };
+
+struct SensorCounts {
+  int64_t used[3] = {0, 0, 0};  //!< applied, per SensorKind
+  int64_t malformed = 0;        //!< did not decode, trailing bytes, tag did not verify
+  int64_t invalid = 0;          //!< non-finite values, |sigma| > 1, exposure after delivery
+  int64_t out_of_order = 0;     //!< seq not after the previous one of its kind (duplicates too)
+  int64_t too_old = 0;          //!< older than the filter (a gyro sample) or its ring (an attitude)
+  int64_t foreign = 0;          //!< of a session that was never followed
+  int64_t before_fix = 0;       //!< a late joiner's gyro samples before its first attitude
+  int64_t rejected() const { return malformed + invalid + out_of_order + too_old + foreign + before_fix; }
+};
+
+class SensorIntake {
+ public:
+  SensorIntake(const MekfParams& p, bool use_estimate, const Vec3& sigma0, std::size_t queue = 4096);
+
+  void offer_gyro(int64_t session, int64_t seq, const GyroSample& g);
+  void offer_star(int64_t session, int64_t seq, const StarSample& s);
+  void offer_tach(int64_t session, int64_t seq, const TachSample& s);
+  void malformed() { ++c_.malformed; }
+  // A state of `session` is used now: follow that session (a new one restarts the estimator).
+  void follow(int64_t session);
+  // The estimator has an attitude: the followed session's samples began at
+  // seq 0, or (a late joiner) its first star tracker attitude arrived.
+  bool ready() const { return ready_; }
+  bool use_estimate() const { return est_.use_estimate(); }
+  Measurement measure(const Measurement& truth, NavTelemetry* tel) { return est_.measure(truth, tel); }
+  const SensorCounts& counts() const { return c_; }
+  const Estimator& estimator() const { return est_; }
+  int64_t session() const { return session_; }
+  // Samples of unfollowed sessions waiting (counted as foreign when dropped).
+  std::size_t queued() const { return q_size_; }
+
+ private:
+  struct Item {
+    SensorKind kind;
+    int64_t session, seq;
+    GyroSample g;
+    StarSample s;
+    TachSample c;
+  };
+  void offer(const Item& it);
+  void apply(const Item& it);
+  Estimator est_;
+  MekfParams p_;
+  Vec3 sigma0_;
+  bool following_ = false, started_ = false, ready_ = false;
+  int64_t session_ = -1;
+  int64_t last_seq_[3] = {-1, -1, -1};
+  std::vector<Item> queue_;  // ring of samples of sessions not (yet) followed
+  std::size_t q_head_ = 0, q_size_ = 0;
+  SensorCounts c_;
+};
+
+}  // namespace sc_rt
