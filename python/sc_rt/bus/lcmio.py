@@ -30,6 +30,10 @@ CHANNELS = {
     "SCRT_GUIDANCE": ("guidance_t", "emulator", "one per plant state, just before it (same seq)"),
     "SCRT_CTRL_INFO": ("controller_info_t", "controller",
                        "optional: at start and at each new plant session"),
+    "SCRT_GYRO": ("gyro_t", "emulator", "[sensors.gyro] rate_hz, before the state of its step"),
+    "SCRT_STAR": ("star_tracker_t", "emulator",
+                  "[sensors.star_tracker] rate_hz, at delivery (exposure + latency)"),
+    "SCRT_TACH": ("tachometer_t", "emulator", "[sensors.tachometer] rate_hz"),
 }
 
 

@@ -13,11 +13,11 @@ from typing import Any
 import numpy as np
 
 from sc_rt.bus.logread import LogData
-from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
+from sc_rt.bus.wire import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
 from sc_rt.results.run import RunMeta, empty_arrays
 from sc_rt.scenario.model import LAW_NAMES
 
-__all__ = ["Rebuilt", "rebuild", "logged_config", "run_params", "controller_label", "logged_guidance", "fault_summary",
+__all__ = ["Rebuilt", "rebuild", "sensor_summary", "logged_config", "run_params", "controller_label", "logged_guidance", "fault_summary",
            "MAX_FAULT_CHANGES"]
 
 #: fault state changes listed per wheel in report.json (a hostile log could have one per row)
@@ -137,6 +137,14 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
         sm = sti[ps[hs]]
         for k in STATUS_RUN_FIELDS + STATUS_TIMING_FIELDS:
             traj[k][hs] = _f(St[k][sm])
+        if "nav" in (St.dtype.names or ()):  # a [sensors] run: the estimator's fields and flag
+            nav = np.zeros(n, bool)
+            nav[hs] = St["nav"][sm] != 0
+            if np.any(nav):
+                src = sti[ps[nav]]
+                for k in STATUS_NAV_FIELDS:
+                    traj[k][nav] = _f(St[k][src])
+                traj["flags"][nav] |= St["nav_flags"][src].astype(np.int64)
     last_status = None
     if St.size:
         last = St[int(np.argmax(St["steps"]))]
@@ -165,6 +173,40 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
     gaps = [(float(th[a]), float(th[b]) if b < th.size else float(traj["t"][-1]))
             for a, b in zip(starts, ends)]
     return Rebuilt(traj, has_truth, last_status, mode, gaps)
+
+
+#: sensor channel -> (summary name, time field)
+_SENSORS = {"SCRT_GYRO": ("gyro", "t"), "SCRT_STAR": ("star_tracker", "t_delivery"),
+            "SCRT_TACH": ("tachometer", "t")}
+
+
+def sensor_summary(d: LogData) -> dict[str, Any]:
+    """What the log holds of each sensor channel (a [sensors] run; {} without):
+    samples of the main session, the seqs missing between its first and last
+    (lost on the way to the logger), the sample rate in simulation time, and
+    for the star tracker the latency and the emulator's own drop counters."""
+    out: dict[str, Any] = {}
+    for base, (name, tf) in _SENSORS.items():
+        R = d.records.get(base)
+        if R is None or R.size == 0:
+            continue
+        v, c = np.unique(R["session"], return_counts=True)
+        main = R[R["session"] == v[np.argmax(c)]]
+        seq = np.unique(main["seq"])
+        t = np.sort(_f(main[tf]))
+        dt = np.diff(t)
+        info: dict[str, Any] = {
+            "samples": int(main.size), "other_sessions": int(R.size - main.size),
+            "seq_first": int(seq[0]), "seq_last": int(seq[-1]),
+            "seq_missing": int(seq[-1] - seq[0] + 1 - seq.size), "repeated": int(main.size - seq.size),
+            "rate_hz": float(1.0 / np.median(dt)) if dt.size and np.median(dt) > 0 else None}
+        if base == "SCRT_STAR":
+            lat = _f(main["t_delivery"]) - _f(main["t_exposure"])
+            last = main[np.argmax(main["seq"])]
+            info.update(latency_s={"min": float(lat.min()), "max": float(lat.max())},
+                        lost=int(last["lost"]), blacked_out=int(last["blacked_out"]))
+        out[name] = info
+    return out
 
 
 def logged_config(d: LogData):

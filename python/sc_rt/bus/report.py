@@ -40,7 +40,8 @@ import numpy as np
 
 from sc_rt.bus.lcmio import lcm_binary
 from sc_rt.bus.logread import LogData, read_log
-from sc_rt.bus.rebuild import Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild, run_params
+from sc_rt.bus.rebuild import (Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild,
+                               run_params, sensor_summary)
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
 from sc_rt.results.run import Run, RunMeta, json_safe, provenance
@@ -105,9 +106,12 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
         duration = (rows - 1) / rate if rows else 0.0
     st = r.arrays["state_log_us"]
     wall = float(st[-1] - st[0]) / 1e6 if st.size > 1 else 0.0
+    cfg = logged_config(d)
+    nav = {} if cfg is None or not cfg.nav_enabled else {
+        "sensors": True, "measurement": "estimate" if cfg.nav_use_estimate else "truth"}
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
-                   wall_s=wall, mode=r.mode)
+                   wall_s=wall, mode=r.mode, **nav)
     run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:
         run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None}
@@ -127,8 +131,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
               "rebuild_s": build_s, "prefix": d.prefix, "mode": r.mode, "rows": rows,
               "incomplete_rows_dropped": dropped, "incomplete_rows_at_end": at_end, "partial": run.partial,
               "parameters_from": source, "undecodable": d.undecodable, "channels": d.channels,
-              "skipped": d.skipped, "faults": faults}
-    cfg = logged_config(d)
+              "skipped": d.skipped, "faults": faults, "sensors": sensor_summary(d)}
     if cfg is not None:
         report["config"] = {"scenario": cfg.scenario, "law": law, "control_rate_hz": rate}
     (out / "report.json").write_text(json.dumps(json_safe(report), indent=2) + "\n")

@@ -109,6 +109,22 @@ def _norm(v) -> float:
     return float(np.linalg.norm(np.asarray(v, float)))
 
 
+ARCSEC = 180.0 * 3600.0 / math.pi  # [arcsec/rad]
+
+
+def _nav_summary(msg) -> dict:
+    """The estimator's figures of a controller_status_t (a [sensors] run)."""
+    if not msg.nav:
+        return {}
+    p = np.asarray(msg.P_diag, float)
+    return {"nav": {"sigma_BN_est": list(msg.sigma_BN_est), "bias_est": list(msg.bias_est),
+                    "att_sigma_arcsec": list(np.sqrt(np.maximum(p[0:3], 0.0)) * ARCSEC),
+                    "innovation_arcsec": [v * ARCSEC for v in msg.innovation], "nis": msg.nis,
+                    "degraded": bool(msg.nav_flags), "gyro_used": msg.gyro_used,
+                    "star_used": msg.star_used, "tach_used": msg.tach_used,
+                    "sensor_rejected": msg.sensor_rejected}}
+
+
 def summarize(msg) -> dict:
     """The figures a person watches, per type."""
     name = type(msg).__name__
@@ -131,13 +147,20 @@ def summarize(msg) -> dict:
                 "wake_lateness_us": msg.wake_lateness_us, "compute_us": msg.compute_us,
                 "state_age_us": msg.state_age_us, "steps": msg.steps,
                 "deadline_misses": msg.deadline_misses, "stale_states": msg.stale_states,
-                "rejected": msg.rejected}
+                "rejected": msg.rejected, **_nav_summary(msg)}
     if name == "plant_truth_t":
         return {"t": msg.t, "seq": msg.seq, "cmd_seq_applied": msg.cmd_seq_applied,
                 "wheel_accel": list(msg.wheel_accel), "delta2": list(msg.delta2),
                 "fault_Y": list(msg.fault_Y), "fault_effectiveness": list(msg.fault_effectiveness),
                 "fault_bias": list(msg.fault_bias), "fault_stuck": list(msg.fault_stuck),
                 "cmd_stale": msg.cmd_stale}
+    if name == "gyro_t":
+        return {"t": msg.t, "seq": msg.seq, "omega": list(msg.omega)}
+    if name == "star_tracker_t":
+        return {"t_exposure": msg.t_exposure, "t_delivery": msg.t_delivery, "seq": msg.seq,
+                "sigma_BN": list(msg.sigma_BN), "lost": msg.lost, "blacked_out": msg.blacked_out}
+    if name == "tachometer_t":
+        return {"t": msg.t, "seq": msg.seq, "wheel_speed": list(msg.wheel_speed)}
     if name == "fault_cmd_t":
         return {k: getattr(msg, k) for k in ("seq", "wheel", "action", "now", "t_onset", "t_end",
                                              "effectiveness", "bias", "rate", "stuck")}
@@ -227,6 +250,22 @@ class Spy:
                              f"{m['compute_us']:.1f} us  state age {m['state_age_us']:.0f} us  steps "
                              f"{m['steps']}  misses {m['deadline_misses']}  stale {m['stale_states']}  "
                              f"rejected {m['rejected']}")
+                if "nav" in m:
+                    n = m["nav"]
+                    lines.append(f"{'':<{len(name)}}  estimate sigma_BN {vec(n['sigma_BN_est'])}  1-sigma "
+                                 f"{vec(n['att_sigma_arcsec'], '{:.2f}')} arcsec  innovation "
+                                 f"{vec(n['innovation_arcsec'], '{:+.2f}')} arcsec  NIS {n['nis']:.2f}"
+                                 f"{'  DEGRADED' if n['degraded'] else ''}  sensors used {n['gyro_used']}/"
+                                 f"{n['star_used']}/{n['tach_used']} rejected {n['sensor_rejected']}")
+            elif tn == "gyro_t":
+                lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  omega {vec(m['omega'])} rad/s")
+            elif tn == "star_tracker_t":
+                lines.append(f"{name}: exposed {m['t_exposure']:.3f} s delivered {m['t_delivery']:.3f} s  "
+                             f"seq {m['seq']}  sigma_BN {vec(m['sigma_BN'])}  lost {m['lost']}  "
+                             f"blacked out {m['blacked_out']}")
+            elif tn == "tachometer_t":
+                lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  wheel speed "
+                             f"{vec(m['wheel_speed'], '{:+.2f}')} rad/s")
             elif tn == "plant_truth_t":
                 lines.append(f"{name}: t {m['t']:.3f} s  wheel accel {vec(m['wheel_accel'])}  "
                              f"fault Y {vec(m['fault_Y'], '{:.2f}')}  L {vec(m['fault_effectiveness'], '{:.2f}')}"

@@ -20,7 +20,8 @@ import sc_rt_lcm
 from sc_rt.results.run import FIELDS
 
 __all__ = ["TYPES", "BY_FINGERPRINT", "identify", "decode_any", "numpy_dtype", "decode_array",
-           "lcm_sources", "to_plain", "decode_as", "DECODE_ERRORS", "STATUS_RUN_FIELDS", "STATUS_TIMING_FIELDS"]
+           "lcm_sources", "to_plain", "decode_as", "DECODE_ERRORS", "STATUS_RUN_FIELDS", "STATUS_TIMING_FIELDS",
+           "STATUS_NAV_FIELDS"]
 
 
 def _types() -> dict[str, type]:
@@ -48,6 +49,10 @@ _DTYPES: dict[type, np.dtype | None] = {}
 STATUS_RUN_FIELDS: tuple[str, ...] = tuple(
     f.name for f in FIELDS if f.source == "controller" and f.name in sc_rt_lcm.controller_status_t.__slots__
     and f.name not in ("u_cmd", "u_sat", "flags"))
+#: The estimator's run fields in controller_status_t (a [sensors] run; its
+#: nav_flags are OR-ed into the row's flags, as the offline loop does).
+STATUS_NAV_FIELDS: tuple[str, ...] = tuple(
+    f.name for f in FIELDS if f.source == "estimator" and f.name in sc_rt_lcm.controller_status_t.__slots__)
 #: The controller's own timing measurements in controller_status_t.
 STATUS_TIMING_FIELDS: tuple[str, ...] = tuple(
     f.name for f in FIELDS if f.source == "timing" and f.name in sc_rt_lcm.controller_status_t.__slots__)

@@ -96,14 +96,21 @@ def cmd_controller(args: argparse.Namespace) -> int:
         raise UsageError("give exactly one of SCENARIO and --config FILE")
     if args.config:
         try:
-            cfg = _core.ControllerConfig.from_lcm_bytes(Path(args.config).read_bytes())
+            raw = Path(args.config).read_bytes()
+            cfg = _core.ControllerConfig.from_lcm_bytes(raw)
+            nav = _core.nav_from_config_bytes(raw)[0]
         except (OSError, ValueError, RuntimeError) as e:
             raise UsageError(f"--config {args.config}: {e}") from e
+        where = f"--config {args.config}"
     else:
         from sc_rt.scenario.reader import load_scenario
         from sc_rt.scenario.overrides import with_overrides
 
-        cfg = with_overrides(load_scenario(args.scenario), control_rate_hz=args.control_rate).core_config()
+        scn = with_overrides(load_scenario(args.scenario), control_rate_hz=args.control_rate)
+        cfg, nav, where = scn.core_config(), scn.sensors is not None, args.scenario
+    if nav:  # as sc-rt sim: the estimator runs in front of the core's laws only
+        raise UsageError(f"{where}: a scenario with [sensors] runs the core's laws only (not a Python "
+                         "law, yet): use sc-rt-controller, or a scenario without [sensors]")
     try:
         proc = PyControllerProcess(cfg, load_law(args.law), url=resolve_url(args.lcm_url, DEFAULT_URL),
                                    prefix=args.prefix, mode=args.mode, max_steps=args.max_steps,

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.estimation import estimation_metrics, fill_true_tracking_error
+from sc_rt.results.estimation import estimation_metrics, fill_estimation_error, fill_true_tracking_error
 from sc_rt.results.run import CORE_FIELDS, Run, json_safe
 from sc_rt.results.verdict import pointing_arcsec, safe_summary
 
@@ -158,10 +158,13 @@ def compute_metrics(run: Run) -> dict[str, Any]:
 def finish_run(run: Run) -> Run:
     """The derived fields and the metrics of a run its producer has filled:
     ``bound_ok`` from the envelope in ``run.meta``, then ``run.metrics``."""
-    # a producer that ran the sensors filled the estimator's fields (the LCM emulator does not, yet)
+    # a producer that ran the sensors filled the estimator's fields (offline, or the bench from
+    # controller_status_t)
     sensed = bool(getattr(run.meta, "sensors", False)) and bool(run.present("sigma_BN_est").any())
     if sensed:  # with sensors the bound is judged on the true attitude (sc_rt.results.estimation)
         fill_true_tracking_error(run)
+        if not run.present("att_est_error").any():  # the bench: the estimate came over the bus
+            fill_estimation_error(run)
     run["bound_ok"][:] = bound_ok(run.meta.ppc, run["t"], run["sigma_BD_true"] if sensed else run["sigma_BD"])
     metrics = compute_metrics(run)
     metrics.update(safe_summary(run["t"], run["ctrl_mode"], run["flags"]))
