@@ -1,0 +1,112 @@
+"""The emulator's sensors (a scenario with ``[sensors]``): the core's
+``SensorSuite`` sampled on the plant's grid, each new sample published at
+once on its channel (``gyro_t`` on SCRT_GYRO, ``star_tracker_t`` on
+SCRT_STAR at its delivery, ``tachometer_t`` on SCRT_TACH; docs/PROTOCOL.md,
+"Sensors"), packed with struct exactly as the generated encoders do
+(tests/test_hil_sensors.py) and numbered per sensor from 0.
+
+The emulator calls :meth:`SensorPublisher.tick` at the plant steps
+``next_tick`` names (a step with nothing due changes nothing), before the
+sub-step integrated from it and before the state of a control instant, in
+the offline loop's order (sim/sensed.py): so the controller's filter gets
+the same samples at the same times as the offline one.
+"""
+
+from __future__ import annotations
+
+import struct
+import time
+from typing import Callable
+
+import numpy as np
+import sc_rt_lcm
+
+from sc_rt import _core
+from sc_rt.bus.lcmio import channel
+from sc_rt.scenario.sensors import nav_config
+
+__all__ = ["SensorPublisher", "gyro_bytes", "star_bytes", "tach_bytes"]
+
+# gyro_t: utime, seq, session, tick, t, omega[3]
+_GYRO = (sc_rt_lcm.gyro_t._get_packed_fingerprint(), struct.Struct(">qqqqd3d"))
+# star_tracker_t: utime, seq, session, tick, t_exposure, t_delivery, sigma_BN[3], lost, blacked_out
+_STAR = (sc_rt_lcm.star_tracker_t._get_packed_fingerprint(), struct.Struct(">qqqqdd3dqq"))
+# tachometer_t: utime, seq, session, tick, t, wheel_speed[4]
+_TACH = (sc_rt_lcm.tachometer_t._get_packed_fingerprint(), struct.Struct(">qqqqd4d"))
+for _cls, (_fp, _lay) in ((sc_rt_lcm.gyro_t, _GYRO), (sc_rt_lcm.star_tracker_t, _STAR),
+                          (sc_rt_lcm.tachometer_t, _TACH)):
+    assert _lay.size + 8 == len(_cls().encode()), _cls
+
+
+def gyro_bytes(utime: int, seq: int, session: int, tick: int, t: float, omega) -> bytes:
+    return _GYRO[0] + _GYRO[1].pack(utime, seq, session, tick, t, *omega)
+
+
+def star_bytes(utime: int, seq: int, session: int, tick: int, t_exposure: float, t_delivery: float,
+               sigma, lost: int, blacked_out: int) -> bytes:
+    return _STAR[0] + _STAR[1].pack(utime, seq, session, tick, t_exposure, t_delivery, *sigma, lost,
+                                    blacked_out)
+
+
+def tach_bytes(utime: int, seq: int, session: int, tick: int, t: float, wheel_speed) -> bytes:
+    return _TACH[0] + _TACH[1].pack(utime, seq, session, tick, t, *wheel_speed)
+
+
+class SensorPublisher:
+    """The scenario's sensors, publishing through ``publish(channel, bytes)``."""
+
+    def __init__(self, scn, session: int, publish: Callable[[str, bytes], None], prefix: str = ""):
+        self.nav = nav_config(scn.sensors, scn.run.plant_step, f"{scn.path}")
+        self.suite = _core.SensorSuite(self.nav.sensors)
+        self.session = session
+        self._publish = publish
+        self._ch = (channel("SCRT_GYRO", prefix), channel("SCRT_STAR", prefix), channel("SCRT_TACH", prefix))
+        self.sent = [0, 0, 0]  #: samples published per sensor (gyro, star tracker, tachometer)
+        self.first: list[tuple[str, bytes]] = []  #: the messages of tick 0 (re-sent with a re-sent state 0)
+        self._next = 0
+        self.suite.reset()
+
+    @property
+    def next_tick(self) -> int:
+        """The next plant step at which a sensor samples or delivers."""
+        return self._next
+
+    @property
+    def gyro_bias(self) -> np.ndarray:
+        """[rad/s] the gyro's true bias now (after the last tick)."""
+        return np.asarray(self.suite.gyro_bias)
+
+    def tick(self, i: int, t: float, x: np.ndarray) -> None:
+        """Plant step i at time t with the state x: sample what is due, publish it."""
+        s = self.suite
+        s.tick(i, t, x)
+        self._next = s.next_tick(i)
+        out = []
+        utime = time.time_ns() // 1000
+        if s.gyro_new:
+            tg, w = s.gyro
+            out.append((self._ch[0], gyro_bytes(utime, self.sent[0], self.session, i, tg, w)))
+            self.sent[0] += 1
+        if s.star_new:
+            te, td, sig = s.star
+            out.append((self._ch[1], star_bytes(utime, self.sent[1], self.session, i, te, td, sig, s.lost,
+                                                s.blacked_out)))
+            self.sent[1] += 1
+        if s.tach_new:
+            tt, ws = s.tach
+            out.append((self._ch[2], tach_bytes(utime, self.sent[2], self.session, i, tt, ws)))
+            self.sent[2] += 1
+        if i == 0:
+            self.first = out
+        for ch, data in out:
+            self._publish(ch, data)
+
+    def resend_first(self) -> None:
+        """The samples of tick 0 again (a state 0 re-sent to a controller still starting)."""
+        for ch, data in self.first:
+            self._publish(ch, data)
+
+    def counters(self) -> dict[str, int]:
+        s = self.suite
+        return {"gyro_sent": self.sent[0], "star_sent": self.sent[1], "tach_sent": self.sent[2],
+                "star_lost": int(s.lost), "star_blacked_out": int(s.blacked_out)}
