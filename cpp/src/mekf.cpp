@@ -107,12 +107,17 @@ void Mekf::gyro(double t, const Vec3& omega_m) {
   propagate(cur_, have_gyro_ ? Vec3(0.5 * (omega_m_ + omega_m)) : omega_m, t - cur_.t);
   omega_m_ = omega_m;
   have_gyro_ = true;
+  // the snapshot, written in place (no temporary Snap, no division for the ring index)
   const std::size_t n = ring_.size();
   if (size_ == n) {
-    head_ = (head_ + 1) % n;
+    if (++head_ == n) head_ = 0;
     --size_;
   }
-  ring_[(head_ + size_) % n] = Snap{cur_, omega_m};
+  std::size_t w = head_ + size_;
+  if (w >= n) w -= n;
+  Snap& sn = ring_[w];
+  sn.s = cur_;
+  sn.omega_m = omega_m;
   ++size_;
 }
 
@@ -157,6 +162,23 @@ MekfState Mekf::predict(double t) const {
   return s;
 }
 
+const MekfState& Mekf::predict_to(double t, MekfState& tmp, bool covariance) const {
+  const double dt = t - cur_.t;
+  if (!(dt > 0.0)) return cur_;  // propagate() would change nothing: no copy
+  tmp.t = cur_.t;
+  tmp.sigma = cur_.sigma;
+  tmp.bias = cur_.bias;
+  if (covariance) {
+    tmp.P = cur_.P;
+    propagate(tmp, omega_m_, dt);
+  } else {  // the attitude as propagate() moves it, the covariance left alone
+    const Vec3 theta = (omega_m_ - tmp.bias) * dt;
+    tmp.sigma = mrp_rotate_body_by(tmp.sigma, theta, theta.norm());
+    tmp.t += dt;
+  }
+  return tmp;
+}
+
 Vec3 initial_estimate(std::uint64_t seed, double sigma, const Vec3& sigma_true0) {
   Rng rng(seed, kStreamInit);
   Vec3 d;
@@ -197,7 +219,8 @@ void Estimator::tach(const TachSample& s) {
 
 Measurement Estimator::measure(const Measurement& truth, NavTelemetry* tel) {
   const double t = truth.t;
-  const MekfState s = mekf_.predict(t);
+  MekfState tmp;
+  const MekfState& s = mekf_.predict_to(t, tmp, tel != nullptr);  // the covariance only for the telemetry
   if (tel) {
     const bool degraded = t - mekf_.last_update_exposure() > p_.degraded_after;
     tel->sigma_est = s.sigma;

@@ -7,46 +7,29 @@
 namespace sc_rt {
 
 namespace {
-constexpr std::uint64_t kGolden = 0x9E3779B97F4A7C15ULL;
 constexpr double kTwoPi = 6.283185307179586476925286766559;
 // Stream ids: one per sensor and purpose, so that enabling one sensor does
 // not change another's numbers.
 enum Stream : std::uint64_t { S_GYRO = 1, S_BIAS = 2, S_STAR = 3, S_LOSS = 4 };
-}  // namespace
 
-std::uint64_t Rng::mix(std::uint64_t z) {
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-  return z ^ (z >> 31);
-}
-
-Rng::Rng(std::uint64_t seed, std::uint64_t stream)
-    : s_(mix(mix(seed + kGolden) ^ (stream * 0xD1B54A32D192ED03ULL))) {}
-
-std::uint64_t Rng::next_u64() {
-  s_ += kGolden;
-  return mix(s_);
-}
-
-double Rng::uniform() { return static_cast<double>(next_u64() >> 11) * 0x1.0p-53; }
-
-double Rng::normal() {
-  if (has_spare_) {
-    has_spare_ = false;
-    return spare_;
+// i % period == 0, with next the cached next multiple of period (any multiple: a tick strictly
+// between next - period and next is not one, and i == next is); next moves to the multiple after i.
+inline bool due(std::int64_t i, int period, std::int64_t& next) {
+  if (i == next) {
+    next += period;
+    return true;
   }
-  // Marsaglia's polar form of Box-Muller: no sin/cos, 21.5 % of the pairs rejected.
-  double x, y, r2;
-  do {
-    x = 2.0 * uniform() - 1.0;
-    y = 2.0 * uniform() - 1.0;
-    r2 = x * x + y * y;
-  } while (r2 >= 1.0 || r2 == 0.0);
-  const double f = std::sqrt(-2.0 * std::log(r2) / r2);
-  spare_ = y * f;
-  has_spare_ = true;
-  return x * f;
+  if (i < next && i > next - period) return false;
+  next = (i / period + 1) * period;  // out of order, or the first tick
+  return i % period == 0;
 }
+
+// The first multiple of period > i (next: the cached one, used when it is that multiple).
+inline std::int64_t next_multiple(std::int64_t i, int period, std::int64_t next) {
+  if (i >= 0 && next > i && next - period <= i) return next;
+  return (i / period + 1) * period;
+}
+}  // namespace
 
 Mat3 boresight_frame(const Vec3& boresight) {
   const Vec3 b = boresight.normalized();
@@ -62,7 +45,11 @@ Mat3 boresight_frame(const Vec3& boresight) {
   return A;
 }
 
-Vec3 mrp_compose(const Vec3& s1, const Vec3& s2) {
+namespace {
+// mrp_short, here so that it inlines into the per-sample compositions (the same operations)
+inline Vec3 short_set(const Vec3& s) { return s.squaredNorm() > 1.0 ? Vec3(-s / s.squaredNorm()) : s; }
+
+inline Vec3 compose(const Vec3& s1, const Vec3& s2) {
   auto num_den = [&s2](const Vec3& a, double& den) {
     const double aa = a.squaredNorm(), bb = s2.squaredNorm();
     den = 1.0 + aa * bb - 2.0 * a.dot(s2);
@@ -73,16 +60,20 @@ Vec3 mrp_compose(const Vec3& s1, const Vec3& s2) {
   if (den < 0.25 && s1.squaredNorm() > 0.0) {  // as mrp_subtract: the better-conditioned set
     double den2;
     const Vec3 num2 = num_den(mrp_shadow(s1), den2);
-    if (den2 > den) return mrp_short(num2 / den2);
+    if (den2 > den) return short_set(num2 / den2);
   }
-  return mrp_short(num / den);
+  return short_set(num / den);
+}
+}  // namespace
+
+Vec3 mrp_compose(const Vec3& s1, const Vec3& s2) { return compose(s1, s2); }
+
+Vec3 mrp_rotate_body_by(const Vec3& sigma_BN, const Vec3& v, double a) {
+  const Vec3 d = a > 0.0 ? Vec3(v * (std::tan(0.25 * a) / a)) : Vec3(Vec3::Zero());
+  return compose(sigma_BN, d);
 }
 
-Vec3 mrp_rotate_body(const Vec3& sigma_BN, const Vec3& v) {
-  const double a = v.norm();
-  const Vec3 d = a > 0.0 ? Vec3(v * (std::tan(0.25 * a) / a)) : Vec3(Vec3::Zero());
-  return mrp_compose(sigma_BN, d);
-}
+Vec3 mrp_rotate_body(const Vec3& sigma_BN, const Vec3& v) { return mrp_rotate_body_by(sigma_BN, v, v.norm()); }
 
 Vec3 mrp_error_vector(const Vec3& s1, const Vec3& s2) {
   const Vec3 d = mrp_subtract(s1, s2);
@@ -98,6 +89,8 @@ SensorSuite::SensorSuite(const SensorParams& p)
   gyro_M_ = (Mat3::Identity() + Mat3(g.scale_factor.asDiagonal())) *
             (Mat3::Identity() - skew(g.misalignment));
   const double dtg = g.period_ticks * p_.dt;
+  dt_gyro_ = dtg;
+  sn_gyro_ = g.arw / std::sqrt(dtg);
   if (g.bias_sigma > 0.0) {
     a_gm_ = std::exp(-dtg / g.bias_tau);
     q_gm_ = g.bias_sigma * std::sqrt(1.0 - a_gm_ * a_gm_);
@@ -128,12 +121,13 @@ void SensorSuite::reset() {
   q_head_ = q_size_ = 0;
   lost_ = blacked_ = delivered_ = 0;
   last_bias_tick_ = -1;
+  next_gyro_ = next_star_ = next_tach_ = 0;
 }
 
 void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
   gyro_new_ = star_new_ = tach_new_ = false;
   const GyroParams& g = p_.gyro;
-  if (g.enabled && i % g.period_ticks == 0) {
+  if (g.enabled && due(i, g.period_ticks, next_gyro_)) {
     if (last_bias_tick_ >= 0) {  // the bias moves one gyro period
       // (a zero-variance part draws nothing)
       if (q_gm_ > 0.0)
@@ -143,8 +137,7 @@ void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
     }
     last_bias_tick_ = i;
     bias_ = g.bias0 + gm_ + rw_;
-    const double dtg = g.period_ticks * p_.dt;
-    const double sn = g.arw / std::sqrt(dtg);
+    const double dtg = dt_gyro_, sn = sn_gyro_;
     Vec3 w = gyro_M_ * x.omega_BN_B + bias_;
     for (int k = 0; k < 3; ++k) {
       if (sn > 0.0) w(k) += sn * rng_gyro_.normal();
@@ -163,7 +156,7 @@ void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
   }
   const StarTrackerParams& s = p_.star_tracker;
   if (s.enabled) {
-    if (i % s.period_ticks == 0) {
+    if (due(i, s.period_ticks, next_star_)) {
       bool dark = false;
       for (const auto& w : s.blackouts) dark = dark || (t >= w.first && t < w.second);
       const double u = rng_loss_.uniform();  // drawn for every exposure: streams stay aligned
@@ -192,7 +185,7 @@ void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
     }
   }
   const TachometerParams& c = p_.tachometer;
-  if (c.enabled && i % c.period_ticks == 0) {
+  if (c.enabled && due(i, c.period_ticks, next_tach_)) {
     Vec4 w = x.wheel_speed;
     if (c.counts_per_rev > 0.0) {
       const double q = kTwoPi / (c.counts_per_rev * c.period);
@@ -205,13 +198,12 @@ void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
 
 std::int64_t SensorSuite::next_tick(std::int64_t i) const {
   std::int64_t best = std::numeric_limits<std::int64_t>::max();
-  auto next_multiple = [i](int period) { return (i / period + 1) * period; };
-  if (p_.gyro.enabled) best = std::min(best, next_multiple(p_.gyro.period_ticks));
+  if (p_.gyro.enabled) best = std::min(best, next_multiple(i, p_.gyro.period_ticks, next_gyro_));
   if (p_.star_tracker.enabled) {
-    best = std::min(best, next_multiple(p_.star_tracker.period_ticks));
+    best = std::min(best, next_multiple(i, p_.star_tracker.period_ticks, next_star_));
     if (q_size_ > 0) best = std::min(best, queue_[q_head_].deliver);
   }
-  if (p_.tachometer.enabled) best = std::min(best, next_multiple(p_.tachometer.period_ticks));
+  if (p_.tachometer.enabled) best = std::min(best, next_multiple(i, p_.tachometer.period_ticks, next_tach_));
   return best;
 }
 

@@ -74,6 +74,9 @@ class Mekf {
   bool star(double t_exposure, const Vec3& sigma_m);
   // The state propagated from now to t >= now with the newest sample held (not stored).
   MekfState predict(double t) const;
+  // The same without copies: the current state itself when t is now, else the state
+  // propagated into tmp (its covariance too only if covariance; otherwise tmp.P is left as it was).
+  const MekfState& predict_to(double t, MekfState& tmp, bool covariance) const;
   const MekfState& state() const { return cur_; }
   const Vec3& rate() const { return omega_m_; }  //!< the held gyro sample
   const Vec3& innovation() const { return innov_; }  //!< [rad] last residual

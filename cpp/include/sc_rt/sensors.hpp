@@ -17,6 +17,7 @@
 // the star tracker's latency are integer numbers of plant steps (the
 // scenario reader refuses other values, naming the nearest valid rates).
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <utility>
@@ -28,15 +29,41 @@
 namespace sc_rt {
 
 // SplitMix64 (Steele, Lea, Flood 2014) with normals by Marsaglia's polar method.
+// Defined here so that the sensors' and the MEKF's per-sample loops inline them.
 class Rng {
  public:
-  explicit Rng(std::uint64_t seed = 0, std::uint64_t stream = 0);
-  std::uint64_t next_u64();
-  double uniform();   //!< [0, 1), 53 bits
-  double normal();    //!< N(0, 1)
-  static std::uint64_t mix(std::uint64_t z);
+  explicit Rng(std::uint64_t seed = 0, std::uint64_t stream = 0)
+      : s_(mix(mix(seed + kGolden) ^ (stream * 0xD1B54A32D192ED03ULL))) {}
+  std::uint64_t next_u64() {
+    s_ += kGolden;
+    return mix(s_);
+  }
+  double uniform() { return static_cast<double>(next_u64() >> 11) * 0x1.0p-53; }  //!< [0, 1), 53 bits
+  double normal() {  //!< N(0, 1)
+    if (has_spare_) {
+      has_spare_ = false;
+      return spare_;
+    }
+    // Marsaglia's polar form of Box-Muller: no sin/cos, 21.5 % of the pairs rejected.
+    double x, y, r2;
+    do {
+      x = 2.0 * uniform() - 1.0;
+      y = 2.0 * uniform() - 1.0;
+      r2 = x * x + y * y;
+    } while (r2 >= 1.0 || r2 == 0.0);
+    const double f = std::sqrt(-2.0 * std::log(r2) / r2);
+    spare_ = y * f;
+    has_spare_ = true;
+    return x * f;
+  }
+  static std::uint64_t mix(std::uint64_t z) {
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31);
+  }
 
  private:
+  static constexpr std::uint64_t kGolden = 0x9E3779B97F4A7C15ULL;
   std::uint64_t s_;
   double spare_ = 0.0;
   bool has_spare_ = false;
@@ -114,6 +141,8 @@ Mat3 boresight_frame(const Vec3& boresight);
 // The attitude sigma_BN rotated by the small body-frame rotation vector v:
 // R(result) = exp(-v^) R(sigma_BN) (v [rad]).
 Vec3 mrp_rotate_body(const Vec3& sigma_BN, const Vec3& v);
+// The same with |v| given (v_norm = v.norm(): the MEKF has it already).
+Vec3 mrp_rotate_body_by(const Vec3& sigma_BN, const Vec3& v, double v_norm);
 // sigma'' composed after sigma': R(result) = R(s2) R(s1), short set.
 Vec3 mrp_compose(const Vec3& s1, const Vec3& s2);
 // Rotation vector [rad] of the small rotation R(s1) R(s2)' (s1 relative to s2).
@@ -152,7 +181,11 @@ class SensorSuite {
   Rng rng_gyro_, rng_bias_, rng_star_, rng_loss_;
   Vec3 bias_ = Vec3::Zero(), gm_ = Vec3::Zero(), rw_ = Vec3::Zero(), carry_ = Vec3::Zero();
   double a_gm_ = 1.0, q_gm_ = 0.0, q_rw_ = 0.0;
+  double dt_gyro_ = 0.0, sn_gyro_ = 0.0;  // the gyro's period [s] and white noise sigma per sample
   std::int64_t last_bias_tick_ = -1;
+  // Each sensor's next sample tick, a multiple of its period: tick() and next_tick() test
+  // i % period == 0 and compute the next multiple without a division when the ticks come in order.
+  std::int64_t next_gyro_ = 0, next_star_ = 0, next_tach_ = 0;
   GyroSample gyro_;
   StarSample star_;
   TachSample tach_;
