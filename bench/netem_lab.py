@@ -6,6 +6,14 @@ what each side counted compared with what netem was configured to do.
 Used by bench/bench_netem.py (every case, 30 s each) and tests/test_netem.py
 (one short case). Needs root (ip netns, tc; Debian: iproute2).
 
+Where the kernel has no sch_netem the link is impaired without it
+(``backend_for``): loss, duplication and corruption by nftables on the
+veth's egress ("nft"), delay, jitter and reordering by an NFQUEUE delay
+line ("nfqueue": an iptables-legacy rule queues the sc-rt datagrams at
+OUTPUT, bench/nfq_delay.py gives each its verdict after netem's draw of its
+delay). The delay line records what it did per packet, so the reordering is
+compared with an exact count, not only with a bound.
+
 Per direction the analysis reads the log of a logger on the *receiving*
 side (it receives exactly the datagrams the receiving process receives) and
 replays the receiver's sequence rule (same seq as the newest: duplicate;
@@ -28,9 +36,11 @@ from typing import Any
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
 
-__all__ = ["netem_available", "run_case", "binomial_bound", "parse_netem"]
+__all__ = ["netem_available", "nft_available", "nfqueue_available", "backend_for", "run_case", "binomial_bound",
+           "parse_netem", "swap_probability"]
 
 
 def netem_available() -> str | None:
@@ -71,6 +81,101 @@ def nft_available() -> str | None:
         subprocess.run(["ip", "netns", "del", name], capture_output=True)
 
 
+def nfqueue_available() -> str | None:
+    """None when the NFQUEUE delay line works here (iptables-legacy's
+    NFQUEUE target, an nfnetlink queue bound in a namespace), else why not."""
+    if shutil.which("iptables-legacy") is None:
+        return "iptables-legacy not found (Debian: apt-get install iptables)"
+    name = f"scrt-qprobe-{os.getpid()}"
+    if subprocess.run(["ip", "netns", "add", name], capture_output=True).returncode != 0:
+        return "cannot create network namespaces (needs root and ip netns)"
+    try:
+        r = subprocess.run(["ip", "netns", "exec", name, "iptables-legacy", "-t", "mangle", "-A", "OUTPUT",
+                            "-p", "udp", "--dport", "7667", "-j", "NFQUEUE", "--queue-num", "9"],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            return f"iptables NFQUEUE target not available: {r.stderr.strip()}"
+        r = subprocess.run(["ip", "netns", "exec", name, sys.executable, "-c",
+                            f"import sys; sys.path.insert(0, {str(HERE)!r}); import nfq_delay; nfq_delay.Queue(9)"],
+                           capture_output=True, text=True)
+        return None if r.returncode == 0 else f"cannot bind an nfnetlink queue: {r.stderr.strip()[-300:]}"
+    finally:
+        subprocess.run(["ip", "netns", "del", name], capture_output=True)
+
+
+def backend_for(spec: str | None, netem: bool | None = None) -> str:
+    """The lab's backend for a netem spec: "netem" where the kernel has it,
+    else "nft" (loss, duplicate, corrupt), "nfqueue" (delay, jitter,
+    reorder) or both ("nft+nfqueue")."""
+    if netem is None:
+        netem = netem_available() is None
+    if netem:
+        return "netem"
+    p = parse_netem(spec or "")
+    parts = [name for name, keys in (("nft", ("loss", "duplicate", "corrupt")),
+                                     ("nfqueue", ("delay_ms", "jitter_ms", "reorder")))
+             if any(p[k] for k in keys)]
+    return "+".join(parts) or "nft"
+
+
+def delay_line_args(spec: str) -> list[str]:
+    """bench/nfq_delay.py's options for a netem spec: "delay D [J]
+    [distribution normal]", "reorder P [C]" (netem: with probability P, C
+    correlated, a packet is sent at once; the others are delayed)."""
+    p = parse_netem(spec)
+    words = spec.split()
+    args = ["--delay-ms", f"{p['delay_ms']:g}", "--jitter-ms", f"{p['jitter_ms']:g}",
+            "--reorder", f"{p['reorder']:g}"]
+    if "reorder" in words:
+        i = words.index("reorder")
+        if i + 2 < len(words) and words[i + 2].endswith("%"):
+            args += ["--reorder-corr", f"{float(words[i + 2].rstrip('%')) / 100:g}"]
+    if "distribution" in words:
+        args += ["--distribution", words[words.index("distribution") + 1]]
+    return args
+
+
+def swap_probability(spec: str, spacing_s: float) -> float:
+    """P(a message leaves after the next one of its channel) when a channel
+    sends every ``spacing_s`` s through the delay of ``spec`` (netem's
+    draws: delay d + jitter j uniform or normal; reorder r: at once with
+    probability r, its correlation neglected). The receiver's rule counts
+    message k out of order when a later one arrived first; while the delays'
+    spread is below two spacings only k+1 can overtake k:
+
+    both delayed: D_k - D_k+1 > T; uniform jitter: the difference is
+      triangular on [-2j, 2j], P = (2j - T)^2 / (8 j^2) for T < 2j, else 0;
+      normal jitter: N(0, 2 j^2), P = erfc(T / (2 j)) / 2;
+    k delayed, k+1 at once: D_k > T.
+
+    P = (1 - r)^2 P(both) + (1 - r) r P(D > T). At 100 Hz (T = 10 ms) the
+    issue's 2 ms +- 1 ms and netem's "delay 2ms reorder 25%" reorder no
+    channel (P = 0): only datagrams of different channels cross."""
+    p = parse_netem(spec)
+    t, d, j, r = spacing_s * 1e3, p["delay_ms"], p["jitter_ms"], p["reorder"]
+    normal = "normal" in spec.split()
+    if j == 0:
+        both, late = 0.0, float(d > t)
+    elif normal:
+        both = 0.5 * math.erfc(t / (2 * j))
+        late = 0.5 * math.erfc((t - d) / (math.sqrt(2) * j))
+    else:
+        both = (2 * j - t) ** 2 / (8 * j * j) if t < 2 * j else 0.0
+        late = min(max((d + j - t) / (2 * j), 0.0), 1.0)
+    return (1 - r) ** 2 * both + (1 - r) * r * late
+
+
+def reorder_bound(n: int, p: float, z: float = 5.0) -> tuple[float, float]:
+    """Expected count of out-of-order messages among n and the allowed
+    deviation: ``binomial_bound``. The indicators X_k = "k overtaken by k+1"
+    are not independent (neighbours share a delay), but while the delays'
+    spread is below two spacings X_k and X_k+1 exclude each other (both
+    would need D_k - D_k+2 > 2T), so Cov(X_k, X_k+1) = -p^2 and
+    Var(sum) = n p (1 - p) - 2 (n - 1) p^2 <= n p (1 - p): the binomial
+    bound holds."""
+    return binomial_bound(n, p, z)
+
+
 #: the byte of the UDP payload the nft corruption overwrites: inside every
 #: sc-rt message's data after LCM's 8-byte header and the channel name
 #: (plant_state_t on SCRT_STATE: a byte of sigma_BN[0])
@@ -98,15 +203,66 @@ def _nft_rules(dev: str, spec: dict[str, float], port: int) -> str:
 
 def impair(ns: str, dev: str, spec: str, backend: str, port: int) -> None:
     """Impair dev's egress in namespace ns: a netem spec through tc, or its
-    loss / duplicate / corrupt probabilities through nft."""
+    loss / duplicate / corrupt probabilities through nft (the delay line is
+    started by ``DelayLine``)."""
     if backend == "netem":
         _sh(f"ip netns exec {ns} tc qdisc add dev {dev} root netem {spec}")
         return
     p = parse_netem(spec)
-    if p["delay_ms"] or p["jitter_ms"] or p["reorder"]:
-        raise ValueError(f"{spec!r}: delay and reordering need tc netem (this kernel: {netem_available()})")
-    subprocess.run(["ip", "netns", "exec", ns, "nft", "-f", "-"], input=_nft_rules(dev, p, port), text=True,
-                   check=True, capture_output=True)
+    if (p["delay_ms"] or p["jitter_ms"] or p["reorder"]) and "nfqueue" not in backend:
+        raise ValueError(f"{spec!r}: delay and reordering need tc netem or the nfqueue backend "
+                         f"(this kernel: {netem_available()})")
+    if "nft" in backend:
+        subprocess.run(["ip", "netns", "exec", ns, "nft", "-f", "-"], input=_nft_rules(dev, p, port), text=True,
+                       check=True, capture_output=True)
+
+
+class DelayLine:
+    """bench/nfq_delay.py in namespace ns, fed by an iptables-legacy rule:
+    the sc-rt datagrams (udp dport = the LCM port) leaving through dev.
+    OUTPUT, not POSTROUTING: a multicast datagram with IP_MULTICAST_LOOP
+    passes POSTROUTING twice (the copy for the wire and the copy looped back
+    to the namespace's own listeners), OUTPUT once, before it is cloned; the
+    looped copy is delayed the same (only the namespace's own logger reads
+    it)."""
+
+    def __init__(self, ns: str, dev: str, spec: str, port: int, queue: int, record: Path, seed: int, cpu: int):
+        self.ns, self.record = ns, record
+        self.rule = ["-o", dev, "-p", "udp", "--dport", str(port), "-j", "NFQUEUE", "--queue-num", str(queue)]
+        record.unlink(missing_ok=True)
+        self.proc = subprocess.Popen(["ip", "netns", "exec", ns, sys.executable, str(HERE / "nfq_delay.py"),
+                                      "--queue", str(queue), *delay_line_args(spec), "--seed", str(seed),
+                                      "--cpu", str(cpu), "--out", str(record)],
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        if self.proc.stdout.readline().strip() != "bound":
+            self.proc.wait(10)
+            raise RuntimeError(f"the delay line did not start: {self.proc.stderr.read()[-2000:]}")
+        from soak import lift
+
+        self.sched = lift(self.proc.pid)
+        try:
+            _sh(f"ip netns exec {ns} iptables-legacy -t mangle -A OUTPUT " + " ".join(self.rule))
+        except Exception:
+            self.proc.kill()
+            self.proc.wait()
+            raise
+
+    def stop(self) -> bool:
+        """Takes the rule out, then the delay line gives every pending
+        verdict and writes its record; whether it was alive until then."""
+        alive = self.proc.poll() is None
+        subprocess.run(["ip", "netns", "exec", self.ns, "iptables-legacy", "-t", "mangle", "-D", "OUTPUT",
+                        *self.rule], capture_output=True)
+        if alive:
+            self.proc.send_signal(signal.SIGTERM)
+        try:
+            self.proc.wait(20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        self.proc.stdout.close()
+        self.proc.stderr.close()
+        return alive and self.proc.returncode == 0
 
 
 def parse_netem(spec: str) -> dict[str, float]:
@@ -128,6 +284,20 @@ def binomial_bound(n: int, p: float, z: float = 5.0) -> tuple[float, float]:
     z standard deviations (z = 5: a false alarm below 1e-6 per comparison)
     plus 2 for the edges of the counting window."""
     return n * p, z * math.sqrt(max(n * p * (1 - p), 0.0)) + 2.0
+
+
+def _settle(paths: list[Path], quiet: float = 0.15, limit: float = 3.0) -> None:
+    """Until the files have not grown for ``quiet`` s (the loggers wrote what
+    the delay lines released last), at most ``limit`` s."""
+    def sizes():
+        return [q.stat().st_size if q.exists() else 0 for q in paths]
+
+    end, last, since = time.monotonic() + limit, sizes(), time.monotonic()
+    while time.monotonic() < end and time.monotonic() - since < quiet:
+        time.sleep(0.03)
+        now = sizes()
+        if now != last:
+            last, since = now, time.monotonic()
 
 
 def _sh(cmd: str) -> None:
@@ -174,17 +344,95 @@ def _direction(arrivals: list[int], first: int, last: int) -> dict[str, Any]:
             "duplicates": len(inside) - uniq, **{f"gate_{k}": v for k, v in _gate(inside).items()}}
 
 
+def _pct(x: np.ndarray) -> dict[str, float] | None:
+    if not len(x):
+        return None
+    return {"mean": float(x.mean()), "p50": float(np.percentile(x, 50)), "p99": float(np.percentile(x, 99)),
+            "max": float(x.max())}
+
+
+def _recorded(path: Path, channel: str, cls, session: int, first: int, last: int) -> dict[str, Any]:
+    """What a delay line did to one channel's messages of one session, seqs
+    first..last: the receiver's counts on the order in which they left
+    (``_direction``), their delay and the line's own lateness [us]."""
+    r = np.load(path)
+    order = np.argsort(r["out_rank"], kind="stable")  # arrival indices in the order of leaving
+    data, off, n = r["data"], r["data_off"], r["data_len"]
+    left, delay, lateness = [], [], []
+    for k in order:
+        if r["channel"][k] != channel:
+            continue
+        try:
+            m = cls.decode(data[off[k]:off[k] + n[k]].tobytes())
+        except Exception:
+            continue
+        if m.session != session:
+            continue
+        left.append(m.seq)
+        if first <= m.seq <= last:
+            delay.append(r["t_out_ns"][k] - r["t_in_ns"][k])
+            lateness.append(r["t_out_ns"][k] - r["t_due_ns"][k])
+    # every datagram of the namespace's egress (all channels): the ones that
+    # left after a datagram that arrived after them
+    every = _gate(order.tolist())
+    return {**_direction(left, first, last), "delay_us": _pct(np.array(delay) / 1e3),
+            "lateness_us": _pct(np.array(lateness) / 1e3), "delays": np.array(delay) / 1e3,
+            "all_channels": {"datagrams": int(len(order)), "left_out_of_order": every["out_of_order"],
+                             "sent_at_once": int(r["at_once"].sum())}}
+
+
+def _delay_line_checks(spec: str, rate: float, lines: list, lines_ok: list[bool], summary: dict,
+                       emu_counters: dict, to_ctl: dict, to_emu: dict, rec_ctl: dict,
+                       rec_emu: dict) -> dict[str, Any]:
+    """The delay line's record against the receivers: per direction the
+    messages it delayed, the ones it let leave out of order (the exact
+    count), the receiving side's log and the receiving process's counter
+    (equal up to ``edge``: 3 for the window's first and last messages, which
+    a process counts and the seq window leaves out, plus 2 per message its
+    side lost), and the analytic expectation (``swap_probability``,
+    ``reorder_bound``)."""
+    t = 1.0 / rate
+    p_swap = swap_probability(spec, t)
+    out: dict[str, Any] = {"alive": lines_ok, "sched": [ln.sched for ln in lines], "swap_probability": p_swap,
+                           "spacing_s": t}
+    checks = {}
+    for name, rec, log, counted in (
+            ("to_controller", rec_ctl, to_ctl, summary["rejected"]["out_of_order"]),
+            ("to_emulator", rec_emu, to_emu, emu_counters.get("out_of_order", 0))):
+        d = rec.pop("delays")
+        e, tol = reorder_bound(max(rec["unique"] - 1, 0), p_swap)
+        edge = 3 + 2 * log["lost"]
+        rl = rec["gate_out_of_order"]
+        checks[name] = {
+            "delayed": rec["copies"], "delay_line_out_of_order": rl, "log_out_of_order": log["gate_out_of_order"],
+            "counted_out_of_order": counted, "edge": edge, "expected": e, "expected_tol": tol,
+            "expected_ok": abs(rl - e) <= tol,
+            "log_agrees": abs(log["gate_out_of_order"] - rl) <= edge,
+            "counter_agrees": abs(counted - rl) <= edge,
+            # the delay line saw every message the receiver's window holds
+            "complete": rec["lost"] == 0,
+            "held_over_a_period": int((d > t * 1e6).sum()),
+        }
+        out[name] = rec
+    out["checks"] = checks
+    return out
+
+
 def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: float = 100.0,
              scenario: str = "ppc_feasible_100hz", port: int = 7731, tag: str = "",
-             backend: str = "netem", auth_key: Path | None = None) -> dict[str, Any]:
+             backend: str = "netem", auth_key: Path | None = None, seed: int = 1) -> dict[str, Any]:
     """One real-time run across the veth pair with ``netem`` (None: a clean
-    link) on both ends; returns the measured and expected counts."""
+    link) on both ends; returns the measured and expected counts. backend:
+    "netem", "nft", "nfqueue", "nft+nfqueue", or "auto" (``backend_for``);
+    seed: the delay lines' draws (A's seed, B's seed + 1)."""
     import sc_rt_lcm
 
     from sc_rt.bus.lcmio import lcm_binary
     from sc_rt.scenario.reader import load_scenario
     from sc_rt.scenario.overrides import with_overrides
 
+    if backend == "auto":
+        backend = backend_for(netem)
     work.mkdir(parents=True, exist_ok=True)
     pid = os.getpid() % 100000
     a, b = f"scrtNA{pid}{tag}", f"scrtNB{pid}{tag}"
@@ -197,6 +445,9 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
     for p in (log_a, log_b):
         p.unlink(missing_ok=True)
     procs: list[subprocess.Popen] = []
+    lines: list[DelayLine] = []
+    lines_ok: list[bool] = []
+    rec_a, rec_b = work / "delay_line_ctl_side.npz", work / "delay_line_emu_side.npz"
     try:
         for c in (f"ip netns add {a}", f"ip netns add {b}",
                   f"ip link add {va} type veth peer name {vb}",
@@ -209,6 +460,10 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
         if netem:
             impair(a, va, netem, backend, port)
             impair(b, vb, netem, backend, port)
+            if "nfqueue" in backend:  # one CPU each: a verdict's datagram enters that CPU's backlog, in order
+                ncpu = os.cpu_count() or 1
+                lines.append(DelayLine(a, va, netem, port, 1, rec_a, seed, 0))
+                lines.append(DelayLine(b, vb, netem, port, 2, rec_b, seed + 1, 1 % ncpu))
         auth = ["--auth-key", str(auth_key)] if auth_key else []
         logger = lcm_binary("lcm-logger")
         for ns, log in ((a, log_a), (b, log_b)):
@@ -243,9 +498,14 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
         if r.returncode != 0:
             raise RuntimeError(f"emulator failed: {r.stderr[-2000:]}")
     finally:
-        for p in reversed(procs):  # the controller, then the loggers after their last flush
+        # the controller, the delay lines (their pending datagrams leave), then
+        # the loggers after their last flush
+        for p in reversed(procs):
+            if len(procs) > 1 and p is procs[1] and lines:
+                lines_ok = [ln.stop() for ln in lines]
+                _settle([log_a, log_b])
             if p.poll() is None:
-                p.send_signal(signal.SIGTERM if p is procs[-1] else signal.SIGINT)
+                p.send_signal(signal.SIGTERM if p is procs[-1] and len(procs) > 2 else signal.SIGINT)
                 try:
                     p.wait(10)
                 except subprocess.TimeoutExpired:
@@ -253,6 +513,8 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
                     p.wait()
             if p.stderr:
                 p.stderr.close()
+        if len(lines_ok) < len(lines):
+            lines_ok = [ln.stop() for ln in lines]
         subprocess.run(["ip", "netns", "del", a], capture_output=True)
         subprocess.run(["ip", "netns", "del", b], capture_output=True)
 
@@ -340,6 +602,13 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
     checks["emulator_counters_match_log"] = {
         "duplicate": [c.get("duplicate", 0), to_emu["gate_duplicate"]],
         "out_of_order": [c.get("out_of_order", 0), to_emu["gate_out_of_order"]]}
+    if lines:
+        res["delay_line"] = _delay_line_checks(
+            netem, rate, lines, lines_ok, summary, emu["counters"], to_ctl, to_emu,
+            _recorded(rec_b, "SCRT_STATE", sc_rt_lcm.plant_state_t, plant, 0, rows - 1),
+            _recorded(rec_a, "SCRT_CMD", sc_rt_lcm.wheel_cmd_t, ctl_session, c_first, c_last))
+        checks["delay_line"] = res["delay_line"]["checks"]
+    res["backend"] = backend
     res["checks"] = checks
     (work / "netem_result.json").write_text(json.dumps(res, indent=2, default=float) + "\n")
     return res

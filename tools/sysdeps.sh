@@ -58,7 +58,7 @@ check_packages() {
   have chromium || have chromium-browser || need chromium
   have tc || need iproute2
   # tests/test_netem.py impairs a veth with nftables where the kernel has no netem
-  have nft || need nftables
+  have nft || need nftables; have iptables-legacy || need iptables  # and its NFQUEUE delay line (delay, reordering)
 }
 
 check_packages
