@@ -1,5 +1,6 @@
-"""The emulator packs and unpacks its messages with struct for speed; the
-bytes must be exactly what the generated LCM classes produce and read."""
+"""The emulator packs and unpacks its messages with struct for speed
+(bus/twin.py, bus/inbox.py); the bytes must be exactly what the generated
+LCM classes produce and read."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ import random
 
 import sc_rt_lcm
 
-from sc_rt.bus import emulator as E
+from sc_rt.bus import inbox as I
+from sc_rt.bus import twin as T
 
 
 def test_state_and_truth_packing_equal_the_generated_encoding():
@@ -18,7 +20,7 @@ def test_state_and_truth_packing_equal_the_generated_encoding():
         m.t = rng.uniform(0, 1e4)
         x = [rng.uniform(-1e3, 1e3) for _ in range(10)]
         m.sigma_BN, m.omega_BN_B, m.wheel_speed = x[0:3], x[3:6], x[6:10]
-        assert E._STATE_FP + E._STATE_LAYOUT.pack(m.utime, m.seq, m.session, m.t, *x) == m.encode()
+        assert T._STATE_FP + T._STATE_LAYOUT.pack(m.utime, m.seq, m.session, m.t, *x) == m.encode()
 
         tr = sc_rt_lcm.plant_truth_t()
         tr.utime, tr.seq, tr.t, tr.cmd_seq_applied = rng.getrandbits(50), rng.getrandbits(40), rng.uniform(0, 1e4), rng.randrange(-1, 10**6)
@@ -26,7 +28,7 @@ def test_state_and_truth_packing_equal_the_generated_encoding():
         tr.u_cmd, tr.wheel_accel, tr.delta2, tr.disturbance, tr.fault_Y, tr.fault_effectiveness, tr.fault_bias = f
         tr.fault_stuck = [rng.randrange(0, 2) for _ in range(4)]
         tr.cmd_stale = rng.randrange(0, 2)
-        packed = E._TRUTH_FP + E._TRUTH_LAYOUT.pack(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied,
+        packed = T._TRUTH_FP + T._TRUTH_LAYOUT.pack(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied,
                                                     *[v for arr in f for v in arr], *tr.fault_stuck,
                                                     tr.cmd_stale)
         assert packed == tr.encode()
@@ -42,11 +44,11 @@ def test_command_and_status_unpacking_read_the_generated_encoding():
         c.u_cmd = [rng.uniform(-1e6, 1e6) for _ in range(4)]
         c.u_sat = [rng.uniform(-10, 10) for _ in range(4)]
         c.mode, c.flags = rng.randrange(0, 3), rng.getrandbits(20)
-        v = E._CMD_LAYOUT.unpack_from(c.encode(), 8)
+        v = I._CMD_LAYOUT.unpack_from(c.encode(), 8)
         assert (v[1], v[2], v[3], list(v[5:9]), list(v[9:13])) == (c.seq, c.session, c.state_seq, c.u_cmd, c.u_sat)
         s = sc_rt_lcm.controller_status_t()
         s.utime, s.cmd_seq, s.session, s.state_seq = (rng.getrandbits(50), rng.getrandbits(40),
                                                       rng.getrandbits(62), rng.randrange(-1, 10**6))
         data = s.encode()
-        assert len(data) == E._STATUS_SIZE and data[:8] == E._STATUS_FP
-        assert E._STATUS_HEAD.unpack_from(data, 8) == (s.utime, s.cmd_seq, s.session, s.state_seq)
+        assert len(data) == I._STATUS_SIZE and data[:8] == I._STATUS_FP
+        assert I._STATUS_HEAD.unpack_from(data, 8) == (s.utime, s.cmd_seq, s.session, s.state_seq)

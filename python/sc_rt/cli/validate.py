@@ -22,8 +22,8 @@ from typing import Any, Callable
 import numpy as np
 
 __all__ = ["UsageError", "OneLineParser", "number", "integer", "out_dir", "out_file", "lcm_url", "auth_key_file",
-           "resolve_url", "bytes_per_row", "available_memory", "check_run_size", "rounded",
-           "MAX_RATE_HZ", "MAX_TIME_SCALE", "MAX_PLANT_STEPS", "MIN_WALL_TICK_S", "ENGINE_COPIES"]
+           "resolve_url", "bytes_per_row", "bus_bytes_per_row", "available_memory", "check_run_size",
+           "rounded", "MAX_RATE_HZ", "MAX_TIME_SCALE", "MAX_PLANT_STEPS", "MIN_WALL_TICK_S", "ENGINE_COPIES"]
 
 #: Rates above this are not a control loop any bench here can close (10 us a step).
 MAX_RATE_HZ = 1e5
@@ -35,8 +35,6 @@ MAX_PLANT_STEPS = 1e9
 MIN_WALL_TICK_S = 100e-6
 #: Copies of a row a run holds at its peak (engine buffers, the Run, the file writer).
 ENGINE_COPIES = 3
-#: What the bench holds per row besides the Run (commands, statuses, timestamps by seq).
-BUS_BYTES_PER_ROW = 1024
 #: Use at most this fraction of the memory available.
 MEMORY_FRACTION = 0.8
 
@@ -192,6 +190,17 @@ def bytes_per_row() -> int:
     return int(sum(int(np.prod(f.shape, dtype=np.int64)) * np.dtype(f.dtype).itemsize for f in FIELDS))
 
 
+def bus_bytes_per_row() -> int:
+    """What a bench run holds per row besides the Run, all of it allocated
+    and touched when the emulator is made: each state's command and status
+    as received, its times, the loop's stamps (sc_rt.bus.emulator
+    BYTES_PER_ROW: a wheel_cmd_t and a controller_status_t plus 76 B, so it
+    follows the message types)."""
+    from sc_rt.bus.emulator import BYTES_PER_ROW
+
+    return BYTES_PER_ROW
+
+
 def available_memory() -> int:
     """Bytes of memory available now (/proc/meminfo MemAvailable, else the
     free physical pages)."""
@@ -221,7 +230,8 @@ def check_run_size(scn: Any, given: str, *, bus: bool = False, realtime: bool = 
     """Refuse (UsageError) a run of ``scn`` (overrides applied) that cannot
     fit in memory or time. ``given``: the options that set its size, as the
     user typed them (for the message); ``bus``: a bench run (the emulator's
-    per-row records); ``copies``: runs held at once (Monte Carlo workers)."""
+    per-row records, ``bus_bytes_per_row``); ``copies``: runs held at once
+    (Monte Carlo workers)."""
     run = scn.run
     rows = math.floor(run.duration * run.control_rate_hz + 0.5) + 1
     steps = run.duration / run.plant_step
@@ -229,7 +239,7 @@ def check_run_size(scn: Any, given: str, *, bus: bool = False, realtime: bool = 
     if steps > MAX_PLANT_STEPS:
         raise UsageError(f"{what}{steps:.3g} plant steps (duration {run.duration:g} s / plant step "
                          f"{run.plant_step:g} s), more than the {MAX_PLANT_STEPS:.0e} a run may take")
-    per_row = bytes_per_row() * ENGINE_COPIES + (BUS_BYTES_PER_ROW if bus else 0)
+    per_row = bytes_per_row() * ENGINE_COPIES + (bus_bytes_per_row() if bus else 0)
     need = float(rows) * per_row * copies
     have = available_memory()
     if need > MEMORY_FRACTION * have:

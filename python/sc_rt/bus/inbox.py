@@ -1,0 +1,340 @@
+"""The plant emulator's receive side (bus/emulator.py): its LCM handlers and
+what they keep per state seq.
+
+- ``Inbox``: per state seq k of the run's n rows, the first valid command
+  answering k (its bytes, the monotonic ns of its receipt, its utime), the
+  first status for k (its bytes, decoded after the run) and the times state
+  k went out (the utime of its first publish, the monotonic ns of its last).
+  Numpy arrays for the n rows, allocated and filled when the emulator is
+  made (every page touched then): nothing grows per row while the run
+  lasts. A state seq outside [0, n) (a hostile or stray message) is counted
+  (``state_seq_out_of_range``) and not kept; -1 (answers no state) is not
+  kept either, as always.
+- ``Receiver``: the handlers, mixed into ``Emulator``; they never raise.
+  Every message is decoded under guard and counted by kind (``counters``);
+  commands and status come from one controller session at a time, a new one
+  adopted only once the current one is lost; fault commands change the
+  actuators when accepted; another plant, or another controller while ours
+  is alive, is a bench collision (bus/collision.py) that stops the run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import struct
+import time
+from collections import Counter
+from typing import Any, NamedTuple
+
+import numpy as np
+import sc_rt_lcm
+
+from sc_rt.bus.lcmio import channel
+from sc_rt.bus.loopstats import MISSING
+from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
+from sc_rt.model.actuators import WheelFault
+
+__all__ = ["Inbox", "Receiver", "Cmd"]
+
+# controller_status_t's fixed layout: fingerprint, then utime, cmd_seq,
+# session, state_seq (big-endian int64), as generated from the .lcm file
+_STATUS_FP = sc_rt_lcm.controller_status_t._get_packed_fingerprint()
+_STATUS_SIZE = len(sc_rt_lcm.controller_status_t().encode())
+_STATUS_HEAD = struct.Struct(">qqqq")
+# wheel_cmd_t: utime, seq, session, state_seq, t, u_cmd[4], u_sat[4], mode, flags
+_CMD_FP = sc_rt_lcm.wheel_cmd_t._get_packed_fingerprint()
+_CMD_SIZE = len(sc_rt_lcm.wheel_cmd_t().encode())
+_CMD_LAYOUT = struct.Struct(">qqqqd4d4dbi")
+assert _CMD_LAYOUT.size + 8 == _CMD_SIZE and _STATUS_HEAD.size + 8 < _STATUS_SIZE
+# plant_state_t: its seq and session (after utime), to tell another plant's
+_STATE_SIZE = len(sc_rt_lcm.plant_state_t().encode())
+_STATE_FP = sc_rt_lcm.plant_state_t._get_packed_fingerprint()
+_NONE = int(MISSING)  # a Python int: compared and stored per message
+
+
+class Cmd(NamedTuple):
+    """The fields of a wheel_cmd_t the loop uses."""
+
+    seq: int
+    session: int
+    state_seq: int
+    u_cmd: tuple
+    u_sat: tuple
+    mode: int = -1
+    flags: int = 0
+
+
+def _cmd_of(v: tuple) -> Cmd:
+    return Cmd(seq=v[1], session=v[2], state_seq=v[3], u_cmd=v[5:9], u_sat=v[9:13], mode=v[13], flags=v[14])
+
+
+class Inbox:
+    """Per state seq of a run of ``n`` rows: its command, its status and
+    its publish times, preallocated (module docstring). The int64 times are
+    ``MISSING`` (bus/loopstats.py) where there is none."""
+
+    #: bytes per row: the command and the status as received, four int64 times, the status length
+    BYTES_PER_ROW = _CMD_SIZE + _STATUS_SIZE + 4 * 8 + 4
+
+    def __init__(self, n: int, counters: Counter):
+        self.n, self.counters = n, counters
+        # np.full writes every element: the pages are resident from here on
+        self.cmd_raw = np.full((n, _CMD_SIZE), 0, np.uint8)
+        self.cmd_rx = np.full(n, MISSING, np.int64)  # [monotonic ns] receipt; MISSING: no command for k
+        self.cmd_utime = np.full(n, MISSING, np.int64)  # [us] the command's utime (the controller's publish)
+        self.pub_wall_us = np.full(n, MISSING, np.int64)  # [us] utime of state k's first publish
+        self.pub_ns = np.full(n, MISSING, np.int64)  # [monotonic ns] state k's last publish
+        self.status_raw = np.full((n, _STATUS_SIZE), 0, np.uint8)
+        self.status_len = np.full(n, -1, np.int32)  # -1: no status for k; 0: one not kept (too long)
+        # the handlers write through memoryviews (a fraction of numpy's per-item cost)
+        self._cmd_mv = memoryview(self.cmd_raw.reshape(-1))
+        self._rx, self._utime = memoryview(self.cmd_rx), memoryview(self.cmd_utime)
+        self._wall, self._pub = memoryview(self.pub_wall_us), memoryview(self.pub_ns)
+        self._status_mv, self._status_len = memoryview(self.status_raw.reshape(-1)), memoryview(self.status_len)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in (self.cmd_raw, self.cmd_rx, self.cmd_utime, self.pub_wall_us,
+                                      self.pub_ns, self.status_raw, self.status_len))
+
+    def _kept(self, k: int) -> bool:
+        """k is a row of the run; a seq past the run is counted (-1 and
+        other negative seqs answer no state)."""
+        if 0 <= k < self.n:
+            return True
+        if k >= self.n:
+            self.counters["state_seq_out_of_range"] += 1
+        return False
+
+    # --- commands ------------------------------------------------------------
+    def put_cmd(self, k: int, data: bytes | None, msg: Cmd, now: int, utime: int = _NONE) -> None:
+        """The first valid command answering state k (``data``: its bytes in
+        the fixed layout, None: pack ``msg``); later ones are not kept."""
+        if not self._kept(k) or self._rx[k] != _NONE:
+            return
+        off = k * _CMD_SIZE
+        if data is not None:
+            self._cmd_mv[off:off + _CMD_SIZE] = data
+        else:
+            _CMD_LAYOUT.pack_into(self._cmd_mv, off + 8, 0, msg.seq, msg.session, msg.state_seq, 0.0,
+                                  *msg.u_cmd, *msg.u_sat, msg.mode, msg.flags)
+        self._rx[k] = now
+        self._utime[k] = utime
+
+    def has_cmd(self, k: int) -> bool:
+        return 0 <= k < self.n and self._rx[k] != _NONE
+
+    def cmd(self, k: int) -> Cmd | None:
+        """The first valid command answering state k, None when none came."""
+        if not self.has_cmd(k):
+            return None
+        return _cmd_of(_CMD_LAYOUT.unpack_from(self._cmd_mv, k * _CMD_SIZE + 8))
+
+    def cmd_session(self, k: int) -> int:
+        """The session of the command answering k (has_cmd(k))."""
+        return _CMD_LAYOUT.unpack_from(self._cmd_mv, k * _CMD_SIZE + 8)[2]
+
+    # --- status ----------------------------------------------------------------
+    def put_status(self, k: int, data: bytes) -> None:
+        """The first status for state k, as its bytes (one longer than the
+        fixed layout, possible only for a type with variable fields, counts
+        as received and is not kept: ``status_not_kept``)."""
+        if not self._kept(k) or self._status_len[k] >= 0:
+            return
+        m = len(data)
+        if m > _STATUS_SIZE:
+            self.counters["status_not_kept"] += 1
+            self._status_len[k] = 0
+            return
+        off = k * _STATUS_SIZE
+        self._status_mv[off:off + m] = data
+        self._status_len[k] = m
+
+    def has_status(self, k: int) -> bool:
+        return 0 <= k < self.n and self._status_len[k] >= 0
+
+    def status(self, k: int):
+        """State k's controller_status_t, decoded (None: none kept)."""
+        m = self._status_len[k] if 0 <= k < self.n else -1
+        if m <= 0:
+            return None
+        off = k * _STATUS_SIZE
+        return sc_rt_lcm.controller_status_t.decode(bytes(self._status_mv[off:off + m]))
+
+    # --- our states ------------------------------------------------------------
+    def published(self, k: int, utime: int, now: int) -> None:
+        """State k went out at ``utime`` [us] (the first time counts) and
+        monotonic ``now`` [ns] (the last time counts)."""
+        if 0 <= k < self.n:
+            if self._wall[k] == _NONE:
+                self._wall[k] = utime
+            self._pub[k] = now
+
+    def fill(self, run) -> None:
+        """The run's controller telemetry and timing from every status kept
+        (decoded now: ~35 us each), and its latency (state publish to the
+        command's receipt) for every state answered."""
+        rows = len(run)
+        for k in range(rows):
+            s = self.status(k)
+            if s is None:
+                continue
+            for name in STATUS_RUN_FIELDS + STATUS_TIMING_FIELDS:
+                run[name][k] = getattr(s, name)
+        rx, pub = self.cmd_rx[:rows], self.pub_ns[:rows]
+        ok = (rx != MISSING) & (pub != MISSING)
+        run["latency_us"][ok] = (rx[ok] - pub[ok]) / 1e3
+
+
+class Receiver:
+    """The emulator's LCM handlers (a mixin of ``Emulator``).
+
+    Keeps the receive state: ``inbox``, the newest command (``_newest_cmd``,
+    ``_newest_cmd_ns``), the adopted controller session (``_ctl_session``,
+    ``_ctl_last_ns``, ``_peer_lost``, which the loop sets when a state went
+    unanswered) and the last seqs taken from it. Uses the emulator's
+    ``lc``, ``counters``, ``session``, ``guard``, ``peers``, ``prefix``,
+    ``accept_faults``, ``act``, ``_t_now``, ``faults_applied``,
+    ``invalid`` and ``stopped``."""
+
+    def _init_receiver(self, n_rows: int) -> None:
+        self.inbox = Inbox(n_rows, self.counters)
+        self._newest_cmd: Cmd | None = None
+        self._newest_cmd_ns = 0
+        self._last_cmd_seq = -1
+        self._last_status_seq = -1
+        self._ctl_session: int | None = None
+        self._ctl_last_ns = 0  # monotonic ns of the adopted controller's newest message
+        self._peer_lost = False
+        # LCM silently drops messages beyond a subscription's queue capacity
+        # (30 by default): hold many, so every one is either used or counted
+        for name, handler in (("SCRT_CMD", self._on_cmd), ("SCRT_CTRL_STATUS", self._on_status),
+                              ("SCRT_FAULT", self._on_fault), ("SCRT_CTRL_INFO", self._on_info),
+                              ("SCRT_STATE", self._on_plant_state)):
+            self.lc.subscribe(channel(name, self.prefix), handler).set_queue_capacity(100_000)
+
+    def _collision(self, reason: str | None) -> None:
+        if reason is not None and self.invalid is None:
+            self.invalid = reason
+            self.counters["bench_collision"] += 1
+            if self.stopped is None:
+                self.stopped = reason  # the loop stops at its next check: partial and invalid
+
+    def _on_plant_state(self, _ch: str, data: bytes) -> None:
+        """Our own states come back (multicast loopback); another plant's mean another bench."""
+        if len(data) == _STATE_SIZE and data[:8] == _STATE_FP:
+            _, seq, session = struct.unpack_from(">qqq", data, 8)
+            if session != self.session:
+                self._collision(self.guard.plant_state(session, seq, self._ctl_session))
+
+    def _session_ok(self, session: int, now: int, seq: int = -1, kind: str = "cmd") -> bool:
+        """Commands and status come from one controller session at a time; a
+        new session is adopted only once the current controller is lost (the
+        loop saw an unanswered state in lockstep or a stale command in real
+        time: a crashed or restarted controller), never while it answers."""
+        if session == self._ctl_session:
+            self._ctl_last_ns = now
+            return True
+        if self._ctl_session is None or self._peer_lost:
+            if self._ctl_session is not None:
+                self.counters["controller_sessions_adopted"] += 1
+            self._ctl_session = session
+            self._ctl_last_ns = now
+            self._peer_lost = False
+            self._last_cmd_seq = -1
+            self._last_status_seq = -1
+            return True
+        self.counters["foreign_session"] += 1
+        self._collision(self.guard.controller_msg(session, seq, self._ctl_session, self._ctl_last_ns,
+                                                  now, kind))
+        return False
+
+    def _on_cmd(self, _ch: str, data: bytes) -> None:
+        now = time.monotonic_ns()
+        self.counters["cmd_received"] += 1
+        fixed = len(data) == _CMD_SIZE and data[:8] == _CMD_FP
+        if fixed:  # the fixed layout, unpacked at once
+            v = _CMD_LAYOUT.unpack_from(data, 8)
+            msg = _cmd_of(v)
+        else:  # not exactly one wheel_cmd_t: count it by kind
+            msg = decode_as(sc_rt_lcm.wheel_cmd_t, data, self.counters)
+            if msg is None:
+                return
+        # any finite command is meaningful: the wheels saturate it (15)
+        if not all(math.isfinite(v) for v in msg.u_cmd):
+            self.counters["invalid_command"] += 1
+            return
+        if not self._session_ok(msg.session, now, msg.seq, "cmd"):
+            return
+        if msg.seq <= self._last_cmd_seq:
+            self.counters["duplicate" if msg.seq == self._last_cmd_seq else "out_of_order"] += 1
+            return
+        self._last_cmd_seq = msg.seq
+        self._newest_cmd, self._newest_cmd_ns = msg, now
+        if fixed:
+            self.inbox.put_cmd(msg.state_seq, data, msg, now, v[0])
+        else:
+            self.inbox.put_cmd(msg.state_seq, None, msg, now)
+
+    def _on_status(self, _ch: str, data: bytes) -> None:
+        # The loop needs only the header (session, seqs) now; the full decode
+        # (~35 us in Python) waits until the run is over (Inbox.fill).
+        now = time.monotonic_ns()
+        if len(data) == _STATUS_SIZE and data[:8] == _STATUS_FP:
+            _, cmd_seq, session, state_seq = _STATUS_HEAD.unpack_from(data, 8)
+        else:  # not exactly one status message: count it by kind
+            msg = decode_as(sc_rt_lcm.controller_status_t, data, self.counters)
+            if msg is None:
+                return
+            cmd_seq, session, state_seq = msg.cmd_seq, msg.session, msg.state_seq
+        if not self._session_ok(session, now, cmd_seq, "status"):
+            return
+        if cmd_seq <= self._last_status_seq:
+            self.counters["status_out_of_order"] += 1
+            return
+        self._last_status_seq = cmd_seq
+        self.peers.saw_status(session)
+        self.inbox.put_status(state_seq, data)
+
+    def _on_info(self, _ch: str, data: bytes) -> None:
+        self.peers.on_info(data, self.counters)
+
+    @property
+    def controller_info(self) -> dict[str, Any] | None:
+        """The controller_info_t of the session in use (None: none announced)."""
+        return self.peers.info.get(self._ctl_session) if self._ctl_session is not None else None
+
+    def _on_fault(self, _ch: str, data: bytes) -> None:
+        msg = decode_as(sc_rt_lcm.fault_cmd_t, data, self.counters)
+        if msg is None:
+            return
+        if not self.accept_faults:
+            self.counters["fault_ignored"] += 1
+            return
+        try:
+            self._apply_fault(msg)
+            self.counters["fault_applied"] += 1
+        except ValueError as e:
+            self.counters["fault_rejected"] += 1
+            self.faults_applied.append({"rejected": str(e), "wheel": msg.wheel})
+
+    def _apply_fault(self, m) -> None:
+        if not 1 <= m.wheel <= 4:
+            raise ValueError(f"wheel must be 1..4, got {m.wheel}")
+        w = m.wheel - 1
+        others = tuple(f for f in self.act.faults if f.wheel != w)
+        if m.action == sc_rt_lcm.fault_cmd_t.ACTION_CLEAR:
+            new = others
+            rec = {"t": self._t_now, "wheel": m.wheel, "action": "clear"}
+        elif m.action == sc_rt_lcm.fault_cmd_t.ACTION_INJECT:
+            onset = self._t_now if m.now else m.t_onset
+            fault = WheelFault(wheel=w, effectiveness=m.effectiveness, bias=m.bias, onset=onset,
+                               end=None if m.t_end < 0 else m.t_end, rate=m.rate, stuck=bool(m.stuck))
+            new = others + (fault,)
+            rec = {"t": self._t_now, "wheel": m.wheel, "action": "inject",
+                   **{k: getattr(fault, k) for k in ("effectiveness", "bias", "onset", "end", "rate", "stuck")}}
+        else:
+            raise ValueError(f"unknown action {m.action}")
+        self.act = dataclasses.replace(self.act, faults=new)  # validated by ActuatorParams
+        self.faults_applied.append(rec)

@@ -1,0 +1,103 @@
+"""The plant emulator's arithmetic of a row and the bytes of its messages
+(bus/emulator.py runs the loops).
+
+- ``PlantTwin``: ``n_sub`` RK4 steps with the command held, the C++ plant
+  twin (``_core.plant_rk4_step``, bitwise the Python
+  ``model.plant.rk4_step``) or, with ``cpp=False``, the Python one (for a
+  changed model/plant.py); a row's wheel saturation, acceleration and
+  lumped disturbance (the C++ twins of ``actuators.wheel_accel`` and
+  ``plant.lumped_disturbance``, bitwise, or those); the truth's fault
+  fields. Always for the fault set the row was applied with (``act``: a
+  fault command may change the emulator's while it waits).
+- ``plant_state_t`` and ``plant_truth_t`` packed with struct, exactly the
+  generated encoding (tests/test_emulator_wire.py), for speed.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import sc_rt_lcm
+
+from sc_rt import _core
+from sc_rt.model import actuators, plant
+
+__all__ = ["PlantTwin", "state_bytes", "truth_bytes"]
+
+# plant_state_t: utime, seq, session, t, sigma_BN[3], omega_BN_B[3], wheel_speed[4]
+_STATE_FP = sc_rt_lcm.plant_state_t._get_packed_fingerprint()
+_STATE_LAYOUT = struct.Struct(">qqqd3d3d4d")
+# plant_truth_t: utime, seq, t, cmd_seq_applied, u_cmd[4], wheel_accel[4],
+# delta2[3], disturbance[3], fault_Y[4], fault_effectiveness[4], fault_bias[4],
+# fault_stuck[4] (int8), cmd_stale (int8)
+_TRUTH_FP = sc_rt_lcm.plant_truth_t._get_packed_fingerprint()
+_TRUTH_LAYOUT = struct.Struct(">qqdq4d4d3d3d4d4d4d4bb")
+assert _STATE_LAYOUT.size + 8 == len(sc_rt_lcm.plant_state_t().encode())
+assert _TRUTH_LAYOUT.size + 8 == len(sc_rt_lcm.plant_truth_t().encode())
+
+
+def state_bytes(utime: int, k: int, session: int, t: float, x: np.ndarray) -> bytes:
+    """plant_state_t of state k at t."""
+    return _STATE_FP + _STATE_LAYOUT.pack(utime, k, session, t, *x[0:10])
+
+
+def truth_bytes(utime: int, k: int, t: float, cmd_seq: int, u_cmd, accel, delta2, disturbance, fault_y,
+                eff_bias_stuck, stale: bool) -> bytes:
+    """plant_truth_t of row k."""
+    return _TRUTH_FP + _TRUTH_LAYOUT.pack(utime, k, t, cmd_seq, *u_cmd, *accel, *delta2, *disturbance,
+                                          *fault_y, *eff_bias_stuck, 1 if stale else 0)
+
+
+class PlantTwin:
+    """The plant of ``params`` (model.plant.PlantParams) with the actuators
+    each call is given."""
+
+    def __init__(self, params, cpp: bool = True):
+        self.params, self.cpp = params, cpp
+        self._cpp_params: tuple = (None,)
+        self._fault_fields: tuple = (None,)
+
+    def _cpp(self, act) -> tuple:
+        if self._cpp_params[0] is not act:  # the fault set changed (live injection)
+            self._cpp_params = (act, plant.plant_params_to_cpp(self.params), actuators.actuator_params_to_cpp(act))
+        return self._cpp_params[1], self._cpp_params[2]
+
+    def integrate(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, n_sub: int, h: float) -> np.ndarray:
+        """n_sub RK4 steps of h from t with u_cmd held."""
+        if not self.cpp:
+            for j in range(n_sub):
+                x = plant.rk4_step(self.params, act, t + j * h, x, h, u_cmd)
+            return x
+        pp, ap = self._cpp(act)
+        xs = _core.PlantState.from_vector(x)
+        for j in range(n_sub):
+            xs = _core.plant_rk4_step(pp, ap, t + j * h, xs, h, u_cmd)
+        return xs.to_vector()
+
+    def row(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray) -> tuple:
+        """(u_sat, wheel accel, delta2) of the row at t, state x, command u_cmd."""
+        if self.cpp:
+            pp, ap = self._cpp(act)
+            w = _core.wheel_accel(ap, t, u_cmd, x[6:10])
+            u_sat, accel = w.u_sat, w.accel
+            delta2 = _core.lumped_disturbance(pp, t, _core.PlantState.from_vector(x), u_sat, accel)
+        else:
+            u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
+            delta2 = plant.lumped_disturbance(self.params, t, x, u_sat, accel)
+        return u_sat, accel, delta2
+
+    def fault_fields(self, act, t: float) -> tuple[list, list]:
+        """(fault_Y per wheel at t, effectiveness[4] + bias[4] + stuck[4])."""
+        if self._fault_fields[0] is not act:  # the fault set changed (live injection)
+            faults = {f.wheel: f for f in act.faults}
+            self._fault_fields = (
+                act, [faults.get(i) for i in range(4)],
+                [faults[i].effectiveness if i in faults else 1.0 for i in range(4)]
+                + [faults[i].bias if i in faults else 0.0 for i in range(4)]
+                + [1 if i in faults and faults[i].stuck else 0 for i in range(4)])
+        _, per_wheel, eff_bias_stuck = self._fault_fields
+        return [actuators.fault_Y(f, t) for f in per_wheel], eff_bias_stuck
+
+    def disturbance(self, t: float):
+        return plant.disturbance(self.params, t)

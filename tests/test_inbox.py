@@ -1,0 +1,115 @@
+"""The emulator's per-state-seq inbox (bus/inbox.py): allocated and touched
+for the run's rows at start, nothing grows as rows fill, seqs outside the
+run counted and ignored, and what it keeps per row is what the memory
+estimate of a bench run counts (cli/validate.py)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import sc_rt_lcm
+
+from sc_rt.bus import emulator
+from sc_rt.bus.inbox import _CMD_LAYOUT, _STATUS_SIZE, Inbox, _cmd_of
+from sc_rt.cli.validate import bus_bytes_per_row
+
+
+def _rss_kb() -> int:
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS:"))
+
+
+def _cmd(seq: int, state_seq: int) -> bytes:
+    m = sc_rt_lcm.wheel_cmd_t()
+    m.utime, m.seq, m.session, m.state_seq = 1_000 + seq, seq, 77, state_seq
+    m.u_cmd, m.u_sat, m.mode, m.flags = [0.1 * seq, -2.0, 3.5, 1e-9], [0.1, -0.2, 0.3, -0.4], 2, 1 << 11
+    return m.encode()
+
+
+def _status(state_seq: int) -> bytes:
+    s = sc_rt_lcm.controller_status_t()
+    s.cmd_seq, s.session, s.state_seq, s.steps = state_seq, 77, state_seq, state_seq + 1
+    return s.encode()
+
+
+def _put(inbox: Inbox, k: int, now: int = 5) -> None:
+    data = _cmd(k, k)
+    v = _CMD_LAYOUT.unpack_from(data, 8)
+    inbox.put_cmd(k, data, _cmd_of(v), now, v[0])
+
+
+_MEASURE = """
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+import test_inbox as T
+n = 20_000
+before = T._rss_kb()
+inbox = T.Inbox(n, Counter())
+allocated = T._rss_kb() - before
+status = T._status(0)
+before = T._rss_kb()
+for k in range(n):
+    T._put(inbox, k, time.monotonic_ns())
+    inbox.put_status(k, status)
+    inbox.published(k, 1_000 + k, time.monotonic_ns())
+print(inbox.nbytes, allocated, T._rss_kb() - before)
+"""
+
+
+def test_allocated_and_touched_at_start_then_flat_while_rows_fill():
+    # a fresh interpreter: in this one, pages freed by earlier tests would
+    # be resident already and hide the allocation
+    r = subprocess.run([sys.executable, "-c", _MEASURE], capture_output=True, text=True, timeout=120,
+                       cwd=Path(__file__).parent)
+    assert r.returncode == 0, r.stderr
+    nbytes, allocated_kb, filled_kb = map(int, r.stdout.split())
+    assert nbytes == 20_000 * Inbox.BYTES_PER_ROW
+    assert allocated_kb * 1024 >= 0.9 * nbytes, (allocated_kb, nbytes)  # resident from the start
+    assert filled_kb <= 256, filled_kb  # every row filled: nothing more
+
+
+def test_commands_come_back_as_received_and_the_first_one_counts():
+    inbox = Inbox(10, Counter())
+    _put(inbox, 3, now=11)
+    later = _cmd(9, 3)
+    inbox.put_cmd(3, later, _cmd_of(_CMD_LAYOUT.unpack_from(later, 8)), 12, 0)
+    c = inbox.cmd(3)
+    assert c == _cmd_of(_CMD_LAYOUT.unpack_from(_cmd(3, 3), 8)) and c.seq == 3 and c.u_cmd[3] == 1e-9
+    assert inbox.cmd_session(3) == 77 and inbox.cmd_rx[3] == 11 and inbox.cmd_utime[3] == 1_003
+    assert inbox.cmd(4) is None and not inbox.has_cmd(4) and not inbox.has_cmd(-1) and not inbox.has_cmd(10)
+    inbox.published(3, 100, 200)
+    inbox.published(3, 101, 201)  # a re-sent state: its first utime, its last monotonic time
+    assert (inbox.pub_wall_us[3], inbox.pub_ns[3]) == (100, 201)
+
+
+def test_seqs_outside_the_run_are_counted_and_ignored():
+    counters = Counter()
+    inbox = Inbox(10, counters)
+    for k in (10, 11, 2**62, -1, -5):
+        data = _cmd(1, k)
+        inbox.put_cmd(k, data, _cmd_of(_CMD_LAYOUT.unpack_from(data, 8)), 1, 1)
+        inbox.put_status(k, _status(0))
+    assert counters == Counter(state_seq_out_of_range=6)  # -1 and below answer no state: not counted
+    assert not any(inbox.has_cmd(k) or inbox.has_status(k) for k in range(10))
+
+
+def test_status_kept_as_bytes_and_decoded_after():
+    counters = Counter()
+    inbox = Inbox(4, counters)
+    inbox.put_status(2, _status(2))
+    inbox.put_status(2, _status(3))  # not the first: not kept
+    assert inbox.has_status(2) and inbox.status(2).steps == 3 and inbox.status(1) is None
+    inbox.put_status(1, b"\0" * (_STATUS_SIZE + 1))  # possible only for a type with variable fields
+    assert inbox.has_status(1) and inbox.status(1) is None and counters["status_not_kept"] == 1
+
+
+def test_the_memory_estimate_counts_what_the_bench_keeps_per_row():
+    assert bus_bytes_per_row() == emulator.BYTES_PER_ROW == Inbox.BYTES_PER_ROW + 5 * 8
+    assert Inbox.BYTES_PER_ROW == (len(sc_rt_lcm.wheel_cmd_t().encode())
+                                   + len(sc_rt_lcm.controller_status_t().encode()) + 4 * 8 + 4)
