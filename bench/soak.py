@@ -8,13 +8,13 @@ the emulator (the ``sc-rt hil`` process) and ``sc-rt-controller``, every
 ``--sample`` s. Then:
 
 - memory: growth after the warm-up (the first 10 % of the run, at least
-  20 s), per process. The controller keeps three doubles per step for its
-  exit percentiles (24 B/step); beyond that it must stay flat (<= 1 MB).
-  The emulator keeps the whole run in memory until it writes it (per row
-  the status message's bytes and four dict entries: about 2 KB/row here),
-  so its RSS is not flat: the soak reports its bytes per row, requires them
-  under ``EMULATOR_BYTES_PER_ROW_BUDGET`` and the same in both halves of the
-  run (linear: no leak on top of the record);
+  20 s) until the run ends (not while the emulator writes its record),
+  per process. The controller keeps three doubles per step for its exit
+  percentiles (24 B/step); beyond that it must stay flat (<= 1 MB). The
+  emulator allocates and touches everything it keeps per row when it
+  starts (the run's columns; each state's command, status and times:
+  bus/inbox.py): it must stay flat too (<= 1 MB); its bytes per row are
+  reported;
 - timing: p50 and p99 of the state-to-command latency, the controller's
   wake lateness and the emulator's tick lateness over the first and the last
   window (5 min, or a quarter of a shorter run), within 20 % of each other;
@@ -50,8 +50,8 @@ ROOT = HERE.parent
 
 #: the controller's per-step samples (lateness, compute, age: 3 doubles)
 CONTROLLER_BYTES_PER_STEP = 24
-#: the emulator's in-memory record of a row, at most (measured ~2 KB)
-EMULATOR_BYTES_PER_ROW_BUDGET = 4096
+#: growth after the warm-up that still counts as flat (beyond what is kept by design)
+FLAT_KB = 1024
 
 
 def lift(pid: int, niceness: int = -10, fifo: int = 10) -> str:
@@ -190,34 +190,28 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
     tr = np.load(out / "trajectory.npz")
     rows, steps = timing["rows"], summary["steps"]
     # warm-up: the first 10 % of the run (at least 20 s), from the first
-    # sample with both processes up
+    # sample with both processes up; the end: the run's (its duration from
+    # then, less a second): after it the emulator decodes and writes its
+    # record, which is not the run's memory
     both = [s for s in samples if s[1] is not None and s[2] is not None]
     t_up = both[0][0] if both else 0.0
     warm = t_up + max(20.0, 0.1 * duration)
-    after = [s for s in both if s[0] >= warm]
+    after = [s for s in both if warm <= s[0] <= t_up + duration - 1.0]
     mem = {}
     if len(after) >= 3:
         span = after[-1][0] - after[0][0]
-        mid = min(after, key=lambda s: abs(s[0] - (after[0][0] + span / 2)))
         for i, name in ((1, "emulator"), (2, "controller")):
             grow_kb = after[-1][i] - after[0][i]
-            per_step = [(b[i] - a[i]) * 1024 / ((b[0] - a[0]) * rate) if b[0] > a[0] else 0.0
-                        for a, b in ((after[0], mid), (mid, after[-1]))]
             mem[name] = {"rss_start_kb": after[0][i], "rss_end_kb": after[-1][i], "growth_kb": grow_kb,
                          "span_s": span, "max_kb": max(s[i] for s in after),
-                         "bytes_per_step": grow_kb * 1024 / (span * rate) if span > 0 else None,
-                         "bytes_per_step_halves": per_step}
+                         "max_growth_kb": max(s[i] for s in after) - after[0][i],
+                         "bytes_per_step": grow_kb * 1024 / (span * rate) if span > 0 else None}
         c = mem["controller"]
         c["by_design_bytes_per_step"] = CONTROLLER_BYTES_PER_STEP
         c["unexplained_kb"] = c["growth_kb"] - CONTROLLER_BYTES_PER_STEP * c["span_s"] * rate / 1024
-        c["flat"] = c["unexplained_kb"] <= 1024
+        c["flat"] = c["unexplained_kb"] <= FLAT_KB
         e = mem["emulator"]
-        e["budget_bytes_per_row"] = EMULATOR_BYTES_PER_ROW_BUDGET
-        h1, h2 = e["bytes_per_step_halves"]
-        e["within_budget"] = e["bytes_per_step"] is not None and e["bytes_per_step"] <= EMULATOR_BYTES_PER_ROW_BUDGET
-        # linear: the second half's rate within 50 % of the first's, or both
-        # below 1 MB of growth
-        e["linear"] = abs(h2 - h1) <= 0.5 * max(h1, h2) or max(h1, h2) * span * rate / 2 <= 1 << 20
+        e["flat"] = e["growth_kb"] <= FLAT_KB
     window = min(300.0, duration / 4)
     pct = percentile_windows(tr, window)
     drift = {}
@@ -249,11 +243,10 @@ def main() -> int:
     print(json.dumps({k: r[k] for k in ("minutes", "rows", "memory", "timing_drift", "lost_log_events",
                                         "deadline_misses", "dropped")}, indent=2))
     m = r["memory"]
-    ok = bool(m) and m["controller"]["flat"] and m["emulator"]["within_budget"] and m["emulator"]["linear"] \
-        and r["lost_log_events"] == 0
+    ok = bool(m) and m["controller"]["flat"] and m["emulator"]["flat"] and r["lost_log_events"] == 0
     drift_ok = all(d["p50_ratio"] is not None and 0.8 <= d["p50_ratio"] <= 1.25
                    for d in r["timing_drift"].values())
-    print(f"soak: {'ok' if ok else 'NOT ok'} (controller flat, emulator linear within its budget, no lost "
+    print(f"soak: {'ok' if ok else 'NOT ok'} (both processes' memory flat after the warm-up, no lost "
           f"log event), "
           f"lost log events {r['lost_log_events']}, timing p50 first vs last within 20 %: {drift_ok}")
     return 0 if ok else 1

@@ -1,6 +1,8 @@
 """A 2-minute soak (bench/soak.py; 30 minutes there): real time at 100 Hz,
-both processes' memory flat after the warm-up (beyond what each records per
-step by design), no message lost between the processes and the log."""
+both processes' memory flat after the warm-up (<= 1 MB; the controller's
+beyond the 24 B per step it keeps by design, the emulator's with nothing
+beyond: it preallocates its run), no message lost between the processes and
+the log."""
 
 from __future__ import annotations
 
@@ -24,13 +26,14 @@ def test_two_minute_soak_memory_flat_and_no_lost_log_events(tmp_path):
     lcmnet.require()
     r = soak.soak(2.0, 100.0, tmp_path / "soak", sample_s=2.0, port=7762)
     assert r["rows"] == 12001
-    # memory after the warm-up: the controller flat (<= 1 MB beyond its 24 B
-    # of samples per step); the emulator, which keeps the run in memory until
-    # it writes it, grows linearly within its per-row budget (bench/soak.py)
+    # memory after the warm-up, until the run ends: the controller flat
+    # (<= 1 MB beyond its 24 B of samples per step); the emulator, which
+    # allocates and touches what it keeps per row at start, flat (<= 1 MB)
     m = r["memory"]
     assert set(m) == {"emulator", "controller"}, m
-    assert m["controller"]["flat"], m["controller"]
-    assert m["emulator"]["within_budget"] and m["emulator"]["linear"], m["emulator"]
+    assert m["controller"]["flat"] and m["controller"]["unexplained_kb"] <= 1024, m["controller"]
+    assert m["emulator"]["flat"] and m["emulator"]["growth_kb"] <= 1024, m["emulator"]
+    assert m["emulator"]["span_s"] > 60, m["emulator"]  # the samples cover most of the run
     # zero lost log events: every state, guidance and truth the emulator sent
     # (one per row) and every command and status the controller sent (one
     # per step) is in the log
