@@ -7,8 +7,11 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <limits>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -188,6 +191,78 @@ inline void bind_sensors(py::module_& m) {
       },
       arg("p"), arg("n_ticks"), arg("x"),
       "Every sensor sample of n_ticks plant steps (t = i p.dt) from the constant state x (10,).");
+
+  m.def(
+      "time_estimator",
+      [](const NavConfig& c, double rate, int n_ctrl, const Vec10& x, int reps) {
+        // The controller's per-step estimator work (issue #15), timed apart from the sensors: the
+        // samples of n_ctrl control periods drawn first (the SensorSuite from the constant state x,
+        // as run_sensors), then replayed reps times into a fresh Estimator, each control step as
+        // the controller sees it: the period's samples in tick order (gyro, star, tach), then
+        // measure() with the telemetry at t_k = k / rate.
+        const std::int64_t n_sub = static_cast<std::int64_t>(std::llround(1.0 / (rate * c.sensors.dt)));
+        if (n_ctrl < 0 || n_sub < 1 || reps < 1)
+          throw std::invalid_argument("time_estimator: need n_ctrl >= 0, rate * dt <= 1, reps >= 1");
+        struct Event {
+          int kind;  // 0 gyro, 1 star, 2 tach
+          GyroSample g;
+          StarSample s;
+          TachSample w;
+        };
+        std::vector<Event> ev;
+        std::vector<std::size_t> end(static_cast<std::size_t>(n_ctrl) + 1);  // events of steps <= k
+        const PlantState st = state_of(x);
+        std::vector<double> secs;
+        long gyro = 0, star = 0, tach = 0, updates = 0;
+        double sink = 0.0;
+        {
+          py::gil_scoped_release release;
+          SensorSuite sensors(c.sensors);
+          for (int k = 0; k <= n_ctrl; ++k) {
+            for (std::int64_t i = k == 0 ? 0 : (k - 1) * n_sub + 1; i <= k * n_sub; ++i) {
+              sensors.tick(i, static_cast<double>(i) * c.sensors.dt, st);
+              if (sensors.gyro_new()) ev.push_back(Event{0, sensors.gyro(), {}, {}}), ++gyro;
+              if (sensors.star_new()) ev.push_back(Event{1, {}, sensors.star(), {}}), ++star;
+              if (sensors.tach_new()) ev.push_back(Event{2, {}, {}, sensors.tach()}), ++tach;
+            }
+            end[static_cast<std::size_t>(k)] = ev.size();
+          }
+          const Vec3 sigma0 = initial_estimate(c.sensors.seed, c.mekf.initial_attitude_sigma, st.sigma_BN);
+          for (int r = 0; r < reps; ++r) {
+            Estimator e(c.mekf, c.use_estimate);
+            e.reset(sigma0);
+            NavTelemetry tel;
+            std::size_t j = 0;
+            const auto a = std::chrono::steady_clock::now();
+            for (int k = 0; k <= n_ctrl; ++k) {
+              for (; j < end[static_cast<std::size_t>(k)]; ++j) {
+                const Event& v = ev[j];
+                if (v.kind == 0) e.gyro(v.g);
+                else if (v.kind == 1) e.star(v.s);
+                else e.tach(v.w);
+              }
+              const double t = k / rate;
+              const Measurement m = e.measure(Measurement{t, st.sigma_BN, st.omega_BN_B, st.wheel_speed}, &tel);
+              sink += m.sigma_BN(0) + tel.P_diag(0);
+            }
+            const auto b = std::chrono::steady_clock::now();
+            secs.push_back(std::chrono::duration<double>(b - a).count());
+            updates = e.filter().updates();
+          }
+        }
+        py::dict d;
+        d["seconds"] = secs;
+        d["control_steps"] = n_ctrl + 1;
+        d["gyro_samples"] = gyro;
+        d["star_samples"] = star;
+        d["tach_samples"] = tach;
+        d["updates"] = updates;
+        d["sink"] = sink;
+        return d;
+      },
+      arg("c"), arg("rate"), arg("n_ctrl"), arg("x"), arg("reps"),
+      "Benchmark helper: wall time [s] of each of reps replays of n_ctrl + 1 control steps of the\n"
+      "Estimator alone (the samples drawn beforehand from the constant state x (10,)).");
 
   py::class_<MekfState>(m, "MekfState")
       .def_readonly("t", &MekfState::t)

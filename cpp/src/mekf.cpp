@@ -56,11 +56,17 @@ void Mekf::propagate(MekfState& s, const Vec3& omega_m, double dt) const {
   const Mat3 F11 = rot_exp_minus(theta, an);
   double a = 1.0, qb = 0.0;
   if (p_.bias_sigma > 0.0) {
-    if (dt != gm_dt_) {  // the same dt at every gyro sample: exp once
-      gm_dt_ = dt;
-      gm_a_ = std::exp(-dt / p_.bias_tau);
+    // exp(-dt / tau) of the last few dt (the gyro's period comes out of the sample times as a
+    // handful of values a bit apart, and the re-propagation after a delivery has its own)
+    int j = 0;
+    while (j < kGmCache && gm_dt_[j] != dt) ++j;
+    if (j == kGmCache) {
+      j = gm_next_;
+      gm_next_ = (gm_next_ + 1) % kGmCache;
+      gm_dt_[j] = dt;
+      gm_a_[j] = std::exp(-dt / p_.bias_tau);
     }
-    a = gm_a_;
+    a = gm_a_[j];
     qb = p_.bias_sigma * p_.bias_sigma * (1.0 - a * a);
   }
   const double r2 = p_.rrw * p_.rrw;

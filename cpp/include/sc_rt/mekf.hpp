@@ -103,7 +103,10 @@ class Mekf {
   double nis_ = 0.0;
   double last_exposure_ = 0.0;
   long updates_ = 0, dropped_ = 0;
-  mutable double gm_dt_ = -1.0, gm_a_ = 1.0;  // exp(-dt / bias_tau) of the last dt
+  static constexpr int kGmCache = 8;  // exp(-dt / bias_tau) of the last kGmCache dt
+  mutable double gm_dt_[kGmCache] = {-1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0};
+  mutable double gm_a_[kGmCache] = {};
+  mutable int gm_next_ = 0;
 };
 
 struct NavConfig {
