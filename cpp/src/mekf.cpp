@@ -168,9 +168,10 @@ MekfState Mekf::predict(double t) const {
   return s;
 }
 
-const MekfState& Mekf::predict_to(double t, MekfState& tmp, bool covariance) const {
+const MekfState& Mekf::predict_to(double t, bool covariance) const {
   const double dt = t - cur_.t;
   if (!(dt > 0.0)) return cur_;  // propagate() would change nothing: no copy
+  MekfState& tmp = pred_;
   tmp.t = cur_.t;
   tmp.sigma = cur_.sigma;
   tmp.bias = cur_.bias;
@@ -225,8 +226,7 @@ void Estimator::tach(const TachSample& s) {
 
 Measurement Estimator::measure(const Measurement& truth, NavTelemetry* tel) {
   const double t = truth.t;
-  MekfState tmp;
-  const MekfState& s = mekf_.predict_to(t, tmp, tel != nullptr);  // the covariance only for the telemetry
+  const MekfState& s = mekf_.predict_to(t, tel != nullptr);  // the covariance only for the telemetry
   if (tel) {
     const bool degraded = t - mekf_.last_update_exposure() > p_.degraded_after;
     tel->sigma_est = s.sigma;

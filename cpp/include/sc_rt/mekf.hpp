@@ -75,8 +75,9 @@ class Mekf {
   // The state propagated from now to t >= now with the newest sample held (not stored).
   MekfState predict(double t) const;
   // The same without copies: the current state itself when t is now, else the state
-  // propagated into tmp (its covariance too only if covariance; otherwise tmp.P is left as it was).
-  const MekfState& predict_to(double t, MekfState& tmp, bool covariance) const;
+  // propagated into a scratch state of the filter (its covariance only if covariance, else
+  // not to be read), valid until the next call or change of the filter.
+  const MekfState& predict_to(double t, bool covariance) const;
   const MekfState& state() const { return cur_; }
   const Vec3& rate() const { return omega_m_; }  //!< the held gyro sample
   const Vec3& innovation() const { return innov_; }  //!< [rad] last residual
@@ -107,6 +108,7 @@ class Mekf {
   mutable double gm_dt_[kGmCache] = {-1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0};
   mutable double gm_a_[kGmCache] = {};
   mutable int gm_next_ = 0;
+  mutable MekfState pred_;  // predict_to's result when it propagates
 };
 
 struct NavConfig {
