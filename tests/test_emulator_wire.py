@@ -28,10 +28,13 @@ def test_state_and_truth_packing_equal_the_generated_encoding():
         tr.u_cmd, tr.wheel_accel, tr.delta2, tr.disturbance, tr.fault_Y, tr.fault_effectiveness, tr.fault_bias = f
         tr.fault_stuck = [rng.randrange(0, 2) for _ in range(4)]
         tr.cmd_stale = rng.randrange(0, 2)
+        tr.gyro_bias = [rng.uniform(-1e-4, 1e-4) for _ in range(3)]
         packed = T._TRUTH_FP + T._TRUTH_LAYOUT.pack(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied,
                                                     *[v for arr in f for v in arr], *tr.fault_stuck,
-                                                    tr.cmd_stale)
+                                                    tr.cmd_stale, *tr.gyro_bias)
         assert packed == tr.encode()
+        assert T.truth_bytes(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied, *f[0:4], f[4], f[5] + f[6]
+                             + tr.fault_stuck, tr.cmd_stale, tr.gyro_bias) == tr.encode()
 
 
 def test_command_and_status_unpacking_read_the_generated_encoding():

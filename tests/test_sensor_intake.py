@@ -105,7 +105,7 @@ def _run(scn, nav, items, states, extra=None):
             if extra:
                 extra(intake, it)
         if i % n_sub == 0:
-            intake.follow(SESSION)
+            intake.use(SESSION, i * scn.run.plant_step)
             rows.append(intake.measure(_truth(states[i], i * scn.run.plant_step))[1])
     return intake, np.array(rows)
 
@@ -183,14 +183,38 @@ def test_samples_before_the_first_state_wait_for_it(scn):
     for it in first:
         _offer(intake, it)
     assert intake.counts().used == (0, 0, 0)
-    intake.follow(SESSION)
+    intake.use(SESSION, 0.0)
     assert intake.ready and sum(intake.counts().used) == len(first)
+
+
+def test_samples_later_than_the_state_used_wait_for_a_later_state(scn):
+    """Real time: a controller acting on state k while the next period's
+    samples are already in measures at t_k from the samples up to t_k only
+    (the same numbers as one that got exactly those), and holds the rest."""
+    nav, items, states = _samples(scn, seconds=3.0)
+    n_sub = grid(scn)[1]
+    h = scn.run.plant_step
+    ctrl = sorted(i for i in states if i % n_sub == 0)
+    on_time, ahead = _intake(scn, nav), _intake(scn, nav)
+    rows_on_time, rows_ahead = [], []
+    for a, b in zip(ctrl, ctrl[1:]):
+        for it in items:
+            if (a == 0 and it[0] == 0) or (a > 0 and a - n_sub < it[0] <= a):
+                _offer(on_time, it)  # the samples up to t_a, then state a
+            if (a == 0 and it[0] <= b) or (a > 0 and a < it[0] <= b):
+                _offer(ahead, it)  # the samples up to t_b already in when state a is used
+        on_time.use(SESSION, a * h)
+        ahead.use(SESSION, a * h)
+        rows_on_time.append(on_time.measure(_truth(states[a], a * h))[1])
+        rows_ahead.append(ahead.measure(_truth(states[a], a * h))[1])
+    assert np.array_equal(_est(np.array(rows_ahead)), _est(np.array(rows_on_time)), equal_nan=True)
+    assert ahead.queued > 0 and on_time.queued == 0  # the last period's samples still wait
 
 
 def test_a_late_joiner_waits_for_its_first_star_tracker_attitude(scn):
     nav, items, states = _samples(scn, seconds=20.0)
     intake = _intake(scn, nav)
-    intake.follow(SESSION)
+    intake.use(SESSION, 20.0)  # it acts on a state at t = 20 s
     late = [it for it in items if it[0] >= 500]  # joined at t = 5 s: seqs > 0
     first_star = next(it for it in late if it[1] == "star")
     for it in late:

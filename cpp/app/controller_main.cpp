@@ -240,7 +240,7 @@ class Shell {
     // the plant sessions followed, in order (the bench checks they are its own)
     if ((plant_sessions_.empty() || plant_sessions_.back() != msg.session) && plant_sessions_.size() < 16)
       plant_sessions_.push_back(msg.session);
-    if (intake_) intake_->follow(msg.session);  // its sensor samples (queued ones first) feed the estimator
+    if (intake_) intake_->use(msg.session, msg.t);  // its sensor samples up to msg.t feed the estimator
     state_ = msg;
     fresh_ = true;
     lock.unlock();

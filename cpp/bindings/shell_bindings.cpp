@@ -124,7 +124,7 @@ void bind_shell(py::module_& m) {
              s.offer_tach(session, seq, TachSample{t, w});
            }, arg("session"), arg("seq"), arg("t"), arg("wheel_speed"))
       .def("malformed", &SensorIntake::malformed)
-      .def("follow", &SensorIntake::follow, arg("session"))
+      .def("use", &SensorIntake::use, arg("session"), arg("t"))
       .def_property_readonly("ready", &SensorIntake::ready)
       .def_property_readonly("use_estimate", &SensorIntake::use_estimate)
       .def_property_readonly("session", &SensorIntake::session)

@@ -5,7 +5,7 @@
 namespace sc_rt {
 
 SensorIntake::SensorIntake(const MekfParams& p, bool use_estimate, const Vec3& sigma0, std::size_t queue)
-    : est_(p, use_estimate), p_(p), sigma0_(sigma0), queue_(queue == 0 ? 1 : queue) {
+    : est_(p, use_estimate), p_(p), sigma0_(sigma0), capacity_(queue == 0 ? 1 : queue) {
   est_.reset(sigma0_);
 }
 
@@ -34,39 +34,57 @@ void SensorIntake::offer_tach(int64_t session, int64_t seq, const TachSample& s)
   offer(Item{SensorKind::Tach, session, seq, {}, {}, s});
 }
 
+double SensorIntake::time_of(const Item& it) {
+  switch (it.kind) {
+    case SensorKind::Gyro: return it.g.t;
+    case SensorKind::Star: return it.s.t_delivery;
+    case SensorKind::Tach: return it.c.t;
+  }
+  return 0.0;
+}
+
 void SensorIntake::offer(const Item& it) {
-  if (following_ && it.session == session_) {
+  // in time and nothing waiting before it: at once (arrival order is kept)
+  if (following_ && it.session == session_ && queue_.empty() && time_of(it) <= horizon_) {
     apply(it);
     return;
   }
-  const std::size_t n = queue_.size();
-  if (q_size_ == n) {  // full: the oldest goes (of a session nobody follows)
-    q_head_ = (q_head_ + 1) % n;
-    --q_size_;
-    ++c_.foreign;
-  }
-  queue_[(q_head_ + q_size_) % n] = it;
-  ++q_size_;
-}
-
-void SensorIntake::follow(int64_t session) {
-  if (following_ && session == session_) return;
-  following_ = true;
-  session_ = session;
-  started_ = ready_ = false;
-  for (int64_t& s : last_seq_) s = -1;
-  est_.reset(sigma0_);
-  const std::size_t n = queue_.size();
-  for (std::size_t k = 0; k < q_size_; ++k) {
-    const Item& it = queue_[(q_head_ + k) % n];
-    if (it.session == session) {
-      apply(it);
+  if (queue_.size() == capacity_) {  // full: the oldest goes (applied if it is the followed session's)
+    const Item old = queue_.front();
+    queue_.pop_front();
+    if (following_ && old.session == session_) {
+      apply(old);
     } else {
       ++c_.foreign;
     }
   }
-  q_head_ = q_size_ = 0;
-  // no sample of it yet: not ready until its first (seq 0: the run's start)
+  queue_.push_back(it);
+}
+
+void SensorIntake::use(int64_t session, double t) {
+  if (!following_ || session != session_) {  // a new plant session: the estimator starts afresh
+    following_ = true;
+    session_ = session;
+    started_ = ready_ = false;  // not ready until its first sample (seq 0: the run's start)
+    for (int64_t& s : last_seq_) s = -1;
+    est_.reset(sigma0_);
+  }
+  horizon_ = t;
+  // the waiting samples in order: this session's up to t applied, others' dropped,
+  // from this session's first later sample on everything waits for a later state
+  std::deque<Item> keep;
+  bool hold = false;
+  for (const Item& it : queue_) {
+    if (it.session != session) {
+      ++c_.foreign;
+    } else if (hold || time_of(it) > t) {
+      hold = true;
+      keep.push_back(it);
+    } else {
+      apply(it);
+    }
+  }
+  queue_.swap(keep);
 }
 
 void SensorIntake::apply(const Item& it) {

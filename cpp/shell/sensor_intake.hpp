@@ -4,12 +4,17 @@
 // samples are used, what is rejected, when the estimate is ready. Policy
 // only: no I/O, no clock, no LCM (the shell decodes; the core estimates).
 //
-// Sessions: the intake follows the plant session the input gate follows
-// (follow(), called with each accepted state). Samples of another session
-// wait in a bounded queue, because a run's first samples go out just before
-// its first state: when a state adopts their session the estimator restarts
-// and the queued samples are applied in order; the rest are dropped and
-// counted as foreign.
+// Sessions and time: the intake follows the plant session the input gate
+// follows and applies a sample only once a state of that session at or
+// after the sample's time is used (use(), called with each accepted state):
+// the law's measurement at the state's time t then comes from exactly the
+// samples taken up to t, as offline, even when the controller acts on a
+// state a little older than the newest samples (real time: the samples of
+// a period go out while the emulator integrates it, before its state).
+// Samples wait in arrival order in a bounded queue: those of another session
+// too, because a run's first samples go out just before its first state;
+// when a state adopts their session the estimator restarts and they are
+// applied in order, else they are dropped and counted as foreign.
 //
 // Start: a session whose samples begin at seq 0 starts the filter at t = 0
 // from the configured initial estimate (the run's start: lockstep equals the
@@ -18,7 +23,7 @@
 // the filter there (ready() false until then; the shell commands SAFE).
 #pragma once
 #include <cstdint>
-#include <vector>
+#include <deque>
 
 #include "sc_rt/mekf.hpp"
 
@@ -45,8 +50,9 @@ class SensorIntake {
   void offer_star(int64_t session, int64_t seq, const StarSample& s);
   void offer_tach(int64_t session, int64_t seq, const TachSample& s);
   void malformed() { ++c_.malformed; }
-  // A state of `session` is used now: follow that session (a new one restarts the estimator).
-  void follow(int64_t session);
+  // A state of `session` at time t is used now: follow that session (a new
+  // one restarts the estimator) and apply its waiting samples up to t.
+  void use(int64_t session, double t);
   // The estimator has an attitude: the followed session's samples began at
   // seq 0, or (a late joiner) its first star tracker attitude arrived.
   bool ready() const { return ready_; }
@@ -55,8 +61,9 @@ class SensorIntake {
   const SensorCounts& counts() const { return c_; }
   const Estimator& estimator() const { return est_; }
   int64_t session() const { return session_; }
-  // Samples of unfollowed sessions waiting (counted as foreign when dropped).
-  std::size_t queued() const { return q_size_; }
+  // Samples waiting: of unfollowed sessions (counted as foreign when
+  // dropped) or later than the newest state used.
+  std::size_t queued() const { return queue_.size(); }
 
  private:
   struct Item {
@@ -68,14 +75,16 @@ class SensorIntake {
   };
   void offer(const Item& it);
   void apply(const Item& it);
+  static double time_of(const Item& it);
   Estimator est_;
   MekfParams p_;
   Vec3 sigma0_;
   bool following_ = false, started_ = false, ready_ = false;
   int64_t session_ = -1;
   int64_t last_seq_[3] = {-1, -1, -1};
-  std::vector<Item> queue_;  // ring of samples of sessions not (yet) followed
-  std::size_t q_head_ = 0, q_size_ = 0;
+  double horizon_ = -1.0;      // the time of the newest state used
+  std::deque<Item> queue_;     // samples not yet applied, in arrival order
+  std::size_t capacity_;
   SensorCounts c_;
 };
 

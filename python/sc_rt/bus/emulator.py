@@ -47,6 +47,7 @@ from sc_rt.bus.lcmio import channel
 from sc_rt.bus.loopstats import loop_breakdown
 from sc_rt.bus.peers import ControllerPeers, GuidancePublisher
 from sc_rt.bus.rtproc import RealtimeThread
+from sc_rt.bus.sensorpub import SensorPublisher
 from sc_rt.bus.twin import PlantTwin, state_bytes, truth_bytes
 from sc_rt.results.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
@@ -136,6 +137,11 @@ class Emulator(Receiver):
         #: the handlers and, per state seq of the run's rows, its command,
         #: status and publish times, preallocated (bus/inbox.py)
         self._init_receiver(grid(scn)[0] + 1)
+        #: a [sensors] scenario: the sensor models, publishing their samples (bus/sensorpub.py),
+        #: and the gyro's true bias per row (the truth's gyro_bias, the run's bias_true)
+        self.sensors = (SensorPublisher(scn, self.session, self.lc.publish, prefix)
+                        if scn.sensors is not None else None)
+        self._bias_true = np.full((grid(scn)[0] + 1, 3), np.nan) if self.sensors is not None else None
 
     # --- publishing --------------------------------------------------------
     def _publish_state(self, k: int, t: float, x: np.ndarray, guidance: tuple | None = None) -> None:
@@ -149,6 +155,13 @@ class Emulator(Receiver):
         self.lc.publish(self._ch_state, data)
         self._drain()  # our own guidance and state come back (loopback): handled while the controller works
 
+    def _sense(self, i: int, t: float, x: np.ndarray, row: int) -> None:
+        """The sensors at plant step i (a control instant, row ``row``) when
+        one is due; the gyro's true bias of the row either way."""
+        if i == self.sensors.next_tick:
+            self.sensors.tick(i, t, x)
+        self._bias_true[row] = self.sensors.gyro_bias
+
     def _drain(self) -> None:
         """Handle what is already in the socket, without waiting."""
         fd = self.lc.fileno()
@@ -158,8 +171,10 @@ class Emulator(Receiver):
     def _publish_truth(self, run, k, t, cmd_seq, u_cmd, accel, delta2, stale, act=None) -> None:
         act = self.act if act is None else act  # the faults row k was applied with
         fault_y, eff_bias_stuck = self.twin.fault_fields(act, t)
+        bias = (0.0, 0.0, 0.0) if self._bias_true is None else self._bias_true[k]
         self.lc.publish(self._ch_truth, truth_bytes(time.time_ns() // 1000, k, t, cmd_seq, u_cmd, accel, delta2,
-                                                    self.twin.disturbance(t), fault_y, eff_bias_stuck, stale))
+                                                    self.twin.disturbance(t), fault_y, eff_bias_stuck, stale,
+                                                    bias))
         run["fault_Y"][k] = fault_y
         run["fault_effectiveness"][k] = eff_bias_stuck[0:4]
         run["fault_bias"][k] = eff_bias_stuck[4:8]
@@ -193,6 +208,8 @@ class Emulator(Receiver):
     def run(self) -> Run:
         """The whole run; returns its record (metrics are the caller's:
         ``sc_rt.results.metrics.finish_run``)."""
+        if self.sensors is not None:  # tick 0: its samples go out before state 0
+            self._sense(0, 0.0, initial_state(self.scn), 0)
         if self.start_timeout is not None:
             self._await_controller(initial_state(self.scn))
         with self._rt:
@@ -221,6 +238,8 @@ class Emulator(Receiver):
             if now >= end:
                 raise RuntimeError(f"no controller answered the first state within {self.start_timeout:g} s")
             self.counters["start_state_sent"] += 1
+            if self.sensors is not None and self.counters["start_state_sent"] > 1:
+                self.sensors.resend_first()  # a controller still starting gets tick 0's samples too
             self._publish_state(0, 0.0, x0)
             resend = min(end, now + 100_000_000)
             while not self.inbox.has_cmd(0) and time.monotonic_ns() < resend:
@@ -368,11 +387,15 @@ class Emulator(Receiver):
                 self._gaps.append((self._gap_start, t))
                 self._gap_start = None
         act = self.act  # the row's faults (a handler may change self.act only while we wait)
-        x_next = self.twin.integrate(act, t, x, u_cmd, n_sub, h)
+        # the sensors sample inside the period only when a next row follows (as offline)
+        sensors = self.sensors if next_state is not None else None
+        x_next = self.twin.integrate(act, t, x, u_cmd, n_sub, h, sensors, k * n_sub)
         finite = bool(np.all(np.isfinite(x_next)))
         if stamps is not None:
             stamps[1] = time.monotonic_ns()
         if next_state is not None and finite and not self._should_stop():
+            if sensors is not None:  # the samples of the next control instant go out before its state
+                self._sense(next_state[0] * n_sub, next_state[1], x_next, next_state[0])
             self._t_now = next_state[1]  # what arrives from now on arrives during the next row
             guidance, self._guidance_next = self._guidance_next, None
             self._publish_state(next_state[0], next_state[1], x_next, guidance)
@@ -411,6 +434,9 @@ class Emulator(Receiver):
         self._handle_until(time.monotonic_ns() + 20_000_000)
         run = run.head(rows)
         self.inbox.fill(run)
+        if self.sensors is not None:
+            run["bias_true"][:] = self._bias_true[:rows]
+            self.counters.update(self.sensors.counters())
         run.counters = dict(self.counters)
         run.gaps = list(self._gaps)
         run.faults_applied = list(self.faults_applied)

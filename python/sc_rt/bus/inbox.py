@@ -32,7 +32,7 @@ import sc_rt_lcm
 
 from sc_rt.bus.lcmio import channel
 from sc_rt.bus.loopstats import MISSING
-from sc_rt.bus.wire import STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
+from sc_rt.bus.wire import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
 from sc_rt.model.actuators import WheelFault
 
 __all__ = ["Inbox", "Receiver", "Cmd"]
@@ -182,6 +182,10 @@ class Inbox:
                 continue
             for name in STATUS_RUN_FIELDS + STATUS_TIMING_FIELDS:
                 run[name][k] = getattr(s, name)
+            if s.nav:  # a [sensors] run: the controller's estimator, its flag into the row's (as offline)
+                for name in STATUS_NAV_FIELDS:
+                    run[name][k] = getattr(s, name)
+                run["flags"][k] |= s.nav_flags
         rx, pub = self.cmd_rx[:rows], self.pub_ns[:rows]
         ok = (rx != MISSING) & (pub != MISSING)
         run["latency_us"][ok] = (rx[ok] - pub[ok]) / 1e3

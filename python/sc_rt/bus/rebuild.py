@@ -145,6 +145,10 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
                 for k in STATUS_NAV_FIELDS:
                     traj[k][nav] = _f(St[k][src])
                 traj["flags"][nav] |= St["nav_flags"][src].astype(np.int64)
+                # the gyro's true bias: the emulator's truth of the row
+                nt = nav & has_truth
+                if np.any(nt) and "gyro_bias" in (T.dtype.names or ()):
+                    traj["bias_true"][nt] = _f(T["gyro_bias"][ti[pos[nt]]])
     last_status = None
     if St.size:
         last = St[int(np.argmax(St["steps"]))]

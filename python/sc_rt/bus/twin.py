@@ -30,9 +30,10 @@ _STATE_FP = sc_rt_lcm.plant_state_t._get_packed_fingerprint()
 _STATE_LAYOUT = struct.Struct(">qqqd3d3d4d")
 # plant_truth_t: utime, seq, t, cmd_seq_applied, u_cmd[4], wheel_accel[4],
 # delta2[3], disturbance[3], fault_Y[4], fault_effectiveness[4], fault_bias[4],
-# fault_stuck[4] (int8), cmd_stale (int8)
+# fault_stuck[4] (int8), cmd_stale (int8), gyro_bias[3]
 _TRUTH_FP = sc_rt_lcm.plant_truth_t._get_packed_fingerprint()
-_TRUTH_LAYOUT = struct.Struct(">qqdq4d4d3d3d4d4d4d4bb")
+_TRUTH_LAYOUT = struct.Struct(">qqdq4d4d3d3d4d4d4d4bb3d")
+_NO_BIAS = (0.0, 0.0, 0.0)
 assert _STATE_LAYOUT.size + 8 == len(sc_rt_lcm.plant_state_t().encode())
 assert _TRUTH_LAYOUT.size + 8 == len(sc_rt_lcm.plant_truth_t().encode())
 
@@ -43,10 +44,10 @@ def state_bytes(utime: int, k: int, session: int, t: float, x: np.ndarray) -> by
 
 
 def truth_bytes(utime: int, k: int, t: float, cmd_seq: int, u_cmd, accel, delta2, disturbance, fault_y,
-                eff_bias_stuck, stale: bool) -> bytes:
+                eff_bias_stuck, stale: bool, gyro_bias=_NO_BIAS) -> bytes:
     """plant_truth_t of row k."""
     return _TRUTH_FP + _TRUTH_LAYOUT.pack(utime, k, t, cmd_seq, *u_cmd, *accel, *delta2, *disturbance,
-                                          *fault_y, *eff_bias_stuck, 1 if stale else 0)
+                                          *fault_y, *eff_bias_stuck, 1 if stale else 0, *gyro_bias)
 
 
 class PlantTwin:
@@ -63,15 +64,24 @@ class PlantTwin:
             self._cpp_params = (act, plant.plant_params_to_cpp(self.params), actuators.actuator_params_to_cpp(act))
         return self._cpp_params[1], self._cpp_params[2]
 
-    def integrate(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, n_sub: int, h: float) -> np.ndarray:
-        """n_sub RK4 steps of h from t with u_cmd held."""
+    def integrate(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, n_sub: int, h: float,
+                  sensors=None, i0: int = 0) -> np.ndarray:
+        """n_sub RK4 steps of h from t with u_cmd held. ``sensors`` (a
+        bus.sensorpub.SensorPublisher, the row's first plant step ``i0``):
+        ticked before each sub-step j > 0 whose plant step i0 + j it names
+        (``next_tick``), at t + j h with the state then, as the offline loop
+        does (sim/sensed.py)."""
         if not self.cpp:
             for j in range(n_sub):
+                if j > 0 and sensors is not None and i0 + j == sensors.next_tick:
+                    sensors.tick(i0 + j, t + j * h, x)
                 x = plant.rk4_step(self.params, act, t + j * h, x, h, u_cmd)
             return x
         pp, ap = self._cpp(act)
         xs = _core.PlantState.from_vector(x)
         for j in range(n_sub):
+            if j > 0 and sensors is not None and i0 + j == sensors.next_tick:
+                sensors.tick(i0 + j, t + j * h, xs.to_vector())
             xs = _core.plant_rk4_step(pp, ap, t + j * h, xs, h, u_cmd)
         return xs.to_vector()
 
