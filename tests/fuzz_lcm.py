@@ -1,6 +1,7 @@
 """A hostile LCM publisher for the robustness tests: malformed, truncated,
 foreign, replayed and non-finite messages on every channel sc-rt subscribes
-to. Run as a script: python fuzz_lcm.py URL N OUT.json [SEED].
+to. Run as a script: python fuzz_lcm.py URL N OUT.json [SEED [CHANNELS]]
+(CHANNELS: a comma-separated subset of TARGETS and SENSORS, default TARGETS).
 
 It starts only once it has seen the genuine loop running (states and the
 controller's commands on the bus, waiting up to START_TIMEOUT_S): a hostile
@@ -27,6 +28,11 @@ TARGETS = {  # channel -> the type its subscriber expects
     "SCRT_CMD": sc_rt_lcm.wheel_cmd_t,
     "SCRT_CTRL_STATUS": sc_rt_lcm.controller_status_t,
     "SCRT_FAULT": sc_rt_lcm.fault_cmd_t,
+}
+SENSORS = {  # a [sensors] run's channels, which sc-rt-controller subscribes to
+    "SCRT_GYRO": sc_rt_lcm.gyro_t,
+    "SCRT_STAR": sc_rt_lcm.star_tracker_t,
+    "SCRT_TACH": sc_rt_lcm.tachometer_t,
 }
 START_TIMEOUT_S = 120.0
 OTHER = [sc_rt_lcm.plant_state_t, sc_rt_lcm.wheel_cmd_t, sc_rt_lcm.controller_status_t,
@@ -61,11 +67,14 @@ def valid(cls, rng: random.Random, bad: float | None = None):
     return m
 
 
-def main(url: str, n: int, out: str, seed: int = 1) -> None:
+def main(url: str, n: int, out: str, seed: int = 1, channels: str | None = None) -> None:
     rng = random.Random(seed)
     lc = lcm.LCM(url)
     sent: Counter = Counter()
-    recent: dict[str, deque] = {ch: deque(maxlen=50) for ch in ("SCRT_STATE", "SCRT_CMD", "SCRT_CTRL_STATUS")}
+    every = {**TARGETS, **SENSORS}
+    targets = TARGETS if not channels else {ch: every[ch] for ch in channels.split(",")}
+    recent: dict[str, deque] = {ch: deque(maxlen=50) for ch in
+                                ("SCRT_STATE", "SCRT_CMD", "SCRT_CTRL_STATUS", *(c for c in targets if c in SENSORS))}
     for ch in recent:
         lc.subscribe(ch, lambda c, d: recent[c].append(d))
     stop = threading.Event()
@@ -89,8 +98,8 @@ def main(url: str, n: int, out: str, seed: int = 1) -> None:
     i = 0
     t0 = time.monotonic()
     while i < n:
-        ch = rng.choice(list(TARGETS))
-        cls = TARGETS[ch]
+        ch = rng.choice(list(targets))
+        cls = targets[ch]
         kind = rng.choice(kinds)
         if kind == "empty":
             data = b""
@@ -128,4 +137,5 @@ def main(url: str, n: int, out: str, seed: int = 1) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], int(sys.argv[2]), sys.argv[3], int(sys.argv[4]) if len(sys.argv) > 4 else 1)
+    main(sys.argv[1], int(sys.argv[2]), sys.argv[3], int(sys.argv[4]) if len(sys.argv) > 4 else 1,
+         sys.argv[5] if len(sys.argv) > 5 else None)
