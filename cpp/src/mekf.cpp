@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#if defined(__SSE2__) && !defined(SC_RT_EIGEN_COVARIANCE)
+#define SC_RT_SSE2_COVARIANCE 1
+#include <emmintrin.h>
+#endif
 
 #include "sc_rt/mrp.hpp"
 
@@ -10,12 +14,127 @@ namespace sc_rt {
 namespace {
 constexpr std::uint64_t kStreamInit = 5;  // the initial estimation error (sensors use 1-4)
 
-// exp(-v^) by Rodrigues' formula, a = |v|.
-inline Mat3 rot_exp_minus(const Vec3& v, double a) {
-  const Mat3 S = skew(v);
-  if (a < 1e-8) return Mat3::Identity() - S + 0.5 * S * S;
-  return Mat3::Identity() - (std::sin(a) / a) * S + ((1.0 - std::cos(a)) / (a * a)) * S * S;
+// The covariance step of Mekf::propagate (see there):
+//   F = exp(-theta^) = I - (sin a / a) theta^ + ((1 - cos a) / a^2) theta^ theta^, a = |theta|
+//   (a < 1e-8: I - theta^ + theta^ theta^ / 2)
+//   T1 = F P11 - dt P12', T2 = F P12 - dt P22 (rows 1-3 of Phi P)
+//   P11 <- sym(T1 F' - dt T2 + q11 I), P12 <- a T2 - q12 I, P22 <- sym(a^2 P22 + q22 I)
+// sym(N) = (N + N') / 2.
+#ifdef SC_RT_SSE2_COVARIANCE
+// By hand in SSE2, bit for bit in the order of the Eigen expressions it replaced (kept below
+// for other targets; -DSC_RT_EIGEN_COVARIANCE selects them here too, to compare): Eigen
+// evaluates a 3x3 product column by column, rows 0-1 as one packet summed in k order,
+// ((a0 b0 + a1 b1) + a2 b2), row 2 as a scalar reduction, a0 b0 + (a1 b1 + a2 b2). Here the
+// 3x3 temporaries stay in registers (Eigen stores and reloads them: ~15 % of the propagation).
+// A 3x3 M is kept as lo[j] = rows 0-1 of column j, hi[j] = row 2.
+struct M3 {
+  __m128d lo[3];
+  double hi[3];
+};
+inline double row0(__m128d v) { return _mm_cvtsd_f64(v); }
+inline double row1(__m128d v) { return _mm_cvtsd_f64(_mm_unpackhi_pd(v, v)); }
+inline double coeff(const M3& m, int i, int j) { return i == 0 ? row0(m.lo[j]) : i == 1 ? row1(m.lo[j]) : m.hi[j]; }
+// C = A B, B given by its coefficients b(k, j).
+template <class B>
+inline void mul(const M3& A, B b, M3& C) {
+  for (int j = 0; j < 3; ++j) {
+    const double b0 = b(0, j), b1 = b(1, j), b2 = b(2, j);
+    __m128d r = _mm_mul_pd(A.lo[0], _mm_set1_pd(b0));
+    r = _mm_add_pd(_mm_mul_pd(A.lo[1], _mm_set1_pd(b1)), r);
+    r = _mm_add_pd(_mm_mul_pd(A.lo[2], _mm_set1_pd(b2)), r);
+    C.lo[j] = r;
+    C.hi[j] = A.hi[0] * b0 + (A.hi[1] * b1 + A.hi[2] * b2);
+  }
 }
+
+inline void covariance_step(const Mat6& Pin, Mat6& Pout, const Vec3& v, double an, double dt, double a,
+                            double q11, double q12, double q22) {
+  const double x = v.x(), y = v.y(), z = v.z();
+  const double S[3][3] = {{0.0, -z, y}, {z, 0.0, -x}, {-y, x, 0.0}};
+  double c1 = 1.0, c2 = 0.5;
+  const bool small = an < 1e-8;
+  if (!small) {
+    c1 = std::sin(an) / an;
+    c2 = (1.0 - std::cos(an)) / (an * an);
+  }
+  M3 cS, SS, F;
+  for (int j = 0; j < 3; ++j) {
+    cS.lo[j] = _mm_set_pd(c2 * S[1][j], c2 * S[0][j]);
+    cS.hi[j] = c2 * S[2][j];
+  }
+  mul(cS, [&](int k, int j) { return S[k][j]; }, SS);
+  for (int j = 0; j < 3; ++j) {
+    double f[3];
+    for (int i = 0; i < 3; ++i) f[i] = ((i == j ? 1.0 : 0.0) - (small ? S[i][j] : c1 * S[i][j])) + coeff(SS, i, j);
+    F.lo[j] = _mm_set_pd(f[1], f[0]);
+    F.hi[j] = f[2];
+  }
+  const double* Pd = Pin.data();  // column-major, outer stride 6 (every read before the writes: Pout may be Pin)
+  auto p = [Pd](int i, int j) { return Pd[i + 6 * j]; };
+  M3 T1, T2, N11;
+  mul(F, [&](int k, int j) { return p(k, j); }, T1);
+  mul(F, [&](int k, int j) { return p(k, 3 + j); }, T2);
+  const __m128d vdt = _mm_set1_pd(dt);
+  for (int j = 0; j < 3; ++j) {
+    T1.lo[j] = _mm_sub_pd(T1.lo[j], _mm_mul_pd(vdt, _mm_set_pd(p(j, 4), p(j, 3))));  // - dt P12'
+    T1.hi[j] = T1.hi[j] - dt * p(j, 5);
+    T2.lo[j] = _mm_sub_pd(T2.lo[j], _mm_mul_pd(vdt, _mm_loadu_pd(Pd + 3 + 6 * (3 + j))));  // - dt P22
+    T2.hi[j] = T2.hi[j] - dt * p(5, 3 + j);
+  }
+  mul(T1, [&](int k, int j) { return coeff(F, j, k); }, N11);  // T1 F'
+  const double aa = a * a;
+  double n11[3][3], n12[3][3], n22[3][3];
+  const __m128d va = _mm_set1_pd(a), vaa = _mm_set1_pd(aa);
+  for (int j = 0; j < 3; ++j) {
+    const __m128d l = _mm_sub_pd(N11.lo[j], _mm_mul_pd(vdt, T2.lo[j]));
+    n11[0][j] = row0(l);
+    n11[1][j] = row1(l);
+    n11[2][j] = N11.hi[j] - dt * T2.hi[j];
+    const __m128d m12 = _mm_mul_pd(va, T2.lo[j]);
+    n12[0][j] = row0(m12);
+    n12[1][j] = row1(m12);
+    n12[2][j] = a * T2.hi[j];
+    const __m128d m22 = _mm_mul_pd(vaa, _mm_loadu_pd(Pd + 3 + 6 * (3 + j)));
+    n22[0][j] = row0(m22);
+    n22[1][j] = row1(m22);
+    n22[2][j] = aa * p(5, 3 + j);
+  }
+  for (int i = 0; i < 3; ++i) {
+    n11[i][i] += q11;
+    n12[i][i] -= q12;
+    n22[i][i] += q22;
+  }
+  double* Pw = Pout.data();
+  for (int j = 0; j < 3; ++j)
+    for (int i = 0; i < 3; ++i) {
+      Pw[i + 6 * j] = 0.5 * (n11[i][j] + n11[j][i]);
+      Pw[i + 6 * (3 + j)] = n12[i][j];
+      Pw[(3 + j) + 6 * i] = n12[i][j];
+      Pw[(3 + i) + 6 * (3 + j)] = 0.5 * (n22[i][j] + n22[j][i]);
+    }
+}
+#else
+inline void covariance_step(const Mat6& P, Mat6& Pout, const Vec3& theta, double an, double dt, double a,
+                            double q11, double q12, double q22) {
+  const Mat3 S = skew(theta);
+  const Mat3 F11 = an < 1e-8 ? Mat3(Mat3::Identity() - S + 0.5 * S * S)
+                             : Mat3(Mat3::Identity() - (std::sin(an) / an) * S +
+                                    ((1.0 - std::cos(an)) / (an * an)) * S * S);
+  const Mat3 P11 = P.topLeftCorner<3, 3>(), P12 = P.topRightCorner<3, 3>(), P22 = P.bottomRightCorner<3, 3>();
+  const Mat3 T1 = F11 * P11 - dt * P12.transpose();
+  const Mat3 T2 = F11 * P12 - dt * P22;
+  Mat3 N11 = T1 * F11.transpose() - dt * T2;
+  Mat3 N12 = a * T2;
+  Mat3 N22 = (a * a) * P22;
+  N11.diagonal().array() += q11;
+  N12.diagonal().array() -= q12;
+  N22.diagonal().array() += q22;
+  Pout.topLeftCorner<3, 3>() = 0.5 * (N11 + N11.transpose());
+  Pout.topRightCorner<3, 3>() = N12;
+  Pout.bottomLeftCorner<3, 3>() = N12.transpose();
+  Pout.bottomRightCorner<3, 3>() = 0.5 * (N22 + N22.transpose());
+}
+#endif
 }  // namespace
 
 Mekf::Mekf(const MekfParams& p) : p_(p) {
@@ -31,13 +150,14 @@ Mekf::Mekf(const MekfParams& p) : p_(p) {
 }
 
 void Mekf::reset(double t, const Vec3& sigma, const Vec3& bias) {
-  cur_ = MekfState{};
-  cur_.t = t;
-  cur_.sigma = sigma;
-  cur_.bias = bias;
+  cur_slot_ = -1;
+  ahead_ = MekfState{};
+  ahead_.t = t;
+  ahead_.sigma = sigma;
+  ahead_.bias = bias;
   const double pa = p_.initial_attitude_sigma * p_.initial_attitude_sigma;
   const double pb = p_.initial_bias_sigma * p_.initial_bias_sigma;
-  cur_.P.diagonal() << pa, pa, pa, pb, pb, pb;
+  ahead_.P.diagonal() << pa, pa, pa, pb, pb, pb;
   omega_m_.setZero();
   have_gyro_ = false;
   innov_.setZero();
@@ -47,13 +167,16 @@ void Mekf::reset(double t, const Vec3& sigma, const Vec3& bias) {
   head_ = size_ = 0;
 }
 
-void Mekf::propagate(MekfState& s, const Vec3& omega_m, double dt) const {
-  if (!(dt > 0.0)) return;
-  const Vec3 theta = (omega_m - s.bias) * dt;
+void Mekf::propagate_into(const MekfState& in, MekfState& out, const Vec3& omega_m, double dt) const {
+  if (!(dt > 0.0)) {
+    if (&out != &in) out = in;
+    return;
+  }
+  const Vec3 theta = (omega_m - in.bias) * dt;
   const double an = theta.norm();  // once for the attitude and Phi
-  s.sigma = mrp_rotate_body_by(s.sigma, theta, an);
-  s.t += dt;
-  const Mat3 F11 = rot_exp_minus(theta, an);
+  out.sigma = mrp_rotate_body_by(in.sigma, theta, an);
+  out.bias = in.bias;
+  out.t = in.t + dt;
   double a = 1.0, qb = 0.0;
   if (p_.bias_sigma > 0.0) {
     // exp(-dt / tau) of the last few dt (the gyro's period comes out of the sample times as a
@@ -70,24 +193,11 @@ void Mekf::propagate(MekfState& s, const Vec3& omega_m, double dt) const {
     qb = p_.bias_sigma * p_.bias_sigma * (1.0 - a * a);
   }
   const double r2 = p_.rrw * p_.rrw;
-  // P <- Phi P Phi' + Q with Phi = [[F11, -dt I], [0, a I]], by blocks.
-  const Mat3 P11 = s.P.topLeftCorner<3, 3>(), P12 = s.P.topRightCorner<3, 3>(),
-             P22 = s.P.bottomRightCorner<3, 3>();
-  const Mat3 T1 = F11 * P11 - dt * P12.transpose();  // rows 1-3 of Phi P, cols 1-3
-  const Mat3 T2 = F11 * P12 - dt * P22;              // rows 1-3 of Phi P, cols 4-6
-  Mat3 N11 = T1 * F11.transpose() - dt * T2;
-  Mat3 N12 = a * T2;
-  Mat3 N22 = (a * a) * P22;
+  // P <- Phi P Phi' + Q with Phi = [[exp(-theta^), -dt I], [0, a I]], by 3x3 blocks
   // (no quantisation term: with its remainder carried, the angle error it leaves is bounded by
   // one quantum and does not grow with the number of samples; it is in R instead)
   const double q11 = p_.arw * p_.arw * dt + r2 * dt * dt * dt / 3.0;
-  N11.diagonal().array() += q11;
-  N12.diagonal().array() -= r2 * dt * dt / 2.0;
-  N22.diagonal().array() += r2 * dt + qb;
-  s.P.topLeftCorner<3, 3>() = 0.5 * (N11 + N11.transpose());
-  s.P.topRightCorner<3, 3>() = N12;
-  s.P.bottomLeftCorner<3, 3>() = N12.transpose();
-  s.P.bottomRightCorner<3, 3>() = 0.5 * (N22 + N22.transpose());
+  covariance_step(in.P, out.P, theta, an, dt, a, q11, r2 * dt * dt / 2.0, r2 * dt + qb);
 }
 
 void Mekf::update(MekfState& s, const Vec3& sigma_m) {
@@ -109,11 +219,8 @@ void Mekf::update(MekfState& s, const Vec3& sigma_m) {
 }
 
 void Mekf::gyro(double t, const Vec3& omega_m) {
-  // over the interval the two samples bound: their mean (the held sample beyond the newest)
-  propagate(cur_, have_gyro_ ? Vec3(0.5 * (omega_m_ + omega_m)) : omega_m, t - cur_.t);
-  omega_m_ = omega_m;
-  have_gyro_ = true;
-  // the snapshot, written in place (no temporary Snap, no division for the ring index)
+  // The new snapshot's slot (no division for the ring index): the oldest when the ring is
+  // full, never the current state's (the newest, ring size >= 2).
   const std::size_t n = ring_.size();
   if (size_ == n) {
     if (++head_ == n) head_ = 0;
@@ -122,20 +229,27 @@ void Mekf::gyro(double t, const Vec3& omega_m) {
   std::size_t w = head_ + size_;
   if (w >= n) w -= n;
   Snap& sn = ring_[w];
-  sn.s = cur_;
+  // propagated from the current state straight into the snapshot, which becomes the current
+  // state (no copy); over the interval the two samples bound: their mean
+  const MekfState& c = cur();
+  propagate_into(c, sn.s, have_gyro_ ? Vec3(0.5 * (omega_m_ + omega_m)) : omega_m, t - c.t);
   sn.omega_m = omega_m;
+  cur_slot_ = static_cast<long>(w);
+  omega_m_ = omega_m;
+  have_gyro_ = true;
   ++size_;
 }
 
 bool Mekf::star(double t_exposure, const Vec3& sigma_m) {
   const std::size_t n = ring_.size();
   if (size_ == 0) {  // no gyro yet: only a measurement at or after now
-    if (t_exposure < cur_.t) {
+    MekfState& c = cur();  // ahead_
+    if (t_exposure < c.t) {
       ++dropped_;
       return false;
     }
-    propagate(cur_, omega_m_, t_exposure - cur_.t);
-    update(cur_, sigma_m);
+    propagate(c, omega_m_, t_exposure - c.t);
+    update(c, sigma_m);
   } else {
     std::size_t j = size_;  // newest snapshot at or before the exposure
     while (j > 0 && ring_[(head_ + j - 1) % n].s.t > t_exposure) --j;
@@ -143,19 +257,34 @@ bool Mekf::star(double t_exposure, const Vec3& sigma_m) {
       ++dropped_;
       return false;
     }
+    const double now = cur().t;  // before the snapshots change (the current one may be one)
+    const std::size_t newest = (head_ + size_ - 1) % n;
     std::size_t k = (head_ + j - 1) % n;
     MekfState s = ring_[k].s;
     propagate(s, ring_[k].omega_m, t_exposure - s.t);
     update(s, sigma_m);
-    if (s.t == ring_[k].s.t) ring_[k].s = s;
+    bool newest_is_s = false;  // the newest snapshot holds s
+    if (s.t == ring_[k].s.t) {
+      ring_[k].s = s;
+      newest_is_s = k == newest;
+    }
     for (std::size_t m = j; m < size_; ++m) {  // re-propagate the later snapshots
       const std::size_t prev = (head_ + m - 1) % n, here = (head_ + m) % n;
       propagate(s, Vec3(0.5 * (ring_[prev].omega_m + ring_[here].omega_m)), ring_[here].s.t - s.t);
       ring_[here].s = s;
+      newest_is_s = here == newest;
     }
-    const double target = std::max(cur_.t, s.t);
-    propagate(s, ring_[(head_ + size_ - 1) % n].omega_m, target - s.t);
-    cur_ = s;
+    const double target = std::max(now, s.t);
+    if (target - s.t > 0.0) {
+      propagate(s, ring_[newest].omega_m, target - s.t);
+      newest_is_s = false;
+    }
+    if (newest_is_s) {  // the current state is the newest snapshot, already s
+      cur_slot_ = static_cast<long>(newest);
+    } else {
+      ahead_ = s;
+      cur_slot_ = -1;
+    }
   }
   last_exposure_ = std::max(last_exposure_, t_exposure);
   ++updates_;
@@ -163,22 +292,22 @@ bool Mekf::star(double t_exposure, const Vec3& sigma_m) {
 }
 
 MekfState Mekf::predict(double t) const {
-  MekfState s = cur_;
+  MekfState s = cur();
   propagate(s, omega_m_, t - s.t);
   return s;
 }
 
 const MekfState& Mekf::predict_to(double t, bool covariance) const {
-  const double dt = t - cur_.t;
-  if (!(dt > 0.0)) return cur_;  // propagate() would change nothing: no copy
+  const MekfState& c = cur();
+  const double dt = t - c.t;
+  if (!(dt > 0.0)) return c;  // propagate() would change nothing: no copy
   MekfState& tmp = pred_;
-  tmp.t = cur_.t;
-  tmp.sigma = cur_.sigma;
-  tmp.bias = cur_.bias;
   if (covariance) {
-    tmp.P = cur_.P;
-    propagate(tmp, omega_m_, dt);
+    propagate_into(c, tmp, omega_m_, dt);
   } else {  // the attitude as propagate() moves it, the covariance left alone
+    tmp.t = c.t;
+    tmp.sigma = c.sigma;
+    tmp.bias = c.bias;
     const Vec3 theta = (omega_m_ - tmp.bias) * dt;
     tmp.sigma = mrp_rotate_body_by(tmp.sigma, theta, theta.norm());
     tmp.t += dt;

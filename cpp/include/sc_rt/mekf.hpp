@@ -78,7 +78,7 @@ class Mekf {
   // propagated into a scratch state of the filter (its covariance only if covariance, else
   // not to be read), valid until the next call or change of the filter.
   const MekfState& predict_to(double t, bool covariance) const;
-  const MekfState& state() const { return cur_; }
+  const MekfState& state() const { return cur(); }
   const Vec3& rate() const { return omega_m_; }  //!< the held gyro sample
   const Vec3& innovation() const { return innov_; }  //!< [rad] last residual
   double nis() const { return nis_; }              //!< last z' S^-1 z
@@ -91,13 +91,20 @@ class Mekf {
     MekfState s;
     Vec3 omega_m;
   };
-  void propagate(MekfState& s, const Vec3& omega_m, double dt) const;
+  void propagate(MekfState& s, const Vec3& omega_m, double dt) const { propagate_into(s, s, omega_m, dt); }
+  // out = in propagated by dt (out may be in): a new snapshot is written where it is kept.
+  void propagate_into(const MekfState& in, MekfState& out, const Vec3& omega_m, double dt) const;
+  // The current state: the newest snapshot (cur_slot_ its ring index) or, before the first
+  // gyro sample or when an update moved it past the newest snapshot, ahead_.
+  const MekfState& cur() const { return cur_slot_ < 0 ? ahead_ : ring_[static_cast<std::size_t>(cur_slot_)].s; }
+  MekfState& cur() { return cur_slot_ < 0 ? ahead_ : ring_[static_cast<std::size_t>(cur_slot_)].s; }
   void update(MekfState& s, const Vec3& sigma_m);
   MekfParams p_;
   Mat3 R_;
   std::vector<Snap> ring_;
   std::size_t head_ = 0, size_ = 0;  // head_: oldest
-  MekfState cur_;
+  MekfState ahead_;
+  long cur_slot_ = -1;
   Vec3 omega_m_ = Vec3::Zero();
   bool have_gyro_ = false;
   Vec3 innov_ = Vec3::Zero();
