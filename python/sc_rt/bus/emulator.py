@@ -21,7 +21,8 @@ Python one: bus/twin.py), and run with the garbage collector frozen
 (bus/rtproc.py). Real time sleeps in ``select`` until ``spin_us`` before
 the tick and polls from there.
 
-The receive side is bus/inbox.py: the handlers (bad input never stops the
+The publishing side (guidance, state, truth, the sensors' samples) is
+bus/outbox.py; the receive side is bus/inbox.py: the handlers (bad input never stops the
 loop: every message is decoded under guard and counted by kind,
 ``counters``) and, per state seq, the commands, statuses and publish times,
 preallocated for the run's rows when the emulator is made, so that its
@@ -43,12 +44,13 @@ import numpy as np
 from sc_rt.bus.auth import open_bus
 from sc_rt.bus.collision import CollisionGuard
 from sc_rt.bus.inbox import Inbox, Receiver
+from sc_rt.bus.outbox import Publisher
 from sc_rt.bus.lcmio import channel
 from sc_rt.bus.loopstats import loop_breakdown
 from sc_rt.bus.peers import ControllerPeers, GuidancePublisher
 from sc_rt.bus.rtproc import RealtimeThread
 from sc_rt.bus.sensorpub import SensorPublisher
-from sc_rt.bus.twin import PlantTwin, state_bytes, truth_bytes
+from sc_rt.bus.twin import PlantTwin
 from sc_rt.results.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
@@ -62,7 +64,7 @@ _STAMPS = 5
 BYTES_PER_ROW = Inbox.BYTES_PER_ROW + _STAMPS * 8
 
 
-class Emulator(Receiver):
+class Emulator(Receiver, Publisher):
     def __init__(self, scn: Scenario, *, mode: str = "lockstep", url: str, prefix: str = "",
                  rate: float | None = None, time_scale: float = 1.0, duration: float | None = None,
                  accept_fault_commands: bool = False, cmd_timeout: float = 1.0, retries: int = 3,
@@ -142,43 +144,6 @@ class Emulator(Receiver):
         self.sensors = (SensorPublisher(scn, self.session, self.lc.publish, prefix)
                         if scn.sensors is not None else None)
         self._bias_true = np.full((grid(scn)[0] + 1, 3), np.nan) if self.sensors is not None else None
-
-    # --- publishing --------------------------------------------------------
-    def _publish_state(self, k: int, t: float, x: np.ndarray, guidance: tuple | None = None) -> None:
-        if guidance is None:  # computed now, or the values state k went out with (a re-sent state)
-            guidance = self._guidance_sent[1] if self._guidance_sent[0] == k else self.guidance.values(t)
-        self._guidance_sent = (k, guidance)
-        self.guidance.publish(k, t, guidance)  # the reference first: a controller has it with the state
-        utime = time.time_ns() // 1000
-        data = state_bytes(utime, k, self.session, t, x)
-        self.inbox.published(k, utime, time.monotonic_ns())
-        self.lc.publish(self._ch_state, data)
-        self._drain()  # our own guidance and state come back (loopback): handled while the controller works
-
-    def _sense(self, i: int, t: float, x: np.ndarray, row: int) -> None:
-        """The sensors at plant step i (a control instant, row ``row``) when
-        one is due; the gyro's true bias of the row either way."""
-        if i == self.sensors.next_tick:
-            self.sensors.tick(i, t, x)
-        self._bias_true[row] = self.sensors.gyro_bias
-
-    def _drain(self) -> None:
-        """Handle what is already in the socket, without waiting."""
-        fd = self.lc.fileno()
-        while select.select([fd], [], [], 0)[0]:
-            self.lc.handle()
-
-    def _publish_truth(self, run, k, t, cmd_seq, u_cmd, accel, delta2, stale, act=None) -> None:
-        act = self.act if act is None else act  # the faults row k was applied with
-        fault_y, eff_bias_stuck = self.twin.fault_fields(act, t)
-        bias = (0.0, 0.0, 0.0) if self._bias_true is None else self._bias_true[k]
-        self.lc.publish(self._ch_truth, truth_bytes(time.time_ns() // 1000, k, t, cmd_seq, u_cmd, accel, delta2,
-                                                    self.twin.disturbance(t), fault_y, eff_bias_stuck, stale,
-                                                    bias))
-        run["fault_Y"][k] = fault_y
-        run["fault_effectiveness"][k] = eff_bias_stuck[0:4]
-        run["fault_bias"][k] = eff_bias_stuck[4:8]
-        run["fault_stuck"][k] = eff_bias_stuck[8:12]
 
     def _handle_until(self, deadline_ns: int, spin_ns: int = 0) -> None:
         """Handle messages until ``deadline_ns``: asleep in ``select`` until

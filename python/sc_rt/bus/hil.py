@@ -176,22 +176,29 @@ def _lift_logger(pid: int) -> str:
     return f"SCHED_FIFO {LOGGER_FIFO_PRIORITY} ({lifted} threads)" if lifted else "SCHED_OTHER"
 
 
-def log_missing(path: Path, prefix: str, rows: int) -> dict[str, int]:
+#: the emulator's sensor channels and its counter of the samples it sent on each
+SENSOR_SENT = {"SCRT_GYRO": "gyro_sent", "SCRT_STAR": "star_sent", "SCRT_TACH": "tach_sent"}
+
+
+def log_missing(path: Path, prefix: str, rows: int, sent: dict[str, int] | None = None) -> dict[str, int]:
     """Per channel the emulator publishes once per row (state, truth,
-    guidance): how many of the run's ``rows`` messages the log lacks (by
-    count; re-sent states count once). Zero everywhere for a complete log."""
+    guidance), and per sensor channel in ``sent`` (channel -> samples the
+    emulator sent, numbered from 0): how many of those messages the log lacks
+    (by count of distinct seqs; re-sent ones count once). Zero everywhere for
+    a complete log."""
     from sc_rt.bus.lcmlog import LogDamaged, read_events
 
-    want = {prefix + c: set() for c in ("SCRT_STATE", "SCRT_TRUTH", "SCRT_GUIDANCE")}
+    sent = {c: n for c, n in (sent or {}).items() if n}
+    want = {prefix + c: set() for c in ("SCRT_STATE", "SCRT_TRUTH", "SCRT_GUIDANCE", *sent)}
     try:
         for _n, _t, ch, data in read_events(path, partial=True):
             s = want.get(ch.decode("utf-8", "replace"))
             if s is not None and len(data) >= 24:
                 s.add(int.from_bytes(data[16:24], "big", signed=True))  # the seq after fingerprint, utime
     except (LogDamaged, OSError):
-        return {c[len(prefix):]: rows for c in want}
+        return {c[len(prefix):]: sent.get(c[len(prefix):], rows) for c in want}
     seen = {c[len(prefix):]: len(s) for c, s in want.items()}
-    return {c: max(0, rows - n) if n or c != "SCRT_GUIDANCE" else 0 for c, n in seen.items()}
+    return {c: max(0, sent.get(c, rows) - n) if n or c != "SCRT_GUIDANCE" else 0 for c, n in seen.items()}
 
 
 def _wait_logged(url: str, path: Path, logger: subprocess.Popen, channel_name: str, payload: bytes,
@@ -369,7 +376,8 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     # the end marker reached the log: every message published before it is there too
     res.timing["log_complete"] = bool(log_complete)
     res.timing["logger_scheduler"] = logger_policy
-    res.timing["log_missing"] = log_missing(log_path, prefix, len(res))
+    res.timing["log_missing"] = log_missing(log_path, prefix, len(res),
+                                            {c: int(res.counters.get(k, 0)) for c, k in SENSOR_SENT.items()})
     if any(res.timing["log_missing"].values()):
         print(f"sc-rt hil: WARNING: lcm-logger missed messages of this run: {res.timing['log_missing']} "
               f"(it runs {logger_policy}; docs/HIL.md, 'A complete log')", file=sys.stderr)
