@@ -1773,7 +1773,8 @@ def step_packed(controller: Controller, t: typing.SupportsFloat | typing.Support
 def time_estimator(c: NavConfig, rate: typing.SupportsFloat | typing.SupportsIndex, n_ctrl: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], reps: typing.SupportsInt | typing.SupportsIndex) -> dict:
     """
     Benchmark helper: wall time [s] of each of reps replays of n_ctrl + 1 control steps of the
-    Estimator alone (the samples drawn beforehand from the constant state x (10,)).
+    Estimator alone (the samples drawn beforehand from the constant state x (10,)); sensor_seconds:
+    the SensorSuite alone ticked over the same plant steps, reps times.
     """
 def time_steps(controller: Controller, t: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], omega_BN_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64]) -> tuple[numpy.typing.NDArray[numpy.float64], float]:
     """
