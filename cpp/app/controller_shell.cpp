@@ -1,0 +1,309 @@
+// The controller's shell (controller_shell.hpp): the message handlers, the
+// sensor intake hookup, the control step, publishing and the exit summary.
+#include "controller_shell.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+namespace sc_rt_controller {
+
+namespace {
+
+// Percentiles of a sample (copied: called once at exit / per report).
+struct Stats {
+  double p50 = 0, p99 = 0, max = 0;
+  std::size_t n = 0;
+};
+Stats stats(std::vector<double> v) {
+  Stats s;
+  s.n = v.size();
+  if (v.empty()) return s;
+  std::sort(v.begin(), v.end());
+  auto q = [&](double p) { return v[std::min(v.size() - 1, std::size_t(p * (v.size() - 1) + 0.5))]; };
+  s.p50 = q(0.5);
+  s.p99 = q(0.99);
+  s.max = v.back();
+  return s;
+}
+
+}  // namespace
+
+Shell::Shell(const Options& o, lcm::LCM& lcm, const std::atomic<bool>& stop)
+    : opt_(o), lcm_(lcm), stop_(stop) {
+  lat_.reserve(1 << 20);
+  comp_.reserve(1 << 20);
+  age_.reserve(1 << 20);
+}
+
+void Shell::configure(const sc_rt::ControllerConfig& cfg, const sc_rt::NavSetup& nav) {
+  ctl_ = sc_rt::Controller::create(cfg);
+  // [sensors]: the estimator runs here on the emulator's sensor messages (sensor_intake.hpp)
+  if (nav.enabled) intake_ = std::make_unique<sc_rt::SensorIntake>(nav.mekf, nav.use_estimate, nav.sigma0);
+  period_ns_ = int64_t(std::llround(1e9 / cfg.control_rate_hz));
+  stale_ns_ = int64_t(cfg.safety.stale_periods * double(period_ns_));
+  // a silent plant is replaced after max(stale time, 2 s)
+  gate_ = std::make_unique<sc_rt::InputGate>(sc_rt::InputGate::session_timeout_for(stale_ns_));
+  std::random_device rd;
+  session_ = (int64_t(rd()) << 31 ^ int64_t(rd()) ^ mono_ns()) & 0x7fffffffffffffffLL;
+}
+
+template <class Msg>
+void Shell::on_sensor(const lcm::ReceiveBuffer* rb, const std::string& channel, Shell* self) {
+  std::lock_guard<std::mutex> lock(self->mu_);
+  int size = int(rb->data_size);
+  if (self->auth_) {
+    if (!self->auth_->verify(channel, rb->data, rb->data_size)) {
+      ++self->auth_failed_;
+      self->intake_->malformed();
+      return;
+    }
+    size -= int(sc_rt::HmacSha256::kSize);
+  }
+  Msg msg;
+  const int n = msg.decode(rb->data, 0, size);
+  if (n < 0 || n != size) {
+    self->intake_->malformed();
+    return;
+  }
+  self->offer(msg);
+}
+template void Shell::on_sensor<sc_rt_lcm::gyro_t>(const lcm::ReceiveBuffer*, const std::string&, Shell*);
+template void Shell::on_sensor<sc_rt_lcm::star_tracker_t>(const lcm::ReceiveBuffer*, const std::string&, Shell*);
+template void Shell::on_sensor<sc_rt_lcm::tachometer_t>(const lcm::ReceiveBuffer*, const std::string&, Shell*);
+
+void Shell::offer(const sc_rt_lcm::gyro_t& m) { intake_->offer_gyro(m.session, m.seq, sc_rt::gyro_from_lcm(m)); }
+void Shell::offer(const sc_rt_lcm::star_tracker_t& m) {
+  intake_->offer_star(m.session, m.seq, sc_rt::star_from_lcm(m));
+}
+void Shell::offer(const sc_rt_lcm::tachometer_t& m) {
+  intake_->offer_tach(m.session, m.seq, sc_rt::tach_from_lcm(m));
+}
+
+void Shell::handle_state(const lcm::ReceiveBuffer* rb) {
+  const int64_t now = mono_ns();
+  std::unique_lock<std::mutex> lock(mu_);
+  int size = int(rb->data_size);
+  if (auth_) {  // the trailer first: what does not verify is never decoded
+    if (!auth_->verify(opt_.prefix + "SCRT_STATE", rb->data, rb->data_size)) {
+      ++auth_failed_;
+      return;
+    }
+    size -= int(sc_rt::HmacSha256::kSize);
+  }
+  sc_rt_lcm::plant_state_t msg;
+  const int n = msg.decode(rb->data, 0, size);
+  if (n < 0) {
+    gate_->malformed();
+    return;
+  }
+  if (n != size) {
+    gate_->trailing_bytes();
+    return;
+  }
+  // A decodable state with non-finite or out-of-range values of our
+  // session is counted and applied: the core answers it with a SAFE zero
+  // command (and re-engages at the next valid state), so lockstep and
+  // offline runs stay identical. A new session is adopted only at a valid one.
+  const bool valid =
+      sc_rt::measurement_valid(sc_rt::measurement_from_lcm(msg), ctl_->config().safety);
+  const sc_rt::GateVerdict v = gate_->offer(now, msg.session, msg.seq, valid);
+  if (v == sc_rt::GateVerdict::Duplicate) {
+    // lockstep: the plant re-sent a state it had no answer to: answer again
+    if (!opt_.realtime && have_cmd_) {
+      publish_cmd(last_cmd_, msg.seq);
+      publish_status(last_cmd_, msg.seq, 0.0, 0.0, 0.0);
+    }
+    return;
+  }
+  if (v != sc_rt::GateVerdict::Accept && v != sc_rt::GateVerdict::Adopt) return;
+  if (v == sc_rt::GateVerdict::Adopt) reengage_ = true;  // a restarted plant: start the law afresh
+  // the plant sessions followed, in order (the bench checks they are its own)
+  if ((plant_sessions_.empty() || plant_sessions_.back() != msg.session) && plant_sessions_.size() < 16)
+    plant_sessions_.push_back(msg.session);
+  if (intake_) intake_->use(msg.session, msg.t);  // its sensor samples up to msg.t feed the estimator
+  state_ = msg;
+  fresh_ = true;
+  lock.unlock();
+  if (!opt_.realtime || opt_.event_trigger) step(now, now);  // event-triggered: at once
+}
+
+void Shell::step(int64_t now, int64_t deadline) {
+  const int64_t t_start = mono_ns();
+  // take the newest state from the mailbox
+  sc_rt_lcm::plant_state_t st;
+  bool have, fresh, nav_ready = true;
+  int64_t rx;
+  sc_rt::Measurement m_nav;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    st = state_;
+    have = gate_->have_state();
+    fresh = fresh_;
+    rx = gate_->last_rx_ns();
+    fresh_ = false;
+    // the law's measurement: the truth of the state, or the estimate at its time
+    if (intake_ && have && fresh) {
+      nav_ready = !intake_->use_estimate() || intake_->ready();
+      if (nav_ready) m_nav = intake_->measure(sc_rt::measurement_from_lcm(st), &tel_);
+    }
+  }
+  sc_rt::Command cmd;
+  const bool stale = !have || (opt_.realtime && t_start - rx > stale_ns_);
+  if (stale) {
+    cmd = ctl_->safe_command(have ? st.t : 0.0, sc_rt::FLAG_STALE_STATE);
+    ++cnt_.stale_steps;
+    ++cnt_.safe_steps;
+  } else if (!fresh) {
+    // real time, no new state since the last step but not yet stale: hold
+    // the last command (zero-order hold), count it
+    ++cnt_.stale_steps;
+    cmd = last_cmd_;
+    cmd.flags |= sc_rt::FLAG_STALE_STATE;
+  } else if (!nav_ready) {
+    // estimate mode, no attitude yet (a controller that joined a run): SAFE until the first fix
+    cmd = ctl_->safe_command(st.t, sc_rt::FLAG_NAV_DEGRADED);
+    ++cnt_.safe_steps;
+    reengage_ = true;  // the law starts afresh from the first estimate
+  } else {
+    const sc_rt::Measurement m = intake_ ? m_nav : sc_rt::measurement_from_lcm(st);
+    if (reengage_) {  // a new plant session: start the law afresh
+      reengage_ = false;
+      ctl_->reset(m);
+    }
+    if (opt_.null_law) {  // the floor: the same messages, zero compute
+      cmd = sc_rt::Command{};
+      cmd.t = st.t;
+      cmd.mode = sc_rt::MODE_NORMAL;
+    } else {
+      cmd = ctl_->step(m);
+    }
+    if (cmd.mode == sc_rt::MODE_SAFE) ++cnt_.safe_steps;
+  }
+  used_fresh_ = fresh && !stale;
+  used_rx_ns_ = rx;
+  // age of the state at use: its arrival to the start of this step
+  const double age_us = have ? double(t_start - rx) / 1e3 : 0.0;
+  const int64_t t_end = mono_ns();  // compute: the core's step, no I/O
+  last_cmd_ = cmd;
+  have_cmd_ = true;
+  const int64_t used_seq = have ? st.seq : -1;
+  publish_cmd(cmd, used_seq);
+  const double comp_us = double(t_end - t_start) / 1e3;
+  const double late_us = double(now - deadline) / 1e3;
+  ++cnt_.steps;
+  // a miss: the command left after the next deadline
+  if (opt_.realtime && mono_ns() > deadline + period_ns_) ++cnt_.deadline_misses;
+  if (lat_.size() < lat_.capacity()) {
+    lat_.push_back(late_us);
+    comp_.push_back(comp_us);
+    age_.push_back(age_us);
+  }
+  publish_status(cmd, used_seq, late_us, comp_us, age_us);
+}
+
+template <class M>
+void Shell::send(const std::string& channel, const M& m) {
+  if (!auth_) {
+    lcm_.publish(channel, &m);
+    return;
+  }
+  const int n = m.getEncodedSize();
+  tx_.resize(std::size_t(n) + sc_rt::HmacSha256::kSize);
+  m.encode(tx_.data(), 0, n);
+  const sc_rt::Sha256::Digest tag = auth_->message_tag(channel, tx_.data(), std::size_t(n));
+  std::copy(tag.begin(), tag.end(), tx_.begin() + n);
+  lcm_.publish(channel, tx_.data(), unsigned(tx_.size()));
+}
+
+void Shell::publish_cmd(const sc_rt::Command& cmd, int64_t state_seq) {
+  sc_rt_lcm::wheel_cmd_t m{};
+  m.utime = wall_us();
+  m.seq = cmd_seq_;
+  m.session = session_;
+  m.state_seq = state_seq;
+  sc_rt::fill_wheel_cmd(cmd, m);
+  send(opt_.prefix + "SCRT_CMD", m);
+  ++cmd_seq_;
+}
+
+void Shell::publish_status(const sc_rt::Command& cmd, int64_t state_seq, double late_us, double comp_us,
+                           double age_us) {
+  sc_rt_lcm::controller_status_t s{};
+  s.utime = wall_us();
+  s.cmd_seq = cmd_seq_ - 1;
+  s.session = session_;
+  s.state_seq = state_seq;
+  sc_rt::fill_status(cmd, ctl_->law_code(), s);
+  s.wake_lateness_us = late_us;
+  s.compute_us = comp_us;
+  s.state_age_us = age_us;
+  s.steps = cnt_.steps;
+  s.deadline_misses = cnt_.deadline_misses;
+  s.stale_states = cnt_.stale_steps;
+  s.rejected = gate_->counts().rejected();
+  if (intake_) {
+    std::lock_guard<std::mutex> lock(mu_);
+    sc_rt::fill_nav_status(tel_, s);
+    const sc_rt::SensorCounts& c = intake_->counts();
+    s.gyro_used = c.used[0];
+    s.star_used = c.used[1];
+    s.tach_used = c.used[2];
+    s.sensor_rejected = c.rejected();
+  }
+  send(opt_.prefix + "SCRT_CTRL_STATUS", s);
+}
+
+std::string Shell::summary_json(const std::string& scheduler) const {
+  const Stats l = stats(lat_), c = stats(comp_), a = stats(age_);
+  const sc_rt::GateCounts g = gate_->counts();
+  char buf[2048];
+  std::snprintf(
+      buf, sizeof buf,
+      "{\"mode\": \"%s\", \"control_rate_hz\": %.9g, \"law\": \"%s\", \"steps\": %lld, "
+      "\"deadline_misses\": %lld, \"scheduler\": \"%s\", "
+      "\"wake_lateness_us\": {\"p50\": %.3f, \"p99\": %.3f, \"max\": %.3f}, "
+      "\"compute_us\": {\"p50\": %.3f, \"p99\": %.3f, \"max\": %.3f}, "
+      "\"state_age_us\": {\"p50\": %.3f, \"p99\": %.3f, \"max\": %.3f}, "
+      "\"received\": %lld, \"stale_states\": %lld, \"safe_steps\": %lld, "
+      "\"rejected\": {\"malformed\": %lld, \"trailing_bytes\": %lld, \"duplicate\": %lld, "
+      "\"out_of_order\": %lld, \"invalid_state\": %lld, \"foreign_session\": %lld}, "
+      "\"sessions_adopted\": %lld}",
+      opt_.realtime ? "realtime" : "lockstep", 1e9 / double(period_ns_), ctl_->law_name().c_str(),
+      (long long)cnt_.steps, (long long)cnt_.deadline_misses, scheduler.c_str(), l.p50, l.p99,
+      l.max, c.p50, c.p99, c.max, a.p50, a.p99, a.max, (long long)g.received,
+      (long long)cnt_.stale_steps, (long long)cnt_.safe_steps, (long long)g.malformed,
+      (long long)g.trailing_bytes, (long long)g.duplicate, (long long)g.out_of_order,
+      (long long)g.invalid_state, (long long)g.foreign_session,
+      (long long)g.sessions_adopted);
+  std::string js(buf);
+  js.pop_back();  // the closing brace: then the authentication and the plant sessions
+  js += std::string(", \"trigger\": \"") + (opt_.event_trigger ? "event" : "timer") +
+        "\", \"null_law\": " + (opt_.null_law ? "true" : "false");
+  if (intake_) {
+    std::lock_guard<std::mutex> lock(mu_);
+    const sc_rt::SensorCounts& c = intake_->counts();
+    char nb[512];
+    std::snprintf(nb, sizeof nb,
+                  ", \"nav\": {\"measurement\": \"%s\", \"gyro_used\": %lld, \"star_used\": %lld, "
+                  "\"tach_used\": %lld, \"star_dropped\": %ld, \"rejected\": {\"malformed\": %lld, "
+                  "\"invalid\": %lld, \"out_of_order\": %lld, \"too_old\": %lld, \"foreign\": %lld, "
+                  "\"before_fix\": %lld}}",
+                  intake_->use_estimate() ? "estimate" : "truth", (long long)c.used[0], (long long)c.used[1],
+                  (long long)c.used[2], intake_->estimator().filter().dropped(), (long long)c.malformed,
+                  (long long)c.invalid, (long long)c.out_of_order, (long long)c.too_old, (long long)c.foreign,
+                  (long long)c.before_fix);
+    js += nb;
+  }
+  js += ", \"auth\": " + std::string(auth_ ? "true" : "false") +
+        ", \"auth_failed\": " + std::to_string(auth_failed_.load()) + ", \"plant_sessions\": [";
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (std::size_t i = 0; i < plant_sessions_.size(); ++i)
+      js += (i ? ", " : "") + std::to_string(plant_sessions_[i]);
+  }
+  return js + "]}";
+}
+
+}  // namespace sc_rt_controller

@@ -1,0 +1,144 @@
+// The controller process's shell around the control core (sc_rt::Controller):
+// the message handlers (states, and the sensor messages into the intake),
+// the control step, publishing, the counters and the exit summary JSON.
+// It owns no thread, clock loop or scheduler: controller_main.cpp parses the
+// command line, sets up LCM and the scheduler and runs the loops that call
+// the handlers and step(). Every received message is decoded by hand so that
+// malformed input is counted by kind and never applied (docs/HIL.md, "Bad
+// input").
+#pragma once
+#include <time.h>
+
+#include <atomic>
+#include <cstdint>
+#include <lcm/lcm-cpp.hpp>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "defaults.hpp"
+#include "hmac.hpp"
+#include "input_gate.hpp"
+#include "sensor_intake.hpp"
+#include "translate.hpp"
+
+namespace sc_rt_controller {
+
+inline int64_t mono_ns() {
+  timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return int64_t(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+}
+inline int64_t wall_us() {
+  timespec ts;
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return int64_t(ts.tv_sec) * 1000000LL + ts.tv_nsec / 1000;
+}
+
+// Atomic: the real-time mode receives on its own thread. The input counters
+// (received, rejected by kind, sessions adopted) are the gate's (input_gate.hpp).
+struct Counters {
+  using C = std::atomic<int64_t>;
+  C stale_steps{0};     // steps without a fresh state
+  C safe_steps{0};      // steps that commanded zero in SAFE mode
+  C deadline_misses{0};
+  C steps{0};
+};
+
+struct Options {
+  std::string config_path;
+  bool config_channel = false;
+  bool check = false;
+  bool realtime = false;
+  bool rt_priority = false;
+  std::string url = SCRT_DEFAULT_LCM_URL;
+  std::string prefix;
+  int64_t max_steps = -1;
+  std::string summary_path;
+  std::string law_plugin;  // --law-plugin: overrides the config's law
+  std::string auth_key;    // --auth-key: the key's bytes (empty: no authentication)
+  // real time: lock the wake-up phase to the arrival of states (PLL), this
+  // many microseconds after a state arrives (< 0: free-running clock)
+  double phase_offset_us = 50.0;
+  bool event_trigger = false;  // --trigger event: step on each state's arrival (real time)
+  bool null_law = false;       // --null-law: zero commands, no law step (the bench floor)
+  int cpu = -1;                // --cpu N: pin to this CPU (< 0: no pinning)
+};
+
+class Shell {
+ public:
+  // stop: set on SIGINT/SIGTERM (the process's g_stop); done() reads it.
+  Shell(const Options& o, lcm::LCM& lcm, const std::atomic<bool>& stop);
+
+  void configure(const sc_rt::ControllerConfig& cfg, const sc_rt::NavSetup& nav);
+
+  // --auth-key: every message carries HMAC-SHA256(key, channel || 0 || payload)
+  void set_auth_key(const std::string& key) { auth_ = std::make_unique<sc_rt::HmacSha256>(key); }
+
+  // Raw handler: decode by hand; the gate counts every kind of bad input and
+  // decides; the newest accepted state goes to the mailbox.
+  static void on_state(const lcm::ReceiveBuffer* rb, const std::string&, Shell* self) {
+    self->handle_state(rb);
+  }
+  bool nav() const { return intake_ != nullptr; }
+
+  // A sensor message (gyro_t, star_tracker_t, tachometer_t): verified,
+  // decoded by hand and handed to the intake, which decides (sensor_intake.hpp).
+  // Instantiated in controller_shell.cpp for the three sensor types.
+  template <class Msg>
+  static void on_sensor(const lcm::ReceiveBuffer* rb, const std::string& channel, Shell* self);
+
+  // Lockstep: called on the main thread and steps at once. Real time: called
+  // on the receive thread, timestamps the arrival and only fills the mailbox.
+  void handle_state(const lcm::ReceiveBuffer* rb);
+
+  // One control step at monotonic time `now` (wake-up at `deadline` in real time).
+  void step(int64_t now, int64_t deadline);
+
+  bool done() const { return stop_ || (opt_.max_steps >= 0 && cnt_.steps >= opt_.max_steps); }
+  // receipt time of the newest state and whether the last step used a new one
+  int64_t state_rx_ns() const { return used_rx_ns_; }
+  bool used_fresh() const { return used_fresh_; }
+  int64_t period_ns() const { return period_ns_; }
+
+  // The exit summary: one JSON object (scheduler: what setup_scheduler got).
+  std::string summary_json(const std::string& scheduler) const;
+
+ private:
+  void offer(const sc_rt_lcm::gyro_t& m);
+  void offer(const sc_rt_lcm::star_tracker_t& m);
+  void offer(const sc_rt_lcm::tachometer_t& m);
+  void publish_cmd(const sc_rt::Command& cmd, int64_t state_seq);
+  void publish_status(const sc_rt::Command& cmd, int64_t state_seq, double late_us, double comp_us,
+                      double age_us);
+  // Without a key exactly LCM's publish; with one, the message and its tag.
+  template <class M>
+  void send(const std::string& channel, const M& m);
+
+  const Options& opt_;
+  lcm::LCM& lcm_;
+  const std::atomic<bool>& stop_;
+  std::unique_ptr<sc_rt::Controller> ctl_;
+  int64_t period_ns_ = 100000000;
+  int64_t stale_ns_ = 500000000;
+  sc_rt_lcm::plant_state_t state_{};
+  bool fresh_ = false, have_cmd_ = false, used_fresh_ = false;
+  int64_t used_rx_ns_ = 0;
+  std::atomic<bool> reengage_{false};
+  int64_t session_ = 0;
+  std::unique_ptr<sc_rt::InputGate> gate_;  // session, seq and arrival of the newest state
+  std::unique_ptr<sc_rt::HmacSha256> auth_;  // --auth-key
+  std::unique_ptr<sc_rt::SensorIntake> intake_;  // [sensors]: the estimator (under mu_)
+  sc_rt::NavTelemetry tel_;                      // the estimator's telemetry of the last step (under mu_)
+  std::atomic<int64_t> auth_failed_{0};      // states whose tag did not verify
+  std::vector<int64_t> plant_sessions_;     // plant sessions followed, in order (under mu_)
+  std::vector<uint8_t> tx_;                 // an authenticated message being sent (main thread)
+  mutable std::mutex mu_;  // guards the mailbox: state_, fresh_ and the gate's state
+  sc_rt::Command last_cmd_;
+  int64_t cmd_seq_ = 0;
+  Counters cnt_;
+  std::vector<double> lat_, comp_, age_;
+};
+
+}  // namespace sc_rt_controller
