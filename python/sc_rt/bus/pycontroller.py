@@ -1,7 +1,7 @@
 """``sc-rt controller --law module:Class``: a Python law as a real LCM
 controller process, for prototyping at 10-100 Hz.
 
-The same shell as sc-rt-controller (cpp/app/controller_main.cpp), with the
+The same shell as sc-rt-controller (cpp/app/controller_shell.cpp), with the
 C++ shell's policy through the bindings: ``_core.InputGate`` (session
 adoption, duplicates, order, rejection counters) and ``_core.PhaseLock``
 (real-time deadlines phase-locked to the state arrivals). Two modes:
