@@ -260,29 +260,38 @@ bool Mekf::star(double t_exposure, const Vec3& sigma_m) {
     const double now = cur().t;  // before the snapshots change (the current one may be one)
     const std::size_t newest = (head_ + size_ - 1) % n;
     std::size_t k = (head_ + j - 1) % n;
-    MekfState s = ring_[k].s;
-    propagate(s, ring_[k].omega_m, t_exposure - s.t);
-    update(s, sigma_m);
+    // The update at the exposure, then the later snapshots re-propagated, each straight from
+    // the one before into its own slot (s: where the newest result is; no state copies).
+    MekfState* s = &ring_[k].s;
     bool newest_is_s = false;  // the newest snapshot holds s
-    if (s.t == ring_[k].s.t) {
-      ring_[k].s = s;
+    if (t_exposure - s->t > 0.0) {  // between snapshots (or after the newest): a scratch state
+      propagate_into(*s, scratch_, ring_[k].omega_m, t_exposure - s->t);
+      s = &scratch_;
+      update(*s, sigma_m);
+      if (s->t == ring_[k].s.t) {
+        ring_[k].s = *s;
+        s = &ring_[k].s;
+        newest_is_s = k == newest;
+      }
+    } else {  // at the snapshot: updated in place
+      update(*s, sigma_m);
       newest_is_s = k == newest;
     }
     for (std::size_t m = j; m < size_; ++m) {  // re-propagate the later snapshots
       const std::size_t prev = (head_ + m - 1) % n, here = (head_ + m) % n;
-      propagate(s, Vec3(0.5 * (ring_[prev].omega_m + ring_[here].omega_m)), ring_[here].s.t - s.t);
-      ring_[here].s = s;
+      const double dt = ring_[here].s.t - s->t;
+      propagate_into(*s, ring_[here].s, Vec3(0.5 * (ring_[prev].omega_m + ring_[here].omega_m)), dt);
+      s = &ring_[here].s;
       newest_is_s = here == newest;
     }
-    const double target = std::max(now, s.t);
-    if (target - s.t > 0.0) {
-      propagate(s, ring_[newest].omega_m, target - s.t);
-      newest_is_s = false;
-    }
-    if (newest_is_s) {  // the current state is the newest snapshot, already s
+    const double target = std::max(now, s->t);
+    if (target - s->t > 0.0) {
+      propagate_into(*s, ahead_, ring_[newest].omega_m, target - s->t);
+      cur_slot_ = -1;
+    } else if (newest_is_s) {  // the current state is the newest snapshot, already s
       cur_slot_ = static_cast<long>(newest);
     } else {
-      ahead_ = s;
+      ahead_ = *s;
       cur_slot_ = -1;
     }
   }

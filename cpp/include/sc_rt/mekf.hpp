@@ -105,6 +105,7 @@ class Mekf {
   std::size_t head_ = 0, size_ = 0;  // head_: oldest
   MekfState ahead_;
   long cur_slot_ = -1;
+  MekfState scratch_;  // star(): an update between snapshots
   Vec3 omega_m_ = Vec3::Zero();
   bool have_gyro_ = false;
   Vec3 innov_ = Vec3::Zero();
