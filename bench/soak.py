@@ -166,6 +166,10 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
     udp: dict[str, int] = {}
     try:
         while p.poll() is None:
+            if ctl is not None and rss_kb(ctl) is None:
+                # that controller ended: on a fresh clone sc-rt hil first measures the bench
+                # floor with a controller of its own (sc-rt floor), then starts the run's
+                ctl = None
             if ctl is None:
                 ctl = next((c for c in children(p.pid) if comm(c) == "sc-rt-controlle"), None)
             if logger is None:

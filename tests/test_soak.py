@@ -30,8 +30,8 @@ def test_two_minute_soak_memory_flat_and_no_lost_log_events(tmp_path):
     # (<= 1 MB beyond its 24 B of samples per step); the emulator, which
     # allocates and touches what it keeps per row at start, flat (<= 1 MB)
     m = r["memory"]
-    # (an empty dict: fewer than 3 RSS samples after the warm-up, e.g. this
-    # process starved of CPU by other load at a low priority: the samples say)
+    # (an empty dict: fewer than 3 RSS samples of both processes after the
+    # warm-up; the samples say which process was missing)
     assert set(m) == {"emulator", "controller"}, [s for s in r["samples"] if s[1] and s[2]][-5:]
     assert m["controller"]["flat"] and m["controller"]["unexplained_kb"] <= 1024, m["controller"]
     assert m["emulator"]["flat"] and m["emulator"]["growth_kb"] <= 1024, m["emulator"]
