@@ -7,7 +7,9 @@
 #   tools/sysdeps.sh test  the build, plus what the tests run: Xvfb, a JDK
 #                          (javac, jar) with the JRE's X11 AWT for lcm-spy's
 #                          window, a headless Chromium, iproute2 (ip, tc),
-#                          nftables (a lossy link where tc has no netem); a
+#                          nftables and iptables (a lossy link where tc has
+#                          no netem: loss/dup/corruption by nft rules, delay
+#                          and reordering through an NFQUEUE delay line); a
 #                          multicast route only when the tests cannot make
 #                          their own network namespace (tests/lcmnet.py)
 # When something is missing: as root with apt-get, install it (Debian
