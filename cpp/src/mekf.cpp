@@ -167,7 +167,8 @@ void Mekf::reset(double t, const Vec3& sigma, const Vec3& bias) {
   head_ = size_ = 0;
 }
 
-void Mekf::propagate_into(const MekfState& in, MekfState& out, const Vec3& omega_m, double dt) const {
+void Mekf::propagate_into(const MekfState& in, MekfState& out, const Vec3& omega_m, double dt,
+                          bool covariance) const {
   if (!(dt > 0.0)) {
     if (&out != &in) out = in;
     return;
@@ -177,6 +178,7 @@ void Mekf::propagate_into(const MekfState& in, MekfState& out, const Vec3& omega
   out.sigma = mrp_rotate_body_by(in.sigma, theta, an);
   out.bias = in.bias;
   out.t = in.t + dt;
+  if (!covariance) return;  // out.P left as it was (predict_to without the covariance)
   double a = 1.0, qb = 0.0;
   if (p_.bias_sigma > 0.0) {
     // exp(-dt / tau) of the last few dt (the gyro's period comes out of the sample times as a
@@ -310,18 +312,8 @@ const MekfState& Mekf::predict_to(double t, bool covariance) const {
   const MekfState& c = cur();
   const double dt = t - c.t;
   if (!(dt > 0.0)) return c;  // propagate() would change nothing: no copy
-  MekfState& tmp = pred_;
-  if (covariance) {
-    propagate_into(c, tmp, omega_m_, dt);
-  } else {  // the attitude as propagate() moves it, the covariance left alone
-    tmp.t = c.t;
-    tmp.sigma = c.sigma;
-    tmp.bias = c.bias;
-    const Vec3 theta = (omega_m_ - tmp.bias) * dt;
-    tmp.sigma = mrp_rotate_body_by(tmp.sigma, theta, theta.norm());
-    tmp.t += dt;
-  }
-  return tmp;
+  propagate_into(c, pred_, omega_m_, dt, covariance);
+  return pred_;
 }
 
 Vec3 initial_estimate(std::uint64_t seed, double sigma, const Vec3& sigma_true0) {
@@ -332,7 +324,7 @@ Vec3 initial_estimate(std::uint64_t seed, double sigma, const Vec3& sigma_true0)
 }
 
 Estimator::Estimator(const MekfParams& p, bool use_estimate)
-    : mekf_(p), p_(p), use_estimate_(use_estimate) {}
+    : mekf_(p), degraded_after_(p.degraded_after), use_estimate_(use_estimate) {}
 
 void Estimator::reset(const Vec3& sigma0) {
   mekf_.reset(0.0, sigma0, Vec3::Zero());
@@ -366,7 +358,7 @@ Measurement Estimator::measure(const Measurement& truth, NavTelemetry* tel) {
   const double t = truth.t;
   const MekfState& s = mekf_.predict_to(t, tel != nullptr);  // the covariance only for the telemetry
   if (tel) {
-    const bool degraded = t - mekf_.last_update_exposure() > p_.degraded_after;
+    const bool degraded = t - mekf_.last_update_exposure() > degraded_after_;
     tel->sigma_est = s.sigma;
     tel->bias_est = s.bias;
     tel->P_diag = s.P.diagonal();

@@ -93,7 +93,9 @@ class Mekf {
   };
   void propagate(MekfState& s, const Vec3& omega_m, double dt) const { propagate_into(s, s, omega_m, dt); }
   // out = in propagated by dt (out may be in): a new snapshot is written where it is kept.
-  void propagate_into(const MekfState& in, MekfState& out, const Vec3& omega_m, double dt) const;
+  // Without covariance only t, sigma and bias (out.P is left as it was).
+  void propagate_into(const MekfState& in, MekfState& out, const Vec3& omega_m, double dt,
+                      bool covariance = true) const;
   // The current state: the newest snapshot (cur_slot_ its ring index) or, before the first
   // gyro sample or when an update moved it past the newest snapshot, ahead_.
   const MekfState& cur() const { return cur_slot_ < 0 ? ahead_ : ring_[static_cast<std::size_t>(cur_slot_)].s; }
@@ -170,7 +172,7 @@ class Estimator {
 
  private:
   Mekf mekf_;
-  MekfParams p_;
+  double degraded_after_;  //!< [s] MekfParams::degraded_after
   bool use_estimate_;
   Vec4 wheel_ = Vec4::Zero();
   bool have_tach_ = false;
