@@ -5,7 +5,7 @@
 namespace sc_rt {
 
 SensorIntake::SensorIntake(const MekfParams& p, bool use_estimate, const Vec3& sigma0, std::size_t queue)
-    : est_(p, use_estimate), p_(p), sigma0_(sigma0), capacity_(queue == 0 ? 1 : queue) {
+    : est_(p, use_estimate), sigma0_(sigma0), capacity_(queue == 0 ? 1 : queue) {
   est_.reset(sigma0_);
 }
 
@@ -94,9 +94,9 @@ void SensorIntake::apply(const Item& it) {
     return;
   }
   if (!started_) {  // the session's first sample: the run's start, or a late join
+    // (use() reset the estimator for this session; a late joiner's is replaced at its first attitude)
     started_ = true;
     ready_ = it.seq == 0;
-    if (!ready_) est_.reset(sigma0_);  // replaced at the first attitude
   }
   if (!ready_) {  // a late joiner: nothing until an attitude fixes the filter
     if (it.kind == SensorKind::Star) {

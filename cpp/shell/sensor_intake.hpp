@@ -77,7 +77,6 @@ class SensorIntake {
   void apply(const Item& it);
   static double time_of(const Item& it);
   Estimator est_;
-  MekfParams p_;
   Vec3 sigma0_;
   bool following_ = false, started_ = false, ready_ = false;
   int64_t session_ = -1;
