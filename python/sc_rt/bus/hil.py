@@ -28,6 +28,7 @@ from sc_rt.bus.emulator import Emulator
 from sc_rt.bus.external import ExternalController, python_controller_command
 from sc_rt.bus.floor import TimingSetup, compare_to_floor, floor_for
 from sc_rt.bus.lcmio import channel, free_port_url, lcm_binary, open_lcm
+from sc_rt.bus.sensorpub import SENT_COUNTERS
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
 from sc_rt.pylaw import is_python_law
@@ -174,10 +175,6 @@ def _lift_logger(pid: int) -> str:
         except (PermissionError, OSError, AttributeError, ValueError):
             pass
     return f"SCHED_FIFO {LOGGER_FIFO_PRIORITY} ({lifted} threads)" if lifted else "SCHED_OTHER"
-
-
-#: the emulator's sensor channels and its counter of the samples it sent on each
-SENSOR_SENT = {"SCRT_GYRO": "gyro_sent", "SCRT_STAR": "star_sent", "SCRT_TACH": "tach_sent"}
 
 
 def log_missing(path: Path, prefix: str, rows: int, sent: dict[str, int] | None = None) -> dict[str, int]:
@@ -377,7 +374,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     res.timing["log_complete"] = bool(log_complete)
     res.timing["logger_scheduler"] = logger_policy
     res.timing["log_missing"] = log_missing(log_path, prefix, len(res),
-                                            {c: int(res.counters.get(k, 0)) for c, k in SENSOR_SENT.items()})
+                                            {c: int(res.counters.get(k, 0)) for c, k in SENT_COUNTERS.items()})
     if any(res.timing["log_missing"].values()):
         print(f"sc-rt hil: WARNING: lcm-logger missed messages of this run: {res.timing['log_missing']} "
               f"(it runs {logger_policy}; docs/HIL.md, 'A complete log')", file=sys.stderr)

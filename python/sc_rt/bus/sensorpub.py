@@ -25,7 +25,10 @@ from sc_rt import _core
 from sc_rt.bus.lcmio import channel
 from sc_rt.scenario.sensors import nav_config
 
-__all__ = ["SensorPublisher", "gyro_bytes", "star_bytes", "tach_bytes"]
+__all__ = ["SensorPublisher", "SENT_COUNTERS", "gyro_bytes", "star_bytes", "tach_bytes"]
+
+#: channel -> the emulator counter of the samples sent on it (``SensorPublisher.counters``)
+SENT_COUNTERS = {"SCRT_GYRO": "gyro_sent", "SCRT_STAR": "star_sent", "SCRT_TACH": "tach_sent"}
 
 # gyro_t: utime, seq, session, tick, t, omega[3]
 _GYRO = (sc_rt_lcm.gyro_t._get_packed_fingerprint(), struct.Struct(">qqqqd3d"))
@@ -60,7 +63,7 @@ class SensorPublisher:
         self.suite = _core.SensorSuite(self.nav.sensors)
         self.session = session
         self._publish = publish
-        self._ch = (channel("SCRT_GYRO", prefix), channel("SCRT_STAR", prefix), channel("SCRT_TACH", prefix))
+        self._ch = tuple(channel(c, prefix) for c in SENT_COUNTERS)  # gyro, star tracker, tachometer
         self.sent = [0, 0, 0]  #: samples published per sensor (gyro, star tracker, tachometer)
         self.first: list[tuple[str, bytes]] = []  #: the messages of tick 0 (re-sent with a re-sent state 0)
         self._next = 0
@@ -108,5 +111,5 @@ class SensorPublisher:
 
     def counters(self) -> dict[str, int]:
         s = self.suite
-        return {"gyro_sent": self.sent[0], "star_sent": self.sent[1], "tach_sent": self.sent[2],
+        return {**dict(zip(SENT_COUNTERS.values(), self.sent)),
                 "star_lost": int(s.lost), "star_blacked_out": int(s.blacked_out)}

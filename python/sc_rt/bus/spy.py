@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sc_rt.scenario.model import LAW_NAMES
+from sc_rt.results.estimation import ARCSEC  # [rad]
 from sc_rt.results.metrics import json_safe
 from sc_rt.bus.auth import open_bus
 from sc_rt.bus.wire import decode_any, identify, numpy_dtype, to_plain
@@ -109,17 +110,14 @@ def _norm(v) -> float:
     return float(np.linalg.norm(np.asarray(v, float)))
 
 
-ARCSEC = 180.0 * 3600.0 / math.pi  # [arcsec/rad]
-
-
 def _nav_summary(msg) -> dict:
     """The estimator's figures of a controller_status_t (a [sensors] run)."""
     if not msg.nav:
         return {}
     p = np.asarray(msg.P_diag, float)
     return {"nav": {"sigma_BN_est": list(msg.sigma_BN_est), "bias_est": list(msg.bias_est),
-                    "att_sigma_arcsec": list(np.sqrt(np.maximum(p[0:3], 0.0)) * ARCSEC),
-                    "innovation_arcsec": [v * ARCSEC for v in msg.innovation], "nis": msg.nis,
+                    "att_sigma_arcsec": list(np.sqrt(np.maximum(p[0:3], 0.0)) / ARCSEC),
+                    "innovation_arcsec": [v / ARCSEC for v in msg.innovation], "nis": msg.nis,
                     "degraded": bool(msg.nav_flags), "gyro_used": msg.gyro_used,
                     "star_used": msg.star_used, "tach_used": msg.tach_used,
                     "sensor_rejected": msg.sensor_rejected}}
