@@ -32,7 +32,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -43,24 +43,33 @@ __all__ = ["netem_available", "nft_available", "nfqueue_available", "backend_for
            "parse_netem", "swap_probability"]
 
 
+def _in_scratch_netns(tag: str, check: Callable[[str], str | None]) -> str | None:
+    """``check(name)`` run with a throwaway network namespace ``name`` (deleted
+    afterwards), or why none can be made."""
+    name = f"scrt-{tag}probe-{os.getpid()}"
+    if subprocess.run(["ip", "netns", "add", name], capture_output=True).returncode != 0:
+        return "cannot create network namespaces (needs root and ip netns)"
+    try:
+        return check(name)
+    finally:
+        subprocess.run(["ip", "netns", "del", name], capture_output=True)
+
+
 def netem_available() -> str | None:
     """None when tc netem works here, else why not (a kernel without
     CONFIG_NET_SCH_NETEM, no tc, no namespaces)."""
     if shutil.which("tc") is None:
         return "tc not found (Debian: apt-get install iproute2)"
-    name = f"scrt-nprobe-{os.getpid()}"
-    r = subprocess.run(["ip", "netns", "add", name], capture_output=True)
-    if r.returncode != 0:
-        return "cannot create network namespaces (needs root and ip netns)"
-    try:
+
+    def check(name: str) -> str | None:
         for c in (f"ip -n {name} link add d0 type veth peer name d1", f"ip -n {name} link set d0 up",
                   f"ip netns exec {name} tc qdisc add dev d0 root netem delay 1ms"):
             r = subprocess.run(c.split(), capture_output=True, text=True)
             if r.returncode != 0:
                 return f"tc netem not available ({c}: {r.stderr.strip()})"
-    finally:
-        subprocess.run(["ip", "netns", "del", name], capture_output=True)
-    return None
+        return None
+
+    return _in_scratch_netns("n", check)
 
 
 def nft_available() -> str | None:
@@ -68,17 +77,15 @@ def nft_available() -> str | None:
     duplication, corruption; no delay), else why not."""
     if shutil.which("nft") is None:
         return "nft not found (Debian: apt-get install nftables)"
-    name = f"scrt-fprobe-{os.getpid()}"
-    if subprocess.run(["ip", "netns", "add", name], capture_output=True).returncode != 0:
-        return "cannot create network namespaces (needs root and ip netns)"
-    try:
+
+    def check(name: str) -> str | None:
         subprocess.run(["ip", "-n", name, "link", "add", "d0", "type", "veth", "peer", "name", "d1"],
                        capture_output=True)
         r = subprocess.run(["ip", "netns", "exec", name, "nft", "-f", "-"], capture_output=True, text=True,
                            input=_nft_rules("d0", {"loss": 0.01, "duplicate": 0.01, "corrupt": 0.01}, 7667))
         return None if r.returncode == 0 else f"nft egress filtering not available: {r.stderr.strip()}"
-    finally:
-        subprocess.run(["ip", "netns", "del", name], capture_output=True)
+
+    return _in_scratch_netns("f", check)
 
 
 def nfqueue_available() -> str | None:
@@ -86,10 +93,8 @@ def nfqueue_available() -> str | None:
     NFQUEUE target, an nfnetlink queue bound in a namespace), else why not."""
     if shutil.which("iptables-legacy") is None:
         return "iptables-legacy not found (Debian: apt-get install iptables)"
-    name = f"scrt-qprobe-{os.getpid()}"
-    if subprocess.run(["ip", "netns", "add", name], capture_output=True).returncode != 0:
-        return "cannot create network namespaces (needs root and ip netns)"
-    try:
+
+    def check(name: str) -> str | None:
         r = subprocess.run(["ip", "netns", "exec", name, "iptables-legacy", "-t", "mangle", "-A", "OUTPUT",
                             "-p", "udp", "--dport", "7667", "-j", "NFQUEUE", "--queue-num", "9"],
                            capture_output=True, text=True)
@@ -99,8 +104,8 @@ def nfqueue_available() -> str | None:
                             f"import sys; sys.path.insert(0, {str(HERE)!r}); import nfq_delay; nfq_delay.Queue(9)"],
                            capture_output=True, text=True)
         return None if r.returncode == 0 else f"cannot bind an nfnetlink queue: {r.stderr.strip()[-300:]}"
-    finally:
-        subprocess.run(["ip", "netns", "del", name], capture_output=True)
+
+    return _in_scratch_netns("q", check)
 
 
 def backend_for(spec: str | None, netem: bool | None = None) -> str:
