@@ -31,7 +31,7 @@ def scn():
     return load_scenario(SENSED)
 
 
-def _samples(scn, seconds=20.0, x_of=lambda t: None):
+def _samples(scn, seconds=20.0):
     """The SensorSuite's samples over `seconds` from a slowly turning state, as
     (tick, kind, args) in the emulator's publishing order (gyro, star, tach per tick)."""
     nav = nav_config(scn.sensors, scn.run.plant_step)
@@ -59,7 +59,7 @@ def _samples(scn, seconds=20.0, x_of=lambda t: None):
     return nav, out, states
 
 
-def _intake(scn, nav):
+def _intake(scn):
     raw = scn.controller_config_msg().encode()
     enabled, use_est, mekf, sigma0 = _core.nav_from_config_bytes(raw)
     assert enabled
@@ -93,7 +93,7 @@ def test_config_carries_the_filter_and_the_offline_initial_estimate(scn):
 
 def _run(scn, nav, items, states, extra=None):
     """Feed items tick by tick; measure at every control instant: telemetry rows."""
-    intake = _intake(scn, nav)
+    intake = _intake(scn)
     n_sub = grid(scn)[1]
     rows = []
     by_tick: dict[int, list] = {}
@@ -177,7 +177,7 @@ def test_foreign_repeated_and_bad_samples_are_counted_and_change_nothing(scn):
 def test_samples_before_the_first_state_wait_for_it(scn):
     """The run's first samples go out just before state 0: queued, applied at follow()."""
     nav, items, states = _samples(scn, seconds=2.0)
-    intake = _intake(scn, nav)
+    intake = _intake(scn)
     first = [it for it in items if it[0] == 0]
     assert first and not intake.ready
     for it in first:
@@ -195,7 +195,7 @@ def test_samples_later_than_the_state_used_wait_for_a_later_state(scn):
     n_sub = grid(scn)[1]
     h = scn.run.plant_step
     ctrl = sorted(i for i in states if i % n_sub == 0)
-    on_time, ahead = _intake(scn, nav), _intake(scn, nav)
+    on_time, ahead = _intake(scn), _intake(scn)
     rows_on_time, rows_ahead = [], []
     for a, b in zip(ctrl, ctrl[1:]):
         for it in items:
@@ -213,7 +213,7 @@ def test_samples_later_than_the_state_used_wait_for_a_later_state(scn):
 
 def test_a_late_joiner_waits_for_its_first_star_tracker_attitude(scn):
     nav, items, states = _samples(scn, seconds=20.0)
-    intake = _intake(scn, nav)
+    intake = _intake(scn)
     intake.use(SESSION, 20.0)  # it acts on a state at t = 20 s
     late = [it for it in items if it[0] >= 500]  # joined at t = 5 s: seqs > 0
     first_star = next(it for it in late if it[1] == "star")
