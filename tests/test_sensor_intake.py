@@ -91,7 +91,7 @@ def test_config_carries_the_filter_and_the_offline_initial_estimate(scn):
     assert _core.nav_from_config_bytes(plain.controller_config_msg().encode())[0] is False
 
 
-def _run(scn, nav, items, states, extra=None):
+def _run(scn, items, states, extra=None):
     """Feed items tick by tick; measure at every control instant: telemetry rows."""
     intake = _intake(scn)
     n_sub = grid(scn)[1]
@@ -132,7 +132,7 @@ def _est(rows):
 
 def test_intake_fed_in_publishing_order_equals_the_offline_navigation_bitwise(scn):
     nav, items, states = _samples(scn)
-    intake, got = _run(scn, nav, items, states)
+    intake, got = _run(scn, items, states)
     ref = _reference(scn, nav, states)
     assert np.array_equal(_est(got), _est(ref), equal_nan=True)
     c = intake.counts()
@@ -163,7 +163,7 @@ def test_foreign_repeated_and_bad_samples_are_counted_and_change_nothing(scn):
             bad["n"] += 2
         intake.malformed()
 
-    intake, got = _run(scn, nav, items, states, extra=hostile)
+    intake, got = _run(scn, items, states, extra=hostile)
     assert np.array_equal(_est(got), _est(_reference(scn, nav, states)), equal_nan=True)
     c = intake.counts()
     assert c.invalid == bad["n"] and c.malformed == len(items)
