@@ -19,7 +19,7 @@ from pathlib import Path
 from bench_report import make_log
 from common import machine, write
 
-from sc_rt.bus.mcap_export import export_mcap  # noqa: E402
+from sc_rt.export.mcap_export import export_mcap  # noqa: E402
 
 
 def main() -> None:

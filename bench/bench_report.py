@@ -24,9 +24,9 @@ import sc_rt_lcm
 
 from common import ROOT, machine, write
 
-from sc_rt.bus.report import read_log, rebuild, write_report  # noqa: E402
+from sc_rt.logs.report import read_log, rebuild, write_report  # noqa: E402
 from sc_rt.scenario.reader import load_scenario  # noqa: E402
-from sc_rt.bus.wire import numpy_dtype  # noqa: E402
+from sc_rt.wire.codec import numpy_dtype  # noqa: E402
 
 CHANNELS = (("SCRT_STATE", sc_rt_lcm.plant_state_t), ("SCRT_CMD", sc_rt_lcm.wheel_cmd_t),
             ("SCRT_CTRL_STATUS", sc_rt_lcm.controller_status_t), ("SCRT_TRUTH", sc_rt_lcm.plant_truth_t))

@@ -55,7 +55,7 @@ def hil(args: list[str], profile: Path | None = None) -> dict:
 def lcm_floor(count: int, fifo: bool) -> dict:
     """The C++ LCM round trip (sc-rt-lcm-pingpong), in the same namespace as
     the runs, at the controller's scheduler."""
-    code = ("import json; from sc_rt.bus.floor import lcm_round_trip; "
+    code = ("import json; from sc_rt.hil.floor import lcm_round_trip; "
             f"print(json.dumps(lcm_round_trip({count}, 'udpm://239.255.76.67:7721?ttl=0', fifo={fifo})))")
     r = subprocess.run(lcmnet.wrap([sys.executable, "-c", code]), capture_output=True, text=True, timeout=600)
     if r.returncode != 0:

@@ -432,7 +432,7 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
     seed: the delay lines' draws (A's seed, B's seed + 1)."""
     import sc_rt_lcm
 
-    from sc_rt.bus.lcmio import lcm_binary
+    from sc_rt.wire.lcmio import lcm_binary
     from sc_rt.scenario.reader import load_scenario
     from sc_rt.scenario.overrides import with_overrides
 

@@ -13,7 +13,7 @@ the emulator (the ``sc-rt hil`` process) and ``sc-rt-controller``, every
   percentiles (24 B/step); beyond that it must stay flat (<= 1 MB). The
   emulator allocates and touches everything it keeps per row when it
   starts (the run's columns; each state's command, status and times:
-  bus/inbox.py): it must stay flat too (<= 1 MB); its bytes per row are
+  emulator/inbox.py): it must stay flat too (<= 1 MB); its bytes per row are
   reported;
 - timing: p50 and p99 of the state-to-command latency, the controller's
   wake lateness and the emulator's tick lateness over the first and the last

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from sc_rt import _core
-from sc_rt.bus.auth import TAG_SIZE, AuthLCM, message_tag, verified_payload
+from sc_rt.wire.auth import TAG_SIZE, AuthLCM, message_tag, verified_payload
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 

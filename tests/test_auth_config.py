@@ -17,7 +17,7 @@ pytestmark = pytest.mark.lcm
 
 PUBLISH = """
 import sys, time, lcm
-from sc_rt.bus.auth import message_tag
+from sc_rt.wire.auth import message_tag
 url, cfg, key, mode = sys.argv[1:5]
 data = open(cfg, 'rb').read()
 lc = lcm.LCM(url)

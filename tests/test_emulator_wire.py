@@ -1,5 +1,5 @@
 """The emulator packs and unpacks its messages with struct for speed
-(bus/twin.py, bus/inbox.py); the bytes must be exactly what the generated
+(emulator/twin.py, emulator/inbox.py); the bytes must be exactly what the generated
 LCM classes produce and read."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import random
 
 import sc_rt_lcm
 
-from sc_rt.bus import inbox as I
-from sc_rt.bus import twin as T
+from sc_rt.emulator import inbox as I
+from sc_rt.emulator import twin as T
 
 
 def test_state_and_truth_packing_equal_the_generated_encoding():

@@ -174,8 +174,8 @@ def test_statusless_controller_is_not_waited_for():
 import sys, threading
 sys.path.insert(0, {str(ROOT / 'tests')!r})
 from test_external import _statusless_controller
-from sc_rt.bus.emulator import Emulator
-from sc_rt.bus.lcmio import free_port_url
+from sc_rt.emulator.process import Emulator
+from sc_rt.wire.lcmio import free_port_url
 from sc_rt.scenario.reader import load_scenario
 url = free_port_url()
 stop, answered = threading.Event(), []

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 import sc_rt_lcm
 
-from sc_rt.bus.emulator import Emulator
-from sc_rt.bus.faultcmd import clear_msg, inject_msg
-from sc_rt.bus.report import read_log, write_report
+from sc_rt.emulator.process import Emulator
+from sc_rt.tools.faultcmd import clear_msg, inject_msg
+from sc_rt.logs.report import read_log, write_report
 from sc_rt.scenario.reader import load_scenario
 
 import figcheck

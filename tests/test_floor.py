@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from sc_rt.bus.floor import FLOOR_SERIES, TimingSetup, compare_to_floor
+from sc_rt.hil.floor import FLOOR_SERIES, TimingSetup, compare_to_floor
 
 import lcmnet
 
@@ -93,7 +93,7 @@ def test_a_realtime_run_carries_its_cached_floor_and_the_null_law_answers_zero(t
     assert (out / "timing.png").stat().st_size > 0
     # the floor's own controller: zero commands, the same messages
     null = tmp_path / "null"
-    code = (f"from pathlib import Path; from sc_rt.bus.hil import run_hil; from sc_rt.bus.floor import TimingSetup; "
+    code = (f"from pathlib import Path; from sc_rt.hil.runner import run_hil; from sc_rt.hil.floor import TimingSetup; "
             f"from sc_rt.scenario.reader import load_scenario; "
             f"run_hil(load_scenario('paper_faults'), out=Path({str(null)!r}), mode='lockstep', duration=2.0, "
             f"plots=False, setup=TimingSetup(null_law=True))")
@@ -108,7 +108,7 @@ def test_a_realtime_run_carries_its_cached_floor_and_the_null_law_answers_zero(t
 def test_the_emulators_thread_setup_is_given_back():
     import gc
 
-    from sc_rt.bus.rtproc import RealtimeThread
+    from sc_rt.emulator.rtproc import RealtimeThread
 
     cpus = os.sched_getaffinity(0)
     was = gc.isenabled()

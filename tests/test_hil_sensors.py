@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 import sc_rt_lcm
 
-from sc_rt.bus.spy import Spy
+from sc_rt.tools.spy import Spy
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
@@ -74,8 +74,8 @@ def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measureme
     assert nav["measurement"] == measurement
     assert sum(nav["rejected"].values()) == 0, nav
     # the log: every sample, in order, at the sensor's rate
-    from sc_rt.bus.logread import read_log
-    from sc_rt.bus.rebuild import sensor_summary
+    from sc_rt.logs.logread import read_log
+    from sc_rt.logs.rebuild import sensor_summary
 
     # the emulator sent every sample once, at the sensor's rate, and the controller used each
     timing = json.loads((out / "timing.json").read_text())
@@ -90,8 +90,8 @@ def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measureme
     # (Lockstep runs as fast as it can, thousands of steps a second: lcm-logger's
     # subscription queue of 30 messages can overflow in a burst, which the run
     # reports as log_missing and a warning: docs/HIL.md, "A complete log".)
-    from sc_rt.bus.logread import read_log
-    from sc_rt.bus.rebuild import sensor_summary
+    from sc_rt.logs.logread import read_log
+    from sc_rt.logs.rebuild import sensor_summary
 
     d = read_log(out / "run.lcmlog")
     ss = sensor_summary(d)
@@ -178,7 +178,7 @@ def test_realtime_with_sensors_stays_up_and_estimates(tmp_path):
 
 
 def test_sensor_messages_are_packed_as_the_generated_encoders_pack_them():
-    from sc_rt.bus.sensorpub import gyro_bytes, star_bytes, tach_bytes
+    from sc_rt.emulator.sensorpub import gyro_bytes, star_bytes, tach_bytes
 
     g = sc_rt_lcm.gyro_t()
     g.utime, g.seq, g.session, g.tick, g.t, g.omega = 1, 2, 3, 4, 0.5, [1e-3, -2.0, np.pi]

@@ -1,4 +1,4 @@
-"""The emulator's per-state-seq inbox (bus/inbox.py): allocated and touched
+"""The emulator's per-state-seq inbox (emulator/inbox.py): allocated and touched
 for the run's rows at start, nothing grows as rows fill, seqs outside the
 run counted and ignored, and what it keeps per row is what the memory
 estimate of a bench run counts (cli/validate.py)."""
@@ -12,8 +12,8 @@ from pathlib import Path
 
 import sc_rt_lcm
 
-from sc_rt.bus import emulator
-from sc_rt.bus.inbox import _CMD_LAYOUT, _STATUS_SIZE, Inbox, _cmd_of
+from sc_rt.emulator import process as emulator
+from sc_rt.emulator.inbox import _CMD_LAYOUT, _STATUS_SIZE, Inbox, _cmd_of
 from sc_rt.cli.validate import bus_bytes_per_row
 
 

@@ -1,5 +1,5 @@
 """Bench isolation: two benches started on one LCM URL refuse to mix
-(bus/collision.py); the policy itself, without a bus."""
+(emulator/collision.py); the policy itself, without a bus."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.bus.collision import COLLISION_MESSAGES, CollisionGuard
+from sc_rt.emulator.collision import COLLISION_MESSAGES, CollisionGuard
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 

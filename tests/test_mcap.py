@@ -20,9 +20,9 @@ import sc_rt_lcm
 from mcap.reader import make_reader
 
 from sc_rt import _core
-from sc_rt.bus import wire
-from sc_rt.bus.lcmdefs import json_schema, load_definitions, parse_lcm
-from sc_rt.bus.mcap_export import export_mcap
+from sc_rt.wire import codec as wire
+from sc_rt.wire.lcmdefs import json_schema, load_definitions, parse_lcm
+from sc_rt.export.mcap_export import export_mcap
 
 import lcmnet
 
@@ -466,7 +466,7 @@ def test_fuzzed_logs_export_or_are_refused_never_crash(run_dir, tmp_path, rng):
     """Random framing damage, payloads, channel names and timestamps (out of
     MCAP's uint64 ns range too): either a clean refusal (damage without
     --partial) or a complete MCAP with every event, never an exception."""
-    from sc_rt.bus.mcap_export import ExportError
+    from sc_rt.export.mcap_export import ExportError
 
     good = [(e[2].encode(), e[3]) for e in log_events(run_dir / "run.lcmlog")]
     names = [b"SCRT_STATE", b"SCRT_CMD", b"SCRT_CTRL_STATUS", b"SCRT_TRUTH", b"SCRT_CONFIG", b"SCRT_FAULT",

@@ -14,9 +14,9 @@ import lcm
 import numpy as np
 import pytest
 
-from sc_rt.bus import wire
+from sc_rt.wire import codec as wire
 from sc_rt.results.run import CORE_FIELDS
-from sc_rt.bus.report import read_log, write_report
+from sc_rt.logs.report import read_log, write_report
 
 import figcheck
 import lcmnet

@@ -16,8 +16,8 @@ import lcm
 import pytest
 import sc_rt_lcm
 
-from sc_rt.bus import wire
-from sc_rt.bus.spy import Spy
+from sc_rt.wire import codec as wire
+from sc_rt.tools.spy import Spy
 
 import lcmnet
 
@@ -214,7 +214,7 @@ def test_types_jar_decodes_messages_encoded_by_python(tmp_path, monkeypatch):
     Python-encoded message of its type (the fingerprints match)."""
     if shutil.which("javac") is None:
         pytest.fail("javac not found (Debian: apt-get install default-jdk-headless)", pytrace=False)
-    from sc_rt.bus.lcmspy import lcm_jar, types_jar
+    from sc_rt.tools.lcmspy import lcm_jar, types_jar
 
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     jar = types_jar()

@@ -24,7 +24,7 @@ case $mode in
 esac
 PYTHON=${PYTHON:-python3}
 VENV=${VENV:-.venv}
-GROUP=239.255.76.67  # LCM's default group (sc_rt.bus.lcmio.DEFAULT_URL)
+GROUP=239.255.76.67  # LCM's default group (sc_rt.wire.lcmio.DEFAULT_URL)
 
 # sbin too: ip, tc and ldconfig live there, outside a Debian user's PATH.
 sbin() { PATH="$PATH:/usr/local/sbin:/usr/sbin:/sbin" "$@"; }

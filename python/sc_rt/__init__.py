@@ -45,7 +45,7 @@ _API = {
     "FIELDS": ("sc_rt.results.run", "FIELDS"),
     "write_run": ("sc_rt.results.output", "write_run"),
     "verdict_line": ("sc_rt.results.verdict", "verdict_line"),
-    "run_hil": ("sc_rt.bus.hil", "run_hil"),
+    "run_hil": ("sc_rt.hil.runner", "run_hil"),
     "design": ("sc_rt.studies.design", "design_report"),
     "montecarlo": ("sc_rt.studies.montecarlo", "run_montecarlo"),
 }

@@ -11,12 +11,12 @@ from sc_rt.cli.common import bus_url, html_report, mcap_problem, print_metrics, 
 
 
 def cmd_spy(args: argparse.Namespace) -> int:
-    from sc_rt.bus.spy import main_loop
+    from sc_rt.tools.spy import main_loop
 
     if args.duration is not None and not args.duration > 0:
         print(f"sc-rt spy: error: --duration must be > 0, got {args.duration}", file=sys.stderr)
         return 2
-    from sc_rt.bus.auth import load_key
+    from sc_rt.wire.auth import load_key
 
     return main_loop(bus_url(args), args.channels, once=args.once, as_json=args.json,
                      duration=args.duration, refresh=args.refresh, window=args.window,
@@ -26,7 +26,7 @@ def cmd_spy(args: argparse.Namespace) -> int:
 def cmd_lcm_spy(args: argparse.Namespace) -> int:
     import os
 
-    from sc_rt.bus.lcmspy import JavaMissing, spy_command, types_jar
+    from sc_rt.tools.lcmspy import JavaMissing, spy_command, types_jar
 
     try:
         if args.build_only:
@@ -44,7 +44,7 @@ def cmd_lcm_spy(args: argparse.Namespace) -> int:
 
 
 def cmd_fault(args: argparse.Namespace) -> int:
-    from sc_rt.bus.faultcmd import FaultArgError, clear_msg, inject_msg, send
+    from sc_rt.tools.faultcmd import FaultArgError, clear_msg, inject_msg, send
 
     try:
         if args.action == "inject":
@@ -53,7 +53,7 @@ def cmd_fault(args: argparse.Namespace) -> int:
         else:
             msg = clear_msg(args.wheel)
         url = bus_url(args)
-        from sc_rt.bus.auth import load_key
+        from sc_rt.wire.auth import load_key
 
         sent = send(msg, url, args.prefix, timeout=args.timeout, wait=not args.no_wait,
                     auth_key=load_key(args.auth_key))
@@ -80,7 +80,7 @@ def cmd_fault(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from sc_rt.bus.report import write_report
+    from sc_rt.logs.report import write_report
 
     out = Path(args.out) if args.out else Path(args.log).parent / "report"
     if mcap_problem(args.mcap, "report"):
@@ -119,14 +119,14 @@ def cmd_export(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     import subprocess
 
-    from sc_rt.bus.report import replay_command
+    from sc_rt.logs.report import replay_command
 
     try:
         cmd = replay_command(args.log, bus_url(args), args.speed, args.channels, args.verbose)
     except ValueError as e:
         print(f"sc-rt replay: error: {e}", file=sys.stderr)
         return 2
-    from sc_rt.bus.hil import child_kwargs
+    from sc_rt.hil.runner import child_kwargs
     from sc_rt.cli.interrupts import Interrupted
 
     proc = subprocess.Popen(cmd, **child_kwargs())  # its own group: stopped here, never orphaned

@@ -89,14 +89,14 @@ def report_stopped(run, why: str, signum: int | None, out, who: str) -> int:
 # --- monitoring and reports (issue 8): spy, lcm-spy, fault, report, replay ---
 def bus_url(args: argparse.Namespace) -> str:
     """--lcm-url, else $SCRT_LCM_URL (checked), else LCM's usual port."""
-    from sc_rt.bus.lcmio import DEFAULT_URL
+    from sc_rt.wire.lcmio import DEFAULT_URL
 
     return resolve_url(args.lcm_url, DEFAULT_URL)
 
 
 def write_mcap(log, out, partial: bool = False, who: str = "export") -> int:
     """Write the MCAP of ``log`` (sc-rt export, report --mcap, hil --mcap)."""
-    from sc_rt.bus.mcap_export import ExportError, export_mcap
+    from sc_rt.export.mcap_export import ExportError, export_mcap
 
     try:
         s = export_mcap(log, out, partial=partial)
@@ -115,7 +115,7 @@ def write_mcap(log, out, partial: bool = False, who: str = "export") -> int:
 
 def mcap_problem(path: str | None, who: str) -> bool:
     """Print why ``--mcap path`` cannot be written (checked before any work)."""
-    from sc_rt.bus.mcap_export import ExportError, check_output
+    from sc_rt.export.mcap_export import ExportError, check_output
 
     try:
         if path:

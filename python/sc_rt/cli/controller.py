@@ -1,7 +1,7 @@
 """``sc-rt controller``: a Python law as an LCM controller process
-(sc_rt.bus.pycontroller), and the options of ``sc-rt hil`` that put any
+(sc_rt.controller.pycontroller), and the options of ``sc-rt hil`` that put any
 controller process on the bench: ``--external COMMAND``, ``--external-wait``,
-``--start-timeout`` (sc_rt.bus.external, docs/PROTOCOL.md)."""
+``--start-timeout`` (sc_rt.hil.external, docs/PROTOCOL.md)."""
 
 from __future__ import annotations
 
@@ -84,9 +84,9 @@ def cmd_controller(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from sc_rt import _core
-    from sc_rt.bus.lcmio import DEFAULT_URL
-    from sc_rt.bus.auth import load_key
-    from sc_rt.bus.pycontroller import PyControllerProcess, write_summary
+    from sc_rt.wire.lcmio import DEFAULT_URL
+    from sc_rt.wire.auth import load_key
+    from sc_rt.controller.pycontroller import PyControllerProcess, write_summary
     from sc_rt.pylaw import load_law
 
     if not is_python_law(args.law):

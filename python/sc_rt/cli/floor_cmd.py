@@ -1,5 +1,5 @@
 """``sc-rt floor`` (also ``sc-rt hil --self-test``): the bench's floor on this
-machine and configuration (bus/floor.py), and the timing options that
+machine and configuration (hil/floor.py), and the timing options that
 ``sc-rt hil`` and ``sc-rt floor`` share (trigger, CPUs, the emulator's spin,
 the floor policy)."""
 
@@ -33,7 +33,7 @@ def add_timing_options(h: argparse.ArgumentParser, *, floor_policy: bool = True)
 
 
 def timing_setup(args: argparse.Namespace):
-    from sc_rt.bus.floor import TimingSetup
+    from sc_rt.hil.floor import TimingSetup
 
     return TimingSetup(trigger=args.trigger, controller_cpu=args.controller_cpu,
                        emulator_cpu=args.emulator_cpu, spin_us=args.spin_us)
@@ -83,7 +83,7 @@ def floor_table(f: dict) -> str:
 
 
 def cmd_floor(args: argparse.Namespace) -> int:
-    from sc_rt.bus.floor import floor_for, measure_floor
+    from sc_rt.hil.floor import floor_for, measure_floor
     from sc_rt.cli.common import scenario_arg
 
     scn = scenario_arg(args.scenario)

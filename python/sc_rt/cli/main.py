@@ -52,7 +52,7 @@ def _add_monitoring(sub) -> None:
     f = sub.add_parser("fault", help="inject or clear a wheel fault live (fault_cmd_t on SCRT_FAULT)")
     fs = f.add_subparsers(dest="action", metavar="ACTION", required=True)
     fi = fs.add_parser("inject", help="inject a fault on one wheel")
-    # the values are checked by sc_rt.bus.faultcmd.inject_msg (exit 2, one line)
+    # the values are checked by sc_rt.tools.faultcmd.inject_msg (exit 2, one line)
     fi.add_argument("--wheel", type=int, required=True, metavar="N", help="wheel 1..4")
     fi.add_argument("--effectiveness", type=float, default=1.0, metavar="E",
                     help="L in [0, 1] (default: %(default)s)")

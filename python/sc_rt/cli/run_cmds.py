@@ -57,7 +57,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
 
 def cmd_hil(args: argparse.Namespace) -> int:
-    from sc_rt.bus.hil import run_hil
+    from sc_rt.hil.runner import run_hil
     from sc_rt.cli.floor_cmd import cmd_floor, timing_setup
 
     if args.mode is None:
@@ -117,7 +117,7 @@ DEMO_RUNS = (("paper DSC+PPC", "paper_faults", "paper"),
 def cmd_demo(args: argparse.Namespace) -> int:
     """The main job: the paper's law and the feasible design, each through
     the real LCM loop (controller process, emulator, lcm-logger)."""
-    from sc_rt.bus.hil import run_hil
+    from sc_rt.hil.runner import run_hil
     from sc_rt.results.verdict import verdict_line
 
     out = checked_out(args.out)
@@ -143,9 +143,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def cmd_emulator(args: argparse.Namespace) -> int:
-    from sc_rt.bus.auth import load_key
-    from sc_rt.bus.emulator import Emulator
-    from sc_rt.bus.lcmio import DEFAULT_URL
+    from sc_rt.wire.auth import load_key
+    from sc_rt.emulator.process import Emulator
+    from sc_rt.wire.lcmio import DEFAULT_URL
 
     from sc_rt.scenario.overrides import with_overrides
 
@@ -177,6 +177,6 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     print(json.dumps(rounded(summary)))
     if sig:
         return report_stopped(res, res.message or "interrupted", sig[0], args.out or "-", "emulator")
-    if emu.invalid:  # another bench on our channels (bus/collision.py): partial, invalid
+    if emu.invalid:  # another bench on our channels (emulator/collision.py): partial, invalid
         return report_stopped(res, emu.invalid, None, args.out or "-", "emulator")
     return 0

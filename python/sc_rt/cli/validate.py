@@ -193,10 +193,10 @@ def bytes_per_row() -> int:
 def bus_bytes_per_row() -> int:
     """What a bench run holds per row besides the Run, all of it allocated
     and touched when the emulator is made: each state's command and status
-    as received, its times, the loop's stamps (sc_rt.bus.emulator
+    as received, its times, the loop's stamps (sc_rt.emulator.process
     BYTES_PER_ROW: a wheel_cmd_t and a controller_status_t plus 76 B, so it
     follows the message types)."""
-    from sc_rt.bus.emulator import BYTES_PER_ROW
+    from sc_rt.emulator.process import BYTES_PER_ROW
 
     return BYTES_PER_ROW
 

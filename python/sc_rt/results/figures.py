@@ -295,7 +295,7 @@ def timing_figures(run: Run, out: Path, floor: dict | None = None) -> list[Path]
     latency, controller compute and (real time only) the controller's wake
     lateness and the emulator's tick lateness. The control period is drawn,
     and the bench floor (``floor``: {series: p99 [us]}; by default the
-    ``floor`` of ``run.timing``, bus/floor.py) when there is one, with the
+    ``floor`` of ``run.timing``, hil/floor.py) when there is one, with the
     line "bench floor p99 X us; this controller added Y us" in the title."""
     out.mkdir(parents=True, exist_ok=True)
     timing = run.timing or {}

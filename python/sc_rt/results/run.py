@@ -278,7 +278,7 @@ def provenance(plant_session: int | None, controller_session: int | None,
     """The bench run's metrics keys saying where its numbers came from: the
     plant and controller sessions (LCM ids, None: none) and whether the run
     is valid (False, with the reason: another bench on the same channels
-    mixed into it, bus/collision.py)."""
+    mixed into it, emulator/collision.py)."""
     out: dict[str, Any] = {"valid": invalid is None, "plant_session": plant_session,
                            "controller_session": controller_session}
     if invalid is not None:

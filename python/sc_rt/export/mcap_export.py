@@ -38,12 +38,12 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.bus.lcmdefs import json_schema, load_definitions
-from sc_rt.bus.lcmio import CHANNELS
-from sc_rt.bus.lcmjson import RowEncoder, count_none, dumps, json_value
-from sc_rt.bus.mcap_derived import Deriver
-from sc_rt.bus.lcmlog import LogDamaged, LogScan, read_events
-from sc_rt.bus.wire import TYPES, decode_any, decode_array, identify, numpy_dtype
+from sc_rt.wire.lcmdefs import json_schema, load_definitions
+from sc_rt.wire.lcmio import CHANNELS
+from sc_rt.wire.lcmjson import RowEncoder, count_none, dumps, json_value
+from sc_rt.export.mcap_derived import Deriver
+from sc_rt.logs.lcmlog import LogDamaged, LogScan, read_events
+from sc_rt.wire.codec import TYPES, decode_any, decode_array, identify, numpy_dtype
 
 __all__ = ["ExportError", "ExportSummary", "export_mcap", "check_output", "RAW_SCHEMA"]
 
@@ -317,7 +317,7 @@ def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
 
     Raises FileNotFoundError (no log), ExportError (bad output path, or a
     damaged log without ``partial``)."""
-    from sc_rt.bus.mcapwrite import BatchWriter
+    from sc_rt.export.mcapwrite import BatchWriter
 
     log, out = Path(log), Path(out)
     if not log.exists():

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import sc_rt_lcm
 
-from sc_rt.bus.auth import open_bus
-from sc_rt.bus.lcmio import channel
-from sc_rt.bus.wire import decode_as
+from sc_rt.wire.auth import open_bus
+from sc_rt.wire.lcmio import channel
+from sc_rt.wire.codec import decode_as
 
 __all__ = ["FaultArgError", "inject_msg", "clear_msg", "publish", "send", "Sent"]
 
@@ -91,7 +91,7 @@ def clear_msg(wheel: int) -> sc_rt_lcm.fault_cmd_t:
 
 
 def publish(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "", auth_key: bytes | None = None) -> str:
-    """Publish once on ``prefix + SCRT_FAULT`` (tagged with auth_key, bus/auth.py); returns the channel."""
+    """Publish once on ``prefix + SCRT_FAULT`` (tagged with auth_key, wire/auth.py); returns the channel."""
     ch = channel("SCRT_FAULT", prefix)
     open_bus(url, auth_key).publish(ch, msg.encode())
     return ch

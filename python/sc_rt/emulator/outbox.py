@@ -1,6 +1,6 @@
-"""The emulator's publishing side (a mixin of ``bus.emulator.Emulator``):
+"""The emulator's publishing side (a mixin of ``emulator.process.Emulator``):
 the guidance and the state of a control instant, the truth of a row, the
-sensors' samples of a plant step (bus/sensorpub.py), and draining what our
+sensors' samples of a plant step (emulator/sensorpub.py), and draining what our
 own multicast brings back. Uses the emulator's ``lc``, ``session``,
 ``guidance``, ``inbox``, ``twin``, ``act``, ``sensors``, ``_bias_true``,
 ``_guidance_sent`` and channel names."""
@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from sc_rt.bus.twin import state_bytes, truth_bytes
+from sc_rt.emulator.twin import state_bytes, truth_bytes
 
 __all__ = ["Publisher"]
 

@@ -17,8 +17,8 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from sc_rt.bus.lcmio import lcm_binary, lcm_prefix
-from sc_rt.bus.wire import lcm_sources
+from sc_rt.wire.lcmio import lcm_binary, lcm_prefix
+from sc_rt.wire.codec import lcm_sources
 
 __all__ = ["JavaMissing", "cache_dir", "types_jar", "spy_command"]
 

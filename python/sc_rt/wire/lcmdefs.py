@@ -155,7 +155,7 @@ def load_definitions(files: list[Path] | None = None) -> dict[str, LcmStruct]:
     """Every struct of ``files`` (default ``wire.lcm_sources()``), by its
     short name (``plant_state_t``)."""
     if files is None:
-        from sc_rt.bus.wire import lcm_sources
+        from sc_rt.wire.codec import lcm_sources
 
         files = lcm_sources()
     out: dict[str, LcmStruct] = {}

@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from sc_rt.bus.lcmio import free_port_url
+from sc_rt.wire.lcmio import free_port_url
 from sc_rt.scenario.model import Scenario
 
 __all__ = ["TimingSetup", "measure_floor", "floor_for", "lcm_round_trip", "compare_to_floor",
@@ -116,7 +116,7 @@ def measure_floor(scn: Scenario, *, mode: str = "realtime", control_rate_hz: flo
                   lcm_url: str | None = None) -> dict[str, Any]:
     """A null-controller run of ``duration`` s and the LCM round trip; the
     floor's figures (p50/p99/max per series), its counts and its conditions."""
-    from sc_rt.bus.hil import run_hil  # hil uses this module for its runs' floors
+    from sc_rt.hil.runner import run_hil  # hil uses this module for its runs' floors
 
     setup = setup or TimingSetup()
     null = TimingSetup(**{**asdict(setup), "null_law": True})

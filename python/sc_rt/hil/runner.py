@@ -23,12 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.bus.auth import load_key, open_bus
-from sc_rt.bus.emulator import Emulator
-from sc_rt.bus.external import ExternalController, python_controller_command
-from sc_rt.bus.floor import TimingSetup, compare_to_floor, floor_for
-from sc_rt.bus.lcmio import channel, free_port_url, lcm_binary, open_lcm
-from sc_rt.bus.sensorpub import SENT_COUNTERS
+from sc_rt.wire.auth import load_key, open_bus
+from sc_rt.emulator.process import Emulator
+from sc_rt.hil.external import ExternalController, python_controller_command
+from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
+from sc_rt.wire.lcmio import channel, free_port_url, lcm_binary, open_lcm
+from sc_rt.emulator.sensorpub import SENT_COUNTERS
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
 from sc_rt.pylaw import is_python_law
@@ -183,7 +183,7 @@ def log_missing(path: Path, prefix: str, rows: int, sent: dict[str, int] | None 
     emulator sent, numbered from 0): how many of those messages the log lacks
     (by count of distinct seqs; re-sent ones count once). Zero everywhere for
     a complete log."""
-    from sc_rt.bus.lcmlog import LogDamaged, read_events
+    from sc_rt.logs.lcmlog import LogDamaged, read_events
 
     sent = {c: n for c, n in (sent or {}).items() if n}
     want = {prefix + c: set() for c in ("SCRT_STATE", "SCRT_TRUTH", "SCRT_GUIDANCE", *sent)}
@@ -240,13 +240,13 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
             plots: bool = True, external: str | None = None, external_wait: bool = False,
             start_timeout: float | None = None, auth_key: str | Path | None = None,
             setup: TimingSetup | None = None, floor: dict | str | None = None) -> HilResult:
-    """A bench run. The controller is sc-rt-controller, or (bus/external.py)
+    """A bench run. The controller is sc-rt-controller, or (hil/external.py)
     ``external``: a command line started instead (a Python law ``law`` =
     "module:Class" runs as ``sc-rt controller``), or, with ``external_wait``,
     a controller started by hand that speaks the protocol (docs/PROTOCOL.md).
-    ``setup``: trigger, CPUs, the emulator's spin (bus/floor.py); ``floor``:
+    ``setup``: trigger, CPUs, the emulator's spin (hil/floor.py); ``floor``:
     the bench floor timing.json compares the run with (a dict, or "auto",
-    "cached", "measure": bus/floor.py ``floor_for``; None: none)."""
+    "cached", "measure": hil/floor.py ``floor_for``; None: none)."""
     if is_python_law(law):
         external, law = python_controller_command(law, realtime_priority), None
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)

@@ -24,7 +24,7 @@ from typing import Any
 import sc_rt_lcm
 
 from sc_rt import _core
-from sc_rt.bus.wire import decode_as, to_plain
+from sc_rt.wire.codec import decode_as, to_plain
 
 __all__ = ["GuidancePublisher", "ControllerPeers", "GUIDANCE_FP", "GUIDANCE_LAYOUT"]
 

@@ -1,7 +1,7 @@
 """Where the plant emulator's microseconds go (``timing.json``
 ``emulator_breakdown_us``), from the stamps its loop takes per row and the
 times of each state's publish and of its answer, kept per state seq in
-preallocated arrays (bus/emulator.py, bus/inbox.py)."""
+preallocated arrays (emulator/process.py, emulator/inbox.py)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """A run rebuilt from its log: one row per plant state (``plant_state_t.seq``),
-filled as the emulator filled it during the run (see bus/report.py's module
+filled as the emulator filled it during the run (see logs/report.py's module
 docstring for which message gives which field), so a lockstep run's record
 and metrics come back exactly. Also the run's parameters from the logged
 ``controller_config_t`` and the fault summary.
@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.bus.logread import LogData
-from sc_rt.bus.wire import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
+from sc_rt.logs.logread import LogData
+from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
 from sc_rt.results.run import RunMeta, empty_arrays
 from sc_rt.scenario.model import LAW_NAMES
 

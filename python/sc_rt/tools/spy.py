@@ -27,8 +27,8 @@ import numpy as np
 from sc_rt.scenario.model import LAW_NAMES
 from sc_rt.results.estimation import ARCSEC  # [rad]
 from sc_rt.results.metrics import json_safe
-from sc_rt.bus.auth import open_bus
-from sc_rt.bus.wire import decode_any, identify, numpy_dtype, to_plain
+from sc_rt.wire.auth import open_bus
+from sc_rt.wire.codec import decode_any, identify, numpy_dtype, to_plain
 
 __all__ = ["Spy", "ChannelStats", "main_loop"]
 
@@ -174,7 +174,7 @@ class Spy:
 
     def __init__(self, url: str, channels: str = ".*", window: float = 2.0, auth_key: bytes | None = None):
         self.url, self.pattern, self.window = url, channels, window
-        #: with a key only verified messages are shown; the others are counted here (bus/auth.py)
+        #: with a key only verified messages are shown; the others are counted here (wire/auth.py)
         self.auth_failed: Counter = Counter()
         self.lc = open_bus(url, auth_key, self.auth_failed)
         self.stats: dict[str, ChannelStats] = {}

@@ -1,4 +1,4 @@
-"""The plant emulator's receive side (bus/emulator.py): its LCM handlers and
+"""The plant emulator's receive side (emulator/process.py): its LCM handlers and
 what they keep per state seq.
 
 - ``Inbox``: per state seq k of the run's n rows, the first valid command
@@ -15,7 +15,7 @@ what they keep per state seq.
   commands and status come from one controller session at a time, a new one
   adopted only once the current one is lost; fault commands change the
   actuators when accepted; another plant, or another controller while ours
-  is alive, is a bench collision (bus/collision.py) that stops the run.
+  is alive, is a bench collision (emulator/collision.py) that stops the run.
 """
 
 from __future__ import annotations
@@ -30,9 +30,9 @@ from typing import Any, NamedTuple
 import numpy as np
 import sc_rt_lcm
 
-from sc_rt.bus.lcmio import channel
-from sc_rt.bus.loopstats import MISSING
-from sc_rt.bus.wire import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
+from sc_rt.wire.lcmio import channel
+from sc_rt.emulator.loopstats import MISSING
+from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
 from sc_rt.model.actuators import WheelFault
 
 __all__ = ["Inbox", "Receiver", "Cmd"]
@@ -72,7 +72,7 @@ def _cmd_of(v: tuple) -> Cmd:
 class Inbox:
     """Per state seq of a run of ``n`` rows: its command, its status and
     its publish times, preallocated (module docstring). The int64 times are
-    ``MISSING`` (bus/loopstats.py) where there is none."""
+    ``MISSING`` (emulator/loopstats.py) where there is none."""
 
     #: bytes per row: the command and the status as received, four int64 times, the status length
     BYTES_PER_ROW = _CMD_SIZE + _STATUS_SIZE + 4 * 8 + 4

@@ -17,8 +17,8 @@ from typing import Any
 import lcm
 import numpy as np
 
-from sc_rt.bus.lcmio import CHANNELS
-from sc_rt.bus.wire import TYPES, decode_any, decode_array, numpy_dtype
+from sc_rt.wire.lcmio import CHANNELS
+from sc_rt.wire.codec import TYPES, decode_any, decode_array, numpy_dtype
 
 __all__ = ["LogData", "read_log"]
 

@@ -33,9 +33,9 @@ import numpy as np
 import sc_rt_lcm
 
 from sc_rt import _core
-from sc_rt.bus.auth import open_bus
-from sc_rt.bus.lcmio import channel
-from sc_rt.bus.wire import decode_as
+from sc_rt.wire.auth import open_bus
+from sc_rt.wire.lcmio import channel
+from sc_rt.wire.codec import decode_as
 from sc_rt.pylaw import PACKED_SLICES as P, PyController
 
 __all__ = ["PyControllerProcess", "nearest_rank", "write_summary"]
@@ -72,7 +72,7 @@ class PyControllerProcess:
         self.session = secrets.randbits(62)
         self.plant_sessions: list[int] = []
         self.cnt: Counter = Counter()
-        self.lc = open_bus(url, auth_key, self.cnt)  # with a key: auth_failed in cnt (bus/auth.py)
+        self.lc = open_bus(url, auth_key, self.cnt)  # with a key: auth_failed in cnt (wire/auth.py)
         self.auth = auth_key is not None
         self.url = url
         self.lat: list[float] = []

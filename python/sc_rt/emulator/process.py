@@ -6,7 +6,7 @@ applies the newest valid ``wheel_cmd_t`` it holds (zero-order hold), with the
 scenario's saturation and faults, and records the run (docs/PROTOCOL.md).
 
 - lockstep: publish state k, wait for the command answering k (and the
-  controller's status for k from a controller that sends them: bus/peers.py),
+  controller's status for k from a controller that sends them: emulator/peers.py),
   apply it over one control period. The same loop and arithmetic as
   ``sim.simulate(engine="python")``: same numbers.
 - realtime: a tick every 1/rate s of wall clock divided by the time scale;
@@ -17,12 +17,12 @@ scenario's saturation and faults, and records the run (docs/PROTOCOL.md).
 Both loops publish the next state first, then the truth of the row just
 applied (the controller computes while the emulator records), integrate with
 the C++ plant twin (bitwise the Python model; ``cpp_plant=False`` runs the
-Python one: bus/twin.py), and run with the garbage collector frozen
-(bus/rtproc.py). Real time sleeps in ``select`` until ``spin_us`` before
+Python one: emulator/twin.py), and run with the garbage collector frozen
+(emulator/rtproc.py). Real time sleeps in ``select`` until ``spin_us`` before
 the tick and polls from there.
 
 The publishing side (guidance, state, truth, the sensors' samples) is
-bus/outbox.py; the receive side is bus/inbox.py: the handlers (bad input never stops the
+emulator/outbox.py; the receive side is emulator/inbox.py: the handlers (bad input never stops the
 loop: every message is decoded under guard and counted by kind,
 ``counters``) and, per state seq, the commands, statuses and publish times,
 preallocated for the run's rows when the emulator is made, so that its
@@ -41,16 +41,16 @@ from typing import Any, Callable
 
 import numpy as np
 
-from sc_rt.bus.auth import open_bus
-from sc_rt.bus.collision import CollisionGuard
-from sc_rt.bus.inbox import Inbox, Receiver
-from sc_rt.bus.outbox import Publisher
-from sc_rt.bus.lcmio import channel
-from sc_rt.bus.loopstats import loop_breakdown
-from sc_rt.bus.peers import ControllerPeers, GuidancePublisher
-from sc_rt.bus.rtproc import RealtimeThread
-from sc_rt.bus.sensorpub import SensorPublisher
-from sc_rt.bus.twin import PlantTwin
+from sc_rt.wire.auth import open_bus
+from sc_rt.emulator.collision import CollisionGuard
+from sc_rt.emulator.inbox import Inbox, Receiver
+from sc_rt.emulator.outbox import Publisher
+from sc_rt.wire.lcmio import channel
+from sc_rt.emulator.loopstats import loop_breakdown
+from sc_rt.emulator.peers import ControllerPeers, GuidancePublisher
+from sc_rt.emulator.rtproc import RealtimeThread
+from sc_rt.emulator.sensorpub import SensorPublisher
+from sc_rt.emulator.twin import PlantTwin
 from sc_rt.results.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
@@ -60,7 +60,7 @@ __all__ = ["Emulator", "BYTES_PER_ROW"]
 #: the loop's monotonic stamps per row (``Emulator._stamps``)
 _STAMPS = 5
 #: what the emulator holds per row besides the Run, preallocated at start:
-#: the inbox (bus/inbox.py) and the loop's stamps (cli/validate.py's estimate)
+#: the inbox (emulator/inbox.py) and the loop's stamps (cli/validate.py's estimate)
 BYTES_PER_ROW = Inbox.BYTES_PER_ROW + _STAMPS * 8
 
 
@@ -84,10 +84,10 @@ class Emulator(Receiver, Publisher):
         self.time_scale = time_scale
         #: real time: poll (no sleep) for the last spin_us before each tick
         self._spin_ns = int(max(0.0, spin_us) * 1e3)
-        #: the emulator thread's CPU, SCHED_FIFO + mlockall, gc (bus/rtproc.py)
+        #: the emulator thread's CPU, SCHED_FIFO + mlockall, gc (emulator/rtproc.py)
         self._rt = RealtimeThread(freeze_gc=freeze_gc, cpu=cpu, fifo=realtime_priority)
         self.cpp_plant = cpp_plant
-        #: the row's arithmetic: the C++ plant twin, or the Python model (bus/twin.py)
+        #: the row's arithmetic: the C++ plant twin, or the Python model (emulator/twin.py)
         self.twin = PlantTwin(scn.plant, cpp_plant)
         #: per row, monotonic ns: [tick or answer, integrated, state published, truth started, truth done]
         self._stamps: np.ndarray | None = None
@@ -105,7 +105,7 @@ class Emulator(Receiver, Publisher):
         self.stale_periods = (scn.controller.safety.stale_periods if stale_periods is None
                               else stale_periods)
         self.wait_status = wait_status
-        #: the controllers' announcements and status senders (bus/peers.py):
+        #: the controllers' announcements and status senders (emulator/peers.py):
         #: lockstep waits for a status only from a controller that sends them
         self.peers = ControllerPeers(wait_status)
         #: [s] wait this long for a first answer to state 0 before the run
@@ -119,7 +119,7 @@ class Emulator(Receiver, Publisher):
         self.stopped: str | None = None
         self.url = url
         self.counters: Counter = Counter()
-        #: with auth_key every message carries an HMAC trailer; failures count as auth_failed (bus/auth.py)
+        #: with auth_key every message carries an HMAC trailer; failures count as auth_failed (wire/auth.py)
         self.lc = open_bus(url, auth_key, self.counters)
         self.act = scn.actuators
         self._ch_state = channel("SCRT_STATE", prefix)
@@ -128,7 +128,7 @@ class Emulator(Receiver, Publisher):
         self._gaps: list[tuple[float, float]] = []
         self._gap_start: float | None = None
         self.session = secrets.randbits(62)
-        #: a second bench on our URL and prefix stops the run, marked invalid (bus/collision.py)
+        #: a second bench on our URL and prefix stops the run, marked invalid (emulator/collision.py)
         self.guard = CollisionGuard(url, prefix, self.session, alive_s=max(
             0.5, self.stale_periods / self.rate / time_scale))
         self.invalid: str | None = None
@@ -137,9 +137,9 @@ class Emulator(Receiver, Publisher):
         self._t_now = 0.0
         self.faults_applied: list[dict[str, Any]] = []
         #: the handlers and, per state seq of the run's rows, its command,
-        #: status and publish times, preallocated (bus/inbox.py)
+        #: status and publish times, preallocated (emulator/inbox.py)
         self._init_receiver(grid(scn)[0] + 1)
-        #: a [sensors] scenario: the sensor models, publishing their samples (bus/sensorpub.py),
+        #: a [sensors] scenario: the sensor models, publishing their samples (emulator/sensorpub.py),
         #: and the gyro's true bias per row (the truth's gyro_bias, the run's bias_true)
         self.sensors = (SensorPublisher(scn, self.session, self.lc.publish, prefix)
                         if scn.sensors is not None else None)
@@ -184,11 +184,11 @@ class Emulator(Receiver, Publisher):
 
     @property
     def scheduler(self) -> str:
-        """What the emulator's thread got (bus/rtproc.py)."""
+        """What the emulator's thread got (emulator/rtproc.py)."""
         return self._rt.description
 
     def breakdown(self) -> dict[str, Any]:
-        """Where each row's microseconds went (bus/loopstats.py)."""
+        """Where each row's microseconds went (emulator/loopstats.py)."""
         i = self.inbox
         return loop_breakdown(self._stamps, self.mode, i.cmd_utime, i.pub_wall_us, i.cmd_rx, i.pub_ns)
 

@@ -1,5 +1,5 @@
 """The plant emulator's arithmetic of a row and the bytes of its messages
-(bus/emulator.py runs the loops).
+(emulator/process.py runs the loops).
 
 - ``PlantTwin``: ``n_sub`` RK4 steps with the command held, the C++ plant
   twin (``_core.plant_rk4_step``, bitwise the Python
@@ -67,7 +67,7 @@ class PlantTwin:
     def integrate(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, n_sub: int, h: float,
                   sensors=None, i0: int = 0) -> np.ndarray:
         """n_sub RK4 steps of h from t with u_cmd held. ``sensors`` (a
-        bus.sensorpub.SensorPublisher, the row's first plant step ``i0``):
+        emulator.sensorpub.SensorPublisher, the row's first plant step ``i0``):
         ticked before each sub-step j > 0 whose plant step i0 + j it names
         (``next_tick``), at t + j h with the state then, as the offline loop
         does (sim/sensed.py)."""

@@ -21,7 +21,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any, Callable
 
-from sc_rt.bus.lcmio import open_lcm
+from sc_rt.wire.lcmio import open_lcm
 
 __all__ = ["TAG_SIZE", "load_key", "message_tag", "verified_payload", "AuthLCM", "open_bus"]
 

@@ -1,0 +1,1 @@
+"""The Python controller process (``sc-rt controller --law module:Class``)."""

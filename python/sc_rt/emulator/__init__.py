@@ -1,0 +1,1 @@
+"""The plant emulator process (``sc-rt emulator``): receiver, publisher, plant twin, sensors, peers and its loop."""

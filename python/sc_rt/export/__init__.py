@@ -1,0 +1,1 @@
+"""``sc-rt export``: a log to MCAP for Foxglove and PlotJuggler."""
