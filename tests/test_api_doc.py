@@ -4,7 +4,6 @@ order, in one namespace (OUT is a temporary directory)."""
 from __future__ import annotations
 
 import re
-import subprocess
 import sys
 from pathlib import Path
 

@@ -90,8 +90,6 @@ def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measureme
     # (Lockstep runs as fast as it can, thousands of steps a second: lcm-logger's
     # subscription queue of 30 messages can overflow in a burst, which the run
     # reports as log_missing and a warning: docs/HIL.md, "A complete log".)
-    from sc_rt.logs.logread import read_log
-    from sc_rt.logs.rebuild import sensor_summary
 
     d = read_log(out / "run.lcmlog")
     ss = sensor_summary(d)

@@ -1,7 +1,10 @@
 """The package's imports run one way (pyproject.toml, [tool.importlinter]):
-model -> scenario -> results -> sim | bus -> studies -> cli. Checked with
-import-linter on the real tree, and shown to catch a violation: a copy of
-the package in which the plant model imports the CLI must break it."""
+model | wire -> scenario -> results -> pylaw -> sim | emulator | controller |
+logs | tools -> export -> hil -> studies -> cli. Checked with import-linter
+on the real tree, and shown to catch violations: a copy of the package in
+which the plant model imports the CLI, or in which one of the peer packages
+(the emulator) imports another (the logs), must break it. Cycles between
+modules of one package: tests/test_import_cycles.py."""
 
 from __future__ import annotations
 
@@ -56,3 +59,12 @@ def test_layers_contract_catches_a_lower_layer_importing_a_higher_one(tmp_path):
     r = _lint(_contract_config(tmp_path, dst.name), tmp_path, tmp_path)
     assert r.returncode != 0
     assert "BROKEN" in r.stdout and f"{dst.name}.model.plant -> {dst.name}.cli" in r.stdout, r.stdout
+
+
+def test_layers_contract_keeps_peer_packages_independent(tmp_path):
+    dst = _copy(tmp_path, "scrt_layers_peer")
+    twin = dst / "emulator" / "twin.py"
+    twin.write_text(twin.read_text() + f"\n\ndef _oops():\n    from {dst.name}.logs import lcmlog  # noqa\n")
+    r = _lint(_contract_config(tmp_path, dst.name), tmp_path, tmp_path)
+    assert r.returncode != 0
+    assert "BROKEN" in r.stdout and f"{dst.name}.emulator.twin -> {dst.name}.logs.lcmlog" in r.stdout, r.stdout

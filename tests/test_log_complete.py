@@ -6,7 +6,7 @@ from __future__ import annotations
 import lcm
 import sc_rt_lcm
 
-from sc_rt.hil.runner import log_missing
+from sc_rt.logs.timing import log_missing
 
 
 def _write(path, seqs_state, seqs_truth, seqs_guidance=(), prefix=""):

@@ -19,7 +19,7 @@ from sc_rt import _core
 from sc_rt.results.metrics import fill_tracking_errors
 from sc_rt.results.run import Run
 from sc_rt.scenario.model import ScenarioError
-from sc_rt.scenario.reader import load_scenario
+from sc_rt.scenario.reader import load_scenario, with_run
 
 ROOT = Path(__file__).resolve().parent.parent
 SLEW = ROOT / "scenarios" / "slew_rest_to_rest.toml"
@@ -431,7 +431,7 @@ def test_a_longer_run_than_the_file_is_refused_on_override(tmp_path):
                ["sigma_x", "sigma_y", "sigma_z"])
     s = load_scenario(_scenario(tmp_path, 'kind = "file"\nfile = "ref.csv"'))
     with pytest.raises(ScenarioError) as exc:
-        s.with_run(duration=20.0)
+        with_run(s, duration=20.0)
     (issue,) = exc.value.errors
     assert issue.key == "run.duration" and "must cover the run, 0 .. 20 s" in issue.message
 

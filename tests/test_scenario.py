@@ -19,7 +19,7 @@ from sc_rt_lcm import controller_config_t
 from sc_rt import _core
 from sc_rt.model.actuators import WheelFault
 from sc_rt.scenario.model import LAWS, ControllerParams, Scenario, ScenarioError
-from sc_rt.scenario.reader import load_scenario
+from sc_rt.scenario.reader import load_scenario, with_run
 from sc_rt.scenario.schema import key_lines
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
@@ -272,14 +272,14 @@ def test_msg_overrides_and_their_errors():
 
 def test_with_run_overrides():
     s = load_scenario(FAULTS)
-    r = s.with_run(controller="pd", control_rate_hz=5, duration=None)
+    r = with_run(s, controller="pd", control_rate_hz=5, duration=None)
     assert (r.run.controller, r.run.control_rate_hz, r.run.duration) == ("pd", 5.0, 300.0)
     assert r.run.plant_substeps == 2
     assert r.core_config().law == "pd"
     assert s.run.controller == "dsc-ppc"  # the original is unchanged
     assert r.actuators is s.actuators and r.controller is s.controller
     with pytest.raises(ScenarioError) as e:
-        s.with_run(control_rate_hz=3.0, duration=-1.0, dt=0.2)  # three problems
+        with_run(s, control_rate_hz=3.0, duration=-1.0, dt=0.2)  # three problems
     assert {(x.key, x.line) for x in e.value.errors} == {
         ("run.duration", 0), ("run.plant_step", 0), ("run.dt", 0)}  # fmt: skip
     text = str(e.value)

@@ -12,9 +12,12 @@ the command line (``sc-rt``). The Python API (docs/API.md)::
     run["sigma_BD"]                                 # (rows, 3) array, see sc_rt.FIELDS
 
 Layers (imports run one way, checked by tests/test_layers.py): ``model``
-(plant, wheels) -> ``scenario`` -> ``results`` (the Run record, metrics,
-figures) -> ``sim`` (offline engines) | ``bus`` (LCM: emulator, HIL, logs)
--> ``studies`` (design, reproduce, Monte Carlo) -> ``cli``.
+(plant, wheels) | ``wire`` (LCM transport and codecs) -> ``scenario`` ->
+``results`` (the Run record, metrics, figures) -> ``pylaw`` -> ``sim``
+(offline engines) | ``emulator`` (the plant process) | ``controller`` (the
+Python controller process) | ``logs`` (log reading, report) | ``tools``
+(spy, lcm-spy, fault) -> ``export`` (MCAP) -> ``hil`` (orchestration) ->
+``studies`` (design, reproduce, Monte Carlo) -> ``cli``.
 """
 
 import os

@@ -84,16 +84,17 @@ def floor_table(f: dict) -> str:
 
 def cmd_floor(args: argparse.Namespace) -> int:
     from sc_rt.hil.floor import floor_for, measure_floor
+    from sc_rt.hil.runner import run_hil
     from sc_rt.cli.common import scenario_arg
 
     scn = scenario_arg(args.scenario)
     setup = timing_setup(args)
     if args.no_cache:
-        f = measure_floor(scn, mode=args.mode, control_rate_hz=args.control_rate, duration=args.duration,
+        f = measure_floor(scn, run=run_hil, mode=args.mode, control_rate_hz=args.control_rate, duration=args.duration,
                           realtime_priority=args.realtime_priority, setup=setup, rtt_count=args.rtt_count)
         f["source"] = "measured (not cached)"
     else:
-        f = floor_for(scn, mode=args.mode, control_rate_hz=args.control_rate,
+        f = floor_for(scn, run=run_hil, mode=args.mode, control_rate_hz=args.control_rate,
                       realtime_priority=args.realtime_priority, setup=setup, policy="measure",
                       duration=args.duration, rtt_count=args.rtt_count)
     if args.json:

@@ -23,7 +23,7 @@ import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from sc_rt.wire.lcmio import free_port_url
 from sc_rt.scenario.model import Scenario
@@ -110,21 +110,21 @@ def lcm_round_trip(count: int = 2000, url: str | None = None, fifo: bool = False
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def measure_floor(scn: Scenario, *, mode: str = "realtime", control_rate_hz: float | None = None,
+def measure_floor(scn: Scenario, *, run: Callable[..., Any], mode: str = "realtime", control_rate_hz: float | None = None,
                   duration: float = DEFAULT_FLOOR_S, realtime_priority: bool = False,
                   setup: TimingSetup | None = None, rtt_count: int = 2000,
                   lcm_url: str | None = None) -> dict[str, Any]:
     """A null-controller run of ``duration`` s and the LCM round trip; the
-    floor's figures (p50/p99/max per series), its counts and its conditions."""
-    from sc_rt.hil.runner import run_hil  # hil uses this module for its runs' floors
-
+    floor's figures (p50/p99/max per series), its counts and its conditions.
+    ``run`` is ``sc_rt.hil.runner.run_hil``, passed in by its callers (the
+    runner asks this module for its runs' floors: no import cycle)."""
     setup = setup or TimingSetup()
     null = TimingSetup(**{**asdict(setup), "null_law": True})
     rate = control_rate_hz or scn.run.control_rate_hz
     rtt = lcm_round_trip(rtt_count, fifo=realtime_priority)
     with tempfile.TemporaryDirectory(prefix="sc-rt-floor-") as d:
         t0 = time.time()
-        res = run_hil(scn, out=Path(d), mode=mode, control_rate_hz=rate, duration=duration,
+        res = run(scn, out=Path(d), mode=mode, control_rate_hz=rate, duration=duration,
                       realtime_priority=realtime_priority, plots=False, setup=null, lcm_url=lcm_url)
         t = res.timing
     if res.stopped:  # interrupted (or the logger died): no floor, and no run after it
@@ -145,7 +145,7 @@ def measure_floor(scn: Scenario, *, mode: str = "realtime", control_rate_hz: flo
     return out
 
 
-def floor_for(scn: Scenario, *, mode: str, control_rate_hz: float | None, realtime_priority: bool,
+def floor_for(scn: Scenario, *, run: Callable[..., Any], mode: str, control_rate_hz: float | None, realtime_priority: bool,
               setup: TimingSetup | None = None, policy: str = "auto", duration: float = DEFAULT_FLOOR_S,
               max_age_s: float = DEFAULT_MAX_AGE_S, rtt_count: int = 2000) -> dict[str, Any]:
     """The floor a run is compared with. ``policy``: ``measure`` (now, then
@@ -165,7 +165,7 @@ def floor_for(scn: Scenario, *, mode: str, control_rate_hz: float | None, realti
                 return {**f, "source": "cached", "file": str(path), "age_s": age}
         except (OSError, ValueError):
             pass  # unreadable: measure again
-    f = measure_floor(scn, mode=mode, control_rate_hz=rate, duration=duration,
+    f = measure_floor(scn, run=run, mode=mode, control_rate_hz=rate, duration=duration,
                       realtime_priority=realtime_priority, setup=setup, rtt_count=rtt_count)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -21,13 +21,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from sc_rt.wire.auth import load_key, open_bus
 from sc_rt.emulator.process import Emulator
 from sc_rt.hil.external import ExternalController, python_controller_command
 from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
 from sc_rt.wire.lcmio import channel, free_port_url, lcm_binary, open_lcm
+from sc_rt.logs.timing import log_missing, timing_report
 from sc_rt.emulator.sensorpub import SENT_COUNTERS
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
 from sc_rt.results.output import write_run
@@ -36,7 +36,7 @@ from sc_rt.results.run import Run, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
 
-__all__ = ["HilResult", "run_hil", "controller_binary", "percentiles", "Stopper", "child_kwargs"]
+__all__ = ["HilResult", "run_hil", "controller_binary", "Stopper", "child_kwargs"]
 
 
 def controller_binary() -> str:
@@ -49,14 +49,6 @@ def controller_binary() -> str:
         raise FileNotFoundError("sc-rt-controller not found: install sc-rt (make install)")
     return found
 
-
-def percentiles(v: np.ndarray) -> dict[str, float | None]:
-    v = np.asarray(v, float)
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return {"p50": None, "p99": None, "max": None}
-    return {"p50": float(np.percentile(v, 50)), "p99": float(np.percentile(v, 99)),
-            "max": float(v.max())}
 
 
 @dataclass
@@ -177,27 +169,6 @@ def _lift_logger(pid: int) -> str:
     return f"SCHED_FIFO {LOGGER_FIFO_PRIORITY} ({lifted} threads)" if lifted else "SCHED_OTHER"
 
 
-def log_missing(path: Path, prefix: str, rows: int, sent: dict[str, int] | None = None) -> dict[str, int]:
-    """Per channel the emulator publishes once per row (state, truth,
-    guidance), and per sensor channel in ``sent`` (channel -> samples the
-    emulator sent, numbered from 0): how many of those messages the log lacks
-    (by count of distinct seqs; re-sent ones count once). Zero everywhere for
-    a complete log."""
-    from sc_rt.logs.lcmlog import LogDamaged, read_events
-
-    sent = {c: n for c, n in (sent or {}).items() if n}
-    want = {prefix + c: set() for c in ("SCRT_STATE", "SCRT_TRUTH", "SCRT_GUIDANCE", *sent)}
-    try:
-        for _n, _t, ch, data in read_events(path, partial=True):
-            s = want.get(ch.decode("utf-8", "replace"))
-            if s is not None and len(data) >= 24:
-                s.add(int.from_bytes(data[16:24], "big", signed=True))  # the seq after fingerprint, utime
-    except (LogDamaged, OSError):
-        return {c[len(prefix):]: sent.get(c[len(prefix):], rows) for c in want}
-    seen = {c[len(prefix):]: len(s) for c, s in want.items()}
-    return {c: max(0, sent.get(c, rows) - n) if n or c != "SCRT_GUIDANCE" else 0 for c, n in seen.items()}
-
-
 def _wait_logged(url: str, path: Path, logger: subprocess.Popen, channel_name: str, payload: bytes,
                  timeout_s: float = 10.0) -> bool:
     """Publish an end marker and wait until lcm-logger has written it: the
@@ -252,7 +223,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
     setup = setup or TimingSetup()
     if isinstance(floor, str):  # the floor's own short run first, before this run's children
-        floor = floor_for(scn, mode=mode, control_rate_hz=None, realtime_priority=realtime_priority,
+        floor = floor_for(scn, run=run_hil, mode=mode, control_rate_hz=None, realtime_priority=realtime_priority,
                           setup=setup, policy=floor)
 
     url = lcm_url or free_port_url(ttl=0)
@@ -413,45 +384,4 @@ def _bench_timing(res: Run, summary: dict[str, Any], emu: Emulator, setup: Timin
         "controller_fresh_fraction": 1.0 - int(summary.get("stale_states", 0)) / steps if steps else None,
         "emulator_breakdown_us": emu.breakdown(),
         "load_avg": list(os.getloadavg()),
-    }
-
-
-def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, Any]:
-    """timing.json: the controller's own measurements (from its status
-    messages and exit summary) and the emulator's (state-to-command latency)."""
-    c = res.counters
-    mode, rate, rows = res.meta.mode, res.meta.control_rate_hz, len(res)
-    ctl_rej = summary.get("rejected", {})
-    return {
-        "mode": mode,
-        "control_rate_hz": rate,
-        "steps": int(summary.get("steps", rows)),
-        "deadline_misses": int(summary.get("deadline_misses", 0)),
-        "wake_lateness_us": percentiles(res["wake_lateness_us"]) if mode == "realtime"
-        else {"p50": None, "p99": None, "max": None},
-        "compute_us": percentiles(res["compute_us"]),
-        "state_to_cmd_latency_us": percentiles(res["latency_us"]),
-        "state_age_us": percentiles(res["state_age_us"]),
-        "stale_states": int(summary.get("stale_states", 0)),
-        "dropped": int(c.get("cmd_timeout", 0) + c.get("cmd_stale_ticks", 0)),
-        "malformed": int(ctl_rej.get("malformed", 0) + ctl_rej.get("trailing_bytes", 0)
-                         + c.get("malformed", 0) + c.get("trailing_bytes", 0)),
-        "scheduler": summary.get("scheduler", "unknown"),
-        "rows": rows,
-        "wall_s": wall,
-        "steps_per_s": rows / wall if wall > 0 else None,
-        "emulator_tick_lateness_us": percentiles(res["tick_lateness_us"]) if mode == "realtime"
-        else {"p50": None, "p99": None, "max": None},
-        "controller_rejected": ctl_rej,
-        "controller_safe_steps": int(summary.get("safe_steps", 0)),
-        "emulator_counters": dict(c),
-        "command_gaps_s": [list(g) for g in res.gaps],
-        "faults_applied": res.faults_applied,
-        # how the run was scheduled and how fresh it was: filled by sc-rt hil
-        # (_bench_timing); a log does not say (sc-rt report: None)
-        "trigger": summary.get("trigger"), "null_law": summary.get("null_law"), "timing_setup": None,
-        "emulator_scheduler": None, "fresh_fraction": None,
-        "controller_fresh_fraction": (1.0 - int(summary.get("stale_states", 0)) / int(summary["steps"])
-                                      if summary.get("steps") else None),
-        "emulator_breakdown_us": None, "load_avg": None,
     }

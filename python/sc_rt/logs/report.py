@@ -40,6 +40,7 @@ import numpy as np
 
 from sc_rt.wire.lcmio import lcm_binary
 from sc_rt.logs.logread import LogData, read_log
+from sc_rt.logs.timing import log_missing, timing_report
 from sc_rt.logs.rebuild import (Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild,
                                run_params, sensor_summary)
 from sc_rt.results.metrics import fill_tracking_errors, finish_run
@@ -50,8 +51,6 @@ __all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command"]
 
 
 def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
-    from sc_rt.hil.runner import timing_report
-
     stale = int(np.sum(run["cmd_stale"]))
     run.counters = {"cmd_timeout" if r.mode == "lockstep" else "cmd_stale_ticks": stale,
                     "malformed": d.undecodable}
@@ -63,8 +62,6 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     # sc-rt hil's end marker in the log: everything published before it was logged
     out["log_complete"] = d.skipped.get(d.prefix + "SCRT_HIL_END", 0) > 0
     out["logger_scheduler"] = "unknown (not in the log)"
-    from sc_rt.hil.runner import log_missing
-
     out["log_missing"] = log_missing(d.path, d.prefix, len(run))
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"

@@ -46,7 +46,6 @@ from sc_rt.scenario.guidance import (
     GuidanceParams,
     HoldGuidance,
     SlewGuidance,
-    coverage_problem,
 )
 
 __all__ = [
@@ -240,33 +239,6 @@ class Scenario:
     montecarlo: Any = None
     # the [sensors] tables and [controller] measurement (sc_rt.scenario.sensors.Sensors), None without [sensors]
     sensors: Any = None
-
-    def with_run(self, **changes: Any) -> Scenario:
-        """A copy with run fields replaced (CLI overrides), validated like the file.
-
-        ``changes`` are RunParams fields (``controller``, ``control_rate_hz``,
-        ``duration``, ``plant_step``); a value of None keeps the current one.
-        Raises ScenarioError naming the override.
-        """
-        changes = {k: v for k, v in changes.items() if v is not None}
-        if isinstance(changes.get("controller"), str):  # a plugin file: relative to the working directory
-            changes["controller"] = law_spec(changes["controller"], Path.cwd())
-        doc = Doc(f"{self.path} (override)", {})
-        from sc_rt.scenario.reader import read_run  # the reader builds on these types
-
-        run = read_run(Table(doc, "run", {**dataclasses.asdict(self.run), **changes}))
-        if run is not None and (problem := coverage_problem(self.guidance, run.duration)):
-            doc.error("run.duration", run.duration, problem)  # a reference file too short
-        if doc.errors:
-            raise ScenarioError(doc.path, doc.errors)
-        scn = dataclasses.replace(self, run=run)
-        if run.controller != self.run.controller:
-            from sc_rt.scenario.reader import check_law
-
-            check_law(doc, scn, "run.controller", "controller.params")
-            if doc.errors:
-                raise ScenarioError(doc.path, doc.errors)
-        return scn
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None

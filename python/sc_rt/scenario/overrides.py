@@ -10,6 +10,7 @@ from typing import NamedTuple
 import numpy as np
 
 from sc_rt.scenario.model import Scenario
+from sc_rt.scenario.reader import with_run
 
 __all__ = ["Grid", "grid", "initial_state", "with_overrides"]
 
@@ -37,7 +38,7 @@ def with_overrides(scn: Scenario, *, law: str | None = None, control_rate_hz: fl
             plant_step = period / math.ceil(period / scn.run.plant_step - 1e-9)
         except (ValueError, ZeroDivisionError, OverflowError, TypeError):
             plant_step = None  # the rate itself is invalid: with_run names it
-    return scn.with_run(controller=law, control_rate_hz=control_rate_hz, duration=duration,
+    return with_run(scn, controller=law, control_rate_hz=control_rate_hz, duration=duration,
                         plant_step=plant_step)
 
 

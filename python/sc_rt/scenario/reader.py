@@ -32,9 +32,7 @@ from sc_rt.scenario.schema import (
     read_only,
     read_values,
 )
-from sc_rt.scenario.guidance import (
-    read_guidance,
-)
+from sc_rt.scenario.guidance import coverage_problem, read_guidance
 from sc_rt.scenario.sensors import read_sensors
 from sc_rt.scenario.shipped import resolve
 
@@ -42,7 +40,7 @@ from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, PLUGIN_PREFIX, Controlle
                                   NesoParams, PdGains, PpcParams, RftGains, RunParams, SafetyLimits, Scenario,
                                   law_problem, law_spec)
 
-__all__ = ["load_scenario", "scenario_from_data", "read_run", "check_law"]
+__all__ = ["load_scenario", "scenario_from_data", "read_run", "check_law", "with_run"]
 
 _FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
 
@@ -370,3 +368,27 @@ def load_scenario(path: str | Path) -> Scenario:
     if doc.errors:
         raise ScenarioError(path, doc.errors)
     return scenario
+
+
+def with_run(scn: Scenario, **changes: Any) -> Scenario:
+    """A copy with run fields replaced (CLI overrides), validated like the file.
+
+    ``changes`` are RunParams fields (``controller``, ``control_rate_hz``,
+    ``duration``, ``plant_step``); a value of None keeps the current one.
+    Raises ScenarioError naming the override.
+    """
+    changes = {k: v for k, v in changes.items() if v is not None}
+    if isinstance(changes.get("controller"), str):  # a plugin file: relative to the working directory
+        changes["controller"] = law_spec(changes["controller"], Path.cwd())
+    doc = Doc(f"{scn.path} (override)", {})
+    run = read_run(Table(doc, "run", {**dataclasses.asdict(scn.run), **changes}))
+    if run is not None and (problem := coverage_problem(scn.guidance, run.duration)):
+        doc.error("run.duration", run.duration, problem)  # a reference file too short
+    if doc.errors:
+        raise ScenarioError(doc.path, doc.errors)
+    new = dataclasses.replace(scn, run=run)
+    if run.controller != scn.run.controller:
+        check_law(doc, new, "run.controller", "controller.params")
+        if doc.errors:
+            raise ScenarioError(doc.path, doc.errors)
+    return new

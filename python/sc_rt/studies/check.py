@@ -27,7 +27,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.scenario.model import Scenario, ScenarioError
-from sc_rt.scenario.reader import load_scenario
+from sc_rt.scenario.reader import load_scenario, with_run
 
 __all__ = ["Finding", "check_scenario", "exit_code", "LEVELS", "PAPER_C"]
 
@@ -64,7 +64,7 @@ def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | No
     try:
         scn = load_scenario(path)
         if law is not None:
-            scn = scn.with_run(controller=law)
+            scn = with_run(scn, controller=law)
     except ScenarioError as e:
         return [Finding("error", i.key, "" if i.value is None else str(i.value), i.message)
                 for i in e.errors] or [Finding("error", "", "", str(e))]
@@ -109,7 +109,7 @@ def _check_noise_floor(scn: Scenario, law: str) -> list[Finding]:
             f"(MRP {_fmt(nf.rms_mrp)}); bound min(dmin, dmax) chiinf / ({NOISE_SIGMAS:g} RMS) = {_fmt(nf.margin)}")
     out = []
     if low.size:
-        out.append(Finding("warning", key, value, f"chiinf is below the sensor noise floor on axis "
+        out.append(Finding("warning", key, value, "chiinf is below the sensor noise floor on axis "
                            + ", ".join("xyz"[i] for i in low) + ": " + text))
     else:
         out.append(Finding("ok", key, value, text))

@@ -17,8 +17,6 @@ from pathlib import Path
 import numpy as np
 import sc_rt_lcm
 
-from sc_rt.results.run import FIELDS
-
 __all__ = ["TYPES", "BY_FINGERPRINT", "identify", "decode_any", "numpy_dtype", "decode_array",
            "lcm_sources", "to_plain", "decode_as", "DECODE_ERRORS", "STATUS_RUN_FIELDS", "STATUS_TIMING_FIELDS",
            "STATUS_NAV_FIELDS"]
@@ -44,18 +42,24 @@ _NP = {"int8_t": "i1", "int16_t": ">i2", "int32_t": ">i4", "int64_t": ">i8", "by
 
 _DTYPES: dict[type, np.dtype | None] = {}
 
-#: Run fields a controller_status_t carries for the state it used (the
-#: command's own fields, u_cmd, u_sat, flags and mode, come from wheel_cmd_t).
-STATUS_RUN_FIELDS: tuple[str, ...] = tuple(
-    f.name for f in FIELDS if f.source == "controller" and f.name in sc_rt_lcm.controller_status_t.__slots__
-    and f.name not in ("u_cmd", "u_sat", "flags"))
+# The status-to-run mapping, written out (not matched by name): a field
+# renamed on either side fails tests/test_status_map.py instead of vanishing.
+#: Run fields a controller_status_t carries for the state it used, same name
+#: on both sides (the command's own fields, u_cmd, u_sat, flags and mode,
+#: come from wheel_cmd_t).
+STATUS_RUN_FIELDS: tuple[str, ...] = ("sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam", "e1", "e2", "vs")
 #: The estimator's run fields in controller_status_t (a [sensors] run; its
 #: nav_flags are OR-ed into the row's flags, as the offline loop does).
-STATUS_NAV_FIELDS: tuple[str, ...] = tuple(
-    f.name for f in FIELDS if f.source == "estimator" and f.name in sc_rt_lcm.controller_status_t.__slots__)
+STATUS_NAV_FIELDS: tuple[str, ...] = ("sigma_BN_est", "bias_est", "P_diag", "innovation", "nis")
 #: The controller's own timing measurements in controller_status_t.
-STATUS_TIMING_FIELDS: tuple[str, ...] = tuple(
-    f.name for f in FIELDS if f.source == "timing" and f.name in sc_rt_lcm.controller_status_t.__slots__)
+STATUS_TIMING_FIELDS: tuple[str, ...] = ("wake_lateness_us", "compute_us", "state_age_us")
+#: Controller-sourced run fields a status does NOT carry, and where they come
+#: from instead.
+STATUS_NOT_CARRIED: dict[str, str] = {
+    "u_cmd": "wheel_cmd_t (the command itself)", "u_sat": "wheel_cmd_t", "flags": "wheel_cmd_t",
+    "ctrl_mode": "wheel_cmd_t", "latency_us": "the emulator's receipt time of the command",
+    "tick_lateness_us": "the emulator's own loop", "state_log_us": "lcm-logger's receive time of the state",
+}
 
 
 def identify(data: bytes) -> type | None:

@@ -257,7 +257,7 @@ def format_noise_floor(nf: NoiseFloor | None, scn: Scenario) -> str:
     if not nf.stable:
         lines.append("  the linearised loop is unstable at this chiinf: no floor (see the stability limit)")
     elif np.any(nf.margin < 1):
-        lines.append(f"  chiinf is BELOW the noise floor on axis "
+        lines.append("  chiinf is BELOW the noise floor on axis "
                      + ", ".join("xyz"[i] for i in np.flatnonzero(nf.margin < 1)))
     if nf.u_rms is not None and np.any(nf.u_margin < 1):
         lines.append("  the noise alone SATURATES the wheels: the loop leaves its linear range "

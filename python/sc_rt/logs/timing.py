@@ -1,0 +1,84 @@
+"""What a HIL run's ``timing.json`` holds, computed from the run's record and
+the controller's summary (``sc-rt hil`` during the run, ``sc-rt report`` from
+the log alone), and how many of the run's messages its log lacks."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sc_rt.logs.lcmlog import LogDamaged, read_events
+from sc_rt.results.run import Run
+
+__all__ = ["percentiles", "timing_report", "log_missing"]
+
+
+def percentiles(v: np.ndarray) -> dict[str, float | None]:
+    v = np.asarray(v, float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return {"p50": None, "p99": None, "max": None}
+    return {"p50": float(np.percentile(v, 50)), "p99": float(np.percentile(v, 99)),
+            "max": float(v.max())}
+
+
+def log_missing(path: Path, prefix: str, rows: int, sent: dict[str, int] | None = None) -> dict[str, int]:
+    """Per channel the emulator publishes once per row (state, truth,
+    guidance), and per sensor channel in ``sent`` (channel -> samples the
+    emulator sent, numbered from 0): how many of those messages the log lacks
+    (by count of distinct seqs; re-sent ones count once). Zero everywhere for
+    a complete log."""
+    sent = {c: n for c, n in (sent or {}).items() if n}
+    want = {prefix + c: set() for c in ("SCRT_STATE", "SCRT_TRUTH", "SCRT_GUIDANCE", *sent)}
+    try:
+        for _n, _t, ch, data in read_events(path, partial=True):
+            s = want.get(ch.decode("utf-8", "replace"))
+            if s is not None and len(data) >= 24:
+                s.add(int.from_bytes(data[16:24], "big", signed=True))  # the seq after fingerprint, utime
+    except (LogDamaged, OSError):
+        return {c[len(prefix):]: sent.get(c[len(prefix):], rows) for c in want}
+    seen = {c[len(prefix):]: len(s) for c, s in want.items()}
+    return {c: max(0, sent.get(c, rows) - n) if n or c != "SCRT_GUIDANCE" else 0 for c, n in seen.items()}
+
+
+def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, Any]:
+    """timing.json: the controller's own measurements (from its status
+    messages and exit summary) and the emulator's (state-to-command latency)."""
+    c = res.counters
+    mode, rate, rows = res.meta.mode, res.meta.control_rate_hz, len(res)
+    ctl_rej = summary.get("rejected", {})
+    return {
+        "mode": mode,
+        "control_rate_hz": rate,
+        "steps": int(summary.get("steps", rows)),
+        "deadline_misses": int(summary.get("deadline_misses", 0)),
+        "wake_lateness_us": percentiles(res["wake_lateness_us"]) if mode == "realtime"
+        else {"p50": None, "p99": None, "max": None},
+        "compute_us": percentiles(res["compute_us"]),
+        "state_to_cmd_latency_us": percentiles(res["latency_us"]),
+        "state_age_us": percentiles(res["state_age_us"]),
+        "stale_states": int(summary.get("stale_states", 0)),
+        "dropped": int(c.get("cmd_timeout", 0) + c.get("cmd_stale_ticks", 0)),
+        "malformed": int(ctl_rej.get("malformed", 0) + ctl_rej.get("trailing_bytes", 0)
+                         + c.get("malformed", 0) + c.get("trailing_bytes", 0)),
+        "scheduler": summary.get("scheduler", "unknown"),
+        "rows": rows,
+        "wall_s": wall,
+        "steps_per_s": rows / wall if wall > 0 else None,
+        "emulator_tick_lateness_us": percentiles(res["tick_lateness_us"]) if mode == "realtime"
+        else {"p50": None, "p99": None, "max": None},
+        "controller_rejected": ctl_rej,
+        "controller_safe_steps": int(summary.get("safe_steps", 0)),
+        "emulator_counters": dict(c),
+        "command_gaps_s": [list(g) for g in res.gaps],
+        "faults_applied": res.faults_applied,
+        # how the run was scheduled and how fresh it was: filled by sc-rt hil
+        # (_bench_timing); a log does not say (sc-rt report: None)
+        "trigger": summary.get("trigger"), "null_law": summary.get("null_law"), "timing_setup": None,
+        "emulator_scheduler": None, "fresh_fraction": None,
+        "controller_fresh_fraction": (1.0 - int(summary.get("stale_states", 0)) / int(summary["steps"])
+                                      if summary.get("steps") else None),
+        "emulator_breakdown_us": None, "load_avg": None,
+    }
