@@ -530,3 +530,57 @@ def test_the_docs_example_builds_and_runs(tmp_path):
     p = scn.plant
     Bm = -np.linalg.inv(p.J0) @ p.Cbar @ np.diag(p.Jw)
     np.testing.assert_allclose(cmd.u_cmd, -np.linalg.pinv(Bm) @ (0.1 * sig_BD + 0.3 * x2), rtol=1e-12, atol=1e-15)
+
+
+# --------------------------------------------------------------------------- #
+# Every engine runs the law it names or refuses it (issue #25, case 1).
+
+
+def test_unsampled_engine_refuses_a_plugin_instead_of_running_rft(plugins):
+    """Before: the unsampled engine ran its written-out RFT for any law it
+    did not know, labelled with the plugin's name (bitwise --law rft)."""
+    scn = load_scenario("paper_faults")
+    with pytest.raises(ValueError, match="unsampled engine writes out the built-in laws only"):
+        simulate(scn, law=_spec(plugins["qf"]), engine="unsampled", duration=1.0)
+
+
+def test_sim_unsampled_with_a_plugin_exits_2_in_one_line(plugins, tmp_path):
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", "paper_faults", "--engine", "unsampled",
+                        "--law", _spec(plugins["qf"]), "--duration", "1", "--out", str(out)],
+                       capture_output=True, text=True, env=_env())
+    assert r.returncode == 2, r.stdout + r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--engine unsampled" in lines[0] and "cannot run plugin:" in lines[0], r.stderr
+    assert not out.exists()
+
+
+# --------------------------------------------------------------------------- #
+# The controller under test dying is a failed run (issue #25, case 2).
+
+
+def _assert_death_reported(r, out: Path, t_crash: float, rate: float) -> None:
+    assert r.returncode == 1, r.stderr + r.stdout
+    lines = [ln for ln in r.stderr.splitlines() if "died" in ln]
+    assert len(lines) == 1, r.stderr
+    line = lines[0]
+    assert "sc-rt-controller died (signal SIGSEGV)" in line, line
+    m = re.search(r"at t = ([0-9.]+) s \(the last state it answered\)", line)
+    assert m, line
+    assert t_crash - 1.0 / rate - 1e-6 <= float(m.group(1)) < t_crash, line
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["valid"] is False and metrics["partial"] is True
+    assert "SIGSEGV" in metrics["invalid_reason"]
+
+
+@pytest.mark.lcm
+@pytest.mark.parametrize("mode", ["lockstep", pytest.param("realtime", marks=pytest.mark.slow)])
+def test_hil_with_a_controller_that_segfaults_is_a_failed_run(plugins, tmp_path, mode):
+    """Before: the watchdog held zero commands for the rest of the run, which
+    ended with exit 0, "valid": true and 0 SAFE steps."""
+    lcmnet.require()
+    out = tmp_path / mode
+    r = lcmnet.run_cli(["hil", "scenarios/paper_fault_free.toml", "--law", _spec(plugins["crashes"]), "--mode",
+                        mode, "--duration", "20" if mode == "lockstep" else "8", "--out", str(out),
+                        "--no-plots", "--floor", "off"])
+    _assert_death_reported(r, out, 5.0, 10.0)

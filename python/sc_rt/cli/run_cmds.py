@@ -29,6 +29,11 @@ def cmd_sim(args: argparse.Namespace) -> int:
         raise UsageError(f"--engine {args.engine}: a Python law (--law {pylaw}) runs on the python engine only")
     scn = with_overrides(scenario_arg(args.scenario), law=None if pylaw else args.law,
                          control_rate_hz=args.control_rate, duration=args.duration, plant_step=args.plant_step)
+    if args.engine == "unsampled":
+        from sc_rt.sim.unsampled import refusal
+
+        if (why := refusal(pylaw or scn.run.controller)) is not None:
+            raise UsageError(f"--engine unsampled: {why}")
     check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
                                       plant_step="--plant-step"))
     from sc_rt.sim import engines

@@ -25,7 +25,7 @@ import shlex
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 __all__ = ["ExternalController", "python_controller_command", "PLACEHOLDERS", "expand",
            "DEFAULT_START_TIMEOUT_S", "DEFAULT_WAIT_TIMEOUT_S"]
@@ -95,16 +95,10 @@ class ExternalController:
                 raise RuntimeError(f"--external: cannot start {self.argv[0]!r}: {err.strerror}") from err
         return self.proc
 
-    def stop_check(self, stopper: Callable[[], str | None]) -> Callable[[], str | None]:
-        """The emulator's stop question: the bench's (signals, the logger),
-        and the external process gone."""
-        def check() -> str | None:
-            why = stopper()
-            if why is None and self.proc is not None and self.proc.poll() is not None:
-                why = (f"the external controller exited (code {self.proc.returncode}) during the run "
-                       f"(its stderr: {self._err_path.name})")
-            return why
-        return check
+    @property
+    def stderr_name(self) -> str:
+        """The file in the run's folder holding the process's stderr."""
+        return self._err_path.name
 
     def stderr_text(self) -> str:
         return self._err_path.read_text(errors="replace") if self._err_path.exists() else ""

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 
 from sc_rt.wire.auth import load_key, open_bus
 from sc_rt.emulator.process import Emulator
@@ -108,17 +110,33 @@ def child_kwargs() -> dict[str, Any]:
     return {"process_group": 0, **({"preexec_fn": hook} if hook else {})}
 
 
+def exit_how(rc: int) -> str:
+    """A child's return code in words: "signal SIGSEGV" or "exit code 3"."""
+    if rc < 0:
+        try:
+            return f"signal {signal.Signals(-rc).name}"
+        except ValueError:
+            return f"signal {-rc}"
+    return f"exit code {rc}"
+
+
 class Stopper:
     """Why a bench run should stop early, asked by the emulator every step:
     SIGINT or SIGTERM received (handled while the run lasts, main thread
-    only), or ``lcm-logger`` gone (polled at most every ``poll_s``: a dead
-    logger is noticed within a second and the run stops, partial, rather
-    than go on with a log that no longer grows)."""
+    only), ``lcm-logger`` gone, or the controller under test gone (polled at
+    most every ``poll_s``: a dead child is noticed within a second and the
+    run stops, partial, rather than go on with a log that no longer grows or
+    with the watchdog's zero commands standing in for a dead law)."""
 
     def __init__(self, logger: subprocess.Popen | None = None, poll_s: float = 0.25):
         self.logger, self.poll_s = logger, poll_s
         self.signum: int | None = None
         self.logger_rc: int | None = None
+        #: the controller process under test, and its name in messages
+        self.controller: subprocess.Popen | None = None
+        self.controller_name = "the controller"
+        #: how the controller died ("sc-rt-controller died (signal SIGSEGV)"), None while it lives
+        self.died: str | None = None
         self._next = 0.0
         self._old: dict[int, Any] = {}
 
@@ -139,14 +157,16 @@ class Stopper:
     def __call__(self) -> str | None:
         if self.signum is not None:
             return f"interrupted by {signal.Signals(self.signum).name}"
-        if self.logger is not None:
-            now = time.monotonic()
-            if now >= self._next:
-                self._next = now + self.poll_s
+        now = time.monotonic()
+        if now >= self._next:
+            self._next = now + self.poll_s
+            if self.logger is not None:
                 self.logger_rc = self.logger.poll()
-            if self.logger_rc is not None:
-                return f"lcm-logger exited (code {self.logger_rc}) during the run: the log ends there"
-        return None
+            if self.controller is not None and self.died is None and (rc := self.controller.poll()) is not None:
+                self.died = f"{self.controller_name} died ({exit_how(rc)}) during the run"
+        if self.logger_rc is not None:
+            return f"lcm-logger exited (code {self.logger_rc}) during the run: the log ends there"
+        return self.died
 
 
 #: lcm-logger's real-time priority when permitted: above every ordinary
@@ -248,6 +268,20 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
                              ext, key, auth_key, setup=setup, floor=floor)
 
 
+def _death_line(res: Run, died: str, ext: ExternalController | None) -> str:
+    """One line: which process died, how, and when (the time of the last
+    state it answered, and of the row the bench stopped at)."""
+    t = res["t"]
+    # a state answered by a command of its own (latency measured); a held
+    # command (real time) is not an answer
+    answered = np.flatnonzero(np.isfinite(res["latency_us"])) if len(res) else np.array([], int)
+    when = f"at t = {t[answered[-1]]:.3f} s (the last state it answered)" if answered.size else \
+        "before it answered any state"
+    where = f"its stderr: {ext.stderr_name}" if ext else "its stderr: controller_stderr.txt"
+    stop_t = f"; the run stopped at t = {t[-1]:.3f} s" if len(res) else ""
+    return f"{died} {when}{stop_t}; the run is invalid ({where})"
+
+
 def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, accept_fault_commands,
                   plots, stopper, ctl_bin, logger_bin, cfg_path, log_path, ext=None, key=None,
                   key_path=None, setup: TimingSetup = TimingSetup(), floor: dict | None = None) -> HilResult:
@@ -283,6 +317,8 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
     except BaseException:
         _stop(logger, signal.SIGINT)
         raise
+    stopper.controller = ctl
+    stopper.controller_name = "the external controller" if ext else "sc-rt-controller"
     try:
         if ext is None:
             # the controller says on stderr when it has subscribed
@@ -292,7 +328,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
                 raise RuntimeError(f"sc-rt-controller did not start: {line}{rest}")
         emu = Emulator(scn, mode=mode, url=url, prefix=prefix, time_scale=time_scale,
                        accept_fault_commands=accept_fault_commands,
-                       stop=ext.stop_check(stopper) if ext else stopper,
+                       stop=stopper,
                        start_timeout=ext.start_timeout if ext else None, auth_key=key,
                        spin_us=setup.spin_us, cpu=setup.emulator_cpu, realtime_priority=realtime_priority)
         t0 = time.perf_counter()
@@ -307,6 +343,9 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         log_complete = _wait_logged(url, log_path, logger, prefix + "SCRT_HIL_END", scn.name.encode())
         logger_rc = _stop(logger, signal.SIGINT)
     logger_err = logger.stderr.read().decode(errors="replace").strip() if logger.stderr else ""
+    if stopper.died is not None and res.partial and res.message == stopper.died:
+        res.message = _death_line(res, stopper.died, ext)
+        res.metrics.update(stopped=res.message, valid=False, invalid_reason=res.message)
     stopped = res.message if res.partial else None
     if not res.partial and logger_rc not in (0, -signal.SIGINT):
         # the logger failed at the very end (its last flush): the log may be short of the run

@@ -24,12 +24,28 @@ from sc_rt.scenario.overrides import grid, initial_state
 __all__ = ["run_unsampled"]
 
 
+#: The laws the reference mode writes out in continuous time (below). Any
+#: other law (a plugin, a Python class) is refused, never replaced by one of
+#: these: a run must be the law it names.
+LAWS = ("dsc-ppc", "dsc", "pd", "rft")
+
+
+def refusal(law: str) -> str | None:
+    """Why the unsampled engine cannot run ``law`` (one line), or None."""
+    if law in LAWS:
+        return None
+    return (f"the unsampled engine writes out the built-in laws only ({', '.join(LAWS)}) and cannot run "
+            f"{law}; use --engine python or cpp")
+
+
 class _Law:
     """uc(t, X) and the derivatives of the law's states, continuous time."""
 
     def __init__(self, scn: Scenario):
         cfg = scn.core_config()
         self.law = scn.run.controller
+        if (why := refusal(self.law)) is not None:
+            raise ValueError(why)
         self.cfg = cfg
         self.model = _core.SpacecraftModel(cfg.spacecraft)
         self.B = np.asarray(self.model.B)
@@ -79,7 +95,7 @@ class _Law:
             dX[12:16] = -d.k4 * vs + (usat - u)  # (42)
         elif self.law == "pd":
             u = -self.Bp @ (c.pd.beta1 * x1 + c.pd.beta2 * x2)
-        else:  # rft
+        else:  # rft (the only law left: __init__ refused the others)
             g = c.rft
             s = x2 + g.c * x1
             u = self.Bp @ (-A - g.c * G @ x2 - g.k * s - rho * np.clip(s / g.phi, -1, 1))
