@@ -179,7 +179,8 @@ PYBIND11_MODULE(_core, m) {
       .def("advance", &Guidance::advance, arg("t"))
       .def_property_readonly("t", &Guidance::t)
       .def_property_readonly("sigma_DN", &Guidance::sigma_DN)
-      .def_property_readonly("params", &Guidance::params);
+      .def_property_readonly("params", &Guidance::params)
+      .def_property_readonly("rk4_steps", &Guidance::rk4_steps, "RK4 steps taken since construction");
 
   // --- NESO (22)
   py::class_<NesoParams>(m, "NesoParams", "Observer (22) gains; defaults are the paper's.")
@@ -362,7 +363,8 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("telemetry_names", &Controller::telemetry_names)
       .def_property_readonly("config", &Controller::config)
       .def_property_readonly("model", &Controller::model)
-      .def_property_readonly("t0", &Controller::t0);
+      .def_property_readonly("t0", &Controller::t0)
+      .def_property_readonly("guidance", &Controller::guidance, py::return_value_policy::reference_internal);
 
   // Packed telemetry of one step, one numpy allocation (the offline
   // simulator's hot path). Layout: PACKED_FIELDS (sc_rt.sim.engines.PACKED).

@@ -228,9 +228,16 @@ void Guidance::reset(double t0) {
     sigma_ = sigma_d(p_, t0);
     return;
   }
-  t_ = 0.0;
-  sigma_ = p_.sigma_d0;
-  if (t0 > 0.0) advance(t0);
+  // The reference is a function of time on one time line: a reset at or
+  // after the current time continues from where the reference is (a
+  // re-engagement an hour into a run costs the steps since the last call,
+  // not an hour of RK4 steps); a reset before it starts the time line again
+  // from t = 0 (a new plant session).
+  if (!(t0 >= t_)) {
+    t_ = 0.0;
+    sigma_ = p_.sigma_d0;
+  }
+  if (t0 > t_) advance(t0);
   t_ = t0;
 }
 
@@ -245,6 +252,7 @@ void Guidance::advance(double t) {
   const int n = static_cast<int>(std::ceil(span / max_step_ - 1e-9));
   const double h = span / (n < 1 ? 1 : n);
   for (int i = 0; i < (n < 1 ? 1 : n); ++i) sigma_ = guidance_rk4_step(p_, sigma_, t_ + i * h, h);
+  rk4_steps_ += static_cast<std::uint64_t>(n < 1 ? 1 : n);
   t_ = t;
 }
 

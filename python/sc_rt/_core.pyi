@@ -255,6 +255,11 @@ class Guidance:
     def params(self) -> GuidanceParams:
         ...
     @property
+    def rk4_steps(self) -> int:
+        """
+        RK4 steps taken since construction
+        """
+    @property
     def sigma_DN(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
     @property
@@ -686,6 +691,9 @@ class Controller:
         ...
     @property
     def config(self) -> ControllerConfig:
+        ...
+    @property
+    def guidance(self) -> Guidance:
         ...
     @property
     def law_code(self) -> int:

@@ -142,6 +142,7 @@ class Controller {
   const ControllerConfig& config() const { return cfg_; }
   const SpacecraftModel& model() const { return model_; }
   double t0() const { return t0_; }
+  const Guidance& guidance() const { return guidance_; }
 
   static std::unique_ptr<Controller> create(const ControllerConfig& c);
 

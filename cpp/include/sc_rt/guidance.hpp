@@ -26,6 +26,7 @@
 // integrated.
 #pragma once
 #include <string>
+#include <cstdint>
 #include <vector>
 
 #include "sc_rt/types.hpp"
@@ -88,8 +89,9 @@ Vec3 guidance_rk4_step(const GuidanceParams& p, const Vec3& sigma, double t, dou
 class Guidance {
  public:
   explicit Guidance(const GuidanceParams& p, double max_step = 0.1);
-  // sigma_DN at time t0, integrated from t = 0 (reproducible for any t0);
-  // a closed-form kind evaluates sigma_d(t0).
+  // sigma_DN at time t0: integrated on from the current time when t0 is at
+  // or after it (O(t0 - t()), whatever t0 is), else from t = 0 (a new time
+  // line); a closed-form kind evaluates sigma_d(t0).
   void reset(double t0);
   // Advance to t >= current time with RK4 steps no longer than max_step
   // (a closed-form kind: sigma_d(t)).
@@ -97,12 +99,16 @@ class Guidance {
   double t() const { return t_; }
   const Vec3& sigma_DN() const { return sigma_; }
   const GuidanceParams& params() const { return p_; }
+  //! RK4 steps taken since construction (the work of the integrated kind;
+  //! tests bound a re-engagement's cost with it, not with wall time).
+  std::uint64_t rk4_steps() const { return rk4_steps_; }
 
  private:
   GuidanceParams p_;
   double max_step_;
   double t_ = 0.0;
   Vec3 sigma_;
+  std::uint64_t rk4_steps_ = 0;
 };
 
 }  // namespace sc_rt
