@@ -170,14 +170,14 @@ def test_statusless_controller_is_not_waited_for():
 import sys, threading
 sys.path.insert(0, {str(ROOT / 'tests')!r})
 from test_external import _statusless_controller
-from sc_rt.emulator.process import Emulator
+from sc_rt.emulator.process import Emulator, Options
 from sc_rt.wire.lcmio import free_port_url
 from sc_rt.scenario.reader import load_scenario
 url = free_port_url()
 stop, answered = threading.Event(), []
 th = threading.Thread(target=_statusless_controller, args=(url, stop, answered), daemon=True)
 th.start()
-emu = Emulator(load_scenario("paper_faults"), url=url, duration=3.0, cmd_timeout=60.0, start_timeout=30.0)
+emu = Emulator(load_scenario("paper_faults"), Options(url=url, duration=3.0, cmd_timeout=60.0, start_timeout=30.0))
 run = emu.run()
 stop.set()
 import numpy as np
@@ -210,7 +210,7 @@ def test_external_wait_takes_a_controller_started_by_hand(tmp_path):
 
 @pytest.mark.parametrize("argv,word", [
     (["--external", "/nonexistent/controller"], "cannot start"),
-    (["--external", "sh -c 'exit 3'"], "exited (code 3)"),
+    (["--external", "sh -c 'exit 3'"], "died (exit code 3)"),
     (["--external", "'unbalanced"], "--external"),
     (["--external-wait", "--law", PD_SPEC], "cannot be combined"),
     (["--start-timeout", "5"], "--start-timeout"),

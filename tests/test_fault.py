@@ -15,7 +15,10 @@ import numpy as np
 import pytest
 import sc_rt_lcm
 
-from sc_rt.emulator.process import Emulator
+from collections import Counter
+
+from sc_rt.emulator.inbox import Receiver
+from sc_rt.emulator.state import Shared
 from sc_rt.tools.faultcmd import clear_msg, inject_msg
 from sc_rt.logs.report import read_log, write_report
 from sc_rt.scenario.reader import load_scenario
@@ -120,38 +123,44 @@ def test_messages():
     assert c.action == c.ACTION_CLEAR and c.wheel == 4
 
 
-def _emulator(accept: bool) -> Emulator:
+def _receiver(accept: bool) -> Receiver:
+    """The emulator's receiver built alone (no emulator, no loop) on an
+    in-process bus, with the shared values it writes."""
+    import lcm
+
     scn = load_scenario(ROOT / "scenarios" / "paper_fault_free.toml")
-    return Emulator(scn, mode="realtime", url="memq://", accept_fault_commands=accept)
+    return Receiver(lcm.LCM("memq://"), "", 1, 10, Shared(Counter(), scn.actuators), accept_faults=accept)
 
 
 def test_emulator_applies_faults_only_when_it_accepts_them():
-    emu = _emulator(False)
-    emu.lc.publish("SCRT_FAULT", inject_msg(2, effectiveness=0.5).encode())
-    emu.lc.handle_timeout(200)
+    rx = _receiver(False)
+    emu = rx.shared
+    rx.lc.publish("SCRT_FAULT", inject_msg(2, effectiveness=0.5).encode())
+    rx.lc.handle_timeout(200)
     assert emu.counters["fault_ignored"] == 1 and emu.act.faults == () and emu.faults_applied == []
 
-    emu = _emulator(True)
-    emu._t_now = 12.5
-    emu.lc.publish("SCRT_FAULT", inject_msg(2, effectiveness=0.5, bias=0.1, at=20.0, until=30.0).encode())
-    emu.lc.handle_timeout(200)
+    rx = _receiver(True)
+    emu = rx.shared
+    emu.t_now = 12.5
+    rx.lc.publish("SCRT_FAULT", inject_msg(2, effectiveness=0.5, bias=0.1, at=20.0, until=30.0).encode())
+    rx.lc.handle_timeout(200)
     (f,) = emu.act.faults
     assert (f.wheel, f.effectiveness, f.bias, f.onset, f.end, f.rate) == (1, 0.5, 0.1, 20.0, 30.0, 1.0)
-    emu._on_fault("SCRT_FAULT", inject_msg(2, stuck=True).encode())  # replaces wheel 2's fault, now
+    rx.on_fault("SCRT_FAULT", inject_msg(2, stuck=True).encode())  # replaces wheel 2's fault, now
     (f,) = emu.act.faults
     assert f.stuck and f.onset == 12.5 and f.end is None
-    emu._on_fault("SCRT_FAULT", inject_msg(4, bias=0.2).encode())
+    rx.on_fault("SCRT_FAULT", inject_msg(4, bias=0.2).encode())
     assert sorted(x.wheel for x in emu.act.faults) == [1, 3]
-    emu._on_fault("SCRT_FAULT", clear_msg(2).encode())
+    rx.on_fault("SCRT_FAULT", clear_msg(2).encode())
     assert [x.wheel for x in emu.act.faults] == [3]
     # hostile: undecodable, a wheel out of range, an effectiveness out of range
-    emu._on_fault("SCRT_FAULT", b"nonsense")
+    rx.on_fault("SCRT_FAULT", b"nonsense")
     bad = inject_msg(1, bias=0.1)
     bad.wheel = 9
-    emu._on_fault("SCRT_FAULT", bad.encode())
+    rx.on_fault("SCRT_FAULT", bad.encode())
     bad = inject_msg(1, bias=0.1)
     bad.effectiveness = 3.0
-    emu._on_fault("SCRT_FAULT", bad.encode())
+    rx.on_fault("SCRT_FAULT", bad.encode())
     assert emu.counters["malformed"] == 1 and emu.counters["fault_rejected"] == 2
     assert emu.counters["fault_applied"] == 4 and [x.wheel for x in emu.act.faults] == [3]
     actions = [r.get("action", "rejected") for r in emu.faults_applied]

@@ -149,7 +149,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def cmd_emulator(args: argparse.Namespace) -> int:
     from sc_rt.wire.auth import load_key
-    from sc_rt.emulator.process import Emulator
+    from sc_rt.emulator.process import Emulator, Options
     from sc_rt.wire.lcmio import DEFAULT_URL
 
     from sc_rt.scenario.overrides import with_overrides
@@ -162,9 +162,9 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     url = resolve_url(args.lcm_url, DEFAULT_URL)
     sig: list[int] = []
     with flag_signals(sig.append):  # from here the run stops at its next step, its rows kept
-        emu = Emulator(scn, mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,
-                       accept_fault_commands=args.accept_fault_commands, start_timeout=args.start_timeout,
-                       auth_key=load_key(args.auth_key),
+        emu = Emulator(scn, Options(mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,
+                                    accept_fault_commands=args.accept_fault_commands,
+                                    start_timeout=args.start_timeout, auth_key=load_key(args.auth_key)),
                        stop=lambda: f"interrupted by {signal.Signals(sig[0]).name}" if sig else None)
         print(f"sc-rt emulator: LCM URL {url}", file=sys.stderr, flush=True)
         res = emu.run()

@@ -10,7 +10,7 @@ what they keep per state seq.
   lasts. A state seq outside [0, n) (a hostile or stray message) is counted
   (``state_seq_out_of_range``) and not kept; -1 (answers no state) is not
   kept either, as always.
-- ``Receiver``: the handlers, mixed into ``Emulator``; they never raise.
+- ``Receiver``: the handlers, a part of ``Emulator``; they never raise.
   Every message is decoded under guard and counted by kind (``counters``);
   commands and status come from one controller session at a time, a new one
   adopted only once the current one is lost; fault commands change the
@@ -33,6 +33,8 @@ import sc_rt_lcm
 from sc_rt.wire.lcmio import channel
 from sc_rt.emulator.loopstats import MISSING
 from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
+from sc_rt.emulator.peers import ControllerPeers
+from sc_rt.emulator.state import Shared
 from sc_rt.model.actuators import WheelFault
 
 __all__ = ["Inbox", "Receiver", "Cmd"]
@@ -192,69 +194,70 @@ class Inbox:
 
 
 class Receiver:
-    """The emulator's LCM handlers (a mixin of ``Emulator``).
+    """The emulator's LCM handlers (a part of ``Emulator``, built and tested
+    alone: tests/test_fault.py, tests/test_inbox.py).
 
-    Keeps the receive state: ``inbox``, the newest command (``_newest_cmd``,
-    ``_newest_cmd_ns``), the adopted controller session (``_ctl_session``,
-    ``_ctl_last_ns``, ``_peer_lost``, which the loop sets when a state went
-    unanswered) and the last seqs taken from it. Uses the emulator's
-    ``lc``, ``counters``, ``session``, ``guard``, ``peers``, ``prefix``,
-    ``accept_faults``, ``act``, ``_t_now``, ``faults_applied``,
-    ``invalid`` and ``stopped``."""
+    Owns the receive state: ``inbox``, the newest command (``newest_cmd``,
+    ``newest_cmd_ns``), the adopted controller session (``ctl_session``,
+    ``ctl_last_ns``, ``peer_lost``, which the loop sets when a state went
+    unanswered) and the last seqs taken from it. Shares with the other parts
+    only ``shared`` (emulator/state.py): the counters, the wheels' faults
+    (a fault command replaces ``shared.act``), the run's time and a bench
+    collision (``shared.collision``)."""
 
-    def _init_receiver(self, n_rows: int) -> None:
+    def __init__(self, lc: Any, prefix: str, session: int, n_rows: int, shared: Shared, *,
+                 guard: Any = None, peers: ControllerPeers | None = None, accept_faults: bool = False):
+        self.lc, self.prefix, self.session, self.shared = lc, prefix, session, shared
+        self.counters = shared.counters
+        self.guard = guard
+        self.peers = peers if peers is not None else ControllerPeers(None)
+        self.accept_faults = accept_faults
         self.inbox = Inbox(n_rows, self.counters)
-        self._newest_cmd: Cmd | None = None
-        self._newest_cmd_ns = 0
+        self.newest_cmd: Cmd | None = None
+        self.newest_cmd_ns = 0
         self._last_cmd_seq = -1
         self._last_status_seq = -1
-        self._ctl_session: int | None = None
-        self._ctl_last_ns = 0  # monotonic ns of the adopted controller's newest message
-        self._peer_lost = False
+        self.ctl_session: int | None = None
+        self.ctl_last_ns = 0  # monotonic ns of the adopted controller's newest message
+        self.peer_lost = False
         # LCM silently drops messages beyond a subscription's queue capacity
         # (30 by default): hold many, so every one is either used or counted
-        for name, handler in (("SCRT_CMD", self._on_cmd), ("SCRT_CTRL_STATUS", self._on_status),
-                              ("SCRT_FAULT", self._on_fault), ("SCRT_CTRL_INFO", self._on_info),
-                              ("SCRT_STATE", self._on_plant_state)):
+        for name, handler in (("SCRT_CMD", self.on_cmd), ("SCRT_CTRL_STATUS", self.on_status),
+                              ("SCRT_FAULT", self.on_fault), ("SCRT_CTRL_INFO", self.on_info),
+                              ("SCRT_STATE", self.on_plant_state)):
             self.lc.subscribe(channel(name, self.prefix), handler).set_queue_capacity(100_000)
 
-    def _collision(self, reason: str | None) -> None:
-        if reason is not None and self.invalid is None:
-            self.invalid = reason
-            self.counters["bench_collision"] += 1
-            if self.stopped is None:
-                self.stopped = reason  # the loop stops at its next check: partial and invalid
-
-    def _on_plant_state(self, _ch: str, data: bytes) -> None:
+    def on_plant_state(self, _ch: str, data: bytes) -> None:
         """Our own states come back (multicast loopback); another plant's mean another bench."""
         if len(data) == _STATE_SIZE and data[:8] == _STATE_FP:
             _, seq, session = struct.unpack_from(">qqq", data, 8)
-            if session != self.session:
-                self._collision(self.guard.plant_state(session, seq, self._ctl_session))
+            if session != self.session and self.guard is not None:
+                self.shared.collision(self.guard.plant_state(session, seq, self.ctl_session))
 
     def _session_ok(self, session: int, now: int, seq: int = -1, kind: str = "cmd") -> bool:
         """Commands and status come from one controller session at a time; a
         new session is adopted only once the current controller is lost (the
         loop saw an unanswered state in lockstep or a stale command in real
         time: a crashed or restarted controller), never while it answers."""
-        if session == self._ctl_session:
-            self._ctl_last_ns = now
+        if session == self.ctl_session:
+            self.ctl_last_ns = now
             return True
-        if self._ctl_session is None or self._peer_lost:
-            if self._ctl_session is not None:
+        if self.ctl_session is None or self.peer_lost:
+            if self.ctl_session is not None:
                 self.counters["controller_sessions_adopted"] += 1
-            self._ctl_session = session
-            self._ctl_last_ns = now
-            self._peer_lost = False
+            self.ctl_session = session
+            self.ctl_last_ns = now
+            self.peer_lost = False
             self._last_cmd_seq = -1
             self._last_status_seq = -1
             return True
         self.counters["foreign_session"] += 1
-        self._collision(self.guard.controller_msg(session, seq, self._ctl_session, self._ctl_last_ns,
-                                                  now, kind))
+        if self.guard is not None:
+            self.shared.collision(self.guard.controller_msg(session, seq, self.ctl_session, self.ctl_last_ns,
+                                                            now, kind))
         return False
 
-    def _on_cmd(self, _ch: str, data: bytes) -> None:
+    def on_cmd(self, _ch: str, data: bytes) -> None:
         now = time.monotonic_ns()
         self.counters["cmd_received"] += 1
         fixed = len(data) == _CMD_SIZE and data[:8] == _CMD_FP
@@ -275,13 +278,13 @@ class Receiver:
             self.counters["duplicate" if msg.seq == self._last_cmd_seq else "out_of_order"] += 1
             return
         self._last_cmd_seq = msg.seq
-        self._newest_cmd, self._newest_cmd_ns = msg, now
+        self.newest_cmd, self.newest_cmd_ns = msg, now
         if fixed:
             self.inbox.put_cmd(msg.state_seq, data, msg, now, v[0])
         else:
             self.inbox.put_cmd(msg.state_seq, None, msg, now)
 
-    def _on_status(self, _ch: str, data: bytes) -> None:
+    def on_status(self, _ch: str, data: bytes) -> None:
         # The loop needs only the header (session, seqs) now; the full decode
         # (~35 us in Python) waits until the run is over (Inbox.fill).
         now = time.monotonic_ns()
@@ -301,15 +304,15 @@ class Receiver:
         self.peers.saw_status(session)
         self.inbox.put_status(state_seq, data)
 
-    def _on_info(self, _ch: str, data: bytes) -> None:
+    def on_info(self, _ch: str, data: bytes) -> None:
         self.peers.on_info(data, self.counters)
 
     @property
     def controller_info(self) -> dict[str, Any] | None:
         """The controller_info_t of the session in use (None: none announced)."""
-        return self.peers.info.get(self._ctl_session) if self._ctl_session is not None else None
+        return self.peers.info.get(self.ctl_session) if self.ctl_session is not None else None
 
-    def _on_fault(self, _ch: str, data: bytes) -> None:
+    def on_fault(self, _ch: str, data: bytes) -> None:
         msg = decode_as(sc_rt_lcm.fault_cmd_t, data, self.counters)
         if msg is None:
             return
@@ -321,24 +324,24 @@ class Receiver:
             self.counters["fault_applied"] += 1
         except ValueError as e:
             self.counters["fault_rejected"] += 1
-            self.faults_applied.append({"rejected": str(e), "wheel": msg.wheel})
+            self.shared.faults_applied.append({"rejected": str(e), "wheel": msg.wheel})
 
     def _apply_fault(self, m) -> None:
         if not 1 <= m.wheel <= 4:
             raise ValueError(f"wheel must be 1..4, got {m.wheel}")
         w = m.wheel - 1
-        others = tuple(f for f in self.act.faults if f.wheel != w)
+        others = tuple(f for f in self.shared.act.faults if f.wheel != w)
         if m.action == sc_rt_lcm.fault_cmd_t.ACTION_CLEAR:
             new = others
-            rec = {"t": self._t_now, "wheel": m.wheel, "action": "clear"}
+            rec = {"t": self.shared.t_now, "wheel": m.wheel, "action": "clear"}
         elif m.action == sc_rt_lcm.fault_cmd_t.ACTION_INJECT:
-            onset = self._t_now if m.now else m.t_onset
+            onset = self.shared.t_now if m.now else m.t_onset
             fault = WheelFault(wheel=w, effectiveness=m.effectiveness, bias=m.bias, onset=onset,
                                end=None if m.t_end < 0 else m.t_end, rate=m.rate, stuck=bool(m.stuck))
             new = others + (fault,)
-            rec = {"t": self._t_now, "wheel": m.wheel, "action": "inject",
+            rec = {"t": self.shared.t_now, "wheel": m.wheel, "action": "inject",
                    **{k: getattr(fault, k) for k in ("effectiveness", "bias", "onset", "end", "rate", "stuck")}}
         else:
             raise ValueError(f"unknown action {m.action}")
-        self.act = dataclasses.replace(self.act, faults=new)  # validated by ActuatorParams
-        self.faults_applied.append(rec)
+        self.shared.act = dataclasses.replace(self.shared.act, faults=new)  # validated by ActuatorParams
+        self.shared.faults_applied.append(rec)

@@ -1,51 +1,68 @@
-"""The emulator's publishing side (a mixin of ``emulator.process.Emulator``):
+"""The emulator's publishing side (a part of ``emulator.process.Emulator``):
 the guidance and the state of a control instant, the truth of a row, the
-sensors' samples of a plant step (emulator/sensorpub.py), and draining what our
-own multicast brings back. Uses the emulator's ``lc``, ``session``,
-``guidance``, ``inbox``, ``twin``, ``act``, ``sensors``, ``_bias_true``,
-``_guidance_sent`` and channel names."""
+sensors' samples of a plant step (emulator/sensorpub.py), and draining what
+our own multicast brings back (handled by the receiver, emulator/inbox.py).
+Owns what it last sent (the guidance values of the newest state) and the
+gyro's true bias per row; shares nothing else."""
 
 from __future__ import annotations
 
 import select
 import time
+from typing import Any
 
 import numpy as np
 
-from sc_rt.emulator.twin import state_bytes, truth_bytes
+from sc_rt.emulator.inbox import Inbox
+from sc_rt.emulator.peers import GuidancePublisher
+from sc_rt.emulator.sensorpub import SensorPublisher
+from sc_rt.emulator.twin import PlantTwin, state_bytes, truth_bytes
+from sc_rt.wire.lcmio import channel
 
 __all__ = ["Publisher"]
 
 
 class Publisher:
-    def _publish_state(self, k: int, t: float, x: np.ndarray, guidance: tuple | None = None) -> None:
+    def __init__(self, lc: Any, prefix: str, session: int, guidance: GuidancePublisher, inbox: Inbox,
+                 twin: PlantTwin, sensors: SensorPublisher | None, n_rows: int):
+        self.lc, self.session, self.guidance, self.inbox, self.twin = lc, session, guidance, inbox, twin
+        self.sensors = sensors
+        self._ch_state = channel("SCRT_STATE", prefix)
+        self._ch_truth = channel("SCRT_TRUTH", prefix)
+        self._guidance_sent: tuple = (-1, None)  # (seq, guidance values) of the newest state out
+        #: a [sensors] run: the gyro's true bias per row (the truth's gyro_bias, the run's bias_true)
+        self.bias_true = np.full((n_rows, 3), np.nan) if sensors is not None else None
+
+    def state(self, k: int, t: float, x: np.ndarray, guidance: tuple | None = None) -> None:
+        """State k (and its guidance first: a controller has it with the state)."""
         if guidance is None:  # computed now, or the values state k went out with (a re-sent state)
             guidance = self._guidance_sent[1] if self._guidance_sent[0] == k else self.guidance.values(t)
         self._guidance_sent = (k, guidance)
-        self.guidance.publish(k, t, guidance)  # the reference first: a controller has it with the state
+        self.guidance.publish(k, t, guidance)
         utime = time.time_ns() // 1000
         data = state_bytes(utime, k, self.session, t, x)
         self.inbox.published(k, utime, time.monotonic_ns())
         self.lc.publish(self._ch_state, data)
-        self._drain()  # our own guidance and state come back (loopback): handled while the controller works
+        self.drain()  # our own guidance and state come back (loopback): handled while the controller works
 
-    def _sense(self, i: int, t: float, x: np.ndarray, row: int) -> None:
+    def sense(self, i: int, t: float, x: np.ndarray, row: int) -> None:
         """The sensors at plant step i (a control instant, row ``row``) when
         one is due; the gyro's true bias of the row either way."""
         if i == self.sensors.next_tick:
             self.sensors.tick(i, t, x)
-        self._bias_true[row] = self.sensors.gyro_bias
+        self.bias_true[row] = self.sensors.gyro_bias
 
-    def _drain(self) -> None:
+    def drain(self) -> None:
         """Handle what is already in the socket, without waiting."""
         fd = self.lc.fileno()
         while select.select([fd], [], [], 0)[0]:
             self.lc.handle()
 
-    def _publish_truth(self, run, k, t, cmd_seq, u_cmd, accel, delta2, stale, act=None) -> None:
-        act = self.act if act is None else act  # the faults row k was applied with
+    def truth(self, run, k, t, cmd_seq, u_cmd, accel, delta2, stale, act) -> None:
+        """Row k's truth, with the faults ``act`` it was applied with; its
+        fault fields go into the run's row too."""
         fault_y, eff_bias_stuck = self.twin.fault_fields(act, t)
-        bias = (0.0, 0.0, 0.0) if self._bias_true is None else self._bias_true[k]
+        bias = (0.0, 0.0, 0.0) if self.bias_true is None else self.bias_true[k]
         self.lc.publish(self._ch_truth, truth_bytes(time.time_ns() // 1000, k, t, cmd_seq, u_cmd, accel, delta2,
                                                     self.twin.disturbance(t), fault_y, eff_bias_stuck, stale,
                                                     bias))

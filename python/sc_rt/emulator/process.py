@@ -45,6 +45,7 @@ from sc_rt.wire.auth import open_bus
 from sc_rt.emulator.collision import CollisionGuard
 from sc_rt.emulator.inbox import Inbox, Receiver
 from sc_rt.emulator.outbox import Publisher
+from sc_rt.emulator.state import Options, Shared
 from sc_rt.wire.lcmio import channel
 from sc_rt.emulator.loopstats import loop_breakdown
 from sc_rt.emulator.peers import ControllerPeers, GuidancePublisher
@@ -55,7 +56,7 @@ from sc_rt.results.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
-__all__ = ["Emulator", "BYTES_PER_ROW"]
+__all__ = ["Emulator", "Options", "BYTES_PER_ROW"]
 
 #: the loop's monotonic stamps per row (``Emulator._stamps``)
 _STAMPS = 5
@@ -64,31 +65,30 @@ _STAMPS = 5
 BYTES_PER_ROW = Inbox.BYTES_PER_ROW + _STAMPS * 8
 
 
-class Emulator(Receiver, Publisher):
-    def __init__(self, scn: Scenario, *, mode: str = "lockstep", url: str, prefix: str = "",
-                 rate: float | None = None, time_scale: float = 1.0, duration: float | None = None,
-                 accept_fault_commands: bool = False, cmd_timeout: float = 1.0, retries: int = 3,
-                 stale_periods: float | None = None, wait_status: bool | None = None,
-                 start_timeout: float | None = None,
-                 stop: Callable[[], str | None] | None = None, auth_key: bytes | None = None,
-                 spin_us: float = 100.0, cpu: int | None = None, realtime_priority: bool = False,
-                 freeze_gc: bool = True, cpp_plant: bool = True):
-        if mode not in ("lockstep", "realtime"):
-            raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
-        if not (time_scale > 0 and math.isfinite(time_scale)):
-            raise ValueError(f"time scale must be > 0, got {time_scale}")
-        scn = with_overrides(scn, control_rate_hz=rate, duration=duration)
-        self.scn, self.mode, self.prefix = scn, mode, prefix
+class Emulator:
+    """The plant process: the loops (lockstep, real time) over its parts,
+    the receiver (emulator/inbox.py), the publisher (emulator/outbox.py),
+    the plant twin (emulator/twin.py) and the sensors, which share only
+    ``shared`` (emulator/state.py)."""
+
+    def __init__(self, scn: Scenario, opts: Options = Options(), *,
+                 stop: Callable[[], str | None] | None = None):
+        if opts.mode not in ("lockstep", "realtime"):
+            raise ValueError(f"mode must be lockstep or realtime, got {opts.mode!r}")
+        if not (opts.time_scale > 0 and math.isfinite(opts.time_scale)):
+            raise ValueError(f"time scale must be > 0, got {opts.time_scale}")
+        scn = with_overrides(scn, control_rate_hz=opts.rate, duration=opts.duration)
+        self.opts = opts
+        self.scn, self.mode, self.prefix = scn, opts.mode, opts.prefix
         self.rate = scn.run.control_rate_hz
         self.duration = scn.run.duration
-        self.time_scale = time_scale
+        self.time_scale = opts.time_scale
         #: real time: poll (no sleep) for the last spin_us before each tick
-        self._spin_ns = int(max(0.0, spin_us) * 1e3)
+        self._spin_ns = int(max(0.0, opts.spin_us) * 1e3)
         #: the emulator thread's CPU, SCHED_FIFO + mlockall, gc (emulator/rtproc.py)
-        self._rt = RealtimeThread(freeze_gc=freeze_gc, cpu=cpu, fifo=realtime_priority)
-        self.cpp_plant = cpp_plant
+        self._rt = RealtimeThread(freeze_gc=opts.freeze_gc, cpu=opts.cpu, fifo=opts.realtime_priority)
         #: the row's arithmetic: the C++ plant twin, or the Python model (emulator/twin.py)
-        self.twin = PlantTwin(scn.plant, cpp_plant)
+        self.twin = PlantTwin(scn.plant, opts.cpp_plant)
         #: per row, monotonic ns: [tick or answer, integrated, state published, truth started, truth done]
         self._stamps: np.ndarray | None = None
         #: real time: row k's record and truth wait (bounded) until the answer to
@@ -97,53 +97,74 @@ class Emulator(Receiver, Publisher):
         self._pending_by_ns = 0
         self._guidance_next: tuple | None = None  # guidance values of the next state, computed ahead
         self._next_published = -1
-        self._guidance_sent: tuple = (-1, None)  # (seq, guidance values) of the newest state out
         #: real time: ticks that applied the answer to the state of the period just ended
         self.fresh_ticks = 0
-        self.accept_faults = accept_fault_commands
-        self.cmd_timeout, self.retries = cmd_timeout, retries
-        self.stale_periods = (scn.controller.safety.stale_periods if stale_periods is None
-                              else stale_periods)
-        self.wait_status = wait_status
+        self.cmd_timeout, self.retries = opts.cmd_timeout, opts.retries
+        self.stale_periods = (scn.controller.safety.stale_periods if opts.stale_periods is None
+                              else opts.stale_periods)
         #: the controllers' announcements and status senders (emulator/peers.py):
         #: lockstep waits for a status only from a controller that sends them
-        self.peers = ControllerPeers(wait_status)
+        self.peers = ControllerPeers(opts.wait_status)
         #: [s] wait this long for a first answer to state 0 before the run
         #: starts (a controller process still starting; None: no wait)
-        self.start_timeout = start_timeout
+        self.start_timeout = opts.start_timeout
         self.start_wait_s = 0.0  # [s] how long the first answer took (start_timeout)
         #: asked every step (and while waiting for a command): a reason to stop
         #: the run early (a signal, a dead logger), None to go on; a run stopped
         #: so is returned with the rows done and marked partial
         self.stop = stop
-        self.stopped: str | None = None
-        self.url = url
-        self.counters: Counter = Counter()
+        self.url = opts.url
+        #: what the parts share: counters, faults, the run's time, invalid/stopped (emulator/state.py)
+        self.shared = Shared(Counter(), scn.actuators)
         #: with auth_key every message carries an HMAC trailer; failures count as auth_failed (wire/auth.py)
-        self.lc = open_bus(url, auth_key, self.counters)
-        self.act = scn.actuators
-        self._ch_state = channel("SCRT_STATE", prefix)
-        self._ch_truth = channel("SCRT_TRUTH", prefix)
-        self._ch_guidance = channel("SCRT_GUIDANCE", prefix)
+        self.lc = open_bus(opts.url, opts.auth_key, self.shared.counters)
         self._gaps: list[tuple[float, float]] = []
         self._gap_start: float | None = None
         self.session = secrets.randbits(62)
-        #: a second bench on our URL and prefix stops the run, marked invalid (emulator/collision.py)
-        self.guard = CollisionGuard(url, prefix, self.session, alive_s=max(
-            0.5, self.stale_periods / self.rate / time_scale))
-        self.invalid: str | None = None
-        self.guidance = GuidancePublisher(self.lc, self._ch_guidance, scn.core_config().guidance,
-                                          self.rate, self.session)
-        self._t_now = 0.0
-        self.faults_applied: list[dict[str, Any]] = []
+        n_rows = grid(scn)[0] + 1
         #: the handlers and, per state seq of the run's rows, its command,
-        #: status and publish times, preallocated (emulator/inbox.py)
-        self._init_receiver(grid(scn)[0] + 1)
-        #: a [sensors] scenario: the sensor models, publishing their samples (emulator/sensorpub.py),
-        #: and the gyro's true bias per row (the truth's gyro_bias, the run's bias_true)
-        self.sensors = (SensorPublisher(scn, self.session, self.lc.publish, prefix)
+        #: status and publish times, preallocated (emulator/inbox.py); a second
+        #: bench on our URL and prefix stops the run, marked invalid (emulator/collision.py)
+        self.receiver = Receiver(
+            self.lc, opts.prefix, self.session, n_rows, self.shared, peers=self.peers,
+            accept_faults=opts.accept_fault_commands,
+            guard=CollisionGuard(opts.url, opts.prefix, self.session,
+                                 alive_s=max(0.5, self.stale_periods / self.rate / opts.time_scale)))
+        self.inbox = self.receiver.inbox
+        guidance = GuidancePublisher(self.lc, channel("SCRT_GUIDANCE", opts.prefix), scn.core_config().guidance,
+                                     self.rate, self.session)
+        #: a [sensors] scenario: the sensor models, publishing their samples (emulator/sensorpub.py)
+        self.sensors = (SensorPublisher(scn, self.session, self.lc.publish, opts.prefix)
                         if scn.sensors is not None else None)
-        self._bias_true = np.full((grid(scn)[0] + 1, 3), np.nan) if self.sensors is not None else None
+        self.publisher = Publisher(self.lc, opts.prefix, self.session, guidance, self.inbox, self.twin,
+                                   self.sensors, n_rows)
+        self.guidance = guidance
+
+    # the shared values, by their old names (the CLI, the HIL runner, tests)
+    @property
+    def counters(self) -> Counter:
+        return self.shared.counters
+
+    @property
+    def act(self):
+        return self.shared.act
+
+    @property
+    def invalid(self) -> str | None:
+        return self.shared.invalid
+
+    @property
+    def stopped(self) -> str | None:
+        return self.shared.stopped
+
+    @property
+    def faults_applied(self) -> list[dict[str, Any]]:
+        return self.shared.faults_applied
+
+    @property
+    def controller_info(self) -> dict[str, Any] | None:
+        """The controller_info_t of the session in use (None: none announced)."""
+        return self.receiver.controller_info
 
     def _handle_until(self, deadline_ns: int, spin_ns: int = 0) -> None:
         """Handle messages until ``deadline_ns``: asleep in ``select`` until
@@ -156,7 +177,7 @@ class Emulator(Receiver, Publisher):
                 self._flush_pending()  # the answer is in (or half a period passed): now the truth
             rem = deadline_ns - time.monotonic_ns()
             if rem <= 0:
-                self._drain()  # what is already there, without waiting
+                self.publisher.drain()  # what is already there, without waiting
                 return
             wait = rem - spin_ns
             if self._pending is not None:  # wake for the deferred truth at the latest
@@ -165,16 +186,16 @@ class Emulator(Receiver, Publisher):
                 self.lc.handle()
 
     def _should_stop(self) -> bool:
-        if self.stopped is None and self.stop is not None:
-            self.stopped = self.stop()
-        return self.stopped is not None
+        if self.shared.stopped is None and self.stop is not None:
+            self.shared.stopped = self.stop()
+        return self.shared.stopped is not None
 
     # --- the loops -----------------------------------------------------------
     def run(self) -> Run:
         """The whole run; returns its record (metrics are the caller's:
         ``sc_rt.results.metrics.finish_run``)."""
         if self.sensors is not None:  # tick 0: its samples go out before state 0
-            self._sense(0, 0.0, initial_state(self.scn), 0)
+            self.publisher.sense(0, 0.0, initial_state(self.scn), 0)
         if self.start_timeout is not None:
             self._await_controller(initial_state(self.scn))
         with self._rt:
@@ -202,10 +223,10 @@ class Emulator(Receiver, Publisher):
             now = time.monotonic_ns()
             if now >= end:
                 raise RuntimeError(f"no controller answered the first state within {self.start_timeout:g} s")
-            self.counters["start_state_sent"] += 1
-            if self.sensors is not None and self.counters["start_state_sent"] > 1:
+            self.shared.counters["start_state_sent"] += 1
+            if self.sensors is not None and self.shared.counters["start_state_sent"] > 1:
                 self.sensors.resend_first()  # a controller still starting gets tick 0's samples too
-            self._publish_state(0, 0.0, x0)
+            self.publisher.state(0, 0.0, x0)
             resend = min(end, now + 100_000_000)
             while not self.inbox.has_cmd(0) and time.monotonic_ns() < resend:
                 if self._should_stop():
@@ -250,7 +271,7 @@ class Emulator(Receiver, Publisher):
         self._next_published = -1  # the state _apply published already (the state first)
         for k in range(n_ctrl + 1):
             t = k / rate
-            self._t_now = t
+            self.shared.t_now = t
             cmd = None
             # a silent peer (crashed controller) gets one short wait per state
             # instead of the full timeout and retries: the run goes on under
@@ -259,9 +280,9 @@ class Emulator(Receiver, Publisher):
             retries = self.retries if silent == 0 else 0
             for attempt in range(retries + 1):
                 if attempt:
-                    self.counters["state_resent"] += 1
+                    self.shared.counters["state_resent"] += 1
                 if attempt or self._next_published != k:
-                    self._publish_state(k, t, x)
+                    self.publisher.state(k, t, x)
                 if attempt == 0 and k < n_ctrl:  # the next state's guidance while the controller works
                     self._guidance_next = self.guidance.values((k + 1) / rate)
                 deadline = time.monotonic_ns() + int(timeout * 1e9)
@@ -275,15 +296,15 @@ class Emulator(Receiver, Publisher):
                     except OSError:  # EINTR: a signal (self.stop decides), within the deadline
                         continue
                 cmd = inbox.cmd(k)
-                if cmd is not None or self.stopped:
+                if cmd is not None or self.shared.stopped:
                     break
-            if self.stopped:  # row k was not applied: the run ends with row k - 1
+            if self.shared.stopped:  # row k was not applied: the run ends with row k - 1
                 break
             stale = cmd is None
             silent = silent + 1 if stale else 0
             if stale:
                 # watchdog: no answer to this state: apply zero, flag, go on
-                self.counters["cmd_timeout"] += 1
+                self.shared.counters["cmd_timeout"] += 1
             stamps[k, 0] = time.monotonic_ns()
             x = self._apply(traj, k, t, x, cmd, n_sub, h, None if k == n_ctrl else (k + 1, (k + 1) / rate),
                             stamps[k])
@@ -304,12 +325,12 @@ class Emulator(Receiver, Publisher):
         x = initial_state(scn)
         lateness = traj["tick_lateness_us"]
         rows = 0
-        self._publish_state(0, 0.0, x)
+        self.publisher.state(0, 0.0, x)
         start = time.monotonic_ns()
         spin = self._spin_ns
         for k in range(n_ticks + 1):
             t = k * period
-            self._t_now = t
+            self.shared.t_now = t
             deadline = start + (k + 1) * wall_period_ns
             # the next state's guidance while there is time (it needs no command)
             self._guidance_next = (self.guidance.values((k + 1) * period) if k < n_ticks else None)
@@ -317,9 +338,9 @@ class Emulator(Receiver, Publisher):
             now = time.monotonic_ns()
             stamps[k, 0] = now
             lateness[k] = (now - deadline) / 1e3
-            cmd = self._newest_cmd
-            if cmd is None or now - self._newest_cmd_ns > stale_ns:
-                self.counters["cmd_stale_ticks"] += 1
+            cmd = self.receiver.newest_cmd
+            if cmd is None or now - self.receiver.newest_cmd_ns > stale_ns:
+                self.shared.counters["cmd_stale_ticks"] += 1
                 cmd = None
             elif cmd.state_seq == k:  # computed from the state of the period that just ended
                 self.fresh_ticks += 1
@@ -341,7 +362,7 @@ class Emulator(Receiver, Publisher):
         (``_handle_until``). Returns the next state, or None when it is not
         finite."""
         stale = cmd is None
-        self._peer_lost = stale
+        self.receiver.peer_lost = stale
         if stale:
             u_cmd, u_sat_ctrl, cmd_seq = np.zeros(4), np.zeros(4), -1
             if self._gap_start is None:
@@ -351,7 +372,7 @@ class Emulator(Receiver, Publisher):
             if self._gap_start is not None:
                 self._gaps.append((self._gap_start, t))
                 self._gap_start = None
-        act = self.act  # the row's faults (a handler may change self.act only while we wait)
+        act = self.shared.act  # the row's faults (a handler may change shared.act only while we wait)
         # the sensors sample inside the period only when a next row follows (as offline)
         sensors = self.sensors if next_state is not None else None
         x_next = self.twin.integrate(act, t, x, u_cmd, n_sub, h, sensors, k * n_sub)
@@ -360,10 +381,10 @@ class Emulator(Receiver, Publisher):
             stamps[1] = time.monotonic_ns()
         if next_state is not None and finite and not self._should_stop():
             if sensors is not None:  # the samples of the next control instant go out before its state
-                self._sense(next_state[0] * n_sub, next_state[1], x_next, next_state[0])
-            self._t_now = next_state[1]  # what arrives from now on arrives during the next row
+                self.publisher.sense(next_state[0] * n_sub, next_state[1], x_next, next_state[0])
+            self.shared.t_now = next_state[1]  # what arrives from now on arrives during the next row
             guidance, self._guidance_next = self._guidance_next, None
-            self._publish_state(next_state[0], next_state[1], x_next, guidance)
+            self.publisher.state(next_state[0], next_state[1], x_next, guidance)
             self._next_published = next_state[0]
         if stamps is not None:
             stamps[2] = time.monotonic_ns()
@@ -384,8 +405,8 @@ class Emulator(Receiver, Publisher):
             stamps[3] = time.monotonic_ns()
         _, accel, delta2 = self.twin.row(act, t, x, u_cmd)
         self._record(traj, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2)
-        self._drain()  # an answer that came meanwhile is received now, not after the truth's publish
-        self._publish_truth(traj, k, t, cmd_seq, u_cmd, accel, delta2, stale, act)
+        self.publisher.drain()  # an answer that came meanwhile is received now, not after the truth's publish
+        self.publisher.truth(traj, k, t, cmd_seq, u_cmd, accel, delta2, stale, act)
         if stamps is not None:
             stamps[4] = time.monotonic_ns()
 
@@ -400,20 +421,20 @@ class Emulator(Receiver, Publisher):
         run = run.head(rows)
         self.inbox.fill(run)
         if self.sensors is not None:
-            run["bias_true"][:] = self._bias_true[:rows]
-            self.counters.update(self.sensors.counters())
-        run.counters = dict(self.counters)
+            run["bias_true"][:] = self.publisher.bias_true[:rows]
+            self.shared.counters.update(self.sensors.counters())
+        run.counters = dict(self.shared.counters)
         run.gaps = list(self._gaps)
-        run.faults_applied = list(self.faults_applied)
+        run.faults_applied = list(self.shared.faults_applied)
         run.diverged = diverged
-        label = self.peers.label(self._ctl_session)  # the law's name, as the controller announced it
-        if label is None and self._ctl_session is not None and self._ctl_session not in self.peers.status_sessions:
+        label = self.peers.label(self.receiver.ctl_session)  # the law's name, as the controller announced it
+        if label is None and self.receiver.ctl_session is not None and self.receiver.ctl_session not in self.peers.status_sessions:
             label = "external"  # commands only: not sc-rt-controller, and no name announced
         if label:
             run.meta = dataclasses.replace(run.meta, law=label)
-        if self.stopped is not None:
+        if self.shared.stopped is not None:
             run.partial = True
-            run.message = self.stopped
-            run.metrics.update(stopped=self.stopped, t_reached_s=float(run["t"][rows - 1]) if rows else None)
-        run.metrics.update(provenance(self.session, self._ctl_session, self.invalid))
+            run.message = self.shared.stopped
+            run.metrics.update(stopped=self.shared.stopped, t_reached_s=float(run["t"][rows - 1]) if rows else None)
+        run.metrics.update(provenance(self.session, self.receiver.ctl_session, self.shared.invalid))
         return run

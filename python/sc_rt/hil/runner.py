@@ -25,7 +25,7 @@ import numpy as np
 
 
 from sc_rt.wire.auth import load_key, open_bus
-from sc_rt.emulator.process import Emulator
+from sc_rt.emulator.process import Emulator, Options
 from sc_rt.hil.external import ExternalController, python_controller_command
 from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
 from sc_rt.wire.lcmio import channel, free_port_url, lcm_binary, open_lcm
@@ -262,10 +262,38 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
                              out=out, config=cfg_path) if external or external_wait else None
     if ext is not None and auth_key is not None:
         ext.env["SCRT_AUTH_KEY"] = str(Path(auth_key).resolve())  # sc-rt controller reads it
+    bench = _Bench(scn=scn, out=out, url=url, mode=mode, prefix=prefix, realtime_priority=realtime_priority,
+                   time_scale=time_scale, accept_fault_commands=accept_fault_commands, plots=plots,
+                   ctl_bin=ctl_bin, logger_bin=logger_bin, cfg_path=cfg_path, log_path=log_path, ext=ext,
+                   key=key, key_path=auth_key, setup=setup, floor=floor)
     with Stopper() as stopper:
-        return _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale,
-                             accept_fault_commands, plots, stopper, ctl_bin, logger_bin, cfg_path, log_path,
-                             ext, key, auth_key, setup=setup, floor=floor)
+        return _run_children(bench, stopper)
+
+
+@dataclass(frozen=True)
+class _Bench:
+    """One bench run as settled before any child starts (run_hil)."""
+
+    scn: Scenario
+    out: Path
+    url: str
+    mode: str
+    prefix: str
+    realtime_priority: bool
+    time_scale: float
+    accept_fault_commands: bool
+    plots: bool
+    #: sc-rt-controller (None: an external controller, ``ext``)
+    ctl_bin: str | None
+    logger_bin: str
+    cfg_path: Path
+    log_path: Path
+    ext: ExternalController | None
+    #: the bus key (wire/auth.py) and its file (passed on to the controller)
+    key: bytes | None
+    key_path: str | Path | None
+    setup: TimingSetup
+    floor: dict | None
 
 
 def _death_line(res: Run, died: str, ext: ExternalController | None) -> str:
@@ -282,9 +310,10 @@ def _death_line(res: Run, died: str, ext: ExternalController | None) -> str:
     return f"{died} {when}{stop_t}; the run is invalid ({where})"
 
 
-def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, accept_fault_commands,
-                  plots, stopper, ctl_bin, logger_bin, cfg_path, log_path, ext=None, key=None,
-                  key_path=None, setup: TimingSetup = TimingSetup(), floor: dict | None = None) -> HilResult:
+def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
+    scn, out, url, mode, prefix = b.scn, b.out, b.url, b.mode, b.prefix
+    realtime_priority, setup, floor, ext, key = b.realtime_priority, b.setup, b.floor, b.ext, b.key
+    ctl_bin, logger_bin, cfg_path, log_path, key_path = b.ctl_bin, b.logger_bin, b.cfg_path, b.log_path, b.key_path
     logger = subprocess.Popen([logger_bin, "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs())
     stopper.logger = logger
@@ -326,11 +355,12 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
             if "mode on" not in line:
                 rest = ctl.stderr.read() if ctl.poll() is not None else ""
                 raise RuntimeError(f"sc-rt-controller did not start: {line}{rest}")
-        emu = Emulator(scn, mode=mode, url=url, prefix=prefix, time_scale=time_scale,
-                       accept_fault_commands=accept_fault_commands,
-                       stop=stopper,
-                       start_timeout=ext.start_timeout if ext else None, auth_key=key,
-                       spin_us=setup.spin_us, cpu=setup.emulator_cpu, realtime_priority=realtime_priority)
+        emu = Emulator(scn, Options(mode=mode, url=url, prefix=prefix, time_scale=b.time_scale,
+                                    accept_fault_commands=b.accept_fault_commands,
+                                    start_timeout=ext.start_timeout if ext else None, auth_key=key,
+                                    spin_us=setup.spin_us, cpu=setup.emulator_cpu,
+                                    realtime_priority=realtime_priority),
+                       stop=stopper)
         t0 = time.perf_counter()
         res = emu.run()
         wall = time.perf_counter() - t0 - emu.start_wait_s  # the run, not the wait for its controller
@@ -393,7 +423,7 @@ def _run_children(scn, out, url, mode, prefix, realtime_priority, time_scale, ac
         res.timing["floor"] = floor
         res.timing["over_floor"] = compare_to_floor(res.timing, floor)
     try:
-        files = write_run(res, out, figures=plots and len(res) > 1)  # (no figure of a run stopped at once)
+        files = write_run(res, out, figures=b.plots and len(res) > 1)  # (no figure of a run stopped at once)
     except OSError as e:  # a full disk: say where, and why the run had stopped
         raise OSError(e.errno, e.strerror + (f" (the run had stopped: {stopped})" if stopped else ""),
                       str(e.filename or out)) from e
