@@ -152,8 +152,13 @@ sc_rt::ControllerConfig load_config(const std::vector<char>& bytes, const Option
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  Options o;
+namespace {
+
+constexpr int kGoOn = -1;  // parse_args: no exit code, run
+
+// The command line into ``o``: kGoOn to run, else the exit code (help,
+// version: 0; a bad option: 2, one line).
+int parse_args(int argc, char** argv, Options& o) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto need = [&](const char* what) -> std::string {
@@ -225,59 +230,41 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "sc-rt-controller: give exactly one of --config FILE and --config-channel\n%s", kUsage);
     return 2;
   }
+  return kGoOn;
+}
 
-  std::vector<char> cfg_bytes;
-  if (!o.config_path.empty() && !read_file(o.config_path, cfg_bytes)) {
-    std::fprintf(stderr, "sc-rt-controller: cannot read config file %s\n", o.config_path.c_str());
-    return 2;
-  }
-  if (o.check) {
-    try {
-      const sc_rt::ControllerConfig cfg = load_config(cfg_bytes, o);
-      std::printf("sc-rt-controller: config ok: law %s, %.6g Hz\n",
-                  sc_rt::Controller::create(cfg)->law_name().c_str(), cfg.control_rate_hz);
-      return 0;
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "sc-rt-controller: %s: %s\n", o.config_path.c_str(), e.what());
-      return 2;
-    }
-  }
-
-  lcm::LCM lcm(o.url);
-  if (!lcm.good()) {
-    std::fprintf(stderr,
-                 "sc-rt-controller: cannot start LCM on %s (no multicast route? as root: "
-                 "ip route add 224.0.0.0/4 dev lo)\n", o.url.c_str());
-    return 3;
-  }
-  struct sigaction sa{};
-  sa.sa_handler = on_signal;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-
-  if (o.config_channel) {
-    ConfigWait w;
-    std::unique_ptr<sc_rt::HmacSha256> config_auth;
-    if (!o.auth_key.empty()) {
-      config_auth = std::make_unique<sc_rt::HmacSha256>(o.auth_key);
-      w.auth = config_auth.get();
-    }
-    auto* sub = lcm.subscribeFunction(o.prefix + "SCRT_CONFIG", &ConfigWait::on, &w);
-    std::fprintf(stderr, "sc-rt-controller: waiting for %sSCRT_CONFIG\n", o.prefix.c_str());
-    while (!w.got && !g_stop) lcm.handleTimeout(100);
-    lcm.unsubscribe(sub);
-    if (!w.got) return 0;
-    cfg_bytes = w.bytes;
-  }
-  Shell shell(o, lcm, g_stop);
-  if (!o.auth_key.empty()) shell.set_auth_key(o.auth_key);
+// --check: the configuration file decoded and the law constructed, nothing run.
+int check_only(const std::vector<char>& cfg_bytes, const Options& o) {
   try {
-    shell.configure(load_config(cfg_bytes, o), sc_rt::nav_from_bytes(cfg_bytes.data(), int(cfg_bytes.size())));
+    const sc_rt::ControllerConfig cfg = load_config(cfg_bytes, o);
+    std::printf("sc-rt-controller: config ok: law %s, %.6g Hz\n",
+                sc_rt::Controller::create(cfg)->law_name().c_str(), cfg.control_rate_hz);
+    return 0;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sc-rt-controller: bad configuration: %s\n", e.what());
+    std::fprintf(stderr, "sc-rt-controller: %s: %s\n", o.config_path.c_str(), e.what());
     return 2;
   }
-  const std::string sched = setup_scheduler(o.rt_priority, o.cpu);
+}
+
+// --config-channel: the configuration from SCRT_CONFIG (false: stopped first).
+bool wait_config(lcm::LCM& lcm, const Options& o, std::vector<char>& cfg_bytes) {
+  ConfigWait w;
+  std::unique_ptr<sc_rt::HmacSha256> config_auth;
+  if (!o.auth_key.empty()) {
+    config_auth = std::make_unique<sc_rt::HmacSha256>(o.auth_key);
+    w.auth = config_auth.get();
+  }
+  auto* sub = lcm.subscribeFunction(o.prefix + "SCRT_CONFIG", &ConfigWait::on, &w);
+  std::fprintf(stderr, "sc-rt-controller: waiting for %sSCRT_CONFIG\n", o.prefix.c_str());
+  while (!w.got && !g_stop) lcm.handleTimeout(100);
+  lcm.unsubscribe(sub);
+  if (!w.got) return false;
+  cfg_bytes = w.bytes;
+  return true;
+}
+
+// The shell's subscriptions: states, and the sensors of a [sensors] scenario.
+void subscribe(lcm::LCM& lcm, const Options& o, Shell& shell) {
   // LCM drops messages beyond a subscription's queue capacity (30 by
   // default) without a word: under a burst of hostile traffic that would lose
   // genuine states. Hold many; every one is counted or used.
@@ -290,10 +277,11 @@ int main(int argc, char** argv) {
     lcm.subscribeFunction(o.prefix + "SCRT_TACH", &Shell::on_sensor<sc_rt_lcm::tachometer_t>, &shell)
         ->setQueueCapacity(100000);
   }
-  std::fprintf(stderr, "sc-rt-controller: %s mode on %s, %s%s%s\n", o.realtime ? "realtime" : "lockstep",
-               o.url.c_str(), sched.c_str(), o.realtime && o.event_trigger ? ", event-triggered" : "",
-               o.null_law ? ", null law" : "");
+}
 
+// The run: one step per state on its arrival (lockstep, event trigger), or
+// a receive thread and phase-locked deadlines (timer trigger).
+void run_loops(lcm::LCM& lcm, const Options& o, Shell& shell) {
   if (!o.realtime || o.event_trigger) {  // one step per state, on its arrival
     while (!shell.done()) lcm.handleTimeout(100);
   } else {
@@ -319,6 +307,48 @@ int main(int argc, char** argv) {
     rx_stop = true;
     rx.join();
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  if (const int rc = parse_args(argc, argv, o); rc != kGoOn) return rc;
+  std::vector<char> cfg_bytes;
+  if (!o.config_path.empty() && !read_file(o.config_path, cfg_bytes)) {
+    std::fprintf(stderr, "sc-rt-controller: cannot read config file %s\n", o.config_path.c_str());
+    return 2;
+  }
+  if (o.check) return check_only(cfg_bytes, o);
+
+  lcm::LCM lcm(o.url);
+  if (!lcm.good()) {
+    std::fprintf(stderr,
+                 "sc-rt-controller: cannot start LCM on %s (no multicast route? as root: "
+                 "ip route add 224.0.0.0/4 dev lo)\n", o.url.c_str());
+    return 3;
+  }
+  struct sigaction sa{};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  if (o.config_channel && !wait_config(lcm, o, cfg_bytes)) return 0;
+  Shell shell(o, lcm, g_stop);
+  if (!o.auth_key.empty()) shell.set_auth_key(o.auth_key);
+  try {
+    shell.configure(load_config(cfg_bytes, o), sc_rt::nav_from_bytes(cfg_bytes.data(), int(cfg_bytes.size())));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sc-rt-controller: bad configuration: %s\n", e.what());
+    return 2;
+  }
+  const std::string sched = setup_scheduler(o.rt_priority, o.cpu);
+  subscribe(lcm, o, shell);
+  std::fprintf(stderr, "sc-rt-controller: %s mode on %s, %s%s%s\n", o.realtime ? "realtime" : "lockstep",
+               o.url.c_str(), sched.c_str(), o.realtime && o.event_trigger ? ", event-triggered" : "",
+               o.null_law ? ", null law" : "");
+
+  run_loops(lcm, o, shell);
   const std::string js = shell.summary_json(sched);
   std::printf("%s\n", js.c_str());
   if (!o.summary_path.empty()) {

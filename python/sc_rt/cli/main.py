@@ -108,23 +108,15 @@ def _add_monitoring(sub) -> None:
     p.set_defaults(func=cmd_replay)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = OneLineParser(
-        prog="sc-rt",
-        epilog="Exit codes: 0 done; 1 the run or check found a problem (sc-rt check: warnings; "
-               "sc-rt fault: no emulator echoed; sc-rt spy: nothing heard); 2 a bad option, value, "
-               "scenario or path (one line, nothing started); 130/143 interrupted by SIGINT/SIGTERM "
-               "(partial outputs written and marked). LCM URL: --lcm-url, else $SCRT_LCM_URL.",
-        description="Real-time attitude-control emulator: fault-tolerant controllers against a "
-                    "reaction-wheel spacecraft, offline and over LCM.",
-    )
-    p.add_argument("--version", action="version", version=f"sc-rt {__version__}")
-    from sc_rt.cli.newlaw import CmakeDirAction, add_parser as add_new_law
+def _lcm_opts(q, url_help="default: $SCRT_LCM_URL, else udpm://239.255.76.67:<a free port>?ttl=0 "
+                            "(printed; nothing leaves the machine)") -> None:
+    q.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
+    q.add_argument("--prefix", default="", help="channel name prefix (default: none)")
+    q.add_argument("--auth-key", metavar="FILE", type=auth_key_file, help=AUTH_KEY_HELP)
 
-    p.add_argument("--cmake-dir", action=CmakeDirAction,
-                   help="print the directory of the installed sc_rtConfig.cmake (law plugins, docs/LAWS.md) and exit")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
+def _add_sim(sub) -> None:
+    """sc-rt sim."""
     s = sub.add_parser("sim", help="offline closed loop (plant + C++ controller core)")
     s.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     s.add_argument("--law", "--controller", dest="law", type=law_choice, metavar="LAW",
@@ -140,12 +132,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     s.set_defaults(func=cmd_sim)
 
-    def lcm_opts(q, url_help="default: $SCRT_LCM_URL, else udpm://239.255.76.67:<a free port>?ttl=0 "
-                             "(printed; nothing leaves the machine)"):
-        q.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
-        q.add_argument("--prefix", default="", help="channel name prefix (default: none)")
-        q.add_argument("--auth-key", metavar="FILE", type=auth_key_file, help=AUTH_KEY_HELP)
 
+def _add_hil(sub) -> None:
+    """sc-rt hil."""
     h = sub.add_parser("hil", help="controller process + plant emulator + lcm-logger over LCM")
     h.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     h.add_argument("--mode", choices=("lockstep", "realtime"),
@@ -166,10 +155,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also write the run's log as MCAP (default OUT: run.mcap in --out; as sc-rt export)")
     add_external_options(h)  # --external, --external-wait, --start-timeout (sc_rt/cli/controller.py)
     add_timing_options(h)  # --trigger, CPUs, --spin-us, --floor, --self-test (sc_rt/cli/floor_cmd.py)
-    lcm_opts(h)
+    _lcm_opts(h)
     h.set_defaults(func=cmd_hil)
-    add_floor_parser(sub)  # sc-rt floor
 
+
+def _add_demo(sub) -> None:
+    """sc-rt demo."""
     d = sub.add_parser("demo", help="the main job: the paper's DSC+PPC and the feasible 10 Hz design "
                        "on the paper's fault scenario, each through the real LCM loop")
     d.add_argument("--out", default="out/demo", type=out_dir, metavar="DIR",
@@ -178,6 +169,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="LCM URL (default: $SCRT_LCM_URL, else a free port on 239.255.76.67, ttl=0)")
     d.set_defaults(func=cmd_demo)
 
+
+def _add_emulator(sub) -> None:
+    """sc-rt emulator."""
     e = sub.add_parser("emulator", help="the plant as an LCM process")
     e.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     e.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep", help="default: %(default)s")
@@ -193,10 +187,13 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--start-timeout", type=number(0, 86400, unit="s"), metavar="S",
                    help="re-send the first state until a controller answers it, up to S s (a controller "
                         "started after the emulator; default: no wait)")
-    lcm_opts(e, "default: $SCRT_LCM_URL, else udpm://239.255.76.67:7667?ttl=0 (the port sc-rt-controller "
+    _lcm_opts(e, "default: $SCRT_LCM_URL, else udpm://239.255.76.67:7667?ttl=0 (the port sc-rt-controller "
                 "uses by default)")
     e.set_defaults(func=cmd_emulator)
 
+
+def _add_check(sub) -> None:
+    """sc-rt check and sc-rt scenarios."""
     k = sub.add_parser("check", help="check a scenario: schema, bound at t=0, (26), Theorem 1, B, Cbar, limits")
     k.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     k.add_argument("--verbose", "-v", action="store_true", help="also list the checks that pass")
@@ -211,17 +208,9 @@ def build_parser() -> argparse.ArgumentParser:
     n.add_argument("--paths", action="store_true", help="print each file instead of its description")
     n.set_defaults(func=cmd_scenarios)
 
-    from sc_rt.cli.montecarlo import add_parser as add_montecarlo
 
-    add_montecarlo(sub)  # its options and their checks: sc_rt/cli/montecarlo.py
-    from sc_rt.cli.controller import add_parser as add_controller
-
-    add_controller(sub)  # sc-rt controller --law module:Class: sc_rt/cli/controller.py
-    add_new_law(sub)  # sc-rt new-law: sc_rt/cli/newlaw.py
-    from sc_rt.cli.compare import add_parser as add_compare
-
-    add_compare(sub)  # sc-rt compare: sc_rt/cli/compare.py
-
+def _add_config(sub) -> None:
+    """sc-rt config."""
     c = sub.add_parser("config", help="write the scenario's controller_config_t for sc-rt-controller")
     c.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     c.add_argument("--out", required=True, type=out_file, metavar="FILE", help="the file to write")
@@ -230,6 +219,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
     c.set_defaults(func=cmd_config)
 
+
+def _add_design(sub) -> None:
+    """sc-rt design."""
     g = sub.add_parser("design", help="PD design, stability margins and sampled-data stability limits")
     g.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     g.add_argument("--rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="control rate (default: the scenario's)")
@@ -239,6 +231,10 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--out", default="out/design", type=out_dir, metavar="DIR", help="default: %(default)s")
     g.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     g.set_defaults(func=cmd_design)
+
+
+def _add_reproduce(sub) -> None:
+    """sc-rt reproduce."""
     q = sub.add_parser("reproduce", help="check the paper's claims: both scenarios, four laws -> claims.json, figures")
     q.add_argument("--out", default="out/reproduce", type=out_dir, metavar="DIR", help="default: %(default)s")
     q.add_argument("--engine", choices=("python", "cpp"), default="cpp", help="default: %(default)s")
@@ -251,7 +247,40 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--dpi", type=integer(10, 1200), default=80, help="figure resolution (default: %(default)s)")
     q.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     q.set_defaults(func=cmd_reproduce)
-    _add_monitoring(sub)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = OneLineParser(
+        prog="sc-rt",
+        epilog="Exit codes: 0 done; 1 the run or check found a problem (sc-rt check: warnings; "
+               "sc-rt fault: no emulator echoed; sc-rt spy: nothing heard); 2 a bad option, value, "
+               "scenario or path (one line, nothing started); 130/143 interrupted by SIGINT/SIGTERM "
+               "(partial outputs written and marked). LCM URL: --lcm-url, else $SCRT_LCM_URL.",
+        description="Real-time attitude-control emulator: fault-tolerant controllers against a "
+                    "reaction-wheel spacecraft, offline and over LCM.",
+    )
+    p.add_argument("--version", action="version", version=f"sc-rt {__version__}")
+    from sc_rt.cli.newlaw import CmakeDirAction, add_parser as add_new_law
+
+    p.add_argument("--cmake-dir", action=CmakeDirAction,
+                   help="print the directory of the installed sc_rtConfig.cmake (law plugins, docs/LAWS.md) and exit")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    for add in (_add_sim, _add_hil, add_floor_parser, _add_demo, _add_emulator, _add_check):
+        add(sub)
+    from sc_rt.cli.montecarlo import add_parser as add_montecarlo
+
+    add_montecarlo(sub)  # its options and their checks: sc_rt/cli/montecarlo.py
+    from sc_rt.cli.controller import add_parser as add_controller
+
+    add_controller(sub)  # sc-rt controller --law module:Class: sc_rt/cli/controller.py
+    add_new_law(sub)  # sc-rt new-law: sc_rt/cli/newlaw.py
+    from sc_rt.cli.compare import add_parser as add_compare
+
+    add_compare(sub)  # sc-rt compare: sc_rt/cli/compare.py
+
+    for add in (_add_config, _add_design, _add_reproduce, _add_monitoring):
+        add(sub)
     return p
 
 

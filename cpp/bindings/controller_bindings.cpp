@@ -1,0 +1,353 @@
+// pybind11 bindings of the control laws, their registry and the
+// controllers (sc_rt._core), with the offline closed loop and the packed
+// telemetry of the simulator's hot path. Called from core.cpp's module.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <chrono>
+#include <string>
+#include <type_traits>
+
+#include "closed_loop_dict.hpp"
+#include "defaults.hpp"
+#include "sc_rt/closed_loop.hpp"
+#include "sc_rt/controllers.hpp"
+#include "translate.hpp"
+
+namespace py = pybind11;
+using namespace sc_rt;
+using py::arg;
+
+namespace {
+
+// The packed row of step_packed, in the order it is written: f(name, value)
+// for each field (an Eigen vector, or one scalar). PACKED_FIELDS is built
+// from the same list, so the names and the writes cannot drift apart.
+template <typename F>
+void for_each_packed(const Command& c, F&& f) {
+  f("u_cmd", c.u_cmd);
+  f("u_sat", c.u_sat);
+  f("sigma_DN", c.sigma_DN);
+  f("sigma_BD", c.sigma_BD);
+  f("omega_BD_B", c.omega_BD_B);
+  f("e1", c.e1);
+  f("e2", c.e2);
+  f("z1", c.z1);
+  f("z2", c.z2);
+  f("chi", c.chi);
+  f("lam", c.lam);
+  f("x2d", c.x2d);
+  f("vs", c.vs);
+  f("rho_hat", c.rho_hat);
+  f("mode", c.mode);
+  f("flags", c.flags);
+}
+template <typename T>
+int packed_width(const T& v) {
+  if constexpr (std::is_arithmetic_v<T>)
+    return 1;
+  else
+    return static_cast<int>(v.size());
+}
+constexpr int kPackedSize = 45;
+
+
+template <typename T>
+py::bytes encode_lcm(const T& msg) {
+  std::string buf(static_cast<std::size_t>(msg.getEncodedSize()), '\0');
+  msg.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  return py::bytes(buf);
+}
+
+using RowsD = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// Measurements from arrays: t (N,), sigma_BN (N,3), omega_BN_B (N,3), wheel_speed (N,4).
+std::vector<Measurement> measurements(const RowsD& t, const RowsD& sigma, const RowsD& omega,
+                                      const RowsD& wheel) {
+  const auto n = t.shape(0);
+  if (sigma.ndim() != 2 || sigma.shape(0) != n || sigma.shape(1) != 3 || omega.ndim() != 2 ||
+      omega.shape(0) != n || omega.shape(1) != 3 || wheel.ndim() != 2 || wheel.shape(0) != n ||
+      wheel.shape(1) != 4)
+    throw std::invalid_argument(
+        "expected t (N,), sigma_BN (N,3), omega_BN_B (N,3), wheel_speed (N,4)");
+  auto T = t.unchecked<1>();
+  auto S = sigma.unchecked<2>();
+  auto W = omega.unchecked<2>();
+  auto O = wheel.unchecked<2>();
+  std::vector<Measurement> ms(static_cast<std::size_t>(n));
+  for (py::ssize_t k = 0; k < n; ++k) {
+    Measurement& m = ms[static_cast<std::size_t>(k)];
+    m.t = T(k);
+    for (int i = 0; i < 3; ++i) {
+      m.sigma_BN(i) = S(k, i);
+      m.omega_BN_B(i) = W(k, i);
+    }
+    for (int i = 0; i < 4; ++i) m.wheel_speed(i) = O(k, i);
+  }
+  return ms;
+}
+
+}  // namespace
+
+void bind_controllers(py::module_& m) {
+  // --- controllers
+  // --- the law registry (docs/LAWS.md)
+  py::register_exception<LawError>(m, "LawError", PyExc_ValueError);
+  m.attr("LAW_API_VERSION") = SC_RT_LAW_API_VERSION;
+  m.attr("LAW_FINGERPRINT") = SC_RT_LAW_FINGERPRINT;
+  m.attr("LAW_MAX_TELEMETRY") = kLawMaxTelemetry;
+  m.attr("DEFAULT_LAW") = kDefaultLaw;
+  m.def("law_names", &law_names, "Every registered law name, registry order (the built-ins first).");
+  m.def("load_law_plugin", &load_law_plugin, arg("path_or_name"),
+        "Load a law plugin library (a path, or a name searched in SCRT_LAW_PATH); returns its\n"
+        "law name. LawError (a ValueError) names the plugin and the problem.");
+  m.def(
+      "law_info",
+      [](const std::string& spec) {
+        const LawEntry e = resolve_law(spec);
+        py::dict d;
+        d["name"] = e.name;
+        d["doc"] = e.doc;
+        d["source"] = e.source;
+        d["code"] = e.code;
+        return d;
+      },
+      arg("spec"), "name, doc, source (\"built-in\" or the library) and code of a law spec.");
+  m.def("check_law", &check_law, arg("c"),
+        "Construct the configured law once and probe one step at rest, without running:\n"
+        "[(key, message)] per problem; key \"law\" or \"params.<key>\" (empty: fine).");
+  for (auto [name, v] : std::initializer_list<std::pair<const char*, int>>{
+           {"MODE_INIT", MODE_INIT}, {"MODE_NORMAL", MODE_NORMAL}, {"MODE_SAFE", MODE_SAFE},
+           {"FLAG_BOUND_X", FLAG_BOUND_X}, {"FLAG_BOUND_Y", FLAG_BOUND_Y},
+           {"FLAG_BOUND_Z", FLAG_BOUND_Z}, {"FLAG_SAT_1", FLAG_SAT_1},
+           {"FLAG_INVALID_STATE", FLAG_INVALID_STATE}, {"FLAG_STALE_STATE", FLAG_STALE_STATE},
+           {"FLAG_TIME_NOT_ADVANCING", FLAG_TIME_NOT_ADVANCING},
+           {"FLAG_LAW_INVALID", FLAG_LAW_INVALID}})
+    m.attr(name) = v;
+  py::class_<DscGains>(m, "DscGains")
+      .def(py::init<>())
+      .def_readwrite("k1", &DscGains::k1)
+      .def_readwrite("k2", &DscGains::k2)
+      .def_readwrite("k3", &DscGains::k3)
+      .def_readwrite("k4", &DscGains::k4)
+      .def_readwrite("k6", &DscGains::k6)
+      .def_readwrite("tau", &DscGains::tau, "[s]");
+  py::class_<PdGains>(m, "PdGains")
+      .def(py::init<>())
+      .def_readwrite("beta1", &PdGains::beta1, "[1/s^2]")
+      .def_readwrite("beta2", &PdGains::beta2, "[1/s]");
+  py::class_<RftGains>(m, "RftGains")
+      .def(py::init<>())
+      .def_readwrite("c", &RftGains::c)
+      .def_readwrite("k", &RftGains::k)
+      .def_readwrite("gain", &RftGains::gain)
+      .def_readwrite("leak", &RftGains::leak)
+      .def_readwrite("phi", &RftGains::phi)
+      .def_readwrite("rho0", &RftGains::rho0);
+  py::class_<SafetyLimits>(m, "SafetyLimits")
+      .def(py::init<>())
+      .def_readwrite("max_rate", &SafetyLimits::max_rate, "[rad/s]")
+      .def_readwrite("max_wheel_speed", &SafetyLimits::max_wheel_speed, "[rad/s]")
+      .def_readwrite("stale_periods", &SafetyLimits::stale_periods);
+  py::class_<ControllerConfig>(m, "ControllerConfig", "Everything a controller needs.")
+      .def(py::init<>())
+      .def_readwrite("law", &ControllerConfig::law,
+                     "law spec: a registered name or \"plugin:PATH_OR_NAME\"")
+      .def_readwrite("law_params", &ControllerConfig::law_params,
+                     "[controller.params]: [(key, [numbers])]")
+      .def_readwrite("control_rate_hz", &ControllerConfig::control_rate_hz)
+      .def_readwrite("spacecraft", &ControllerConfig::spacecraft)
+      .def_readwrite("guidance", &ControllerConfig::guidance)
+      .def_readwrite("ppc", &ControllerConfig::ppc)
+      .def_readwrite("neso", &ControllerConfig::neso)
+      .def_readwrite("dsc", &ControllerConfig::dsc)
+      .def_readwrite("pd", &ControllerConfig::pd)
+      .def_readwrite("rft", &ControllerConfig::rft)
+      .def_readwrite("safety", &ControllerConfig::safety)
+      .def_static("from_lcm_bytes",
+                  [](const py::bytes& b) {
+                    const std::string s = b;
+                    return config_from_bytes(s.data(), static_cast<int>(s.size()));
+                  },
+                  arg("data"), "Decode an LCM-encoded controller_config_t.")
+      .def("to_lcm_bytes",
+           [](const ControllerConfig& c, const std::string& scenario) {
+             return encode_lcm(config_to_lcm(c, scenario));
+           },
+           arg("scenario") = "", "Encode as controller_config_t.");
+  m.def("validate", py::overload_cast<const ControllerConfig&>(&validate), arg("c"));
+
+  py::class_<Measurement>(m, "Measurement")
+      .def(py::init([](double t, const Vec3& s, const Vec3& w, const Vec4& o) {
+             return Measurement{t, s, w, o};
+           }),
+           arg("t"), arg("sigma_BN"), arg("omega_BN_B"), arg("wheel_speed"))
+      .def_readwrite("t", &Measurement::t, "[s]")
+      .def_readwrite("sigma_BN", &Measurement::sigma_BN)
+      .def_readwrite("omega_BN_B", &Measurement::omega_BN_B, "[rad/s]")
+      .def_readwrite("wheel_speed", &Measurement::wheel_speed, "[rad/s]");
+  py::class_<Command>(m, "Command")
+      .def_readonly("t", &Command::t)
+      .def_readonly("u_cmd", &Command::u_cmd, "[rad/s^2] before saturation")
+      .def_readonly("u_sat", &Command::u_sat, "[rad/s^2] after saturation")
+      .def_readonly("mode", &Command::mode)
+      .def_readonly("flags", &Command::flags)
+      .def_readonly("sigma_DN", &Command::sigma_DN)
+      .def_readonly("sigma_BD", &Command::sigma_BD)
+      .def_readonly("omega_BD_B", &Command::omega_BD_B)
+      .def_readonly("e1", &Command::e1)
+      .def_readonly("e2", &Command::e2)
+      .def_readonly("z1", &Command::z1)
+      .def_readonly("z2", &Command::z2)
+      .def_readonly("chi", &Command::chi)
+      .def_readonly("lam", &Command::lam)
+      .def_readonly("x2d", &Command::x2d)
+      .def_readonly("vs", &Command::vs)
+      .def_readonly("rho_hat", &Command::rho_hat)
+      .def_readonly("telemetry", &Command::telemetry, "the law's named telemetry (Controller.telemetry_names)");
+  py::class_<TrackingErrors>(m, "TrackingErrors")
+      .def_readonly("sigma_BD", &TrackingErrors::sigma_BD)
+      .def_readonly("omega_BD_B", &TrackingErrors::omega_BD_B)
+      .def_readonly("R_BD", &TrackingErrors::R_BD)
+      .def_readonly("omega_DN_B", &TrackingErrors::omega_DN_B)
+      .def_readonly("A", &TrackingErrors::A)
+      .def_readonly("u_g0", &TrackingErrors::u_g0);
+  m.def("tracking_errors", &tracking_errors, arg("sc"), arg("m"), arg("sigma_DN"),
+        arg("omega_DN_D"), arg("omega_dot_DN_D"), "Errors (8)-(11) and A of (21).");
+  m.def("measurement_valid", &measurement_valid, arg("m"), arg("lim"));
+
+  py::class_<Controller>(m, "Controller", "One control law behind reset/step.")
+      .def(py::init(&Controller::create), arg("c"))
+      .def("reset", &Controller::reset, arg("m"))
+      .def("step", &Controller::step, arg("m"))
+      .def("safe_command", &Controller::safe_command, arg("t"), arg("flags"))
+      .def_property_readonly("law_name", &Controller::law_name, "the law's registry name")
+      .def_property_readonly("law_code", &Controller::law_code, "its registry code")
+      .def_property_readonly("telemetry_names", &Controller::telemetry_names)
+      .def_property_readonly("config", &Controller::config)
+      .def_property_readonly("model", &Controller::model)
+      .def_property_readonly("t0", &Controller::t0)
+      .def_property_readonly("guidance", &Controller::guidance, py::return_value_policy::reference_internal);
+
+  // Packed telemetry of one step, one numpy allocation (the offline
+  // simulator's hot path). Layout: PACKED_FIELDS (sc_rt.sim.engines.PACKED).
+  {
+    py::list fields;
+    int size = 0;
+    for_each_packed(Command{}, [&](const char* name, const auto& v) {
+      fields.append(py::make_tuple(name, packed_width(v)));
+      size += packed_width(v);
+    });
+    if (size != kPackedSize) throw std::logic_error("step_packed: PACKED_FIELDS do not add up to PACKED_SIZE");
+    m.attr("PACKED_SIZE") = kPackedSize;
+    m.attr("PACKED_FIELDS") = fields;
+  }
+  m.def(
+      "step_packed",
+      [](Controller& c, double t, const Eigen::Matrix<double, 10, 1>& x) {
+        Measurement m{t, x.segment<3>(0), x.segment<3>(3), x.segment<4>(6)};
+        const Command cmd = c.step(m);
+        py::array_t<double> out(kPackedSize);
+        double* o = out.mutable_data();
+        for_each_packed(cmd, [&o](const char*, const auto& v) {
+          if constexpr (std::is_arithmetic_v<std::decay_t<decltype(v)>>)
+            *o++ = v;
+          else
+            for (int i = 0; i < v.size(); ++i) *o++ = v(i);
+        });
+        return out;
+      },
+      arg("controller"), arg("t"), arg("x"),
+      "One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];\n"
+      "returns the packed telemetry (45,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,\n"
+      "omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, mode, flags\n"
+      "(PACKED_FIELDS: (name, width) in this order).");
+
+  {
+    py::list cols;
+    for (std::size_t i = 0; i < sc_rt_bind::kPlainLoopColumns; ++i)
+      cols.append(py::make_tuple(sc_rt_bind::kLoopColumns[i].name, sc_rt_bind::kLoopColumns[i].width));
+    cols.append(py::make_tuple("flags", 1));
+    cols.append(py::make_tuple("ctrl_mode", 1));
+    m.attr("CLOSED_LOOP_FIELDS") = cols;
+  }
+
+  m.def(
+      "simulate_closed_loop",
+      [](const ControllerConfig& cfg, const PlantParams& plant, const ActuatorParams& act,
+         const Eigen::Matrix<double, 10, 1>& x0, int n_ctrl, int n_sub, double rate) {
+        PlantState x{x0.segment<3>(0), x0.segment<3>(3), x0.segment<4>(6)};
+        ClosedLoopResult r;
+        {
+          py::gil_scoped_release release;
+          r = simulate_closed_loop(cfg, plant, act, x, n_ctrl, n_sub, rate);
+        }
+        return sc_rt_bind::closed_loop_dict(r, sc_rt_bind::kPlainLoopColumns);
+      },
+      arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),
+      "The whole offline closed loop in C++ (sc-rt sim --engine cpp): n_ctrl periods at rate [Hz],\n"
+      "n_sub plant RK4 steps each; returns rows, diverged and the trajectory arrays (one row per\n"
+      "control instant; CLOSED_LOOP_FIELDS: (name, width) in dict order).");
+
+  m.def(
+      "run_steps",
+      [](Controller& c, const RowsD& t, const RowsD& sigma, const RowsD& omega,
+         const RowsD& wheel) {
+        const auto ms = measurements(t, sigma, omega, wheel);
+        const py::ssize_t n = static_cast<py::ssize_t>(ms.size());
+        py::array_t<double> u_cmd({n, py::ssize_t(4)}), u_sat({n, py::ssize_t(4)});
+        py::array_t<double> z2({n, py::ssize_t(3)});
+        py::array_t<int> flags(n);
+        auto U = u_cmd.mutable_unchecked<2>();
+        auto S = u_sat.mutable_unchecked<2>();
+        auto Z = z2.mutable_unchecked<2>();
+        auto F = flags.mutable_unchecked<1>();
+        {
+          py::gil_scoped_release release;
+          for (py::ssize_t k = 0; k < n; ++k) {
+            const Command cmd = c.step(ms[static_cast<std::size_t>(k)]);
+            for (int i = 0; i < 4; ++i) {
+              U(k, i) = cmd.u_cmd(i);
+              S(k, i) = cmd.u_sat(i);
+            }
+            for (int i = 0; i < 3; ++i) Z(k, i) = cmd.z2(i);
+            F(k) = cmd.flags;
+          }
+        }
+        py::dict out;
+        out["u_cmd"] = u_cmd;
+        out["u_sat"] = u_sat;
+        out["z2"] = z2;
+        out["flags"] = flags;
+        return out;
+      },
+      arg("controller"), arg("t"), arg("sigma_BN"), arg("omega_BN_B"), arg("wheel_speed"),
+      "Run N steps inside C++ on recorded measurements; returns u_cmd, u_sat, z2, flags.");
+
+  m.def(
+      "time_steps",
+      [](Controller& c, const RowsD& t, const RowsD& sigma, const RowsD& omega,
+         const RowsD& wheel) {
+        const auto ms = measurements(t, sigma, omega, wheel);
+        py::array_t<double> ns(static_cast<py::ssize_t>(ms.size()));
+        auto N = ns.mutable_unchecked<1>();
+        double sink = 0.0;
+        {
+          py::gil_scoped_release release;
+          using clk = std::chrono::steady_clock;
+          for (std::size_t k = 0; k < ms.size(); ++k) {
+            const auto a = clk::now();
+            const Command cmd = c.step(ms[k]);
+            const auto b = clk::now();
+            sink += cmd.u_cmd(0);
+            N(static_cast<py::ssize_t>(k)) =
+                static_cast<double>(std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count());
+          }
+        }
+        return py::make_tuple(ns, sink);
+      },
+      arg("controller"), arg("t"), arg("sigma_BN"), arg("omega_BN_B"), arg("wheel_speed"),
+      "Benchmark helper: per-step wall time [ns] of N steps inside C++ (bindings-side clock).");
+}
