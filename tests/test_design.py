@@ -289,7 +289,7 @@ def _core_step_derivative(scn, law, rate, a, b, h0=2e-4):
 @pytest.mark.parametrize("rate", [10.0, 100.0])
 def test_linearised_controller_step_is_the_cores_step(paper_faults, rng, law, rate):
     # The law of the sampled model (controller_step) is written out in Python;
-    # it must stay the derivative of the C++ DscController's step. With alpha = 1
+    # it must stay the derivative of the C++ DscLaw::step. With alpha = 1
     # (the observer's sig terms are then linear, local-gain exact), no desired
     # motion and w0 = 0 the core's step is smooth at the origin: drive it with a
     # random measurement sequence and compare every step's u_cmd, x2d, vs, z1, z2

@@ -2,8 +2,8 @@
 // and argument names. The keyword constructors of PlantParams, WheelFault and
 // ActuatorParams validate (ValueError naming the field, from
 // std::invalid_argument); fields assigned afterwards are not re-checked.
-// From the Python dataclasses use sc_rt.plant.plant_params_to_cpp and
-// sc_rt.actuators.actuator_params_to_cpp.
+// From the Python dataclasses use sc_rt.model.plant.plant_params_to_cpp and
+// sc_rt.model.actuators.actuator_params_to_cpp.
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>

@@ -42,8 +42,8 @@ void check_fault(const WheelFault& f, const std::string& pre, std::vector<std::s
 
 // ---------------------------------------------------------------------------
 // The hot path, written as plain scalar expressions in EXACTLY the order of
-// the Python reference (sc_rt/plant.py: _inv3, _make_rhs, _make_wheel_map,
-// _make_disturbance, rk4_step; sc_rt/actuators.py: _sat4, _accel4), so that
+// the Python reference (sc_rt/model/plant.py: _inv3, _make_rhs, _make_wheel_map,
+// _make_disturbance, rk4_step; sc_rt/model/actuators.py: sat4, accel4), so that
 // both engines give bit-identical results (IEEE double, -ffp-contract=off,
 // the same glibc cos/expm1). Python evaluates a + b + c as (a + b) + c, as
 // C++ does; no Eigen products here (their summation order is Eigen's own).

@@ -1,6 +1,6 @@
 // Offline closed loop in C++ (the "cpp" engine of sc-rt sim): the plant twin
 // (plant.hpp) and a controller, sampled at the control rate with a
-// zero-order hold. Same loop, same order of operations as python/sc_rt/sim.py.
+// zero-order hold. Same loop, same order of operations as python/sc_rt/sim/engines.py.
 #pragma once
 #include <vector>
 

@@ -1,5 +1,5 @@
 // The true plant (docs/MODEL.md sections 1 and 2): what the emulator integrates.
-// The same model as the Python reference sc_rt.plant / sc_rt.actuators,
+// The same model as the Python reference sc_rt.model.plant / sc_rt.model.actuators,
 // compiled for batch speed. The hot path (wheel_accel, disturbance,
 // plant_derivative, plant_rk4_step, lumped_disturbance) repeats the Python
 // code's scalar operations in the same order, so the two engines give
@@ -15,7 +15,7 @@
 //   Gravity gradient (5),(6): u_g = 3 w0^2 R3^ J R3, R3 = R(sigma) e3 (10).
 //   Wheels: Omega_w_dot = the actual acceleration of (15),(16) (wheel_accel).
 //
-// Fault conventions (shared with sc_rt.actuators): a fault is active on
+// Fault conventions (shared with sc_rt.model.actuators): a fault is active on
 // onset <= t < end (Y = 0 from end on, abrupt); a stuck wheel has zero
 // acceleration while its fault is active, whatever Y; with |Omega_i| >=
 // max_wheel_speed_i an acceleration that drives the speed further out is 0

@@ -1,7 +1,7 @@
 """A scenario as the TOML data it could have been read from, and its keys by
 dotted name ("spacecraft.dJ", "faults[0].onset"): what the ``[montecarlo]``
 table (dispersions.py) names, draws into, and re-reads through the file's
-own checks (sc_rt.scenario.model.scenario_from_data)."""
+own checks (sc_rt.scenario.reader.scenario_from_data)."""
 
 from __future__ import annotations
 

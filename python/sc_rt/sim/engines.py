@@ -134,7 +134,7 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     duration : float, optional
         [s] override of the scenario's duration.
     plant_step : float, optional
-        [s] override of the plant step (see ``sc_rt.scenario.with_overrides``).
+        [s] override of the plant step (see ``sc_rt.scenario.overrides.with_overrides``).
 
     Returns
     -------

@@ -10,7 +10,7 @@ One control period of plant (ZOH), law, filter, anti-windup and observer as a
   the superposition is exact and the map is the core's RK4, not a copy;
 - PPC gain at the origin: the core's ``ppc_transform`` at x1 = 0 (29), (35);
 - the law (36), (37), (41), (42) linearised at the origin: written out here,
-  in the order of ``DscController::law_step`` (cpp/src/controllers.cpp). It
+  in the order of ``DscLaw::step`` (cpp/src/law_dsc.cpp). It
   cannot be taken from ``_core.Controller`` by finite differences: the
   binding does not expose the controller's internal states (x2d, x2bar,
   vs, z1, z2, the held x2 and B u) to set, and sig^alpha has an infinite
@@ -168,7 +168,7 @@ class SampledLoop:
         g, B, Bp, a, b = self.g, self.B, self.Bp, self.a, self.b
         r_, rho_ = r.reshape(-1, 1), rho.reshape(-1, 1)
         S = np.eye(len(SAMPLED_STATES))
-        # The C++ step order of DscController::law_step, on the columns of S.
+        # The C++ step order of DscLaw::step (law_dsc.cpp), on the columns of S.
         x1, x2, x2d, xb = S[_blk("x1", 3)], S[_blk("x2", 3)], S[_blk("x2d", 3)], S[_blk("x2bar_prev", 3)]
         vs = S[_blk("vs", 4)]
         Z = self.O @ np.vstack([S[_blk("z1", 3)], S[_blk("z2", 3)], S[_blk("x2_prev", 3)], x2,
@@ -202,8 +202,8 @@ def controller_step(scn: Scenario, law: str = "dsc-ppc", rate: float | None = No
                     rho: np.ndarray | None = None) -> np.ndarray:
     """The controller's step k alone, linearised: (20 x 28), rows :data:`CONTROLLER_OUTPUTS`.
 
-    From the sampled state s_k (:data:`SAMPLED_STATES`) to what step k of
-    ``DscController`` computes: u_cmd, the filter x2d and compensator vs
+    From the sampled state s_k (:data:`SAMPLED_STATES`) to what
+    ``DscLaw::step`` computes at step k: u_cmd, the filter x2d and compensator vs
     after their update, the new x2bar, and the observer's z1, z2 at t_k. The
     part of :func:`sampled_closed_loop` that repeats the C++ law.
     """

@@ -177,7 +177,7 @@ def simulated_loss_of_stability(scn: Scenario, law: str = "dsc-ppc", rate: float
                                 engine: str = "cpp", result=None) -> dict[str, Any]:
     """Where a simulation loses stability (``sc_rt.sim.engines.simulate``).
 
-    Two measures: ``first_bound_violation_s`` (the metric of analysis.py) and,
+    Two measures: ``first_bound_violation_s`` (the metric of metrics.json) and,
     per axis, the growth onset: the time at which the windowed peak of
     |sigma_BD_i| (windows of ``window`` seconds) is smallest before the first
     bound violation, i.e. when the error stops decreasing and starts to grow.
