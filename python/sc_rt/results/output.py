@@ -31,7 +31,30 @@ def check_out_dir(out: Path, option: str = "--out") -> str | None:
 def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
               compress: bool = True) -> list[Path]:
     """trajectory.npz, metrics.json, timing.json (bench runs) and the
-    figures into ``out``; returns every file written, in order."""
+    figures into ``out``; returns every file written, in order.
+
+    Parameters
+    ----------
+    run : Run
+        The run record (``sc_rt.simulate``, ``sc_rt.run_hil``, a log's rebuild).
+    out : Path
+        The output directory, created with its parents when missing; files
+        of the same names in it are replaced.
+    figures : bool
+        Also write the tracking figures (and, with ``run.timing``, the
+        timing figures).
+    title : str
+        The second title line of the tracking figures ("": "scenario, law,
+        engine" of ``run.meta``).
+    compress : bool
+        Write trajectory.npz compressed (``numpy.savez_compressed``).
+
+    Returns
+    -------
+    list of Path
+        Every file written, in order: trajectory.npz, metrics.json,
+        timing.json (when ``run.timing`` is set), then the figures.
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = [run.save_npz(out / "trajectory.npz", compress=compress),

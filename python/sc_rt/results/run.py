@@ -30,7 +30,32 @@ SOURCES = ("plant", "controller", "truth", "timing", "derived", "estimator")
 
 @dataclass(frozen=True)
 class Field:
-    """One per-row array of a run."""
+    """One per-row array of a run.
+
+    ``FIELDS`` (public as ``sc_rt.FIELDS``) is the tuple of every one, in the
+    order trajectory.npz lists them; ``FIELD`` maps name -> Field.
+
+    Attributes
+    ----------
+    name : str
+        The array's name (``run[name]``).
+    shape : tuple of int
+        The shape of one row (``()``: a scalar per row).
+    unit : str
+        Its unit ("s", "rad/s", "rad/s^2", "us", "-" for none).
+    source : str
+        Where the value comes from: one of ``SOURCES``.
+    doc : str
+        What it means (the equation numbers are docs/MODEL.md's).
+    dtype : str
+        Its numpy dtype ("f8", "i8", "?").
+    fill : Any
+        The value of a row the producer did not fill (NaN; -1, 0 or False
+        for the integer and boolean fields).
+    core : bool
+        Part of the trajectory every producer fills (checked for finiteness
+        by the metrics).
+    """
 
     name: str
     shape: tuple[int, ...]  # of one row
@@ -111,7 +136,44 @@ assert all(f.source in SOURCES for f in FIELDS)
 @dataclass(frozen=True)
 class RunMeta:
     """What a run is: its scenario, law, engine and the parameters its
-    figures and checks need (so no consumer needs the scenario file)."""
+    figures and checks need (so no consumer needs the scenario file).
+
+    Usually built by :meth:`of_scenario`; saved in trajectory.npz as JSON
+    (:meth:`to_json`, :meth:`from_json`).
+
+    Attributes
+    ----------
+    scenario : str
+        The scenario's name.
+    law : str
+        The law that ran ("dsc-ppc", "pd", a plugin spec, a Python law's label, ...).
+    engine : str
+        What produced the run: "python", "cpp", "unsampled", "hil-lockstep",
+        "hil-realtime" or "report" (a log's rebuild).
+    control_rate_hz : float
+        [Hz] the control rate.
+    duration_s : float
+        [s] the scenario's duration (after overrides).
+    ppc : dict of str to tuple of float
+        The prescribed envelope (29): "chi0" [-], "chiinf" [-], "gamma"
+        [1/s], "dmin" [-], "dmax" [-], 3 values each.
+    umin, umax : tuple of float
+        [rad/s^2] the wheel acceleration limits, one per wheel.
+    faults : tuple of dict
+        The scenario's scheduled faults: "wheel" (1-based), "onset" [s],
+        "end" [s] (None: never), "effectiveness" [-], "bias" [rad/s^2],
+        "rate" [1/s], "stuck" (bool).
+    wall_s : float
+        [s] wall-clock time of the run (NaN: not measured).
+    mode : str
+        How the loop was clocked: "offline", "lockstep" or "realtime".
+    measurement : str
+        What the law was fed: "truth" (no ``[sensors]``, or measurement =
+        "truth") or "estimate".
+    sensors : bool
+        The run had sensors (a ``[sensors]`` table): the estimator fields are
+        filled and the bound is judged on ``sigma_BD_true``.
+    """
 
     scenario: str
     law: str
@@ -174,6 +236,49 @@ class Run:
     metrics, and what the bench counted while it ran.
 
     ``run["sigma_BD"]`` is the (rows, 3) array; ``run.t`` the times.
+
+    Parameters
+    ----------
+    meta : RunMeta
+        What the run is (scenario, law, engine, envelope, limits).
+    arrays : dict of str to numpy.ndarray
+        Per-row arrays by field name (``FIELDS``): rows first, then the
+        field's row shape; cut to ``rows`` and cast to the field's dtype. A
+        field not given holds its fill value (NaN, or the field's integer fill).
+    rows : int, optional
+        The number of rows. None: ``len(arrays["t"])``.
+    metrics : dict, optional
+        The run's metrics (metrics.json; ``finish_run`` fills them). None: empty.
+    timing : dict, optional
+        The timing report of a bench run (timing.json). None: none (offline).
+    counters : dict of str to int, optional
+        What the bench counted while it ran (commands received, timeouts,
+        invalid or duplicate messages, ...). None: empty.
+    gaps : list of (float, float), optional
+        [s] (start, end) of the spans in which the plant had no valid command
+        (the watchdog applied zero). None: none.
+    faults_applied : list of dict, optional
+        The fault commands (``sc-rt fault``) the emulator applied or rejected,
+        in order. None: none.
+    diverged : bool
+        The plant state became non-finite and the run stopped there.
+    message : str
+        Why the run stopped early, in words ("" when it did not).
+    partial : bool
+        The run stopped before its end (a signal, a process gone).
+
+    Attributes
+    ----------
+    meta, metrics, timing, counters, gaps, faults_applied, diverged, message, partial
+        The parameters of the same names (``None`` become empty containers,
+        except ``timing``).
+
+    Raises
+    ------
+    KeyError
+        ``arrays`` has a name that is not a field of ``FIELDS``.
+    ValueError
+        An array's shape is not ``rows`` by its field's row shape.
     """
 
     def __init__(self, meta: RunMeta, arrays: dict[str, np.ndarray], *, rows: int | None = None,

@@ -45,7 +45,24 @@ def _s(v: float) -> str:
 
 def verdict_line(m: dict[str, Any], label: str | None = None) -> str:
     """One line: "paper DSC+PPC: left its prescribed bound at 4.10 s (axis z),
-    SAFE from 240.0 s" or "...: bound held 300 s, worst |lambda| 0.88"."""
+    SAFE from 240.0 s" or "...: bound held 300 s, worst |lambda| 0.88".
+
+    Parameters
+    ----------
+    m : dict
+        A run's metrics (``run.metrics``, or metrics.json read back); missing
+        keys are left out of the line.
+    label : str, optional
+        Who ran, the line's start. None: the metrics' "scenario" and
+        "controller", space-separated ("?" for a missing one).
+
+    Returns
+    -------
+    str
+        The verdict: the first bound violation [s] (and axis) or how long the
+        bound held and the worst |lambda|; then SAFE, divergence and a
+        partial run when they apply.
+    """
     who = label or f"{m.get('scenario', '?')} {m.get('controller', '?')}"
     parts = []
     first = m.get("first_bound_violation_s")

@@ -222,7 +222,41 @@ class ControllerParams:
 
 @dataclass(frozen=True)
 class Scenario:
-    """One run, validated. Build it with :func:`load_scenario`."""
+    """One run, validated. Build it with :func:`load_scenario`.
+
+    Frozen: make a changed copy with ``dataclasses.replace`` or
+    ``sc_rt.with_overrides``.
+
+    Attributes
+    ----------
+    name : str
+        The file's ``name`` key (default: the file name without ``.toml``).
+    description : str
+        The file's ``description`` key ("" without one).
+    path : Path
+        The file the scenario was read from (relative plugin paths are
+        resolved against its folder).
+    run : RunParams
+        ``[run]``: duration [s], control rate [Hz], plant step [s] and the law.
+    plant : PlantParams
+        ``[spacecraft]`` and ``[disturbance]``: the true plant (inertia, wheel
+        axes and inertias, orbit rate, disturbance).
+    actuators : ActuatorParams
+        The wheel limits ([rad/s^2], [rad/s]) and the ``[[faults]]`` schedule.
+    initial : InitialState
+        ``[initial]``: the plant state at t = 0.
+    guidance : Guidance
+        The ``[guidance]`` table's kind: GuidanceParams (the paper's),
+        HoldGuidance, SlewGuidance or FileGuidance.
+    controller : ControllerParams
+        ``[controller]``: every gain and limit of the laws, and the law's own
+        parameters (``[controller.params]``).
+    montecarlo : MonteCarloTable or None
+        The ``[montecarlo]`` table (sc_rt.scenario.dispersions), None without one.
+    sensors : Sensors or None
+        The ``[sensors]`` tables and ``[controller] measurement``
+        (sc_rt.scenario.sensors), None without ``[sensors]``.
+    """
 
     name: str
     description: str

@@ -31,6 +31,35 @@ def with_overrides(scn: Scenario, *, law: str | None = None, control_rate_hz: fl
     When only the control rate changes, the plant step becomes the largest
     step that divides the new control period and does not exceed the
     scenario's (10 Hz -> 100 Hz with a 0.1 s plant step gives 0.01 s).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (``sc_rt.load_scenario``); it is not changed.
+    law : str, optional
+        The control law: "dsc-ppc", "dsc", "pd", "rft" (the core's laws) or
+        "plugin:PATH_OR_NAME" (a relative plugin path is taken from the
+        working directory; docs/LAWS.md). None: the scenario's.
+    control_rate_hz : float, optional
+        [Hz] the control rate. None: the scenario's.
+    duration : float, optional
+        [s] the run's duration. None: the scenario's.
+    plant_step : float, optional
+        [s] the plant integration step; the control period must be an
+        integer multiple of it. None: the scenario's, or derived from a new
+        control rate as above.
+
+    Returns
+    -------
+    Scenario
+        A copy of ``scn`` with its ``run`` parameters replaced.
+
+    Raises
+    ------
+    ScenarioError
+        An override is invalid (the message names it as ``run.<key>``), the
+        guidance's reference file does not cover a longer duration, or a new
+        law fails its load check (a plugin, or a law given ``[controller.params]``).
     """
     if control_rate_hz is not None and plant_step is None:
         try:

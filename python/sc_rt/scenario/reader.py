@@ -351,7 +351,28 @@ def scenario_from_data(data: dict[str, Any], path: str | Path, where: str = "") 
 
 def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file, or a shipped scenario by name
-    (``paper_faults``: sc_rt.scenario.shipped); raise ScenarioError listing every problem."""
+    (``paper_faults``: sc_rt.scenario.shipped); raise ScenarioError listing every problem.
+
+    Parameters
+    ----------
+    path : str or Path
+        A TOML scenario file, or the name of a shipped scenario
+        (``paper_faults`` or ``paper_faults.toml``, when no file of that name
+        exists here; ``sc_rt.shipped_scenarios()`` lists them).
+
+    Returns
+    -------
+    Scenario
+        The validated, frozen scenario; gains the file leaves out take the
+        paper's values.
+
+    Raises
+    ------
+    ScenarioError
+        The file cannot be read, is not valid TOML, or breaks the schema; it
+        lists every problem with file, line, dotted key and value. A bare name
+        that is neither a file nor a shipped scenario lists the shipped names.
+    """
     path = resolve(path)
     try:
         text = path.read_text(encoding="utf-8")

@@ -62,7 +62,27 @@ class ScenarioIssue(NamedTuple):
 
 
 class ScenarioError(ValueError):
-    """A scenario file is unreadable or invalid; ``errors`` lists every problem."""
+    """A scenario file is unreadable or invalid; ``errors`` lists every problem.
+
+    A ValueError; its message has one line per problem,
+    ``path:line: key = value: message``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file (or what stands for it, e.g. ``"<file> (override)"`` for
+        an override); kept as a string.
+    errors : list of ScenarioIssue
+        Every problem found: line (0: none applies), dotted key, value as
+        read (None: the key is missing) and message.
+
+    Attributes
+    ----------
+    path : str
+        ``path`` as a string.
+    errors : list of ScenarioIssue
+        ``errors``, sorted by line.
+    """
 
     def __init__(self, path: str | Path, errors: list[ScenarioIssue]):
         self.path = str(path)

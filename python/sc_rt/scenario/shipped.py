@@ -25,6 +25,12 @@ def shipped() -> dict[str, tuple[Path, str]]:
 
     The description is the file's ``description`` key (the schema's), or its
     first comment line when the key is absent.
+
+    Returns
+    -------
+    dict of str to (Path, str)
+        Scenario name (file name without ``.toml``) -> (its file in
+        ``LIBRARY``, its one-line description), sorted by name.
     """
     return {p.stem: (p, _description(p)) for p in sorted(LIBRARY.glob("*.toml"))}
 

@@ -25,7 +25,54 @@ def run_montecarlo(scn: Scenario, runs: int, *, workers: int | None = None, seed
     """A campaign of ``runs`` runs; the summary with ``per_run`` (the dataset's
     rows by run id). The scenario itself goes to the workers (in-memory
     changes included). ``out``: where the dataset goes (default: a temporary
-    directory, removed); ``campaign``: more options of ``run_campaign``."""
+    directory, removed); ``campaign``: more options of ``run_campaign``.
+
+    Every run is simulated on the cpp engine; its draws depend on
+    (``seed``, run id) only, so a campaign is the same for any ``workers``.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The nominal scenario; its ``[montecarlo]`` table, if any, adds its
+        dispersions to the shortcut ones.
+    runs : int
+        The number of runs (ids 0 .. runs - 1).
+    workers : int, optional
+        Worker processes. None: one per CPU (the local backend).
+    seed : int
+        The campaign's seed.
+    dispersion : Dispersion
+        The shortcut dispersions, half-widths of uniform draws: inertia [-],
+        products of inertia [-], fault onset and end shift [s], fault
+        effectiveness [-], initial attitude [rad] and rate [rad/s].
+    law : str, optional
+        Override of the scenario's law (as ``sc_rt.with_overrides``).
+    control_rate_hz : float, optional
+        [Hz] override of the scenario's control rate.
+    progress : bool
+        A progress bar on stderr (when it is a terminal).
+    out : Path, optional
+        The dataset's directory (runs/, montecarlo.json), kept. None: a
+        temporary directory, removed.
+    **campaign
+        More keyword options of ``run_campaign``: ``backend``,
+        ``scheduler``, ``scheduler_file``, ``resume``, ``overwrite``,
+        ``batch_size``.
+
+    Returns
+    -------
+    dict
+        The campaign's summary (as montecarlo.json: runs, the fraction
+        holding the bound with its 95 % interval, the failed runs, ...) and
+        ``per_run``: the dataset's rows (a dict per run: id, status, the
+        drawn values, the metrics).
+
+    Raises
+    ------
+    CampaignExists
+        ``out`` holds runs already (without ``resume`` or ``overwrite``), or
+        a different campaign to resume.
+    """
     c = Campaign(scn, dispersion, seed, law, control_rate_hz)
     with tempfile.TemporaryDirectory(prefix="sc-rt-mc-") as tmp:
         where = Path(out) if out is not None else Path(tmp)

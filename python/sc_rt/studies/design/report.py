@@ -60,6 +60,44 @@ def design_report(scn: Scenario, rate: float | None = None, *, latency: float = 
     engine, the scenario's duration) and compare its loss of stability with
     the prediction (``loss_of_stability``); when the run breaks its bound
     before the predicted loss, once more without wheel limits.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (``sc_rt.load_scenario``).
+    rate : float, optional
+        [Hz] the control rate of the design. None: the scenario's.
+    latency : float
+        [s] the state-to-command latency of the "pade" margins case
+        (default ``DEFAULT_LATENCY_S``).
+    pd : PdDesign, optional
+        The PD gains whose margins are computed. None: ``default_pd_design``
+        (the envelope's settling time, critically damped).
+    context_rates : iterable of float
+        [Hz] more rates of the sampled-data table, besides ``rate``.
+    inertia : {"true", "nominal"}
+        The inertia of the sampled-data loops: the plant's J0 + dJ ("true")
+        or the controller's J0 ("nominal").
+    observer : {"linear-part", "local-gain"}
+        The observer's linearisation in the sampled-data loops
+        (``observer_gains``).
+    simulate : bool
+        Also simulate, as above (``loss_of_stability``).
+
+    Returns
+    -------
+    dict
+        The report: the PD gains, closed-form and computed margins
+        (``margins``), coupling, the sampled-data limits of dsc-ppc and dsc
+        per rate (``sampled_data``), ``chiinf_check``, ``noise_floor`` and,
+        with ``simulate``, ``loss_of_stability``. ``format_design_text``
+        prints it; ``write_design`` writes it.
+
+    Raises
+    ------
+    ValueError
+        An unknown ``inertia`` or ``observer``; no default PD design (a zero
+        PPC gamma) when ``pd`` is None.
     """
     rate = scn.run.control_rate_hz if rate is None else float(rate)
     pd = default_pd_design(scn) if pd is None else pd
