@@ -584,3 +584,79 @@ def test_hil_with_a_controller_that_segfaults_is_a_failed_run(plugins, tmp_path,
                         mode, "--duration", "20" if mode == "lockstep" else "8", "--out", str(out),
                         "--no-plots", "--floor", "off"])
     _assert_death_reported(r, out, 5.0, 10.0)
+
+
+# --------------------------------------------------------------------------- #
+# A law failure outside step() is contained, counted, named and invalidates
+# the run; nothing crashes (issue #25, case 3).
+
+
+@pytest.mark.parametrize("engine", ["python", "cpp"])
+def test_a_reset_that_throws_at_reengagement_is_contained_offline(plugins, engine):
+    """Before: the exception left Controller::step (sim, compare, montecarlo:
+    'error: reset exploded', exit 2, nothing written)."""
+    scn = load_scenario("paper_fault_free")
+    run = simulate(scn, law=_spec(plugins["throws_in"]), engine=engine, duration=10.0)
+    assert len(run) == 101  # to its end
+    f = run.metrics["law_failures"]
+    assert f["step"] == 1 and f["reset"] >= 1 and f["after"] == 0  # the NaN step, then every re-engagement
+    assert f["last"]["call"] == "reset" and "reset exploded at re-engagement" in f["last"]["what"]
+    assert 2.1 - 1e-9 <= f["last"]["t"] <= 10.0
+    t, mode = run["t"], run["ctrl_mode"]
+    assert np.all(mode[t < 2.0 - 1e-9] == _core.MODE_NORMAL) and np.all(mode[t >= 2.0 - 1e-9] == _core.MODE_SAFE)
+    assert run.metrics["valid"] is False and "reset" in run.metrics["invalid_reason"]
+
+
+def test_after_that_throws_is_contained(plugins):
+    c = load_scenario("paper_fault_free").core_config(law=_spec(plugins["throws_in"]))
+    c.law_params = [("t_nan", [100.0]), ("t_after", [0.5]), ("reset_throws", [0.0])]
+    ctl = _core.Controller(c)
+    x = np.zeros(10)
+    modes = [ctl.step(_core.Measurement(0.1 * k, x[0:3], x[3:6], x[6:10])).mode for k in range(10)]
+    assert modes[5] == _core.MODE_SAFE and modes.count(_core.MODE_SAFE) == 1
+    f = ctl.law_failures
+    assert f["after"] == 1 and f["last"]["call"] == "after" and f["last"]["t"] == pytest.approx(0.5)
+
+
+def test_sim_cli_with_a_failing_law_writes_its_outputs_and_exits_1(plugins, tmp_path):
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", "paper_fault_free", "--law",
+                        _spec(plugins["throws_in"]), "--duration", "5", "--out", str(out), "--no-plots"],
+                       capture_output=True, text=True, env=_env())
+    assert r.returncode == 1, r.stdout + r.stderr
+    line = [x for x in r.stderr.splitlines() if "INVALID" in x]
+    assert len(line) == 1 and "reset" in line[0] and "t = " in line[0] and "reset exploded" in line[0]
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["valid"] is False and m["law_failures"]["reset"] >= 1
+    assert "law failures (contained)" in r.stdout
+
+
+@pytest.mark.lcm
+def test_hil_lockstep_with_a_reset_that_throws_keeps_the_controller_alive(plugins, tmp_path):
+    """Before: std::terminate in sc-rt-controller (the exception crossed
+    LCM's C dispatch) and a run reported valid."""
+    lcmnet.require()
+    out = tmp_path / "hil"
+    r = lcmnet.run_cli(["hil", "paper_fault_free", "--law", _spec(plugins["throws_in"]), "--mode", "lockstep",
+                        "--duration", "5", "--out", str(out), "--no-plots"])
+    assert r.returncode == 1, r.stderr + r.stdout
+    assert "died" not in r.stderr  # contained: the process lived to the end
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["valid"] is False and m["law_failures"]["reset"] >= 1 and m["law_failures"]["last"]["call"] == "reset"
+    summary = json.loads((out / "controller_summary.json").read_text())
+    assert summary["law_failures"]["step"] == 1
+    sim = simulate(load_scenario("paper_fault_free"), law=_spec(plugins["throws_in"]), engine="python",
+                   duration=5.0)
+    assert np.array_equal(np.load(out / "trajectory.npz")["ctrl_mode"], sim["ctrl_mode"])
+
+
+def test_montecarlo_with_a_failing_law_finishes_and_counts_the_failures(plugins, tmp_path):
+    out = tmp_path / "mc"
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "montecarlo", "paper_fault_free", "--runs", "3",
+                        "--workers", "1", "--law", _spec(plugins["throws_in"]), "--out", str(out)],
+                       capture_output=True, text=True, env=_env(), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    s = json.loads((out / "montecarlo.json").read_text())
+    assert s["runs"] == 3 and s["status"]["law_failed"] == 3 and s["holds_bound"] == 0
+    assert all("reset exploded" in f["message"] for f in s["failed"])
+    assert "the law failed" in r.stderr and "3 of 3 runs" in r.stderr

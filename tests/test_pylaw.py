@@ -126,10 +126,44 @@ def test_named_telemetry_bad_commands_and_failures():
     out = ctl.step(0.0, x)
     assert ctl.named_telemetry == {"my_gain": 2.5}
     assert list(out[PACKED_SLICES["z1"]]) == [1.0, 1.0, 1.0]
-    ctl = PyController(core_config("pd"), Short)
-    ctl.reset(0.0, x)
-    with pytest.raises(ValueError, match="shape"):
-        ctl.step(0.0, x)
+    # a wrong-shaped command or telemetry is a failure of the law, contained
+    # like a raise or a NaN (issue #25; it raised out of the controller before)
+    class BadTelemetry(_PD):
+        def step(self, inp):
+            return np.zeros(4), {"x2d": np.ones(2)}
+
+    for cls, what in ((Short, "u_cmd of shape (3,)"), (BadTelemetry, "telemetry 'x2d' of shape (2,)")):
+        ctl = PyController(core_config("pd"), cls)
+        ctl.reset(0.0, x)
+        out = ctl.step(0.0, x)
+        assert int(out[PACKED_SLICES["mode"]][0]) == _core.MODE_SAFE
+        assert int(out[PACKED_SLICES["flags"]][0]) & _core.FLAG_LAW_INVALID
+        assert ctl.law_failures["step"] == 1 and what in ctl.law_failures["last"]["what"]
+
+
+def test_a_law_whose_reset_raises_at_reengagement_is_contained():
+    class ResetOnce(_PD):
+        resets = 0
+
+        def reset(self, inp):
+            ResetOnce.resets += 1
+            if ResetOnce.resets > 1:
+                raise RuntimeError("reset exploded")
+            return super().reset(inp)
+
+        def step(self, inp):
+            if 0.25 < inp.t < 0.35:
+                return np.full(4, np.nan)  # one SAFE step: the next one re-engages (reset)
+            return super().step(inp)
+
+    x = np.zeros(10)
+    ctl = PyController(core_config("pd"), ResetOnce)
+    assert ctl.reset(0.0, x)
+    modes = [int(ctl.step(0.1 * k, x)[PACKED_SLICES["mode"]][0]) for k in range(6)]
+    assert modes[:3] == [_core.MODE_NORMAL] * 3 and modes[3:] == [_core.MODE_SAFE] * 3
+    f = ctl.law_failures
+    assert f["step"] == 1 and f["reset"] == 2 and f["last"]["call"] == "reset"
+    assert f["last"]["t"] == pytest.approx(0.5) and "reset exploded" in f["last"]["what"]
 
 
 @pytest.mark.parametrize("failure", ["nan", "raise"])

@@ -281,6 +281,32 @@ std::string Shell::summary_json(const std::string& scheduler) const {
   js.pop_back();  // the closing brace: then the authentication and the plant sessions
   js += std::string(", \"trigger\": \"") + (opt_.event_trigger ? "event" : "timer") +
         "\", \"null_law\": " + (opt_.null_law ? "true" : "false");
+  {  // the law's contained failures: counts per call and the newest, named (issue #25)
+    const sc_rt::LawFailures& f = ctl_->law_failures();
+    char fb[256];
+    std::snprintf(fb, sizeof fb, ", \"law_failures\": {\"reset\": %lld, \"step\": %lld, \"after\": %lld, ",
+                  f.reset, f.step, f.after);
+    js += fb;
+    if (f.total() > 0) {
+      std::snprintf(fb, sizeof fb, "\"last\": {\"call\": \"%s\", \"t\": %.9g, \"what\": \"", f.last_call, f.last_t);
+      js += fb;
+      for (const char ch : f.last_what) {  // JSON string escaping
+        if (ch == '"' || ch == '\\') {
+          js += '\\';
+          js += ch;
+        } else if (static_cast<unsigned char>(ch) < 0x20) {
+          char u[8];
+          std::snprintf(u, sizeof u, "\\u%04x", static_cast<unsigned char>(ch));
+          js += u;
+        } else {
+          js += ch;
+        }
+      }
+      js += "\"}}";
+    } else {
+      js += "\"last\": null}";
+    }
+  }
   if (intake_) {
     std::lock_guard<std::mutex> lock(mu_);
     const sc_rt::SensorCounts& c = intake_->counts();

@@ -52,7 +52,26 @@ inline const LoopColumn kLoopColumns[] = {
 constexpr std::size_t kPlainLoopColumns = 18;  // the columns before the navigation's
 constexpr std::size_t kAllLoopColumns = std::size(kLoopColumns);
 
-// rows, diverged, the first ncols columns, then flags and ctrl_mode.
+// A law's contained failures as a dict: reset, step, after (counts) and last
+// (None, or {call, t, what}).
+inline py::dict law_failures_dict(const sc_rt::LawFailures& f) {
+  py::dict d;
+  d["reset"] = f.reset;
+  d["step"] = f.step;
+  d["after"] = f.after;
+  if (f.total() > 0) {
+    py::dict last;
+    last["call"] = std::string(f.last_call);
+    last["t"] = f.last_t;
+    last["what"] = f.last_what;
+    d["last"] = last;
+  } else {
+    d["last"] = py::none();
+  }
+  return d;
+}
+
+// rows, diverged, law_failures, the first ncols columns, then flags and ctrl_mode.
 inline py::dict closed_loop_dict(const R& r, std::size_t ncols) {
   const py::ssize_t n = r.rows;
   auto arr = [n](const std::vector<double>& v, py::ssize_t w) {
@@ -63,6 +82,7 @@ inline py::dict closed_loop_dict(const R& r, std::size_t ncols) {
   py::dict d;
   d["rows"] = r.rows;
   d["diverged"] = r.diverged;
+  d["law_failures"] = law_failures_dict(r.law_failures);
   for (std::size_t i = 0; i < ncols; ++i) d[kLoopColumns[i].name] = arr(r.*(kLoopColumns[i].v), kLoopColumns[i].width);
   py::array_t<int> flags(n), mode(n);
   std::copy(r.flags.begin(), r.flags.begin() + n, flags.mutable_data());

@@ -229,7 +229,10 @@ void bind_controllers(py::module_& m) {
       .def_property_readonly("config", &Controller::config)
       .def_property_readonly("model", &Controller::model)
       .def_property_readonly("t0", &Controller::t0)
-      .def_property_readonly("guidance", &Controller::guidance, py::return_value_policy::reference_internal);
+      .def_property_readonly("guidance", &Controller::guidance, py::return_value_policy::reference_internal)
+      .def_property_readonly(
+          "law_failures", [](const Controller& c) { return sc_rt_bind::law_failures_dict(c.law_failures()); },
+          "the law's contained failures: reset, step, after (counts) and last (None or {call, t, what})");
 
   // Packed telemetry of one step, one numpy allocation (the offline
   // simulator's hot path). Layout: PACKED_FIELDS (sc_rt.sim.engines.PACKED).

@@ -103,6 +103,7 @@ ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantPa
       break;
     }
   }
+  r.law_failures = ctl->law_failures();
   return r;
 }
 

@@ -152,15 +152,36 @@ LawInput Controller::input_at(const Measurement& m, double dt) {
   return in;
 }
 
-void Controller::reset(const Measurement& m) {
+void Controller::law_failed(const char* call, double t, const char* what) {
+  // The exceptional path (a law that failed): the only place that may allocate.
+  failures_.last_call = call;
+  failures_.last_t = t;
+  failures_.last_what = what;
+  engaged_ = false;  // the next valid step re-engages (reset) the law
+}
+
+bool Controller::engage(const Measurement& m) {
   t0_ = m.t;
   t_prev_ = m.t;
   guidance_.reset(m.t);
   u_sat_prev_.setZero();
-  law_->reset(input_at(m, 0.0));
+  try {
+    law_->reset(input_at(m, 0.0));
+  } catch (const std::exception& e) {
+    ++failures_.reset;
+    law_failed("reset", m.t, e.what());
+    return false;
+  } catch (...) {
+    ++failures_.reset;
+    law_failed("reset", m.t, "unknown exception");
+    return false;
+  }
   engaged_ = true;
   first_ = true;
+  return true;
 }
+
+void Controller::reset(const Measurement& m) { engage(m); }
 
 Command Controller::safe_command(double t, int flags) {
   Command out;
@@ -194,7 +215,10 @@ Command Controller::step(const Measurement& m) {
       observe(m, out, in);
     return out;
   }
-  if (!engaged_) reset(m);  // (re-)engage from this measurement
+  if (!engaged_ && !engage(m)) {  // (re-)engage from this measurement; a reset that threw: SAFE
+    Command out = safe_command(m.t, FLAG_LAW_INVALID);
+    return out;
+  }
   Command out;
   out.t = m.t;
   out.mode = MODE_NORMAL;
@@ -207,17 +231,20 @@ Command Controller::step(const Measurement& m) {
   observe(m, out, in);
   in.dt = dt;
   LawOutput lo;
-  bool ok = true;
+  const char* why = nullptr;
   try {
     law_->step(in, lo);
+  } catch (const std::exception& e) {
+    why = e.what();
   } catch (...) {
-    ok = false;
+    why = "unknown exception";
   }
-  if (!ok || !lo.u_cmd.allFinite()) {
+  if (why != nullptr || !lo.u_cmd.allFinite()) {
     // A law that fails gives SAFE zeros; the next valid step re-engages it.
+    ++failures_.step;
+    law_failed("step", m.t, why != nullptr ? why : "non-finite command");
     out.mode = MODE_SAFE;
     out.flags |= FLAG_LAW_INVALID;
-    engaged_ = false;
     return out;
   }
   out.u_cmd = lo.u_cmd;
@@ -234,7 +261,24 @@ Command Controller::step(const Measurement& m) {
   for (int i = 0; i < 4; ++i)
     if (out.u_sat(i) != out.u_cmd(i)) out.flags |= (FLAG_SAT_1 << i);
   u_sat_prev_ = out.u_sat;
-  law_->after(out.u_cmd, out.u_sat);
+  const char* after_why = nullptr;
+  try {
+    law_->after(out.u_cmd, out.u_sat);
+  } catch (const std::exception& e) {
+    after_why = e.what();
+  } catch (...) {
+    after_why = "unknown exception";
+  }
+  if (after_why != nullptr) {
+    // The law's state after this command is unknown: SAFE now, re-engage next.
+    ++failures_.after;
+    law_failed("after", m.t, after_why);
+    Command safe = safe_command(m.t, out.flags | FLAG_LAW_INVALID);
+    safe.sigma_DN = out.sigma_DN;
+    safe.sigma_BD = out.sigma_BD;
+    safe.omega_BD_B = out.omega_BD_B;
+    return safe;
+  }
   if (dt > 0.0) t_prev_ = m.t;
   return out;
 }

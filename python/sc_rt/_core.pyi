@@ -701,6 +701,11 @@ class Controller:
         its registry code
         """
     @property
+    def law_failures(self) -> dict:
+        """
+        the law's contained failures: reset, step, after (counts) and last (None or {call, t, what})
+        """
+    @property
     def law_name(self) -> str:
         """
         the law's registry name

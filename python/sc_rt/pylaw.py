@@ -191,7 +191,8 @@ class PyController:
         self.name = law_label(law_cls)
         self._after = getattr(self.law, "after", None)
         self.named_telemetry: dict[str, Any] = {}
-        self.law_errors = 0
+        #: the law's contained failures, as ``Controller::law_failures``
+        self.law_failures: dict[str, Any] = {"reset": 0, "step": 0, "after": 0, "last": None}
         self._t0 = self._t_prev = 0.0
         self._u_sat_prev = np.zeros(4)
         self._engaged = False
@@ -207,16 +208,48 @@ class PyController:
         return LawInput(t=t, t_engaged=t - self._t0, dt=dt, m=m, ref=ref, e=e, ppc=p,
                         u_sat_prev=self._u_sat_prev.copy())
 
-    def reset(self, t: float, x: np.ndarray) -> None:
+    def _failed(self, call: str, t: float, what: str) -> None:
+        """A contained failure of the law's ``call`` at t: counted and named,
+        the law disengaged (the next valid step re-engages it)."""
+        self.law_failures[call] += 1
+        self.law_failures["last"] = {"call": call, "t": float(t), "what": what}
+        self._engaged = False
+
+    def reset(self, t: float, x: np.ndarray) -> bool:
         """Engage from the state x = [sigma_BN, omega_BN_B, wheel_speed] at t
-        (``Controller::reset``)."""
+        (``Controller::reset``); False (counted) when the law's reset raised."""
         m = _core.Measurement(t, x[0:3], x[3:6], x[6:10])
         self._t0 = self._t_prev = t
         self.guidance.reset(t)
         self._u_sat_prev = np.zeros(4)
-        self.law.reset(self._inputs(m, t, 0.0))
+        try:
+            self.law.reset(self._inputs(m, t, 0.0))
+        except Exception as e:  # contained, as the core does
+            self._failed("reset", t, f"{type(e).__name__}: {e}")
+            return False
         self._engaged = True
         self._first = True
+        return True
+
+    def _checked(self, res: Any) -> tuple[np.ndarray, dict[str, Any] | None]:
+        """The law's step result as (u_cmd (4,), telemetry), or ValueError
+        naming what has the wrong shape or type."""
+        u_cmd, tel = res if isinstance(res, tuple) and len(res) == 2 else (res, None)
+        u_cmd = np.asarray(u_cmd, dtype=float).reshape(-1)
+        if u_cmd.shape != (4,):
+            raise ValueError(f"u_cmd of shape {u_cmd.shape}, expected (4,)")
+        if tel is None:
+            return u_cmd, None
+        if not isinstance(tel, dict):
+            raise ValueError(f"telemetry of type {type(tel).__name__}, expected a dict")
+        out = {}
+        for k, v in tel.items():
+            a = np.asarray(v, dtype=float).reshape(-1)
+            want = (PACKED_SLICES[k].stop - PACKED_SLICES[k].start) if k in TELEMETRY else 1
+            if a.shape != (want,):
+                raise ValueError(f"telemetry {k!r} of shape {a.shape}, expected ({want},)")
+            out[k] = a if k in TELEMETRY else float(a[0])
+        return u_cmd, out
 
     def safe_command(self, t: float, flags: int) -> np.ndarray:
         """A SAFE zero command (the law re-engages at the next valid step), as
@@ -245,8 +278,9 @@ class PyController:
             if math.isfinite(t) and np.all(np.isfinite(x[0:10])) and t >= self.guidance.t:
                 flags |= self._observe(m, t, out).ppc.violated
             return self._safe(out, flags)
-        if not self._engaged:
-            self.reset(t, x)
+        if not self._engaged and not self.reset(t, x):  # a reset that raised: SAFE
+            out[P["sigma_DN"]] = self.guidance.sigma_DN
+            return self._safe(out, FLAG_LAW_INVALID)
         flags = 0
         dt = t - self._t_prev
         if dt < 0.0 or (dt == 0.0 and not self._first):
@@ -255,20 +289,12 @@ class PyController:
         self._first = False
         inp = self._observe(m, t, out, dt)
         flags |= inp.ppc.violated
-        try:
-            res = self.law.step(inp)
-            u_cmd, tel = res if isinstance(res, tuple) else (res, None)
-            u_cmd = np.asarray(u_cmd, dtype=float).reshape(-1)
-        except Exception:  # a failing law: SAFE, as the core does (FLAG_LAW_INVALID)
-            self.law_errors += 1
-            if self.law_errors == 1:
-                import traceback
-
-                traceback.print_exc()
-            return self._safe(out, flags | FLAG_LAW_INVALID)
-        if u_cmd.shape != (4,):
-            raise ValueError(f"{self.name}.step returned u_cmd of shape {u_cmd.shape}, expected (4,)")
-        if not np.all(np.isfinite(u_cmd)):
+        try:  # a failing law (raises, wrong shape, non-finite): SAFE, as the core does
+            u_cmd, tel = self._checked(self.law.step(inp))
+            if not np.all(np.isfinite(u_cmd)):
+                raise ValueError("non-finite command")
+        except Exception as e:
+            self._failed("step", t, f"{type(e).__name__}: {e}" if not isinstance(e, ValueError) else str(e))
             return self._safe(out, flags | FLAG_LAW_INVALID)
         if tel:
             for k, v in tel.items():
@@ -282,7 +308,11 @@ class PyController:
                 flags |= _core.FLAG_SAT_1 << i
         self._u_sat_prev = u_sat
         if self._after is not None:
-            self._after(u_cmd, u_sat)
+            try:
+                self._after(u_cmd, u_sat)
+            except Exception as e:  # the law's state after this command is unknown: SAFE now
+                self._failed("after", t, f"{type(e).__name__}: {e}")
+                return self._safe(out, flags | FLAG_LAW_INVALID)
         if dt > 0.0:
             self._t_prev = t
         out[P["u_cmd"]] = u_cmd

@@ -13,6 +13,7 @@ namespace sc_rt {
 struct ClosedLoopResult {
   int rows = 0;           //!< rows written (n_ctrl + 1 unless diverged)
   bool diverged = false;  //!< the plant state became non-finite
+  LawFailures law_failures;  //!< the law's contained failures (Controller::law_failures)
   // One row per control instant, row-major, widths as named.
   std::vector<double> t;                                           // 1
   std::vector<double> sigma_BN, omega_BN_B, sigma_DN, sigma_BD;    // 3

@@ -115,6 +115,19 @@ bool measurement_valid(const Measurement& m, const SafetyLimits& lim);
 // The law model of a spacecraft model (B, B+ and the limits, copied once).
 LawModel law_model(const SpacecraftModel& sc);
 
+//! What a law's failures were: how many per call (a throw, or a non-finite
+//! or wrong-shaped output, each contained as SAFE + FLAG_LAW_INVALID) and
+//! the newest one (which call, at what t, what it said).
+struct LawFailures {
+  long long reset = 0;  //!< reset threw (at engagement or re-engagement)
+  long long step = 0;   //!< step threw or returned a non-finite command
+  long long after = 0;  //!< after threw
+  const char* last_call = "";   //!< "reset", "step", "after" ("" for none)
+  double last_t = 0.0;          //!< [s] the time of the newest failure
+  std::string last_what;        //!< its message (the exception's what(), or "non-finite command")
+  long long total() const { return reset + step + after; }
+};
+
 class Controller {
  public:
   // Resolves cfg.law in the registry (loading a plugin), constructs the law
@@ -125,7 +138,9 @@ class Controller {
   Controller& operator=(const Controller&) = delete;
 
   // Engage at m.t: guidance at t0, every internal state from the measurement
-  // (or the paper's initial values). A reset mid-run equals a fresh start.
+  // (or the paper's initial values). A law whose reset throws is contained:
+  // the controller stays disengaged (the next step tries again and gives
+  // SAFE + FLAG_LAW_INVALID while it fails) and the failure is counted.
   void reset(const Measurement& m);
   // One control step at m.t >= the previous step's time. An invalid
   // measurement gives a SAFE zero command and re-engages at the next valid
@@ -143,11 +158,17 @@ class Controller {
   const SpacecraftModel& model() const { return model_; }
   double t0() const { return t0_; }
   const Guidance& guidance() const { return guidance_; }
+  //! Every failure of the law so far (contained: the controller goes on).
+  const LawFailures& law_failures() const { return failures_; }
 
   static std::unique_ptr<Controller> create(const ControllerConfig& c);
 
  private:
+  // The law's reset, contained: false (and counted) when it threw.
+  bool engage(const Measurement& m);
+  void law_failed(const char* call, double t, const char* what);
   ControllerConfig cfg_;
+  LawFailures failures_;
   SpacecraftModel model_;
   LawModel law_model_;
   Guidance guidance_;

@@ -47,6 +47,12 @@ def print_metrics(m: dict, faults=()) -> None:
         ("SAFE steps", f"{safe}" + (f" from {m['safe_from_s']:.1f} s ({why})" if safe else "")),
         ("faults scheduled", faults),
     ]
+    lf = m.get("law_failures")
+    if lf and any(lf.get(k, 0) for k in ("reset", "step", "after")):
+        last = lf.get("last") or {}
+        rows.append(("law failures (contained)",
+                     ", ".join(f"{k} {lf[k]}" for k in ("reset", "step", "after") if lf.get(k))
+                     + (f"; last: {last['call']} at t = {last['t']:.4g} s: {last['what']}" if last else "")))
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         print(f"  {k:<{w}}  {v}")
@@ -73,6 +79,16 @@ def mark_partial(run, why: str) -> None:
     """A finished run record that ends before its duration: partial, why, and the time reached."""
     run.partial = True
     run.metrics.update(partial=True, stopped=why, t_reached_s=float(run.t[-1]) if len(run) else None)
+
+
+def invalid_exit(metrics: dict, who: str) -> int:
+    """A run that went to its end but is not a valid run of its law (the
+    law failed: metrics.json ``valid`` false): one line with the reason,
+    exit 1; 0 for a valid run."""
+    if metrics.get("valid") is False:
+        print(f"sc-rt {who}: INVALID: {metrics.get('invalid_reason', 'see metrics.json')}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def report_stopped(run, why: str, signum: int | None, out, who: str) -> int:

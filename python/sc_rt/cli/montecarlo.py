@@ -262,4 +262,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
           f"{res['runs_this_invocation']} runs now"
           + (f" at {rate:.1f} runs/s on {res['workers']} workers ({res['backend']})" if rate else "")
           + f" -> {args.out}/")
+    if res["status"].get("law_failed"):  # counted as not holding; each run's reason in montecarlo.json
+        print(f"sc-rt montecarlo: the law failed (threw, non-finite or wrong shape; contained) in "
+              f"{res['status']['law_failed']} of {res['runs']} runs: counted as failures "
+              f"(montecarlo.json 'failed', status law_failed)", file=sys.stderr)
     return 0

@@ -11,7 +11,7 @@ from pathlib import Path
 from sc_rt.cli.interrupts import flag_signals
 from sc_rt.cli.validate import UsageError, check_run_size, given_options, resolve_url, rounded
 from sc_rt.cli.controller import external_choice
-from sc_rt.cli.common import (checked_out, html_report, mark_partial, mcap_problem, print_metrics,
+from sc_rt.cli.common import (checked_out, html_report, invalid_exit, mark_partial, mcap_problem, print_metrics,
                               report_stopped, scenario_arg, write_mcap)
 
 
@@ -58,7 +58,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         print(f"sc-rt sim: DIVERGED: {res.message}", file=sys.stderr)
     if stopped:
         return report_stopped(res, stopped, signals[0], out, "sim")
-    return 0
+    return invalid_exit(res.metrics, "sim")
 
 
 def cmd_hil(args: argparse.Namespace) -> int:
@@ -108,9 +108,9 @@ def cmd_hil(args: argparse.Namespace) -> int:
     if res.stopped:
         return report_stopped(res.run, res.stopped, res.signum, res.out, "hil")
     html_report(Path(res.out), "hil")
-    if mcap:
-        return write_mcap(Path(res.out) / "run.lcmlog", mcap, who="hil")
-    return 0
+    if mcap and (rc := write_mcap(Path(res.out) / "run.lcmlog", mcap, who="hil")):
+        return rc
+    return invalid_exit(res.metrics, "hil")
 
 
 #: The demo's two runs: the paper's law on the paper's fault scenario, and

@@ -238,6 +238,7 @@ class PyControllerProcess:
                 "received": g.received, "stale_states": self.cnt["stale_steps"],
                 "safe_steps": self.cnt["safe_steps"],
                 "trigger": "timer", "null_law": False,  # as sc-rt-controller's (no --trigger event here)
+                "law_failures": self.ctl.law_failures,
                 "auth": self.auth, "auth_failed": self.cnt["auth_failed"],
                 "rejected": {k: g.as_dict()[k] for k in ("malformed", "trailing_bytes", "duplicate",
                                                          "out_of_order", "invalid_state", "foreign_session")},

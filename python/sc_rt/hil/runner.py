@@ -31,7 +31,7 @@ from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
 from sc_rt.wire.lcmio import channel, free_port_url, lcm_binary, open_lcm
 from sc_rt.logs.timing import log_missing, timing_report
 from sc_rt.emulator.sensorpub import SENT_COUNTERS
-from sc_rt.results.metrics import fill_tracking_errors, finish_run
+from sc_rt.results.metrics import fill_tracking_errors, finish_run, record_law_failures
 from sc_rt.results.output import write_run
 from sc_rt.pylaw import is_python_law
 from sc_rt.results.run import Run, provenance
@@ -237,7 +237,88 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     a controller started by hand that speaks the protocol (docs/PROTOCOL.md).
     ``setup``: trigger, CPUs, the emulator's spin (hil/floor.py); ``floor``:
     the bench floor timing.json compares the run with (a dict, or "auto",
-    "cached", "measure": hil/floor.py ``floor_for``; None: none)."""
+    "cached", "measure": hil/floor.py ``floor_for``; None: none).
+
+    The emulator runs in this process; the controller and ``lcm-logger`` are
+    child processes, stopped at the end (SIGINT/SIGTERM stop the run early:
+    it is kept, partial).
+
+    Parameters
+    ----------
+    scn : Scenario
+        The scenario (``sc_rt.load_scenario``).
+    out : Path
+        The run's directory (created): run.lcmlog, controller_config.bin,
+        controller_summary.json, the controller's stderr and what
+        ``sc_rt.write_run`` writes.
+    mode : {"lockstep", "realtime"}
+        "lockstep": the emulator steps when the controller has answered each
+        state (bitwise the offline run); "realtime": one tick per control
+        period on the wall clock.
+    law : str, optional
+        The law (as ``sc_rt.with_overrides``; default: the scenario's), or a
+        Python law "module:Class" / "file.py:Class", run as ``sc-rt
+        controller`` in place of sc-rt-controller.
+    control_rate_hz : float, optional
+        [Hz] override of the scenario's control rate.
+    duration : float, optional
+        [s] override of the scenario's duration.
+    lcm_url : str, optional
+        The LCM URL. None: a udpm URL on a free port, ttl=0 (parallel runs
+        never cross).
+    prefix : str
+        Channel-name prefix ("": none), for two benches on one URL.
+    realtime_priority : bool
+        The controller and the emulator's thread ask for SCHED_FIFO and
+        mlockall.
+    time_scale : float
+        Real time: simulated seconds per wall-clock second (2.0: twice as fast).
+    accept_fault_commands : bool
+        The emulator applies fault_cmd_t messages (``sc-rt fault``).
+    plots : bool
+        Write the figures (a run of more than one row).
+    external : str, optional
+        A command line started as the controller instead of sc-rt-controller,
+        with placeholders ``{url}``, ``{prefix}``, ``{mode}``, ``{config}``,
+        ``{summary}``, ``{python}`` (hil/external.py).
+    external_wait : bool
+        Start no controller: wait for one started by hand.
+    start_timeout : float, optional
+        [s] with ``external`` / ``external_wait``: how long to wait for the
+        controller's first answer. None: 30 s (``external_wait``: 300 s).
+    auth_key : str or Path, optional
+        A key file: the bus is authenticated with HMAC-SHA256 (wire/auth.py),
+        and the controller is given the key. None: no authentication.
+    setup : TimingSetup, optional
+        The controller's trigger, the CPUs, the emulator's spin. None:
+        ``TimingSetup()``.
+    floor : dict or str, optional
+        The bench floor: a dict, or a policy of ``floor_for`` ("auto",
+        "cached", "measure"; a short run of its own first when it measures).
+        None: no comparison.
+
+    Returns
+    -------
+    HilResult
+        ``.run`` (the record, with ``metrics`` and ``timing``), ``.out``,
+        ``.files`` (every file written), ``.controller_summary``, and
+        ``.stopped`` / ``.signum`` when it stopped before its end.
+
+    Raises
+    ------
+    ScenarioError
+        An override is invalid.
+    ValueError
+        An unreadable or empty key file, an ``external`` command that does not
+        split, an unknown ``mode`` or ``floor`` policy.
+    FileNotFoundError
+        sc-rt-controller or lcm-logger is not installed.
+    RuntimeError
+        LCM cannot start on ``lcm_url``, or lcm-logger, sc-rt-controller or
+        the external controller did not start or never answered.
+    OSError
+        The run's files cannot be written.
+    """
     if is_python_law(law):
         external, law = python_controller_command(law, realtime_priority), None
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
@@ -409,6 +490,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     res.meta = dataclasses.replace(res.meta, wall_s=wall)
     fill_tracking_errors(res, scn.core_config().guidance)
     finish_run(res)
+    record_law_failures(res, summary.get("law_failures"))  # the controller's summary: counted, named, invalid
     res.timing = timing_report(res, summary, wall)
     # the end marker reached the log: every message published before it is there too
     res.timing["log_complete"] = bool(log_complete)

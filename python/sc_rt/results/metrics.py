@@ -14,7 +14,7 @@ from sc_rt.results.estimation import estimation_metrics, fill_estimation_error, 
 from sc_rt.results.run import CORE_FIELDS, Run, json_safe
 from sc_rt.results.verdict import pointing_arcsec, safe_summary
 
-__all__ = ["METRIC_TIMES", "bound_ok", "compute_metrics", "fill_tracking_errors", "prescribed_chi",
+__all__ = ["METRIC_TIMES", "record_law_failures", "bound_ok", "compute_metrics", "fill_tracking_errors", "prescribed_chi",
            "finish_run", "json_safe"]
 
 #: Times [s] at which the error norms are reported (those within the run;
@@ -189,3 +189,25 @@ def finish_run(run: Run) -> Run:
     metrics.update({k: v for k, v in run.metrics.items() if k not in metrics})
     run.metrics = metrics
     return run
+
+
+def record_law_failures(run: Run, failures: dict[str, Any] | None) -> None:
+    """The law's contained failures (``_core.Controller.law_failures`` or
+    the controller's summary: counts per call and the newest) into the run's
+    metrics; a run whose law failed at all is not a valid run of that law
+    (``valid`` false, ``invalid_reason`` naming the call, the time and the
+    message), whatever else it shows."""
+    if failures is None:
+        return
+    run.metrics["law_failures"] = failures
+    counts = {k: int(failures.get(k) or 0) for k in ("reset", "step", "after")}
+    n = sum(counts.values())
+    if n == 0:
+        return
+    last = failures.get("last") or {}
+    why = (f"the law failed {n} time{'s' if n > 1 else ''} ("
+           + ", ".join(f"{k} {v}" for k, v in counts.items() if v) + ")"
+           + (f"; last: {last.get('call')} at t = {float(last.get('t', 0.0)):.4g} s: {last.get('what')}"
+              if last else ""))
+    run.metrics["valid"] = False
+    run.metrics.setdefault("invalid_reason", why)

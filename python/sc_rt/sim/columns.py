@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["loop_columns"]
+__all__ = ["loop_columns", "LAW_FAILURES"]
 
 
 def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[str, str]) -> dict[str, np.ndarray]:
@@ -19,3 +19,10 @@ def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[st
     cols["flags"] = np.nan_to_num(OUT[:, packed["flags"]][:, 0]).astype(np.int64)
     cols["ctrl_mode"] = np.nan_to_num(OUT[:, packed["mode"]][:, 0], nan=-1).astype(np.int64)
     return cols
+
+
+#: The key under which an engine hands the law's contained failures
+#: (``_core.Controller.law_failures``: counts per call and the newest) to
+#: ``simulate`` beside its columns; ``simulate`` moves them to the run's
+#: metrics (``law_failures``). Not a run field.
+LAW_FAILURES = "_law_failures"

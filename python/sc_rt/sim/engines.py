@@ -28,8 +28,8 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.model import actuators, plant
 from sc_rt.pylaw import PACKED_SLICES, PyController, is_python_law, law_label, load_law
-from sc_rt.results.metrics import finish_run
-from sc_rt.sim.columns import loop_columns
+from sc_rt.results.metrics import finish_run, record_law_failures
+from sc_rt.sim.columns import LAW_FAILURES, loop_columns
 from sc_rt.results.run import FIELD, Run, RunMeta
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
@@ -97,7 +97,9 @@ def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, n
         if not all(map(isfinite, x)):
             diverged = True
             break
-    return loop_columns(T, X, ACC, D2, OUT, PACKED, RECORDED), rows, diverged
+    cols = loop_columns(T, X, ACC, D2, OUT, PACKED, RECORDED)
+    cols[LAW_FAILURES] = ctl.law_failures if law_cls is None else pyctl.law_failures
+    return cols, rows, diverged
 
 
 def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
@@ -107,10 +109,11 @@ def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
         actuators.actuator_params_to_cpp(scn.actuators), initial_state(scn), n_ctrl, n_sub, rate)
     rows = int(res.pop("rows"))
     diverged = bool(res.pop("diverged"))
+    failures = res.pop("law_failures")
     unknown = set(res) - set(FIELD)
     if unknown:  # the C++ loop names its columns after the run's fields
         raise RuntimeError(f"simulate_closed_loop returned columns the run does not declare: {sorted(unknown)}")
-    return dict(res), rows, diverged
+    return {**res, LAW_FAILURES: failures}, rows, diverged
 
 
 def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
@@ -140,6 +143,16 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     -------
     Run
         The run record: per-row arrays (``run["sigma_BD"]``), ``run.metrics``.
+        A run whose plant state became non-finite stops there (``run.diverged``,
+        ``run.message``).
+
+    Raises
+    ------
+    ValueError
+        An unknown ``engine``; a Python law on another engine than "python";
+        a Python law with a scenario that has ``[sensors]``.
+    ScenarioError
+        An override is invalid (``sc_rt.with_overrides``).
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
@@ -164,6 +177,7 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
 
         cols, rows, diverged = run_unsampled(scn)
     wall = time.perf_counter() - t0
+    failures = cols.pop(LAW_FAILURES, None)
     meta = RunMeta.of_scenario(scn, engine, wall_s=wall)
     if law_cls is not None:
         meta = dataclasses.replace(meta, law=law_label(law_cls))
@@ -172,4 +186,6 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         n_ctrl = grid(scn).n_ctrl
         run.message = (f"the plant state became non-finite after t = {run.t[-1]:.6g} s: "
                        f"the run stopped there ({rows} of {n_ctrl + 1} rows)")
-    return finish_run(run)
+    finish_run(run)
+    record_law_failures(run, failures)  # a law that failed: counted, named, the run invalid
+    return run

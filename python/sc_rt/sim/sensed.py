@@ -31,7 +31,7 @@ from sc_rt.results.run import FIELD
 from sc_rt.scenario.overrides import grid, initial_state
 from sc_rt.scenario.schema import ScenarioError, ScenarioIssue
 from sc_rt.scenario.sensors import nav_config
-from sc_rt.sim.columns import loop_columns
+from sc_rt.sim.columns import LAW_FAILURES, loop_columns
 
 __all__ = ["run_sensed", "NAV", "NAV_RECORDED"]
 
@@ -108,6 +108,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
         v = NAVT[:, NAV[name]]
         cols[name] = v[:, 0] if v.shape[1] == 1 else v
     cols["flags"] |= np.nan_to_num(NAVT[:, NAV["nav_flags"]][:, 0]).astype(np.int64)
+    cols[LAW_FAILURES] = ctl.law_failures
     return cols, rows, diverged
 
 
@@ -119,10 +120,11 @@ def _run_cpp(scn):
         _config(scn))
     rows = int(res.pop("rows"))
     diverged = bool(res.pop("diverged"))
+    failures = res.pop("law_failures")
     unknown = set(res) - set(FIELD)
     if unknown:
         raise RuntimeError(f"simulate_closed_loop_sensed returned columns the run does not declare: {sorted(unknown)}")
-    return dict(res), rows, diverged
+    return {**res, LAW_FAILURES: failures}, rows, diverged
 
 
 def run_sensed(scn, engine: str, packed: dict[str, slice], recorded: dict[str, str]):

@@ -27,7 +27,9 @@ __all__ = ["Campaign", "CampaignExists", "check_out", "run_batch", "run_campaign
 _HEAD = [("run", "int64"), ("seed", "int64"), ("status", "string"), ("redraws", "int64"),
          ("holds_bound", "bool"), ("message", "string")]  # fmt: skip
 #: Metrics left out of the rows: the same for every run, or not a property of the run.
-SKIP_METRICS = ("scenario", "controller", "engine", "control_rate_hz", "duration_s", "wall_s")
+SKIP_METRICS = ("scenario", "controller", "engine", "control_rate_hz", "duration_s", "wall_s",
+                # a failed law is the row's status and message (law_failed), not columns
+                "law_failures", "valid", "invalid_reason")
 #: Metrics whose worst case (largest value) gets a Wilks tolerance bound (those present).
 WORST_CASE = ("max_abs_omega_e_after_70s", "max_observer_error_after_30s",
               "max_pointing_error_arcsec_after_30s", "max_abs_u_cmd", "saturated_fraction")  # fmt: skip
@@ -98,9 +100,10 @@ def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple
     else:
         res = simulate(scn, law=c.law, engine="cpp", control_rate_hz=c.control_rate_hz)
         m = res.metrics
-        row.update(status="diverged" if m.get("diverged") else "ok",
-                   holds_bound=bool(m["finite"] and m["first_bound_violation_s"] is None),
-                   message="")
+        law_failed = m.get("valid") is False  # the law threw, went non-finite or gave a wrong shape
+        row.update(status="diverged" if m.get("diverged") else "law_failed" if law_failed else "ok",
+                   holds_bound=bool(m["finite"] and m["first_bound_violation_s"] is None and not law_failed),
+                   message=m.get("invalid_reason", "") if law_failed else "")
         row.update(_metric_row(m))
     return (row, scn, res) if keep else row
 
@@ -214,7 +217,7 @@ def summarize(c: Campaign, store: RunStore, runs: int) -> dict[str, Any]:
         "fraction_holding_bound": held / n if n else None,
         "fraction_holding_bound_ci95": list(clopper_pearson(held, n)) if n else None,
         "ci_method": "Clopper-Pearson, two-sided 95 %",
-        "status": {s: sum(r["status"] == s for r in rows) for s in ("ok", "diverged", "invalid")},
+        "status": {s: sum(r["status"] == s for r in rows) for s in ("ok", "diverged", "invalid", "law_failed")},
         "redraws_total": sum(r["redraws"] for r in rows),
         "final_metric": final,
         "worst_final_sigma_BD": max(fin) if fin else None,
