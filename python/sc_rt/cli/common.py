@@ -68,6 +68,24 @@ def checked_out(value: str, option: str = "--out") -> Path:
     return Path(value)
 
 
+def claim_out(out: Path, option: str = "--out") -> None:
+    """Claim the output directory for this run, the last thing before it
+    starts (after every check: bad input writes nothing): refused (exit 2)
+    while a live run holds it; the previous run's outputs there removed;
+    released, its manifest written, when this process ends
+    (sc_rt.results.output.OutDir)."""
+    import atexit
+
+    from sc_rt.results.output import OutDir, OutDirInUse
+
+    d = OutDir(Path(out), option)
+    try:
+        d.claim()
+    except OutDirInUse as e:
+        raise UsageError(str(e)) from None
+    atexit.register(d.release)
+
+
 def html_report(out: Path, who: str) -> None:
     """report.html of the run in ``out`` (sc_rt.results.html_report)."""
     from sc_rt.results.html_report import write_html_report

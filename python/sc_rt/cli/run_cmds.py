@@ -11,8 +11,8 @@ from pathlib import Path
 from sc_rt.cli.interrupts import flag_signals
 from sc_rt.cli.validate import UsageError, check_run_size, given_options, resolve_url, rounded
 from sc_rt.cli.controller import external_choice
-from sc_rt.cli.common import (checked_out, html_report, invalid_exit, mark_partial, mcap_problem, print_metrics,
-                              report_stopped, scenario_arg, write_mcap)
+from sc_rt.cli.common import (checked_out, claim_out, html_report, invalid_exit, mark_partial, mcap_problem,
+                              print_metrics, report_stopped, scenario_arg, write_mcap)
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
@@ -36,6 +36,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
             raise UsageError(f"--engine unsampled: {why}")
     check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
                                       plant_step="--plant-step"))
+    claim_out(out)
     from sc_rt.sim import engines
 
     from sc_rt.scenario.overrides import grid
@@ -87,6 +88,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
     mcap = str(Path(args.out) / "run.mcap") if mcap == "" else mcap
     if mcap_problem(mcap, "hil"):
         return 2
+    claim_out(out)
     res = run_hil(scn, out=out, mode=args.mode, lcm_url=url,
                   prefix=args.prefix, realtime_priority=args.realtime_priority,
                   time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
@@ -126,6 +128,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from sc_rt.results.verdict import verdict_line
 
     out = checked_out(args.out)
+    claim_out(out)
     results = []
     for label, name, sub in DEMO_RUNS:
         scn = scenario_arg(name)
@@ -160,6 +163,8 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     check_run_size(scn, given_options(args, rate="--rate", duration="--duration", time_scale="--time-scale"),
                    bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale)
     url = resolve_url(args.lcm_url, DEFAULT_URL)
+    if args.out:
+        claim_out(Path(args.out))
     sig: list[int] = []
     with flag_signals(sig.append):  # from here the run stops at its next step, its rows kept
         emu = Emulator(scn, Options(mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from sc_rt.results.output import run_files
 from sc_rt.results.html_timeline import MODE_NAMES, spans, timeline_svg
 
 __all__ = ["write_html_report", "render_html", "verdict_items", "timing_text", "pointing_arcsec_of_mrp_norm"]
@@ -128,8 +129,9 @@ def _load(run_dir: Path) -> dict[str, Any]:
                     traj[k] = z[k]
             if "meta_json" in z.files:
                 meta = json.loads(str(z["meta_json"]))
-    figs = sorted(run_dir.glob("*.png"), key=lambda q: (list(FIGURES).index(q.name) if q.name in FIGURES
-                                                          else len(FIGURES), q.name))
+    own = run_files(run_dir)  # only this run's figures, never a previous run's or yours
+    figs = sorted((q for q in run_dir.glob("*.png") if own is None or q.name in own),
+                  key=lambda q: (list(FIGURES).index(q.name) if q.name in FIGURES else len(FIGURES), q.name))
     return {"metrics": metrics, "timing": js("timing.json"), "report": js("report.json"), "traj": traj,
             "meta": meta, "figures": figs}
 

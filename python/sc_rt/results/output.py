@@ -7,7 +7,7 @@ from pathlib import Path
 
 from sc_rt.results.run import Run, write_json
 
-__all__ = ["write_run", "check_out_dir"]
+__all__ = ["write_run", "check_out_dir", "OutDir", "OutDirInUse", "MANIFEST"]
 
 
 def check_out_dir(out: Path, option: str = "--out") -> str | None:
@@ -57,6 +57,8 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    if (run_id := claimed_run_id(out)) is not None:  # the run that holds the directory (OutDir)
+        run.metrics["run_id"] = run_id
     paths = [run.save_npz(out / "trajectory.npz", compress=compress),
              write_json(out / "metrics.json", run.metrics)]
     if run.timing is not None:
@@ -68,3 +70,133 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
         if run.timing is not None:
             paths += fig.timing_figures(run, out)
     return paths
+
+
+#: A run's claim on its output directory while it lasts (the pid of the process)
+LOCK = ".sc-rt.lock"
+#: What the run that last used the directory wrote (its run id, and the files
+#: that were there before it, which are not its own)
+MANIFEST = ".sc-rt-run.json"
+
+
+class OutDirInUse(Exception):
+    """The output directory is claimed by a live run (one line, for exit 2)."""
+
+
+def _files(root: Path) -> set[str]:
+    return {str(p.relative_to(root)) for p in root.rglob("*") if p.is_file() or p.is_symlink()} - {LOCK, MANIFEST}
+
+
+def _alive(pid: int) -> bool:
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+class OutDir:
+    """A run's output directory, owned by the run while it lasts: outputs
+    belong to their run (docs/HIL.md, "When a run is valid").
+
+    ``claim()`` refuses a directory that a live run holds (a lock file with
+    its pid: two runs into one ``--out`` at once), removes what the previous
+    run there wrote (its manifest lists it: a rerun with ``--no-plots`` keeps
+    no figure of the run before), and records the files already there that
+    are not a run's (yours: left alone, never embedded in a report). The run
+    id stamped in metrics.json (``run_id``) and the manifest tie the outputs
+    to their run; ``release()`` writes the manifest and drops the lock."""
+
+    def __init__(self, path: Path, option: str = "--out"):
+        import uuid
+
+        self.path, self.option = Path(path), option
+        self.run_id = uuid.uuid4().hex
+        self.foreign: set[str] = set()
+        self._claimed = False
+
+    def claim(self) -> OutDir:
+        import json
+        import os
+
+        self.path.mkdir(parents=True, exist_ok=True)
+        lock = self.path / LOCK
+        for _attempt in range(2):
+            try:
+                fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                try:
+                    pid = int(lock.read_text().split()[0])
+                except (OSError, ValueError, IndexError):
+                    pid = -1
+                if pid > 0 and pid != os.getpid() and _alive(pid):
+                    raise OutDirInUse(f"{self.option} {self.path}: in use by a live run (pid {pid}, "
+                                      f"{lock}); give another directory") from None
+                lock.unlink(missing_ok=True)  # a run that died without releasing it
+                continue
+            with os.fdopen(fd, "w") as f:
+                f.write(f"{os.getpid()} {self.run_id}\n")
+            break
+        else:
+            raise OutDirInUse(f"{self.option} {self.path}: cannot take its lock {lock}")
+        self._claimed = True
+        man = self.path / MANIFEST
+        previous: dict = {}
+        try:
+            previous = json.loads(man.read_text())
+        except (OSError, ValueError):
+            pass
+        own = set(previous.get("files", []))
+        if previous and not previous.get("done"):  # it died before its release: all it added
+            own |= _files(self.path) - set(previous.get("foreign", []))
+        for rel in sorted(own):  # the previous run's own outputs, and nothing else
+            if ".." not in Path(rel).parts:
+                (self.path / rel).unlink(missing_ok=True)
+        self.foreign = _files(self.path)
+        self._write_manifest(done=False)
+        return self
+
+    def _write_manifest(self, done: bool) -> None:
+        import json
+
+        own = sorted(_files(self.path) - self.foreign)
+        tmp = self.path / (MANIFEST + ".partial")
+        tmp.write_text(json.dumps({"run_id": self.run_id, "done": done, "files": own,
+                                   "foreign": sorted(self.foreign)}, indent=1) + "\n")
+        tmp.replace(self.path / MANIFEST)
+
+    def release(self) -> None:
+        if not self._claimed:
+            return
+        self._claimed = False
+        try:
+            self._write_manifest(done=True)
+        finally:
+            (self.path / LOCK).unlink(missing_ok=True)
+
+
+def claimed_run_id(out: Path) -> str | None:
+    """The id of the run that holds ``out`` now (its lock), None when none does."""
+    try:
+        parts = (Path(out) / LOCK).read_text().split()
+    except OSError:
+        return None
+    return parts[1] if len(parts) > 1 else None
+
+
+def run_files(run_dir: Path) -> set[str] | None:
+    """The files of the run that wrote ``run_dir`` (relative paths), from its
+    manifest: everything there but what was there before it. None without a
+    manifest (a directory sc-rt did not claim: every file counts)."""
+    import json
+
+    run_dir = Path(run_dir)
+    try:
+        foreign = set(json.loads((run_dir / MANIFEST).read_text()).get("foreign", []))
+    except (OSError, ValueError):
+        return None
+    return _files(run_dir) - foreign
