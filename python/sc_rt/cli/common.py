@@ -44,7 +44,9 @@ def print_metrics(m: dict, faults=()) -> None:
         ("max |u_cmd| before saturation [rad/s^2]", f(m["max_abs_u_cmd"])),
         ("max |wheel accel| applied [rad/s^2]", f(m["max_abs_wheel_accel"])),
         ("saturated fraction", f(m["saturated_fraction"])),
-        ("SAFE steps", f"{safe}" + (f" from {m['safe_from_s']:.1f} s ({why})" if safe else "")),
+        ("SAFE steps", f"{safe}" + (f" from {m['safe_from_s']:.1f} s ({why})" if safe and m.get("safe_from_s")
+                                    is not None else "")
+         + (f"; rows applying a SAFE command: {m['safe_rows']}" if m.get("safe_rows") not in (None, safe) else "")),
         ("faults scheduled", faults),
     ]
     lf = m.get("law_failures")

@@ -24,12 +24,40 @@ def add_timing_options(h: argparse.ArgumentParser, *, floor_policy: bool = True)
                    help="real time: the emulator polls instead of sleeping for the last US before each "
                         "tick (default: %(default)s; 0: sleeps to the tick)")
     if floor_policy:
+        h.add_argument("--rt-limits", type=rt_limits, metavar="K=F,...",
+                       help="real time: what 'kept real time' means, as fractions: misses (deadline misses "
+                            "per step), skipped (periods without a controller step), dropped (watchdog zeros "
+                            "per row), stale (stale states per step); a run beyond one is invalid (default: "
+                            "misses=0.01,skipped=0.01,dropped=0.01,stale=0.5)")
         h.add_argument("--floor", choices=("auto", "cached", "measure", "off"), default="auto",
                        help="real time: the bench floor timing.json and timing.png compare the run with: "
                             "auto (cached when younger than an hour, else a 2 s null-controller run "
                             "first), cached, measure, off (default: %(default)s)")
         h.add_argument("--self-test", action="store_true",
                        help="measure the bench floor only (as sc-rt floor) and exit")
+
+
+def rt_limits(text: str):
+    """--rt-limits misses=F,skipped=F,dropped=F,stale=F (any subset; fractions in [0, 1])."""
+    import dataclasses
+
+    from sc_rt.logs.timing import RealtimeLimits
+
+    keys = [f.name for f in dataclasses.fields(RealtimeLimits) if f.name != "allowance"]
+    values = {}
+    for part in text.split(","):
+        key, sep, val = part.partition("=")
+        key = key.strip()
+        if not sep or key not in keys:
+            raise argparse.ArgumentTypeError(f"{part!r}: expected " + ", ".join(f"{k}=F" for k in keys))
+        try:
+            v = float(val)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{part!r}: {val!r} is not a number") from None
+        if not 0.0 <= v <= 1.0:
+            raise argparse.ArgumentTypeError(f"{part!r}: a fraction in [0, 1]")
+        values[key] = v
+    return dataclasses.replace(RealtimeLimits(), **values)
 
 
 def timing_setup(args: argparse.Namespace):

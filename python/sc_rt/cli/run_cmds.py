@@ -95,7 +95,8 @@ def cmd_hil(args: argparse.Namespace) -> int:
                   plots=not args.no_plots, law=pylaw, external=args.external,
                   external_wait=args.external_wait, start_timeout=args.start_timeout,
                   auth_key=args.auth_key, setup=timing_setup(args),
-                  floor=None if args.floor == "off" or args.mode != "realtime" else args.floor)
+                  floor=None if args.floor == "off" or args.mode != "realtime" else args.floor,
+                  rt_limits=args.rt_limits)
     print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/ ({len(res.files)} files: "
           f"{', '.join(p.name for p in res.files)}, run.lcmlog)")
     print_metrics(res.metrics, res.run.meta.faults)

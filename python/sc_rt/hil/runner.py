@@ -29,7 +29,7 @@ from sc_rt.emulator.process import Emulator, Options
 from sc_rt.hil.external import ExternalController, python_controller_command
 from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
 from sc_rt.wire.lcmio import channel, free_port_url, lcm_binary, open_lcm
-from sc_rt.logs.timing import log_missing, timing_report
+from sc_rt.logs.timing import RealtimeLimits, log_missing, realtime_shortfall, timing_report
 from sc_rt.emulator.sensorpub import SENT_COUNTERS
 from sc_rt.results.metrics import fill_tracking_errors, finish_run, record_law_failures
 from sc_rt.results.output import write_run
@@ -230,7 +230,8 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
             time_scale: float = 1.0, accept_fault_commands: bool = False,
             plots: bool = True, external: str | None = None, external_wait: bool = False,
             start_timeout: float | None = None, auth_key: str | Path | None = None,
-            setup: TimingSetup | None = None, floor: dict | str | None = None) -> HilResult:
+            setup: TimingSetup | None = None, floor: dict | str | None = None,
+            rt_limits: RealtimeLimits | None = None) -> HilResult:
     """A bench run. The controller is sc-rt-controller, or (hil/external.py)
     ``external``: a command line started instead (a Python law ``law`` =
     "module:Class" runs as ``sc-rt controller``), or, with ``external_wait``,
@@ -296,6 +297,9 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
         The bench floor: a dict, or a policy of ``floor_for`` ("auto",
         "cached", "measure"; a short run of its own first when it measures).
         None: no comparison.
+    rt_limits : RealtimeLimits, optional
+        What "kept real time" means for a real-time run (sc_rt.logs.timing);
+        a run beyond them is invalid. None: the defaults.
 
     Returns
     -------
@@ -346,7 +350,8 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     bench = _Bench(scn=scn, out=out, url=url, mode=mode, prefix=prefix, realtime_priority=realtime_priority,
                    time_scale=time_scale, accept_fault_commands=accept_fault_commands, plots=plots,
                    ctl_bin=ctl_bin, logger_bin=logger_bin, cfg_path=cfg_path, log_path=log_path, ext=ext,
-                   key=key, key_path=auth_key, setup=setup, floor=floor)
+                   key=key, key_path=auth_key, setup=setup, floor=floor,
+                   rt_limits=rt_limits or RealtimeLimits())
     with Stopper() as stopper:
         return _run_children(bench, stopper)
 
@@ -375,6 +380,25 @@ class _Bench:
     key_path: str | Path | None
     setup: TimingSetup
     floor: dict | None
+    rt_limits: RealtimeLimits = RealtimeLimits()
+
+
+def _judge_real_time(res: Run, summary: dict[str, Any], limits: RealtimeLimits) -> None:
+    """One number of SAFE steps everywhere (the controller's, when it says:
+    metrics.json, the console and timing.json agree; the rows that applied a
+    SAFE command are safe_rows), and a real-time run that did not keep real
+    time is invalid, with the reason (RealtimeLimits)."""
+    if summary.get("safe_steps") is not None:
+        res.metrics["safe_rows"] = res.metrics.get("safe_steps")
+        res.metrics["safe_steps"] = int(summary["safe_steps"])
+    why = realtime_shortfall(res.timing, limits)
+    if res.timing.get("mode") == "realtime":
+        res.timing["kept_real_time"] = why is None
+        res.timing["realtime_limits"] = dataclasses.asdict(limits)
+    if why is not None:
+        res.metrics["valid"] = False
+        res.metrics.setdefault("invalid_reason", why)
+        print(f"sc-rt hil: {why}", file=sys.stderr)
 
 
 def _death_line(res: Run, died: str, ext: ExternalController | None) -> str:
@@ -504,6 +528,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     if floor:
         res.timing["floor"] = floor
         res.timing["over_floor"] = compare_to_floor(res.timing, floor)
+    _judge_real_time(res, summary, b.rt_limits)
     try:
         files = write_run(res, out, figures=b.plots and len(res) > 1)  # (no figure of a run stopped at once)
     except OSError as e:  # a full disk: say where, and why the run had stopped

@@ -4,6 +4,7 @@ the log alone), and how many of the run's messages its log lacks."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,7 @@ import numpy as np
 from sc_rt.logs.lcmlog import LogDamaged, read_events
 from sc_rt.results.run import Run
 
-__all__ = ["percentiles", "timing_report", "log_missing"]
+__all__ = ["percentiles", "timing_report", "log_missing", "RealtimeLimits", "realtime_shortfall"]
 
 
 def percentiles(v: np.ndarray) -> dict[str, float | None]:
@@ -82,3 +83,45 @@ def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, A
                                       if summary.get("steps") else None),
         "emulator_breakdown_us": None, "load_avg": None,
     }
+
+
+@dataclass(frozen=True)
+class RealtimeLimits:
+    """What "kept real time" means for a real-time bench run (docs/HIL.md,
+    "When a run is valid"), as fractions: deadline misses per controller
+    step (``misses``), periods the controller did not step at all
+    (``skipped``: the rows it had no step for; a controller that cannot keep
+    up, e.g. 886 steps/s at 1 kHz), rows run on the watchdog's zero
+    (``dropped``) and stale states per step (``stale``: loose by default,
+    because the timer trigger's phase lock takes about two seconds to
+    acquire). ``allowance`` events of each kind are always tolerated, so a
+    short run is not judged by one event. ``sc-rt hil --rt-limits``."""
+
+    misses: float = 0.01
+    skipped: float = 0.01
+    dropped: float = 0.01
+    stale: float = 0.5
+    allowance: int = 2
+
+
+def realtime_shortfall(timing: dict[str, Any], limits: RealtimeLimits) -> str | None:
+    """Why a real-time run did not keep real time (one line), None when it
+    did (or for a lockstep run, which has no deadlines)."""
+    if timing.get("mode") != "realtime":
+        return None
+    steps = max(1, int(timing.get("steps") or 0))
+    rows = max(1, int(timing.get("rows") or 0))
+    skipped = max(0, rows - int(timing.get("steps") or 0))
+    over = []
+    for name, count, n, limit in (("deadline misses", timing.get("deadline_misses", 0), steps, limits.misses),
+                                  ("periods without a step", skipped, rows, limits.skipped),
+                                  ("dropped ticks", timing.get("dropped", 0), rows, limits.dropped),
+                                  ("stale states", timing.get("stale_states", 0), steps, limits.stale)):
+        count = int(count or 0)
+        if count > max(limits.allowance, limit * n):
+            over.append(f"{name} {count} of {n} ({100 * count / n:.2g} % > {100 * limit:g} %)")
+    if not over:
+        return None
+    rate = timing.get("steps_per_s")
+    return ("did not keep real time: " + ", ".join(over)
+            + (f"; {rate:.0f} steps/s at {timing.get('control_rate_hz'):g} Hz" if rate else ""))
