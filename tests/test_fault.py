@@ -280,3 +280,38 @@ wait $HIL
     assert xs.min() == pytest.approx(t_stuck, abs=1 / rate) and xs.max() <= t_clear + 1e-9
     assert not [c for c in panels[0].collections + panels[1].collections if c.get_label() == "stuck"]
     assert rep["timing"]["faults_applied"] == f["commands"]
+
+
+def test_authenticated_fault_commands_cannot_be_replayed_or_misaddressed():
+    """Before: under --auth-key the emulator applied any fault_cmd_t whose
+    tag verified; seq was never checked and the message named no session,
+    so a command captured from an earlier run was accepted again (issue #25,
+    case 8). The receiver is built alone (authenticated: a keyed bus)."""
+    import lcm
+
+    scn = load_scenario(ROOT / "scenarios" / "paper_fault_free.toml")
+    rx = Receiver(lcm.LCM("memq://"), "", 77, 10, Shared(Counter(), scn.actuators), accept_faults=True,
+                  authenticated=True)
+
+    def cmd(seq: int, session: int, wheel: int = 2):
+        m = inject_msg(wheel, effectiveness=0.5)
+        m.seq, m.session = seq, session
+        return m.encode()
+
+    rx.on_fault("SCRT_FAULT", cmd(10, 77))
+    assert rx.counters["fault_applied"] == 1
+    rx.on_fault("SCRT_FAULT", cmd(10, 77))  # the same bytes again: a replay
+    rx.on_fault("SCRT_FAULT", cmd(9, 77, wheel=3))  # an older one
+    assert rx.counters["fault_replayed"] == 2 and rx.counters["fault_applied"] == 1
+    rx.on_fault("SCRT_FAULT", cmd(11, 78, wheel=3))  # another run's emulator
+    rx.on_fault("SCRT_FAULT", cmd(12, 0, wheel=3))  # addressed to none
+    assert rx.counters["fault_foreign_session"] == 2 and [f.wheel for f in rx.shared.act.faults] == [1]
+    rx.on_fault("SCRT_FAULT", cmd(13, 77, wheel=3))
+    assert rx.counters["fault_applied"] == 2
+
+    # without a key: any emulator (session 0) and no seq rule, as before; another session still refused
+    rx = Receiver(lcm.LCM("memq://"), "", 77, 10, Shared(Counter(), scn.actuators), accept_faults=True)
+    rx.on_fault("SCRT_FAULT", cmd(5, 0))
+    rx.on_fault("SCRT_FAULT", cmd(5, 0, wheel=3))
+    rx.on_fault("SCRT_FAULT", cmd(6, 78, wheel=4))
+    assert rx.counters["fault_applied"] == 2 and rx.counters["fault_foreign_session"] == 1

@@ -206,12 +206,16 @@ class Receiver:
     collision (``shared.collision``)."""
 
     def __init__(self, lc: Any, prefix: str, session: int, n_rows: int, shared: Shared, *,
-                 guard: Any = None, peers: ControllerPeers | None = None, accept_faults: bool = False):
+                 guard: Any = None, peers: ControllerPeers | None = None, accept_faults: bool = False,
+                 authenticated: bool = False):
         self.lc, self.prefix, self.session, self.shared = lc, prefix, session, shared
         self.counters = shared.counters
         self.guard = guard
         self.peers = peers if peers is not None else ControllerPeers(None)
         self.accept_faults = accept_faults
+        #: a bus with a key: a fault command must name this emulator's session and a seq above the last
+        self.authenticated = authenticated
+        self._last_fault_seq: int | None = None
         self.inbox = Inbox(n_rows, self.counters)
         self.newest_cmd: Cmd | None = None
         self.newest_cmd_ns = 0
@@ -319,9 +323,17 @@ class Receiver:
         if not self.accept_faults:
             self.counters["fault_ignored"] += 1
             return
+        # addressed to another emulator (or, under authentication, to none): not ours
+        if (msg.session != 0 or self.authenticated) and msg.session != self.session:
+            self.counters["fault_foreign_session"] += 1
+            return
+        if self.authenticated and self._last_fault_seq is not None and msg.seq <= self._last_fault_seq:
+            self.counters["fault_replayed"] += 1  # a captured command sent again: refused
+            return
         try:
             self._apply_fault(msg)
             self.counters["fault_applied"] += 1
+            self._last_fault_seq = msg.seq
         except ValueError as e:
             self.counters["fault_rejected"] += 1
             self.shared.faults_applied.append({"rejected": str(e), "wheel": msg.wheel})

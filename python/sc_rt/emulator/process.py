@@ -127,7 +127,7 @@ class Emulator:
         #: bench on our URL and prefix stops the run, marked invalid (emulator/collision.py)
         self.receiver = Receiver(
             self.lc, opts.prefix, self.session, n_rows, self.shared, peers=self.peers,
-            accept_faults=opts.accept_fault_commands,
+            accept_faults=opts.accept_fault_commands, authenticated=opts.auth_key is not None,
             guard=CollisionGuard(opts.url, opts.prefix, self.session,
                                  alive_s=max(0.5, self.stale_periods / self.rate / opts.time_scale)))
         self.inbox = self.receiver.inbox

@@ -142,6 +142,19 @@ def send(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "", timeout: float 
                     return True
         return False
 
+    if auth_key is not None and msg.session == 0:
+        # an authenticated bus: the command names its emulator's session (no replay into another run)
+        sch: list = []
+        lc.subscribe(channel("SCRT_STATE", prefix),
+                     lambda _c, data: sch.append(decode_as(sc_rt_lcm.plant_state_t, data, bad)))
+        end = time.monotonic() + min(timeout, 2.0)
+        while time.monotonic() < end and not any(m is not None for m in sch):
+            lc.handle_timeout(50)
+        sessions = [m.session for m in sch if m is not None]
+        if not sessions:
+            raise FaultArgError(f"--auth-key: no emulator heard on {url} ({channel('SCRT_STATE', prefix)}) "
+                                f"to address the command to")
+        msg.session = sessions[-1]
     if wait and msg.action == sc_rt_lcm.fault_cmd_t.ACTION_INJECT and not msg.now:
         # the emulator's clock, to refuse an onset it has passed (one state period or the timeout)
         t_now: list = []
