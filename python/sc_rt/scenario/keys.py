@@ -50,6 +50,7 @@ def scenario_data(scn: Any) -> dict[str, Any]:
     return {
         "name": scn.name,
         "description": scn.description,
+        **({"expect": scn.expect} if scn.expect else {}),
         "run": _group(scn.run),
         "spacecraft": {
             "J0": p.J0.tolist(), "dJ": p.dJ.tolist(), "Cbar": p.Cbar.tolist(), "Jw": p.Jw.tolist(),

@@ -233,6 +233,11 @@ class Scenario:
         The file's ``name`` key (default: the file name without ``.toml``).
     description : str
         The file's ``description`` key ("" without one).
+    expect : str
+        The file's ``expect`` key: what its run does with its law and
+        envelope, "holds" (the prescribed bound holds to the end) or
+        "violates" (it leaves it); "" unstated. Every shipped scenario
+        states it and tests/test_library.py checks it by running the file.
     path : Path
         The file the scenario was read from (relative plugin paths are
         resolved against its folder).
@@ -273,6 +278,8 @@ class Scenario:
     montecarlo: Any = None
     # the [sensors] tables and [controller] measurement (sc_rt.scenario.sensors.Sensors), None without [sensors]
     sensors: Any = None
+    # the expect key: "holds", "violates" or "" (unstated)
+    expect: str = ""
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None

@@ -276,6 +276,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     root = Table(doc, "", data)
     name = root.read("name", Spec("str"), default=path.stem)
     description = root.read("description", Spec("str"), default="")
+    expect = root.read("expect", Spec("str", choices=("holds", "violates")), default="")
     # The law: [controller] law, or the older [run] controller (one of them).
     ctl_data = data.get("controller") if isinstance(data.get("controller"), dict) else {}
     law = ctl_data.get("law")
@@ -323,6 +324,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     scenario = Scenario(
         name=name,
         description=description,
+        expect=expect or "",
         path=path,
         run=run,
         plant=plant,
