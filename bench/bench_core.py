@@ -6,7 +6,9 @@ Inputs are realistic: the measurements of a recorded closed-loop run of the
 paper fault scenario (100 Hz, 300 s), replayed in passes from a reset so the
 controller's time stays within the run.
 
-    .venv/bin/python bench/bench_core.py
+    .venv/bin/python bench/bench_core.py [--smoke]
+
+(--smoke: a 10 s recording, two passes, a check that it runs.)
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import time
 
 import numpy as np
 
-from common import ROOT, machine, summary, write
+from common import ROOT, machine, mode, summary, write
 
 sys.path.insert(0, str(ROOT / "tests"))
 
@@ -28,11 +30,12 @@ LAWS = {name: name for name in _core.law_names()[:4]}  # the built-in laws, regi
 
 
 def main() -> None:
+    smoke = mode() == "smoke"
     scn = load_scenario(ROOT / "scenarios" / "paper_faults.toml")
-    rec = simulate(scn, law="dsc", engine="cpp", control_rate_hz=100.0).trajectory
+    rec = simulate(scn, law="dsc", engine="cpp", control_rate_hz=100.0, duration=10.0 if smoke else None).trajectory
     t, s, w, o = rec["t"], rec["sigma_BN"], rec["omega_BN_B"], rec["wheel_speed"]
     res = {"machine": machine(), "inputs": f"paper_faults, DSC closed loop at 100 Hz, {len(t)} states"}
-    passes = 8
+    passes = 2 if smoke else 8
     for name, law in LAWS.items():
         cfg = scn.core_config(name, 100.0)
         ns_all = []
@@ -68,7 +71,7 @@ def main() -> None:
     r = refmath.RefController("dsc-ppc", **reference_params(cfg))
     d0 = dict(t=t[0], sigma=s[0], omega=w[0], wheel=o[0])
     r.reset(d0)
-    n = 3000
+    n = min(3000, len(t))
     t0 = time.perf_counter()
     for k in range(n):
         r.step(dict(t=t[k], sigma=s[k], omega=w[k], wheel=o[k]))

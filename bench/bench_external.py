@@ -6,7 +6,10 @@ external example (sc_rt_lcm only, no status), each on paper_faults through
 real time at 10 and 100 Hz (lateness, misses, latency). Runs in a private
 network namespace when root.
 
-    .venv/bin/python bench/bench_external.py [--quick]
+    .venv/bin/python bench/bench_external.py [--quick | --smoke]
+
+(--quick: 60 s lockstep, 5 s real time, once; --smoke: 5 s lockstep, 1 s
+real time, once: a check that it runs.)
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import ROOT, machine, write
+from common import HIL_MEASURE, ROOT, machine, mode, write
 
 sys.path.insert(0, str(ROOT / "tests"))
 import lcmnet  # noqa: E402
@@ -34,7 +37,7 @@ CONTROLLERS = {
 def hil(args: list[str]) -> dict:
     with tempfile.TemporaryDirectory() as d:
         cmd = lcmnet.wrap([sys.executable, "-m", "sc_rt.cli", "hil", "paper_faults", "--no-plots",
-                           "--out", d, *args])
+                           "--out", d, *HIL_MEASURE, *args])
         r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=900)
         if r.returncode != 0:
             raise RuntimeError(r.stderr)
@@ -43,9 +46,11 @@ def hil(args: list[str]) -> dict:
         return t
 
 
-def main(quick: bool = False) -> None:
+def main(size: str = "full") -> None:
+    quick = size != "full"
+    smoke = size == "smoke"
     res: dict = {"machine": machine(), "scenario": "paper_faults", "netns": lcmnet.can_unshare(),
-                 "lockstep_duration_s": 60 if quick else 300}
+                 "lockstep_duration_s": 5 if smoke else 60 if quick else 300}
     runs: dict[str, list[float]] = {k: [] for k in CONTROLLERS}
     for _ in range(1 if quick else 2):
         for name, args in CONTROLLERS.items():
@@ -57,9 +62,9 @@ def main(quick: bool = False) -> None:
         res[f"{name}_steps_per_s_runs"] = v
         res[f"{name}_steps_per_s"] = min(v)
     res["target_external_ge_1000"] = "pass" if res["external_example_steps_per_s"] >= 1000 else "miss"
+    rt_duration = "1" if smoke else "5" if quick else "20"
     for rate in (10, 100):
-        t = hil(["--mode", "realtime", "--control-rate", str(rate), "--duration", "5" if quick else "20",
-                 "--law", PY_LAW])
+        t = hil(["--mode", "realtime", "--control-rate", str(rate), "--duration", rt_duration, "--law", PY_LAW])
         res[f"python_law_realtime_{rate}hz"] = {
             k: t[k] for k in ("steps", "deadline_misses", "wake_lateness_us", "compute_us",
                               "state_to_cmd_latency_us", "state_age_us", "stale_states", "dropped")}
@@ -67,4 +72,4 @@ def main(quick: bool = False) -> None:
 
 
 if __name__ == "__main__":
-    main("--quick" in sys.argv)
+    main(mode())

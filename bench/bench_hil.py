@@ -5,7 +5,10 @@ without --realtime-priority; and the LCM round-trip floor (C++ ping-pong with
 the same message sizes, sc-rt-lcm-pingpong) measured alternately with the
 lockstep loop, as a ratio. Runs in a private network namespace when root.
 
-    .venv/bin/python bench/bench_hil.py [--quick]
+    .venv/bin/python bench/bench_hil.py [--quick | --smoke]
+
+(--quick: 60 s lockstep, 5 s at 1 kHz only; --smoke: 5 s lockstep, 1 s at
+1 kHz, a 300-message floor: a check that it runs.)
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import ROOT, machine, write
+from common import HIL_MEASURE, ROOT, machine, mode, write
 
 sys.path.insert(0, str(ROOT / "tests"))
 import lcmnet  # noqa: E402
@@ -26,7 +29,7 @@ import lcmnet  # noqa: E402
 def hil(args: list[str]) -> dict:
     with tempfile.TemporaryDirectory() as d:
         cmd = lcmnet.wrap([sys.executable, "-m", "sc_rt.cli", "hil", "scenarios/paper_faults.toml",
-                           "--no-plots", "--out", d, *args])
+                           "--no-plots", "--out", d, *HIL_MEASURE, *args])
         r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=900)
         if r.returncode != 0:
             raise RuntimeError(r.stderr)
@@ -46,13 +49,15 @@ def lcm_floor(count: int) -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def main(quick: bool = False) -> None:
+def main(size: str = "full") -> None:
+    quick = size != "full"
+    smoke = size == "smoke"
     res = {"machine": machine(), "scenario": "paper_faults", "netns": lcmnet.can_unshare()}
     # the floor and the loop alternately, twice: the machine drifts
     floors, rates = [], []
     for _ in range(1 if quick else 2):
-        floors.append(lcm_floor(5000 if quick else 20000))
-        t = hil(["--mode", "lockstep", "--duration", "60" if quick else "300"])
+        floors.append(lcm_floor(300 if smoke else 5000 if quick else 20000))
+        t = hil(["--mode", "lockstep", "--duration", "5" if smoke else "60" if quick else "300"])
         rates.append(t["steps_per_s"])
     res["lcm_floor_rtt_us"] = floors[-1]["rtt_us"]
     res["lcm_floor_rtt_p50_us_runs"] = [f["rtt_us"]["p50"] for f in floors]
@@ -66,7 +71,7 @@ def main(quick: bool = False) -> None:
             if quick and (rate != 1000):
                 continue
             args = ["--mode", "realtime", "--control-rate", str(rate), "--duration",
-                    str(5 if quick else dur)]
+                    str(1 if smoke else 5 if quick else dur)]
             if prio:
                 args.append("--realtime-priority")
             t = hil(args)
@@ -84,4 +89,4 @@ def main(quick: bool = False) -> None:
 
 
 if __name__ == "__main__":
-    main("--quick" in sys.argv)
+    main(mode())

@@ -6,25 +6,26 @@ plus the config and a foreign event). Figures: the whole conversion (read,
 decode, JSON, derived channels, zstd-compressed MCAP, rename), events/s,
 and the MCAP's size; the issue asks for a million events "in seconds".
 
-    .venv/bin/python bench/bench_mcap.py [--quick]
+    .venv/bin/python bench/bench_mcap.py [--quick | --smoke]
+
+(--quick: 25 000 steps; --smoke: 2 000 steps, a check that it runs.)
 """
 
 from __future__ import annotations
 
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-from bench_report import make_log
-from common import machine, write
+from bench_report import STEPS, make_log
+from common import machine, mode, write
 
 from sc_rt.export.mcap_export import export_mcap  # noqa: E402
 
 
 def main() -> None:
-    quick = "--quick" in sys.argv
-    steps = 25_000 if quick else 250_000
+    size = mode()
+    steps = STEPS[size]
     res = {"machine": machine()}
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.lcmlog"
@@ -34,7 +35,7 @@ def main() -> None:
         res["log_mb"] = path.stat().st_size / 1e6
         res["generate_s"] = time.perf_counter() - t0
         runs = []
-        for _ in range(1 if quick else 2):
+        for _ in range(2 if size == "full" else 1):
             out = Path(tmp) / "bench.mcap"
             s = export_mcap(path, out)
             assert s.events == n and s.undecodable == 0, (s.events, s.undecodable)
@@ -45,7 +46,8 @@ def main() -> None:
         res["export_s_runs"] = runs
         res["export_s"] = min(runs)
         res["events_per_s"] = n / res["export_s"]
-    res["target_1e6_events_in_seconds"] = "pass" if quick or res["export_s"] < 60 else "miss"
+    res["target_1e6_events_in_seconds"] = (("pass" if res["export_s"] < 60 else "miss") if size == "full"
+                                           else f"not measured ({size}: {n} events)")
     write("mcap", res)
 
 

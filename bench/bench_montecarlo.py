@@ -7,18 +7,20 @@ engine, the default shortcut dispersions; whole campaigns (rows written to
 the Parquet dataset as they complete), timed alternately (the machine is
 shared: pool and Dask see the same load).
 
-    .venv/bin/python bench/bench_montecarlo.py [--quick]
+    .venv/bin/python bench/bench_montecarlo.py [--quick | --smoke]
+
+(--smoke: campaigns of 8 runs, one repetition, few in-process runs: a check
+that it runs, pool and Dask included.)
 """
 
 from __future__ import annotations
 
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-from common import ROOT, machine, write
+from common import ROOT, machine, mode, write
 
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
@@ -68,27 +70,30 @@ def dataset_sizes(c: Campaign, out: Path) -> dict:
     return sizes
 
 
-def main(quick: bool = False) -> None:
+def main(size: str = "full") -> None:
     scn = load_scenario(ROOT / "scenarios" / "ppc_feasible_10hz.toml")
     c = Campaign(scn, Dispersion(), seed=0)
-    runs = 200 if quick else 600
-    reps = 2
+    smoke = size == "smoke"
+    runs = {"full": 600, "quick": 200, "smoke": 8}[size]
+    reps = 1 if smoke else 2
+    inproc = 5 if smoke else 100  # in-process runs timed
     res: dict = {"machine": machine(), "scenario": "ppc_feasible_10hz", "runs_per_campaign": runs,
                  "repetitions": reps, "statistic": "best of the repetitions (least disturbed)"}
     # in-process cost of one run: the bare C++ simulation, and a campaign run (draw + simulate + row)
-    for _ in range(20):
+    for _ in range(inproc // 5):
         simulate(scn, engine="cpp")
     t0 = time.perf_counter()
-    for _ in range(100):
+    for _ in range(inproc):
         simulate(scn, engine="cpp")
-    res["simulate_s"] = (time.perf_counter() - t0) / 100
+    res["simulate_s"] = (time.perf_counter() - t0) / inproc
     t0 = time.perf_counter()
-    for i in range(100):
+    for i in range(inproc):
         run_one(c, i)
-    res["run_one_s"] = (time.perf_counter() - t0) / 100
+    res["run_one_s"] = (time.perf_counter() - t0) / inproc
 
-    res["seeding_s_id_0"] = seeding_cost(0, 0)
-    res["seeding_s_id_1e6"] = seeding_cost(0, 10**6)
+    n_seed = 100 if smoke else 2000
+    res["seeding_s_id_0"] = seeding_cost(0, 0, n_seed)
+    res["seeding_s_id_1e6"] = seeding_cost(0, 10**6, n_seed)
     res["seeding_ratio_1e6_over_0"] = res["seeding_s_id_1e6"] / res["seeding_s_id_0"]
     res["old_seeding_s_id_1e4"] = old_seeding_cost(0, 10**4)
     res["old_seeding_s_id_1e5"] = old_seeding_cost(0, 10**5)
@@ -133,4 +138,4 @@ def main(quick: bool = False) -> None:
 
 
 if __name__ == "__main__":
-    main("--quick" in sys.argv)
+    main(mode())

@@ -5,6 +5,10 @@ configured to do (binomial bounds, bench/netem_lab.py) and with a clean
 link, and the added delay with ``sc-rt design --latency``.
 
     python bench/bench_netem.py [--duration 30] [--out bench/results/netem.json] [--backend auto|netem|emulated]
+                                [--smoke]
+
+--smoke: a check that it runs: the clean link, a delay (with jitter) and the
+authenticated corruption case, 2 s each, and the margins at one latency.
 
 The impairment is ``tc netem`` where the kernel has it (CONFIG_NET_SCH_NETEM);
 otherwise ("emulated", netem_lab.backend_for) nftables on the veth's egress
@@ -28,6 +32,11 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 
 import netem_lab  # noqa: E402
+from common import results_dir  # noqa: E402
+
+#: the cases a smoke run takes: the baseline, one per backend (the NFQUEUE delay
+#: line where there is no tc netem; nftables), and the auth key
+SMOKE_CASES = ("clean link", "delay 2 ms +- 1 ms", "corruption 1 %, --auth-key")
 
 CASES = [
     ("clean link", None),
@@ -59,29 +68,41 @@ def design_margins(scenario: str, latency_s: float, work: Path) -> dict:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--duration", type=float, default=30.0)
+    ap.add_argument("--duration", type=float, default=None, help="[s] per case (default 30; --smoke: 2)")
     ap.add_argument("--rate", type=float, default=100.0)
     ap.add_argument("--scenario", default="ppc_feasible_100hz")
     ap.add_argument("--backend", choices=("auto", "netem", "emulated"), default="auto")
-    ap.add_argument("--out", default=str(HERE / "results" / "netem.json"))
+    ap.add_argument("--out", default=str(results_dir() / "netem.json"))
+    ap.add_argument("--smoke", action="store_true",
+                    help="a check that it runs: three cases, 2 s each unless --duration, one design latency")
     args = ap.parse_args()
+    if args.duration is None:
+        args.duration = 2.0 if args.smoke else 30.0
+    cases = [c for c in CASES if c[0] in SMOKE_CASES] if args.smoke else CASES
     backend = args.backend
     if backend == "auto":
         backend = "netem" if netem_lab.netem_available() is None else "emulated"
     why = netem_lab.netem_available() if backend == "netem" else netem_lab.nft_available()
     if why:
         print(f"bench_netem: cannot impair a link here: {why}", file=sys.stderr)
+        if args.smoke:  # the smoke run says why it did nothing, and does not fail
+            out = Path(args.out)
+            out.parent.mkdir(parents=True, exist_ok=True)
+            out.write_text(json.dumps({"mode": "smoke", "backend": backend, "skipped": why}, indent=2) + "\n")
+            print(f"bench_netem: smoke run skipped: {why}")
+            return 0
         return 2
     no_queue = netem_lab.nfqueue_available() if backend == "emulated" else None
     results = {"backend": backend, "netem_here": netem_lab.netem_available() or "available",
                "nfqueue_here": netem_lab.nfqueue_available() or "available",
-               "duration_s": args.duration, "rate_hz": args.rate, "scenario": args.scenario, "cases": []}
+               "duration_s": args.duration, "rate_hz": args.rate, "scenario": args.scenario,
+               "mode": "smoke" if args.smoke else "full", "cases": []}
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         key = work / "lab.key"
         key.write_bytes(b"bench_netem's shared key, not a secret")
         base = base_latency = None
-        for i, (label, spec) in enumerate(CASES):
+        for i, (label, spec) in enumerate(cases):
             case_backend = netem_lab.backend_for(spec, netem=backend == "netem")
             if "nfqueue" in case_backend and no_queue:
                 results["cases"].append({"case": label, "netem": spec, "run": False,
@@ -128,7 +149,8 @@ def main() -> int:
         # (state published to command received: both directions and the step)
         measured = sorted({round(c["latency_us"][q] / 1e6, 4) for c in results["cases"]
                            if c.get("run") and c["expected"]["delay_ms"] for q in ("p50", "p99")})
-        results["design"] = [design_margins(args.scenario, lat, work) for lat in (1e-6, 0.002, 0.003, *measured)]
+        latencies = (measured[:1] or [0.002]) if args.smoke else (1e-6, 0.002, 0.003, *measured)
+        results["design"] = [design_margins(args.scenario, lat, work) for lat in latencies]
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(results, indent=2, default=float) + "\n")

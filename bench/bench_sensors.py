@@ -20,7 +20,10 @@ in the controller step.
    (the star tracker and tachometers, the measurement and the 22 telemetry
    values per row, whose fresh pages are counted as page faults).
 
-    .venv/bin/python bench/bench_sensors.py [--quick]
+    .venv/bin/python bench/bench_sensors.py [--quick | --smoke]
+
+(--smoke: 20 s runs, one timed run per case, one estimator replay: a check
+that it runs.)
 """
 
 from __future__ import annotations
@@ -28,13 +31,12 @@ from __future__ import annotations
 import dataclasses
 import resource
 import statistics
-import sys
 import time
 
-from common import ROOT, alternate, machine, summary, write
+from common import ROOT, alternate, machine, mode, summary, write
 
 from sc_rt import _core
-from sc_rt.scenario.overrides import grid, initial_state
+from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.sensors import nav_config
 from sc_rt.sim.engines import simulate
@@ -66,9 +68,12 @@ def _estimator_us(scn, reps: int) -> dict:
             "sensors_per_run_s": statistics.median(d["sensor_seconds"][1:])}
 
 
-def main(quick: bool = False) -> None:
+def main(size: str = "full") -> None:
+    smoke = size == "smoke"
+    # a smoke run: 20 s instead of the scenarios' 300 s
+    sized = (lambda s: with_overrides(s, duration=20.0)) if smoke else (lambda s: s)
     load_before = open("/proc/loadavg").read().split()[:3]
-    scn = load_scenario(ROOT / "scenarios" / "ppc_feasible_10hz_sensors.toml")
+    scn = sized(load_scenario(ROOT / "scenarios" / "ppc_feasible_10hz_sensors.toml"))
     cases = {"no_sensors": dataclasses.replace(scn, sensors=None),
              "gyro_100hz": scn,
              "gyro_10hz": _gyro_at(scn, 10.0),
@@ -82,7 +87,7 @@ def main(quick: bool = False) -> None:
         loops[name].append(simulate(cases[name], engine="cpp").metrics["wall_s"])
         faults[name].append(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
 
-    runs = 3 if quick else 9
+    runs = {"full": 9, "quick": 3, "smoke": 1}[size]
     alternate({k: (lambda k=k: run(k)) for k in cases}, runs=runs)
     loops = {k: v[1:] for k, v in loops.items()}  # drop the warm-up
     steps = int(round(scn.run.duration * scn.run.control_rate_hz)) + 1
@@ -100,7 +105,7 @@ def main(quick: bool = False) -> None:
         res[f"extra_page_faults_{k}_per_run"] = statistics.median(faults[k]) - statistics.median(faults["no_sensors"])
     # a law at the gyro's rate: ppc_feasible_100hz_sensors (100 Hz law, 100 Hz gyro, one plant step
     # per period) against itself without [sensors]; its truth-fed variant so that the loop holds
-    s100 = load_scenario(ROOT / "scenarios" / "ppc_feasible_100hz_sensors.toml")
+    s100 = sized(load_scenario(ROOT / "scenarios" / "ppc_feasible_100hz_sensors.toml"))
     s100 = dataclasses.replace(s100, sensors=dataclasses.replace(s100.sensors, measurement="truth"))
     c100 = {"no_sensors": dataclasses.replace(s100, sensors=None), "gyro_100hz": s100}
     l100: dict[str, list[float]] = {k: [] for k in c100}
@@ -124,10 +129,10 @@ def main(quick: bool = False) -> None:
         (res["law_100hz_loop_gyro_100hz_s"]["median"] - b100["median"]) / steps100 * 1e6)
 
     # 2. the controller step with the MEKF: the estimator alone, the three cases interleaved
-    reps = 5 if quick else 15
+    reps = {"full": 15, "quick": 5, "smoke": 1}[size]
     est_cases = {"gyro_100hz": scn, "gyro_10hz": _gyro_at(scn, 10.0), "law_100hz": s100}
     est_runs: dict[str, list[dict]] = {k: [] for k in est_cases}
-    for _ in range(3):
+    for _ in range(1 if smoke else 3):
         for k, c in est_cases.items():
             est_runs[k].append(_estimator_us(c, reps))
     est = {}
@@ -219,4 +224,4 @@ def main(quick: bool = False) -> None:
 
 
 if __name__ == "__main__":
-    main("--quick" in sys.argv)
+    main(mode())

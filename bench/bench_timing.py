@@ -11,13 +11,17 @@ Real-time rows: 60 s runs (--quick: 10 s), the event-triggered controller,
 SCHED_FIFO + mlockall for the controller and the emulator when permitted
 (--no-priority: without), each run with its bench floor (sc-rt hil --floor
 auto). The timer-triggered controller is run once per rate for the trade-off.
-Lockstep: 30,001 steps (--quick: 3,001). Each row prints target / measured /
-miss-by and the breakdown (the emulator's stamps, the controller's status,
-the LCM floor); a missed row is profiled (cProfile of the emulator process,
-a 5 s run: the top functions by own time). The load average is recorded
-next to every run.
+Lockstep: 30,001 steps (--quick: 3,001). --smoke: one 1 s run per row, a
+501-step lockstep and a 300-message floor, the timer and the CPU placement
+at 1 kHz once each, no profile: a check that it runs. Each row prints
+target / measured / miss-by and the breakdown (the emulator's stamps, the
+controller's status, the LCM floor); a missed row is profiled (cProfile of
+the emulator process, a 5 s run: the top functions by own time). The load
+average is recorded next to every run.
 
-    .venv/bin/python bench/bench_timing.py [--quick] [--no-priority] [--rows 100hz,1khz,lockstep]
+    .venv/bin/python bench/bench_timing.py [--quick | --smoke] [--no-priority] [--rows 100hz,1khz,lockstep]
+
+Exits 1 when a row failed to run (the others are still run and written).
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import ROOT, machine, write
+from common import HIL_MEASURE, ROOT, machine, mode, write
 
 sys.path.insert(0, str(ROOT / "tests"))
 import lcmnet  # noqa: E402
@@ -42,7 +46,7 @@ SCENARIO = "scenarios/paper_faults.toml"
 def hil(args: list[str], profile: Path | None = None) -> dict:
     with tempfile.TemporaryDirectory() as d:
         pre = [sys.executable] + (["-m", "cProfile", "-o", str(profile)] if profile else []) + ["-m", "sc_rt.cli"]
-        cmd = lcmnet.wrap(pre + ["hil", SCENARIO, "--no-plots", "--out", d, *args])
+        cmd = lcmnet.wrap(pre + ["hil", SCENARIO, "--no-plots", "--out", d, *HIL_MEASURE, *args])
         load = os.getloadavg()
         r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=1800)
         if r.returncode != 0:
@@ -179,11 +183,11 @@ def realtime_row(rate: int, runs_n: int, dur: float, prio: list[str], trigger: s
                                                 "emulator_tick_lateness_us", "load_avg_before")} for r in runs]}
 
 
-def lockstep_row(runs_n: int, dur: float, prio: list[str]) -> dict:
+def lockstep_row(runs_n: int, dur: float, prio: list[str], floor_count: int = 5000) -> dict:
     args = ["--mode", "lockstep", "--duration", f"{dur:g}", *prio]
     runs, floors = [], []
     for _ in range(runs_n):  # the floor and the loop alternately: the machine drifts
-        floors.append(lcm_floor(5000, bool(prio)))
+        floors.append(lcm_floor(floor_count, bool(prio)))
         runs.append(hil(args))
     sps = med(runs, "steps_per_s")
     lat99 = med(runs, "state_to_cmd_latency_us", "p99")
@@ -222,14 +226,17 @@ def table(res: dict) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
-    quick = "--quick" in sys.argv
+def main() -> int:
+    size = mode()
+    quick = size != "full"
+    smoke = size == "smoke"
     prio = [] if "--no-priority" in sys.argv else ["--realtime-priority"]
     want = "100hz,1khz,lockstep,timer,pin"
     if "--rows" in sys.argv:
         want = sys.argv[sys.argv.index("--rows") + 1]
     want = want.split(",")
-    n, dur = (1, 10.0) if quick else (3, 60.0)
+    n, dur = (1, 1.0) if smoke else (1, 10.0) if quick else (3, 60.0)
+    lock_dur = 5.0 if smoke else 300.0 if quick else 3000.0
     res = {"machine": machine(), "scenario": "paper_faults", "netns": lcmnet.can_unshare(), "quick": quick,
            "priority": bool(prio), "rows": {}}
     sched = "FIFO" if prio else "OTHER"
@@ -239,14 +246,15 @@ def main() -> None:
     if "1khz" in want:
         jobs.append((f"1 kHz, event, {sched}", lambda: realtime_row(1000, n, dur, prio)))
     if "lockstep" in want:
-        jobs.append(("lockstep + lcm-logger", lambda: lockstep_row(n, 300.0 if quick else 3000.0, prio)))
+        jobs.append(("lockstep + lcm-logger", lambda: lockstep_row(n, lock_dur, prio, 300 if smoke else 5000)))
     if "timer" in want:  # the trade-off: the own-clock controller, one run per rate
-        for rate in (100, 1000):
+        for rate in (1000,) if smoke else (100, 1000):
             jobs.append((f"{rate:g} Hz, timer, {sched}",
                          lambda rate=rate: realtime_row(rate, 1, dur, prio, trigger="timer")))
     if "pin" in want:  # CPU placement, one run each: both on CPU 0, or the controller on CPU 1
-        for label, extra in (("same CPU 0", ("--controller-cpu", "0", "--emulator-cpu", "0")),
-                             ("controller CPU 1, emulator CPU 0", ("--controller-cpu", "1", "--emulator-cpu", "0"))):
+        placements = [("same CPU 0", ("--controller-cpu", "0", "--emulator-cpu", "0")),
+                      ("controller CPU 1, emulator CPU 0", ("--controller-cpu", "1", "--emulator-cpu", "0"))]
+        for label, extra in placements[-1:] if smoke else placements:
             jobs.append((f"1 kHz, event, {sched}, {label}",
                          lambda extra=extra: realtime_row(1000, 1, dur, prio, extra=extra)))
     for name, job in jobs:
@@ -256,7 +264,7 @@ def main() -> None:
             res.setdefault("failed", {})[name] = str(e)[-1500:]
             print(f"{name}: failed: {str(e)[-300:]}", file=sys.stderr)
         write("timing", res)  # after every row: a late failure loses nothing
-    if "--profile" in sys.argv or not quick:
+    if not smoke and ("--profile" in sys.argv or not quick):
         for name, row in res["rows"].items():
             if any(not c["pass"] for c in row["checks"]):
                 args = list(row["args"])
@@ -266,7 +274,11 @@ def main() -> None:
                 row["profile_top"] = profile_row(args)
     write("timing", res)
     print(table(res))
+    if res.get("failed"):
+        print(f"bench_timing: {len(res['failed'])} row(s) failed: {', '.join(res['failed'])}", file=sys.stderr)
+        return 1
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -1,6 +1,9 @@
 """Soak: a long real-time HIL run at 100 Hz (issue #20).
 
-    python bench/soak.py [--minutes 30] [--rate 100] [--out DIR] [--json FILE]
+    python bench/soak.py [--minutes 30] [--rate 100] [--out DIR] [--json FILE] [--smoke]
+
+(--smoke: a check that it runs: 6 s with a 1 s warm-up, RSS every 0.25 s,
+unless --minutes or --sample say otherwise.)
 
 Runs ``sc-rt hil`` in real time (its own network namespace when this process
 may create one) and samples the resident memory (VmRSS) of both processes,
@@ -44,6 +47,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from common import HIL_MEASURE, results_dir
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -146,13 +151,15 @@ def log_check(out: Path, rows: int, steps: int) -> dict:
 
 
 def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s: float = 5.0,
-         scenario: str = "ppc_feasible_100hz", port: int = 7761, renice_logger: bool = True) -> dict:
+         scenario: str = "ppc_feasible_100hz", port: int = 7761, renice_logger: bool = True,
+         warmup_s: float | None = None) -> dict:
+    """warmup_s: the memory's warm-up (default: 10 % of the run, at least 20 s)."""
     duration = minutes * 60.0
     out = Path(out or ROOT / "out" / "soak")
     url = f"udpm://239.255.76.67:{port}?ttl=0&recv_buf_size=4194304"
     cmd = [sys.executable, "-m", "sc_rt.cli", "hil", str(ROOT / "scenarios" / f"{scenario}.toml"),
            "--mode", "realtime", "--control-rate", f"{rate:g}", "--duration", f"{duration:g}",
-           "--no-plots", "--out", str(out), "--lcm-url", url]
+           "--no-plots", "--out", str(out), "--lcm-url", url, *HIL_MEASURE]
     wrap = subprocess.run(["unshare", "-n", "true"], capture_output=True).returncode == 0
     if wrap:  # a private network namespace: unshare execs sh, which execs sc-rt: one pid
         cmd = ["unshare", "-n", "sh", "-c",
@@ -199,7 +206,7 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
     # record, which is not the run's memory
     both = [s for s in samples if s[1] is not None and s[2] is not None]
     t_up = both[0][0] if both else 0.0
-    warm = t_up + max(20.0, 0.1 * duration)
+    warm = t_up + (max(20.0, 0.1 * duration) if warmup_s is None else warmup_s)
     after = [s for s in both if warm <= s[0] <= t_up + duration - 1.0]
     mem = {}
     if len(after) >= 3:
@@ -234,17 +241,25 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--minutes", type=float, default=30.0)
+    ap.add_argument("--minutes", type=float, default=None, help="run length (default 30; --smoke: 0.1)")
     ap.add_argument("--rate", type=float, default=100.0)
-    ap.add_argument("--sample", type=float, default=5.0, help="RSS sampling period [s]")
+    ap.add_argument("--sample", type=float, default=None, help="RSS sampling period [s] (default 5; --smoke: 0.25)")
     ap.add_argument("--out", default=str(ROOT / "out" / "soak"))
-    ap.add_argument("--json", default=str(HERE / "results" / "soak.json"))
+    ap.add_argument("--json", default=str(results_dir() / "soak.json"))
     ap.add_argument("--no-renice", action="store_true", help="leave lcm-logger at the default priority")
+    ap.add_argument("--smoke", action="store_true",
+                    help="a check that it runs: 6 s, a 1 s warm-up, RSS every 0.25 s (unless given)")
     a = ap.parse_args()
-    r = soak(a.minutes, a.rate, Path(a.out), a.sample, renice_logger=not a.no_renice)
+    warmup = 1.0 if a.smoke else None
+    if a.minutes is None:
+        a.minutes = 0.1 if a.smoke else 30.0
+    if a.sample is None:
+        a.sample = 0.25 if a.smoke else 5.0
+    r = soak(a.minutes, a.rate, Path(a.out), a.sample, renice_logger=not a.no_renice, warmup_s=warmup)
+    r["mode"] = "smoke" if a.smoke else "full"
     Path(a.json).parent.mkdir(parents=True, exist_ok=True)
     Path(a.json).write_text(json.dumps({k: v for k, v in r.items() if k != "samples"}, indent=2) + "\n")
-    print(json.dumps({k: r[k] for k in ("minutes", "rows", "memory", "timing_drift", "lost_log_events",
+    print(json.dumps({k: r[k] for k in ("mode", "minutes", "rows", "memory", "timing_drift", "lost_log_events",
                                         "deadline_misses", "dropped")}, indent=2))
     m = r["memory"]
     ok = bool(m) and m["controller"]["flat"] and m["emulator"]["flat"] and r["lost_log_events"] == 0
