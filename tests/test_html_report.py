@@ -199,8 +199,16 @@ def test_verdict_items_from_metrics_alone(tmp_path):
     assert re.search(r"at 10 s\s*8\.25\s*arcsec", p.text["metrics"]), p.text["metrics"]
     lat = {"state_to_cmd_latency_us": {"p50": 100.0, "p99": 400.0, "max": 900.0}}
     assert "latency p99 is 2x the floor" in timing_text({**lat, "bench_floor_us": {"p99": 200.0}})
-    assert "bench floor (floor_us): state-to-command 80 us" in timing_text({**lat, "floor_us": {"state-to-command": 80.0}})
+    with_floor = {**lat, "floor_us": {"state-to-command": 80.0}}
+    assert "bench floor (floor_us): state-to-command 80 us" in timing_text(with_floor)
     assert "no bench floor" in timing_text(lat)
+    # sc-rt hil's floor record: its counts and fractions are not microseconds (before: "fresh_fraction 0.524 us")
+    real = {**lat, "floor": {"fresh_fraction": 0.524, "steps": 20, "control_rate_hz": 100.0,
+                             "latency_us": {"p50": 50.0, "p99": 80.0, "max": 99.0},
+                             "lcm_rtt_us": {"p50": 40.0, "p99": 70.0, "max": 90.0}}}
+    text = timing_text(real)
+    assert "fresh_fraction" not in text and "steps 20 us" not in text
+    assert "null-controller latency p50 50 us, p99 80 us" in text
     held, _head, _items = verdict_items({"metrics": json.loads((d / "metrics.json").read_text()), "traj": {},
                                          "timing": None, "report": None, "meta": {}, "figures": []})
     assert held is False  # diverged

@@ -96,6 +96,13 @@ class ExternalController:
         return self.proc
 
     @property
+    def command_line(self) -> str:
+        """The controller's command line as started ("started by hand" for --external-wait)."""
+        import shlex
+
+        return "started by hand" if self.argv is None else shlex.join(self.argv)
+
+    @property
     def stderr_name(self) -> str:
         """The file in the run's folder holding the process's stderr."""
         return self._err_path.name

@@ -35,6 +35,7 @@ from sc_rt.results.metrics import fill_tracking_errors, finish_run, record_law_f
 from sc_rt.results.output import write_run
 from sc_rt.pylaw import is_python_law
 from sc_rt.results.run import Run, provenance
+from sc_rt import __version__
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
 
@@ -383,6 +384,23 @@ class _Bench:
     rt_limits: RealtimeLimits = RealtimeLimits()
 
 
+def _start_record(b: _Bench) -> bytes:
+    """The run's start record, the log's first message (SCRT_HIL_START): what
+    the run is, so that every consumer of the log reads it instead of
+    guessing: scenario, mode, trigger, rate, the law's identity (name, spec,
+    a plugin's file and SHA-256; an external controller's command), run id."""
+    from sc_rt.results.output import claimed_run_id
+    from sc_rt.scenario.model import law_identity
+
+    law = ({"name": "external", "spec": b.ext.command_line, "source": "external"} if b.ext is not None
+           else law_identity(b.scn.run.controller))
+    rec = {"sc_rt_start": 1, "scenario": b.scn.name, "mode": b.mode,
+           "trigger": b.setup.trigger if b.mode == "realtime" else None,
+           "control_rate_hz": float(b.scn.run.control_rate_hz), "duration_s": float(b.scn.run.duration),
+           "time_scale": b.time_scale, "law": law, "run_id": claimed_run_id(b.out), "sc_rt": __version__}
+    return json.dumps(rec, separators=(",", ":")).encode()
+
+
 def _judge_real_time(res: Run, summary: dict[str, Any], limits: RealtimeLimits) -> None:
     """One number of SAFE steps everywhere (the controller's, when it says:
     metrics.json, the console and timing.json agree; the rows that applied a
@@ -426,7 +444,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     # shows up (SCRT_HIL_START carries the scenario name; readers skip it)
     print(f"sc-rt hil: LCM URL {url}" + (f", channel prefix {prefix!r}" if prefix else ""),
           file=sys.stderr, flush=True)
-    if not _probe_logger(url, log_path, scn.name.encode(), 5.0, prefix + "SCRT_HIL_START"):
+    if not _probe_logger(url, log_path, _start_record(b), 5.0, prefix + "SCRT_HIL_START"):
         _stop(logger, signal.SIGINT)
         raise RuntimeError(f"lcm-logger did not start on {url}: {logger.stderr.read().decode()}")
     logger_policy = _lift_logger(logger.pid)  # now that it runs: all its threads exist

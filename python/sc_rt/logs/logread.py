@@ -34,6 +34,10 @@ class LogData:
     messages: dict[str, list]  # variable-size types: base name -> [(stamp, msg)]
     channels: dict[str, dict[str, Any]]  # every channel: type, count, undecodable by kind
     skipped: dict[str, int] = field(default_factory=dict)
+    #: the run's start record (sc-rt hil's SCRT_HIL_START, JSON: scenario,
+    #: mode, trigger, rate, law identity, run id); None in a log written
+    #: before it carried one (then a consumer has to guess, and says so)
+    start: dict[str, Any] | None = None
 
     @property
     def undecodable(self) -> int:
@@ -114,4 +118,20 @@ def read_log(path: str | Path, prefix: str | None = None) -> LogData:
                         "undecodable": int(sum(counts.values())), "undecodable_kinds": dict(counts)}
     skipped = {ch: len(v) for ch, v in sorted(by_ch.items())}
     return LogData(path, events, prefix, time.perf_counter() - t0, records, stamps, messages,
-                   channels, skipped)
+                   channels, skipped, start_record(by_ch.get(prefix + "SCRT_HIL_START", [])))
+
+
+def start_record(events: list) -> dict[str, Any] | None:
+    """The first SCRT_HIL_START payload that is a start record (JSON with
+    ``sc_rt_start``); None when there is none (an older log: the scenario
+    name as raw bytes)."""
+    import json
+
+    for e in events:
+        try:
+            d = json.loads(bytes(e[3]).decode("utf-8"))
+        except (UnicodeDecodeError, ValueError):
+            continue
+        if isinstance(d, dict) and d.get("sc_rt_start") == 1:
+            return d
+    return None

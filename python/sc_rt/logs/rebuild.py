@@ -162,7 +162,9 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
         hl, pl = _align(seqs, a_seqs)
         traj["latency_us"][hl] = (c_stamp[pl[hl]] - s_stamp[hl]).astype(float)
 
-    if mode is None:
+    if mode is None and d.start is not None and d.start.get("mode") in ("lockstep", "realtime"):
+        mode = d.start["mode"]  # the run's own record (sc-rt hil's start record), not a guess
+    if mode is None:  # a log without a start record: guessed, and the report says so (mode_source)
         wl = traj["wake_lateness_us"]
         wl = wl[np.isfinite(wl)]
         # the lockstep controller steps on arrival: its lateness is exactly 0

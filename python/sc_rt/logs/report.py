@@ -62,6 +62,9 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     # sc-rt hil's end marker in the log: everything published before it was logged
     out["log_complete"] = d.skipped.get(d.prefix + "SCRT_HIL_END", 0) > 0
     out["logger_scheduler"] = "unknown (not in the log)"
+    if d.start is not None:  # the run's own record: how it was triggered
+        out["trigger"] = d.start.get("trigger")
+        out["mode"] = d.start.get("mode", out["mode"])
     out["log_missing"] = log_missing(d.path, d.prefix, len(run))
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"
@@ -106,9 +109,12 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     cfg = logged_config(d)
     nav = {} if cfg is None or not cfg.nav_enabled else {
         "sensors": True, "measurement": "estimate" if cfg.nav_use_estimate else "truth"}
+    ident = (d.start or {}).get("law")
+    if ident and ident.get("name") and ident.get("source") != "external":
+        law = ident["name"]  # an external controller: the name it announced (controller_label)
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
-                   wall_s=wall, mode=r.mode, **nav)
+                   wall_s=wall, mode=r.mode, law_identity=ident, **nav)
     run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:
         run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None}
@@ -126,6 +132,9 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     report = {"log": str(d.path), "events": d.events, "read_decode_s": d.decode_s,
               "events_per_s": d.events / d.decode_s if d.decode_s > 0 else None,
               "rebuild_s": build_s, "prefix": d.prefix, "mode": r.mode, "rows": rows,
+              "mode_source": "the run's start record" if (d.start or {}).get("mode") and mode is None
+              else "--mode" if mode is not None else "guessed from the controller's wake lateness (no start record)",
+              "start": d.start,
               "incomplete_rows_dropped": dropped, "incomplete_rows_at_end": at_end, "partial": run.partial,
               "parameters_from": source, "undecodable": d.undecodable, "channels": d.channels,
               "skipped": d.skipped, "faults": faults, "sensors": sensor_summary(d)}

@@ -30,7 +30,8 @@ AXES = "xyz"
 ARCSEC = 180.0 / math.pi * 3600.0
 #: known figures, in reading order, with a caption
 FIGURES = {
-    "attitude_error.png": "Attitude tracking error sigma_BD per axis and the prescribed bounds dmax chi(t), -dmin chi(t)",
+    "attitude_error.png": ("Attitude tracking error sigma_BD per axis and the prescribed bounds "
+                           "dmax chi(t), -dmin chi(t)"),
     "attitude_error_log.png": "The same on a log scale; dots: outside the bound",
     "pointing_error.png": "Pointing error 4 atan|sigma_BD| [arcsec]",
     "rate_error.png": "Angular-rate tracking error omega_BD_B [rad/s]",
@@ -42,7 +43,8 @@ FIGURES = {
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:24px auto;max-width:1100px;
 color:#222;line-height:1.4;padding:0 16px}
-h1{font-size:1.5em;margin-bottom:0.2em}h2{font-size:1.2em;border-bottom:1px solid #ddd;padding-bottom:4px;margin-top:1.6em}
+h1{font-size:1.5em;margin-bottom:0.2em}
+h2{font-size:1.2em;border-bottom:1px solid #ddd;padding-bottom:4px;margin-top:1.6em}
 .sub{color:#666;margin-top:0}
 #verdict{border:2px solid #999;border-radius:8px;padding:12px 18px;background:#fafafa}
 #verdict.ok{border-color:#31a354;background:#f1faf2}#verdict.bad{border-color:#cb181d;background:#fdf1f1}
@@ -157,7 +159,8 @@ def _fault_texts(d: dict[str, Any]) -> list[str]:
             on = np.nonzero(np.nan_to_num(Y[:, w]) > 0)[0]
             if on.size:
                 applied.append(f"wheel {w + 1} from {fmt(float(t[on[0]]), 's')} s")
-        live = (d["report"] or {}).get("faults", {}).get("commands", []) + list((d["timing"] or {}).get("faults_applied") or [])
+        live = ((d["report"] or {}).get("faults", {}).get("commands", [])
+                + list((d["timing"] or {}).get("faults_applied") or []))
         text = "Faults applied (plant truth): " + ("; ".join(applied) if applied else "none")
         if live:
             text += f"; {len(live)} live fault command{'s' if len(live) > 1 else ''} on the bus"
@@ -177,7 +180,9 @@ def _safe_text(d: dict[str, Any]) -> str:
     if not steps:
         return "SAFE: never" if steps == 0 else "SAFE: not recorded"
     why = "; ".join(f"{k}: {v} steps" for k, v in (m.get("safe_reasons") or {}).items())
-    s = f"SAFE: {steps} steps" + (f" from {fmt(m.get('safe_from_s'), 's')} s" if m.get("safe_from_s") is not None else "")
+    s = f"SAFE: {steps} steps"
+    if m.get("safe_from_s") is not None:
+        s += f" from {fmt(m.get('safe_from_s'), 's')} s"
     if n_spans:
         s += f" in {n_spans} span{'s' if n_spans > 1 else ''}"
     return s + (f" ({why})" if why else "")
@@ -198,7 +203,19 @@ def timing_text(timing: dict[str, Any] | None) -> str:
 def _floor_text(timing: dict[str, Any], lat: dict[str, Any]) -> str:
     """The bench floor (LCM round trip) when timing.json carries one (a key
     with "floor": percentiles, per-series numbers or one number [us])."""
+    over = timing.get("over_floor")
+    if isinstance(over, dict) and over.get("line"):  # sc-rt hil's own comparison with its floor
+        return str(over["line"])
     key, floor = next(((k, v) for k, v in timing.items() if "floor" in k and v), (None, None))
+    if key == "floor" and isinstance(floor, dict):  # sc-rt hil's floor record: its latency series only
+        for series, what in (("latency_us", "null-controller latency"), ("lcm_rtt_us", "LCM round trip")):
+            v = floor.get(series)
+            if isinstance(v, dict) and isinstance(v.get("p50"), (int, float)) and v["p50"] > 0:
+                out = f"bench floor: {what} p50 {fmt(v['p50'])} us, p99 {fmt(v.get('p99'))} us"
+                if lat.get("p50"):
+                    out += f": latency p50 is {lat['p50'] / v['p50']:.2g}x the floor"
+                return out
+        return "bench floor: no latency series in timing.json's floor"
     if isinstance(floor, (int, float)) and not isinstance(floor, bool):
         floor = {"p50": floor}
     if isinstance(floor, dict):
@@ -226,7 +243,8 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
     elif first is None:
         head, held = "No steps: nothing to judge", False
     else:
-        head = f"Bound violated: first at {fmt(first, 's')} s on axis {fmt(m.get('first_bound_violation_axis'), 'axis')}"
+        head = (f"Bound violated: first at {fmt(first, 's')} s "
+                f"on axis {fmt(m.get('first_bound_violation_axis'), 'axis')}")
         ok = d["traj"].get("bound_ok")
         if ok is not None and len(ok):
             head += f"; outside the bound {100.0 * float(np.mean(~np.all(ok, axis=1))):.1f} % of the run"
@@ -236,8 +254,9 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
     items.append(("verdict-timing", timing_text(d["timing"])))
     if m.get("diverged") or m.get("finite") is False:
         after = m.get("diverged_after_s")
-        items.append(("verdict-diverged", "The run diverged" + (f" after {fmt(after, 's')} s" if after is not None else "")
-                      if m.get("diverged") else "Some values are not finite"))
+        since = f" after {fmt(after, 's')} s" if after is not None else ""
+        items.append(("verdict-diverged",
+                      "The run diverged" + since if m.get("diverged") else "Some values are not finite"))
         held = False
     pe = m.get("max_pointing_error_arcsec_after_30s")
     if pe is not None:
@@ -320,7 +339,8 @@ def render_html(run_dir: str | Path) -> str:
     parts.append('</section><h2>Figures</h2><section id="figures">')
     for p in d["figures"]:
         b64 = base64.b64encode(p.read_bytes()).decode()
-        parts.append(f'<figure data-file="{escape(p.name)}"><img alt="{escape(p.name)}" src="data:image/png;base64,{b64}">'
+        parts.append(f'<figure data-file="{escape(p.name)}">'
+                     f'<img alt="{escape(p.name)}" src="data:image/png;base64,{b64}">'
                      f"<figcaption>{escape(p.name)}: {escape(FIGURES.get(p.name, ''))}</figcaption></figure>")
     if not d["figures"]:
         parts.append("<p>No figures (run with plots to get them).</p>")
@@ -329,10 +349,12 @@ def render_html(run_dir: str | Path) -> str:
         parts.append("<h2>Timing</h2>" + _timing_table(d["timing"]))
     rep = d["report"]
     if rep:
-        parts.append("<h2>Log</h2><table id=log><tr><th>log</th><th>value</th></tr>" + "".join(
-            f"<tr><td>{escape(k)}</td><td class=num>{escape(fmt(rep.get(k), 'text' if k in ('prefix', 'mode', 'parameters_from') else 'num'))}</td></tr>"
-            for k in ("events", "rows", "undecodable", "mode", "prefix", "parameters_from", "read_decode_s") if k in rep)
-            + "</table>")
+        log_rows = []
+        for k in ("events", "rows", "undecodable", "mode", "prefix", "parameters_from", "read_decode_s"):
+            if k in rep:
+                value = fmt(rep.get(k), "text" if k in ("prefix", "mode", "parameters_from") else "num")
+                log_rows.append(f"<tr><td>{escape(k)}</td><td class=num>{escape(value)}</td></tr>")
+        parts.append("<h2>Log</h2><table id=log><tr><th>log</th><th>value</th></tr>" + "".join(log_rows) + "</table>")
     parts.append("</body></html>\n")
     return "\n".join(parts)
 

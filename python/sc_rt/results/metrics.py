@@ -136,6 +136,7 @@ def compute_metrics(run: Run) -> dict[str, Any]:
     return {
         "scenario": m.scenario,
         "controller": m.law,
+        "law": m.law_identity,
         "engine": m.engine,
         "control_rate_hz": float(m.control_rate_hz),
         "duration_s": float(m.duration_s),

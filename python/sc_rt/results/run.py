@@ -146,7 +146,8 @@ class RunMeta:
     scenario : str
         The scenario's name.
     law : str
-        The law that ran ("dsc-ppc", "pd", a plugin spec, a Python law's label, ...).
+        The law that ran, by its name ("dsc-ppc", "pd", a plugin's
+        registered name, a Python law's label, ...).
     engine : str
         What produced the run: "python", "cpp", "unsampled", "hil-lockstep",
         "hil-realtime" or "report" (a log's rebuild).
@@ -173,6 +174,9 @@ class RunMeta:
     sensors : bool
         The run had sensors (a ``[sensors]`` table): the estimator fields are
         filled and the bound is judged on ``sigma_BD_true``.
+    law_identity : dict or None
+        Who the law is (``sc_rt.scenario.model.law_identity``): name, spec,
+        source and, for a plugin, its file and the file's SHA-256.
     """
 
     scenario: str
@@ -193,6 +197,8 @@ class RunMeta:
     measurement: str = "truth"
     #: the run had sensors (a [sensors] table): estimator fields filled, bound judged on sigma_BD_true
     sensors: bool = False
+    #: who the law is: name, spec, source (and a plugin's file and its sha256)
+    law_identity: dict[str, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self))
@@ -213,7 +219,10 @@ class RunMeta:
         faults = tuple({"wheel": f.wheel + 1, "onset": f.onset, "end": f.end,
                         "effectiveness": f.effectiveness, "bias": f.bias, "rate": f.rate,
                         "stuck": bool(f.stuck)} for f in a.faults)
-        kw = dict(scenario=scn.name, law=scn.run.controller, engine=engine,
+        from sc_rt.scenario.model import law_identity
+
+        ident = law_identity(scn.run.controller)
+        kw = dict(scenario=scn.name, law=ident["name"], law_identity=ident, engine=engine,
                   control_rate_hz=float(scn.run.control_rate_hz), duration_s=float(scn.run.duration),
                   ppc={k: tuple(float(x) for x in np.asarray(getattr(p, k), float))
                        for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")},

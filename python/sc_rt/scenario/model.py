@@ -355,6 +355,22 @@ class Scenario:
         return _core.ControllerConfig.from_lcm_bytes(msg.encode())
 
 
+def law_identity(spec: str) -> dict[str, Any]:
+    """Who a law spec is, for the run's record and its log: ``name`` (the
+    registered name: a plugin is labelled by it, not by its path), ``spec``,
+    and for a plugin its ``source`` file and that file's ``sha256`` (the
+    same name from another build is another law). A spec the registry does
+    not know (a Python law, an external controller) is its own name."""
+    if not spec.startswith(PLUGIN_PREFIX):
+        return {"name": spec, "spec": spec, "source": "built-in" if spec in LAWS else "external"}
+    import hashlib
+
+    info = _core.law_info(spec)  # loads the plugin (refused before a run when it cannot be)
+    src = Path(info["source"])
+    sha = hashlib.sha256(src.read_bytes()).hexdigest() if src.is_file() else None
+    return {"name": info["name"], "spec": spec, "source": str(src), "sha256": sha}
+
+
 def law_spec(spec: str, base: Path) -> str:
     """``spec`` with a relative plugin file path made absolute against ``base``
     (a path: has a "/" or ends in ".so"; a plugin name is searched in
