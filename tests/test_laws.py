@@ -660,3 +660,64 @@ def test_montecarlo_with_a_failing_law_finishes_and_counts_the_failures(plugins,
     assert s["runs"] == 3 and s["status"]["law_failed"] == 3 and s["holds_bound"] == 0
     assert all("reset exploded" in f["message"] for f in s["failed"])
     assert "the law failed" in r.stderr and "3 of 3 runs" in r.stderr
+
+
+# --------------------------------------------------------------------------- #
+# A plugin that crashes its process offline: one line, and one run of a
+# campaign, not the campaign (issue #25, case 2 offline).
+
+
+def test_sim_with_a_segfaulting_plugin_is_one_line_not_exit_139(plugins, tmp_path):
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", "paper_fault_free", "--law",
+                        _spec(plugins["crashes"]), "--duration", "10", "--out", str(out), "--no-plots"],
+                       capture_output=True, text=True, env=_env())
+    assert r.returncode == 1, (r.returncode, r.stderr)  # before: 139 (SIGSEGV) and nothing said
+    lines = [x for x in r.stderr.splitlines() if "FAILED" in x]
+    assert len(lines) == 1 and "signal SIGSEGV" in lines[0] and "libt_crashes.so" in lines[0], r.stderr
+
+
+def _crash_scenario(tmp_path: Path, lib: Path, omega_x_below: float) -> Path:
+    src = (ROOT / "scenarios" / "paper_faults.toml").read_text()
+    text = src.replace('controller = "dsc-ppc"', "") + (
+        f"\n[controller.params]\nt_crash = 1e9\nomega_x_below = {omega_x_below!r}\n")
+    text = text.replace("[controller]\n", f'[controller]\nlaw = "plugin:{lib}"\n', 1)
+    f = tmp_path / "crash.toml"
+    f.write_text(text)
+    return f
+
+
+def test_montecarlo_records_a_crashed_run_and_finishes_the_rest(plugins, tmp_path):
+    """The crash is drawn: the law crashes its process at once when the
+    dispersed initial body rate's x component is below a threshold, so some
+    runs of the campaign crash and the others run to their end."""
+    import pyarrow.parquet as pq
+
+    n = 12
+    f = _crash_scenario(tmp_path, plugins["crashes"], -0.0097)  # omega_x(0) = -0.01 rad/s, dispersed
+    out = tmp_path / "mc"
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "montecarlo", str(f), "--runs", str(n), "--workers", "2",
+                        "--seed", "3", "--out", str(out)], capture_output=True, text=True, env=_env(), cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    s = json.loads((out / "montecarlo.json").read_text())
+    crashed = {x["run"] for x in s["failed"] if x["status"] == "crashed"}
+    assert s["runs"] == n and s["status"]["crashed"] == len(crashed)
+    assert 0 < len(crashed) < n, s["status"]  # some runs crashed, the campaign ran the rest
+    assert all("signal SIGSEGV" in x["message"] for x in s["failed"] if x["status"] == "crashed")
+    assert s["status"]["ok"] == n - len(crashed)
+    assert f"crashed its run's process in {len(crashed)} of {n} runs" in r.stderr
+    rows = pq.read_table(out / "runs").to_pylist()  # the dataset: every run's drawn initial rate
+    assert crashed == {x["run"] for x in rows if x["initial.omega_BN_B[0]"] < -0.0097}
+
+
+def test_a_plugin_that_crashes_when_probed_is_refused_in_one_line(plugins, tmp_path):
+    """The probe at rest before a run (check_law) runs a plugin in a child:
+    a crash there is a refusal (exit 2), not the CLI dying with SIGSEGV."""
+    f = _crash_scenario(tmp_path, plugins["crashes"], 1.0)  # at rest omega_x = 0 < 1: crashes at once
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", str(f), "--out", str(out)],
+                       capture_output=True, text=True, env=_env())
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "crashed the process when probed" in lines[0] and "SIGSEGV" in lines[0]
+    assert not out.exists()

@@ -63,6 +63,7 @@ def test_closed_loop_fields_are_the_result_columns(scn):
         np.concatenate([scn.initial.sigma_BN, scn.initial.omega_BN_B, scn.initial.wheel_speed]),
         5, 2, 10.0)
     assert (res.pop("rows"), res.pop("diverged")) == (6, False)
+    assert res.pop("law_failures") == {"reset": 0, "step": 0, "after": 0, "last": None}
     assert list(res) == [n for n, _ in _core.CLOSED_LOOP_FIELDS]
     for name, width in _core.CLOSED_LOOP_FIELDS:
         assert res[name].shape == ((6,) if width == 1 else (6, width)), name

@@ -36,7 +36,8 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     m.add_argument("--runs", default="200", metavar="N", help="runs 0..N-1 (default 200)")
     m.add_argument("--workers", metavar="K", help="local worker processes (default: all cores)")
     m.add_argument("--seed", default="0", metavar="S", help="campaign seed, an integer >= 0 (default 0)")
-    m.add_argument("--law", "--controller", dest="law", metavar="LAW", help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME")
+    m.add_argument("--law", "--controller", dest="law", metavar="LAW",
+                   help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME")
     m.add_argument("--control-rate", metavar="HZ", help="default: the scenario's")
     m.add_argument("--backend", default="local", metavar="NAME",
                    help="local (process pool, the default), dask (a Dask LocalCluster of --workers)")
@@ -266,4 +267,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         print(f"sc-rt montecarlo: the law failed (threw, non-finite or wrong shape; contained) in "
               f"{res['status']['law_failed']} of {res['runs']} runs: counted as failures "
               f"(montecarlo.json 'failed', status law_failed)", file=sys.stderr)
+    if res["status"].get("crashed"):  # a plugin that killed its run's process: that run only
+        print(f"sc-rt montecarlo: the law crashed its run's process in {res['status']['crashed']} of "
+              f"{res['runs']} runs: counted as failures (montecarlo.json 'failed', status crashed)",
+              file=sys.stderr)
     return 0

@@ -44,8 +44,17 @@ def cmd_sim(args: argparse.Namespace) -> int:
     engines.STOP.clear()
     print(f"sc-rt sim: {scn.name}: {args.engine} engine, {grid(scn).n_ctrl + 1} rows ...", file=sys.stderr,
           flush=True)
+    from sc_rt.sim.isolated import RunCrashed, needs_isolation, simulate_isolated
+
     with flag_signals(lambda _s: engines.STOP.set()) as signals:
-        res = simulate(scn, engine=args.engine, law=pylaw)
+        if needs_isolation(scn.run.controller):  # a plugin's native code: its crash is one line, not exit 139
+            try:
+                res = simulate_isolated(scn, engine=args.engine, law=pylaw)
+            except RunCrashed as e:
+                print(f"sc-rt sim: FAILED: {e}", file=sys.stderr)
+                return 1
+        else:
+            res = simulate(scn, engine=args.engine, law=pylaw)
     stopped = None
     if signals:  # a signal: the rows done so far (the python engine stops at its next step)
         stopped = f"interrupted by {signal.Signals(signals[0]).name}"
@@ -138,13 +147,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
         if res.stopped:  # interrupted (or the logger died): no further run
             return report_stopped(res.run, res.stopped, res.signum, res.out, "demo")
         results.append((label, res))
-    for label, res in results:
+    for _label, res in results:
         print(verdict_line(res.metrics, label))
-    for label, res in results:
+    for _label, res in results:
         html_report(Path(res.out), "demo")
     print("\nWhy the paper's law leaves its bound in a sampled loop, and how the feasible design "
           "was found: docs/REPRODUCTION.md")
-    for label, res in results:
+    for _label, res in results:
         print(f"\n{label}: {len(res.files)} files in {res.out.resolve()}/")
         for p in res.files:
             print(f"  {p}")

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.isolate import ChildDied, call_in_child
 from sc_rt._core import mrp_to_dcm
 from sc_rt.model.actuators import ActuatorParams, WheelFault
 from sc_rt.model.combined import RigidBody, combine
@@ -53,7 +54,15 @@ def check_law(doc: Doc, scn: Scenario, law_key: str, params_key: str) -> None:
     if not (scn.run.controller.startswith(PLUGIN_PREFIX) or c.law_params):
         return
     try:
-        issues = _core.check_law(scn.core_config())
+        cfg = scn.core_config()
+        if scn.run.controller.startswith(PLUGIN_PREFIX):  # native code: a crash in the probe is a refusal
+            try:
+                issues = call_in_child(_core.check_law, cfg)
+            except ChildDied as e:
+                issues = [("law", f"law {scn.run.controller}: crashed the process when probed at rest "
+                                  f"at t = 0 ({e.how})")]
+        else:
+            issues = _core.check_law(cfg)
     except ValueError as e:  # the config itself (LCM translation)
         issues = [("law", str(e))]
     params = dict(c.law_params)

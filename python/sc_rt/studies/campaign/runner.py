@@ -91,6 +91,7 @@ def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple
     """Run ``run`` of the campaign: its dataset row (and, with ``keep``, the
     dispersed scenario and the simulation result too)."""
     from sc_rt.sim.engines import simulate
+    from sc_rt.sim.isolated import RunCrashed, needs_isolation, simulate_isolated
 
     scn, values, redraws, message = draw_run(c.scenario, c.dispersion, c.seed, run)
     row: dict[str, Any] = {"run": run, "seed": c.seed, "redraws": redraws, **values}
@@ -98,7 +99,15 @@ def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple
     if scn is None:
         row.update(status="invalid", holds_bound=False, message=message)
     else:
-        res = simulate(scn, law=c.law, engine="cpp", control_rate_hz=c.control_rate_hz)
+        law = c.law or scn.run.controller
+        if needs_isolation(law):  # a plugin: one crash fails this run, not the campaign (docs/HIL.md)
+            try:
+                res = simulate_isolated(scn, law=c.law, engine="cpp", control_rate_hz=c.control_rate_hz)
+            except RunCrashed as e:
+                row.update(status="crashed", holds_bound=False, message=str(e))
+                return (row, scn, None) if keep else row
+        else:
+            res = simulate(scn, law=c.law, engine="cpp", control_rate_hz=c.control_rate_hz)
         m = res.metrics
         law_failed = m.get("valid") is False  # the law threw, went non-finite or gave a wrong shape
         row.update(status="diverged" if m.get("diverged") else "law_failed" if law_failed else "ok",
@@ -217,7 +226,8 @@ def summarize(c: Campaign, store: RunStore, runs: int) -> dict[str, Any]:
         "fraction_holding_bound": held / n if n else None,
         "fraction_holding_bound_ci95": list(clopper_pearson(held, n)) if n else None,
         "ci_method": "Clopper-Pearson, two-sided 95 %",
-        "status": {s: sum(r["status"] == s for r in rows) for s in ("ok", "diverged", "invalid", "law_failed")},
+        "status": {s: sum(r["status"] == s for r in rows)
+                   for s in ("ok", "diverged", "invalid", "law_failed", "crashed")},
         "redraws_total": sum(r["redraws"] for r in rows),
         "final_metric": final,
         "worst_final_sigma_BD": max(fin) if fin else None,

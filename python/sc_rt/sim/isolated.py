@@ -1,0 +1,39 @@
+"""A run in a child process of its own, for laws that run in-process and
+can crash the process (a law plugin: native code the bench does not own).
+
+``simulate_isolated`` runs ``sc_rt.sim.engines.simulate`` in a forked child
+(sc_rt.isolate) and returns its Run; a child that dies (a signal such as
+SIGSEGV, an abort, an exit) raises ``RunCrashed`` with one line naming the
+law and how it died, and the caller goes on: ``sc-rt sim`` reports it in
+one line (exit 1), a Monte Carlo campaign records that run as crashed and
+runs the rest (docs/HIL.md, "When a run is valid").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sc_rt.isolate import ChildDied, call_in_child
+
+__all__ = ["RunCrashed", "simulate_isolated", "needs_isolation"]
+
+
+class RunCrashed(RuntimeError):
+    """The process running a law died (one line: the law and how)."""
+
+
+def needs_isolation(law: Any) -> bool:
+    """Whether a law runs native code in the bench's process (a plugin spec)."""
+    return isinstance(law, str) and law.startswith("plugin:")
+
+
+def simulate_isolated(scn, **kwargs: Any):
+    """``simulate(scn, **kwargs)`` in a forked child; the Run, or RunCrashed."""
+    from sc_rt.sim.engines import simulate
+
+    try:
+        return call_in_child(simulate, scn, **kwargs)
+    except ChildDied as e:
+        law = kwargs.get("law") or scn.run.controller
+        raise RunCrashed(f"the law {law} crashed the run's process ({e.how}): a plugin's native code; "
+                         "nothing of the run was kept") from None
