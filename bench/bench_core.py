@@ -36,7 +36,7 @@ def main() -> None:
     t, s, w, o = rec["t"], rec["sigma_BN"], rec["omega_BN_B"], rec["wheel_speed"]
     res = {"machine": machine(), "inputs": f"paper_faults, DSC closed loop at 100 Hz, {len(t)} states"}
     passes = 2 if smoke else 8
-    for name, law in LAWS.items():
+    for name in LAWS:
         cfg = scn.core_config(name, 100.0)
         ns_all = []
         for _ in range(passes):

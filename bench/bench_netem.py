@@ -123,10 +123,12 @@ def main() -> int:
                                                    if base else None)
             results["cases"].append(r)
             c = r["checks"]
+            ok = (c['to_controller']['lost_ok'] and c['to_emulator']['lost_ok']
+                  and c['to_controller']['dup_ok'] and c['to_emulator']['dup_ok'])
             print(f"{label:32s} lost to ctl {c['to_controller']['lost']:4d} "
                   f"(exp {c['to_controller']['lost_expected'][0]:.0f}-{c['to_controller']['lost_expected'][1]:.0f}) "
                   f"to emu {c['to_emulator']['lost']:4d}  dup {c['to_controller']['duplicates']}/"
-                  f"{c['to_emulator']['duplicates']}  ok {c['to_controller']['lost_ok'] and c['to_emulator']['lost_ok'] and c['to_controller']['dup_ok'] and c['to_emulator']['dup_ok']}  "
+                  f"{c['to_emulator']['duplicates']}  ok {ok}  "
                   f"hold {r['stale']['controller_stale_steps']} SAFE rows {r['stale']['rows_safe']}  "
                   f"bound {'held' if r['result']['first_bound_violation_s'] is None else 'LOST'}  "
                   f"worst |sigma_BD| x{r['result']['worst_error_vs_clean'] or 0:.3f}  "

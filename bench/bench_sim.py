@@ -31,14 +31,14 @@ def main(size: str = "full") -> None:
         steps_py = int(py_duration * rate) + 1
         loops: dict[str, list[float]] = {"cpp": [], "python": []}
 
-        def run(engine, duration):
+        def run(engine, duration, loops=loops, rate=rate):
             # the loop itself (metrics.json's wall_s): scenario validation,
             # metrics and file writing are outside it
             loops[engine].append(simulate(scn, engine=engine, control_rate_hz=rate,
                                           duration=duration).metrics["wall_s"])
 
         t = alternate({"cpp": lambda: run("cpp", cpp_duration if smoke else None),
-                       "python": lambda: run("python", py_duration)},
+                       "python": lambda py_duration=py_duration: run("python", py_duration)},
                       runs=runs)
         loops = {k: v[1:] for k, v in loops.items()}  # drop the warm-up
         key = f"{int(rate)}hz"

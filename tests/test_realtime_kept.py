@@ -44,7 +44,8 @@ def test_limits_against_constructed_records():
 HANGS = textwrap.dedent("""
     import os, secrets, time, lcm
     from sc_rt_lcm import plant_state_t, wheel_cmd_t
-    P, lc, session, st = os.environ.get("SCRT_PREFIX", ""), lcm.LCM(os.environ["SCRT_LCM_URL"]), secrets.randbits(62), {"n": 0}
+    P, session, st = os.environ.get("SCRT_PREFIX", ""), secrets.randbits(62), {"n": 0}
+    lc = lcm.LCM(os.environ["SCRT_LCM_URL"])
     def on_state(_ch, data):
         s = plant_state_t.decode(data)
         if st["n"] >= 5:

@@ -226,7 +226,8 @@ def test_bad_sensor_input_names_file_line_key_and_value(tmp_path, old, new, key,
     text = str(err)
     assert str(tmp_path / "bad.toml") in text and needle in text, text
     issue = next(e for e in err.errors if e.key == key)
-    assert issue.line == _line_of(tmp_path / "bad.toml", new.strip().split(" ")[0] + " = " + new.split("= ")[1].split(" ")[0])
+    assignment = new.strip().split(" ")[0] + " = " + new.split("= ")[1].split(" ")[0]
+    assert issue.line == _line_of(tmp_path / "bad.toml", assignment)
     assert issue.value is not None
     assert re.search(re.escape(key) + r" = ", text)
 

@@ -228,10 +228,10 @@ def test_guard_and_lock_step_rules():
     assert lock.advance(True, rx, T0 + 3 * P + 30_000) == T0 + 4 * P - trunc_div(err, 4)
     assert lock.guard_ns == g
     # the guard is capped at half a period and floored at the offset
-    for k in range(60):
+    for _ in range(60):
         lock.advance(False, 0, lock.deadline)
     assert lock.guard_ns == P / 2
-    for k in range(600):
+    for _ in range(600):
         lock.advance(True, lock.deadline - 50_000, lock.deadline)
     assert lock.guard_ns == 50_000.0
 

@@ -10,8 +10,8 @@ import sys
 
 from sc_rt import __version__
 from sc_rt.cli.interrupts import Interrupted, raise_on_signals
-from sc_rt.cli.validate import (AUTH_KEY_HELP, auth_key_file, MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError, integer, lcm_url,
-                                number, out_dir, out_file)
+from sc_rt.cli.validate import (AUTH_KEY_HELP, auth_key_file, MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError,
+                                integer, lcm_url, number, out_dir, out_file)
 from sc_rt.cli.lawarg import LAW_HELP, core_law_choice, law_choice
 from sc_rt.cli.controller import add_external_options
 from sc_rt.cli.floor_cmd import add_floor_parser, add_timing_options
@@ -91,7 +91,8 @@ def _add_monitoring(sub) -> None:
     r.add_argument("--mcap", metavar="OUT", help="also write the log as MCAP (as sc-rt export)")
     r.set_defaults(func=cmd_report)
 
-    x = sub.add_parser("export", help="an LCM log as MCAP (JSON + schemas from the .lcm files) for Foxglove, PlotJuggler")
+    x = sub.add_parser("export",
+                       help="an LCM log as MCAP (JSON + schemas from the .lcm files) for Foxglove, PlotJuggler")
     x.add_argument("log", help="an lcm-logger log")
     x.add_argument("--mcap", required=True, metavar="OUT", help="the MCAP file to write")
     x.add_argument("--partial", action="store_true",
@@ -124,7 +125,8 @@ def _add_sim(sub) -> None:
     s.add_argument("--engine", choices=("python", "cpp", "unsampled"), default="python",
                    help="unsampled: reference mode, the law inside every RK4 stage (no hold) "
                         "(default: %(default)s)")
-    s.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
+    s.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ",
+                   help="default: the scenario's")
     s.add_argument("--duration", type=number(unit="s"), metavar="S", help="default: the scenario's")
     s.add_argument("--plant-step", type=number(unit="s"), metavar="S",
                    help="plant RK4 step (default: the scenario's, reduced to divide the control period)")
@@ -141,7 +143,8 @@ def _add_hil(sub) -> None:
                    help="default: lockstep (--self-test: realtime)")
     h.add_argument("--law", "--controller", dest="law", type=law_choice, metavar="LAW",
                    help=LAW_HELP + "; a Python law runs in `sc-rt controller`")
-    h.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
+    h.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ",
+                   help="default: the scenario's")
     h.add_argument("--duration", type=number(unit="s"), metavar="S", help="default: the scenario's")
     h.add_argument("--out", default="out/hil", type=out_dir, metavar="DIR", help="default: %(default)s")
     h.add_argument("--realtime-priority", action="store_true",
@@ -216,7 +219,8 @@ def _add_config(sub) -> None:
     c.add_argument("--out", required=True, type=out_file, metavar="FILE", help="the file to write")
     c.add_argument("--law", "--controller", dest="law", type=core_law_choice, metavar="LAW",
                    help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME (default: the scenario's)")
-    c.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenario's")
+    c.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ",
+                   help="default: the scenario's")
     c.set_defaults(func=cmd_config)
 
 
@@ -224,7 +228,8 @@ def _add_design(sub) -> None:
     """sc-rt design."""
     g = sub.add_parser("design", help="PD design, stability margins and sampled-data stability limits")
     g.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
-    g.add_argument("--rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="control rate (default: the scenario's)")
+    g.add_argument("--rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ",
+                   help="control rate (default: the scenario's)")
     g.add_argument("--latency", type=number(0, 10, unit="s"), metavar="S",
                    help="latency of the Pade case (default 1.2e-3 s, a measured HIL p99)")
     g.add_argument("--timing", metavar="FILE", help="take the latency from a HIL timing.json (p99)")
@@ -238,7 +243,8 @@ def _add_reproduce(sub) -> None:
     q = sub.add_parser("reproduce", help="check the paper's claims: both scenarios, four laws -> claims.json, figures")
     q.add_argument("--out", default="out/reproduce", type=out_dir, metavar="DIR", help="default: %(default)s")
     q.add_argument("--engine", choices=("python", "cpp"), default="cpp", help="default: %(default)s")
-    q.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ", help="default: the scenarios' 10 Hz")
+    q.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ",
+                   help="default: the scenarios' 10 Hz")
     q.add_argument("--plant-step", type=number(unit="s"), metavar="S", help="default: the scenarios' 0.1 s")
     q.add_argument("--sensitivity", action="store_true",
                    help="also the verdicts at 10 Hz (plant step 0.1 and 0.01 s), 100 Hz and 1 kHz")

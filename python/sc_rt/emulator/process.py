@@ -428,7 +428,8 @@ class Emulator:
         run.faults_applied = list(self.shared.faults_applied)
         run.diverged = diverged
         label = self.peers.label(self.receiver.ctl_session)  # the law's name, as the controller announced it
-        if label is None and self.receiver.ctl_session is not None and self.receiver.ctl_session not in self.peers.status_sessions:
+        session = self.receiver.ctl_session
+        if label is None and session is not None and session not in self.peers.status_sessions:
             label = "external"  # commands only: not sc-rt-controller, and no name announced
         if label:
             run.meta = dataclasses.replace(run.meta, law=label)

@@ -32,7 +32,8 @@ FOXGLOVE_SCHEMAS = {
             "timestamp": {**_TIME, "description": "Timestamp of transform"},
             "parent_frame_id": {"type": "string", "description": "Name of the parent frame"},
             "child_frame_id": {"type": "string", "description": "Name of the child frame"},
-            "translation": {**_XYZ, "title": "foxglove.Vector3", "description": "Translation component of the transform"},
+            "translation": {**_XYZ, "title": "foxglove.Vector3",
+                            "description": "Translation component of the transform"},
             "rotation": {"title": "foxglove.Quaternion", "type": "object",
                          "properties": {k: {"type": "number"} for k in "xyzw"}, "required": list("xyzw"),
                          "description": "Rotation component of the transform"},
@@ -89,7 +90,8 @@ def frame_messages(sigma, stamps_us: list[int], parent: str, child: str) -> list
     q = mrp_to_quaternion(sigma)
     ok = np.isfinite(q).all(axis=1).tolist()
     pre = ('{"timestamp":{"sec":%d,"nsec":%d},"parent_frame_id":' + json.dumps(parent).replace("%", "%%")
-           + ',"child_frame_id":' + json.dumps(child).replace("%", "%%") + ',"translation":{"x":0.0,"y":0.0,"z":0.0},"rotation":{"x":%r,"y":%r,"z":%r,"w":%r}}')
+           + ',"child_frame_id":' + json.dumps(child).replace("%", "%%")
+           + ',"translation":{"x":0.0,"y":0.0,"z":0.0},"rotation":{"x":%r,"y":%r,"z":%r,"w":%r}}')
     out: list[bytes | None] = []
     for good, ts, (x, y, z, w) in zip(ok, stamps_us, q.tolist()):
         if not good:

@@ -59,7 +59,8 @@ RAW_SCHEMA = {
     "type": "object",
     "properties": {
         "lcm_channel": {"type": "string", "description": "LCM channel (bytes that are not UTF-8 as \\x escapes)"},
-        "reason": {"type": "string", "description": "foreign_channel, unknown_type, malformed, trailing_bytes, channel_not_utf8"},
+        "reason": {"type": "string",
+                   "description": "foreign_channel, unknown_type, malformed, trailing_bytes, channel_not_utf8"},
         "size": {"type": "integer", "minimum": 0, "description": "[bytes]"},
         "data": {"type": "string", "contentEncoding": "base64", "description": "the event's bytes"},
     },

@@ -110,9 +110,9 @@ def lcm_round_trip(count: int = 2000, url: str | None = None, fifo: bool = False
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def measure_floor(scn: Scenario, *, run: Callable[..., Any], mode: str = "realtime", control_rate_hz: float | None = None,
-                  duration: float = DEFAULT_FLOOR_S, realtime_priority: bool = False,
-                  setup: TimingSetup | None = None, rtt_count: int = 2000,
+def measure_floor(scn: Scenario, *, run: Callable[..., Any], mode: str = "realtime",
+                  control_rate_hz: float | None = None, duration: float = DEFAULT_FLOOR_S,
+                  realtime_priority: bool = False, setup: TimingSetup | None = None, rtt_count: int = 2000,
                   lcm_url: str | None = None) -> dict[str, Any]:
     """A null-controller run of ``duration`` s and the LCM round trip; the
     floor's figures (p50/p99/max per series), its counts and its conditions.
@@ -145,9 +145,10 @@ def measure_floor(scn: Scenario, *, run: Callable[..., Any], mode: str = "realti
     return out
 
 
-def floor_for(scn: Scenario, *, run: Callable[..., Any], mode: str, control_rate_hz: float | None, realtime_priority: bool,
-              setup: TimingSetup | None = None, policy: str = "auto", duration: float = DEFAULT_FLOOR_S,
-              max_age_s: float = DEFAULT_MAX_AGE_S, rtt_count: int = 2000) -> dict[str, Any]:
+def floor_for(scn: Scenario, *, run: Callable[..., Any], mode: str, control_rate_hz: float | None,
+              realtime_priority: bool, setup: TimingSetup | None = None, policy: str = "auto",
+              duration: float = DEFAULT_FLOOR_S, max_age_s: float = DEFAULT_MAX_AGE_S,
+              rtt_count: int = 2000) -> dict[str, Any]:
     """The floor a run is compared with. ``policy``: ``measure`` (now, then
     cached), ``cached`` (the cache's, else measured), ``auto`` (the cache's
     when younger than ``max_age_s``, else measured). The result says which

@@ -1,1 +1,2 @@
-"""The run's log: the strict ``lcm-logger`` reader, decoding, the run rebuilt from it, ``sc-rt report`` and ``sc-rt replay``."""
+"""The run's log: the strict ``lcm-logger`` reader, decoding, the run rebuilt from it, ``sc-rt report``
+and ``sc-rt replay``."""

@@ -17,8 +17,8 @@ from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING
 from sc_rt.results.run import RunMeta, empty_arrays
 from sc_rt.scenario.model import LAW_NAMES
 
-__all__ = ["Rebuilt", "rebuild", "sensor_summary", "logged_config", "run_params", "controller_label", "logged_guidance", "fault_summary",
-           "MAX_FAULT_CHANGES"]
+__all__ = ["Rebuilt", "rebuild", "sensor_summary", "logged_config", "run_params", "controller_label", "logged_guidance",
+           "fault_summary", "MAX_FAULT_CHANGES"]
 
 #: fault state changes listed per wheel in report.json (a hostile log could have one per row)
 MAX_FAULT_CHANGES = 1000

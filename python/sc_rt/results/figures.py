@@ -72,7 +72,7 @@ def mark_events(ax, run: Run, *, labels: bool = False) -> None:
     t = run["t"]
     if len(t) == 0:
         return
-    for j, (onset, wheel) in enumerate(fault_onsets(run)):
+    for j, (onset, _wheel) in enumerate(fault_onsets(run)):
         if onset <= t[-1]:
             ax.axvline(onset, color="r", ls="--", lw=0.7, label="fault onset" if labels and j == 0 else None)
     first = run.metrics.get("first_bound_violation_s")

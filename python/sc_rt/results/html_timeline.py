@@ -100,7 +100,8 @@ def timeline_svg(t: np.ndarray, *, modes: np.ndarray | None, bound_ok: np.ndarra
     for k, (name, bars) in enumerate(lanes):
         y = TOP + k * LANE
         out.append(f'<rect x="{LEFT}" y="{y + 1}" width="{W - LEFT - RIGHT}" height="{LANE - 2}" fill="#f7f7f7"/>')
-        out.append(f'<text x="{LEFT - 6}" y="{y + LANE / 2 + 4}" text-anchor="end" font-size="12">{escape(name)}</text>')
+        out.append(f'<text x="{LEFT - 6}" y="{y + LANE / 2 + 4}" text-anchor="end" font-size="12">'
+                   f'{escape(name)}</text>')
         out.append(f'<g transform="translate(0,{y})">' + "".join(bars) + "</g>")
     ya = TOP + LANE * len(lanes) + 4
     for tick in np.linspace(t0, t1, 7):

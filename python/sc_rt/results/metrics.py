@@ -14,8 +14,8 @@ from sc_rt.results.estimation import estimation_metrics, fill_estimation_error, 
 from sc_rt.results.run import CORE_FIELDS, Run, json_safe
 from sc_rt.results.verdict import pointing_arcsec, safe_summary
 
-__all__ = ["METRIC_TIMES", "record_law_failures", "bound_ok", "compute_metrics", "fill_tracking_errors", "prescribed_chi",
-           "finish_run", "json_safe"]
+__all__ = ["METRIC_TIMES", "record_law_failures", "bound_ok", "compute_metrics", "fill_tracking_errors",
+           "prescribed_chi", "finish_run", "json_safe"]
 
 #: Times [s] at which the error norms are reported (those within the run;
 #: the run's end is always added).

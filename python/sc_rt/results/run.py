@@ -108,7 +108,8 @@ FIELDS: tuple[Field, ...] = (
     _f("fault_bias", (4,), "rad/s^2", "truth", "wheel bias of the active fault"),
     _f("fault_stuck", (4,), "-", "truth", "1 when the wheel is stuck", dtype="i8", fill=0),
     # With [sensors] (sc_rt.sim.sensed; the MEKF of cpp/include/sc_rt/mekf.hpp), NaN otherwise:
-    _f("sigma_BN_est", (3,), "-", "estimator", "MEKF attitude estimate at t_k (what the law gets with measurement = estimate)"),
+    _f("sigma_BN_est", (3,), "-", "estimator",
+       "MEKF attitude estimate at t_k (what the law gets with measurement = estimate)"),
     _f("bias_est", (3,), "rad/s", "estimator", "MEKF gyro bias estimate"),
     _f("bias_true", (3,), "rad/s", "truth", "the gyro's true bias (bias0 + Gauss-Markov + random walk)"),
     _f("P_diag", (6,), "rad^2, (rad/s)^2", "estimator",

@@ -129,7 +129,8 @@ def _check_model(scn: Scenario) -> list[Finding]:
     try:
         model = _core.SpacecraftModel(cfg.spacecraft)
         sv = np.linalg.svd(np.asarray(model.B), compute_uv=False)
-        out.append(Finding("ok", "spacecraft.Cbar", "", f"B = -J0^-1 Cbar Jw has rank 3 (singular values {_fmt(sv)}, condition {sv[0] / sv[-1]:.3g})"))
+        out.append(Finding("ok", "spacecraft.Cbar", "", f"B = -J0^-1 Cbar Jw has rank 3 "
+                           f"(singular values {_fmt(sv)}, condition {sv[0] / sv[-1]:.3g})"))
     except ValueError as e:
         out.append(Finding("error", "spacecraft.Cbar", _fmt(scn.plant.Cbar), str(e)))
         return out

@@ -114,14 +114,14 @@ def observer_map(K1, K2, T: float, substeps: int) -> np.ndarray:
     p.substeps = int(substeps)
     neso = _core.Neso(p)
     zero = np.zeros(3)
-    O = np.empty((6, 15))
+    obs_map = np.empty((6, 15))
     for j in range(15):
         e = np.zeros(15)
         e[j] = 1.0
         neso.reset(e[0:3], e[3:6])
         neso.update(T, zero, zero, e[6:9], e[9:12], e[12:15])
-        O[0:3, j], O[3:6, j] = neso.z1, neso.z2
-    return O
+        obs_map[0:3, j], obs_map[3:6, j] = neso.z1, neso.z2
+    return obs_map
 
 
 class SampledLoop:
