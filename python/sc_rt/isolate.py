@@ -9,7 +9,7 @@ nothing else of sc_rt (the bottom layer).
 
 from __future__ import annotations
 
-import multiprocessing as mp
+import os
 import pickle
 import signal
 from typing import Any, Callable
@@ -37,7 +37,7 @@ def exit_how(code: int | None) -> str:
     return f"exit code {code}"
 
 
-def _child(conn, fn, args, kwargs) -> None:
+def _answer(fd: int, fn, args, kwargs) -> None:
     try:
         out = ("ok", fn(*args, **kwargs))
     except BaseException as e:  # noqa: BLE001  (sent back and raised in the parent)
@@ -46,28 +46,41 @@ def _child(conn, fn, args, kwargs) -> None:
         data = pickle.dumps(out)
     except Exception as e:  # a result or exception that does not pickle: its text
         data = pickle.dumps(("error", RuntimeError(f"{type(e).__name__}: {e}")))
-    conn.send_bytes(data)
-    conn.close()
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
 
 
 def call_in_child(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
     """``fn(*args, **kwargs)`` in a forked child: its result, its exception,
-    or ChildDied."""
-    ctx = mp.get_context("fork")
-    recv, send = ctx.Pipe(duplex=False)
-    p = ctx.Process(target=_child, args=(send, fn, args, kwargs), daemon=True)
-    p.start()
-    send.close()
-    data = None
+    or ChildDied. A plain fork (os.fork), so that it works in any process,
+    a pool's daemonic worker included; the child never returns into the
+    caller's code (os._exit)."""
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child
+        code = 0
+        try:
+            os.close(r)
+            _answer(w, fn, args, kwargs)
+        except BaseException:  # noqa: BLE001
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(w)
+    chunks = []
     try:
-        data = recv.recv_bytes()
-    except EOFError:  # the child died before it answered
-        pass
+        while True:
+            b = os.read(r, 1 << 20)
+            if not b:
+                break
+            chunks.append(b)
     finally:
-        recv.close()
-        p.join()
-    if data is None:
-        raise ChildDied(exit_how(p.exitcode))
+        os.close(r)
+        _, status = os.waitpid(pid, 0)
+    data = b"".join(chunks)
+    if not data:
+        raise ChildDied(exit_how(os.waitstatus_to_exitcode(status)))
     kind, value = pickle.loads(data)
     if kind == "error":
         raise value

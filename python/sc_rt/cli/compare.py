@@ -29,6 +29,7 @@ COLUMNS = (
     ("max_abs_wheel_accel", "peak wheel accel [rad/s^2]", "{:.3g}"),
     ("safe_steps", "SAFE steps", "{}"),
     ("law_invalid_steps", "law invalid", "{}"),
+    ("valid", "valid run", "{}"),
 )
 
 
@@ -63,6 +64,8 @@ def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
         "safe_steps": m.get("safe_steps"),
         "law_invalid_steps": m.get("law_invalid_steps"),
         "diverged": bool(m.get("diverged", False)),
+        "valid": m.get("valid", True) is not False,
+        "invalid_reason": m.get("invalid_reason"),
     }
 
 
@@ -114,18 +117,33 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for law in args.laws:
         if not is_python_law(law):
             scns[law] = with_overrides(scn, law=law, duration=args.duration)
+    from sc_rt.sim.isolated import RunCrashed, needs_isolation, simulate_isolated
+
     rows = []
+    failed = 0
     for law in args.laws:
         py = is_python_law(law)
-        run = simulate(scn if py else scns[law], law=law if py else None,
-                       engine="python" if py else args.engine, duration=args.duration if py else None)
         label = law
         if law.startswith("plugin:"):
             from sc_rt import _core
 
             label = _core.law_info(law)["name"]
-        rows.append(compare_row(run, label, args.settle))
-        print(f"sc-rt compare: {scn.name}: {label} done", file=sys.stderr, flush=True)
+        run_scn, kw = (scn if py else scns[law]), dict(law=law if py else None, engine="python" if py else args.engine,
+                                                        duration=args.duration if py else None)
+        try:  # a plugin runs in a child of its own: its crash fails its row, not the comparison
+            run = simulate_isolated(run_scn, **kw) if needs_isolation(law) else simulate(run_scn, **kw)
+        except RunCrashed as e:
+            rows.append({"law": label, "valid": False, "invalid_reason": str(e), "crashed": True})
+            failed += 1
+            print(f"sc-rt compare: {scn.name}: {label} FAILED: {e}", file=sys.stderr, flush=True)
+            continue
+        row = compare_row(run, label, args.settle)
+        rows.append(row)
+        if not row["valid"]:
+            failed += 1
+            print(f"sc-rt compare: {scn.name}: {label} INVALID: {row['invalid_reason']}", file=sys.stderr, flush=True)
+        else:
+            print(f"sc-rt compare: {scn.name}: {label} done", file=sys.stderr, flush=True)
     text = table(rows)
     print(f"{scn.name} ({args.engine} engine, settling within {args.settle:g} of the initial error)\n")
     print(text)
@@ -134,4 +152,4 @@ def cmd_compare(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
         (out / "compare.json").write_text(json.dumps({"scenario": scn.name, "rows": rows}, indent=2) + "\n")
         (out / "compare.md").write_text(text + "\n")
-    return 0
+    return 1 if failed else 0

@@ -29,6 +29,9 @@ def cmd_sim(args: argparse.Namespace) -> int:
         raise UsageError(f"--engine {args.engine}: a Python law (--law {pylaw}) runs on the python engine only")
     scn = with_overrides(scenario_arg(args.scenario), law=None if pylaw else args.law,
                          control_rate_hz=args.control_rate, duration=args.duration, plant_step=args.plant_step)
+    if pylaw and scn.sensors is not None:
+        raise UsageError(f"--law {pylaw}: a scenario with [sensors] ({scn.name}) runs the core's laws and "
+                         "plugins only, not a Python law (yet)")
     if args.engine == "unsampled":
         from sc_rt.sim.unsampled import refusal
 
