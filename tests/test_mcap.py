@@ -445,8 +445,13 @@ def test_the_file_is_indexed_as_the_mcap_spec_says(exported):
         assert s.statistics.message_count == len(msgs)
         assert sum(s.statistics.channel_message_counts.values()) == len(msgs)
         assert len(list(r.iter_messages(topics=["/derived/pointing"]))) == summary.derived["pointing"]
-        (meta,) = list(r.iter_metadata())
-        assert json.loads(meta.metadata["summary"])["events"] == summary.events
+        metas = {m.name: m.metadata for m in r.iter_metadata()}
+        assert sorted(metas) == ["sc_rt.export", "sc_rt.run"]
+        assert json.loads(metas["sc_rt.export"]["summary"])["events"] == summary.events
+        # the run's start record, read from the log (issue #25): what the run was, not a guess
+        run = metas["sc_rt.run"]
+        assert run["mode"] == "lockstep" and run["scenario"] == "paper_faults"
+        assert json.loads(run["law"])["name"] == "dsc-ppc" and json.loads(run["control_rate_hz"]) == 10.0
     checked = 0
     for ci in s.chunk_indexes:
         with open(out, "rb") as f:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from sc_rt.logs.logread import start_record
+from sc_rt.wire.startrec import start_record
 
 import lcmnet
 
@@ -57,3 +57,18 @@ def test_report_labels_a_lockstep_run_of_a_statusless_external_controller(tmp_pa
                                       f"{sys.executable} {EXAMPLE}")
     assert rep["mode"] == "lockstep" and timing["mode"] == "lockstep" and timing["trigger"] is None
     assert rep["start"]["law"]["source"] == "external" and m["controller"] == "quaternion-feedback"
+
+
+def test_spy_shows_the_start_record():
+    from sc_rt.tools.spy import ChannelStats
+    from sc_rt.wire.startrec import encode_start
+
+    st = ChannelStats("SCRT_HIL_START", keep=float("inf"))
+    st.add(0.0, encode_start({"scenario": "paper_faults", "mode": "realtime", "trigger": "event",
+                              "control_rate_hz": 100.0, "law": {"name": "pd"}}))
+    snap = st.snapshot()
+    assert snap["type"] == "start record" and snap["undecodable"] == 0
+    assert snap["summary"] == {"mode": "realtime", "trigger": "event", "control_rate_hz": 100.0, "law": "pd",
+                               "scenario": "paper_faults"}
+    st.add(1.0, b"paper_faults")  # an older start message: raw bytes, not a record
+    assert st.snapshot()["undecodable"] == 1

@@ -43,6 +43,7 @@ from sc_rt.wire.lcmio import CHANNELS
 from sc_rt.wire.lcmjson import RowEncoder, count_none, dumps, json_value
 from sc_rt.export.mcap_derived import Deriver
 from sc_rt.logs.lcmlog import LogDamaged, LogScan, read_events
+from sc_rt.wire.startrec import start_record
 from sc_rt.wire.codec import TYPES, decode_any, decode_array, identify, numpy_dtype
 
 __all__ = ["ExportError", "ExportSummary", "export_mcap", "check_output", "RAW_SCHEMA"]
@@ -338,7 +339,10 @@ def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
             w.start(profile="", library="sc-rt export")
             ex = _Exporter(w, log.name)
             batch: list = []
+            start = None  # the run's start record (sc-rt hil's SCRT_HIL_START), a metadata record below
             for ev in read_events(log, scan, partial):
+                if start is None and ev[2].endswith(b"SCRT_HIL_START"):
+                    start = start_record([ev])
                 batch.append(ev)
                 if len(batch) >= BATCH:
                     summ.messages += ex.batch(batch)
@@ -350,6 +354,9 @@ def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
             summ.seconds = time.perf_counter() - t0  # so far (the metadata's copy)
             w.add_metadata("sc_rt.export", {"source_log": log.name,
                                              "summary": json.dumps(summ.as_dict(), default=str)})
+            if start is not None:  # what the run was (mode, trigger, rate, law identity), read, not guessed
+                w.add_metadata("sc_rt.run", {k: v if isinstance(v, str) else json.dumps(v)
+                                             for k, v in start.items()})
             w.finish()
         os.replace(tmp, out)
     except LogDamaged as e:

@@ -29,6 +29,7 @@ from sc_rt.emulator.process import Emulator, Options
 from sc_rt.hil.external import ExternalController, python_controller_command
 from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
 from sc_rt.wire.lcmio import channel, free_port_url, lcm_binary, open_lcm
+from sc_rt.wire.startrec import encode_start
 from sc_rt.logs.timing import RealtimeLimits, log_missing, realtime_shortfall, timing_report
 from sc_rt.emulator.sensorpub import SENT_COUNTERS
 from sc_rt.results.metrics import fill_tracking_errors, finish_run, record_law_failures
@@ -394,11 +395,11 @@ def _start_record(b: _Bench) -> bytes:
 
     law = ({"name": "external", "spec": b.ext.command_line, "source": "external"} if b.ext is not None
            else law_identity(b.scn.run.controller))
-    rec = {"sc_rt_start": 1, "scenario": b.scn.name, "mode": b.mode,
+    rec = {"scenario": b.scn.name, "mode": b.mode,
            "trigger": b.setup.trigger if b.mode == "realtime" else None,
            "control_rate_hz": float(b.scn.run.control_rate_hz), "duration_s": float(b.scn.run.duration),
            "time_scale": b.time_scale, "law": law, "run_id": claimed_run_id(b.out), "sc_rt": __version__}
-    return json.dumps(rec, separators=(",", ":")).encode()
+    return encode_start(rec)
 
 
 def _judge_real_time(res: Run, summary: dict[str, Any], limits: RealtimeLimits) -> None:

@@ -18,6 +18,7 @@ import lcm
 import numpy as np
 
 from sc_rt.wire.lcmio import CHANNELS
+from sc_rt.wire.startrec import start_record
 from sc_rt.wire.codec import TYPES, decode_any, decode_array, numpy_dtype
 
 __all__ = ["LogData", "read_log"]
@@ -120,18 +121,3 @@ def read_log(path: str | Path, prefix: str | None = None) -> LogData:
     return LogData(path, events, prefix, time.perf_counter() - t0, records, stamps, messages,
                    channels, skipped, start_record(by_ch.get(prefix + "SCRT_HIL_START", [])))
 
-
-def start_record(events: list) -> dict[str, Any] | None:
-    """The first SCRT_HIL_START payload that is a start record (JSON with
-    ``sc_rt_start``); None when there is none (an older log: the scenario
-    name as raw bytes)."""
-    import json
-
-    for e in events:
-        try:
-            d = json.loads(bytes(e[3]).decode("utf-8"))
-        except (UnicodeDecodeError, ValueError):
-            continue
-        if isinstance(d, dict) and d.get("sc_rt_start") == 1:
-            return d
-    return None

@@ -29,6 +29,7 @@ from sc_rt.results.estimation import ARCSEC  # [rad]
 from sc_rt.results.metrics import json_safe
 from sc_rt.wire.auth import open_bus
 from sc_rt.wire.codec import decode_any, identify, numpy_dtype, to_plain
+from sc_rt.wire.startrec import decode_start
 
 __all__ = ["Spy", "ChannelStats", "main_loop"]
 
@@ -63,6 +64,9 @@ class ChannelStats:
             while self.times and now - self.times[0] > self.keep:
                 self.times.popleft()
         cls = identify(data)
+        if cls is None and (rec := decode_start(data)) is not None:  # sc-rt hil's start record: what the run is
+            self.type, self.latest_raw, self.latest_cls, self.latest_msg = "start record", None, None, rec
+            return
         if cls is None:
             self.undecodable["unknown_type"] += 1
             return
@@ -100,7 +104,13 @@ class ChannelStats:
         out = {"type": self.type, "count": self.count, **self.timing(),
                "undecodable": int(sum(self.undecodable.values())),
                "undecodable_kinds": dict(self.undecodable), "bytes": self.bytes}
-        if msg is not None:
+        if isinstance(msg, dict):  # the start record
+            law = msg.get("law") or {}
+            out["summary"] = {"mode": msg.get("mode"), "trigger": msg.get("trigger"),
+                              "control_rate_hz": msg.get("control_rate_hz"), "law": law.get("name"),
+                              "scenario": msg.get("scenario")}
+            out["latest"] = msg
+        elif msg is not None:
             out["summary"] = summarize(msg)
             out["latest"] = to_plain(msg)
         return out
