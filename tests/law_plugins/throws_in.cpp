@@ -9,10 +9,12 @@
 struct ThrowsIn final : sc_rt::ControlLaw {
   explicit ThrowsIn(const sc_rt::LawSetup& s)
       : Bp(s.model.B_pinv), t_nan(s.params.number("t_nan", 2.0)),
-        reset_throws(s.params.number("reset_throws", 1.0)), t_after(s.params.number("t_after", -1.0)) {}
+        reset_throws(s.params.number("reset_throws", 1.0)), t_after(s.params.number("t_after", -1.0)),
+        omega_x_below(s.params.number("omega_x_below", -1e300)) {}
   void reset(const sc_rt::LawInput& in) override {
     if (resets++ > 0 && reset_throws > 0.0) throw std::runtime_error("reset exploded at re-engagement");
-    (void)in;
+    // a Monte Carlo draw: the engagement's reset throws when the body rate's x is below omega_x_below
+    if (in.m.omega_BN_B(0) < omega_x_below) throw std::runtime_error("reset exploded on this draw");
   }
   void step(const sc_rt::LawInput& in, sc_rt::LawOutput& out) override {
     out.u_cmd = -Bp * (0.05 * in.e.sigma_BD + 0.24 * in.e.omega_BD_B);
@@ -23,7 +25,7 @@ struct ThrowsIn final : sc_rt::ControlLaw {
     if (t_after >= 0.0 && t_last >= t_after - 1e-9 && t_last < t_after + 0.05) throw std::runtime_error("after exploded");
   }
   sc_rt::Mat43 Bp;
-  double t_nan, reset_throws, t_after;
+  double t_nan, reset_throws, t_after, omega_x_below;
   double t_last = 0.0;
   int resets = 0;
 };
