@@ -12,8 +12,8 @@ the emulator (the ``sc-rt hil`` process) and ``sc-rt-controller``, every
 
 - memory: growth after the warm-up (the first 10 % of the run, at least
   20 s) until the run ends (not while the emulator writes its record),
-  per process. The controller keeps three doubles per step for its exit
-  percentiles (24 B/step); beyond that it must stay flat (<= 1 MB). The
+  per process. The controller keeps fixed-size histograms for its exit
+  percentiles (nothing per step): it must stay flat (<= 1 MB). The
   emulator allocates and touches everything it keeps per row when it
   starts (the run's columns; each state's command, status and times:
   emulator/inbox.py): it must stay flat too (<= 1 MB); its bytes per row are
@@ -54,7 +54,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 
 #: the controller's per-step samples (lateness, compute, age: 3 doubles)
-CONTROLLER_BYTES_PER_STEP = 24
+CONTROLLER_BYTES_PER_STEP = 0  # fixed-size histograms (cpp/shell/histogram.hpp): nothing per step
 #: growth after the warm-up that still counts as flat (beyond what is kept by design)
 FLAT_KB = 1024
 

@@ -1,8 +1,7 @@
 """A 2-minute soak (bench/soak.py; 30 minutes there): real time at 100 Hz,
-both processes' memory flat after the warm-up (<= 1 MB; the controller's
-beyond the 24 B per step it keeps by design, the emulator's with nothing
-beyond: it preallocates its run), no message lost between the processes and
-the log."""
+both processes' memory flat after the warm-up (<= 1 MB; the controller keeps
+fixed-size histograms, the emulator preallocates its run), no message lost
+between the processes and the log.""" 
 
 from __future__ import annotations
 
@@ -27,7 +26,7 @@ def test_two_minute_soak_memory_flat_and_no_lost_log_events(tmp_path):
     r = soak.soak(2.0, 100.0, tmp_path / "soak", sample_s=2.0, port=7762)
     assert r["rows"] == 12001
     # memory after the warm-up, until the run ends: the controller flat
-    # (<= 1 MB beyond its 24 B of samples per step); the emulator, which
+    # (<= 1 MB: its statistics are fixed-size histograms); the emulator, which
     # allocates and touches what it keeps per row at start, flat (<= 1 MB)
     m = r["memory"]
     # (an empty dict: fewer than 3 RSS samples of both processes after the

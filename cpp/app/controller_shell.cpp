@@ -11,31 +11,19 @@ namespace sc_rt_controller {
 
 namespace {
 
-// Percentiles of a sample (copied: called once at exit / per report).
+// The exit summary's figures of a whole-run histogram.
 struct Stats {
   double p50 = 0, p99 = 0, max = 0;
-  std::size_t n = 0;
+  std::uint64_t n = 0;
 };
-Stats stats(std::vector<double> v) {
-  Stats s;
-  s.n = v.size();
-  if (v.empty()) return s;
-  std::sort(v.begin(), v.end());
-  auto q = [&](double p) { return v[std::min(v.size() - 1, std::size_t(p * (v.size() - 1) + 0.5))]; };
-  s.p50 = q(0.5);
-  s.p99 = q(0.99);
-  s.max = v.back();
-  return s;
+Stats stats(const sc_rt::LogHistogram& h) {
+  return Stats{h.quantile(0.5), h.quantile(0.99), h.max(), h.count()};
 }
 
 }  // namespace
 
 Shell::Shell(const Options& o, lcm::LCM& lcm, const std::atomic<bool>& stop)
-    : opt_(o), lcm_(lcm), stop_(stop) {
-  lat_.reserve(1 << 20);
-  comp_.reserve(1 << 20);
-  age_.reserve(1 << 20);
-}
+    : opt_(o), lcm_(lcm), stop_(stop) {}
 
 void Shell::configure(const sc_rt::ControllerConfig& cfg, const sc_rt::NavSetup& nav) {
   ctl_ = sc_rt::Controller::create(cfg);
@@ -195,11 +183,9 @@ void Shell::step(int64_t now, int64_t deadline) {
   ++cnt_.steps;
   // a miss: the command left after the next deadline
   if (opt_.realtime && mono_ns() > deadline + period_ns_) ++cnt_.deadline_misses;
-  if (lat_.size() < lat_.capacity()) {
-    lat_.push_back(late_us);
-    comp_.push_back(comp_us);
-    age_.push_back(age_us);
-  }
+  lat_.add(late_us);  // every step of the run, whatever its length (no cap)
+  comp_.add(comp_us);
+  age_.add(age_us);
   publish_status(cmd, used_seq, late_us, comp_us, age_us);
 }
 

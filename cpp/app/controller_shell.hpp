@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "defaults.hpp"
+#include "histogram.hpp"
 #include "hmac.hpp"
 #include "input_gate.hpp"
 #include "sensor_intake.hpp"
@@ -138,7 +139,8 @@ class Shell {
   sc_rt::Command last_cmd_;
   int64_t cmd_seq_ = 0;
   Counters cnt_;
-  std::vector<double> lat_, comp_, age_;
+  //! whole-run statistics, fixed size (no cap, no allocation per step): wake lateness, compute, state age
+  sc_rt::LogHistogram lat_, comp_, age_;
 };
 
 }  // namespace sc_rt_controller

@@ -3,10 +3,12 @@
 // scheduler without LCM or a clock. Times are monotonic ns (int).
 #include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
 
 #include <limits>
 #include <string>
 
+#include "histogram.hpp"
 #include "hmac.hpp"
 #include "input_gate.hpp"
 #include "phase_lock.hpp"
@@ -19,6 +21,22 @@ using namespace sc_rt;
 using py::arg;
 
 void bind_shell(py::module_& m) {
+  py::class_<LogHistogram>(m, "LogHistogram",
+                           "Fixed-size log-linear histogram of durations [us] (cpp/shell/histogram.hpp): "
+                           "the controller's whole-run statistics")
+      .def(py::init<>())
+      .def("add", &LogHistogram::add, py::arg("us"))
+      .def(
+          "add_many",
+          [](LogHistogram& h, const std::vector<double>& v) {
+            for (double x : v) h.add(x);
+          },
+          py::arg("values"))
+      .def("quantile", &LogHistogram::quantile, py::arg("p"))
+      .def_property_readonly("count", &LogHistogram::count)
+      .def_property_readonly("max", &LogHistogram::max)
+      .def_property_readonly("mean", &LogHistogram::mean)
+      .def_property_readonly_static("BUCKETS", [](py::object) { return LogHistogram::kBuckets; });
   py::enum_<GateVerdict>(m, "GateVerdict", "What the controller shell does with one received state.")
       .value("Accept", GateVerdict::Accept)
       .value("Adopt", GateVerdict::Adopt)
