@@ -1,7 +1,7 @@
 """A 2-minute soak (bench/soak.py; 30 minutes there): real time at 100 Hz,
 both processes' memory flat after the warm-up (<= 1 MB; the controller keeps
 fixed-size histograms, the emulator preallocates its run), no message lost
-between the processes and the log.""" 
+between the processes and the log."""
 
 from __future__ import annotations
 
