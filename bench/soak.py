@@ -180,7 +180,7 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
             if ctl is None:
                 ctl = next((c for c in children(p.pid) if comm(c) == "sc-rt-controlle"), None)
             if logger is None:
-                logger = next((c for c in children(p.pid) if comm(c) == "lcm-logger"), None)
+                logger = next((c for c in children(p.pid) if comm(c) == "sc-rt-logger"), None)
                 if logger is not None and renice_logger:
                     reniced = lift(logger)
             samples.append((time.monotonic() - t0, rss_kb(p.pid), rss_kb(ctl) if ctl else None))

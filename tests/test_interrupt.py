@@ -108,17 +108,17 @@ def test_hil_notices_the_logger_dying(tmp_path):
     > {tmp_path}/o.txt 2> {tmp_path}/e.txt &
 P=$!
 {GROW.format(f=log, n=300_000)}
-pkill -KILL -f '^[^ ]*lcm-logger .*{log}'
+pkill -KILL -f '^[^ ]*sc-rt-logger .*{log}'
 wait $P
 echo "rc=$?"
 """
     r = lcmnet.run_script(script, timeout=300)
     err = (tmp_path / "e.txt").read_text()
     assert "rc=1" in r.stdout, r.stdout + r.stderr + err
-    assert "lcm-logger exited" in err and "STOPPED" in err and "Traceback" not in err, err
+    assert "sc-rt-logger exited" in err and "STOPPED" in err and "Traceback" not in err, err
     assert not leftovers(str(out))
     m = metrics(out)
-    assert m["partial"] is True and "lcm-logger exited" in m["stopped"]
+    assert m["partial"] is True and "sc-rt-logger exited" in m["stopped"]
     assert m["t_reached_s"] < 300  # stopped, not run to its end with a log that no longer grows
 
 
@@ -254,7 +254,7 @@ P=$!
 kill -KILL $P
 wait $P
 echo "rc=$?"
-i=0; while pgrep -f '^[^ ]*(sc-rt-controller|lcm-logger) .*{out}' > /dev/null; do
+i=0; while pgrep -f '^[^ ]*(sc-rt-controller|sc-rt-logger) .*{out}' > /dev/null; do
   i=$((i+1)); [ $i -gt 600 ] && break; sleep 0.1; done
 """
     r = lcmnet.run_script(script, timeout=300)

@@ -28,7 +28,7 @@ from sc_rt.wire.auth import load_key, open_bus
 from sc_rt.emulator.process import Emulator, Options
 from sc_rt.hil.external import ExternalController, python_controller_command
 from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
-from sc_rt.wire.lcmio import channel, free_port_url, lcm_binary, open_lcm
+from sc_rt.wire.lcmio import channel, free_port_url, open_lcm
 from sc_rt.wire.startrec import encode_start
 from sc_rt.logs.timing import RealtimeLimits, log_missing, realtime_shortfall, timing_report
 from sc_rt.emulator.sensorpub import SENT_COUNTERS
@@ -43,15 +43,20 @@ from sc_rt.scenario.overrides import with_overrides
 __all__ = ["HilResult", "run_hil", "controller_binary", "Stopper", "child_kwargs"]
 
 
-def controller_binary() -> str:
-    """sc-rt-controller next to this interpreter (the venv's bin), else PATH."""
-    here = Path(sys.executable).parent / "sc-rt-controller"
+def bench_binary(name: str) -> str:
+    """One of sc-rt's executables next to this interpreter (the venv's bin), else PATH."""
+    here = Path(sys.executable).parent / name
     if here.exists():
         return str(here)
-    found = shutil.which("sc-rt-controller")
+    found = shutil.which(name)
     if not found:
-        raise FileNotFoundError("sc-rt-controller not found: install sc-rt (make install)")
+        raise FileNotFoundError(f"{name} not found: install sc-rt (make install)")
     return found
+
+
+def controller_binary() -> str:
+    """sc-rt-controller next to this interpreter (the venv's bin), else PATH."""
+    return bench_binary("sc-rt-controller")
 
 
 
@@ -167,7 +172,7 @@ class Stopper:
             if self.controller is not None and self.died is None and (rc := self.controller.poll()) is not None:
                 self.died = f"{self.controller_name} died ({exit_how(rc)}) during the run"
         if self.logger_rc is not None:
-            return f"lcm-logger exited (code {self.logger_rc}) during the run: the log ends there"
+            return f"sc-rt-logger exited (code {self.logger_rc}) during the run: the log ends there"
         return self.died
 
 
@@ -338,7 +343,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     # everything that can fail before a child starts: the URL, both binaries, the directory
     open_lcm(url)
     ctl_bin = None if external or external_wait else controller_binary()
-    logger_bin = lcm_binary("lcm-logger")
+    logger_bin = bench_binary("sc-rt-logger")  # lcm-logger's format, a deep queue (cpp/tools/sc_rt_logger.cpp)
     out.mkdir(parents=True, exist_ok=True)
     cfg_path = out / "controller_config.bin"
     cfg_path.write_bytes(scn.controller_config_msg().encode())
@@ -402,6 +407,18 @@ def _start_record(b: _Bench) -> bytes:
     return encode_start(rec)
 
 
+def _logger_summary(err: str) -> dict[str, Any] | None:
+    """sc-rt-logger's exit summary (its stderr's last JSON line): events written, deepest queue."""
+    for line in reversed(err.splitlines()):
+        try:
+            d = json.loads(line)
+        except ValueError:
+            continue
+        if isinstance(d, dict) and "events" in d:
+            return d
+    return None
+
+
 def _judge_real_time(res: Run, summary: dict[str, Any], limits: RealtimeLimits) -> None:
     """One number of SAFE steps everywhere (the controller's, when it says:
     metrics.json, the console and timing.json agree; the rows that applied a
@@ -438,7 +455,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     scn, out, url, mode, prefix = b.scn, b.out, b.url, b.mode, b.prefix
     realtime_priority, setup, floor, ext, key = b.realtime_priority, b.setup, b.floor, b.ext, b.key
     ctl_bin, logger_bin, cfg_path, log_path, key_path = b.ctl_bin, b.logger_bin, b.cfg_path, b.log_path, b.key_path
-    logger = subprocess.Popen([logger_bin, "-q", "-f", "--flush-interval=20", "--lcm-url", url, str(log_path)],
+    logger = subprocess.Popen([logger_bin, "--flush-interval=20", "--lcm-url", url, str(log_path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs())
     stopper.logger = logger
     # a non-empty log means the logger is listening: publish a marker until it
@@ -503,11 +520,11 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     stopped = res.message if res.partial else None
     if not res.partial and logger_rc not in (0, -signal.SIGINT):
         # the logger failed at the very end (its last flush): the log may be short of the run
-        stopped = f"lcm-logger exited with code {logger_rc} at the end of the run"
+        stopped = f"sc-rt-logger exited with code {logger_rc} at the end of the run"
         res.partial = True
         res.metrics.update(stopped=stopped, t_reached_s=float(res.t[-1]) if len(res) else None)
     if stopped and logger_err and logger_rc not in (0, -signal.SIGINT):
-        stopped += f" (lcm-logger: {logger_err.splitlines()[-1]})"
+        stopped += f" (sc-rt-logger: {logger_err.splitlines()[-1]})"
         res.metrics["stopped"] = stopped
     summary_path = out / "controller_summary.json"
     try:  # (empty when the controller could not write it: a full disk)
@@ -540,9 +557,14 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     res.timing["logger_scheduler"] = logger_policy
     res.timing["log_missing"] = log_missing(log_path, prefix, len(res),
                                             {c: int(res.counters.get(k, 0)) for c, k in SENT_COUNTERS.items()})
-    if any(res.timing["log_missing"].values()):
-        print(f"sc-rt hil: WARNING: lcm-logger missed messages of this run: {res.timing['log_missing']} "
-              f"(it runs {logger_policy}; docs/HIL.md, 'A complete log')", file=sys.stderr)
+    res.timing["logger"] = _logger_summary(logger_err)
+    if any(res.timing["log_missing"].values()):  # the log is the run's evidence: a lost message fails it
+        lost = {c: n for c, n in res.timing["log_missing"].items() if n}
+        why = (f"the log lost {sum(lost.values())} messages of this run ({lost}; the logger runs "
+               f"{logger_policy}; docs/HIL.md, 'A complete log')")
+        res.metrics["valid"] = False
+        res.metrics.setdefault("invalid_reason", why)
+        print(f"sc-rt hil: {why}", file=sys.stderr)
     res.timing.update(_bench_timing(res, summary, emu, setup))
     if floor:
         res.timing["floor"] = floor

@@ -62,6 +62,7 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     # sc-rt hil's end marker in the log: everything published before it was logged
     out["log_complete"] = d.skipped.get(d.prefix + "SCRT_HIL_END", 0) > 0
     out["logger_scheduler"] = "unknown (not in the log)"
+    out["logger"] = None  # its exit summary is not in the log
     if d.start is not None:  # the run's own record: how it was triggered
         out["trigger"] = d.start.get("trigger")
         out["mode"] = d.start.get("mode", out["mode"])

@@ -175,6 +175,8 @@ class OutDir:
         self._claimed = False
         try:
             self._write_manifest(done=True)
+        except OSError:  # a full disk: the next run treats this one as died (all it added is its own)
+            pass
         finally:
             (self.path / LOCK).unlink(missing_ok=True)
 

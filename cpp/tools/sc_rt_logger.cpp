@@ -1,0 +1,126 @@
+// sc-rt-logger: every message on an LCM bus into an lcm-logger-format log,
+// without losing one at the bench's rates. lcm-logger subscribes with LCM's
+// default 30-message queue: a burst of ~14,000 messages/s in lockstep lost up
+// to 162 of 601 states (RcvbufErrors 0). This logger is the same file format
+// (lcm's own eventlog writer) behind a deep subscription queue, writing from
+// its own thread and flushing every --flush-interval ms; SIGINT/SIGTERM
+// drain what is queued, then close. Its exit summary (stderr, JSON) says how
+// many events it wrote and the deepest its queue got.
+//   sc-rt-logger --lcm-url URL [--flush-interval MS] [--queue N] FILE
+#include <lcm/eventlog.h>
+#include <lcm/lcm.h>
+#include <signal.h>
+#include <time.h>
+
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+namespace {
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop = true; }
+
+int64_t mono_ms() {
+  timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return int64_t(ts.tv_sec) * 1000 + ts.tv_nsec / 1000000;
+}
+
+struct Ctx {
+  lcm_eventlog_t* log = nullptr;
+  lcm_subscription_t* sub = nullptr;
+  int64_t events = 0;
+  int64_t write_errors = 0;
+  int deepest = 0;
+};
+
+void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+  auto* c = static_cast<Ctx*>(user);
+  lcm_eventlog_event_t ev{};
+  ev.eventnum = c->events;
+  ev.timestamp = rbuf->recv_utime;
+  ev.channellen = static_cast<int32_t>(std::strlen(channel));
+  ev.datalen = static_cast<int32_t>(rbuf->data_size);
+  ev.channel = const_cast<char*>(channel);
+  ev.data = rbuf->data;
+  if (lcm_eventlog_write_event(c->log, &ev) != 0) ++c->write_errors;
+  ++c->events;
+  const int q = lcm_subscription_get_queue_size(c->sub);
+  if (q > c->deepest) c->deepest = q;
+}
+
+const char kUsage[] =
+    "usage: sc-rt-logger --lcm-url URL [--flush-interval MS] [--queue N] FILE\n"
+    "Every message on the bus into FILE (lcm-logger's format), with a deep queue.\n";
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string url, path;
+  long flush_ms = 20, queue = 1000000;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const std::string& name) -> std::string {
+      if (a.rfind(name + "=", 0) == 0) return a.substr(name.size() + 1);
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "sc-rt-logger: %s needs a value\n", name.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--help" || a == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    } else if (a == "--lcm-url" || a.rfind("--lcm-url=", 0) == 0) {
+      url = value("--lcm-url");
+    } else if (a == "--flush-interval" || a.rfind("--flush-interval=", 0) == 0) {
+      flush_ms = std::atol(value("--flush-interval").c_str());
+    } else if (a == "--queue" || a.rfind("--queue=", 0) == 0) {
+      queue = std::atol(value("--queue").c_str());
+    } else if (!a.empty() && a[0] != '-' && path.empty()) {
+      path = a;
+    } else {
+      std::fprintf(stderr, "sc-rt-logger: unknown argument '%s'\n%s", a.c_str(), kUsage);
+      return 2;
+    }
+  }
+  if (path.empty() || flush_ms <= 0 || queue <= 0) {
+    std::fputs(kUsage, stderr);
+    return 2;
+  }
+  lcm_t* lcm = lcm_create(url.empty() ? nullptr : url.c_str());
+  if (lcm == nullptr) {
+    std::fprintf(stderr, "sc-rt-logger: cannot start LCM on %s\n", url.c_str());
+    return 3;
+  }
+  Ctx c;
+  c.log = lcm_eventlog_create(path.c_str(), "w");
+  if (c.log == nullptr) {
+    std::fprintf(stderr, "sc-rt-logger: cannot write %s\n", path.c_str());
+    return 2;
+  }
+  struct sigaction sa{};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  c.sub = lcm_subscribe(lcm, ".*", on_message, &c);
+  lcm_subscription_set_queue_capacity(c.sub, static_cast<int>(queue));
+  int64_t next_flush = mono_ms() + flush_ms;
+  while (!g_stop) {
+    lcm_handle_timeout(lcm, static_cast<int>(flush_ms));
+    if (mono_ms() >= next_flush) {
+      std::fflush(c.log->f);
+      next_flush = mono_ms() + flush_ms;
+    }
+  }
+  while (lcm_handle_timeout(lcm, 0) > 0) {  // what is queued already: into the log too
+  }
+  std::fflush(c.log->f);
+  lcm_eventlog_destroy(c.log);
+  lcm_unsubscribe(lcm, c.sub);
+  lcm_destroy(lcm);
+  std::fprintf(stderr, "{\"events\": %lld, \"write_errors\": %lld, \"deepest_queue\": %d, \"queue\": %ld}\n",
+               static_cast<long long>(c.events), static_cast<long long>(c.write_errors), c.deepest, queue);
+  return c.write_errors ? 1 : 0;
+}
