@@ -647,6 +647,9 @@ def test_hil_with_a_reset_that_throws_keeps_the_controller_alive(plugins, tmp_pa
     summary = json.loads((out / "controller_summary.json").read_text())
     # the NaN second: one step in lockstep; real time may step on that state again (stale)
     assert summary["law_failures"]["step"] == 1 if mode == "lockstep" else summary["law_failures"]["step"] >= 1
+    # one number of SAFE steps everywhere (issue #25, case 5): metrics.json is the controller's count
+    timing = json.loads((out / "timing.json").read_text())
+    assert m["safe_steps"] == timing["controller_safe_steps"] == summary["safe_steps"] > 0
     if mode == "lockstep":
         sim = simulate(load_scenario("paper_fault_free"), law=_spec(plugins["throws_in"]), engine="python",
                        duration=5.0)
@@ -749,3 +752,15 @@ def test_montecarlo_of_100_runs_where_some_draws_make_reset_throw(plugins, tmp_p
     assert s["runs"] == 100 and 1 <= len(want) < 100 and failed == want, (len(want), s["status"])
     assert all("reset exploded on this draw" in x["message"] for x in rows if x["status"] == "law_failed")
     assert s["status"]["ok"] + s["status"]["law_failed"] == 100
+
+
+def test_compare_with_a_failing_law_completes_and_says_which(plugins, tmp_path):
+    out = tmp_path / "cmp"
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "compare", "paper_fault_free", "--law", "pd", "--law",
+                        _spec(plugins["throws_in"]), "--duration", "5", "--out", str(out)],
+                       capture_output=True, text=True, env=_env())
+    assert r.returncode == 1, r.stderr  # a law failed: the comparison is done, and says so
+    rows = json.loads((out / "compare.json").read_text())["rows"]
+    assert [x["law"] for x in rows] == ["pd", "t-throws-in"] and [x["valid"] for x in rows] == [True, False]
+    assert "reset exploded" in rows[1]["invalid_reason"]
+    assert "t-throws-in INVALID" in r.stderr and "| no |" in r.stdout

@@ -1,6 +1,6 @@
 // A PD that fails outside step(): its reset throws at every re-engagement
 // (the first engagement passes), or its after() throws at t_after, and it
-// returns NaN for one step at t_nan (a SAFE step: the next step re-engages,
+// returns NaN for t in [t_nan, t_nan + 0.25) s (a SAFE step: the next step re-engages,
 // calling reset). Every failure must be contained (SAFE + FLAG_LAW_INVALID,
 // counted and named) and the run must go on (issue #25).
 #include <limits>
@@ -18,7 +18,7 @@ struct ThrowsIn final : sc_rt::ControlLaw {
   }
   void step(const sc_rt::LawInput& in, sc_rt::LawOutput& out) override {
     out.u_cmd = -Bp * (0.05 * in.e.sigma_BD + 0.24 * in.e.omega_BD_B);
-    if (in.t >= t_nan - 1e-9 && in.t < t_nan + 0.05) out.u_cmd(0) = std::numeric_limits<double>::quiet_NaN();
+    if (in.t >= t_nan - 1e-9 && in.t < t_nan + 0.25) out.u_cmd(0) = std::numeric_limits<double>::quiet_NaN();
     t_last = in.t;
   }
   void after(const sc_rt::Vec4&, const sc_rt::Vec4&) override {
