@@ -164,11 +164,19 @@ def test_killed_controller_is_replaced_and_the_log_keeps_everything(tmp_path):
     # the kill once the controller answers, the restart after a 1.5 s outage
     # (the scenario, not a wait); marks.txt gets the simulation time at the
     # kill, at the restart and once the new controller is up
+    # The controllers are started by hand (--external-wait): the bench does not
+    # own them, so one that dies may be replaced and the run goes on. (A
+    # controller that sc-rt hil starts and that dies fails the run: issue #25,
+    # tests/test_laws.py.)
+    ctl = shlex.quote(str(Path(sys.executable).parent / 'sc-rt-controller'))
     script = f"""
 {PY} -m sc_rt.cli hil scenarios/paper_faults.toml --controller pd --mode realtime --control-rate 50 \\
-    --duration {duration} --no-plots --out {out} --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
+    --duration {duration} --no-plots --out {out} --lcm-url '{url}' --external-wait --start-timeout 60 \\
+    > {tmp_path}/hil.log 2>&1 &
 HIL=$!
 export SCRT_WAIT_PID=$HIL
+until grep -q 'waiting up to' {tmp_path}/hil.log; do sleep 0.05; done
+{ctl} --config {out}/controller_config.bin --mode realtime --lcm-url '{url}' > /dev/null 2>&1 &
 {wait} cmd 60 > /dev/null || exit 3
 T_KILL=$({wait} state 60) || exit 3
 pkill -KILL -f '^[^ ]*sc-rt-controller --config {out}'
@@ -229,7 +237,8 @@ wait $NEW
             m = sc_rt_lcm.wheel_cmd_t.decode(ev.data)
             cmd_by_session.setdefault(m.session, []).append(m.seq)
     n = timing["rows"]
-    assert sorted(seqs["SCRT_STATE"]) == list(range(n))
+    # (state 0 is sent again until the first controller, started by hand, answers it)
+    assert sorted(set(seqs["SCRT_STATE"])) == list(range(n)) and seqs["SCRT_STATE"].count(1) == 1
     assert sorted(seqs["SCRT_TRUTH"]) == list(range(n))
     assert len(cmd_by_session) == 2
     for s in cmd_by_session.values():
