@@ -44,7 +44,7 @@ sysdeps-demo:
 	@PYTHON='$(PYTHON)' VENV='$(VENV)' $(SYSDEPS) demo
 
 # The check before the build (it may install g++): prerequisites in order, even with -j.
-.NOTPARALLEL: demo test
+.NOTPARALLEL: demo test check-sanitizers
 
 demo: sysdeps-demo install
 	$(VENV)/bin/sc-rt demo --out out/demo
@@ -68,3 +68,11 @@ stubs: install
 .PHONY: test-fast
 test-fast:
 	$(PY) -m pytest -m "not slow" $(PYTEST_ARGS)
+
+# Sanitizer builds (build/asan: ASan+UBSan, build/tsan: TSan; incremental,
+# -DSC_RT_SANITIZE, cmake/Sanitizers.cmake) and their runs: the controller
+# over LCM, the bindings under the C++-heavy tests. `make test` runs them too
+# (tests/test_sanitizers.py, marked slow); this target runs only them.
+.PHONY: check-sanitizers
+check-sanitizers: sysdeps install
+	$(PY) -m pytest tests/test_sanitizers.py $(PYTEST_ARGS)

@@ -56,11 +56,45 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20191001)
 
 
+#: Tests of 0.7 s or more each (measured here with --durations on 2 shared
+#: cores), left out of the fast loop (`pytest -m "not slow"`, under a minute)
+#: and run by `make test` like every other: whole LCM runs, CLI round trips.
+SLOW_TESTS = (
+    "tests/test_auth_config.py::test_config_channel_takes_only_a_verified_configuration",
+    "tests/test_check.py::test_cli_exit_codes",
+    "tests/test_cli_input.py::test_scrt_lcm_url_is_the_url_of_hil_and_emulator",
+    "tests/test_controllers.py::test_reengagement_an_hour_into_a_1khz_run_costs_a_bounded_number_of_guidance_steps",
+    "tests/test_doc_refs.py::test_every_cited_path_and_symbol_resolves",
+    "tests/test_external.py::test_python_law_through_lcm_equals_offline_bitwise",
+    "tests/test_floor.py::test_floor_of_an_event_triggered_null_controller",
+    "tests/test_floor.py::test_self_test_prints_the_floor_table",
+    "tests/test_hil_sensors.py::test_hostile_sensor_messages_during_a_lockstep_run_change_nothing",
+    "tests/test_hil_sensors.py::test_lockstep_with_sensors_is_bit_identical_to_sim",
+    "tests/test_library.py::test_each_shipped_scenario_states_what_its_run_does_and_does_it",
+    "tests/test_mcap.py::test_bad_output_paths",
+    "tests/test_mcap.py::test_damaged_logs_are_refused_unless_partial",
+    "tests/test_mcap.py::test_fuzzed_logs_export_or_are_refused_never_crash",
+    "tests/test_mcap.py::test_hil_and_report_write_the_same_mcap_as_export",
+    "tests/test_montecarlo.py::test_cli_writes_the_report_and_the_dataset",
+    "tests/test_out_dir.py::test_a_rerun_without_plots_keeps_no_figure_of_the_run_before",
+    "tests/test_realtime_kept.py::test_a_realtime_run_whose_controller_hangs_is_invalid",
+    "tests/test_references.py::test_a_file_reference_reaches_the_controller_process_and_the_log",
+    "tests/test_report.py::test_report_without_config_needs_a_scenario",
+    "tests/test_reproduce.py::test_command_writes_where_out_says_whatever_the_working_directory",
+    "tests/test_reproduce.py::test_feasible_design_holds_its_bound_in_both_paper_cases",
+    "tests/test_robustness.py::test_stale_states_give_safe_mode_and_recovery",
+    "tests/test_start_record.py::test_report_labels_a_lockstep_run_of_a_statusless_external_controller",
+    "tests/test_unsampled.py::test_sampled_loop_converges_to_the_unsampled_reference",
+)
+
+
 def pytest_collection_modifyitems(items):
     """Tests that need the out-of-tree plugin builds (the ``plugins`` fixture of
-    test_laws.py: a cmake build of every example plugin, 10-20 s once) are slow."""
+    test_laws.py, ``laws`` of test_law_door.py: a cmake build of example
+    plugins, 2-20 s once) are slow, and so are those of SLOW_TESTS."""
     for item in items:
-        if "plugins" in getattr(item, "fixturenames", ()):
+        if {"plugins", "laws"} & set(getattr(item, "fixturenames", ())) or \
+                item.nodeid.split("[")[0] in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
 
 

@@ -98,7 +98,10 @@ void Shell::handle_state(const lcm::ReceiveBuffer* rb) {
       sc_rt::measurement_valid(sc_rt::measurement_from_lcm(msg), ctl_->config().safety);
   const sc_rt::GateVerdict v = gate_->offer(now, msg.session, msg.seq, valid);
   if (v == sc_rt::GateVerdict::Duplicate) {
-    // lockstep: the plant re-sent a state it had no answer to: answer again
+    // lockstep: the plant re-sent a state it had no answer to: answer again.
+    // Not under mu_: publish_status takes it for the estimator's counts
+    // (holding it here deadlocked a [sensors] run at the first re-sent state).
+    lock.unlock();
     if (!opt_.realtime && have_cmd_) {
       publish_cmd(last_cmd_, msg.seq);
       publish_status(last_cmd_, msg.seq, 0.0, 0.0, 0.0);
