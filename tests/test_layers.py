@@ -52,19 +52,21 @@ def test_layers_contract_holds_on_the_tree(tmp_path):
     assert "1 kept, 0 broken" in r.stdout
 
 
-def test_layers_contract_catches_a_lower_layer_importing_a_higher_one(tmp_path):
-    dst = _copy(tmp_path, "scrt_layers_bad")
-    plant = dst / "model" / "plant.py"
-    plant.write_text(plant.read_text() + f"\n\ndef _oops():\n    from {dst.name}.cli import main  # noqa\n")
+def _broken_by(tmp_path: Path, name: str, module: str, target: str) -> None:
+    """A copy of the package in which ``module`` (a path under it) imports
+    ``target`` inside a function must break the contract, naming the import."""
+    dst = _copy(tmp_path, name)
+    f = dst / module
+    f.write_text(f.read_text() + f"\n\ndef _oops():\n    import {dst.name}.{target}  # noqa\n")
     r = _lint(_contract_config(tmp_path, dst.name), tmp_path, tmp_path)
     assert r.returncode != 0
-    assert "BROKEN" in r.stdout and f"{dst.name}.model.plant -> {dst.name}.cli" in r.stdout, r.stdout
+    src = f"{dst.name}." + module.removesuffix(".py").replace("/", ".")
+    assert "BROKEN" in r.stdout and f"{src} -> {dst.name}.{target}" in r.stdout, r.stdout
+
+
+def test_layers_contract_catches_a_lower_layer_importing_a_higher_one(tmp_path):
+    _broken_by(tmp_path, "scrt_layers_bad", "model/plant.py", "cli.main")
 
 
 def test_layers_contract_keeps_peer_packages_independent(tmp_path):
-    dst = _copy(tmp_path, "scrt_layers_peer")
-    twin = dst / "emulator" / "twin.py"
-    twin.write_text(twin.read_text() + f"\n\ndef _oops():\n    from {dst.name}.logs import lcmlog  # noqa\n")
-    r = _lint(_contract_config(tmp_path, dst.name), tmp_path, tmp_path)
-    assert r.returncode != 0
-    assert "BROKEN" in r.stdout and f"{dst.name}.emulator.twin -> {dst.name}.logs.lcmlog" in r.stdout, r.stdout
+    _broken_by(tmp_path, "scrt_layers_peer", "emulator/twin.py", "logs.lcmlog")
