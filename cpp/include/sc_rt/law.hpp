@@ -11,6 +11,8 @@
 //
 // Bump SC_RT_LAW_API_VERSION whenever any type of this file changes layout
 // or meaning; the loader refuses a plugin built against another version.
+// tests/test_law_abi.py pins this file's declarations per version: a change
+// without a bump fails it.
 #pragma once
 #include <array>
 #include <cmath>
