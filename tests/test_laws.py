@@ -472,6 +472,25 @@ def test_new_law_scaffold_builds_and_runs(tmp_path):
     assert again.returncode == 2 and "exists" in again.stderr
 
 
+
+@pytest.mark.slow
+@pytest.mark.parametrize("lang", ["cpp", "python"])
+def test_the_scaffolds_own_test_passes_without_an_activated_venv(tmp_path, lang):
+    """Issue #26, item 6: the generated test finds sc-rt and cmake next to
+    the interpreter that runs it (PATH without the venv), and asserts a
+    law-independent property (to the end, finite, never SAFE) beside the PD's
+    own check. Before, it called `sc-rt` and `cmake` from PATH."""
+    proj = tmp_path / "mylaw"
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "new-law", "my-law", "--lang", lang, "--out", str(proj)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    env = {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(proj / "test_my_law.py")],
+                       capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "2 passed" in r.stdout
+
+
 def test_compare_table(plugins, tmp_path):
     r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "compare", "paper_fault_free", "--law", "pd",
                         "--law", _spec(plugins["qf"]), "--duration", "20", "--out", str(tmp_path)],
