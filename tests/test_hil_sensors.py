@@ -92,7 +92,7 @@ def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measureme
     d = read_log(out / "run.lcmlog")
     ss = sensor_summary(d)
     assert not any(timing["log_missing"].values()), timing["log_missing"]
-    for key, ch, sent in (("gyro", "SCRT_GYRO", "gyro_sent"), ("star_tracker", "SCRT_STAR", "star_sent"),
+    for key, _ch, sent in (("gyro", "SCRT_GYRO", "gyro_sent"), ("star_tracker", "SCRT_STAR", "star_sent"),
                           ("tachometer", "SCRT_TACH", "tach_sent")):
         got = ss[key]
         assert got["repeated"] == 0 and got["other_sessions"] == 0, (key, got)

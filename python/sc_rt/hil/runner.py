@@ -394,7 +394,8 @@ def _start_record(b: _Bench) -> bytes:
     """The run's start record, the log's first message (SCRT_HIL_START): what
     the run is, so that every consumer of the log reads it instead of
     guessing: scenario, mode, trigger, rate, the law's identity (name, spec,
-    a plugin's file and SHA-256; an external controller's command), run id."""
+    a plugin's file and SHA-256; an external controller's command), run id,
+    and the scenario's requirements (what ``sc-rt report`` judges the log by)."""
     from sc_rt.results.output import claimed_run_id
     from sc_rt.scenario.model import law_identity
 
@@ -403,7 +404,8 @@ def _start_record(b: _Bench) -> bytes:
     rec = {"scenario": b.scn.name, "mode": b.mode,
            "trigger": b.setup.trigger if b.mode == "realtime" else None,
            "control_rate_hz": float(b.scn.run.control_rate_hz), "duration_s": float(b.scn.run.duration),
-           "time_scale": b.time_scale, "law": law, "run_id": claimed_run_id(b.out), "sc_rt": __version__}
+           "time_scale": b.time_scale, "law": law, "run_id": claimed_run_id(b.out), "sc_rt": __version__,
+           "requirements": [dataclasses.asdict(r) for r in b.scn.requirements]}
     return encode_start(rec)
 
 

@@ -81,6 +81,17 @@ def _main_session(records: np.ndarray) -> int | None:
     return int(v[np.argmax(n)])
 
 
+def _requirements(d, scenario: str | None) -> tuple[dict[str, Any], ...]:
+    """What the log is judged by: ``--scenario``'s [[requirements]] when given
+    (judging a run by another budget), else the run's own from its start
+    record; none for a log from before sc-rt logged them."""
+    if scenario:
+        from sc_rt.scenario.reader import load_scenario
+
+        return tuple(dataclasses.asdict(r) for r in load_scenario(scenario).requirements)
+    return tuple((d.start or {}).get("requirements") or ())
+
+
 def write_report(log: str | Path, out: str | Path, *, scenario: str | None = None,
                  prefix: str | None = None, mode: str | None = None, plots: bool = True) -> dict[str, Any]:
     """Read ``log`` and write metrics.json, timing.json, trajectory.npz,
@@ -115,7 +126,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
         law = ident["name"]  # an external controller: the name it announced (controller_label)
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
-                   wall_s=wall, mode=r.mode, law_identity=ident, **nav)
+                   wall_s=wall, mode=r.mode, law_identity=ident, requirements=_requirements(d, scenario), **nav)
     run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:
         run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None}

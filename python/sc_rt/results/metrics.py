@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.results.estimation import estimation_metrics, fill_estimation_error, fill_true_tracking_error
+from sc_rt.results.requirements import evaluate_requirements
 from sc_rt.results.run import CORE_FIELDS, Run, json_safe
 from sc_rt.results.verdict import pointing_arcsec, safe_summary
 
@@ -158,7 +159,8 @@ def compute_metrics(run: Run) -> dict[str, Any]:
 
 def finish_run(run: Run) -> Run:
     """The derived fields and the metrics of a run its producer has filled:
-    ``bound_ok`` from the envelope in ``run.meta``, then ``run.metrics``."""
+    ``bound_ok`` from the envelope in ``run.meta``, then ``run.metrics``,
+    with the scenario's requirements judged (``metrics["requirements"]``)."""
     # a producer that ran the sensors filled the estimator's fields (offline, or the bench from
     # controller_status_t)
     sensed = bool(getattr(run.meta, "sensors", False)) and bool(run.present("sigma_BN_est").any())
@@ -187,6 +189,8 @@ def finish_run(run: Run) -> Run:
         metrics["finite"] = False
     if run.partial:
         metrics["partial"] = True
+    # the scenario's [[requirements]], each judged (sc_rt.results.requirements); [] none stated
+    metrics["requirements"] = evaluate_requirements(run, sensed)
     metrics.update({k: v for k, v in run.metrics.items() if k not in metrics})
     run.metrics = metrics
     return run

@@ -178,6 +178,10 @@ class RunMeta:
     law_identity : dict or None
         Who the law is (``sc_rt.scenario.model.law_identity``): name, spec,
         source and, for a plugin, its file and the file's SHA-256.
+    requirements : tuple of dict
+        The scenario's ``[[requirements]]`` rows (every field of
+        ``sc_rt.scenario.requirements.Requirement``), what the run is judged
+        by (sc_rt.results.requirements); ``()``: none stated.
     """
 
     scenario: str
@@ -200,6 +204,8 @@ class RunMeta:
     sensors: bool = False
     #: who the law is: name, spec, source (and a plugin's file and its sha256)
     law_identity: dict[str, Any] | None = None
+    #: the scenario's [[requirements]] rows as dicts (sc_rt.scenario.requirements.Requirement's fields)
+    requirements: tuple[dict[str, Any], ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self))
@@ -210,6 +216,7 @@ class RunMeta:
         d["ppc"] = {k: tuple(float(x) for x in v) for k, v in d["ppc"].items()}
         d["umin"], d["umax"] = tuple(d["umin"]), tuple(d["umax"])
         d["faults"] = tuple(d.get("faults", ()))
+        d["requirements"] = tuple(d.get("requirements", ()))
         d["wall_s"] = math.nan if d.get("wall_s") is None else float(d["wall_s"])
         return cls(**d)
 
@@ -228,7 +235,8 @@ class RunMeta:
                   ppc={k: tuple(float(x) for x in np.asarray(getattr(p, k), float))
                        for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")},
                   umin=tuple(float(x) for x in np.asarray(a.umin, float)),
-                  umax=tuple(float(x) for x in np.asarray(a.umax, float)), faults=faults)
+                  umax=tuple(float(x) for x in np.asarray(a.umax, float)), faults=faults,
+                  requirements=tuple(dataclasses.asdict(r) for r in getattr(scn, "requirements", ())))
         sensors = getattr(scn, "sensors", None)
         if sensors is not None:
             kw.update(sensors=True, measurement=sensors.measurement)

@@ -1,7 +1,9 @@
-"""The verdict of a run in words: did it hold its prescribed bound, when
-did it leave it, how long was the controller in SAFE and why. One place,
-used by the CLI, the demo and the reports, computed from ``metrics.json``
-(so a report of a log and of a live run say the same thing)."""
+"""The verdict of a run in words: did it meet its scenario's requirements
+(the worst margin), or, for a scenario that asks for the prescribed envelope
+only, did it hold that bound and when did it leave it; how long was the
+controller in SAFE and why. One place, used by the CLI, the demo and the
+reports, computed from ``metrics.json`` (so a report of a log and of a live
+run say the same thing)."""
 
 from __future__ import annotations
 
@@ -10,7 +12,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SAFE_FLAGS", "safe_summary", "verdict_line", "pointing_arcsec"]
+from sc_rt.results.requirements import worst
+
+__all__ = ["SAFE_FLAGS", "safe_summary", "verdict_line", "pointing_arcsec", "requirements_summary"]
 
 #: Controller flags that put it in SAFE (zero command), from wheel_cmd_t.
 SAFE_FLAGS = {128: "invalid state (non-finite or beyond the safety limits)", 256: "stale state",
@@ -43,6 +47,35 @@ def _s(v: float) -> str:
     return f"{v:.2f} s"
 
 
+def _g(v: float) -> str:
+    return f"{v:+.3g}"
+
+
+def requirements_summary(reqs: list[dict[str, Any]]) -> str:
+    """The requirements' part of the verdict: how many were met, which
+    failed, and the worst margin (the smallest margin relative to its
+    bound), in its own unit."""
+    if not reqs:
+        return "no requirements stated"
+    judged = [r for r in reqs if r.get("passed") is not None]
+    failed = [r["name"] for r in judged if not r["passed"]]
+    head = (f"{len(judged) - len(failed)}/{len(judged)} requirements met" if not failed
+            else f"{len(failed)} of {len(judged)} requirements failed ({', '.join(failed)})")
+    for status in ("not evaluated", "not applicable"):
+        if n := sum(r.get("status") == status for r in reqs):
+            head += f", {n} {status}"
+    w = worst(reqs)
+    if w is None:
+        return f"none of the {len(reqs)} requirements evaluated"
+    if w.get("margin") is None:
+        return f"{head}, worst: {w['name']} ({w.get('note', '')})"
+    if w.get("unit") == "-":  # the envelope: its margin is a fraction of the bound already
+        return f"{head}, worst margin {w['name']} {_g(w['margin'])} of its bound"
+    rel = w.get("relative_margin")
+    share = f" ({rel:+.1%} of its bound)" if rel is not None else ""
+    return f"{head}, worst margin {w['name']} {_g(w['margin'])} {w['unit']}{share}"
+
+
 def verdict_line(m: dict[str, Any], label: str | None = None) -> str:
     """One line: "paper DSC+PPC: left its prescribed bound at 4.10 s (axis z),
     SAFE from 240.0 s" or "...: bound held 300 s, worst |lambda| 0.88".
@@ -59,14 +92,21 @@ def verdict_line(m: dict[str, Any], label: str | None = None) -> str:
     Returns
     -------
     str
-        The verdict: the first bound violation [s] (and axis) or how long the
-        bound held and the worst |lambda|; then SAFE, divergence and a
-        partial run when they apply.
+        The verdict: with requirements other than the envelope, how many
+        were met and the worst margin ("no requirements stated" without
+        any); with the envelope alone (the paper's scenarios), or metrics
+        without a requirements entry (older files), the first bound
+        violation [s] (and axis) or how long the bound held and the worst
+        |lambda|; then SAFE, divergence and a partial run when they apply.
     """
     who = label or f"{m.get('scenario', '?')} {m.get('controller', '?')}"
     parts = []
+    reqs = m.get("requirements")
     first = m.get("first_bound_violation_s")
-    if first is not None:
+    envelope_only = bool(reqs) and all(r.get("kind") == "envelope" for r in reqs)
+    if reqs is not None and not envelope_only:
+        parts.append(requirements_summary(reqs))
+    elif first is not None:
         axis = m.get("first_bound_violation_axis")
         ax = f" (axis {AXES[axis - 1]})" if axis else ""
         parts.append(f"left its prescribed bound at {_s(first)}{ax}")

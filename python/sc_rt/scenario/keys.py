@@ -63,7 +63,17 @@ def scenario_data(scn: Any) -> dict[str, Any]:
         "controller": controller,
         "faults": faults,
         **_sensors(scn, controller),
+        **_requirements(scn),
     }
+
+
+def _requirements(scn: Any) -> dict[str, Any]:
+    """The [[requirements]] rows, if any."""
+    if not getattr(scn, "requirements", ()):
+        return {}
+    from sc_rt.scenario.requirements import requirements_data
+
+    return {"requirements": requirements_data(scn.requirements)}
 
 
 def _sensors(scn: Any, controller: dict[str, Any]) -> dict[str, Any]:
@@ -127,13 +137,21 @@ def value_shape(v: Any) -> tuple[int, ...] | None:
     return None
 
 
+#: Top-level tables of scenario data that are not the run's physics or
+#: controller (what it is judged by): no key of theirs is dispersed.
+NOT_DISPERSED = ("requirements",)
+
+
 def numeric_keys(data: dict[str, Any]) -> dict[str, tuple[tuple[int, ...], bool]]:
-    """Every numeric key of scenario data -> (shape, integer-valued)."""
+    """Every numeric key of scenario data -> (shape, integer-valued); the
+    requirements' keys are not among them (``NOT_DISPERSED``)."""
     out: dict[str, tuple[tuple[int, ...], bool]] = {}
 
     def walk(node: Any, key: str) -> None:
         if isinstance(node, dict):
             for k, v in node.items():
+                if not key and k in NOT_DISPERSED:
+                    continue
                 walk(v, f"{key}.{k}" if key else k)
         elif isinstance(node, list) and node and all(isinstance(x, dict) for x in node):
             for i, v in enumerate(node):

@@ -234,10 +234,10 @@ class Scenario:
     description : str
         The file's ``description`` key ("" without one).
     expect : str
-        The file's ``expect`` key: what its run does with its law and
-        envelope, "holds" (the prescribed bound holds to the end) or
-        "violates" (it leaves it); "" unstated. Every shipped scenario
-        states it and tests/test_library.py checks it by running the file.
+        The file's ``expect`` key: what its run's verdict is, "holds" (every
+        requirement of ``requirements`` is met) or "violates" (one is not);
+        "" unstated. Every shipped scenario states it and
+        tests/test_library.py checks it by running the file.
     path : Path
         The file the scenario was read from (relative plugin paths are
         resolved against its folder).
@@ -261,6 +261,9 @@ class Scenario:
     sensors : Sensors or None
         The ``[sensors]`` tables and ``[controller] measurement``
         (sc_rt.scenario.sensors), None without ``[sensors]``.
+    requirements : tuple of Requirement
+        The ``[[requirements]]`` rows (sc_rt.scenario.requirements), what a
+        run is judged by (sc_rt.results.requirements); ``()`` without any.
     """
 
     name: str
@@ -280,6 +283,8 @@ class Scenario:
     sensors: Any = None
     # the expect key: "holds", "violates" or "" (unstated)
     expect: str = ""
+    # the [[requirements]] rows (sc_rt.scenario.requirements.Requirement), () without any
+    requirements: tuple = ()
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None

@@ -34,6 +34,7 @@ from sc_rt.scenario.schema import (
     read_values,
 )
 from sc_rt.scenario.guidance import coverage_problem, read_guidance
+from sc_rt.scenario.requirements import read_requirements
 from sc_rt.scenario.sensors import read_sensors
 from sc_rt.scenario.shipped import resolve
 
@@ -318,6 +319,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     sensors = read_sensors(root, controller_table, run)  # [sensors], [controller] measurement, estimator
     controller = _read_controller(controller_table)
     faults = _read_faults(root)
+    requirements = read_requirements(root, run.duration if run else None)
     montecarlo = root.sub("montecarlo", required=False)  # read last: it names the others' keys
     root.finish()
     if initial is not None and actuators is not None:
@@ -342,6 +344,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         guidance=guidance,
         controller=controller,
         sensors=sensors,
+        requirements=requirements,
     )
     check_law(doc, scenario, "controller.law" if "law" in ctl_data else "run.controller",
                "controller.params")

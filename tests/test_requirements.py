@@ -1,0 +1,532 @@
+"""The [[requirements]] of a scenario and their evaluation on a run (issue #27;
+sc_rt.scenario.requirements, sc_rt.results.requirements, docs/REQUIREMENTS.md).
+
+The statistics are checked against answers known by construction or computed
+here independently with numpy/scipy, never with the module's own helpers:
+
+1. RPE of a sine against windows longer and shorter than its period, and
+   against a direct numpy computation; MPE of a ramp (a drift);
+2. the nearest-rank quantile against numpy's ``inverted_cdf`` and the
+   empirical CDF's definition (scipy.stats.ecdf);
+3. the settling time of an exponential decay; the half-cone angle of a
+   constructed rotation (Rodrigues, scipy's Rotation);
+4. the knowledge error against the core's own ``att_est_error``;
+5. the envelope requirement against the metrics' first violation;
+6. the schema: each bad row is a ScenarioError with file, line, key and
+   value, exit 2 from the CLI; the verdict and the console table.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sc_rt.results.metrics import finish_run
+from sc_rt.results.requirements import cone_vector, mrp_subtract, nearest_rank
+from sc_rt.results.run import Run, RunMeta
+from sc_rt.results.verdict import verdict_line
+from sc_rt.scenario.model import ScenarioError
+from sc_rt.scenario.reader import load_scenario
+from sc_rt.scenario.requirements import Requirement
+
+ROOT = Path(__file__).resolve().parent.parent
+ARCSEC = math.pi / 648000.0
+RATE = 10.0  # [Hz] the constructed runs' grid
+#: an envelope nothing here comes near (the constructed runs are judged by their requirements)
+WIDE = {k: (v,) * 3 for k, v in dict(chi0=1.0, chiinf=1.0, gamma=0.0, dmin=1.0, dmax=1.0).items()}
+
+
+def req(name: str, kind: str, **kw) -> dict:
+    """A requirement row as RunMeta carries it (the scenario's dataclass, as a dict)."""
+    return dataclasses.asdict(Requirement(name=name, kind=kind, **kw))
+
+
+def about_x(theta: np.ndarray) -> np.ndarray:
+    """MRPs (N, 3) of rotations by theta [rad] about the body x axis: the
+    rotation vector's x component is theta exactly (|theta| < pi)."""
+    s = np.zeros((len(theta), 3))
+    s[:, 0] = np.tan(np.asarray(theta, float) / 4.0)
+    return s
+
+
+def run_of(t: np.ndarray, sigma_BD: np.ndarray, reqs: list[dict], **arrays) -> Run:
+    """A run of ``t`` and ``sigma_BD`` (and ``arrays``), finished as every producer does."""
+    meta = RunMeta(scenario="constructed", law="pd", engine="python", control_rate_hz=RATE,
+                   duration_s=float(t[-1]), ppc=WIDE, umin=(-7.0,) * 4, umax=(10.0,) * 4,
+                   requirements=tuple(reqs))
+    return finish_run(Run(meta, {"t": t, "sigma_BD": sigma_BD, **arrays}))
+
+
+def result(run: Run, name: str) -> dict:
+    return next(r for r in run.metrics["requirements"] if r["name"] == name)
+
+
+def grid(duration: float) -> np.ndarray:
+    return np.arange(int(round(duration * RATE)) + 1) / RATE
+
+
+# --------------------------------------------------------------------------------------------- #
+# 1. RPE of a sine, MPE of a ramp
+
+
+def rpe_numpy(e: np.ndarray, n: int, p: float) -> float:
+    """RPE written out: non-overlapping windows of n samples from the first,
+    max |e - window mean| per window, numpy's inverted-CDF quantile over them."""
+    per = [np.max(np.abs(e[k:k + n] - e[k:k + n].mean())) for k in range(0, len(e) - n + 1, n)]
+    return float(np.quantile(per, p, method="inverted_cdf"))
+
+
+@pytest.mark.parametrize("window, period, expect", [
+    (20.0, 2.0, "amplitude"),   # ten whole periods per window: the mean is 0, the peak sampled: exactly A
+    (200.0, 7.3, "amplitude"),  # many periods, not whole: close to A
+    (0.2, 200.0, "zero"),       # two samples of a slow sine: at most A pi dt / P
+    (5.0, 20.0, "between"),     # a quarter period
+])
+def test_rpe_of_a_sine_against_numpy_and_its_limits(window, period, expect):
+    A = 40.0 * ARCSEC
+    t = grid(600.0)
+    theta = A * np.sin(2.0 * np.pi * t / period)
+    r = result(run_of(t, about_x(theta), [req("rpe", "RPE", axis="x", bound=1000.0, unit="arcsec",
+                                              confidence=0.95, interpretation="temporal", window=window)]), "rpe")
+    assert r["status"] == "pass" and r["unit"] == "arcsec"
+    n = int(round(window * RATE))
+    direct = rpe_numpy(theta, n, 0.95) / ARCSEC
+    assert r["value"] == pytest.approx(direct, rel=1e-9)
+    assert r["margin"] == pytest.approx(1000.0 - direct, rel=1e-9)
+    assert r["windows"] == len(t) // n
+    if expect == "amplitude":
+        tol = 1e-9 if period == 2.0 else 0.02
+        assert r["value"] == pytest.approx(40.0, rel=tol)
+    elif expect == "zero":
+        assert 0 < r["value"] <= 40.0 * math.pi * (1.0 / RATE) / period * (1 + 1e-9)
+        assert r["value"] < 0.01 * 40.0
+    else:
+        assert 0.1 * 40.0 < r["value"] < 40.0
+
+
+def test_rpe_norm_of_a_cone_sweep_is_its_radius():
+    """The pointing axis going round a cone of half-angle a (a coning error of
+    constant size): the rotation vector turns, its mean over whole turns is 0,
+    so over windows of whole turns the RPE of the norm is a (and the APE is a)."""
+    a, period = 25.0 * ARCSEC, 4.0
+    t = grid(400.0)
+    phase = 2.0 * np.pi * t / period
+    phi = np.stack([a * np.cos(phase), a * np.sin(phase), 0.0 * t], axis=1)  # rotation vectors
+    ang = np.linalg.norm(phi, axis=1)
+    sigma = np.tan(ang / 4.0)[:, None] * phi / ang[:, None]
+    run = run_of(t, sigma, [
+        req("rpe", "RPE", axis="norm", bound=30.0, unit="arcsec", confidence=0.9973,
+            interpretation="temporal", window=8.0),
+        req("ape", "APE", axis="norm", bound=30.0, unit="arcsec", confidence=0.5, interpretation="temporal"),
+        req("mpe", "MPE", axis="norm", bound=30.0, unit="arcsec", confidence=0.9973,
+            interpretation="temporal", window=8.0),
+    ])
+    assert result(run, "rpe")["value"] == pytest.approx(25.0, rel=1e-6)
+    assert result(run, "ape")["value"] == pytest.approx(25.0, rel=1e-9)
+    assert result(run, "mpe")["value"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_mpe_of_a_ramp_is_the_window_mean_of_the_drift():
+    r_drift = 0.05 * ARCSEC  # [rad/s]
+    t = grid(300.0)
+    theta = r_drift * t
+    w, t0, p = 10.0, 50.0, 0.9
+    run = run_of(t, about_x(theta), [req("mpe", "MPE", axis="x", bound=20.0, unit="arcsec", confidence=p,
+                                         interpretation="temporal", window=w, t_from=t0)])
+    r = result(run, "mpe")
+    # windows [t0 + k w, t0 + (k+1) w) of n samples; their means r (t0 + k w + (n - 1) dt / 2), increasing in k
+    n, dt = int(w * RATE), 1.0 / RATE
+    n_win = int((300.0 - t0 + dt) * RATE) // n
+    k = math.ceil(p * n_win)  # nearest rank
+    expected = 0.05 * (t0 + (k - 1) * w + (n - 1) * dt / 2.0)
+    assert r["windows"] == n_win == 25
+    assert r["value"] == pytest.approx(expected, rel=1e-9)
+    assert r["passed"] is (expected <= 20.0) and r["status"] == ("pass" if expected <= 20.0 else "fail")
+    # a drift has no relative error beyond the ramp inside one window: RPE = r w' / 2, w' = (n - 1) dt
+    run = run_of(t, about_x(theta), [req("rpe", "RPE", axis="x", bound=1.0, unit="arcsec", confidence=p,
+                                         interpretation="temporal", window=w, t_from=t0)])
+    assert result(run, "rpe")["value"] == pytest.approx(0.05 * (n - 1) * dt / 2.0, rel=1e-9)
+
+
+# --------------------------------------------------------------------------------------------- #
+# 2. Quantiles
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 100, 371, 2401])
+@pytest.mark.parametrize("p", [0.5, 0.9, 0.95, 0.9973, 1.0])
+def test_nearest_rank_is_numpys_inverted_cdf_and_the_ecdf_definition(n, p):
+    from scipy.stats import ecdf
+
+    x = np.random.default_rng(n).standard_exponential(n)
+    q = nearest_rank(x, p)
+    assert q == np.quantile(x, p, method="inverted_cdf")
+    cdf = ecdf(x).cdf
+    assert cdf.evaluate(q) >= p - 1e-12  # at least a fraction p of the samples are <= q
+    below = x[x < q]
+    assert below.size == 0 or cdf.evaluate(below.max()) < p  # and q is the smallest such sample
+
+
+def test_ape_is_the_quantile_of_the_rotation_angle_over_the_span():
+    rng = np.random.default_rng(5)
+    t = grid(200.0)
+    sigma = rng.normal(0.0, 2e-5, (len(t), 3))
+    angle = 4.0 * np.arctan(np.linalg.norm(sigma, axis=1)) / ARCSEC
+    run = run_of(t, sigma, [req("ape", "APE", axis="norm", bound=30.0, unit="arcsec", confidence=0.9973,
+                                interpretation="temporal", t_from=60.0, t_to=150.0)])
+    r = result(run, "ape")
+    span = (t >= 60.0 - 1e-9) & (t <= 150.0 + 1e-9)
+    expected = np.quantile(angle[span], 0.9973, method="inverted_cdf")
+    assert r["value"] == pytest.approx(expected, rel=1e-12) and r["samples"] == span.sum() == 901
+    assert r["span_s"] == [60.0, 150.0]
+    assert r["passed"] is bool(expected <= 30.0)
+    # in deg the same number, converted
+    run = run_of(t, sigma, [req("ape", "APE", axis="norm", bound=0.01, unit="deg", confidence=0.9973,
+                                interpretation="temporal", t_from=60.0, t_to=150.0)])
+    assert result(run, "ape")["value"] == pytest.approx(expected / 3600.0, rel=1e-12)
+
+
+# --------------------------------------------------------------------------------------------- #
+# 3. Settling and the cone
+
+
+@pytest.mark.parametrize("A_arcsec, tau, band", [(3600.0, 12.0, 30.0), (500.0, 7.3, 2.0)])
+def test_settling_time_of_an_exponential_decay(A_arcsec, tau, band):
+    t = grid(200.0)
+    theta = A_arcsec * ARCSEC * np.exp(-t / tau)
+    exact = tau * math.log(A_arcsec / band)  # the decay enters the band at this time
+    first = math.ceil(exact * RATE) / RATE   # the first sample at or after it
+    assert abs(exact * RATE - round(exact * RATE)) > 1e-3  # not on the grid: no rounding question
+    run = run_of(t, about_x(theta), [req("s", "settling", axis="x", bound=band, unit="arcsec", settle_by=60.0)])
+    r = result(run, "s")
+    assert r["value"] == pytest.approx(first, abs=1e-12) and r["unit"] == "s"
+    assert r["margin"] == pytest.approx(60.0 - first, abs=1e-12)
+    assert r["passed"] is (first <= 60.0)
+
+
+def test_settling_counts_a_late_excursion_and_a_run_that_never_settles():
+    t = grid(200.0)
+    theta = 3600.0 * ARCSEC * np.exp(-t / 5.0)
+    theta[t == 50.0] = 40.0 * ARCSEC  # one sample out of the 30 arcsec band at 50 s
+    run = run_of(t, about_x(theta), [req("s", "settling", axis="norm", bound=30.0, unit="arcsec", settle_by=60.0)])
+    assert result(run, "s")["value"] == pytest.approx(50.1)
+    theta[-1] = 40.0 * ARCSEC  # out at the end: never settled
+    run = run_of(t, about_x(theta), [req("s", "settling", axis="norm", bound=30.0, unit="arcsec", settle_by=60.0),
+                                     req("after", "APE", axis="norm", bound=30.0, unit="arcsec", confidence=0.9,
+                                         interpretation="temporal", t_from="after_settling", settling="s")])
+    r, after = result(run, "s"), result(run, "after")
+    assert r["passed"] is False and r["value"] is None and "never settled" in r["note"]
+    assert after["status"] == "not evaluated" and "never settled" in after["note"]
+
+
+def test_after_settling_starts_the_span_at_the_settling_time():
+    t = grid(100.0)
+    theta = 3600.0 * ARCSEC * np.exp(-t / 5.0)
+    run = run_of(t, about_x(theta), [
+        req("s", "settling", axis="norm", bound=30.0, unit="arcsec", settle_by=60.0),
+        req("ape", "APE", axis="norm", bound=30.0, unit="arcsec", confidence=1.0, interpretation="temporal",
+            t_from="after_settling", settling="s")])
+    ts = result(run, "s")["value"]
+    r = result(run, "ape")
+    assert r["span_s"][0] == ts and r["samples"] == int(np.sum(t >= ts - 1e-9))
+    assert r["value"] == pytest.approx(theta[t >= ts - 1e-9].max() / ARCSEC, rel=1e-9)  # p = 1: the max
+
+
+def rodrigues_cone(axis: np.ndarray, angle: float, b: np.ndarray) -> float:
+    """The angle between b and b rotated by ``angle`` about unit ``axis``:
+    cos = cos(angle) + (1 - cos(angle)) (axis . b)^2."""
+    c = math.cos(angle) + (1.0 - math.cos(angle)) * float(axis @ b) ** 2
+    return math.acos(min(1.0, max(-1.0, c)))
+
+
+def test_cone_half_angle_of_constructed_rotations():
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(3)
+    b = np.array([0.3, -0.2, 0.9])
+    b /= np.linalg.norm(b)
+    for _ in range(50):
+        e = rng.normal(size=3)
+        e /= np.linalg.norm(e)
+        angle = rng.uniform(1e-6, 0.5)
+        sigma = np.tan(angle / 4.0) * e
+        got = np.linalg.norm(cone_vector(sigma[None, :], b)[0])
+        assert got == pytest.approx(rodrigues_cone(e, angle, b), rel=1e-9, abs=1e-15)
+        moved = Rotation.from_rotvec(angle * e).apply(b)
+        assert got == pytest.approx(math.acos(np.clip(moved @ b, -1, 1)), rel=1e-6, abs=1e-9)
+    # about the boresight: no cone error; perpendicular to it: the whole angle
+    assert np.linalg.norm(cone_vector((np.tan(0.3 / 4.0) * b)[None, :], b)) == pytest.approx(0.0, abs=1e-15)
+    perp = np.cross(b, [1.0, 0.0, 0.0])
+    perp /= np.linalg.norm(perp)
+    assert np.linalg.norm(cone_vector((np.tan(0.3 / 4.0) * perp)[None, :], b)) == pytest.approx(0.3, rel=1e-12)
+
+
+def test_cone_requirement_through_a_run():
+    t = grid(50.0)
+    b = np.array([0.0, 0.0, 1.0])
+    # 20 arcsec about x (tilts z by 20 arcsec) and 100 arcsec about z (a roll about the boresight)
+    phi = np.tile([20.0 * ARCSEC, 0.0, 100.0 * ARCSEC], (len(t), 1))
+    ang = np.linalg.norm(phi, axis=1)
+    sigma = np.tan(ang / 4.0)[:, None] * phi / ang[:, None]
+    run = run_of(t, sigma, [req("cone", "APE", axis="cone", boresight=tuple(b), bound=25.0, unit="arcsec",
+                                confidence=0.95, interpretation="temporal"),
+                            req("norm", "APE", axis="norm", bound=25.0, unit="arcsec", confidence=0.95,
+                                interpretation="temporal")])
+    expected = rodrigues_cone(phi[0] / ang[0], ang[0], b) / ARCSEC
+    assert 19.9 < expected < 20.1
+    assert result(run, "cone")["value"] == pytest.approx(expected, rel=1e-9) and result(run, "cone")["passed"]
+    norm = result(run, "norm")
+    assert norm["value"] == pytest.approx(ang[0] / ARCSEC, rel=1e-9) and not norm["passed"]
+
+
+def test_mrp_helpers_agree_with_the_core():
+    from sc_rt import _core
+
+    rng = np.random.default_rng(9)
+    a, b = rng.uniform(-0.6, 0.6, (20, 3)), rng.uniform(-0.6, 0.6, (20, 3))
+    got = mrp_subtract(a, b)
+    for i in range(20):
+        np.testing.assert_allclose(got[i], _core.mrp_subtract(a[i], b[i]), atol=1e-14)
+
+
+# --------------------------------------------------------------------------------------------- #
+# 4.-5. Knowledge error, wheels, commands, envelope on real runs
+
+
+def test_knowledge_error_is_the_estimate_against_the_truth():
+    from sc_rt.sim.engines import simulate
+
+    scn = load_scenario("ppc_feasible_10hz_sensors")
+    scn = dataclasses.replace(scn, requirements=(
+        Requirement("ake", "AKE", axis="norm", bound=10.0, unit="arcsec", confidence=0.95, interpretation="temporal",
+                    t_from=5.0),
+        Requirement("rke", "RKE", axis="norm", bound=10.0, unit="arcsec", confidence=0.95, interpretation="temporal",
+                    t_from=5.0, window=2.0),
+        Requirement("ape", "APE", axis="norm", bound=60.0, unit="arcsec", confidence=0.95, interpretation="temporal",
+                    t_from=5.0)))
+    run = simulate(scn, engine="cpp", duration=30.0)
+    t = run["t"]
+    span = (t >= 5.0 - 1e-9) & run.present("att_est_error")
+    # the core's own estimation error (rotation vector of the truth relative to the estimate)
+    core = np.linalg.norm(run["att_est_error"][span], axis=1) / ARCSEC
+    ake = result(run, "ake")
+    assert ake["value"] == pytest.approx(np.quantile(core, 0.95, method="inverted_cdf"), rel=1e-6)
+    assert result(run, "rke")["status"] in ("pass", "fail")
+    # the performance error of a sensed run is the truth against the reference, not what the law saw
+    true_angle = 4.0 * np.arctan(np.linalg.norm(run["sigma_BD_true"][t >= 5.0 - 1e-9], axis=1)) / ARCSEC
+    assert result(run, "ape")["value"] == pytest.approx(np.quantile(true_angle, 0.95, method="inverted_cdf"),
+                                                        rel=1e-12)
+
+
+def test_knowledge_without_sensors_is_not_applicable_and_ensemble_not_yet_evaluated():
+    t = grid(20.0)
+    run = run_of(t, about_x(1e-5 * t), [
+        req("ake", "AKE", axis="norm", bound=10.0, unit="arcsec", confidence=0.95, interpretation="temporal"),
+        req("ens", "APE", axis="norm", bound=10.0, unit="arcsec", confidence=0.95, interpretation="ensemble"),
+        req("ok", "APE", axis="norm", bound=1e6, unit="arcsec", confidence=0.95, interpretation="temporal")])
+    ake, ens = result(run, "ake"), result(run, "ens")
+    assert ake["status"] == "not applicable" and ake["passed"] is None and "[sensors]" in ake["note"]
+    assert ens["status"] == "not evaluated" and ens["passed"] is None and "not yet supported" in ens["note"]
+    line = verdict_line(run.metrics, "x")
+    assert line.startswith("x: 1/1 requirements met, 1 not evaluated, 1 not applicable, worst margin ok"), line
+
+
+def test_wheel_speed_and_command_are_the_largest_magnitudes():
+    t = grid(10.0)
+    ws = np.zeros((len(t), 4))
+    ws[:, 2] = -100.0 - t  # wheel 3: -110 rad/s (1050 rpm) at 10 s, the largest
+    u = np.zeros((len(t), 4))
+    u[37, 1] = -8.5
+    run = run_of(t, np.zeros((len(t), 3)), [req("w", "wheel_speed_margin", bound=1100.0, unit="rpm"),
+                                            req("u", "max_command", bound=7.0, unit="rad/s^2")],
+                 wheel_speed=ws, u_cmd=u)
+    w, c = result(run, "w"), result(run, "u")
+    assert w["value"] == pytest.approx(110.0 * 60.0 / (2.0 * math.pi)) and w["passed"]
+    assert "wheel 3 at 10 s" in w["note"]
+    assert c["value"] == 8.5 and c["margin"] == pytest.approx(-1.5) and c["passed"] is False
+    assert "wheel 2 at 3.7 s" in c["note"]
+
+
+def test_the_envelope_requirement_is_the_metrics_first_violation():
+    # a constant envelope (-0.1, 0.2) on every axis; the error leaves it on y at t = 12.3 s
+    ppc = {k: (v,) * 3 for k, v in dict(chi0=0.2, chiinf=0.2, gamma=0.0, dmin=0.5, dmax=1.0).items()}
+    t = grid(30.0)
+    sigma = np.zeros((len(t), 3))
+    sigma[:, 0] = 0.19  # 95 % of the upper bound on x: inside
+    sigma[t >= 12.3 - 1e-9, 1] = -0.11
+    meta = RunMeta(scenario="c", law="pd", engine="python", control_rate_hz=RATE, duration_s=30.0, ppc=ppc,
+                   umin=(-7.0,) * 4, umax=(10.0,) * 4, requirements=(req("env", "envelope"),))
+    m = finish_run(Run(meta, {"t": t, "sigma_BD": sigma})).metrics
+    r = m["requirements"][0]
+    assert m["first_bound_violation_s"] == pytest.approx(12.3) and m["first_bound_violation_axis"] == 2
+    assert r["first_violation_s"] == m["first_bound_violation_s"] and r["first_violation_axis"] == 2
+    assert r["passed"] is False and r["value"] == pytest.approx(0.11 / 0.1) and r["margin"] == pytest.approx(-0.1)
+    # the paper's verdict line is unchanged for a scenario that asks for the envelope only
+    assert verdict_line(m, "x") == "x: left its prescribed bound at 12.30 s (axis y)"
+    sigma[:, 1] = 0.0
+    m = finish_run(Run(meta, {"t": t, "sigma_BD": sigma})).metrics
+    assert m["requirements"][0]["passed"] and m["requirements"][0]["value"] == pytest.approx(0.95)
+    assert m["first_bound_violation_s"] is None and verdict_line(m, "x").startswith("x: bound held 30 s")
+
+
+def test_the_paper_run_keeps_its_verdict_through_its_envelope_requirement():
+    from sc_rt.sim.engines import simulate
+
+    m = simulate(load_scenario("paper_faults"), engine="cpp").metrics
+    (r,) = m["requirements"]
+    assert r["kind"] == "envelope" and r["first_violation_s"] == m["first_bound_violation_s"] == pytest.approx(4.1)
+    assert verdict_line(m, "paper DSC+PPC").startswith("paper DSC+PPC: left its prescribed bound at 4.10 s (axis z)")
+
+
+def test_a_run_without_requirements_is_not_judged_by_the_envelope(capsys):
+    from sc_rt.cli.common import print_metrics
+    from sc_rt.sim.engines import simulate
+
+    scn = dataclasses.replace(load_scenario("paper_faults"), requirements=())
+    m = simulate(scn, engine="cpp", duration=20.0).metrics
+    assert m["requirements"] == [] and m["first_bound_violation_s"] is not None  # the metric is still there
+    assert verdict_line(m, "p") == "p: no requirements stated"
+    print_metrics(m)
+    out = capsys.readouterr().out
+    assert re.search(r"requirements\s+no requirements stated", out)
+    assert "not a requirement of this scenario" in out
+
+
+# --------------------------------------------------------------------------------------------- #
+# 6. The schema, the CLI, the worked example
+
+HEAD = (ROOT / "scenarios" / "paper_fault_free.toml").read_text()
+HEAD = HEAD[:HEAD.index("[[requirements]]")] + HEAD[HEAD.index("[run]"):]  # without its own requirement
+
+
+def write(tmp_path: Path, rows: str) -> Path:
+    p = tmp_path / "req.toml"
+    p.write_text(HEAD + "\n" + rows)
+    return p
+
+
+def line_of(path: Path, text: str, nth: int = 0) -> int:
+    lines = [i + 1 for i, line in enumerate(path.read_text().splitlines()) if line.strip().startswith(text)]
+    return lines[nth]
+
+
+def issues(path: Path) -> list:
+    with pytest.raises(ScenarioError) as e:
+        load_scenario(path)
+    assert all(str(path) in line for line in str(e.value).splitlines())
+    return e.value.errors
+
+
+@pytest.mark.parametrize("rows, key, value, message, line_text", [
+    ('[[requirements]]\nname = "a"\nkind = "APX"\n', "requirements[0].kind", "APX", "must be one of", "kind ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = -3.0\nunit = "arcsec"\nconfidence = 0.9\n',
+     "requirements[0].bound", -3.0, "bound must be > 0", "bound ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nunit = "arcsecs"\nconfidence = 0.9\n',
+     "requirements[0].unit", "arcsecs", "unit must be one of", "unit ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nconfidence = 0.9\n',
+     "requirements[0].unit", None, "required key is missing", "[[requirements]]"),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nunit = "deg"\nconfidence = 1.5\n',
+     "requirements[0].confidence", 1.5, "confidence must be in (0, 1]", "confidence ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nunit = "deg"\nconfidence = 0.9\nwindow = 10.0\n',
+     "requirements[0].window", 10.0, 'does not apply to a kind = "APE"', "window ="),
+    ('[[requirements]]\nname = "a"\nkind = "RPE"\nbound = 3.0\nunit = "deg"\nconfidence = 0.9\n',
+     "requirements[0].window", None, "required key is missing", "[[requirements]]"),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nunit = "deg"\nconfidence = 0.9\n'
+     'interpretation = "spatial"\n', "requirements[0].interpretation", "spatial", "must be one of", "interpretation ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nunit = "deg"\nconfidence = 0.9\nt_from = 50.0\n'
+     't_to = 40.0\n', "requirements[0].t_to", 40.0, "t_to must be > t_from = 50 s", "t_to ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nunit = "deg"\nconfidence = 0.9\nt_to = 400.0\n',
+     "requirements[0].t_to", 400.0, "t_to must be <= run.duration = 300 s", "t_to ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nunit = "deg"\nconfidence = 0.9\n'
+     't_from = "after_settling"\n', "requirements[0].t_from", "after_settling", "needs the settling requirement",
+     "t_from ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nunit = "deg"\nconfidence = 0.9\nt_from = "later"\n',
+     "requirements[0].t_from", "later", 't_from must be a number >= 0 [s] or "after_settling"', "t_from ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\naxis = "cone"\nbound = 3.0\nunit = "deg"\nconfidence = 0.9\n',
+     "requirements[0].boresight", None, 'axis = "cone"', "[[requirements]]"),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\naxis = "x"\nboresight = [0.0, 0.0, 1.0]\nbound = 3.0\n'
+     'unit = "deg"\nconfidence = 0.9\n', "requirements[0].boresight", [0.0, 0.0, 1.0], 'applies to axis = "cone" only',
+     "boresight ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\naxis = "cone"\nboresight = [0.0, 0.0, 0.0]\nbound = 3.0\n'
+     'unit = "deg"\nconfidence = 0.9\n', "requirements[0].boresight", [0.0, 0.0, 0.0], "non-zero", "boresight ="),
+    ('[[requirements]]\nname = "a"\nkind = "envelope"\nbound = 1.0\n', "requirements[0].bound", 1.0,
+     'does not apply to a kind = "envelope"', "bound ="),
+    ('[[requirements]]\nname = "a"\nkind = "wheel_speed_margin"\nbound = 1.0\nwindw = 3.0\n',
+     "requirements[0].windw", 3.0, "unknown key", "windw ="),
+    ('[[requirements]]\nname = "a"\nkind = "envelope"\n[[requirements]]\nname = "a"\nkind = "max_command"\n'
+     'bound = 7.0\n', "requirements[1].name", "a", "is taken by requirements[0]", 'name = "a"'),
+    ('[[requirements]]\nname = "s"\nkind = "envelope"\n[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\n'
+     'unit = "deg"\nconfidence = 0.9\nt_from = "after_settling"\nsettling = "s"\n', "requirements[1].settling", "s",
+     'is a kind = "envelope" requirement', "settling ="),
+    ('[requirements]\nname = "a"\n', "requirements", {"name": "a"}, "array of tables", "[requirements]"),
+])
+def test_a_bad_requirement_names_file_line_key_and_value(tmp_path, rows, key, value, message, line_text):
+    p = write(tmp_path, rows)
+    errs = issues(p)
+    hit = [e for e in errs if e.key == key]
+    assert hit, errs
+    e = hit[0]
+    assert e.value == value and message in e.message, e
+    nth = 1 if key == "requirements[1].name" else 0
+    assert e.line == line_of(p, line_text, nth) > 0, (e, line_text)
+
+
+def test_the_cli_exits_2_on_a_bad_requirement(tmp_path, capsys):
+    from sc_rt.cli import main
+
+    p = write(tmp_path, '[[requirements]]\nname = "a"\nkind = "RPE"\nbound = 3.0\nunit = "arcsec"\n'
+                        'confidence = 0.9973\n')
+    assert main(["sim", str(p), "--engine", "cpp", "--out", str(tmp_path / "o"), "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    assert f"{p}:{line_of(p, '[[requirements]]')}: requirements[0].window: required key is missing" in err
+
+
+def test_requirements_read_back_through_the_scenario_data(tmp_path):
+    from sc_rt.scenario.keys import numeric_keys, scenario_data
+    from sc_rt.scenario.reader import scenario_from_data
+
+    scn = load_scenario("mrp_feedback_requirements")
+    data = scenario_data(scn)
+    assert [r["name"] for r in data["requirements"]] == [r.name for r in scn.requirements]
+    assert scenario_from_data(data, scn.path).requirements == scn.requirements
+    assert not any(k.startswith("requirements") for k in numeric_keys(data))  # not dispersed by [montecarlo]
+
+
+def test_the_worked_example_reports_each_requirement(tmp_path, capsys):
+    from sc_rt.cli import main
+
+    out = tmp_path / "req"
+    assert main(["sim", "mrp_feedback_requirements", "--engine", "cpp", "--out", str(out), "--no-plots"]) == 0
+    console = capsys.readouterr().out
+    m = json.loads((out / "metrics.json").read_text())
+    reqs = {r["name"]: r for r in m["requirements"]}
+    assert list(reqs) == ["pointing", "stability", "settling", "payload_cone", "wheel_speed", "command"]
+    for name, r in reqs.items():
+        assert r["passed"] is True and r["margin"] == pytest.approx(r["bound"] - r["value"]), name
+        assert re.search(rf"^\s+{name}\s.*\bPASS$", console, re.M), (name, console)
+    assert reqs["pointing"]["unit"] == "arcsec" and reqs["pointing"]["confidence"] == 0.9973
+    assert reqs["stability"]["window_s"] == pytest.approx(10.0)
+    assert reqs["payload_cone"]["span_s"][0] == reqs["settling"]["value"]
+    assert "6/6 requirements met, worst margin" in console
+
+
+def test_a_span_past_the_runs_end_is_cut_or_failed_when_the_run_diverged():
+    t = grid(50.0)
+    rows = [req("ape", "APE", axis="norm", bound=30.0, unit="arcsec", confidence=0.9, interpretation="temporal",
+                t_from=10.0, t_to=100.0),
+            req("late", "APE", axis="norm", bound=30.0, unit="arcsec", confidence=0.9, interpretation="temporal",
+                t_from=60.0)]
+    run = run_of(t, np.zeros((len(t), 3)), rows)  # a run of 50 s (duration_s = 50): shortened on purpose
+    ape, late = result(run, "ape"), result(run, "late")
+    assert ape["passed"] is True and "cut at the run's end, 50 s (asked: 100 s)" in ape["note"]
+    assert late["status"] == "not evaluated" and "no row in the span" in late["note"]
+    meta = dataclasses.replace(run.meta, duration_s=300.0)
+    diverged = finish_run(Run(meta, {"t": t, "sigma_BD": np.zeros((len(t), 3))}, diverged=True))
+    ape, late = result(diverged, "ape"), result(diverged, "late")
+    assert ape["passed"] is False and late["passed"] is False and "diverged at 50 s" in ape["note"]
+    assert verdict_line(diverged.metrics, "x").startswith("x: 2 of 2 requirements failed (ape, late)")
