@@ -40,7 +40,9 @@ FIGURES = {
     "faults.png": "Wheel faults as the plant reported them",
     "timing.png": "Timing: state-to-command latency, compute and wake lateness [us]",
 }
-CSS = """
+CSS = """tr.pass td { background: #e6f4ea } tr.fail td { background: #fde7e9 }
+tr.not-evaluated td, tr.not-applicable td { color: #666 }
+
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:24px auto;max-width:1100px;
 color:#222;line-height:1.4;padding:0 16px}
 h1{font-size:1.5em;margin-bottom:0.2em}
@@ -232,9 +234,28 @@ def _floor_text(timing: dict[str, Any], lat: dict[str, Any]) -> str:
 
 
 def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
-    """(held, headline, [(id, text)]) of the verdict block."""
+    """(held, headline, [(id, text)]) of the verdict block. With requirements
+    other than the prescribed envelope, the headline is theirs (how many met,
+    the worst margin) and the run is judged by them; a run without any gets
+    "no requirements stated", never a red failure; with the envelope alone
+    (the paper's scenarios) or no requirements entry (older metrics), the
+    envelope is the verdict, as before."""
     m = d["metrics"]
     first = m.get("first_bound_violation_s")
+    reqs = m.get("requirements")
+    if reqs is not None and not (reqs and all(r.get("kind") == "envelope" for r in reqs)):
+        from sc_rt.results.verdict import requirements_summary
+
+        head = requirements_summary(reqs)
+        held = all(r.get("passed") is not False for r in reqs)
+        items = [("verdict-safe", _safe_text(d))]
+        items += [(f"verdict-faults-{i}", x) for i, x in enumerate(_fault_texts(d))]
+        items.append(("verdict-timing", timing_text(d["timing"])))
+        if m.get("diverged") or m.get("finite") is False:
+            items.append(("verdict-diverged",
+                          "The run diverged" if m.get("diverged") else "Some values are not finite"))
+            held = False
+        return held, head, items
     if first is None and m.get("steps"):
         head = f"Bound held for the whole run ({fmt(m.get('duration_s'))} s, {fmt(m.get('steps'), 'int')} steps)"
         if m.get("max_abs_lambda") is not None:
@@ -301,6 +322,32 @@ def _timing_table(t: dict[str, Any]) -> str:
     return f'<table id="timing"><tr><th>timing</th><th>value</th><th>unit</th></tr>{body}</table>'
 
 
+def requirements_table(reqs: list[dict[str, Any]] | None) -> str:
+    """The requirement table that opens the report: per requirement its
+    measure, value, bound, margin and result (coloured)."""
+    if not reqs:
+        return ('<section id="requirements"><p>No requirements stated ([[requirements]] in the scenario, '
+                "docs/REQUIREMENTS.md): the metrics below, no verdict.</p></section>")
+
+    def num(v: Any) -> str:
+        return "-" if v is None else f"{v:.4g}" if isinstance(v, (int, float)) else escape(str(v))
+
+    rows = []
+    for r in reqs:
+        status = r.get("status") or ("pass" if r.get("passed") else "fail")
+        measure = " ".join(str(x) for x in (r.get("kind"), r.get("axis") or "",
+                                            f"p{r['confidence']:g}" if r.get("confidence") else "",
+                                            r.get("interpretation") or "") if x)
+        unit = "" if r.get("unit") in (None, "-") else " " + escape(str(r["unit"]))
+        rows.append(f'<tr class="{escape(status.replace(" ", "-"))}"><td>{escape(str(r.get("name")))}</td>'
+                    f"<td>{escape(measure)}</td><td class=num>{num(r.get('value'))}{unit}</td>"
+                    f"<td class=num>{num(r.get('bound'))}{unit}</td><td class=num>{num(r.get('margin'))}{unit}</td>"
+                    f"<td>{escape(status.upper())}</td><td>{escape(str(r.get('note') or ''))}</td></tr>")
+    return ('<section id="requirements"><table id="requirements-table"><tr><th>requirement</th><th>measure</th>'
+            "<th>value</th><th>bound</th><th>margin</th><th>result</th><th>how</th></tr>"
+            + "".join(rows) + "</table></section>")
+
+
 def render_html(run_dir: str | Path) -> str:
     """The page for ``run_dir`` (see the module's docstring)."""
     run_dir = Path(run_dir)
@@ -315,7 +362,8 @@ def render_html(run_dir: str | Path) -> str:
              f"from {escape(run_dir.name)}/ (metrics.json{', timing.json' if d['timing'] else ''}"
              f"{', report.json' if d['report'] else ''})</p>",
              f'<section id="verdict" class="{"ok" if held else "bad"}"><p id="verdict-bound">{escape(head)}</p><ul>'
-             + "".join(f'<li id="{i}">{escape(s)}</li>' for i, s in items) + "</ul></section>"]
+             + "".join(f'<li id="{i}">{escape(s)}</li>' for i, s in items) + "</ul></section>",
+             "<h2>Requirements</h2>" + requirements_table(m.get("requirements"))]
     traj = d["traj"]
     parts.append('<h2>Timeline</h2><section id="timeline">')
     if "t" in traj:
