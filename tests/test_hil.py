@@ -100,3 +100,17 @@ def test_controller_binary_rejects_a_bad_config(tmp_path):
     r = subprocess.run([str(exe), "--config", str(bad), "--check"], capture_output=True, text=True)
     assert r.returncode == 2
     assert "cannot decode controller_config_t" in r.stderr
+
+
+@pytest.mark.lcm
+@pytest.mark.slow  # ~12 s: the demo's two 300 s lockstep runs
+def test_demo_prints_each_runs_own_verdict(tmp_path):
+    """The README's top: one verdict line per run, each under its own label
+    (a loop variable renamed for the linter once printed the second label
+    twice)."""
+    lcmnet.require()
+    r = lcmnet.run_cli(["demo", "--out", str(tmp_path / "demo")])
+    assert r.returncode == 0, r.stderr
+    assert "paper DSC+PPC: left its prescribed bound at 4.10 s (axis z)" in r.stdout
+    assert "feasible 10 Hz design: bound held 300 s" in r.stdout
+    assert "\npaper DSC+PPC: " in r.stdout and "\nfeasible 10 Hz design: " in r.stdout

@@ -150,13 +150,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
         if res.stopped:  # interrupted (or the logger died): no further run
             return report_stopped(res.run, res.stopped, res.signum, res.out, "demo")
         results.append((label, res))
-    for _label, res in results:
+    for label, res in results:
         print(verdict_line(res.metrics, label))
     for _label, res in results:
         html_report(Path(res.out), "demo")
     print("\nWhy the paper's law leaves its bound in a sampled loop, and how the feasible design "
           "was found: docs/REPRODUCTION.md")
-    for _label, res in results:
+    for label, res in results:
         print(f"\n{label}: {len(res.files)} files in {res.out.resolve()}/")
         for p in res.files:
             print(f"  {p}")
