@@ -102,7 +102,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from sc_rt.pylaw import is_python_law
     from sc_rt.scenario.reader import load_scenario
     from sc_rt.scenario.overrides import with_overrides
-    from sc_rt.sim.engines import simulate
 
     if args.duration is not None and not args.duration > 0:
         print(f"sc-rt compare: --duration {args.duration:g}: must be > 0", file=sys.stderr)
@@ -117,7 +116,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     for law in args.laws:
         if not is_python_law(law):
             scns[law] = with_overrides(scn, law=law, duration=args.duration)
-    from sc_rt.sim.isolated import RunCrashed, needs_isolation, simulate_isolated
+    from sc_rt.sim.isolated import RunCrashed, simulate_contained
 
     rows = []
     failed = 0
@@ -131,7 +130,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         run_scn, kw = (scn if py else scns[law]), dict(law=law if py else None, engine="python" if py else args.engine,
                                                         duration=args.duration if py else None)
         try:  # a plugin runs in a child of its own: its crash fails its row, not the comparison
-            run = simulate_isolated(run_scn, **kw) if needs_isolation(law) else simulate(run_scn, **kw)
+            run = simulate_contained(run_scn, **kw)
         except RunCrashed as e:
             rows.append({"law": label, "valid": False, "invalid_reason": str(e), "crashed": True})
             failed += 1

@@ -73,6 +73,22 @@ def scaffold(name: str, out: Path, lang: str = "cpp") -> list[Path]:
     return written
 
 
+#: The scaffold test's two tests, the same for both languages (each template
+#: defines run(tmp_path) before them): one for any law, one for the PD.
+_SCAFFOLD_TESTS = """
+
+def test_any_law_runs_to_the_end_finite_and_never_safe(tmp_path):
+    m = run(tmp_path)
+    assert m["finite"] and not m.get("partial") and m["steps"] == 601  # 60 s at 10 Hz, to the end
+    assert m["safe_steps"] == 0 and m["law_invalid_steps"] == 0 and m.get("valid", True)
+
+
+def test_this_pd_brings_the_error_down(tmp_path):
+    # law-specific (edit for your law): |sigma_BD| at the end below its value at 30 s
+    norms = list(run(tmp_path)["sigma_e_norm"].values())
+    assert norms[-1] < norms[0]
+"""
+
 _CPP = {
     "CMakeLists.txt": """\
 # The control law @NAME@ as an sc-rt law plugin (docs/LAWS.md in sc-rt).
@@ -153,19 +169,7 @@ def run(tmp_path, duration=60.0):
                         "--duration", str(duration), "--no-plots", "--out", str(out)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     return json.loads((out / "metrics.json").read_text())
-
-
-def test_any_law_runs_to_the_end_finite_and_never_safe(tmp_path):
-    m = run(tmp_path)
-    assert m["finite"] and not m.get("partial") and m["steps"] == 601  # 60 s at 10 Hz, to the end
-    assert m["safe_steps"] == 0 and m["law_invalid_steps"] == 0 and m.get("valid", True)
-
-
-def test_this_pd_brings_the_error_down(tmp_path):
-    # law-specific (edit for your law): |sigma_BD| at the end below its value at 30 s
-    norms = list(run(tmp_path)["sigma_e_norm"].values())
-    assert norms[-1] < norms[0]
-""",
+""" + _SCAFFOLD_TESTS,
     "README.md": """\
 # @NAME@: an sc-rt control law (C++ plugin)
 
@@ -250,19 +254,7 @@ def run(tmp_path, duration=60.0):
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     return json.loads((out / "metrics.json").read_text())
-
-
-def test_any_law_runs_to_the_end_finite_and_never_safe(tmp_path):
-    m = run(tmp_path)
-    assert m["finite"] and not m.get("partial") and m["steps"] == 601  # 60 s at 10 Hz, to the end
-    assert m["safe_steps"] == 0 and m["law_invalid_steps"] == 0 and m.get("valid", True)
-
-
-def test_this_pd_brings_the_error_down(tmp_path):
-    # law-specific (edit for your law): |sigma_BD| at the end below its value at 30 s
-    norms = list(run(tmp_path)["sigma_e_norm"].values())
-    assert norms[-1] < norms[0]
-""",
+""" + _SCAFFOLD_TESTS,
     "README.md": """\
 # @NAME@: an sc-rt control law (Python)
 

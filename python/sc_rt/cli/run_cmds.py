@@ -17,7 +17,6 @@ from sc_rt.cli.common import (checked_out, claim_out, html_report, invalid_exit,
 
 def cmd_sim(args: argparse.Namespace) -> int:
     from sc_rt.results.output import write_run
-    from sc_rt.sim.engines import simulate
 
     from sc_rt.scenario.overrides import with_overrides
 
@@ -47,17 +46,14 @@ def cmd_sim(args: argparse.Namespace) -> int:
     engines.STOP.clear()
     print(f"sc-rt sim: {scn.name}: {args.engine} engine, {grid(scn).n_ctrl + 1} rows ...", file=sys.stderr,
           flush=True)
-    from sc_rt.sim.isolated import RunCrashed, needs_isolation, simulate_isolated
+    from sc_rt.sim.isolated import RunCrashed, simulate_contained
 
     with flag_signals(lambda _s: engines.STOP.set()) as signals:
-        if needs_isolation(scn.run.controller):  # a plugin's native code: its crash is one line, not exit 139
-            try:
-                res = simulate_isolated(scn, engine=args.engine, law=pylaw)
-            except RunCrashed as e:
-                print(f"sc-rt sim: FAILED: {e}", file=sys.stderr)
-                return 1
-        else:
-            res = simulate(scn, engine=args.engine, law=pylaw)
+        try:  # a plugin's native code runs in a child: its crash is one line, not exit 139
+            res = simulate_contained(scn, engine=args.engine, law=pylaw)
+        except RunCrashed as e:
+            print(f"sc-rt sim: FAILED: {e}", file=sys.stderr)
+            return 1
     stopped = None
     if signals:  # a signal: the rows done so far (the python engine stops at its next step)
         stopped = f"interrupted by {signal.Signals(signals[0]).name}"

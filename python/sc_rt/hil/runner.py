@@ -27,12 +27,13 @@ import numpy as np
 from sc_rt.wire.auth import load_key, open_bus
 from sc_rt.emulator.process import Emulator, Options
 from sc_rt.hil.external import ExternalController, python_controller_command
+from sc_rt.isolate import exit_how
 from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
 from sc_rt.wire.lcmio import channel, free_port_url, open_lcm
 from sc_rt.wire.startrec import encode_start
 from sc_rt.logs.timing import RealtimeLimits, log_missing, realtime_shortfall, timing_report
 from sc_rt.emulator.sensorpub import SENT_COUNTERS
-from sc_rt.results.metrics import fill_tracking_errors, finish_run, record_law_failures
+from sc_rt.results.metrics import fill_tracking_errors, finish_run, mark_invalid, record_law_failures
 from sc_rt.results.output import write_run
 from sc_rt.pylaw import is_python_law
 from sc_rt.results.run import Run, provenance
@@ -115,16 +116,6 @@ def child_kwargs() -> dict[str, Any]:
         return {}
     hook = _pdeathsig()
     return {"process_group": 0, **({"preexec_fn": hook} if hook else {})}
-
-
-def exit_how(rc: int) -> str:
-    """A child's return code in words: "signal SIGSEGV" or "exit code 3"."""
-    if rc < 0:
-        try:
-            return f"signal {signal.Signals(-rc).name}"
-        except ValueError:
-            return f"signal {-rc}"
-    return f"exit code {rc}"
 
 
 class Stopper:
@@ -434,8 +425,7 @@ def _judge_real_time(res: Run, summary: dict[str, Any], limits: RealtimeLimits) 
         res.timing["kept_real_time"] = why is None
         res.timing["realtime_limits"] = dataclasses.asdict(limits)
     if why is not None:
-        res.metrics["valid"] = False
-        res.metrics.setdefault("invalid_reason", why)
+        mark_invalid(res, why)
         print(f"sc-rt hil: {why}", file=sys.stderr)
 
 
@@ -518,7 +508,8 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     logger_err = logger.stderr.read().decode(errors="replace").strip() if logger.stderr else ""
     if stopper.died is not None and res.partial and res.message == stopper.died:
         res.message = _death_line(res, stopper.died, ext)
-        res.metrics.update(stopped=res.message, valid=False, invalid_reason=res.message)
+        res.metrics["stopped"] = res.message
+        mark_invalid(res, res.message)
     stopped = res.message if res.partial else None
     if not res.partial and logger_rc not in (0, -signal.SIGINT):
         # the logger failed at the very end (its last flush): the log may be short of the run
@@ -564,8 +555,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
         lost = {c: n for c, n in res.timing["log_missing"].items() if n}
         why = (f"the log lost {sum(lost.values())} messages of this run ({lost}; the logger runs "
                f"{logger_policy}; docs/HIL.md, 'A complete log')")
-        res.metrics["valid"] = False
-        res.metrics.setdefault("invalid_reason", why)
+        mark_invalid(res, why)
         print(f"sc-rt hil: {why}", file=sys.stderr)
     res.timing.update(_bench_timing(res, summary, emu, setup))
     if floor:

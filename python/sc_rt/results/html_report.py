@@ -243,20 +243,13 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
     m = d["metrics"]
     first = m.get("first_bound_violation_s")
     reqs = m.get("requirements")
-    if reqs is not None and not (reqs and all(r.get("kind") == "envelope" for r in reqs)):
+    by_requirements = reqs is not None and not (reqs and all(r.get("kind") == "envelope" for r in reqs))
+    if by_requirements:
         from sc_rt.results.verdict import requirements_summary
 
         head = requirements_summary(reqs)
         held = all(r.get("passed") is not False for r in reqs)
-        items = [("verdict-safe", _safe_text(d))]
-        items += [(f"verdict-faults-{i}", x) for i, x in enumerate(_fault_texts(d))]
-        items.append(("verdict-timing", timing_text(d["timing"])))
-        if m.get("diverged") or m.get("finite") is False:
-            items.append(("verdict-diverged",
-                          "The run diverged" if m.get("diverged") else "Some values are not finite"))
-            held = False
-        return held, head, items
-    if first is None and m.get("steps"):
+    elif first is None and m.get("steps"):
         head = f"Bound held for the whole run ({fmt(m.get('duration_s'))} s, {fmt(m.get('steps'), 'int')} steps)"
         if m.get("max_abs_lambda") is not None:
             head += f", worst |lambda| {fmt(m['max_abs_lambda'], 'lam')}"
@@ -280,7 +273,7 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
                       "The run diverged" + since if m.get("diverged") else "Some values are not finite"))
         held = False
     pe = m.get("max_pointing_error_arcsec_after_30s")
-    if pe is not None:
+    if pe is not None and not by_requirements:  # the envelope's own figure; requirements state theirs
         items.append(("verdict-pointing", f"Max pointing error after 30 s: {fmt(pe, 'arcsec')} arcsec"))
     return held, head, items
 

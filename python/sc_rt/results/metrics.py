@@ -15,7 +15,7 @@ from sc_rt.results.requirements import evaluate_requirements
 from sc_rt.results.run import CORE_FIELDS, Run, json_safe
 from sc_rt.results.verdict import pointing_arcsec, safe_summary
 
-__all__ = ["METRIC_TIMES", "record_law_failures", "bound_ok", "compute_metrics", "fill_tracking_errors",
+__all__ = ["METRIC_TIMES", "mark_invalid", "record_law_failures", "bound_ok", "compute_metrics", "fill_tracking_errors",
            "prescribed_chi", "finish_run", "json_safe"]
 
 #: Times [s] at which the error norms are reported (those within the run;
@@ -196,6 +196,13 @@ def finish_run(run: Run) -> Run:
     return run
 
 
+def mark_invalid(run: Run, why: str) -> None:
+    """The run is not a valid run of its law (metrics.json ``valid`` false);
+    the first reason given is kept (``invalid_reason``)."""
+    run.metrics["valid"] = False
+    run.metrics.setdefault("invalid_reason", why)
+
+
 def record_law_failures(run: Run, failures: dict[str, Any] | None) -> None:
     """The law's contained failures (``_core.Controller.law_failures`` or
     the controller's summary: counts per call and the newest) into the run's
@@ -214,5 +221,4 @@ def record_law_failures(run: Run, failures: dict[str, Any] | None) -> None:
            + ", ".join(f"{k} {v}" for k, v in counts.items() if v) + ")"
            + (f"; last: {last.get('call')} at t = {float(last.get('t', 0.0)):.4g} s: {last.get('what')}"
               if last else ""))
-    run.metrics["valid"] = False
-    run.metrics.setdefault("invalid_reason", why)
+    mark_invalid(run, why)

@@ -15,7 +15,7 @@ from typing import Any
 
 from sc_rt.isolate import ChildDied, call_in_child
 
-__all__ = ["RunCrashed", "simulate_isolated", "needs_isolation"]
+__all__ = ["RunCrashed", "simulate_contained", "simulate_isolated", "needs_isolation"]
 
 
 class RunCrashed(RuntimeError):
@@ -37,3 +37,14 @@ def simulate_isolated(scn, **kwargs: Any):
         law = kwargs.get("law") or scn.run.controller
         raise RunCrashed(f"the law {law} crashed the run's process ({e.how}): a plugin's native code; "
                          "nothing of the run was kept") from None
+
+
+def simulate_contained(scn, **kwargs: Any):
+    """``simulate(scn, **kwargs)``, in a child of its own when the law that
+    runs (``law``, else the scenario's) is native code (needs_isolation),
+    in this process otherwise; RunCrashed when the child dies."""
+    if needs_isolation(kwargs.get("law") or scn.run.controller):
+        return simulate_isolated(scn, **kwargs)
+    from sc_rt.sim.engines import simulate
+
+    return simulate(scn, **kwargs)

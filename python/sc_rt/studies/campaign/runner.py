@@ -93,8 +93,7 @@ def _metric_row(m: dict[str, Any]) -> dict[str, Any]:
 def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple:
     """Run ``run`` of the campaign: its dataset row (and, with ``keep``, the
     dispersed scenario and the simulation result too)."""
-    from sc_rt.sim.engines import simulate
-    from sc_rt.sim.isolated import RunCrashed, needs_isolation, simulate_isolated
+    from sc_rt.sim.isolated import RunCrashed, simulate_contained
 
     scn, values, redraws, message = draw_run(c.scenario, c.dispersion, c.seed, run)
     row: dict[str, Any] = {"run": run, "seed": c.seed, "redraws": redraws, **values}
@@ -102,15 +101,11 @@ def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple
     if scn is None:
         row.update(status="invalid", holds_bound=False, message=message)
     else:
-        law = c.law or scn.run.controller
-        if needs_isolation(law):  # a plugin: one crash fails this run, not the campaign (docs/HIL.md)
-            try:
-                res = simulate_isolated(scn, law=c.law, engine="cpp", control_rate_hz=c.control_rate_hz)
-            except RunCrashed as e:
-                row.update(status="crashed", holds_bound=False, message=str(e))
-                return (row, scn, None) if keep else row
-        else:
-            res = simulate(scn, law=c.law, engine="cpp", control_rate_hz=c.control_rate_hz)
+        try:  # a plugin runs in a child of its own: one crash fails this run, not the campaign (docs/HIL.md)
+            res = simulate_contained(scn, law=c.law, engine="cpp", control_rate_hz=c.control_rate_hz)
+        except RunCrashed as e:
+            row.update(status="crashed", holds_bound=False, message=str(e))
+            return (row, scn, None) if keep else row
         m = res.metrics
         law_failed = m.get("valid") is False  # the law threw, went non-finite or gave a wrong shape
         row.update(status="diverged" if m.get("diverged") else "law_failed" if law_failed else "ok",
