@@ -89,13 +89,22 @@ SLOW_TESTS = (
 
 
 def pytest_collection_modifyitems(items):
-    """Tests that need the out-of-tree plugin builds (the ``plugins`` fixture of
-    test_laws.py, ``laws`` of test_law_door.py: a cmake build of example
+    """Tests that need the out-of-tree plugin builds (the ``plugins`` fixture
+    (below), ``laws`` of test_law_door.py: a cmake build of example
     plugins, 2-20 s once) are slow, and so are those of SLOW_TESTS."""
     for item in items:
         if {"plugins", "laws"} & set(getattr(item, "fixturenames", ())) or \
                 item.nodeid.split("[")[0] in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture(scope="session")
+def plugins(tmp_path_factory):
+    """examples/quaternion_feedback and tests/law_plugins, each built like a
+    user's project (tests/plugbuild.py), once per session."""
+    import plugbuild
+
+    return plugbuild.build_all(tmp_path_factory.mktemp("plugins"))
 
 
 @pytest.fixture(autouse=True)

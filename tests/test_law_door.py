@@ -24,7 +24,8 @@ from sc_rt import _core
 from sc_rt.scenario.reader import load_scenario
 
 import lcmnet
-from test_laws import _build, _qf_expected
+import plugbuild
+from test_laws import _qf_expected
 
 ROOT = Path(__file__).resolve().parent.parent
 FIXED = np.array([1e-3, -2e-3, 3e-3, -4e-3])
@@ -49,7 +50,7 @@ class Fixed:
 @pytest.fixture(scope="module")
 def laws(tmp_path_factory) -> dict[str, str]:
     d = tmp_path_factory.mktemp("door")
-    _build(ROOT / "examples" / "quaternion_feedback", d / "qf")
+    plugbuild.build(ROOT / "examples" / "quaternion_feedback", d / "qf")
     (d / "fixedlaw.py").write_text(PYLAW)
     return {"builtin": "rft", "plugin": f"plugin:{d / 'qf' / 'libquaternion_feedback.so'}",
             "python": f"{d / 'fixedlaw.py'}:Fixed"}

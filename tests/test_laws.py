@@ -11,7 +11,6 @@ import json
 import math
 import os
 import re
-import shutil
 import subprocess
 import sys
 import tomllib
@@ -27,6 +26,7 @@ from sc_rt.scenario.reader import load_scenario, scenario_from_data
 from sc_rt.sim.engines import simulate
 
 import lcmnet
+import plugbuild
 from refmath import mrp_sub, mrp_to_quat
 from trajcmp import compared_fields
 
@@ -34,29 +34,8 @@ ROOT = Path(__file__).resolve().parent.parent
 BIN = Path(sys.executable).parent
 
 
-def _cmake() -> str:
-    exe = BIN / "cmake"
-    return str(exe) if exe.exists() else (shutil.which("cmake") or "cmake")
-
-
-def _build(src: Path, build: Path) -> None:
-    cfg = [_cmake(), "-S", str(src), "-B", str(build), f"-DCMAKE_PREFIX_PATH={sc_rt.cmake.cmake_dir()}"]
-    for cmd in (cfg, [_cmake(), "--build", str(build), "-j2"]):
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        assert r.returncode == 0, r.stdout + r.stderr
-
-
-@pytest.fixture(scope="session")
-def plugins(tmp_path_factory) -> dict[str, Path]:
-    """examples/quaternion_feedback and tests/law_plugins, each built like a
-    user's project: find_package(sc_rt) from `python -m sc_rt.cmake`."""
-    d = tmp_path_factory.mktemp("plugins")
-    _build(ROOT / "examples" / "quaternion_feedback", d / "qf")
-    _build(ROOT / "tests" / "law_plugins", d / "bad")
-    libs = {"qf": d / "qf" / "libquaternion_feedback.so"}
-    for p in (d / "bad").glob("libt_*.so"):
-        libs[p.stem.removeprefix("libt_")] = p
-    return libs
+_build = plugbuild.build
+_cmake = plugbuild.cmake
 
 
 def _spec(lib: Path) -> str:

@@ -9,6 +9,7 @@
 // and keeps the counters and the exit summary; every received message is
 // decoded by hand so that malformed input is counted by kind and never
 // applied (docs/HIL.md, "Bad input").
+#include <pthread.h>
 #include <sched.h>
 #include <signal.h>
 #include <sys/mman.h>
@@ -107,6 +108,20 @@ struct ConfigWait {
   }
 };
 
+// Real-time priorities: the step thread above the receive thread, so a burst
+// of input (or a hostile flood) never delays the step of a deadline.
+constexpr int kStepPriority = 80;
+constexpr int kReceivePriority = 70;
+
+// The calling (receive) thread below the step thread, when the process runs SCHED_FIFO.
+void lower_receive_priority() {
+  int policy = 0;
+  sched_param sp{};
+  if (pthread_getschedparam(pthread_self(), &policy, &sp) != 0 || policy != SCHED_FIFO) return;
+  sp.sched_priority = kReceivePriority;
+  pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+}
+
 std::string setup_scheduler(bool want_rt, int cpu) {
   // Timer slack 1 ns: wake-ups as close to the deadline as the kernel can.
   prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
@@ -124,9 +139,9 @@ std::string setup_scheduler(bool want_rt, int cpu) {
   if (!want_rt) return "SCHED_OTHER" + pin;
   std::string s;
   sched_param sp{};
-  sp.sched_priority = 80;
+  sp.sched_priority = kStepPriority;
   if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {
-    s = "SCHED_FIFO 80";
+    s = "SCHED_FIFO " + std::to_string(kStepPriority);
   } else {
     std::fprintf(stderr, "sc-rt-controller: warning: SCHED_FIFO not permitted (%s): running SCHED_OTHER\n",
                  std::strerror(errno));
@@ -289,6 +304,7 @@ void run_loops(lcm::LCM& lcm, const Options& o, Shell& shell) {
     // this thread only wakes on its absolute deadlines and steps.
     std::atomic<bool> rx_stop{false};
     std::thread rx([&] {
+      lower_receive_priority();
       while (!rx_stop && !g_stop) lcm.handleTimeout(20);
     });
     // The deadlines: phase-locked to the state arrivals with an adaptive

@@ -2,6 +2,8 @@
 // sensor intake hookup, the control step, publishing and the exit summary.
 #include "controller_shell.hpp"
 
+#include "alloc_probe.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -23,7 +25,15 @@ Stats stats(const sc_rt::LogHistogram& h) {
 }  // namespace
 
 Shell::Shell(const Options& o, lcm::LCM& lcm, const std::atomic<bool>& stop)
-    : opt_(o), lcm_(lcm), stop_(stop) {}
+    : opt_(o),
+      ch_state_(o.prefix + "SCRT_STATE"),
+      ch_cmd_(o.prefix + "SCRT_CMD"),
+      ch_status_(o.prefix + "SCRT_CTRL_STATUS"),
+      lcm_(lcm),
+      stop_(stop) {
+  // every message the step encodes fits: send() never grows it on the step path
+  tx_.reserve(std::size_t(1) << 16);
+}
 
 void Shell::configure(const sc_rt::ControllerConfig& cfg, const sc_rt::NavSetup& nav) {
   ctl_ = sc_rt::Controller::create(cfg);
@@ -39,23 +49,30 @@ void Shell::configure(const sc_rt::ControllerConfig& cfg, const sc_rt::NavSetup&
 
 template <class Msg>
 void Shell::on_sensor(const lcm::ReceiveBuffer* rb, const std::string& channel, Shell* self) {
-  std::lock_guard<std::mutex> lock(self->mu_);
+  self->handle_sensor<Msg>(rb, channel);
+}
+
+template <class Msg>
+void Shell::handle_sensor(const lcm::ReceiveBuffer* rb, const std::string& channel) {
+  // the tag and the decoding before the lock: the step thread never waits on them
   int size = int(rb->data_size);
-  if (self->auth_) {
-    if (!self->auth_->verify(channel, rb->data, rb->data_size)) {
-      ++self->auth_failed_;
-      self->intake_->malformed();
-      return;
-    }
+  bool ok = true;
+  if (auth_) {
+    ok = auth_->verify(channel, rb->data, rb->data_size);
+    if (!ok) ++auth_failed_;
     size -= int(sc_rt::HmacSha256::kSize);
   }
   Msg msg;
-  const int n = msg.decode(rb->data, 0, size);
-  if (n < 0 || n != size) {
-    self->intake_->malformed();
-    return;
+  if (ok) {
+    const int n = msg.decode(rb->data, 0, size);
+    ok = n >= 0 && n == size;
   }
-  self->offer(msg);
+  std::lock_guard<std::mutex> lock(mu_);
+  if (ok) {
+    offer(msg);
+  } else {
+    intake_->malformed();
+  }
 }
 template void Shell::on_sensor<sc_rt_lcm::gyro_t>(const lcm::ReceiveBuffer*, const std::string&, Shell*);
 template void Shell::on_sensor<sc_rt_lcm::star_tracker_t>(const lcm::ReceiveBuffer*, const std::string&, Shell*);
@@ -71,17 +88,18 @@ void Shell::offer(const sc_rt_lcm::tachometer_t& m) {
 
 void Shell::handle_state(const lcm::ReceiveBuffer* rb) {
   const int64_t now = mono_ns();
-  std::unique_lock<std::mutex> lock(mu_);
   int size = int(rb->data_size);
   if (auth_) {  // the trailer first: what does not verify is never decoded
-    if (!auth_->verify(opt_.prefix + "SCRT_STATE", rb->data, rb->data_size)) {
+    if (!auth_->verify(ch_state_, rb->data, rb->data_size)) {
       ++auth_failed_;
       return;
     }
     size -= int(sc_rt::HmacSha256::kSize);
   }
+  // decoded before the lock: the step thread never waits on a decode or a tag
   sc_rt_lcm::plant_state_t msg;
   const int n = msg.decode(rb->data, 0, size);
+  std::unique_lock<std::mutex> lock(mu_);
   if (n < 0) {
     gate_->malformed();
     return;
@@ -190,19 +208,29 @@ void Shell::step(int64_t now, int64_t deadline) {
   comp_.add(comp_us);
   age_.add(age_us);
   publish_status(cmd, used_seq, late_us, comp_us, age_us);
+  if (alloc_probe_linked()) alloc_probe_step();
+}
+
+void Shell::alloc_probe_step() {
+  const int64_t k = cnt_.steps;
+  if (k == kAllocWarmupSteps) sc_rt_alloc_arm();
+  if (k > kAllocWarmupSteps) {  // everything since the warm-up step, this step's publishing included
+    alloc_count_ = sc_rt_alloc_count();
+    alloc_steps_ = k - kAllocWarmupSteps;
+  }
 }
 
 template <class M>
 void Shell::send(const std::string& channel, const M& m) {
-  if (!auth_) {
-    lcm_.publish(channel, &m);
-    return;
-  }
+  // Encoded into the reserved buffer and published raw: LCM's typed
+  // publish allocates a buffer per message.
   const int n = m.getEncodedSize();
-  tx_.resize(std::size_t(n) + sc_rt::HmacSha256::kSize);
+  tx_.resize(std::size_t(n) + (auth_ ? sc_rt::HmacSha256::kSize : 0));
   m.encode(tx_.data(), 0, n);
-  const sc_rt::Sha256::Digest tag = auth_->message_tag(channel, tx_.data(), std::size_t(n));
-  std::copy(tag.begin(), tag.end(), tx_.begin() + n);
+  if (auth_) {
+    const sc_rt::Sha256::Digest tag = auth_->message_tag(channel, tx_.data(), std::size_t(n));
+    std::copy(tag.begin(), tag.end(), tx_.begin() + n);
+  }
   lcm_.publish(channel, tx_.data(), unsigned(tx_.size()));
 }
 
@@ -213,7 +241,7 @@ void Shell::publish_cmd(const sc_rt::Command& cmd, int64_t state_seq) {
   m.session = session_;
   m.state_seq = state_seq;
   sc_rt::fill_wheel_cmd(cmd, m);
-  send(opt_.prefix + "SCRT_CMD", m);
+  send(ch_cmd_, m);
   ++cmd_seq_;
 }
 
@@ -241,7 +269,7 @@ void Shell::publish_status(const sc_rt::Command& cmd, int64_t state_seq, double 
     s.tach_used = c.used[2];
     s.sensor_rejected = c.rejected();
   }
-  send(opt_.prefix + "SCRT_CTRL_STATUS", s);
+  send(ch_status_, s);
 }
 
 std::string Shell::summary_json(const std::string& scheduler) const {
@@ -310,6 +338,12 @@ std::string Shell::summary_json(const std::string& scheduler) const {
                   (long long)c.invalid, (long long)c.out_of_order, (long long)c.too_old, (long long)c.foreign,
                   (long long)c.before_fix);
     js += nb;
+  }
+  if (alloc_probe_linked()) {
+    char ab[160];
+    std::snprintf(ab, sizeof ab, ", \"allocations\": {\"after_step\": %lld, \"steps\": %lld, \"count\": %lld}",
+                  (long long)kAllocWarmupSteps, (long long)alloc_steps_, alloc_count_);
+    js += ab;
   }
   js += ", \"auth\": " + std::string(auth_ ? "true" : "false") +
         ", \"auth_failed\": " + std::to_string(auth_failed_.load()) + ", \"plant_sessions\": [";

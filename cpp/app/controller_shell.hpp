@@ -113,11 +113,17 @@ class Shell {
   void publish_cmd(const sc_rt::Command& cmd, int64_t state_seq);
   void publish_status(const sc_rt::Command& cmd, int64_t state_seq, double late_us, double comp_us,
                       double age_us);
+  void alloc_probe_step();  // sc-rt-controller-alloc only (alloc_probe.hpp)
   // Without a key exactly LCM's publish; with one, the message and its tag.
   template <class M>
   void send(const std::string& channel, const M& m);
+  // A sensor message verified and decoded (no lock held), then offered under the lock.
+  template <class Msg>
+  void handle_sensor(const lcm::ReceiveBuffer* rb, const std::string& channel);
 
   const Options& opt_;
+  // the channel names, built once (a prefixed name is past the small-string limit)
+  const std::string ch_state_, ch_cmd_, ch_status_;
   lcm::LCM& lcm_;
   const std::atomic<bool>& stop_;
   std::unique_ptr<sc_rt::Controller> ctl_;
@@ -134,13 +140,15 @@ class Shell {
   sc_rt::NavTelemetry tel_;                      // the estimator's telemetry of the last step (under mu_)
   std::atomic<int64_t> auth_failed_{0};      // states whose tag did not verify
   std::vector<int64_t> plant_sessions_;     // plant sessions followed, in order (under mu_)
-  std::vector<uint8_t> tx_;                 // an authenticated message being sent (main thread)
+  std::vector<uint8_t> tx_;                 // a message being encoded (step thread; reserved once)
   mutable std::mutex mu_;  // guards the mailbox: state_, fresh_ and the gate's state
   sc_rt::Command last_cmd_;
   int64_t cmd_seq_ = 0;
   Counters cnt_;
   //! whole-run statistics, fixed size (no cap, no allocation per step): wake lateness, compute, state age
   sc_rt::LogHistogram lat_, comp_, age_;
+  long long alloc_count_ = 0;  // sc-rt-controller-alloc: allocations since the warm-up, at the last step
+  int64_t alloc_steps_ = 0;    // and the steps they cover
 };
 
 }  // namespace sc_rt_controller

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstring>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace sc_rt {
@@ -137,12 +138,13 @@ class HmacSha256 {
     return s.finish();
   }
   // The bench's message authentication: HMAC(key, channel || 0x00 || payload).
-  Sha256::Digest message_tag(const std::string& channel, const void* payload, std::size_t n) const {
-    std::vector<uint8_t> head(channel.begin(), channel.end());
-    head.push_back(0);
+  // No allocation: the controller tags and verifies on its step path.
+  Sha256::Digest message_tag(std::string_view channel, const void* payload, std::size_t n) const {
+    static constexpr uint8_t kZero = 0;
     Sha256 s;
     s.update(ipad_, 64);
-    s.update(head.data(), head.size());
+    s.update(channel.data(), channel.size());
+    s.update(&kZero, 1);
     s.update(payload, n);
     const Sha256::Digest inner = s.finish();
     s.update(opad_, 64);
@@ -150,7 +152,7 @@ class HmacSha256 {
     return s.finish();
   }
   // data = payload || tag: whether the tag verifies (constant time in the tag).
-  bool verify(const std::string& channel, const void* data, std::size_t n) const {
+  bool verify(std::string_view channel, const void* data, std::size_t n) const {
     if (n < kSize) return false;
     const Sha256::Digest t = message_tag(channel, data, n - kSize);
     const uint8_t* got = static_cast<const uint8_t*>(data) + (n - kSize);

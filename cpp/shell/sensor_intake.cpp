@@ -5,7 +5,7 @@
 namespace sc_rt {
 
 SensorIntake::SensorIntake(const MekfParams& p, bool use_estimate, const Vec3& sigma0, std::size_t queue)
-    : est_(p, use_estimate), sigma0_(sigma0), capacity_(queue == 0 ? 1 : queue) {
+    : est_(p, use_estimate), sigma0_(sigma0), queue_(queue) {
   est_.reset(sigma0_);
 }
 
@@ -49,7 +49,7 @@ void SensorIntake::offer(const Item& it) {
     apply(it);
     return;
   }
-  if (queue_.size() == capacity_) {  // full: the oldest goes (applied if it is the followed session's)
+  if (queue_.full()) {  // full: the oldest goes (applied if it is the followed session's)
     const Item old = queue_.front();
     queue_.pop_front();
     if (following_ && old.session == session_) {
@@ -72,19 +72,19 @@ void SensorIntake::use(int64_t session, double t) {
   horizon_ = t;
   // the waiting samples in order: this session's up to t applied, others' dropped,
   // from this session's first later sample on everything waits for a later state
-  std::deque<Item> keep;
   bool hold = false;
-  for (const Item& it : queue_) {
+  queue_.retain([&](const Item& it) {
     if (it.session != session) {
       ++c_.foreign;
-    } else if (hold || time_of(it) > t) {
-      hold = true;
-      keep.push_back(it);
-    } else {
-      apply(it);
+      return false;
     }
-  }
-  queue_.swap(keep);
+    if (hold || time_of(it) > t) {
+      hold = true;
+      return true;
+    }
+    apply(it);
+    return false;
+  });
 }
 
 void SensorIntake::apply(const Item& it) {

@@ -23,11 +23,48 @@
 // the filter there (ready() false until then; the shell commands SAFE).
 #pragma once
 #include <cstdint>
-#include <deque>
+#include <vector>
 
 #include "sc_rt/mekf.hpp"
 
 namespace sc_rt {
+
+// A first-in first-out queue of fixed capacity whose storage is allocated
+// once: pushing and popping samples never allocates (the controller's step
+// path does not, issue #31).
+template <class T>
+class FixedFifo {
+ public:
+  explicit FixedFifo(std::size_t capacity) : buf_(capacity == 0 ? 1 : capacity) {}
+  std::size_t size() const { return n_; }
+  std::size_t capacity() const { return buf_.size(); }
+  bool empty() const { return n_ == 0; }
+  bool full() const { return n_ == buf_.size(); }
+  const T& front() const { return buf_[head_]; }
+  void pop_front() {
+    head_ = (head_ + 1) % buf_.size();
+    --n_;
+  }
+  void push_back(const T& v) {  // precondition: !full()
+    buf_[(head_ + n_) % buf_.size()] = v;
+    ++n_;
+  }
+  // Visits every item in order and keeps those for which keep(item) is
+  // true, in order, in place.
+  template <class F>
+  void retain(F keep) {
+    std::size_t w = 0;
+    for (std::size_t i = 0; i < n_; ++i) {
+      const T item = buf_[(head_ + i) % buf_.size()];
+      if (keep(item)) buf_[(head_ + w++) % buf_.size()] = item;
+    }
+    n_ = w;
+  }
+
+ private:
+  std::vector<T> buf_;
+  std::size_t head_ = 0, n_ = 0;
+};
 
 enum class SensorKind { Gyro = 0, Star = 1, Tach = 2 };
 
@@ -82,8 +119,7 @@ class SensorIntake {
   int64_t session_ = -1;
   int64_t last_seq_[3] = {-1, -1, -1};
   double horizon_ = -1.0;      // the time of the newest state used
-  std::deque<Item> queue_;     // samples not yet applied, in arrival order
-  std::size_t capacity_;
+  FixedFifo<Item> queue_;      // samples not yet applied, in arrival order
   SensorCounts c_;
 };
 
