@@ -30,7 +30,9 @@ def test_timing_setup_and_the_floor_comparison():
         TimingSetup(trigger="sometimes")
     s = TimingSetup(trigger="event", controller_cpu=1, null_law=True)
     assert s.controller_args() == ["--trigger", "event", "--cpu", "1", "--null-law"]
-    assert TimingSetup().controller_args() == []
+    # the trigger is always named: the controller binary's own default never decides
+    assert TimingSetup().controller_args() == ["--trigger", "event"]
+    assert TimingSetup(trigger="timer").controller_args() == ["--trigger", "timer"]
     assert s.key() != TimingSetup().key()
     timing = {"state_to_cmd_latency_us": {"p50": 120.0, "p99": 300.0, "max": 900.0}}
     floor = {"latency_us": {"p50": 80.0, "p99": 200.0, "max": 500.0}, "source": "cached"}
@@ -59,7 +61,7 @@ def test_floor_of_an_event_triggered_null_controller(tmp_path):
     assert f["wake_lateness_us"]["max"] == 0.0  # it steps on the arrival: no timer to be late for
     assert 0.0 <= f["fresh_fraction"] <= 1.0
     assert f["setup"]["trigger"] == "event" and f["setup"]["null_law"] is False  # the run's setup, cached
-    cached = list(tmp_path.glob("floor-*-realtime-200hz-other-event-*.json"))
+    cached = list(tmp_path.glob("floor-*-realtime-200hz-fifo-event-*.json"))  # real-time priority: the default
     assert len(cached) == 1 and json.loads(cached[0].read_text())["steps"] == f["steps"]
 
 
@@ -68,10 +70,10 @@ def test_self_test_prints_the_floor_table(tmp_path):
     lcmnet.require()
     r = _cli(["hil", "paper_faults", "--self-test", "--control-rate", "100", "--duration", "1"], tmp_path)
     assert r.returncode == 0, r.stderr + r.stdout
-    assert "bench floor:" in r.stdout and "realtime 100 Hz, timer trigger" in r.stdout
+    assert "bench floor:" in r.stdout and "realtime 100 Hz, event trigger" in r.stdout  # the default
     for name in ("LCM round trip", "state-to-command latency", "emulator tick lateness"):
         assert name in r.stdout
-    assert list(tmp_path.glob("floor-*-realtime-100hz-other-timer-*.json"))
+    assert list(tmp_path.glob("floor-*-realtime-100hz-fifo-event-*.json"))
 
 
 @pytest.mark.lcm
@@ -89,7 +91,11 @@ def test_a_realtime_run_carries_its_cached_floor_and_the_null_law_answers_zero(t
     assert t["floor"]["source"] == "cached" and t["floor"]["control_rate_hz"] == 100
     assert t["over_floor"]["line"].startswith("bench floor p99 ")
     assert "this controller added" in r.stdout
-    assert t["trigger"] == "timer" and t["null_law"] is False
+    # the defaults (issue #31): the event trigger, and real-time priority asked
+    # for (granted, or the refusal named: the output says which)
+    assert t["trigger"] == "event" and t["null_law"] is False
+    assert t["scheduler"].startswith("SCHED_FIFO 80") or "SCHED_FIFO denied" in t["scheduler"], t["scheduler"]
+    assert f"scheduler {t['scheduler']}" in r.stdout
     assert (out / "timing.png").stat().st_size > 0
     # the floor's own controller: zero commands, the same messages
     null = tmp_path / "null"

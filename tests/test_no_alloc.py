@@ -115,7 +115,7 @@ def test_lockstep_with_sensors_auth_and_a_hostile_publisher_allocates_nothing(tm
 def test_realtime_steps_and_the_receive_thread_allocate_nothing(tmp_path):
     """Real time, timer trigger: the receive thread fills the mailbox and
     the intake while the step thread steps on its deadlines."""
-    s = _run(tmp_path, "ppc_feasible_100hz_sensors", 7763, ctl_args="--mode realtime",
+    s = _run(tmp_path, "ppc_feasible_100hz_sensors", 7763, ctl_args="--mode realtime --trigger timer",
              emu_args="--mode realtime", duration=4)
     assert s["mode"] == "realtime" and s["trigger"] == "timer" and s["steps"] > 2 * WARMUP, s
     assert _allocations(s)["count"] == 0, s

@@ -62,7 +62,7 @@ struct Options {
   // real time: lock the wake-up phase to the arrival of states (PLL), this
   // many microseconds after a state arrives (< 0: free-running clock)
   double phase_offset_us = 50.0;
-  bool event_trigger = false;  // --trigger event: step on each state's arrival (real time)
+  bool event_trigger = true;  // --trigger event (default): step on each state's arrival (real time)
   bool null_law = false;       // --null-law: zero commands, no law step (the bench floor)
   int cpu = -1;                // --cpu N: pin to this CPU (< 0: no pinning)
 };

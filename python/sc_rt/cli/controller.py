@@ -76,7 +76,7 @@ def add_parser(sub) -> None:
                         "default %(default)s)")
     c.add_argument("--max-steps", type=integer(1, 10**12), metavar="N", help="stop after N steps")
     c.add_argument("--summary", metavar="FILE", help="write the exit summary (JSON) there too")
-    c.add_argument("--realtime-priority", action="store_true",
+    c.add_argument("--realtime-priority", action=argparse.BooleanOptionalAction, default=True,
                    help="accepted for sc-rt hil; a Python process keeps SCHED_OTHER")
     c.set_defaults(func=cmd_controller)
 

@@ -15,9 +15,9 @@ __all__ = ["add_timing_options", "timing_setup", "add_floor_parser", "cmd_floor"
 
 
 def add_timing_options(h: argparse.ArgumentParser, *, floor_policy: bool = True) -> None:
-    h.add_argument("--trigger", choices=("timer", "event"), default="timer",
-                   help="real time: the controller steps on its own timer phase-locked to the state "
-                        "arrivals (timer), or on each state's arrival (event) (default: %(default)s)")
+    h.add_argument("--trigger", choices=("event", "timer"), default="event",
+                   help="real time: the controller steps on each state's arrival (event), or on its own "
+                        "timer phase-locked to the state arrivals (timer) (default: %(default)s)")
     h.add_argument("--controller-cpu", type=integer(0), metavar="N", help="pin sc-rt-controller to CPU N")
     h.add_argument("--emulator-cpu", type=integer(0), metavar="N", help="pin the emulator's thread to CPU N")
     h.add_argument("--spin-us", type=number(0, 1e6, open_lo=False, unit="us"), default=100.0, metavar="US",
@@ -79,8 +79,9 @@ def add_floor_parser(sub) -> None:
                    help="the null-controller run (default: %(default)s)")
     f.add_argument("--rtt-count", type=integer(1), default=2000, metavar="N",
                    help="LCM round trips of sc-rt-lcm-pingpong (default: %(default)s)")
-    f.add_argument("--realtime-priority", action="store_true",
-                   help="SCHED_FIFO + mlockall for the controller and the emulator (root)")
+    f.add_argument("--realtime-priority", action=argparse.BooleanOptionalAction, default=True,
+                   help="SCHED_FIFO + mlockall for the controller and the emulator where permitted (root or "
+                        "CAP_SYS_NICE; else SCHED_OTHER, said in the output) (default: on)")
     f.add_argument("--json", action="store_true", help="print the floor as JSON")
     f.add_argument("--no-cache", action="store_true", help="do not write the floor cache")
     add_timing_options(f, floor_policy=False)

@@ -46,13 +46,14 @@ _TIMING_KEYS = {"latency_us": "state_to_cmd_latency_us", "tick_lateness_us": "em
 class TimingSetup:
     """How a bench run is scheduled, besides the mode and rate.
 
-    trigger: the controller's, ``timer`` (its own clock, phase-locked to the
-    state arrivals) or ``event`` (a step on each state's arrival);
+    trigger: the controller's, ``event`` (a step on each state's arrival,
+    the default) or ``timer`` (its own clock, phase-locked to the state
+    arrivals);
     controller_cpu / emulator_cpu: pin each to one CPU (None: the kernel
     places them); spin_us: the emulator polls instead of sleeping for the
     last spin_us before each tick; null_law: the floor's zero controller."""
 
-    trigger: str = "timer"
+    trigger: str = "event"
     controller_cpu: int | None = None
     emulator_cpu: int | None = None
     spin_us: float = 100.0
@@ -63,7 +64,7 @@ class TimingSetup:
             raise ValueError(f"trigger must be timer or event, got {self.trigger!r}")
 
     def controller_args(self) -> list[str]:
-        args = [] if self.trigger == "timer" else ["--trigger", self.trigger]
+        args = ["--trigger", self.trigger]
         if self.controller_cpu is not None:
             args += ["--cpu", str(self.controller_cpu)]
         return args + (["--null-law"] if self.null_law else [])
@@ -112,7 +113,7 @@ def lcm_round_trip(count: int = 2000, url: str | None = None, fifo: bool = False
 
 def measure_floor(scn: Scenario, *, run: Callable[..., Any], mode: str = "realtime",
                   control_rate_hz: float | None = None, duration: float = DEFAULT_FLOOR_S,
-                  realtime_priority: bool = False, setup: TimingSetup | None = None, rtt_count: int = 2000,
+                  realtime_priority: bool = True, setup: TimingSetup | None = None, rtt_count: int = 2000,
                   lcm_url: str | None = None) -> dict[str, Any]:
     """A null-controller run of ``duration`` s and the LCM round trip; the
     floor's figures (p50/p99/max per series), its counts and its conditions.

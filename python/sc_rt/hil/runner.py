@@ -224,7 +224,7 @@ def _stop(proc: subprocess.Popen, sig: int = signal.SIGTERM, timeout: float = 5.
 
 def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None = None,
             control_rate_hz: float | None = None, duration: float | None = None,
-            lcm_url: str | None = None, prefix: str = "", realtime_priority: bool = False,
+            lcm_url: str | None = None, prefix: str = "", realtime_priority: bool = True,
             time_scale: float = 1.0, accept_fault_commands: bool = False,
             plots: bool = True, external: str | None = None, external_wait: bool = False,
             start_timeout: float | None = None, auth_key: str | Path | None = None,
@@ -269,7 +269,8 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
         Channel-name prefix ("": none), for two benches on one URL.
     realtime_priority : bool
         The controller and the emulator's thread ask for SCHED_FIFO and
-        mlockall.
+        mlockall (the default), each falling back to SCHED_OTHER with a
+        warning where that is not permitted; the run's timing says which.
     time_scale : float
         Real time: simulated seconds per wall-clock second (2.0: twice as fast).
     accept_fault_commands : bool
