@@ -86,15 +86,22 @@ def alternate(fns: dict, runs: int, warmup: int = 1) -> dict[str, list[float]]:
     return out
 
 
+def _not_judged(d: dict) -> None:
+    """Every target_* verdict, at any depth, replaced by "not judged"."""
+    for k, v in d.items():
+        if isinstance(v, dict):
+            _not_judged(v)
+        elif k.startswith("target_") and v in ("pass", "miss"):
+            d[k] = "not judged (smoke run)"
+
+
 def write(name: str, result: dict) -> None:
     """The results as results_dir()/NAME.json, and printed; with the mode
     they were measured in. A smoke run's figures are no measurement: its
     verdicts on the targets ("pass"/"miss") are replaced by "not judged"."""
     result.setdefault("mode", mode())
     if result["mode"] == "smoke":
-        for k, v in result.items():
-            if k.startswith("target_") and v in ("pass", "miss"):
-                result[k] = "not judged (smoke run)"
+        _not_judged(result)
     path = results_dir() / f"{name}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(result, indent=2) + "\n")

@@ -295,6 +295,29 @@ void bind_controllers(py::module_& m) {
       "control instant; CLOSED_LOOP_FIELDS: (name, width) in dict order).");
 
   m.def(
+      "bare_closed_loop",
+      [](const ControllerConfig& cfg, const PlantParams& plant, const ActuatorParams& act,
+         const Eigen::Matrix<double, 10, 1>& x0, int n_ctrl, int n_sub, double rate) {
+        PlantState x{x0.segment<3>(0), x0.segment<3>(3), x0.segment<4>(6)};
+        int rows = 0;
+        Eigen::Matrix<double, 10, 1> last;
+        bool diverged = false;
+        {
+          py::gil_scoped_release release;
+          ClosedLoop loop(cfg, plant, act, x, n_ctrl, n_sub, rate);
+          rows = loop.run(n_ctrl + 1, nullptr);
+          diverged = loop.diverged();
+          const PlantState& xf = loop.state();
+          last << xf.sigma_BN, xf.omega_BN_B, xf.wheel_speed;
+        }
+        return py::make_tuple(rows, diverged, last);
+      },
+      arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),
+      "simulate_closed_loop's loop without recording (bench/bench_sim.py's bare loop: the law,\n"
+      "the wheels and the plant, nothing written): (rows, diverged, the plant state of the\n"
+      "last row, (10,)).");
+
+  m.def(
       "run_steps",
       [](Controller& c, const RowsD& t, const RowsD& sigma, const RowsD& omega,
          const RowsD& wheel) {

@@ -6,6 +6,9 @@
 #include <pybind11/stl.h>
 
 #include <string>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include "defaults.hpp"
 #include "sc_rt/guidance.hpp"
@@ -157,8 +160,25 @@ void bind_math(py::module_& m) {
 
 }  // namespace
 
+namespace {
+// Offline runs allocate their columns afresh each run (a few MB at 10 Hz).
+// glibc's defaults hand freed memory back to the kernel (trim above 128 kB,
+// mmap for blocks above 128 kB-32 MB), so every run faulted its pages in
+// again: 1.8x the bare loop's time at 10 Hz, against 1.1-1.3x with the
+// memory kept (measured, docs/PERFORMANCE.md). Keep up to 128 MB of freed
+// heap for reuse and serve blocks up to 32 MB from the heap: bounded, and
+// the interpreter's own (pymalloc) arenas are unaffected.
+void keep_freed_memory() {
+#if defined(__GLIBC__)
+  mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
+  mallopt(M_TRIM_THRESHOLD, 128 * 1024 * 1024);
+#endif
+}
+}  // namespace
+
 PYBIND11_MODULE(_core, m) {
   m.doc() = "sc-rt control core (C++, Eigen), see docs/CORE.md";
+  keep_freed_memory();
   m.attr("__version__") = SCRT_VERSION;
   m.attr("DEFAULT_LCM_URL") = SCRT_DEFAULT_LCM_URL;  // cpp/shell/defaults.hpp, the processes' default
 

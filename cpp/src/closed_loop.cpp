@@ -2,6 +2,7 @@
 
 #include <memory>
 #include <stdexcept>
+#include <utility>
 
 namespace sc_rt {
 
@@ -15,95 +16,121 @@ bool finite(const PlantState& x) {
 }
 }  // namespace
 
-ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantParams& plant,
-                                      const ActuatorParams& act, const PlantState& x0, int n_ctrl,
-                                      int n_sub, double rate, const NavConfig* nav) {
+void ClosedLoopResult::reserve_rows(std::size_t n, bool nav) {
+  t.resize(n);
+  for (auto* v : {&sigma_BN, &omega_BN_B, &sigma_DN, &sigma_BD, &omega_BD_B, &z1, &z2, &delta2, &chi, &lam, &e1, &e2})
+    v->resize(3 * n);
+  for (auto* v : {&wheel_speed, &u_cmd, &u_sat, &wheel_accel, &vs}) v->resize(4 * n);
+  flags.resize(n);
+  ctrl_mode.resize(n);
+  if (nav) {
+    for (auto* v : {&sigma_BN_est, &bias_est, &bias_true, &att_est_error, &innovation}) v->resize(3 * n);
+    P_diag.resize(6 * n);
+    nis.resize(n);
+  }
+}
+
+ClosedLoop::ClosedLoop(const ControllerConfig& cfg, const PlantParams& plant, const ActuatorParams& act,
+                       const PlantState& x0, int n_ctrl, int n_sub, double rate, const NavConfig* nav)
+    : plant_(plant), act_(act), delta2_(plant_), x_(x0), n_ctrl_(n_ctrl), n_sub_(n_sub), rate_(rate) {
   if (n_ctrl < 0 || n_sub < 1 || !(rate > 0.0))
     throw std::invalid_argument("simulate_closed_loop: need n_ctrl >= 0, n_sub >= 1, rate > 0");
-  const auto ctl = Controller::create(cfg);
-  const std::size_t n = static_cast<std::size_t>(n_ctrl) + 1;
-  ClosedLoopResult r;
-  r.t.resize(n);
-  for (auto* v : {&r.sigma_BN, &r.omega_BN_B, &r.sigma_DN, &r.sigma_BD, &r.omega_BD_B, &r.z1, &r.z2,
-                  &r.delta2, &r.chi, &r.lam, &r.e1, &r.e2})
-    v->resize(3 * n);
-  for (auto* v : {&r.wheel_speed, &r.u_cmd, &r.u_sat, &r.wheel_accel, &r.vs}) v->resize(4 * n);
-  r.flags.resize(n);
-  r.ctrl_mode.resize(n);
-  std::unique_ptr<Navigation> nv;
-  if (nav) {
-    nv = std::make_unique<Navigation>(*nav);
-    for (auto* v : {&r.sigma_BN_est, &r.bias_est, &r.bias_true, &r.att_est_error, &r.innovation})
-      v->resize(3 * n);
-    r.P_diag.resize(6 * n);
-    r.nis.resize(n);
-  }
-
-  const double h = 1.0 / (rate * n_sub);
-  PlantState x = x0;
-  NavTelemetry tel;
-  if (nv) {
-    nv->reset(x);
-    nv->tick(0, 0.0, x);
-    ctl->reset(nv->measure(0.0, x));
+  ctl_ = Controller::create(cfg);
+  if (nav) nv_ = std::make_unique<Navigation>(*nav);
+  h_ = 1.0 / (rate * n_sub);
+  if (nv_) {
+    nv_->reset(x_);
+    nv_->tick(0, 0.0, x_);
+    ctl_->reset(nv_->measure(0.0, x_));
   } else {
-    ctl->reset(Measurement{0.0, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
+    ctl_->reset(Measurement{0.0, x_.sigma_BN, x_.omega_BN_B, x_.wheel_speed});
   }
-  const std::int64_t nsub64 = n_sub;
-  std::int64_t next = nv ? nv->next_tick(0) : 0;  // a tick with nothing due changes nothing: skip it
-  for (int k = 0; k <= n_ctrl; ++k) {
-    const double t = k / rate;
-    if (nv && k > 0 && k * nsub64 == next) {
-      nv->tick(next, t, x);
-      next = nv->next_tick(next);
+  next_ = nv_ ? nv_->next_tick(0) : 0;  // a tick with nothing due changes nothing: skip it
+}
+
+ClosedLoop::~ClosedLoop() = default;
+
+const LawFailures& ClosedLoop::law_failures() const { return ctl_->law_failures(); }
+
+int ClosedLoop::run(int rows, ClosedLoopResult* out) {
+  if (out && rows > 0 && out->t.size() < static_cast<std::size_t>(rows))
+    throw std::invalid_argument("ClosedLoop::run: the result has room for fewer rows than asked");
+  Navigation* nv = nv_.get();
+  const std::int64_t nsub64 = n_sub_;
+  int written = 0;
+  while (written < rows && !done_) {
+    const int k = k_;
+    const int i = written;  // the row in this chunk
+    const double t = k / rate_;
+    if (nv && k > 0 && k * nsub64 == next_) {
+      nv->tick(next_, t, x_);
+      next_ = nv->next_tick(next_);
     }
-    const Command c = ctl->step(nv ? nv->measure(t, x, &tel)
-                                   : Measurement{t, x.sigma_BN, x.omega_BN_B, x.wheel_speed});
-    const WheelOutput w = wheel_accel(act, t, c.u_cmd, x.wheel_speed);
-    r.t[static_cast<std::size_t>(k)] = t;
-    put(r.sigma_BN, k, x.sigma_BN);
-    put(r.omega_BN_B, k, x.omega_BN_B);
-    put(r.wheel_speed, k, x.wheel_speed);
-    put(r.u_cmd, k, c.u_cmd);
-    put(r.u_sat, k, c.u_sat);
-    put(r.wheel_accel, k, w.accel);
-    put(r.delta2, k, lumped_disturbance(plant, t, x, w.u_sat, w.accel));
-    put(r.sigma_DN, k, c.sigma_DN);
-    put(r.sigma_BD, k, c.sigma_BD);
-    put(r.omega_BD_B, k, c.omega_BD_B);
-    put(r.z1, k, c.z1);
-    put(r.z2, k, c.z2);
-    put(r.chi, k, c.chi);
-    put(r.lam, k, c.lam);
-    put(r.e1, k, c.e1);
-    put(r.e2, k, c.e2);
-    put(r.vs, k, c.vs);
-    r.flags[static_cast<std::size_t>(k)] = nv ? (c.flags | tel.flags) : c.flags;
-    if (nv) {
-      put(r.sigma_BN_est, k, tel.sigma_est);
-      put(r.bias_est, k, tel.bias_est);
-      put(r.bias_true, k, tel.bias_true);
-      put(r.att_est_error, k, tel.att_error);
-      put(r.innovation, k, tel.innovation);
-      put(r.P_diag, k, tel.P_diag);
-      r.nis[static_cast<std::size_t>(k)] = tel.nis;
-    }
-    r.ctrl_mode[static_cast<std::size_t>(k)] = c.mode;
-    r.rows = k + 1;
-    if (k == n_ctrl) break;
-    for (int j = 0; j < n_sub; ++j) {
-      if (nv && j > 0 && k * nsub64 + j == next) {
-        nv->tick(next, t + j * h, x);
-        next = nv->next_tick(next);
+    const Command c = ctl_->step(nv ? nv->measure(t, x_, out ? &tel_ : nullptr)
+                                    : Measurement{t, x_.sigma_BN, x_.omega_BN_B, x_.wheel_speed});
+    const WheelOutput w = wheel_accel(act_, t, c.u_cmd, x_.wheel_speed);
+    if (out) {
+      out->t[static_cast<std::size_t>(i)] = t;
+      put(out->sigma_BN, i, x_.sigma_BN);
+      put(out->omega_BN_B, i, x_.omega_BN_B);
+      put(out->wheel_speed, i, x_.wheel_speed);
+      put(out->u_cmd, i, c.u_cmd);
+      put(out->u_sat, i, c.u_sat);
+      put(out->wheel_accel, i, w.accel);
+      put(out->delta2, i, delta2_(t, x_, w.u_sat, w.accel));
+      put(out->sigma_DN, i, c.sigma_DN);
+      put(out->sigma_BD, i, c.sigma_BD);
+      put(out->omega_BD_B, i, c.omega_BD_B);
+      put(out->z1, i, c.z1);
+      put(out->z2, i, c.z2);
+      put(out->chi, i, c.chi);
+      put(out->lam, i, c.lam);
+      put(out->e1, i, c.e1);
+      put(out->e2, i, c.e2);
+      put(out->vs, i, c.vs);
+      out->flags[static_cast<std::size_t>(i)] = nv ? (c.flags | tel_.flags) : c.flags;
+      if (nv) {
+        put(out->sigma_BN_est, i, tel_.sigma_est);
+        put(out->bias_est, i, tel_.bias_est);
+        put(out->bias_true, i, tel_.bias_true);
+        put(out->att_est_error, i, tel_.att_error);
+        put(out->innovation, i, tel_.innovation);
+        put(out->P_diag, i, tel_.P_diag);
+        out->nis[static_cast<std::size_t>(i)] = tel_.nis;
       }
-      x = plant_rk4_step(plant, act, t + j * h, x, h, c.u_cmd);
+      out->ctrl_mode[static_cast<std::size_t>(i)] = c.mode;
     }
-    if (!finite(x)) {
-      r.diverged = true;
+    ++written;
+    ++k_;
+    if (k == n_ctrl_) {
+      done_ = true;
+      break;
+    }
+    for (int j = 0; j < n_sub_; ++j) {
+      if (nv && j > 0 && k * nsub64 + j == next_) {
+        nv->tick(next_, t + j * h_, x_);
+        next_ = nv->next_tick(next_);
+      }
+      x_ = plant_rk4_step(plant_, act_, t + j * h_, x_, h_, c.u_cmd);
+    }
+    if (!finite(x_)) {
+      diverged_ = done_ = true;
       break;
     }
   }
-  r.law_failures = ctl->law_failures();
+  if (out) out->rows = written;
+  return written;
+}
+
+ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantParams& plant,
+                                      const ActuatorParams& act, const PlantState& x0, int n_ctrl,
+                                      int n_sub, double rate, const NavConfig* nav) {
+  ClosedLoop loop(cfg, plant, act, x0, n_ctrl, n_sub, rate, nav);
+  ClosedLoopResult r;
+  r.reserve_rows(static_cast<std::size_t>(n_ctrl) + 1, nav != nullptr);
+  loop.run(n_ctrl + 1, &r);
+  r.diverged = loop.diverged();
+  r.law_failures = loop.law_failures();
   return r;
 }
 

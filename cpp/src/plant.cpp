@@ -397,27 +397,40 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
   return y;
 }
 
-Vec3 lumped_disturbance(const PlantParams& p, double t, const PlantState& x, const Vec4& u_sat,
-                        const Vec4& accel) {
+struct LumpedDisturbance::Impl {
   // As plant.py: omega_dot of (7) with the true J, the actual accelerations
   // and d(t), minus the model of (21): the same right-hand side with J0 (u_g0
   // too), the saturated commands and no d:
   // J0^-1 [-W^ (J0 W + Cbar Jw Omega_w) + u_g0 - Cbar Jw u_sat].
-  const Rhs f(p.J0 + p.dJ, p.w0);
-  const Rhs f0(p.J0, p.w0);
-  const WheelMap wheel(p);
-  double s[3], w[3], O[4], v[4], hw[3], ta[3], tu[3], d[3], a3[6], m3[6];
-  const double zero[3] = {0.0, 0.0, 0.0};
-  unpack(x, s, w, O);
-  wheel(O, hw);
-  for (int i = 0; i < 4; ++i) v[i] = accel(i);
-  wheel(v, ta);
-  for (int i = 0; i < 4; ++i) v[i] = u_sat(i);
-  wheel(v, tu);
-  dist3(p, t, d);
-  f(s, w, hw, ta, d, a3);
-  f0(s, w, hw, tu, zero, m3);
-  return Vec3(a3[3] - m3[3], a3[4] - m3[4], a3[5] - m3[5]);
+  const PlantParams& p;
+  const Rhs f, f0;
+  const WheelMap wheel;
+  explicit Impl(const PlantParams& pp) : p(pp), f(pp.J0 + pp.dJ, pp.w0), f0(pp.J0, pp.w0), wheel(pp) {}
+  Vec3 operator()(double t, const PlantState& x, const Vec4& u_sat, const Vec4& accel) const {
+    double s[3], w[3], O[4], v[4], hw[3], ta[3], tu[3], d[3], a3[6], m3[6];
+    const double zero[3] = {0.0, 0.0, 0.0};
+    unpack(x, s, w, O);
+    wheel(O, hw);
+    for (int i = 0; i < 4; ++i) v[i] = accel(i);
+    wheel(v, ta);
+    for (int i = 0; i < 4; ++i) v[i] = u_sat(i);
+    wheel(v, tu);
+    dist3(p, t, d);
+    f(s, w, hw, ta, d, a3);
+    f0(s, w, hw, tu, zero, m3);
+    return Vec3(a3[3] - m3[3], a3[4] - m3[4], a3[5] - m3[5]);
+  }
+};
+
+LumpedDisturbance::LumpedDisturbance(const PlantParams& p) : impl_(std::make_unique<Impl>(p)) {}
+LumpedDisturbance::~LumpedDisturbance() = default;
+Vec3 LumpedDisturbance::operator()(double t, const PlantState& x, const Vec4& u_sat, const Vec4& accel) const {
+  return (*impl_)(t, x, u_sat, accel);
+}
+
+Vec3 lumped_disturbance(const PlantParams& p, double t, const PlantState& x, const Vec4& u_sat,
+                        const Vec4& accel) {
+  return LumpedDisturbance::Impl(p)(t, x, u_sat, accel);
 }
 
 }  // namespace sc_rt

@@ -24,6 +24,7 @@
 // Pure functions: no I/O, no allocation. They assume valid parameters: check
 // them once with validate() (the Python binding's constructors do).
 #pragma once
+#include <memory>
 #include <array>
 #include <limits>
 #include <string>
@@ -110,5 +111,20 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
 // W = omega_BN_B, u_g0 = 3 w0^2 R3^ J0 R3, B = -J0^-1 Cbar Jw.
 Vec3 lumped_disturbance(const PlantParams& p, double t, const PlantState& x, const Vec4& u_sat,
                         const Vec4& accel);
+
+// The same, its two right-hand sides and the wheel map built once (a loop
+// that records delta_2 at every row): bitwise the function's values.
+class LumpedDisturbance {
+ public:
+  explicit LumpedDisturbance(const PlantParams& p);
+  ~LumpedDisturbance();
+  LumpedDisturbance(const LumpedDisturbance&) = delete;
+  LumpedDisturbance& operator=(const LumpedDisturbance&) = delete;
+  Vec3 operator()(double t, const PlantState& x, const Vec4& u_sat, const Vec4& accel) const;
+  struct Impl;  // plant.cpp (lumped_disturbance() uses it on the stack)
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace sc_rt
