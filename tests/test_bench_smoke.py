@@ -106,6 +106,12 @@ def bench_sim(res: dict, out: str) -> None:
             check_pos(res, f"{engine}_{key}_step_us")
         check_pos(res, f"python_{key}_run_300s_estimate_s", f"ratio_python_over_cpp_{key}")
     assert {"target_cpp_10hz_le_5ms", "target_python_10hz_le_150ms"} <= set(res)
+    for key in ("10hz", "100hz"):  # the engine side by side with the bare loop (issue #31)
+        side = res[f"cpp_{key}_engine_vs_bare"]
+        check_summary(side["bare_loop_s"])
+        check_summary(side["engine_loop_s"])
+        check_pos(side, "engine_over_bare")
+        assert side["target_le_1.3x"] == SMOKE
 
 
 def bench_montecarlo(res: dict, out: str) -> None:
@@ -139,7 +145,9 @@ def bench_hil(res: dict, out: str) -> None:
 def bench_timing(res: dict, out: str) -> None:
     assert "failed" not in res, res.get("failed")
     rows = res["rows"]
-    assert len(rows) == 5, list(rows)  # 100 Hz, 1 kHz, lockstep, timer, CPU placement
+    # hil's defaults (100 Hz), 100 Hz, 1 kHz, lockstep, timer, CPU placement
+    assert len(rows) == 6, list(rows)
+    assert "100 Hz, hil's defaults" in rows and "--trigger" not in rows["100 Hz, hil's defaults"]["args"]
     assert sum(n.startswith("lockstep") for n in rows) == 1
     for name, row in rows.items():
         assert row["runs"] >= 1 and row["checks"], name
@@ -149,7 +157,7 @@ def bench_timing(res: dict, out: str) -> None:
         check_percentiles(row["latency_us"])
         assert isinstance(row["breakdown_us"], dict) and row["breakdown_us"], name
         assert "profile_top" not in row  # a smoke run profiles nothing
-    lock = rows["lockstep + lcm-logger"]
+    lock = rows["lockstep + sc-rt-logger"]
     assert lock["steps"] > 0 and all(pos(x) for x in lock["steps_per_s_runs"]), lock
     assert all(pos(x) for x in lock["latency_p99_over_floor_p99"]), lock
     # the table after the JSON, every row in it
@@ -212,6 +220,18 @@ def bench_sensors(res: dict, out: str) -> None:
         assert name in out  # the verdicts printed after the JSON
 
 
+def bench_live(res: dict, out: str) -> None:
+    ways = ("no_live", "live_no_client", "live_client")
+    for way in ways:
+        assert len(res["runs"][way]) == 1, res["runs"]
+        m = res[way]
+        assert pos(m["latency_p99_us"]) and m["latency_p50_us"] <= m["latency_p99_us"], m
+        assert 0 <= m["fresh_fraction"] <= 1 and m["steps"] > 0, m
+        assert way in out  # the table after the JSON
+    assert res["live_client"]["client_states"] > 0 and res["live_client"]["client_messages"] > 0
+    check_pos(res, "live_no_client_p99_over_no_live", "live_client_p99_over_no_live")
+
+
 def bench_netem(res: dict, out: str) -> None:
     if "skipped" in res:
         pytest.skip(f"bench_netem --smoke: {res['skipped']}")
@@ -261,6 +281,7 @@ SPECS = {
     "bench_report.py": dict(check=bench_report),
     "bench_mcap.py": dict(check=bench_mcap),
     "bench_sensors.py": dict(check=bench_sensors),
+    "bench_live.py": dict(check=bench_live, marks=LCM, timeout=180),
     # root: network namespaces and nftables / tc netem (skips, saying why, elsewhere)
     "bench_netem.py": dict(check=bench_netem, marks=LCM, timeout=240, out=["--out", "{dir}/netem.json"]),
     "soak.py": dict(check=soak, marks=LCM, timeout=120,
