@@ -159,6 +159,9 @@ def _add_hil(sub) -> None:
                    help="also write the run's log as MCAP (default OUT: run.mcap in --out; as sc-rt export)")
     add_external_options(h)  # --external, --external-wait, --start-timeout (sc_rt/cli/controller.py)
     add_timing_options(h)  # --trigger, CPUs, --spin-us, --floor, --self-test (sc_rt/cli/floor_cmd.py)
+    from sc_rt.cli.live_cmd import add_hil_option
+
+    add_hil_option(h)  # --live [PORT] (sc_rt/cli/live_cmd.py)
     _lcm_opts(h)
     h.set_defaults(func=cmd_hil)
 
@@ -285,6 +288,9 @@ def build_parser() -> argparse.ArgumentParser:
     from sc_rt.cli.compare import add_parser as add_compare
 
     add_compare(sub)  # sc-rt compare: sc_rt/cli/compare.py
+    from sc_rt.cli.live_cmd import add_parser as add_live
+
+    add_live(sub)  # sc-rt live: sc_rt/cli/live_cmd.py
 
     for add in (_add_config, _add_design, _add_reproduce, _add_monitoring):
         add(sub)

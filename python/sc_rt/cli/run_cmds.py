@@ -92,19 +92,27 @@ def cmd_hil(args: argparse.Namespace) -> int:
     check_run_size(scn, given_options(args, **sizes), bus=True, realtime=args.mode == "realtime",
                    time_scale=args.time_scale)
     url = resolve_url(args.lcm_url, None)
+    live = getattr(args, "live", None)  # --live [PORT]: sc-rt live beside the run (sc_rt/hil/livechild.py)
+    if live is not None and url is None:
+        from sc_rt.wire.lcmio import free_port_url
+
+        url = free_port_url(ttl=0)  # the run's URL, known to the live server before the run starts
     mcap = getattr(args, "mcap", None)
     mcap = str(Path(args.out) / "run.mcap") if mcap == "" else mcap
     if mcap_problem(mcap, "hil"):
         return 2
     claim_out(out)
-    res = run_hil(scn, out=out, mode=args.mode, lcm_url=url,
-                  prefix=args.prefix, realtime_priority=args.realtime_priority,
-                  time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
-                  plots=not args.no_plots, law=pylaw, external=args.external,
-                  external_wait=args.external_wait, start_timeout=args.start_timeout,
-                  auth_key=args.auth_key, setup=timing_setup(args),
-                  floor=None if args.floor == "off" or args.mode != "realtime" else args.floor,
-                  rt_limits=args.rt_limits)
+    from sc_rt.hil.livechild import beside_run
+
+    with beside_run(live, url, args.prefix, args.auth_key):
+        res = run_hil(scn, out=out, mode=args.mode, lcm_url=url,
+                      prefix=args.prefix, realtime_priority=args.realtime_priority,
+                      time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
+                      plots=not args.no_plots, law=pylaw, external=args.external,
+                      external_wait=args.external_wait, start_timeout=args.start_timeout,
+                      auth_key=args.auth_key, setup=timing_setup(args),
+                      floor=None if args.floor == "off" or args.mode != "realtime" else args.floor,
+                      rt_limits=args.rt_limits)
     print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/ ({len(res.files)} files: "
           f"{', '.join(p.name for p in res.files)}, run.lcmlog)")
     print_metrics(res.metrics, res.run.meta.faults)

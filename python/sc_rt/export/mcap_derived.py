@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 __all__ = ["ARCSEC", "FOXGLOVE_SCHEMAS", "POINTING_SCHEMA", "WHEELS_SCHEMA", "Deriver", "mrp_to_quaternion",
-           "frame_messages", "pointing_messages", "wheel_messages"]
+           "frame_messages", "pointing_messages", "wheel_messages", "derived_topics"]
 
 #: [arcsec / rad]
 ARCSEC = 180.0 / math.pi * 3600.0
@@ -160,6 +160,21 @@ def wheel_messages(t, speed) -> list[bytes | None]:
             for good, tk, wk, rk in zip(ok, t.tolist(), w.tolist(), rpm)]
 
 
+def _root(prefix: str) -> str:
+    """The folder of a bench's derived topics: /derived, or /derived/<prefix> for a prefixed bench."""
+    p = prefix.strip("_/.")
+    return "/derived" + ("/" + p if p else "")
+
+
+def derived_topics(type_name: str, prefix: str) -> list[tuple[str, dict]]:
+    """(topic, schema) of the derived channels the messages of a type feed
+    (as Deriver.messages gives them), for a bench of channel prefix ``prefix``."""
+    tf = ("/tf", FOXGLOVE_SCHEMAS["foxglove.FrameTransform"])
+    return {"plant_state_t": [tf, (_root(prefix) + "/wheels", WHEELS_SCHEMA)],
+            "guidance_t": [tf],
+            "controller_status_t": [tf, (_root(prefix) + "/pointing", POINTING_SCHEMA)]}.get(type_name, [])
+
+
 class Deriver:
     """Which derived messages the decoded records of one channel give, per
     bench (channel prefix): frame B and the wheels from plant_state_t;
@@ -172,8 +187,10 @@ class Deriver:
         self.guidance: set[str] = set()
         self.rejected_configs = 0
 
-    def config(self, prefix: str, data: bytes) -> None:
-        if prefix in self.ppc:
+    def config(self, prefix: str, data: bytes, latest: bool = False) -> None:
+        """The bound of a bench from its controller_config_t: the first one
+        (a log), or with ``latest`` the newest (a live bus, run after run)."""
+        if prefix in self.ppc and not latest:
             return
         from sc_rt import _core
 
@@ -187,7 +204,7 @@ class Deriver:
         if prefix is None or not len(rec):
             return []
         p = prefix
-        root = "/derived" + ("/" + p.strip("_/.") if p.strip("_/.") else "")
+        root = _root(p)
         tf = FOXGLOVE_SCHEMAS["foxglove.FrameTransform"]
         if type_name == "plant_state_t":
             return [("frame_B", "/tf", tf, frame_messages(rec["sigma_BN"], stamps, p + "N", p + "B")),

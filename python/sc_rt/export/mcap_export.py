@@ -27,7 +27,6 @@ end: OUT is either complete or untouched.
 
 from __future__ import annotations
 
-import base64
 import json
 import os
 import time
@@ -36,37 +35,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from sc_rt.wire.lcmdefs import json_schema, load_definitions
-from sc_rt.wire.lcmio import CHANNELS
-from sc_rt.wire.lcmjson import RowEncoder, count_none, dumps, json_value
+from sc_rt.wire.lcmdefs import load_definitions
+from sc_rt.wire.lcmjson import dumps
+from sc_rt.export.channels import (MAX_UTIME, RAW_SCHEMA, JsonRows, channel_metadata, channel_schema, named_type,
+                                   raw_row, typed_by_content)
 from sc_rt.export.mcap_derived import Deriver
 from sc_rt.logs.lcmlog import LogDamaged, LogScan, read_events
 from sc_rt.wire.startrec import start_record
-from sc_rt.wire.codec import TYPES, decode_any, decode_array, identify, numpy_dtype
 
 __all__ = ["ExportError", "ExportSummary", "export_mcap", "check_output", "RAW_SCHEMA"]
 
 BATCH = 1 << 15
 #: MCAP channel ids are 16 bit: further raw channels share one overflow channel
 MAX_CHANNELS = 60000
-_MAX_UTIME = (1 << 63) // 1000
 _MAX_LOG_US = ((1 << 64) - 1) // 1000
-
-RAW_SCHEMA = {
-    "title": "sc_rt.lcm_raw_event",
-    "description": "An LCM log event carried as its raw bytes (not one well-formed message of its channel's type)",
-    "type": "object",
-    "properties": {
-        "lcm_channel": {"type": "string", "description": "LCM channel (bytes that are not UTF-8 as \\x escapes)"},
-        "reason": {"type": "string",
-                   "description": "foreign_channel, unknown_type, malformed, trailing_bytes, channel_not_utf8"},
-        "size": {"type": "integer", "minimum": 0, "description": "[bytes]"},
-        "data": {"type": "string", "contentEncoding": "base64", "description": "the event's bytes"},
-    },
-    "required": ["lcm_channel", "reason", "size", "data"], "additionalProperties": False,
-}
 
 
 class ExportError(ValueError):
@@ -112,23 +94,6 @@ class _Chan:
         self.kinds: Counter = Counter()
 
 
-_BY_BASE = {base: TYPES[tn] for base, (tn, _w, _r) in CHANNELS.items() if tn in TYPES}
-
-
-def _named_type(name: str):
-    for base, cls in _BY_BASE.items():
-        if name.endswith(base):
-            return cls, name[: -len(base)]
-    return None, None
-
-
-def _kind(cls, d: bytes, dt) -> str:
-    """Why ``d`` is not one message of fixed-size ``cls`` (as decode_array counts)."""
-    if d[:8] != cls._get_packed_fingerprint():
-        return "unknown_type"
-    return "malformed" if dt is None or len(d) < dt.itemsize else "trailing_bytes"
-
-
 class _Exporter:
     def __init__(self, writer, log_name: str):
         self.w = writer
@@ -141,7 +106,7 @@ class _Exporter:
         self.non_finite = [0]
         self.clamped = 0  # log timestamps outside the uint64 ns range of MCAP
         self.n_channels = 0
-        self.encoders: dict[type, RowEncoder] = {}
+        self.encoders: dict[type, JsonRows] = {}
         self.log_name = log_name
 
     # --- registration ------------------------------------------------------
@@ -171,19 +136,16 @@ class _Exporter:
         if c is None:
             try:
                 name, utf8 = ch.decode("utf-8"), True
-                cls, prefix = _named_type(name)
+                cls, prefix = named_type(name)
             except UnicodeDecodeError:
                 name, utf8, cls, prefix = ch.decode("utf-8", "backslashreplace"), False, None, None
             c = self.chans[ch] = _Chan(name, utf8, cls)
             c.prefix = prefix
         if c.cls is None and c.utf8 and not c.raw_id:
-            cls = identify(data)  # an unnamed channel: typed by its first message of ours
-            if cls is not None and decode_any(data)[0] is cls:
-                c.cls = cls
+            c.cls = typed_by_content(data)  # an unnamed channel: typed by its first message of ours
         if c.cls is not None and not c.json_id:
-            s = self.defs[c.cls.__name__]
-            c.json_id = self._channel(c.name, s.full_name, json_schema(s, self.defs),
-                                      {"lcm_channel": c.name, "lcm_type": s.full_name})
+            schema_name, schema = channel_schema(c.cls, self.defs)
+            c.json_id = self._channel(c.name, schema_name, schema, channel_metadata(c.name, schema_name))
         return c
 
     def _raw(self, c: _Chan, data: bytes, reason: str) -> bytes:
@@ -192,8 +154,7 @@ class _Exporter:
             c.raw_id = self._channel(topic, RAW_SCHEMA["title"], RAW_SCHEMA,
                                      {"lcm_channel": c.name, "content": "raw LCM events"})
         c.raw += 1
-        return dumps({"lcm_channel": c.name, "reason": reason, "size": len(data),
-                       "data": base64.b64encode(data).decode()})
+        return raw_row(c.name, data, reason)
 
     # --- one batch of events, written in log order --------------------------
     def batch(self, events: list) -> int:
@@ -243,49 +204,27 @@ class _Exporter:
         return len(datas)
 
     def _typed(self, c: _Chan, evs: list, idx: list[int], out: list, extra) -> None:
-        cls = c.cls
+        rows = self.encoders.get(c.cls)
+        if rows is None:
+            rows = self.encoders[c.cls] = JsonRows(c.cls)
         datas = [e[3] for e in evs]
-        dt = numpy_dtype(cls)
-        enc = self.encoders.get(cls)
-        if enc is None:
-            enc = self.encoders[cls] = RowEncoder(cls) if dt is not None else None
-        good = np.zeros(len(evs), bool)
-        bad_kind: dict[int, str] = {}
-        if enc is not None and enc.ok:
-            kinds: Counter = Counter()
-            rec, pos = decode_array(cls, datas, kinds)
-            rows = enc.rows(rec, self.non_finite)
-            utime = rec["utime"].astype(np.int64) if "utime" in (rec.dtype.names or ()) else None
-            for j, (p, row) in enumerate(zip(pos.tolist(), rows)):
-                u = int(utime[j]) if utime is not None else 0
-                out[idx[p]] = (c.json_id, row, u * 1000 if 0 < u < _MAX_UTIME else None)
-            good[pos] = True
-            self._derive(c, rec, [idx[p] for p in pos.tolist()], [evs[p][1] for p in pos.tolist()], extra)
-        else:
-            kinds = Counter()
-            for j, d in enumerate(datas):
-                before = Counter(kinds)
-                got, msg = decode_any(d, kinds)
-                if got is not cls:
-                    if got is not None:  # a valid message of another of our types
-                        kinds["unknown_type"] += 1
-                    bad_kind[j] = next(iter(kinds - before), "unknown_type")
-                    continue
-                obj = json_value(msg)
-                self.non_finite[0] += count_none(obj)
-                u = getattr(msg, "utime", 0)
-                out[idx[j]] = (c.json_id, dumps(obj), u * 1000 if isinstance(u, int) and 0 < u < _MAX_UTIME else None)
-                good[j] = True
-                if cls.__name__ == "controller_config_t" and c.prefix is not None:
-                    self.deriver.config(c.prefix, d)
-        c.json += int(good.sum())
+        kinds: Counter = Counter()
+        d = rows.decode(datas, kinds, self.non_finite)
+        for p, row, u in zip(d.pos, d.rows, d.utime):
+            out[idx[p]] = (c.json_id, row, u * 1000 if 0 < u < MAX_UTIME else None)
+        if d.rec is not None:
+            self._derive(c, d.rec, [idx[p] for p in d.pos], [evs[p][1] for p in d.pos], extra)
+        elif c.cls.__name__ == "controller_config_t" and c.prefix is not None:
+            for p in d.pos:
+                self.deriver.config(c.prefix, datas[p])
+        c.json += len(d.pos)
         c.kinds.update(kinds)
-        for j in np.nonzero(~good)[0]:
-            raw = self._raw(c, datas[j], bad_kind.get(int(j)) or _kind(cls, datas[j], dt))
+        for j in sorted(d.bad):
+            raw = self._raw(c, datas[j], d.bad[j])
             out[idx[j]] = (c.raw_id, raw, None)
 
     # --- derived channels (mcap_derived.Deriver says which) ------------------
-    def _derive(self, c: _Chan, rec: np.ndarray, where: list[int], stamps: list[int], extra) -> None:
+    def _derive(self, c: _Chan, rec, where: list[int], stamps: list[int], extra) -> None:
         for counter, topic, schema, msgs in self.deriver.messages(c.cls.__name__, c.prefix, rec, stamps):
             cid = self._derived(topic, schema["title"], schema)
             for i, m in zip(where, msgs):

@@ -1,0 +1,135 @@
+"""The Foxglove layout shipped with the package (``foxglove_layout.json``
+next to this file): one run of a bench without a channel prefix, live
+(``sc-rt live``, ``sc-rt hil --live``) or recorded (``sc-rt export``,
+``--mcap``), on the same topics.
+
+Tab "Attitude": the attitude error per axis against its prescribed bound
+(``/derived/pointing``), the pointing error, the controller mode
+(``SCRT_CMD.mode``: INIT, NORMAL, SAFE) and the frames B and D relative to
+N in 3D (``/tf``). Tab "Wheels": the wheel speeds against their limit
+(``max_wheel_speed`` of ``SCRT_CONFIG``, through a user script) and the
+commands before and after saturation.
+
+``build_layout`` writes the file with the SDK's layout classes
+(``foxglove.layouts``); tests/test_live.py checks that the shipped file is
+what it builds and that every topic it reads is a topic of the export.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+__all__ = ["LAYOUT", "TOPICS", "SCRIPT_TOPIC", "build_layout", "referenced_topics"]
+
+#: the shipped layout
+LAYOUT = Path(__file__).resolve().parent / "foxglove_layout.json"
+#: the topics the layout reads
+TOPICS = ("/derived/pointing", "/derived/wheels", "/tf", "SCRT_CMD", "SCRT_CONFIG")
+#: the topic the layout's user script writes (the wheel speed limit beside each wheel sample)
+SCRIPT_TOPIC = "/studio_script/wheel_limits"
+
+_SCRIPT = """// The wheel speed limit of the run (SCRT_CONFIG.max_wheel_speed, sent once at its start)
+// beside each wheel sample, so that the plot draws it as a line.
+import { Input } from "./types";
+
+export const inputs = ["/derived/wheels", "SCRT_CONFIG"];
+export const output = "%s";
+
+type Output = { t: number; limit_rpm: number; minus_limit_rpm: number };
+let limitRpm: number | undefined;
+
+export default function script(event: Input<"/derived/wheels"> | Input<"SCRT_CONFIG">): Output | undefined {
+  const msg = event.message as any;
+  if (event.topic === "SCRT_CONFIG") {
+    limitRpm = (msg.max_wheel_speed * 60) / (2 * Math.PI);
+    return undefined;
+  }
+  if (limitRpm === undefined) {
+    return undefined;
+  }
+  return { t: msg.t, limit_rpm: limitRpm, minus_limit_rpm: -limitRpm };
+}
+""" % SCRIPT_TOPIC
+
+
+def build_layout() -> dict:
+    """The layout as JSON data (needs ``foxglove.layouts``, of foxglove-sdk)."""
+    import foxglove.layouts as fl
+
+    def plot(title: str, series: list[tuple[str, str]], y_label: str):
+        paths = [fl.PlotSeries(value=v, label=label, timestamp_method="receiveTime") for v, label in series]
+        return fl.PlotPanel(title=title, config=fl.PlotConfig(paths=paths, y_axis_label=y_label,
+                                                             show_legend=True))
+
+    axes = []
+    for ax in "xyz":
+        axes.append(fl.SplitItem(content=plot(f"attitude error {ax} and bound [arcsec]", [
+            (f"/derived/pointing.sigma_BD_arcsec.{ax}", f"4 atan sigma_BD,{ax}"),
+            (f"/derived/pointing.bound_upper_arcsec.{ax}", "upper bound"),
+            (f"/derived/pointing.bound_lower_arcsec.{ax}", "lower bound")], "arcsec")))
+    pointing = plot("pointing error [arcsec]", [("/derived/pointing.pointing_error_arcsec", "4 atan |sigma_BD|")],
+                    "arcsec")
+    modes = fl.StateTransitionsPanel(title="controller mode", config=fl.StateTransitionsConfig(paths=[
+        fl.StateTransitionsSeries(value='"SCRT_CMD".mode', label="mode", timestamp_method="receiveTime",
+                                  custom_states=fl.StateTransitionsDiscreteCustomStates(states=[
+                                      fl.StateTransitionsDiscreteCustomState(value="0", label="INIT"),
+                                      fl.StateTransitionsDiscreteCustomState(value="1", label="NORMAL"),
+                                      fl.StateTransitionsDiscreteCustomState(value="2", label="SAFE")]))]))
+    frames = fl.ThreeDeePanel(title="frames B and D in N", config=fl.ThreeDeeConfig(follow_tf="N"))
+    wheels = plot("wheel speeds and limit [rpm]", [
+        *[(f"/derived/wheels.speed_rpm.w{i}", f"wheel {i}") for i in range(1, 5)],
+        (f"{SCRIPT_TOPIC}.limit_rpm", "+limit"), (f"{SCRIPT_TOPIC}.minus_limit_rpm", "-limit")], "rpm")
+    cmds = plot("commands [rad/s^2]", [
+        *[(f'"SCRT_CMD".u_cmd[{i}]', f"u_cmd {i + 1}") for i in range(4)],
+        *[(f'"SCRT_CMD".u_sat[{i}]', f"u_sat {i + 1}") for i in range(4)]], "rad/s^2")
+    attitude = fl.SplitContainer(direction="row", items=[
+        fl.SplitItem(proportion=2, content=fl.SplitContainer(direction="column", items=axes)),
+        fl.SplitItem(proportion=2, content=fl.SplitContainer(direction="column", items=[
+            fl.SplitItem(content=pointing), fl.SplitItem(proportion=0.5, content=modes),
+            fl.SplitItem(content=frames)]))])
+    wheel_tab = fl.SplitContainer(direction="column", items=[fl.SplitItem(content=wheels),
+                                                             fl.SplitItem(content=cmds)])
+    layout = fl.Layout(
+        content=fl.TabContainer(tabs=[fl.TabItem(title="Attitude", content=attitude),
+                                      fl.TabItem(title="Wheels", content=wheel_tab)]),
+        user_scripts={"wheel_limits": fl.UserScript(name="wheel limits", source_code=_SCRIPT)})
+    return json.loads(layout.to_json())
+
+
+def _walk(node, out: dict[str, list]) -> None:
+    """Message paths ("value"), panel types and user scripts' sources of a layout."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            if k == "value" and isinstance(v, str) and (v.startswith("/") or v.startswith('"')):
+                out["paths"].append(v)
+            elif k == "panelType" and isinstance(v, str):
+                out["panels"].append(v)
+            elif k == "sourceCode" and isinstance(v, str):
+                out["scripts"].append(v)
+            else:
+                _walk(v, out)
+    elif isinstance(node, list):
+        for v in node:
+            _walk(v, out)
+
+
+def referenced_topics(layout: dict) -> set[str]:
+    """The topics a layout reads: those of its message paths (``/a/b.c`` ->
+    ``/a/b``, ``"A".c`` -> ``A``) but its user scripts' outputs, its user
+    scripts' inputs, and ``/tf`` for a 3D panel (ThreeDee)."""
+    found: dict[str, list] = {"paths": [], "panels": [], "scripts": []}
+    _walk(layout, found)
+    out, outputs = set(), set()
+    for src in found["scripts"]:
+        m = re.search(r"export const inputs = \[([^\]]*)\]", src)
+        out.update(json.loads("[" + m.group(1) + "]") if m else [])
+        m = re.search(r'export const output = "([^"]+)"', src)
+        if m:
+            outputs.add(m.group(1))
+    for p in found["paths"]:
+        out.add(p[1:p.index('"', 1)] if p.startswith('"') else p.split(".", 1)[0].split("[", 1)[0])
+    if "ThreeDee" in found["panels"]:
+        out.add("/tf")
+    return out - outputs
