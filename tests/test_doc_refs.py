@@ -13,7 +13,8 @@ comments and docstrings of python/, cpp/, tests/, bench/ and examples/:
     as a member of the class body or an out-of-line definition; and a
     CamelCase name (``DscController``) or a backticked snake_case code name
     still occurs in the code (comments and docstrings do not count);
-(c) the equation numbers the run fields of python/sc_rt/results/run.py cite
+(c) the equation numbers the run fields of python/sc_rt/results/run.py (and
+    RunMeta's, results/meta.py) cite
     are the numbers docs/MODEL.md gives the same quantity, read from
     MODEL.md's text.
 
@@ -35,6 +36,7 @@ PKG = ROOT / "python" / "sc_rt"
 CPP = ROOT / "cpp"
 MODEL = ROOT / "docs" / "MODEL.md"
 RUN = PKG / "results" / "run.py"
+META = PKG / "results" / "meta.py"  # RunMeta, whose attributes cite equations too
 
 DOCS = [*sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md"]
 CODE_DIRS = ("python", "cpp", "tests", "bench", "examples")
@@ -658,7 +660,7 @@ def run_field_citations() -> dict[str, set[int]]:
     from sc_rt.results.run import FIELDS
 
     out = {f.name: _numbers(f.doc) for f in FIELDS}
-    for m in re.finditer(r"#:([^\n]*)\n\s*(\w+)\s*:", read(RUN)):
+    for m in re.finditer(r"#:([^\n]*)\n\s*(\w+)\s*:", read(RUN) + read(META)):
         out[m.group(2)] = _numbers(m.group(1))
     return {k: v for k, v in out.items() if v and k not in NOT_EQUATIONS}
 

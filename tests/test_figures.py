@@ -103,3 +103,65 @@ def test_lockstep_timing_figure_has_no_empty_wake_panel(captured, tmp_path):
     labels = _labels(axs[0])
     assert "period 100000 us" in labels and "bench floor p99 150 us" in labels
     assert axs[0].get_xlabel() == "t [s]"
+
+
+@pytest.fixture(scope="module")
+def requirements_run():
+    return simulate(load_scenario("mrp_feedback_requirements"), engine="cpp")
+
+
+def test_requirement_figures_draw_each_bound_over_its_span(requirements_run, captured, tmp_path):
+    """Issue #27 item 5 (write_run adds these two to the tracking figures):
+    requirements.png has a panel per pointing or
+    settling requirement with its bound over its span and the values judged
+    (recomputed here from sigma_BD); wheel_speeds.png draws the wheels and
+    their total momentum against the bounds; wheel_commands.png follows the
+    commands, not the saturation limits."""
+    run = requirements_run
+    from sc_rt.results.requirement_figures import requirement_figures
+
+    names = {p.name for p in requirement_figures(run, tmp_path)}
+    assert names == {"requirements.png", "wheel_speeds.png"}
+    figures.tracking_figures(run, tmp_path)
+    reqs = {q["name"]: q for q in run.meta.requirements}
+    results = {r["name"]: r for r in run.metrics["requirements"]}
+    panels = [q for q in run.meta.requirements if q["kind"] in ("APE", "RPE", "settling")]
+    axs = captured["requirements.png"].axes
+    assert len(axs) == len(panels)
+    ax = axs[[q["name"] for q in panels].index("pointing")]
+    assert ax.get_title(loc="left").startswith("pointing: APE norm p0.9973 temporal -> PASS")
+    bound = next(c for c in ax.collections if c.get_label() == "bound 30")
+    (seg,) = bound.get_segments()
+    np.testing.assert_allclose(seg, [[60.0, 30.0], [300.0, 30.0]])  # the bound over the span
+    values = next(ln for ln in ax.get_lines() if ln.get_label() == "APE values")
+    t = run.t
+    angle = np.degrees(4 * np.arctan(np.linalg.norm(run["sigma_BD"], axis=1))) * 3600
+    np.testing.assert_allclose(values.get_xdata(), t[t >= 60.0 - 1e-9])
+    np.testing.assert_allclose(values.get_ydata(), angle[t >= 60.0 - 1e-9], rtol=1e-9)
+    measured = next(c for c in ax.collections if c.get_label().startswith("p0.9973 value"))
+    assert measured.get_segments()[0][0][1] == pytest.approx(results["pointing"]["value"])
+    stab = axs[[q["name"] for q in panels].index("stability")]
+    rpe = next(c for c in stab.collections if c.get_label() == "RPE values")
+    assert len(rpe.get_segments()) == results["stability"]["windows"]
+    ens = axs[[q["name"] for q in panels].index("pointing_ensemble")]
+    assert "ACROSS RUNS" in ens.get_title(loc="left")
+    # the wheels: speeds as simulated, the 150 rad/s bound in view, the 600 rad/s actuator limit named off scale
+    top, bottom = captured["wheel_speeds.png"].axes
+    lines = {ln.get_label(): ln for ln in top.get_lines()}
+    for w in range(4):
+        np.testing.assert_allclose(lines[f"wheel {w + 1}"].get_ydata(), run["wheel_speed"][:, w])
+    labels = [ln.get_label() for ln in top.get_lines()] + [c.get_label() for c in top.collections]
+    assert "wheel_speed bound" in labels and "actuator speed limit (off scale: 600)" in labels
+    lo, hi = top.get_ylim()
+    assert hi >= reqs["wheel_speed"]["bound"] and hi < 600.0 and lo <= -reqs["wheel_speed"]["bound"]
+    scn = load_scenario("mrp_feedback_requirements")
+    h = np.linalg.norm((run["wheel_speed"] * scn.plant.Jw) @ scn.plant.Cbar.T, axis=1)
+    mom = next(ln for ln in bottom.get_lines() if ln.get_label().startswith("|h_w|"))
+    np.testing.assert_allclose(mom.get_ydata(), h, rtol=1e-12)
+    assert results["momentum"]["value"] == pytest.approx(h.max(), rel=1e-12)
+    # the commands' axes follow the commands (|u| < 0.6 rad/s^2), not the limits (-7, 10)
+    for w, ax in enumerate(captured["wheel_commands.png"].axes):
+        lo, hi = ax.get_ylim()
+        u = run["u_sat"][:, w]
+        assert lo <= u.min() and hi >= u.max() and hi - lo < 2.0
+        assert any("limits (off scale" in (ln.get_label() or "") for ln in ax.get_lines())

@@ -176,7 +176,8 @@ def test_the_figure_says_no_run_left_the_bound_instead_of_a_bar_at_zero():
     ("--effectiveness", "-1"), ("--onset", "inf"), ("--attitude", "4"), ("--rate", "-0.1"),
     ("--control-rate", "0"), ("--batch", "0"), ("--rerun", "-2"), ("--law", "lqr"),
     ("--backend", "spark"), ("--scheduler", "localhost"), ("--scheduler", "tcp://h:99999"),
-    ("--scheduler-file", "no/such/file.json"),
+    ("--scheduler-file", "no/such/file.json"), ("--confidence", "1"), ("--confidence", "0"),
+    ("--confidence", "abc"), ("--coverage", "0"), ("--coverage", "1.5"),
 ])  # fmt: skip
 def test_bad_options_exit_2_with_one_line_naming_them(option, value, capsys, tmp_path):
     rc = main(["montecarlo", str(FAULTS), option, value, "--out", str(tmp_path / "mc")])

@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 
 from sc_rt.results.metrics import finish_run
-from sc_rt.results.requirements import cone_vector, mrp_subtract, nearest_rank
+from sc_rt.results.pointing import cone_vector, mrp_subtract, nearest_rank
 from sc_rt.results.run import Run, RunMeta
 from sc_rt.results.verdict import verdict_line
 from sc_rt.scenario.model import ScenarioError
@@ -152,6 +152,83 @@ def test_mpe_of_a_ramp_is_the_window_mean_of_the_drift():
     run = run_of(t, about_x(theta), [req("rpe", "RPE", axis="x", bound=1.0, unit="arcsec", confidence=p,
                                          interpretation="temporal", window=w, t_from=t0)])
     assert result(run, "rpe")["value"] == pytest.approx(0.05 * (n - 1) * dt / 2.0, rel=1e-9)
+
+
+def pairs_numpy(e: np.ndarray, n_first: int, n: int, shift: int) -> list[float]:
+    """PDE/PRE written out: windows of n samples tiling e[:n_first], each against the window shift samples later."""
+    return [abs(e[k + shift:k + shift + n].mean() - e[k:k + n].mean())
+            for k in range(0, n_first - n + 1, n) if k + shift + n <= len(e)]
+
+
+@pytest.mark.parametrize("window, separation", [(10.0, 30.0), (5.0, 5.0), (2.0, 47.3)])
+def test_pde_of_a_ramp_is_the_drift_over_the_separation(window, separation):
+    """A drift r t: every pair of windows S apart differs by r S in its mean,
+    whatever the window; PRE (pairs reaching past the span) the same."""
+    r_drift = 0.02 * ARCSEC  # [rad/s]
+    t = grid(300.0)
+    theta = r_drift * t
+    rows = [req("pde", "PDE", axis="x", bound=5.0, unit="arcsec", confidence=0.9973, interpretation="temporal",
+                window=window, separation=separation, t_from=50.0, t_to=200.0),
+            req("pre", "PRE", axis="x", bound=5.0, unit="arcsec", confidence=0.9973, interpretation="temporal",
+                window=window, separation=separation, t_from=50.0, t_to=200.0)]
+    run = run_of(t, about_x(theta), rows)
+    pde, pre = result(run, "pde"), result(run, "pre")
+    shift = int(round(separation * RATE))
+    exact = 0.02 * shift / RATE  # [arcsec] r times the separation on the grid
+    n = int(round(window * RATE))
+    span = theta[(t >= 50.0 - 1e-9)] / ARCSEC
+    first = int(np.sum((t >= 50.0 - 1e-9) & (t <= 200.0 + 1e-9)))
+    direct_pde = pairs_numpy(span[:first], first, n, shift)
+    direct_pre = pairs_numpy(span, first, n, shift)
+    assert pde["pairs"] == len(direct_pde) and pre["pairs"] == len(direct_pre) > pde["pairs"]
+    assert pde["value"] == pytest.approx(exact, rel=1e-9) and pre["value"] == pytest.approx(exact, rel=1e-9)
+    assert pde["value"] == pytest.approx(np.quantile(direct_pde, 0.9973, method="inverted_cdf"), rel=1e-9)
+    assert pde["separation_s"] == pytest.approx(shift / RATE) and pde["window_s"] == pytest.approx(n / RATE)
+    assert pde["passed"] is (exact <= 5.0)
+
+
+@pytest.mark.parametrize("window, period, separation", [
+    (10.0, 5.0, 12.5),   # whole periods per window: every mean 0, no drift at all
+    (2.0, 20.0, 10.0),   # a window shorter than the period, half a period apart: the means swing
+    (30.0, 7.0, 3.5),    # many periods, not whole
+])
+def test_pde_of_a_sine_against_numpy(window, period, separation):
+    A = 40.0 * ARCSEC
+    t = grid(400.0)
+    theta = A * np.sin(2.0 * np.pi * t / period)
+    run = run_of(t, about_x(theta), [req("pde", "PDE", axis="x", bound=100.0, unit="arcsec", confidence=0.9,
+                                         interpretation="temporal", window=window, separation=separation)])
+    r = result(run, "pde")
+    n, shift = int(round(window * RATE)), int(round(separation * RATE))
+    direct = pairs_numpy(theta / ARCSEC, len(t), n, shift)
+    assert r["value"] == pytest.approx(np.quantile(direct, 0.9, method="inverted_cdf"), rel=1e-7, abs=1e-9)
+    if window / period == round(window / period):
+        assert r["value"] == pytest.approx(0.0, abs=1e-9)
+    else:  # the means of two windows half a period apart are opposite: at most 2 A sin(pi W/P)/(pi W/P) apart
+        x = math.pi * window / period
+        assert 0.0 < r["value"] <= 2.0 * 40.0 * abs(math.sin(x)) / x * (1 + 1e-6) + 1e-9
+
+
+def test_momentum_margin_is_the_largest_total_wheel_momentum():
+    t = grid(20.0)
+    ws = np.zeros((len(t), 4))
+    ws[:, 0] = 50.0 + 10.0 * np.sin(t)
+    ws[:, 3] = -30.0 * t / 20.0
+    Cbar = np.array([[1.0, 0.0, 0.0, 0.6], [0.0, 1.0, 0.0, 0.64], [0.0, 0.0, 1.0, 0.48]])
+    Jw = np.array([0.1, 0.1, 0.1, 0.2])
+    meta = RunMeta(scenario="c", law="pd", engine="python", control_rate_hz=RATE, duration_s=20.0, ppc=WIDE,
+                   umin=(-7.0,) * 4, umax=(10.0,) * 4, Cbar=tuple(map(tuple, Cbar)), Jw=tuple(Jw),
+                   requirements=(req("h", "momentum_margin", bound=7.0, unit="N m s"),
+                                 req("hm", "momentum_margin", bound=7000.0, unit="mN m s", t_to=5.0)))
+    run = finish_run(Run(meta, {"t": t, "sigma_BD": np.zeros((len(t), 3)), "wheel_speed": ws}))
+    h = np.array([np.linalg.norm(Cbar @ (Jw * w)) for w in ws])  # the momentum row by row
+    r, rm = result(run, "h"), result(run, "hm")
+    assert r["value"] == pytest.approx(h.max(), rel=1e-12) and r["passed"] is bool(h.max() <= 7.0)
+    assert f"at {t[np.argmax(h)]:g} s" in r["note"]
+    assert rm["value"] == pytest.approx(1000.0 * h[t <= 5.0 + 1e-9].max(), rel=1e-12)
+    old = finish_run(Run(dataclasses.replace(meta, Cbar=(), Jw=()), {"t": t, "sigma_BD": np.zeros((len(t), 3)),
+                                                                     "wheel_speed": ws}))
+    assert result(old, "h")["status"] == "not evaluated" and "Cbar" in result(old, "h")["note"]
 
 
 # --------------------------------------------------------------------------------------------- #
@@ -321,9 +398,18 @@ def test_knowledge_error_is_the_estimate_against_the_truth():
     true_angle = 4.0 * np.arctan(np.linalg.norm(run["sigma_BD_true"][t >= 5.0 - 1e-9], axis=1)) / ARCSEC
     assert result(run, "ape")["value"] == pytest.approx(np.quantile(true_angle, 0.95, method="inverted_cdf"),
                                                         rel=1e-12)
+    # with sensors each pointing row carries its counterpart, at the same p, span and window
+    ape, rke = result(run, "ape"), result(run, "rke")
+    assert ape["counterpart"] == {"kind": "AKE", "value": pytest.approx(ake["value"], rel=1e-12), "unit": "arcsec"}
+    assert ake["counterpart"]["kind"] == "APE" and ake["counterpart"]["value"] == pytest.approx(ape["value"])
+    assert rke["counterpart"]["kind"] == "RPE" and "beside it RPE" in rke["note"]
+    from sc_rt.results.html_requirements import requirements_table
+
+    html = requirements_table(run.metrics["requirements"])
+    assert f"AKE {ake['value']:.4g} arcsec" in html and "beside it" in html
 
 
-def test_knowledge_without_sensors_is_not_applicable_and_ensemble_not_yet_evaluated():
+def test_knowledge_without_sensors_is_not_applicable_and_ensemble_left_to_a_campaign():
     t = grid(20.0)
     run = run_of(t, about_x(1e-5 * t), [
         req("ake", "AKE", axis="norm", bound=10.0, unit="arcsec", confidence=0.95, interpretation="temporal"),
@@ -331,9 +417,10 @@ def test_knowledge_without_sensors_is_not_applicable_and_ensemble_not_yet_evalua
         req("ok", "APE", axis="norm", bound=1e6, unit="arcsec", confidence=0.95, interpretation="temporal")])
     ake, ens = result(run, "ake"), result(run, "ens")
     assert ake["status"] == "not applicable" and ake["passed"] is None and "[sensors]" in ake["note"]
-    assert ens["status"] == "not evaluated" and ens["passed"] is None and "not yet supported" in ens["note"]
+    assert ens["status"] == "not evaluated" and ens["passed"] is None and "sc-rt montecarlo" in ens["note"]
     line = verdict_line(run.metrics, "x")
-    assert line.startswith("x: 1/1 requirements met, 1 not evaluated, 1 not applicable, worst margin ok"), line
+    assert line.startswith("x: 1/1 requirements met, 1 not applicable, 1 across runs only (sc-rt montecarlo), "
+                           "worst margin ok"), line
 
 
 def test_wheel_speed_and_command_are_the_largest_magnitudes():
@@ -464,6 +551,16 @@ def issues(path: Path) -> list:
      'unit = "deg"\nconfidence = 0.9\nt_from = "after_settling"\nsettling = "s"\n', "requirements[1].settling", "s",
      'is a kind = "envelope" requirement', "settling ="),
     ('[requirements]\nname = "a"\n', "requirements", {"name": "a"}, "array of tables", "[requirements]"),
+    ('[[requirements]]\nname = "a"\nkind = "PDE"\nbound = 3.0\nunit = "arcsec"\nconfidence = 0.9\nwindow = 10.0\n',
+     "requirements[0].separation", None, "required key is missing", "[[requirements]]"),
+    ('[[requirements]]\nname = "a"\nkind = "PRE"\nbound = 3.0\nunit = "arcsec"\nconfidence = 0.9\nwindow = 10.0\n'
+     'separation = -5.0\n', "requirements[0].separation", -5.0, "separation must be > 0", "separation ="),
+    ('[[requirements]]\nname = "a"\nkind = "RPE"\nbound = 3.0\nunit = "arcsec"\nconfidence = 0.9\nwindow = 10.0\n'
+     'separation = 5.0\n', "requirements[0].separation", 5.0, 'does not apply to a kind = "RPE"', "separation ="),
+    ('[[requirements]]\nname = "a"\nkind = "momentum_margin"\nbound = 1.0\nunit = "Nms"\n',
+     "requirements[0].unit", "Nms", "unit must be one of", "unit ="),
+    ('[[requirements]]\nname = "a"\nkind = "momentum_margin"\nbound = 1.0\nwindow = 3.0\n',
+     "requirements[0].window", 3.0, 'does not apply to a kind = "momentum_margin"', "window ="),
 ])
 def test_a_bad_requirement_names_file_line_key_and_value(tmp_path, rows, key, value, message, line_text):
     p = write(tmp_path, rows)
@@ -505,14 +602,20 @@ def test_the_worked_example_reports_each_requirement(tmp_path, capsys):
     console = capsys.readouterr().out
     m = json.loads((out / "metrics.json").read_text())
     reqs = {r["name"]: r for r in m["requirements"]}
-    assert list(reqs) == ["pointing", "stability", "settling", "payload_cone", "wheel_speed", "command"]
+    assert list(reqs) == ["pointing", "stability", "pointing_ensemble", "stability_mixed", "settling", "payload_cone",
+                          "wheel_speed", "momentum", "command"]
+    across = ("pointing_ensemble", "stability_mixed")  # statistics across runs: sc-rt montecarlo's
     for name, r in reqs.items():
+        if name in across:
+            assert r["passed"] is None and r["value"] is None, name
+            assert re.search(rf"^\s+{name}\s.*\bacross runs$", console, re.M), (name, console)
+            continue
         assert r["passed"] is True and r["margin"] == pytest.approx(r["bound"] - r["value"]), name
         assert re.search(rf"^\s+{name}\s.*\bPASS$", console, re.M), (name, console)
     assert reqs["pointing"]["unit"] == "arcsec" and reqs["pointing"]["confidence"] == 0.9973
     assert reqs["stability"]["window_s"] == pytest.approx(10.0)
     assert reqs["payload_cone"]["span_s"][0] == reqs["settling"]["value"]
-    assert "6/6 requirements met, worst margin" in console
+    assert "7/7 requirements met, 2 across runs only (sc-rt montecarlo), worst margin" in console
 
 
 def test_a_span_past_the_runs_end_is_cut_or_failed_when_the_run_diverged():
@@ -530,3 +633,30 @@ def test_a_span_past_the_runs_end_is_cut_or_failed_when_the_run_diverged():
     ape, late = result(diverged, "ape"), result(diverged, "late")
     assert ape["passed"] is False and late["passed"] is False and "diverged at 50 s" in ape["note"]
     assert verdict_line(diverged.metrics, "x").startswith("x: 2 of 2 requirements failed (ape, late)")
+
+
+def test_compare_ranks_the_laws_by_margin_per_requirement(tmp_path, capsys):
+    """Issue #27 item 5: sc-rt compare ranks the laws on each requirement by
+    its margin relative to the bound (recomputed here from value and bound),
+    best first, and overall by each law's worst; the rows across runs are
+    left to sc-rt montecarlo."""
+    from sc_rt.cli import main
+
+    out = tmp_path / "cmp"
+    assert main(["compare", "mrp_feedback_requirements", "--law", "pd", "--law", "dsc", "--out", str(out)]) == 0
+    console = capsys.readouterr().out
+    doc = json.loads((out / "compare.json").read_text())
+    by_law = {row["law"]: {r["name"]: r for r in row["requirements"]} for row in doc["rows"]}
+    names = [r.name for r in load_scenario("mrp_feedback_requirements").requirements]
+    across = {"pointing_ensemble", "stability_mixed"}
+    assert set(doc["ranking"]) == set(names) - across
+    for name in doc["ranking"]:
+        rel = {law: (r[name]["bound"] - r[name]["value"]) / r[name]["bound"] for law, r in by_law.items()}
+        assert doc["ranking"][name] == sorted(rel, key=lambda law: -rel[law]), name
+        best = doc["ranking"][name][0]
+        assert re.search(rf"^\| {name} \| 1 \| {best} \|", console, re.M), (name, console)
+    worst = {law: min((r["bound"] - r["value"]) / r["bound"] for n, r in reqs.items() if n not in across)
+             for law, reqs in by_law.items()}
+    assert doc["overall"] == sorted(worst, key=lambda law: -worst[law])
+    assert "judged across runs only, by sc-rt montecarlo: pointing_ensemble, stability_mixed" in console
+    assert "The laws ranked by margin" in (out / "compare.md").read_text()

@@ -81,6 +81,10 @@ def _num(v, unit: str) -> str:
     return f"{v:.4g}" if unit == "-" else f"{v:.4g} {unit}"
 
 
+#: What the peak requirements measure.
+PEAKS = {"wheel_speed_margin": "max |Omega|", "momentum_margin": "max |Cbar Jw Omega|", "max_command": "max |u_cmd|"}
+
+
 def requirement_table(reqs: list) -> list[str]:
     """The requirements of a run's metrics as text lines: name, what is
     measured, value, bound, margin and the result, each with its note below."""
@@ -91,17 +95,22 @@ def requirement_table(reqs: list) -> list[str]:
         if kind == "envelope":
             what = "envelope |sigma|/bound"
         elif kind == "settling":
-            what = f"settling {r.get('axis', '')} within {r['band']:g} {r['band_unit']}"
-        elif kind in ("wheel_speed_margin", "max_command"):
-            what = "max |Omega|" if kind == "wheel_speed_margin" else "max |u_cmd|"
+            what = f"settling {r.get('axis', '')}" + (f" within {r['band']:g} {r['band_unit']}" if "band" in r else "")
+        elif kind in PEAKS:
+            what = PEAKS[kind]
         else:
             what = f"{kind} {r.get('axis', '')} p{r['confidence']:g} {r.get('interpretation', '')}"
             if r.get("window_s"):
                 what += f" {r['window_s']:g} s"
+            if r.get("separation_s"):
+                what += f" {r['separation_s']:g} s apart"
         unit = r.get("unit", "-")
         margin = "-" if r.get("margin") is None else (f"{r['margin']:+.4g}" + ("" if unit == "-" else f" {unit}"))
+        status = r["status"].upper() if r["status"] in ("pass", "fail") else r["status"]
+        if r.get("passed") is None and r.get("interpretation") in ("ensemble", "mixed"):
+            status = "across runs"
         rows.append((r["name"], what, _num(r.get("value"), unit), _num(r.get("bound"), unit), margin,
-                     r["status"].upper() if r["status"] in ("pass", "fail") else r["status"], r.get("note", "")))
+                     status, r.get("note", "")))
     widths = [max(len(str(x[i])) for x in [head, *rows]) for i in range(len(head))]
     out = ["requirements:", "  " + "  ".join(f"{h:<{widths[i]}}" for i, h in enumerate(head)).rstrip()]
     for row in rows:

@@ -1,7 +1,8 @@
 """``sc-rt compare SCENARIO --law a --law b ...``: the laws on one scenario,
 side by side (docs/LAWS.md): verdict, bound violations, settling, peak wheel
-acceleration, SAFE and law-invalid steps. Markdown table on stdout,
-``compare.json`` with --out."""
+acceleration, SAFE and law-invalid steps; then, when the scenario states
+requirements, the laws ranked by margin on each one (docs/REQUIREMENTS.md).
+Markdown tables on stdout, and with --out in ``compare.json`` and a markdown file."""
 
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ import numpy as np
 from sc_rt.cli.lawarg import LAW_HELP, law_choice
 from sc_rt.cli.validate import check_run_size, given_options, number, out_dir
 
-__all__ = ["add_parser", "cmd_compare", "compare_row", "settling_time", "COLUMNS"]
+__all__ = ["add_parser", "cmd_compare", "compare_row", "overall", "rank_requirements", "ranking_table",
+           "settling_time", "COLUMNS"]
 
 #: (key, header, format) of the table's columns.
 COLUMNS = (
@@ -48,8 +50,13 @@ def settling_time(t: np.ndarray, sigma_BD: np.ndarray, frac: float) -> float | N
     return float(t[k]) if k < len(t) else None
 
 
+#: What a row keeps of each requirement's result.
+REQUIREMENT_KEYS = ("name", "kind", "axis", "interpretation", "confidence", "value", "bound", "unit", "margin",
+                    "relative_margin", "passed", "status")
+
+
 def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
-    from sc_rt.results.verdict import pointing_arcsec
+    from sc_rt.results.verdict import pointing_arcsec, requirements_summary
 
     m = run.metrics
     ok = np.all(run["bound_ok"], axis=1)
@@ -66,7 +73,80 @@ def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
         "diverged": bool(m.get("diverged", False)),
         "valid": m.get("valid", True) is not False,
         "invalid_reason": m.get("invalid_reason"),
+        "verdict": None if m.get("requirements") is None else requirements_summary(m["requirements"]),
+        "requirements": [{k: r.get(k) for k in REQUIREMENT_KEYS} for r in m.get("requirements") or []],
     }
+
+
+def _rank_key(r: dict[str, Any]) -> tuple[int, float]:
+    """Best first: a larger margin relative to the bound; a failure without a
+    value (never settled) after every value; not evaluated last."""
+    if r.get("passed") is None:
+        return (2, 0.0)
+    m = r.get("relative_margin")
+    return (1, 0.0) if m is None else (0, -float(m))
+
+
+def rank_requirements(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
+    """Per requirement (in the scenario's order), the laws' results ranked by
+    their margin relative to the bound, best first (``rank`` 1, 2, ...;
+    None: not evaluated or not applicable for that law); a law whose run
+    failed (a crash) has no result and is left out."""
+    out: dict[str, list[dict[str, Any]]] = {}
+    for row in rows:
+        for r in row.get("requirements") or []:
+            if r.get("interpretation") not in ("ensemble", "mixed"):  # across runs: sc-rt montecarlo
+                out.setdefault(r["name"], []).append({"law": row["law"], **r})
+    for entries in out.values():
+        entries.sort(key=_rank_key)
+        for i, e in enumerate(entries):
+            e["rank"] = i + 1 if e.get("passed") is not None else None
+    return out
+
+
+def _num(v: Any, unit: str | None) -> str:
+    if v is None:
+        return "-"
+    return f"{v:.4g}" + ("" if unit in (None, "-") else f" {unit}")
+
+
+def ranking_table(ranked: dict[str, list[dict[str, Any]]]) -> str:
+    """The ranking as a markdown table: requirement, rank, law, value, bound,
+    margin (and relative to the bound), result."""
+    head = "| requirement | rank | law | value | bound | margin | result |\n|---|---|---|---|---|---|---|"
+    body = []
+    for name, entries in ranked.items():
+        for i, e in enumerate(entries):
+            unit = e.get("unit")
+            rel = e.get("relative_margin")
+            margin = "-" if e.get("margin") is None else (
+                f"{e['margin']:+.4g}" + ("" if unit in (None, "-") else f" {unit}")
+                + ("" if rel is None or unit == "-" else f" ({100 * rel:+.3g} %)"))
+            result = e["status"].upper() if e.get("status") in ("pass", "fail") else (e.get("status") or "-")
+            body.append(f"| {name if i == 0 else ''} | {e['rank'] or '-'} | {e['law']} | {_num(e.get('value'), unit)} "
+                        f"| {_num(e.get('bound'), unit)} | {margin} | {result} |")
+    return "\n".join([head, *body])
+
+
+def overall(rows: list[dict[str, Any]]) -> list[tuple[str, dict[str, Any] | None]]:
+    """The laws ordered by their worst requirement (the smallest margin
+    relative to its bound, as the verdict line): (law, that requirement)."""
+    from sc_rt.results.requirements import worst
+
+    judged = [(row["law"], worst(row.get("requirements") or [])) for row in rows if row.get("requirements")]
+    return sorted(judged, key=lambda x: (2, 0.0) if x[1] is None else _rank_key(x[1]))
+
+
+def _overall_line(rows: list[dict[str, Any]]) -> str:
+    parts = []
+    for i, (law, w) in enumerate(overall(rows)):
+        if w is None:
+            parts.append(f"{i + 1}. {law} (none evaluated)")
+        elif w.get("relative_margin") is None:
+            parts.append(f"{i + 1}. {law} ({w['name']} {w['status']})")
+        else:
+            parts.append(f"{i + 1}. {law} ({w['name']} {100 * w['relative_margin']:+.3g} %)")
+    return "Overall, by each law's worst margin relative to its bound: " + ", ".join(parts)
 
 
 def _cell(v: Any, fmt: str) -> str:
@@ -146,9 +226,23 @@ def cmd_compare(args: argparse.Namespace) -> int:
     text = table(rows)
     print(f"{scn.name} ({args.engine} engine, settling within {args.settle:g} of the initial error)\n")
     print(text)
+    ranked = rank_requirements(rows)
+    if ranked:
+        text += ("\n\nThe laws ranked by margin on each requirement (relative to its bound, best first):\n\n"
+                 + ranking_table(ranked) + "\n\n" + _overall_line(rows))
+        across = [r.name for r in scn.requirements if r.interpretation in ("ensemble", "mixed")]
+        if across:
+            text += f"\n(judged across runs only, by sc-rt montecarlo: {', '.join(across)})"
+        print(text[text.index("\n\nThe laws ranked"):])
     if args.out:
+        from sc_rt.results.run import json_safe
+
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
-        (out / "compare.json").write_text(json.dumps({"scenario": scn.name, "rows": rows}, indent=2) + "\n")
+        doc = {"scenario": scn.name, "rows": rows,
+               "ranking": {name: [e["law"] for e in entries if e["rank"] is not None]
+                           for name, entries in ranked.items()},
+               "overall": [law for law, _ in overall(rows)]}
+        (out / "compare.json").write_text(json.dumps(json_safe(doc), indent=2) + "\n")
         (out / "compare.md").write_text(text + "\n")
     return 1 if failed else 0

@@ -119,14 +119,17 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     st = r.arrays["state_log_us"]
     wall = float(st[-1] - st[0]) / 1e6 if st.size > 1 else 0.0
     cfg = logged_config(d)
-    nav = {} if cfg is None or not cfg.nav_enabled else {
+    extra = {} if cfg is None or not cfg.nav_enabled else {
         "sensors": True, "measurement": "estimate" if cfg.nav_use_estimate else "truth"}
+    if cfg is not None:  # the wheels' geometry the controller was configured with (a momentum requirement)
+        extra.update(Cbar=tuple(tuple(float(x) for x in row) for row in cfg.Cbar),
+                   Jw=tuple(float(x) for x in cfg.Jw))
     ident = (d.start or {}).get("law")
     if ident and ident.get("name") and ident.get("source") != "external":
         law = ident["name"]  # an external controller: the name it announced (controller_label)
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
-                   wall_s=wall, mode=r.mode, law_identity=ident, requirements=_requirements(d, scenario), **nav)
+                   wall_s=wall, mode=r.mode, law_identity=ident, requirements=_requirements(d, scenario), **extra)
     run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:
         run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -13,8 +14,8 @@ import numpy as np  # noqa: E402
 from sc_rt.results.metrics import prescribed_chi  # noqa: E402
 from sc_rt.results.run import Run  # noqa: E402
 
-__all__ = ["tracking_figures", "timing_figures", "fault_figure", "estimation_figure", "mark_events", "run_title",
-           "save_figure"]
+__all__ = ["limit_lines", "tracking_figures", "timing_figures", "fault_figure", "estimation_figure", "mark_events",
+           "run_title", "save_figure"]
 
 AXES = ("x", "y", "z")
 
@@ -66,9 +67,9 @@ def fault_onsets(run: Run) -> list[tuple[float, int]]:
     return sorted(set(out))
 
 
-def mark_events(ax, run: Run, *, labels: bool = False) -> None:
-    """Fault onsets (red dashed), the first bound violation (black), SAFE
-    spans (grey) and spans without a command (orange) on a time axis."""
+def mark_events(ax, run: Run, *, labels: bool = False, bound: bool = True) -> None:
+    """Fault onsets (red dashed), the first bound violation (black; with
+    ``bound``), SAFE spans (grey) and spans without a command (orange) on a time axis."""
     t = run["t"]
     if len(t) == 0:
         return
@@ -76,12 +77,42 @@ def mark_events(ax, run: Run, *, labels: bool = False) -> None:
         if onset <= t[-1]:
             ax.axvline(onset, color="r", ls="--", lw=0.7, label="fault onset" if labels and j == 0 else None)
     first = run.metrics.get("first_bound_violation_s")
-    if first is not None:
+    if first is not None and bound:
         ax.axvline(first, color="k", lw=0.9, label="first bound violation" if labels else None)
     for j, (a, b) in enumerate(_spans(t, _safe_mask(run))):
         ax.axvspan(a, b, color="0.5", alpha=0.2, lw=0, label="SAFE" if labels and j == 0 else None)
     for j, (a, b) in enumerate(run.gaps):
         ax.axvspan(a, b, color="orange", alpha=0.2, lw=0, label="no command" if labels and j == 0 else None)
+
+
+#: A limit is drawn inside the axis when it is within this factor of the data's extent.
+NEAR = 3.0
+
+
+def limit_lines(ax, data: np.ndarray, limits: list[tuple[Any, ...]], color: str = "r") -> None:
+    """Horizontal lines at each (value, label) or (value, label, (t0, t1))
+    of ``limits`` (the last: drawn over that span only), the y axis fit to
+    ``data`` and to the limits within ``NEAR`` times its extent; a limit
+    beyond that stays a line off the axis, its label saying so."""
+    d = np.asarray(data, float)
+    d = d[np.isfinite(d)]
+    lo, hi = (float(d.min()), float(d.max())) if d.size else (0.0, 1.0)
+    extent = max(abs(lo), abs(hi), 1e-300)
+    shown = [x[0] for x in limits if np.isfinite(x[0]) and abs(x[0]) <= NEAR * extent]
+    lo, hi = min([lo, *shown]), max([hi, *shown])
+    pad = 0.08 * (hi - lo) if hi > lo else 0.1 * max(abs(hi), 1e-12)
+    seen = set()
+    for v, label, *span in limits:
+        if not np.isfinite(v):
+            continue
+        text = label + (f" (off scale: {v:.4g})" if v not in shown and label else "")
+        kw = dict(color=color, ls="--" if v in shown else ":", lw=0.9, label=None if text in seen or not text else text)
+        seen.add(text)
+        if span and span[0] is not None:
+            ax.hlines(v, span[0][0], span[0][1], **kw)
+        else:
+            ax.axhline(v, **kw)
+    ax.set_ylim(lo - pad, hi + pad)
 
 
 def _legend_outside(ax, **kw) -> None:
@@ -145,6 +176,7 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     if sensed:
         ax.semilogy(t, pointing_arcsec(run["sigma_BD_true"]) + 1e-300, lw=0.9, label="true pointing error")
     ax.semilogy(t, env, "r--", lw=0.8, label="envelope corner 4 atan|dmax chi(t)|")
+    _pointing_bounds(ax, run)
     mark_events(ax, run, labels=True)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("pointing error [arcsec]")
@@ -170,8 +202,8 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
         ax.plot(t, run["u_sat"][:, w], lw=0.9, label="command after saturation")
         if np.any(np.isfinite(run["wheel_accel"][:, w])):
             ax.plot(t, run["wheel_accel"][:, w], lw=0.7, ls="--", label="actual (faults applied)")
-        ax.axhline(umax[w], color="r", ls=":", lw=0.8, label="limits")
-        ax.axhline(umin[w], color="r", ls=":", lw=0.8)
+        data = np.concatenate([run["u_sat"][:, w], run["wheel_accel"][:, w]])
+        limit_lines(ax, data, [(umax[w], "limits"), (umin[w], "limits")])  # the data's scale, not the limits'
         mark_events(ax, run, labels=w == 0)
         ax.set_ylabel(f"wheel {w + 1}\n[rad/s^2]")
         ax.grid(alpha=0.3)
@@ -203,6 +235,21 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     if sensed:
         paths.append(estimation_figure(run, out, title))
     return paths
+
+
+def _pointing_bounds(ax, run: Run) -> None:
+    """The bounds of the APE requirements on the full angle or a cone, in
+    arcsec, over their spans (requirements.png draws every requirement)."""
+    from sc_rt.scenario.requirements import ANGLE_UNITS
+
+    results = {r["name"]: r for r in run.metrics.get("requirements") or []}
+    for j, q in enumerate(q for q in getattr(run.meta, "requirements", ()) or ()
+                          if q["kind"] == "APE" and q.get("axis") in ("norm", "cone")):
+        span = results.get(q["name"], {}).get("span_s")
+        if span:
+            b = q["bound"] * ANGLE_UNITS[q["unit"]] / ANGLE_UNITS["arcsec"]
+            ax.hlines(b, span[0], span[1], color=f"C{2 + j}", ls="-.", lw=1.0,
+                      label=f"{q['name']}: APE {q['axis']} bound {b:.4g} arcsec")
 
 
 def _sensed(run: Run) -> bool:

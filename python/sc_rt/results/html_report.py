@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.results.output import run_files
+from sc_rt.results.html_requirements import requirements_table
 from sc_rt.results.html_timeline import MODE_NAMES, spans, timeline_svg
 
 __all__ = ["write_html_report", "render_html", "verdict_items", "timing_text", "pointing_arcsec_of_mrp_norm"]
@@ -30,12 +31,16 @@ AXES = "xyz"
 ARCSEC = 180.0 / math.pi * 3600.0
 #: known figures, in reading order, with a caption
 FIGURES = {
+    "requirements.png": ("Each requirement's values over the run, its bound over its span (shaded) and the value at "
+                         "its probability; with sensors the knowledge index beside the performance one"),
     "attitude_error.png": ("Attitude tracking error sigma_BD per axis and the prescribed bounds "
                            "dmax chi(t), -dmin chi(t)"),
     "attitude_error_log.png": "The same on a log scale; dots: outside the bound",
     "pointing_error.png": "Pointing error 4 atan|sigma_BD| [arcsec]",
     "rate_error.png": "Angular-rate tracking error omega_BD_B [rad/s]",
     "wheel_commands.png": "Wheel acceleration commands after saturation [rad/s^2] and the limits",
+    "wheel_speeds.png": ("Wheel speeds [rad/s] and the wheels' total momentum [N m s] against the requirements' "
+                         "bounds and the actuator's speed limit"),
     "disturbance_observer.png": "Lumped disturbance delta_2, its estimate z2 and the observer error [rad/s^2]",
     "faults.png": "Wheel faults as the plant reported them",
     "timing.png": "Timing: state-to-command latency, compute and wake lateness [us]",
@@ -313,32 +318,6 @@ def _timing_table(t: dict[str, Any]) -> str:
             rows.append((k, escape(fmt(v, "text" if isinstance(v, str) else "num")), unit))
     body = "".join(f"<tr><td>{escape(a)}</td><td class=num>{b}</td><td>{escape(c)}</td></tr>" for a, b, c in rows)
     return f'<table id="timing"><tr><th>timing</th><th>value</th><th>unit</th></tr>{body}</table>'
-
-
-def requirements_table(reqs: list[dict[str, Any]] | None) -> str:
-    """The requirement table that opens the report: per requirement its
-    measure, value, bound, margin and result (coloured)."""
-    if not reqs:
-        return ('<section id="requirements"><p>No requirements stated ([[requirements]] in the scenario, '
-                "docs/REQUIREMENTS.md): the metrics below, no verdict.</p></section>")
-
-    def num(v: Any) -> str:
-        return "-" if v is None else f"{v:.4g}" if isinstance(v, (int, float)) else escape(str(v))
-
-    rows = []
-    for r in reqs:
-        status = r.get("status") or ("pass" if r.get("passed") else "fail")
-        measure = " ".join(str(x) for x in (r.get("kind"), r.get("axis") or "",
-                                            f"p{r['confidence']:g}" if r.get("confidence") else "",
-                                            r.get("interpretation") or "") if x)
-        unit = "" if r.get("unit") in (None, "-") else " " + escape(str(r["unit"]))
-        rows.append(f'<tr class="{escape(status.replace(" ", "-"))}"><td>{escape(str(r.get("name")))}</td>'
-                    f"<td>{escape(measure)}</td><td class=num>{num(r.get('value'))}{unit}</td>"
-                    f"<td class=num>{num(r.get('bound'))}{unit}</td><td class=num>{num(r.get('margin'))}{unit}</td>"
-                    f"<td>{escape(status.upper())}</td><td>{escape(str(r.get('note') or ''))}</td></tr>")
-    return ('<section id="requirements"><table id="requirements-table"><tr><th>requirement</th><th>measure</th>'
-            "<th>value</th><th>bound</th><th>margin</th><th>result</th><th>how</th></tr>"
-            + "".join(rows) + "</table></section>")
 
 
 def render_html(run_dir: str | Path) -> str:

@@ -41,8 +41,8 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
         The output directory, created with its parents when missing; files
         of the same names in it are replaced.
     figures : bool
-        Also write the tracking figures (and, with ``run.timing``, the
-        timing figures).
+        Also write the tracking figures, the wheel speed figure and the
+        requirements' figure (and, with ``run.timing``, the timing figures).
     title : str
         The second title line of the tracking figures ("": "scenario, law,
         engine" of ``run.meta``).
@@ -65,8 +65,10 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
         paths.append(write_json(out / "timing.json", run.timing))
     if figures:
         from sc_rt.results import figures as fig
+        from sc_rt.results.requirement_figures import requirement_figures
 
         paths += fig.tracking_figures(run, out, title=title)
+        paths += requirement_figures(run, out, title=title)  # wheel_speeds.png, requirements.png
         if run.timing is not None:
             paths += fig.timing_figures(run, out)
     return paths

@@ -13,7 +13,6 @@ A row is one control instant t_k = k / rate.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from dataclasses import dataclass
@@ -21,6 +20,9 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import numpy as np
+
+from sc_rt.results.jsonsafe import json_safe, write_json
+from sc_rt.results.meta import RunMeta
 
 __all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "RunMeta", "Run", "empty_arrays", "json_safe", "write_json",
            "provenance"]
@@ -132,116 +134,6 @@ FIELD: dict[str, Field] = {f.name: f for f in FIELDS}
 #: The trajectory every producer fills (checked for finiteness by the metrics).
 CORE_FIELDS: tuple[str, ...] = tuple(f.name for f in FIELDS if f.core)
 assert all(f.source in SOURCES for f in FIELDS)
-
-
-@dataclass(frozen=True)
-class RunMeta:
-    """What a run is: its scenario, law, engine and the parameters its
-    figures and checks need (so no consumer needs the scenario file).
-
-    Usually built by :meth:`of_scenario`; saved in trajectory.npz as JSON
-    (:meth:`to_json`, :meth:`from_json`).
-
-    Attributes
-    ----------
-    scenario : str
-        The scenario's name.
-    law : str
-        The law that ran, by its name ("dsc-ppc", "pd", a plugin's
-        registered name, a Python law's label, ...).
-    engine : str
-        What produced the run: "python", "cpp", "unsampled", "hil-lockstep",
-        "hil-realtime" or "report" (a log's rebuild).
-    control_rate_hz : float
-        [Hz] the control rate.
-    duration_s : float
-        [s] the scenario's duration (after overrides).
-    ppc : dict of str to tuple of float
-        The prescribed envelope (29): "chi0" [-], "chiinf" [-], "gamma"
-        [1/s], "dmin" [-], "dmax" [-], 3 values each.
-    umin, umax : tuple of float
-        [rad/s^2] the wheel acceleration limits, one per wheel.
-    faults : tuple of dict
-        The scenario's scheduled faults: "wheel" (1-based), "onset" [s],
-        "end" [s] (None: never), "effectiveness" [-], "bias" [rad/s^2],
-        "rate" [1/s], "stuck" (bool).
-    wall_s : float
-        [s] wall-clock time of the run (NaN: not measured).
-    mode : str
-        How the loop was clocked: "offline", "lockstep" or "realtime".
-    measurement : str
-        What the law was fed: "truth" (no ``[sensors]``, or measurement =
-        "truth") or "estimate".
-    sensors : bool
-        The run had sensors (a ``[sensors]`` table): the estimator fields are
-        filled and the bound is judged on ``sigma_BD_true``.
-    law_identity : dict or None
-        Who the law is (``sc_rt.scenario.model.law_identity``): name, spec,
-        source and, for a plugin, its file and the file's SHA-256.
-    requirements : tuple of dict
-        The scenario's ``[[requirements]]`` rows (every field of
-        ``sc_rt.scenario.requirements.Requirement``), what the run is judged
-        by (sc_rt.results.requirements); ``()``: none stated.
-    """
-
-    scenario: str
-    law: str
-    engine: str  # python | cpp | unsampled | hil-lockstep | hil-realtime | report
-    control_rate_hz: float
-    duration_s: float
-    #: the prescribed envelope (29): chi0, chiinf, gamma, dmin, dmax (3 each)
-    ppc: dict[str, tuple[float, ...]]
-    umin: tuple[float, ...]
-    umax: tuple[float, ...]
-    #: the scenario's scheduled faults: dicts wheel (1-based), onset, end, effectiveness, bias, rate, stuck
-    faults: tuple[dict[str, Any], ...] = ()
-    wall_s: float = math.nan
-    #: how the loop was clocked: offline, lockstep or realtime
-    mode: str = "offline"
-    #: what the law was fed: "truth" (no [sensors], or measurement = "truth") or "estimate"
-    measurement: str = "truth"
-    #: the run had sensors (a [sensors] table): estimator fields filled, bound judged on sigma_BD_true
-    sensors: bool = False
-    #: who the law is: name, spec, source (and a plugin's file and its sha256)
-    law_identity: dict[str, Any] | None = None
-    #: the scenario's [[requirements]] rows as dicts (sc_rt.scenario.requirements.Requirement's fields)
-    requirements: tuple[dict[str, Any], ...] = ()
-
-    def to_json(self) -> dict[str, Any]:
-        return json_safe(dataclasses.asdict(self))
-
-    @classmethod
-    def from_json(cls, d: dict[str, Any]) -> RunMeta:
-        d = dict(d)
-        d["ppc"] = {k: tuple(float(x) for x in v) for k, v in d["ppc"].items()}
-        d["umin"], d["umax"] = tuple(d["umin"]), tuple(d["umax"])
-        d["faults"] = tuple(d.get("faults", ()))
-        d["requirements"] = tuple(d.get("requirements", ()))
-        d["wall_s"] = math.nan if d.get("wall_s") is None else float(d["wall_s"])
-        return cls(**d)
-
-    @classmethod
-    def of_scenario(cls, scn, engine: str, **over: Any) -> RunMeta:
-        """The meta of a run of ``scn`` (a sc_rt.scenario Scenario)."""
-        p, a = scn.controller.ppc, scn.actuators
-        faults = tuple({"wheel": f.wheel + 1, "onset": f.onset, "end": f.end,
-                        "effectiveness": f.effectiveness, "bias": f.bias, "rate": f.rate,
-                        "stuck": bool(f.stuck)} for f in a.faults)
-        from sc_rt.scenario.model import law_identity
-
-        ident = law_identity(scn.run.controller)
-        kw = dict(scenario=scn.name, law=ident["name"], law_identity=ident, engine=engine,
-                  control_rate_hz=float(scn.run.control_rate_hz), duration_s=float(scn.run.duration),
-                  ppc={k: tuple(float(x) for x in np.asarray(getattr(p, k), float))
-                       for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")},
-                  umin=tuple(float(x) for x in np.asarray(a.umin, float)),
-                  umax=tuple(float(x) for x in np.asarray(a.umax, float)), faults=faults,
-                  requirements=tuple(dataclasses.asdict(r) for r in getattr(scn, "requirements", ())))
-        sensors = getattr(scn, "sensors", None)
-        if sensors is not None:
-            kw.update(sensors=True, measurement=sensors.measurement)
-        kw.update(over)
-        return cls(**kw)
 
 
 def empty_arrays(n: int) -> dict[str, np.ndarray]:
@@ -407,24 +299,3 @@ def provenance(plant_session: int | None, controller_session: int | None,
     if invalid is not None:
         out["invalid_reason"] = invalid
     return out
-
-
-def json_safe(obj: Any) -> Any:
-    """NaN/inf become null and numpy scalars plain numbers, so that the
-    JSON files stay valid JSON."""
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    if isinstance(obj, dict):
-        return {k: json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [json_safe(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return json_safe(obj.tolist())
-    return obj
-
-
-def write_json(path: Path, obj: Any) -> Path:
-    path.write_text(json.dumps(json_safe(obj), indent=2) + "\n")
-    return path

@@ -61,9 +61,12 @@ def requirements_summary(reqs: list[dict[str, Any]]) -> str:
     failed = [r["name"] for r in judged if not r["passed"]]
     head = (f"{len(judged) - len(failed)}/{len(judged)} requirements met" if not failed
             else f"{len(failed)} of {len(judged)} requirements failed ({', '.join(failed)})")
+    campaign = [r for r in reqs if r.get("passed") is None and r.get("interpretation") in ("ensemble", "mixed")]
     for status in ("not evaluated", "not applicable"):
-        if n := sum(r.get("status") == status for r in reqs):
+        if n := sum(r.get("status") == status and r not in campaign for r in reqs):
             head += f", {n} {status}"
+    if campaign:  # statistics across runs: sc-rt montecarlo judges them
+        head += f", {len(campaign)} across runs only (sc-rt montecarlo)"
     w = worst(reqs)
     if w is None:
         return f"none of the {len(reqs)} requirements evaluated"

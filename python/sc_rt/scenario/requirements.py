@@ -2,9 +2,10 @@
 (docs/REQUIREMENTS.md, docs/SCENARIOS.md).
 
 Each row names one requirement: a pointing index of ECSS-E-ST-60-10C (APE,
-MPE, RPE on the performance error; AKE, MKE, RKE on the knowledge error),
-a settling time, a wheel speed margin, a bound on the commanded wheel
-acceleration, or the prescribed-performance envelope of ``[controller.ppc]``.
+MPE, RPE, PDE, PRE on the performance error; AKE, MKE, RKE, KDE, KRE on the
+knowledge error), a settling time, a wheel speed margin, a wheel momentum
+margin, a bound on the commanded wheel acceleration, or the
+prescribed-performance envelope of ``[controller.ppc]``.
 This module only reads and validates the rows (file, line, key, value);
 ``sc_rt.results.requirements`` evaluates them on a run.
 """
@@ -18,16 +19,20 @@ from typing import Any
 
 from sc_rt.scenario.schema import Spec, Table, format_value
 
-__all__ = ["ANGLE_UNITS", "AXES", "INTERPRETATIONS", "KINDS", "KNOWLEDGE", "PERFORMANCE", "UNITS", "WINDOWED",
-           "Requirement", "read_requirements", "requirements_data"]
+__all__ = ["ANGLE_UNITS", "AXES", "COUNTERPART", "INTERPRETATIONS", "KINDS", "KNOWLEDGE", "PAIRED", "PERFORMANCE",
+           "UNITS", "WINDOWED", "Requirement", "read_requirements", "requirements_data"]
 
 #: ECSS performance indices (the truth against the reference) and knowledge
-#: indices (the estimate against the truth); the windowed ones need ``window``.
-PERFORMANCE = ("APE", "MPE", "RPE")
-KNOWLEDGE = ("AKE", "MKE", "RKE")
-WINDOWED = ("MPE", "RPE", "MKE", "RKE")
+#: indices (the estimate against the truth); the windowed ones need
+#: ``window``, the paired ones (drift, reproducibility) ``separation`` too.
+PERFORMANCE = ("APE", "MPE", "RPE", "PDE", "PRE")
+KNOWLEDGE = ("AKE", "MKE", "RKE", "KDE", "KRE")
+WINDOWED = ("MPE", "RPE", "PDE", "PRE", "MKE", "RKE", "KDE", "KRE")
+PAIRED = ("PDE", "PRE", "KDE", "KRE")
+#: Each performance index's knowledge index and back (the same statistic on the other error).
+COUNTERPART = {**dict(zip(PERFORMANCE, KNOWLEDGE)), **dict(zip(KNOWLEDGE, PERFORMANCE))}
 #: Every kind of requirement.
-KINDS = PERFORMANCE + KNOWLEDGE + ("settling", "wheel_speed_margin", "max_command", "envelope")
+KINDS = PERFORMANCE + KNOWLEDGE + ("settling", "wheel_speed_margin", "momentum_margin", "max_command", "envelope")
 #: Which error component: a body axis (the rotation vector's component), the
 #: full rotation angle 4 atan|sigma|, or the half-cone angle about a boresight.
 AXES = ("x", "y", "z", "norm", "cone")
@@ -40,20 +45,23 @@ ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "deg": math.pi / 180.0,
 UNITS: dict[str, dict[str, float]] = {
     **{k: ANGLE_UNITS for k in PERFORMANCE + KNOWLEDGE + ("settling",)},
     "wheel_speed_margin": {"rad/s": 1.0, "rpm": 2.0 * math.pi / 60.0},
+    "momentum_margin": {"N m s": 1.0, "mN m s": 1e-3},
     "max_command": {"rad/s^2": 1.0},
     "envelope": {},
 }
 #: Kinds whose unit may be left out (their first unit is the default); an
 #: angle's unit is always stated (arcsec and rad differ by 2e5).
-_DEFAULT_UNIT = ("wheel_speed_margin", "max_command")
+_DEFAULT_UNIT = ("wheel_speed_margin", "momentum_margin", "max_command")
 
 _POINTING = ("axis", "boresight", "bound", "unit", "confidence", "interpretation", "t_from", "t_to", "settling")
 #: The keys each kind takes (besides name and kind).
 KEYS: dict[str, tuple[str, ...]] = {
     **{k: _POINTING for k in ("APE", "AKE")},
     **{k: _POINTING + ("window",) for k in WINDOWED},
+    **{k: _POINTING + ("window", "separation") for k in PAIRED},
     "settling": ("axis", "boresight", "bound", "unit", "settle_by", "t_from", "t_to"),
     "wheel_speed_margin": ("bound", "unit", "t_from", "t_to", "settling"),
+    "momentum_margin": ("bound", "unit", "t_from", "t_to", "settling"),
     "max_command": ("bound", "unit", "t_from", "t_to", "settling"),
     "envelope": (),
 }
@@ -89,7 +97,11 @@ class Requirement:
     t_to : float or None
         [s] the span's end (None: the run's end).
     window : float or None
-        [s] the window of MPE, RPE, MKE, RKE.
+        [s] the window of MPE, RPE, MKE, RKE, and the two windows of the
+        drift and reproducibility indices PDE, PRE, KDE, KRE.
+    separation : float or None
+        [s] PDE, PRE, KDE, KRE: from one window's start to the start of the
+        window it is compared with.
     settle_by : float or None
         [s] settling: the time by which the error must have entered the bound for good.
     settling : str
@@ -107,6 +119,7 @@ class Requirement:
     t_from: float | str = 0.0
     t_to: float | None = None
     window: float | None = None
+    separation: float | None = None
     settle_by: float | None = None
     settling: str = ""
 
@@ -174,6 +187,8 @@ def _read_row(t: Table, duration: float | None) -> Requirement | None:
         v["interpretation"] = t.read("interpretation", Spec("str", choices=INTERPRETATIONS), default="temporal")
     if "window" in allowed:
         v["window"] = t.read("window", Spec("number", gt=0))
+    if "separation" in allowed:
+        v["separation"] = t.read("separation", Spec("number", gt=0))
     if "settle_by" in allowed:
         v["settle_by"] = t.read("settle_by", Spec("number", gt=0))
     if "t_from" in allowed:

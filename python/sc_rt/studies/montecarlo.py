@@ -57,15 +57,19 @@ def run_montecarlo(scn: Scenario, runs: int, *, workers: int | None = None, seed
     **campaign
         More keyword options of ``run_campaign``: ``backend``,
         ``scheduler``, ``scheduler_file``, ``resume``, ``overwrite``,
-        ``batch_size``.
+        ``batch_size``, and for the requirements' statements
+        ``confidence`` (default 0.95) and ``coverage`` (the fraction of
+        runs a per-run requirement must hold in, default 0.95).
 
     Returns
     -------
     dict
         The campaign's summary (as montecarlo.json: runs, the fraction
-        holding the bound with its 95 % interval, the failed runs, ...) and
-        ``per_run``: the dataset's rows (a dict per run: id, status, the
-        drawn values, the metrics).
+        holding the bound with its 95 % interval, the failed runs, each
+        requirement's statistics across the runs in ``requirements``
+        (docs/REQUIREMENTS.md), ...) and ``per_run``: the dataset's rows (a
+        dict per run: id, status, the drawn values, the metrics, the
+        requirements' results ``req.NAME.*``).
 
     Raises
     ------

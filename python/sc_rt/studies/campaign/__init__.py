@@ -5,7 +5,8 @@ with exact confidence intervals and tolerance bounds.
 - draws.py: one run's dispersed scenario from (seed, run id), O(1) seeding;
 - backends.py: serial, process pool, Dask (LocalCluster or a scheduler);
 - store.py: the dataset (one Parquet file per completed batch);
-- stats.py: Clopper-Pearson, Wilks;
+- stats.py: Clopper-Pearson (two- and one-sided), Wilks, the runs a statement needs;
+- requirements.py: the scenario's requirements across the runs (docs/REQUIREMENTS.md);
 - runner.py: the campaign, a run alone (--rerun), the summary;
 - figure.py: montecarlo.json and montecarlo.png.
 """

@@ -1,4 +1,5 @@
-"""``montecarlo.json`` and ``montecarlo.png`` of a campaign."""
+"""``montecarlo.json``, ``montecarlo.png`` and (with requirements)
+``montecarlo_requirements.png`` of a campaign."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 
 from sc_rt.results.metrics import json_safe
 
-__all__ = ["figure", "write_summary"]
+__all__ = ["figure", "requirements_figure", "write_summary"]
 
 
 def write_summary(summary: dict[str, Any], rows: list[dict[str, Any]], out: Path,
@@ -27,6 +28,10 @@ def write_summary(summary: dict[str, Any], rows: list[dict[str, Any]], out: Path
     fig = figure(summary, rows)
     fig.savefig(out / "montecarlo.png", dpi=dpi)
     plt.close(fig)
+    if summary.get("requirements"):
+        fig = requirements_figure(summary)
+        fig.savefig(out / "montecarlo_requirements.png", dpi=dpi)
+        plt.close(fig)
 
 
 def figure(summary: dict[str, Any], rows: list[dict[str, Any]]):
@@ -60,5 +65,53 @@ def figure(summary: dict[str, Any], rows: list[dict[str, Any]]):
     frac = summary["fraction_holding_bound"]
     fig.suptitle(f"{summary['scenario']}, {summary['law']}, {n} runs: {100 * frac:.1f} % hold the "
                  f"bound (95 % CI {100 * lo:.1f}-{100 * hi:.1f} %)")
+    fig.tight_layout()
+    return fig
+
+
+def requirements_figure(summary: dict[str, Any]):
+    """The requirements across the runs (a matplotlib Figure): per ensemble
+    requirement its p-quantile across runs at each time bin, the quantile's
+    upper confidence bound and the bound; then, per requirement, the fraction
+    of runs (ensemble: at the worst time; mixed: of the time) with its
+    two-sided interval, its one-sided lower bound and the fraction required."""
+    from sc_rt.results import figures  # noqa: F401  (Agg backend)
+    import matplotlib.pyplot as plt
+
+    reqs = [r for r in summary["requirements"] if r.get("met_at_confidence") is not None]
+    ens = [r for r in reqs if r["statistic"] == "ensemble"]
+    c = f"{100 * summary.get('requirements_confidence', 0.95):g} %"
+    fig, axs = plt.subplots(len(ens) + 1, 1, figsize=(10, 2.6 * (len(ens) + 1) + 0.8), squeeze=False)
+    for ax, r in zip(axs[:-1, 0], ens):
+        per = r["per_bin"]
+        t = np.asarray(per["t_s"], float) + r["bin_s"] / 2.0
+        unit = r.get("unit") or ""
+        ax.step(t, per["quantile"], where="mid", lw=1.0, label=f"p{r['confidence']:g} across runs")
+        ub = np.array([np.nan if u is None else u for u in per["upper_bound"]], float)
+        ax.step(t, ub, where="mid", lw=0.9, ls="--", label=f"its {c} upper bound")
+        ax.axhline(r["bound"], color="r", lw=0.9, label=f"bound {r['bound']:g} {unit}")
+        ax.set_ylabel(f"[{unit}]")
+        ax.set_title(f"{r['name']}: {r['kind']} {r.get('axis') or ''} ensemble, {summary['runs']} runs "
+                     f"({'MET' if r['met_at_confidence'] else 'NOT DEMONSTRATED'} at {c})", fontsize=9, loc="left")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    if ens:
+        axs[-2, 0].set_xlabel("t [s]")
+    ax = axs[-1, 0]
+    for i, r in enumerate(reqs):
+        f = r["worst"] if r["statistic"] == "ensemble" else r
+        lo, hi = (f["lower_bound"], f["mean_within"]) if r["statistic"] == "mixed" else f["interval"]
+        ax.plot([lo, hi], [i, i], color="C0", lw=3, solid_capstyle="butt",
+                label="two-sided interval (mixed: bound to mean)" if not i else None)
+        ax.plot(f["lower_bound"], i, "k>", ms=6, label=f"one-sided {c} lower bound" if not i else None)
+        ax.plot(r["required"], i, "r|", ms=14, mew=2, label="required" if not i else None)
+    ax.set_yticks(range(len(reqs)), [f"{r['name']} ({r['statistic']})" for r in reqs], fontsize=8)
+    ax.set_xlabel("fraction of runs meeting it (ensemble: at its worst time; mixed: of the time)")
+    ax.set_xlim(min([0.9] + [r["required"] - 0.02 for r in reqs] + [(r.get("lower_bound") or 0.0) - 0.02
+                                                                    for r in reqs if r["statistic"] != "ensemble"]),
+                1.005)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower left")
+    fig.suptitle(f"{summary['scenario']}, {summary['law']}: requirements across {summary['runs']} runs")
     fig.tight_layout()
     return fig

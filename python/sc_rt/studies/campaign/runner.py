@@ -18,6 +18,7 @@ from sc_rt.scenario.keys import scenario_data
 from sc_rt.scenario.model import Scenario
 from sc_rt.studies.campaign.backends import make_backend
 from sc_rt.studies.campaign.draws import Dispersion, draw_run, value_columns
+from sc_rt.studies.campaign.requirements import campaign_requirements, row_columns
 from sc_rt.studies.campaign.stats import clopper_pearson, tolerance_bound
 from sc_rt.studies.campaign.store import RunStore, fingerprint
 
@@ -30,8 +31,7 @@ _HEAD = [("run", "int64"), ("seed", "int64"), ("status", "string"), ("redraws", 
 SKIP_METRICS = ("scenario", "controller", "engine", "control_rate_hz", "duration_s", "wall_s",
                 # a failed law is the row's status and message (law_failed), not columns
                 "law_failures", "valid", "invalid_reason",
-                # the scenario's requirements, judged per run (docs/REQUIREMENTS.md): their campaign
-                # statistics (fraction met, ensemble quantiles) are not columns yet (issue #27)
+                # the scenario's requirements: their own columns, req.NAME.* (studies/campaign/requirements.py)
                 "requirements")
 #: Metrics whose worst case (largest value) gets a Wilks tolerance bound (those present).
 WORST_CASE = ("max_abs_omega_e_after_70s", "max_observer_error_after_30s",
@@ -112,6 +112,10 @@ def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple
                    holds_bound=bool(m["finite"] and m["first_bound_violation_s"] is None and not law_failed),
                    message=m.get("invalid_reason", "") if law_failed else "")
         row.update(_metric_row(m))
+        if m.get("requirements"):
+            from sc_rt.results.ensemble import campaign_series
+
+            row.update(row_columns(m["requirements"], campaign_series(res, m["requirements"])))
     return (row, scn, res) if keep else row
 
 
@@ -142,10 +146,12 @@ def run_campaign(c: Campaign, runs: int, out: Path, *, backend: str = "local",
                  workers: int | None = None, scheduler: str | None = None,
                  scheduler_file: str | None = None, resume: bool = False,
                  overwrite: bool = False, batch_size: int | None = None,
-                 progress: bool = True, backend_obj=None) -> dict[str, Any]:
+                 progress: bool = True, backend_obj=None, confidence: float = 0.95,
+                 coverage: float = 0.95) -> dict[str, Any]:
     """Run ids 0..runs-1 (those not in the dataset yet with ``resume``),
     appending each completed batch to ``out/runs``; returns the summary of
-    the whole dataset (also written to ``out/montecarlo.json``)."""
+    the whole dataset (also written to ``out/montecarlo.json``).
+    ``confidence``, ``coverage``: of the requirements' statements (summarize)."""
     store = RunStore(out, c.columns())
     ident = c.identity()
     fp = check_out(c, out, resume, overwrite)
@@ -170,7 +176,7 @@ def run_campaign(c: Campaign, runs: int, out: Path, *, backend: str = "local",
         if backend_obj is None:
             b.close()
     wall = time.perf_counter() - t0
-    summary = summarize(c, store, runs)
+    summary = summarize(c, store, runs, confidence=confidence, coverage=coverage)
     summary.update(info)
     summary.update(wall_s=wall, runs_this_invocation=done_now,
                    runs_per_s=done_now / wall if wall > 0 and done_now else None)
@@ -193,8 +199,11 @@ def _final_column(names: list[str]) -> str | None:
     return f"sigma_e_norm.{max(ts, key=float)}" if ts else None
 
 
-def summarize(c: Campaign, store: RunStore, runs: int) -> dict[str, Any]:
-    """Statistics of the dataset (every row written so far)."""
+def summarize(c: Campaign, store: RunStore, runs: int, confidence: float = 0.95,
+              coverage: float = 0.95) -> dict[str, Any]:
+    """Statistics of the dataset (every row written so far); the
+    requirements' at ``confidence``, a per-run one required in a fraction
+    ``coverage`` of the runs (sc_rt.studies.campaign.requirements)."""
     t = store.read()
     rows = t.to_pylist()
     n = len(rows)
@@ -238,6 +247,26 @@ def summarize(c: Campaign, store: RunStore, runs: int) -> dict[str, Any]:
         "dataset": {"path": "runs/", "rows": n, "bytes": store.bytes(),
                     "bytes_per_row": store.bytes() / n if n else None,
                     "columns": t.num_columns},
+        **_requirements_summary(c, rows, confidence, coverage),
+    }
+
+
+def _requirements_summary(c: Campaign, rows: list[dict[str, Any]], confidence: float,
+                          coverage: float) -> dict[str, Any]:
+    """The requirements' part of the summary: the runs meeting every
+    per-run requirement, and each requirement's statistics."""
+    reqs = c.scenario.requirements
+    if not reqs or not rows:
+        return {"requirements": [] if not reqs else None}
+    n = len(rows)
+    met = sum(r.get("meets_requirements") is True for r in rows)
+    rate = c.control_rate_hz or c.scenario.run.control_rate_hz
+    return {
+        "requirements_confidence": confidence, "requirements_coverage": coverage,
+        "judged_by": "envelope" if all(r.kind == "envelope" for r in reqs) else "requirements",
+        "meets_requirements": met, "fraction_meeting_requirements": met / n,
+        "fraction_meeting_requirements_ci": list(clopper_pearson(met, n, confidence)),
+        "requirements": campaign_requirements(reqs, rows, c.scenario.run.duration, rate, confidence, coverage),
     }
 
 

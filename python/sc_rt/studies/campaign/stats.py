@@ -1,5 +1,7 @@
 """Statistics of a campaign: the hold fraction with its exact (Clopper-Pearson)
-interval, and Wilks tolerance bounds on worst-case metrics.
+interval, and Wilks tolerance bounds on worst-case metrics; for the
+requirements (sc_rt.studies.campaign.requirements) the one-sided bounds,
+the order statistic that bounds a quantile, and the runs a statement needs.
 
 Wilks (one-sided, non-parametric): the k-th largest of n independent runs
 is an upper bound of the p-quantile of a metric with confidence
@@ -12,7 +14,8 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["clopper_pearson", "wilks_confidence", "wilks_order", "wilks_runs", "tolerance_bound"]
+__all__ = ["clopper_pearson", "clopper_pearson_lower", "hoeffding_lower", "quantile_upper_rank", "runs_needed",
+           "wilks_confidence", "wilks_order", "wilks_runs", "tolerance_bound"]
 
 
 def clopper_pearson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
@@ -70,3 +73,51 @@ def tolerance_bound(values: list[float], p: float = 0.95, confidence: float = 0.
     k = wilks_order(n, p, confidence)
     return {"bound": float(sorted(values)[n - k]), "order": k, "runs": n,
             "confidence": wilks_confidence(n, k, p)}
+
+
+def clopper_pearson_lower(k: int, n: int, confidence: float = 0.95) -> float:
+    """Exact one-sided lower bound of a binomial proportion from k successes
+    in n trials: the smallest p for which k or more successes are not
+    unlikely, beta.ppf(1 - confidence, k, n - k + 1); 0 for k = 0 and
+    (1 - confidence)^(1/n) for k = n (59 of 59 at 95 %: 0.9505)."""
+    from scipy.stats import beta
+
+    if n <= 0 or not 0 <= k <= n:
+        raise ValueError(f"need 0 <= k <= n and n > 0, got k = {k}, n = {n}")
+    if k == 0:
+        return 0.0
+    if k == n:
+        return float((1.0 - confidence) ** (1.0 / n))
+    return float(beta.ppf(1.0 - confidence, k, n - k + 1))
+
+
+def hoeffding_lower(mean: float, n: int, confidence: float = 0.95) -> float:
+    """One-sided lower bound of the mean of n independent values in [0, 1]
+    (Hoeffding): mean - sqrt(ln(1 / (1 - confidence)) / (2 n)), at least 0."""
+    return max(0.0, float(mean) - math.sqrt(math.log(1.0 / (1.0 - confidence)) / (2.0 * n)))
+
+
+def quantile_upper_rank(n: int, p: float, confidence: float = 0.95) -> int:
+    """The rank r (1-based, ascending) of the order statistic of n
+    independent samples that bounds their p-quantile from above with the
+    given confidence, the smallest r with P(Binomial(n, p) <= r - 1) >=
+    confidence; 0 when not even the largest does (too few samples). It is
+    the dual of ``clopper_pearson_lower``: the r-th smallest is <= b exactly
+    when the lower bound of the fraction <= b is >= p."""
+    from scipy.stats import binom
+
+    if n <= 0:
+        return 0
+    r = int(binom.ppf(confidence, n, p)) + 1
+    while r > 1 and binom.cdf(r - 2, n, p) >= confidence:  # the float ppf, made exact
+        r -= 1
+    while r <= n and binom.cdf(r - 1, n, p) < confidence:
+        r += 1
+    return r if r <= n else 0
+
+
+def runs_needed(p: float, confidence: float = 0.95, failures: int = 0) -> int:
+    """The fewest runs for "a fraction >= p of runs meet it, at this
+    confidence" with ``failures`` runs failing: with none, the n with
+    p^n <= 1 - confidence (59 for 95 %/95 %); with f, the Wilks order f + 1."""
+    return wilks_runs(p, confidence, order=failures + 1)

@@ -1,0 +1,144 @@
+"""What a run is: ``RunMeta``, the scenario, law, engine and the
+parameters its figures and checks need (so that no consumer needs the
+scenario file). Re-exported by sc_rt.results.run beside the Run."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sc_rt.results.jsonsafe import json_safe
+
+__all__ = ["RunMeta"]
+
+
+@dataclass(frozen=True)
+class RunMeta:
+    """What a run is: its scenario, law, engine and the parameters its
+    figures and checks need (so no consumer needs the scenario file).
+
+    Usually built by :meth:`of_scenario`; saved in trajectory.npz as JSON
+    (:meth:`to_json`, :meth:`from_json`).
+
+    Attributes
+    ----------
+    scenario : str
+        The scenario's name.
+    law : str
+        The law that ran, by its name ("dsc-ppc", "pd", a plugin's
+        registered name, a Python law's label, ...).
+    engine : str
+        What produced the run: "python", "cpp", "unsampled", "hil-lockstep",
+        "hil-realtime" or "report" (a log's rebuild).
+    control_rate_hz : float
+        [Hz] the control rate.
+    duration_s : float
+        [s] the scenario's duration (after overrides).
+    ppc : dict of str to tuple of float
+        The prescribed envelope (29): "chi0" [-], "chiinf" [-], "gamma"
+        [1/s], "dmin" [-], "dmax" [-], 3 values each.
+    umin, umax : tuple of float
+        [rad/s^2] the wheel acceleration limits, one per wheel.
+    faults : tuple of dict
+        The scenario's scheduled faults: "wheel" (1-based), "onset" [s],
+        "end" [s] (None: never), "effectiveness" [-], "bias" [rad/s^2],
+        "rate" [1/s], "stuck" (bool).
+    wall_s : float
+        [s] wall-clock time of the run (NaN: not measured).
+    mode : str
+        How the loop was clocked: "offline", "lockstep" or "realtime".
+    measurement : str
+        What the law was fed: "truth" (no ``[sensors]``, or measurement =
+        "truth") or "estimate".
+    sensors : bool
+        The run had sensors (a ``[sensors]`` table): the estimator fields are
+        filled and the bound is judged on ``sigma_BD_true``.
+    law_identity : dict or None
+        Who the law is (``sc_rt.scenario.model.law_identity``): name, spec,
+        source and, for a plugin, its file and the file's SHA-256.
+    requirements : tuple of dict
+        The scenario's ``[[requirements]]`` rows (every field of
+        ``sc_rt.scenario.requirements.Requirement``), what the run is judged
+        by (sc_rt.results.requirements); ``()``: none stated.
+    Cbar : tuple of tuple of float
+        [-] the wheels' spin axes in B (3 rows of 4), the plant's; ``()``:
+        not recorded (older runs).
+    Jw : tuple of float
+        [kg m^2] the wheels' spin inertias (4); ``()``: not recorded.
+    max_wheel_speed : tuple of float
+        [rad/s] the actuator model's wheel speed limits (4, inf: none);
+        ``()``: not recorded.
+    """
+
+    scenario: str
+    law: str
+    engine: str  # python | cpp | unsampled | hil-lockstep | hil-realtime | report
+    control_rate_hz: float
+    duration_s: float
+    #: the prescribed envelope (29): chi0, chiinf, gamma, dmin, dmax (3 each)
+    ppc: dict[str, tuple[float, ...]]
+    umin: tuple[float, ...]
+    umax: tuple[float, ...]
+    #: the scenario's scheduled faults: dicts wheel (1-based), onset, end, effectiveness, bias, rate, stuck
+    faults: tuple[dict[str, Any], ...] = ()
+    wall_s: float = math.nan
+    #: how the loop was clocked: offline, lockstep or realtime
+    mode: str = "offline"
+    #: what the law was fed: "truth" (no [sensors], or measurement = "truth") or "estimate"
+    measurement: str = "truth"
+    #: the run had sensors (a [sensors] table): estimator fields filled, bound judged on sigma_BD_true
+    sensors: bool = False
+    #: who the law is: name, spec, source (and a plugin's file and its sha256)
+    law_identity: dict[str, Any] | None = None
+    #: the scenario's [[requirements]] rows as dicts (sc_rt.scenario.requirements.Requirement's fields)
+    requirements: tuple[dict[str, Any], ...] = ()
+    #: [-] the wheels' spin axes in B (3 x 4), [kg m^2] their inertias, [rad/s] their speed limits; () unknown
+    Cbar: tuple[tuple[float, ...], ...] = ()
+    Jw: tuple[float, ...] = ()
+    max_wheel_speed: tuple[float, ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        return json_safe(dataclasses.asdict(self))
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> RunMeta:
+        d = dict(d)
+        d["ppc"] = {k: tuple(float(x) for x in v) for k, v in d["ppc"].items()}
+        d["umin"], d["umax"] = tuple(d["umin"]), tuple(d["umax"])
+        d["faults"] = tuple(d.get("faults", ()))
+        d["requirements"] = tuple(d.get("requirements", ()))
+        d["Cbar"] = tuple(tuple(float(x) for x in row) for row in d.get("Cbar", ()))
+        for k in ("Jw", "max_wheel_speed"):
+            d[k] = tuple(math.inf if x is None else float(x) for x in d.get(k, ()))
+        d["wall_s"] = math.nan if d.get("wall_s") is None else float(d["wall_s"])
+        return cls(**d)
+
+    @classmethod
+    def of_scenario(cls, scn, engine: str, **over: Any) -> RunMeta:
+        """The meta of a run of ``scn`` (a sc_rt.scenario Scenario)."""
+        p, a, plant = scn.controller.ppc, scn.actuators, scn.plant
+        faults = tuple({"wheel": f.wheel + 1, "onset": f.onset, "end": f.end,
+                        "effectiveness": f.effectiveness, "bias": f.bias, "rate": f.rate,
+                        "stuck": bool(f.stuck)} for f in a.faults)
+        from sc_rt.scenario.model import law_identity
+
+        ident = law_identity(scn.run.controller)
+        kw = dict(scenario=scn.name, law=ident["name"], law_identity=ident, engine=engine,
+                  control_rate_hz=float(scn.run.control_rate_hz), duration_s=float(scn.run.duration),
+                  ppc={k: tuple(float(x) for x in np.asarray(getattr(p, k), float))
+                       for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")},
+                  umin=tuple(float(x) for x in np.asarray(a.umin, float)),
+                  umax=tuple(float(x) for x in np.asarray(a.umax, float)), faults=faults,
+                  requirements=tuple(dataclasses.asdict(r) for r in getattr(scn, "requirements", ())),
+                  Cbar=tuple(tuple(float(x) for x in row) for row in np.asarray(plant.Cbar, float)),
+                  Jw=tuple(float(x) for x in np.asarray(plant.Jw, float)),
+                  max_wheel_speed=tuple(float(x) for x in np.asarray(a.max_wheel_speed, float)))
+        sensors = getattr(scn, "sensors", None)
+        if sensors is not None:
+            kw.update(sensors=True, measurement=sensors.measurement)
+        kw.update(over)
+        return cls(**kw)
