@@ -34,24 +34,30 @@ pytestmark = pytest.mark.lcm
 NAV_FIELDS = ("sigma_BN_est", "bias_est", "bias_true", "P_diag", "att_est_error", "innovation", "nis", "flags")
 
 
-def _scenario(tmp_path: Path, name: str, measurement: str) -> Path:
-    """A shipped sensors scenario with [controller] measurement set."""
+def _scenario(tmp_path: Path, name: str, measurement: str, gyro: str = "rate") -> Path:
+    """A shipped sensors scenario with [controller] measurement and the
+    gyro's output ([sensors.gyro] output) set."""
     text = (LIB / f"{name}.toml").read_text()
     text, n = re.subn(r'(?m)^measurement\s*=\s*"\w+"', f'measurement = "{measurement}"', text)
     assert n == 1
-    p = tmp_path / f"{name}_{measurement}.toml"
+    if gyro != "rate":
+        text, n = re.subn(r"(?m)^\[sensors\.gyro\]$", f'[sensors.gyro]\noutput = "{gyro}"', text)
+        assert n == 1
+    p = tmp_path / f"{name}_{measurement}_{gyro}.toml"
     p.write_text(text)
     return p
 
 
-@pytest.mark.parametrize("name,measurement,duration", [
-    ("ppc_feasible_10hz_sensors", "estimate", 30.0),
-    ("ppc_feasible_10hz_sensors", "truth", 10.0),
-    ("ppc_feasible_100hz_sensors", "estimate", 6.0),
+@pytest.mark.parametrize("name,measurement,duration,gyro", [
+    ("ppc_feasible_10hz_sensors", "estimate", 30.0, "rate"),
+    ("ppc_feasible_10hz_sensors", "truth", 10.0, "rate"),
+    ("ppc_feasible_100hz_sensors", "estimate", 6.0, "rate"),
+    # an integrating gyro (issue #30): gyro_t carries its kind, the controller's MEKF propagates with it
+    ("ppc_feasible_10hz_sensors", "estimate", 20.0, "increment"),
 ])
-def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measurement, duration):
+def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measurement, duration, gyro):
     lcmnet.require()
-    path = _scenario(tmp_path, name, measurement)
+    path = _scenario(tmp_path, name, measurement, gyro)
     out = tmp_path / "hil"
     r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration),
                         "--out", str(out), "--no-plots"])
@@ -175,6 +181,8 @@ def test_sensor_messages_are_packed_as_the_generated_encoders_pack_them():
     g = sc_rt_lcm.gyro_t()
     g.utime, g.seq, g.session, g.tick, g.t, g.omega = 1, 2, 3, 4, 0.5, [1e-3, -2.0, np.pi]
     assert gyro_bytes(1, 2, 3, 4, 0.5, g.omega) == g.encode()
+    g.output = 1  # an integrating gyro's mean rate
+    assert gyro_bytes(1, 2, 3, 4, 0.5, g.omega, 1) == g.encode()
     s = sc_rt_lcm.star_tracker_t()
     s.utime, s.seq, s.session, s.tick = 1, 2, 3, 4
     s.t_exposure, s.t_delivery, s.sigma_BN, s.lost, s.blacked_out = 0.25, 0.5, [0.1, -0.2, 0.3], 5, 6

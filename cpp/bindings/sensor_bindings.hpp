@@ -62,7 +62,11 @@ inline void bind_sensors(py::module_& m) {
       .def_readwrite("scale_factor", &GyroParams::scale_factor, "[-]")
       .def_readwrite("misalignment", &GyroParams::misalignment, "[rad]")
       .def_readwrite("quantization", &GyroParams::quantization, "[rad]")
-      .def_readwrite("saturation", &GyroParams::saturation, "[rad/s]");
+      .def_readwrite("saturation", &GyroParams::saturation, "[rad/s]")
+      .def_readwrite("output", &GyroParams::output,
+                     "GYRO_RATE (the rate at the sample instant) or GYRO_MEAN_RATE (an integrating gyro)");
+  m.attr("GYRO_RATE") = kGyroRate;
+  m.attr("GYRO_MEAN_RATE") = kGyroMeanRate;
   py::class_<StarTrackerParams>(m, "StarTrackerParams", "Star tracker (SI units; sensors.hpp).")
       .def(py::init<>())
       .def_readwrite("enabled", &StarTrackerParams::enabled)
@@ -129,7 +133,7 @@ inline void bind_sensors(py::module_& m) {
       .def_property_readonly("star_new", &SensorSuite::star_new)
       .def_property_readonly("tach_new", &SensorSuite::tach_new)
       .def_property_readonly("gyro", [](const SensorSuite& s) {
-        return py::make_tuple(s.gyro().t, s.gyro().omega);
+        return py::make_tuple(s.gyro().t, s.gyro().omega, s.gyro().output);
       }, "(t, omega_m)")
       .def_property_readonly("star", [](const SensorSuite& s) {
         return py::make_tuple(s.star().t_exposure, s.star().t_delivery, s.star().sigma_BN);
@@ -284,7 +288,9 @@ inline void bind_sensors(py::module_& m) {
   py::class_<Mekf>(m, "Mekf", "Multiplicative EKF, attitude error + gyro bias (mekf.hpp).")
       .def(py::init<const MekfParams&>(), arg("p"))
       .def("reset", &Mekf::reset, arg("t"), arg("sigma"), arg("bias"))
-      .def("gyro", &Mekf::gyro, arg("t"), arg("omega_m"))
+      .def("gyro", &Mekf::gyro, arg("t"), arg("omega_m"), arg("output") = kGyroRate,
+           "A gyro sample at t: output GYRO_RATE (the rate at t) or GYRO_MEAN_RATE (the mean rate over\n"
+           "the interval since the previous sample, an integrating gyro's).")
       .def("star", &Mekf::star, arg("t_exposure"), arg("sigma_m"))
       .def("predict", &Mekf::predict, arg("t"))
       .def_property_readonly("state", &Mekf::state)
@@ -325,8 +331,9 @@ inline void bind_sensors(py::module_& m) {
                         "The controller's half of the navigation: MEKF fed with sensor samples (mekf.hpp).")
       .def(py::init<const MekfParams&, bool>(), arg("p"), arg("use_estimate"))
       .def("reset", &Estimator::reset, arg("sigma0"))
-      .def("gyro", [](Estimator& e, double t, const Vec3& w) { return e.gyro(GyroSample{t, w}); },
-           arg("t"), arg("omega"))
+      .def("gyro",
+           [](Estimator& e, double t, const Vec3& w, int output) { return e.gyro(GyroSample{t, w, output}); },
+           arg("t"), arg("omega"), arg("output") = kGyroRate)
       .def("star", [](Estimator& e, double te, double td, const Vec3& s) {
              return e.star(StarSample{te, td, s});
            }, arg("t_exposure"), arg("t_delivery"), arg("sigma_BN"))

@@ -132,9 +132,9 @@ void bind_shell(py::module_& m) {
                            "The controller's sensor intake: sessions, order, checks, into the Estimator.")
       .def(py::init<const MekfParams&, bool, const Vec3&, std::size_t>(), arg("p"), arg("use_estimate"),
            arg("sigma0"), arg("queue") = 4096)
-      .def("offer_gyro", [](SensorIntake& s, int64_t session, int64_t seq, double t, const Vec3& w) {
-             s.offer_gyro(session, seq, GyroSample{t, w});
-           }, arg("session"), arg("seq"), arg("t"), arg("omega"))
+      .def("offer_gyro", [](SensorIntake& s, int64_t session, int64_t seq, double t, const Vec3& w, int output) {
+             s.offer_gyro(session, seq, GyroSample{t, w, output});
+           }, arg("session"), arg("seq"), arg("t"), arg("omega"), arg("output") = 0)
       .def("offer_star", [](SensorIntake& s, int64_t session, int64_t seq, double te, double td,
                             const Vec3& sigma) { s.offer_star(session, seq, StarSample{te, td, sigma}); },
            arg("session"), arg("seq"), arg("t_exposure"), arg("t_delivery"), arg("sigma_BN"))

@@ -250,7 +250,7 @@ NavSetup nav_from_bytes(const void* data, int size) {
   return nav_from_lcm(m);
 }
 
-GyroSample gyro_from_lcm(const sc_rt_lcm::gyro_t& msg) { return GyroSample{msg.t, vec(msg.omega)}; }
+GyroSample gyro_from_lcm(const sc_rt_lcm::gyro_t& msg) { return GyroSample{msg.t, vec(msg.omega), msg.output}; }
 
 StarSample star_from_lcm(const sc_rt_lcm::star_tracker_t& msg) {
   return StarSample{msg.t_exposure, msg.t_delivery, vec(msg.sigma_BN)};

@@ -220,7 +220,7 @@ void Mekf::update(MekfState& s, const Vec3& sigma_m) {
   nis_ = z.dot(Sf.solve(z));
 }
 
-void Mekf::gyro(double t, const Vec3& omega_m) {
+void Mekf::gyro(double t, const Vec3& omega_m, int output) {
   // The new snapshot's slot (no division for the ring index): the oldest when the ring is
   // full, never the current state's (the newest, ring size >= 2).
   const std::size_t n = ring_.size();
@@ -234,8 +234,10 @@ void Mekf::gyro(double t, const Vec3& omega_m) {
   // propagated from the current state straight into the snapshot, which becomes the current
   // state (no copy); over the interval the two samples bound: their mean
   const MekfState& c = cur();
-  propagate_into(c, sn.s, have_gyro_ ? Vec3(0.5 * (omega_m_ + omega_m)) : omega_m, t - c.t);
+  sn.interval_rate = have_gyro_ && output == kGyroRate ? Vec3(0.5 * (omega_m_ + omega_m)) : omega_m;
+  propagate_into(c, sn.s, sn.interval_rate, t - c.t);
   sn.omega_m = omega_m;
+  sn.output = output;
   cur_slot_ = static_cast<long>(w);
   omega_m_ = omega_m;
   have_gyro_ = true;
@@ -267,7 +269,10 @@ bool Mekf::star(double t_exposure, const Vec3& sigma_m) {
     MekfState* s = &ring_[k].s;
     bool newest_is_s = false;  // the newest snapshot holds s
     if (t_exposure - s->t > 0.0) {  // between snapshots (or after the newest): a scratch state
-      propagate_into(*s, scratch_, ring_[k].omega_m, t_exposure - s->t);
+      // the held rate of snapshot k; an integrating gyro's next sample covers the exposure
+      const Vec3& w_k = j < size_ && ring_[(head_ + j) % n].output == kGyroMeanRate
+                            ? ring_[(head_ + j) % n].interval_rate : ring_[k].omega_m;
+      propagate_into(*s, scratch_, w_k, t_exposure - s->t);
       s = &scratch_;
       update(*s, sigma_m);
       if (s->t == ring_[k].s.t) {
@@ -280,9 +285,10 @@ bool Mekf::star(double t_exposure, const Vec3& sigma_m) {
       newest_is_s = k == newest;
     }
     for (std::size_t m = j; m < size_; ++m) {  // re-propagate the later snapshots
-      const std::size_t prev = (head_ + m - 1) % n, here = (head_ + m) % n;
+      const std::size_t here = (head_ + m) % n;
       const double dt = ring_[here].s.t - s->t;
-      propagate_into(*s, ring_[here].s, Vec3(0.5 * (ring_[prev].omega_m + ring_[here].omega_m)), dt);
+      // from the exposure: the rest of the interval, at the rate that first propagated it
+      propagate_into(*s, ring_[here].s, ring_[here].interval_rate, dt);
       s = &ring_[here].s;
       newest_is_s = here == newest;
     }
@@ -340,7 +346,7 @@ void Estimator::reset_at(double t, const Vec3& sigma) {
 
 bool Estimator::gyro(const GyroSample& g) {
   if (!(g.t >= mekf_.state().t)) return false;
-  mekf_.gyro(g.t, g.omega);
+  mekf_.gyro(g.t, g.omega, g.output);
   return true;
 }
 

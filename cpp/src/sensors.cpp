@@ -111,6 +111,7 @@ void SensorSuite::reset() {
   gm_.setZero();
   rw_.setZero();
   carry_.setZero();
+  have_prev_ = false;
   if (g.bias_sigma > 0.0)  // stationary start
     for (int i = 0; i < 3; ++i) gm_(i) = g.bias_sigma * rng_bias_.normal();
   bias_ = g.bias0 + gm_ + rw_;
@@ -138,7 +139,14 @@ void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
     last_bias_tick_ = i;
     bias_ = g.bias0 + gm_ + rw_;
     const double dtg = dt_gyro_, sn = sn_gyro_;
-    Vec3 w = gyro_M_ * x.omega_BN_B + bias_;
+    Vec3 w;
+    if (g.output == kGyroMeanRate) {  // the mean rate over the interval: its rotation vector / dt
+      w = gyro_M_ * (have_prev_ ? Vec3(mrp_error_vector(x.sigma_BN, sigma_prev_) / dtg) : x.omega_BN_B) + bias_;
+      sigma_prev_ = x.sigma_BN;
+      have_prev_ = true;
+    } else {
+      w = gyro_M_ * x.omega_BN_B + bias_;
+    }
     for (int k = 0; k < 3; ++k) {
       if (sn > 0.0) w(k) += sn * rng_gyro_.normal();
       w(k) = std::min(std::max(w(k), -g.saturation), g.saturation);
@@ -151,7 +159,7 @@ void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
         w(k) = counts * g.quantization / dtg;
       }
     }
-    gyro_ = GyroSample{t, w};
+    gyro_ = GyroSample{t, w, g.output};
     gyro_new_ = true;
   }
   const StarTrackerParams& s = p_.star_tracker;

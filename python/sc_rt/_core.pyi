@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -994,6 +994,14 @@ class GyroParams:
     def misalignment(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
         ...
     @property
+    def output(self) -> int:
+        """
+        GYRO_RATE (the rate at the sample instant) or GYRO_MEAN_RATE (an integrating gyro)
+        """
+    @output.setter
+    def output(self, arg0: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    @property
     def period_ticks(self) -> int:
         """
         plant steps per sample
@@ -1250,7 +1258,7 @@ class SensorSuite:
     def delivered(self) -> int:
         ...
     @property
-    def gyro(self) -> tuple[float, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]]:
+    def gyro(self) -> tuple[float, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"], int]:
         """
         (t, omega_m)
         """
@@ -1300,8 +1308,11 @@ class Mekf:
     """
     def __init__(self, p: MekfParams) -> None:
         ...
-    def gyro(self, t: typing.SupportsFloat | typing.SupportsIndex, omega_m: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
-        ...
+    def gyro(self, t: typing.SupportsFloat | typing.SupportsIndex, omega_m: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], output: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
+        """
+        A gyro sample at t: output GYRO_RATE (the rate at t) or GYRO_MEAN_RATE (the mean rate over
+        the interval since the previous sample, an integrating gyro's).
+        """
     def predict(self, t: typing.SupportsFloat | typing.SupportsIndex) -> MekfState:
         ...
     def reset(self, t: typing.SupportsFloat | typing.SupportsIndex, sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
@@ -1355,7 +1366,7 @@ class Estimator:
     """
     def __init__(self, p: MekfParams, use_estimate: bool) -> None:
         ...
-    def gyro(self, t: typing.SupportsFloat | typing.SupportsIndex, omega: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> bool:
+    def gyro(self, t: typing.SupportsFloat | typing.SupportsIndex, omega: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], output: typing.SupportsInt | typing.SupportsIndex = 0) -> bool:
         ...
     def measure(self, truth: Measurement) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[23, 1]"]]:
         """
@@ -1604,7 +1615,7 @@ class SensorIntake:
         """
         (Measurement, telemetry (NAV_SIZE,)) as the controller uses them.
         """
-    def offer_gyro(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex, omega: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+    def offer_gyro(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex, omega: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], output: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
         ...
     def offer_star(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t_exposure: typing.SupportsFloat | typing.SupportsIndex, t_delivery: typing.SupportsFloat | typing.SupportsIndex, sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
         ...
@@ -1874,6 +1885,8 @@ FLAG_SAT_1: int = 8
 FLAG_STALE_STATE: int = 256
 FLAG_TIME_NOT_ADVANCING: int = 512
 GUIDANCE_TABLE_MAX: int = 2000
+GYRO_MEAN_RATE: int = 1
+GYRO_RATE: int = 0
 LAW_API_VERSION: int = 1
 LAW_FINGERPRINT: str = 'api-1 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
 LAW_MAX_TELEMETRY: int = 8

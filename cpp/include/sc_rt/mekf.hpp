@@ -7,7 +7,8 @@
 // Error: R(sigma_true) = exp(-dtheta^) R(sigma_est); b_true = b_est + db.
 // Propagation over dt with w = omega_m - b_est, omega_m the mean of the two
 // gyro samples that bound the interval (the held newest sample beyond it,
-// for the prediction to a control instant):
+// for the prediction to a control instant), or, from an integrating gyro,
+// the mean rate it delivered for the interval (sensors.hpp, kGyroMeanRate):
 //   sigma <- exp(-(w dt)^) sigma (exact for a constant rate)
 //   Phi = [[exp(-(w dt)^), -dt I], [0, a I]], a = exp(-dt / bias_tau) (1 without Gauss-Markov)
 //   Q   = [[arw^2 dt + rrw^2 dt^3/3, -rrw^2 dt^2/2], [., rrw^2 dt + bias_sigma^2 (1 - a^2)]]
@@ -67,9 +68,12 @@ class Mekf {
  public:
   explicit Mekf(const MekfParams& p);
   void reset(double t, const Vec3& sigma, const Vec3& bias);
-  // A gyro sample at t (>= the current time): propagate to t with the held
-  // rate, then hold this one.
-  void gyro(double t, const Vec3& omega_m);
+  // A gyro sample at t (>= the current time): propagate to t, then hold it.
+  // A rate sample (kGyroRate): over the interval the mean of the two samples
+  // that bound it; a mean rate (kGyroMeanRate, an integrating gyro's delta
+  // angle over the interval ending at t, divided by it): that rate itself,
+  // exact for a coning-compensated increment.
+  void gyro(double t, const Vec3& omega_m, int output = kGyroRate);
   // A star tracker attitude exposed at t_exposure <= now; false if dropped.
   bool star(double t_exposure, const Vec3& sigma_m);
   // The state propagated from now to t >= now with the newest sample held (not stored).
@@ -89,7 +93,9 @@ class Mekf {
  private:
   struct Snap {
     MekfState s;
-    Vec3 omega_m;
+    Vec3 omega_m;        // the sample taken at s.t (held from it on)
+    Vec3 interval_rate;  // the rate that propagated the previous snapshot into this one
+    int output;          // the sample's kind (kGyroRate, kGyroMeanRate)
   };
   void propagate(MekfState& s, const Vec3& omega_m, double dt) const { propagate_into(s, s, omega_m, dt); }
   // out = in propagated by dt (out may be in): a new snapshot is written where it is kept.

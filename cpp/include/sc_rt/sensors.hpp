@@ -76,8 +76,18 @@ class Rng {
 //   sigma bias_sigma, time constant bias_tau), b_rw a random walk (rrw)
 //   quantisation: the delta angle omega_m dt is counted in quanta of
 //   `quantization` rad with the remainder carried to the next sample.
+// Output (docs/MODEL.md, "Gyro"): kGyroRate, the rate at the sample instant
+// (omega above is omega_BN_B(t)); or kGyroMeanRate, an integrating gyro: its
+// delta angle over the interval since the previous sample divided by the
+// interval, tagged at the interval's end, where omega is the mean rate
+// phi / dt and phi the rotation vector of the body's attitude change over
+// the interval, R(t) = exp(-phi^) R(t - dt) (a coning-compensated
+// increment; the first sample, with no interval, is the rate at t).
+constexpr int kGyroRate = 0;
+constexpr int kGyroMeanRate = 1;
 struct GyroParams {
   bool enabled = false;
+  int output = kGyroRate;              //!< kGyroRate or kGyroMeanRate
   int period_ticks = 1;                //!< plant steps per sample
   double arw = 0.0;                    //!< [rad/sqrt(s)]
   double bias_sigma = 0.0;             //!< [rad/s] Gauss-Markov steady-state sigma
@@ -125,6 +135,7 @@ struct SensorParams {
 struct GyroSample {
   double t = 0.0;
   Vec3 omega = Vec3::Zero();  //!< [rad/s] measured
+  int output = kGyroRate;     //!< kGyroRate: the rate at t; kGyroMeanRate: the mean over the interval ending at t
 };
 struct StarSample {
   double t_exposure = 0.0;    //!< [s]
@@ -180,6 +191,8 @@ class SensorSuite {
   Mat3 gyro_M_;
   Rng rng_gyro_, rng_bias_, rng_star_, rng_loss_;
   Vec3 bias_ = Vec3::Zero(), gm_ = Vec3::Zero(), rw_ = Vec3::Zero(), carry_ = Vec3::Zero();
+  Vec3 sigma_prev_ = Vec3::Zero();  // kGyroMeanRate: the attitude at the previous sample
+  bool have_prev_ = false;
   double a_gm_ = 1.0, q_gm_ = 0.0, q_rw_ = 0.0;
   double dt_gyro_ = 0.0, sn_gyro_ = 0.0;  // the gyro's period [s] and white noise sigma per sample
   std::int64_t last_bias_tick_ = -1;

@@ -30,8 +30,8 @@ __all__ = ["SensorPublisher", "SENT_COUNTERS", "gyro_bytes", "star_bytes", "tach
 #: channel -> the emulator counter of the samples sent on it (``SensorPublisher.counters``)
 SENT_COUNTERS = {"SCRT_GYRO": "gyro_sent", "SCRT_STAR": "star_sent", "SCRT_TACH": "tach_sent"}
 
-# gyro_t: utime, seq, session, tick, t, omega[3]
-_GYRO = (sc_rt_lcm.gyro_t._get_packed_fingerprint(), struct.Struct(">qqqqd3d"))
+# gyro_t: utime, seq, session, tick, t, omega[3], output
+_GYRO = (sc_rt_lcm.gyro_t._get_packed_fingerprint(), struct.Struct(">qqqqd3db"))
 # star_tracker_t: utime, seq, session, tick, t_exposure, t_delivery, sigma_BN[3], lost, blacked_out
 _STAR = (sc_rt_lcm.star_tracker_t._get_packed_fingerprint(), struct.Struct(">qqqqdd3dqq"))
 # tachometer_t: utime, seq, session, tick, t, wheel_speed[4]
@@ -41,8 +41,8 @@ for _cls, (_fp, _lay) in ((sc_rt_lcm.gyro_t, _GYRO), (sc_rt_lcm.star_tracker_t, 
     assert _lay.size + 8 == len(_cls().encode()), _cls
 
 
-def gyro_bytes(utime: int, seq: int, session: int, tick: int, t: float, omega) -> bytes:
-    return _GYRO[0] + _GYRO[1].pack(utime, seq, session, tick, t, *omega)
+def gyro_bytes(utime: int, seq: int, session: int, tick: int, t: float, omega, output: int = 0) -> bytes:
+    return _GYRO[0] + _GYRO[1].pack(utime, seq, session, tick, t, *omega, output)
 
 
 def star_bytes(utime: int, seq: int, session: int, tick: int, t_exposure: float, t_delivery: float,
@@ -87,8 +87,8 @@ class SensorPublisher:
         out = []
         utime = time.time_ns() // 1000
         if s.gyro_new:
-            tg, w = s.gyro
-            out.append((self._ch[0], gyro_bytes(utime, self.sent[0], self.session, i, tg, w)))
+            tg, w, kind = s.gyro
+            out.append((self._ch[0], gyro_bytes(utime, self.sent[0], self.session, i, tg, w, kind)))
             self.sent[0] += 1
         if s.star_new:
             te, td, sig = s.star

@@ -39,6 +39,10 @@ def _zeros3() -> np.ndarray:
     return read_only(np.zeros(3))
 
 
+#: [sensors.gyro] output -> sc_rt._core's GYRO_RATE / GYRO_MEAN_RATE
+GYRO_OUTPUTS = ("rate", "increment")
+
+
 @dataclass(frozen=True)
 class GyroSpec:
     """[sensors.gyro], data-sheet units (docs/SCENARIOS.md)."""
@@ -53,6 +57,9 @@ class GyroSpec:
     misalignment: np.ndarray = field(default_factory=_zeros3, metadata=vector_spec(3, scalar_ok=True))  # [arcsec]
     quantization: float = field(default=0.0, metadata=spec("number", ge=0))  # [arcsec]
     saturation: float = field(default=math.inf, metadata=spec("number", gt=0, allow_inf=True))  # [deg/s]
+    #: "rate": the rate at each sample instant; "increment": an integrating gyro, its delta
+    #: angle over the interval since the previous sample as a mean rate, tagged at its end
+    output: str = field(default="rate", metadata=spec("str", choices=GYRO_OUTPUTS))
 
 
 @dataclass(frozen=True)
@@ -250,6 +257,7 @@ def nav_config(sensors: Sensors, plant_step: float, where: str = "scenario") -> 
         p.gyro.misalignment = np.asarray(g.misalignment) * ARCSEC
         p.gyro.quantization = g.quantization * ARCSEC
         p.gyro.saturation = g.saturation * math.pi / 180.0
+        p.gyro.output = GYRO_OUTPUTS.index(g.output)  # 0 GYRO_RATE, 1 GYRO_MEAN_RATE
         m.arw, m.rrw = p.gyro.arw, p.gyro.rrw
         m.bias_sigma, m.bias_tau, m.quantization = p.gyro.bias_sigma, g.bias_tau, p.gyro.quantization
     if (st := sensors.star_tracker) is not None:
