@@ -34,30 +34,38 @@ pytestmark = pytest.mark.lcm
 NAV_FIELDS = ("sigma_BN_est", "bias_est", "bias_true", "P_diag", "att_est_error", "innovation", "nis", "flags")
 
 
-def _scenario(tmp_path: Path, name: str, measurement: str, gyro: str = "rate") -> Path:
+def _scenario(tmp_path: Path, name: str, measurement: str, gyro: str = "rate", calibrate: bool = False) -> Path:
     """A shipped sensors scenario with [controller] measurement and the
-    gyro's output ([sensors.gyro] output) set."""
+    gyro's output ([sensors.gyro] output) set; calibrate: scale factors and
+    misalignments in the gyro, and the calibrating filter."""
     text = (LIB / f"{name}.toml").read_text()
     text, n = re.subn(r'(?m)^measurement\s*=\s*"\w+"', f'measurement = "{measurement}"', text)
     assert n == 1
     if gyro != "rate":
         text, n = re.subn(r"(?m)^\[sensors\.gyro\]$", f'[sensors.gyro]\noutput = "{gyro}"', text)
         assert n == 1
-    p = tmp_path / f"{name}_{measurement}_{gyro}.toml"
+    if calibrate:
+        text, n = re.subn(r"(?m)^scale_factor = .*$", "scale_factor = [1500.0, -1000.0, 2000.0]", text)
+        text, m = re.subn(r"(?m)^misalignment = .*$", "misalignment = [200.0, -300.0, 250.0]", text)
+        text, k = re.subn(r"(?m)^\[controller\.estimator\]$", "[controller.estimator]\ncalibrate = true", text)
+        assert n == m == k == 1
+    p = tmp_path / f"{name}_{measurement}_{gyro}_{calibrate}.toml"
     p.write_text(text)
     return p
 
 
-@pytest.mark.parametrize("name,measurement,duration,gyro", [
-    ("ppc_feasible_10hz_sensors", "estimate", 30.0, "rate"),
-    ("ppc_feasible_10hz_sensors", "truth", 10.0, "rate"),
-    ("ppc_feasible_100hz_sensors", "estimate", 6.0, "rate"),
+@pytest.mark.parametrize("name,measurement,duration,gyro,calibrate", [
+    ("ppc_feasible_10hz_sensors", "estimate", 30.0, "rate", False),
+    ("ppc_feasible_10hz_sensors", "truth", 10.0, "rate", False),
+    ("ppc_feasible_100hz_sensors", "estimate", 6.0, "rate", False),
     # an integrating gyro (issue #30): gyro_t carries its kind, the controller's MEKF propagates with it
-    ("ppc_feasible_10hz_sensors", "estimate", 20.0, "increment"),
+    ("ppc_feasible_10hz_sensors", "estimate", 20.0, "increment", False),
+    # and the calibrating filter, configured through controller_config_t
+    ("ppc_feasible_10hz_sensors", "estimate", 20.0, "increment", True),
 ])
-def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measurement, duration, gyro):
+def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measurement, duration, gyro, calibrate):
     lcmnet.require()
-    path = _scenario(tmp_path, name, measurement, gyro)
+    path = _scenario(tmp_path, name, measurement, gyro, calibrate)
     out = tmp_path / "hil"
     r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration),
                         "--out", str(out), "--no-plots"])

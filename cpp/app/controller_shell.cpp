@@ -334,7 +334,7 @@ std::string Shell::summary_json(const std::string& scheduler) const {
                   "\"invalid\": %lld, \"out_of_order\": %lld, \"too_old\": %lld, \"foreign\": %lld, "
                   "\"before_fix\": %lld}}",
                   intake_->use_estimate() ? "estimate" : "truth", (long long)c.used[0], (long long)c.used[1],
-                  (long long)c.used[2], intake_->estimator().filter().dropped(), (long long)c.malformed,
+                  (long long)c.used[2], intake_->estimator().dropped(), (long long)c.malformed,
                   (long long)c.invalid, (long long)c.out_of_order, (long long)c.too_old, (long long)c.foreign,
                   (long long)c.before_fix);
     js += nb;

@@ -49,6 +49,33 @@ inline Eigen::Matrix<double, kNavSize, 1> pack(const NavTelemetry& t) {
 }
 
 
+// Mekf (N = 6) and MekfCal (N = 15), and their states.
+template <int N>
+void bind_mekf(py::module_& m, const char* name, const char* state_name, const char* doc) {
+  using F = MekfT<N>;
+  using S = MekfStateT<N>;
+  auto st = py::class_<S>(m, state_name)
+                .def_readonly("t", &S::t)
+                .def_readonly("sigma", &S::sigma)
+                .def_readonly("bias", &S::bias)
+                .def_readonly("P", &S::P);
+  if constexpr (N == 15) st.def_readonly("cal", &S::cal, "[s1 s2 s3, ku1 ku2 ku3, kl1 kl2 kl3]");
+  py::class_<F>(m, name, doc)
+      .def(py::init<const MekfParams&>(), arg("p"))
+      .def("reset", &F::reset, arg("t"), arg("sigma"), arg("bias"))
+      .def("gyro", &F::gyro, arg("t"), arg("omega_m"), arg("output") = kGyroRate,
+           "A gyro sample at t: output GYRO_RATE (the rate at t) or GYRO_MEAN_RATE (the mean rate over\n"
+           "the interval since the previous sample, an integrating gyro's).")
+      .def("star", &F::star, arg("t_exposure"), arg("sigma_m"))
+      .def("predict", &F::predict, arg("t"))
+      .def("rate_estimate", &F::rate_estimate, arg("s"), "(I + S)^-1 (held sample - b) of the state s")
+      .def_property_readonly("state", &F::state)
+      .def_property_readonly("innovation", &F::innovation)
+      .def_property_readonly("nis", &F::nis)
+      .def_property_readonly("updates", &F::updates)
+      .def_property_readonly("dropped", &F::dropped);
+}
+
 inline void bind_sensors(py::module_& m) {
   py::class_<GyroParams>(m, "GyroParams", "Rate gyro (SI units; sensors.hpp).")
       .def(py::init<>())
@@ -103,6 +130,9 @@ inline void bind_sensors(py::module_& m) {
       .def_readwrite("initial_attitude_sigma", &MekfParams::initial_attitude_sigma)
       .def_readwrite("initial_bias_sigma", &MekfParams::initial_bias_sigma)
       .def_readwrite("degraded_after", &MekfParams::degraded_after)
+      .def_readwrite("calibrate", &MekfParams::calibrate, "the 15-state calibrating filter")
+      .def_readwrite("initial_scale_factor_sigma", &MekfParams::initial_scale_factor_sigma, "[-]")
+      .def_readwrite("initial_misalignment_sigma", &MekfParams::initial_misalignment_sigma, "[rad]")
       .def_readwrite("history", &MekfParams::history);
   py::class_<NavConfig>(m, "NavConfig")
       .def(py::init<>())
@@ -251,7 +281,7 @@ inline void bind_sensors(py::module_& m) {
             }
             const auto b = std::chrono::steady_clock::now();
             secs.push_back(std::chrono::duration<double>(b - a).count());
-            updates = e.filter().updates();
+            updates = e.updates();
           }
           for (int r = 0; r < reps; ++r) {  // the sensors alone, every tick, nothing stored
             SensorSuite sn(c.sensors);
@@ -280,24 +310,12 @@ inline void bind_sensors(py::module_& m) {
       "Estimator alone (the samples drawn beforehand from the constant state x (10,)); sensor_seconds:\n"
       "the SensorSuite alone ticked over the same plant steps, reps times.");
 
-  py::class_<MekfState>(m, "MekfState")
-      .def_readonly("t", &MekfState::t)
-      .def_readonly("sigma", &MekfState::sigma)
-      .def_readonly("bias", &MekfState::bias)
-      .def_readonly("P", &MekfState::P);
-  py::class_<Mekf>(m, "Mekf", "Multiplicative EKF, attitude error + gyro bias (mekf.hpp).")
-      .def(py::init<const MekfParams&>(), arg("p"))
-      .def("reset", &Mekf::reset, arg("t"), arg("sigma"), arg("bias"))
-      .def("gyro", &Mekf::gyro, arg("t"), arg("omega_m"), arg("output") = kGyroRate,
-           "A gyro sample at t: output GYRO_RATE (the rate at t) or GYRO_MEAN_RATE (the mean rate over\n"
-           "the interval since the previous sample, an integrating gyro's).")
-      .def("star", &Mekf::star, arg("t_exposure"), arg("sigma_m"))
-      .def("predict", &Mekf::predict, arg("t"))
-      .def_property_readonly("state", &Mekf::state)
-      .def_property_readonly("innovation", &Mekf::innovation)
-      .def_property_readonly("nis", &Mekf::nis)
-      .def_property_readonly("updates", &Mekf::updates)
-      .def_property_readonly("dropped", &Mekf::dropped);
+  bind_mekf<6>(m, "Mekf", "MekfState", "Multiplicative EKF, attitude error + gyro bias (mekf.hpp).");
+  bind_mekf<15>(m, "MekfCal", "MekfCalState",
+                "The calibrating MEKF: attitude error, gyro bias, scale factors and misalignments (mekf.hpp).");
+  m.def("gyro_calibration_matrix", &gyro_calibration_matrix, arg("c"),
+        "S of a calibrating filter's cal = [s1 s2 s3, ku1 ku2 ku3, kl1 kl2 kl3]: [[s1 ku1 ku2], [kl1 s2 ku3],\n"
+        "[kl2 kl3 s3]] (the gyro measures (I + S) omega + b).");
 
   {
     py::list cols;

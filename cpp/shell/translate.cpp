@@ -229,9 +229,13 @@ NavSetup nav_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   k.initial_bias_sigma = m.nav_initial_bias_sigma;
   k.degraded_after = m.nav_degraded_after;
   k.history = m.nav_history;
+  k.calibrate = m.nav_calibrate;
+  k.initial_scale_factor_sigma = m.nav_initial_scale_factor_sigma;
+  k.initial_misalignment_sigma = m.nav_initial_misalignment_sigma;
   n.sigma0 = vec(m.nav_sigma0);
   const double nonneg[] = {k.arw, k.rrw, k.bias_sigma, k.quantization, k.sigma_cross, k.sigma_boresight,
-                           k.initial_attitude_sigma, k.initial_bias_sigma, k.degraded_after};
+                           k.initial_attitude_sigma, k.initial_bias_sigma, k.degraded_after,
+                           k.initial_scale_factor_sigma, k.initial_misalignment_sigma};
   for (double v : nonneg)
     if (!(v >= 0.0) || !std::isfinite(v))
       throw std::invalid_argument("controller_config_t: a nav_* noise value is negative or not finite");

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -1174,6 +1174,14 @@ class MekfParams:
     def boresight(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
         ...
     @property
+    def calibrate(self) -> bool:
+        """
+        the 15-state calibrating filter
+        """
+    @calibrate.setter
+    def calibrate(self, arg0: bool) -> None:
+        ...
+    @property
     def degraded_after(self) -> float:
         ...
     @degraded_after.setter
@@ -1196,6 +1204,22 @@ class MekfParams:
         ...
     @initial_bias_sigma.setter
     def initial_bias_sigma(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def initial_misalignment_sigma(self) -> float:
+        """
+        [rad]
+        """
+    @initial_misalignment_sigma.setter
+    def initial_misalignment_sigma(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def initial_scale_factor_sigma(self) -> float:
+        """
+        [-]
+        """
+    @initial_scale_factor_sigma.setter
+    def initial_scale_factor_sigma(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
     @property
     def quantization(self) -> float:
@@ -1315,6 +1339,10 @@ class Mekf:
         """
     def predict(self, t: typing.SupportsFloat | typing.SupportsIndex) -> MekfState:
         ...
+    def rate_estimate(self, s: MekfState) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        (I + S)^-1 (held sample - b) of the state s
+        """
     def reset(self, t: typing.SupportsFloat | typing.SupportsIndex, sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
         ...
     def star(self, t_exposure: typing.SupportsFloat | typing.SupportsIndex, sigma_m: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> bool:
@@ -1330,6 +1358,60 @@ class Mekf:
         ...
     @property
     def state(self) -> MekfState:
+        ...
+    @property
+    def updates(self) -> int:
+        ...
+class MekfCalState:
+    @property
+    def P(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[15, 15]"]:
+        ...
+    @property
+    def bias(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        ...
+    @property
+    def cal(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[9, 1]"]:
+        """
+        [s1 s2 s3, ku1 ku2 ku3, kl1 kl2 kl3]
+        """
+    @property
+    def sigma(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        ...
+    @property
+    def t(self) -> float:
+        ...
+class MekfCal:
+    """
+    The calibrating MEKF: attitude error, gyro bias, scale factors and misalignments (mekf.hpp).
+    """
+    def __init__(self, p: MekfParams) -> None:
+        ...
+    def gyro(self, t: typing.SupportsFloat | typing.SupportsIndex, omega_m: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], output: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
+        """
+        A gyro sample at t: output GYRO_RATE (the rate at t) or GYRO_MEAN_RATE (the mean rate over
+        the interval since the previous sample, an integrating gyro's).
+        """
+    def predict(self, t: typing.SupportsFloat | typing.SupportsIndex) -> MekfCalState:
+        ...
+    def rate_estimate(self, s: MekfCalState) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        (I + S)^-1 (held sample - b) of the state s
+        """
+    def reset(self, t: typing.SupportsFloat | typing.SupportsIndex, sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    def star(self, t_exposure: typing.SupportsFloat | typing.SupportsIndex, sigma_m: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> bool:
+        ...
+    @property
+    def dropped(self) -> int:
+        ...
+    @property
+    def innovation(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        ...
+    @property
+    def nis(self) -> float:
+        ...
+    @property
+    def state(self) -> MekfCalState:
         ...
     @property
     def updates(self) -> int:
@@ -1672,6 +1754,11 @@ def guidance_kind_name(kind: GuidanceKind) -> str:
 def guidance_rk4_step(p: GuidanceParams, sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], t: typing.SupportsFloat | typing.SupportsIndex, h: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     One RK4 step of the desired attitude from t to t + h [s].
+    """
+def gyro_calibration_matrix(c: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[9, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
+    """
+    S of a calibrating filter's cal = [s1 s2 s3, ku1 ku2 ku3, kl1 kl2 kl3]: [[s1 ku1 ku2], [kl1 s2 ku3],
+    [kl2 kl3 s3]] (the gyro measures (I + S) omega + b).
     """
 def hmac_sha256(key: bytes, data: bytes) -> bytes:
     """

@@ -28,6 +28,7 @@
 // most one update falls between two snapshots.
 #pragma once
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "sc_rt/controllers.hpp"
@@ -55,18 +56,42 @@ struct MekfParams {
   double initial_bias_sigma = 0.0;      //!< [rad/s] per axis
   double degraded_after = 1.0;    //!< [s] star tracker silence before FLAG_NAV_DEGRADED
   int history = 8;                //!< snapshots kept (>= latency / gyro period + 2)
+  //! the calibrating filter (15 states: also the gyro's scale factors and misalignments)
+  bool calibrate = false;
+  double initial_scale_factor_sigma = 0.0;   //!< [-] per axis, its P0 (calibrate)
+  double initial_misalignment_sigma = 0.0;   //!< [rad] per element, its P0 (calibrate)
 };
 
-struct MekfState {
+// The filter's state: the attitude and bias estimates, for the calibrating
+// filter (N = 15) also the gyro's scale factors and misalignments c, and
+// the covariance of the N error states.
+template <int N>
+struct MekfStateT {
   double t = 0.0;
   Vec3 sigma = Vec3::Zero();  //!< sigma_BN estimate
   Vec3 bias = Vec3::Zero();   //!< [rad/s]
-  Mat6 P = Mat6::Zero();
+  //! N = 15: [s1 s2 s3, ku1 ku2 ku3, kl1 kl2 kl3] of S = [[s1 ku1 ku2], [kl1 s2 ku3], [kl2 kl3 s3]]
+  Eigen::Matrix<double, N - 6, 1> cal = Eigen::Matrix<double, N - 6, 1>::Zero();
+  Eigen::Matrix<double, N, N> P = Eigen::Matrix<double, N, N>::Zero();
 };
+using MekfState = MekfStateT<6>;
 
-class Mekf {
+// The gyro's scale factor and misalignment matrix S of a calibrating
+// filter's state (the gyro measures (I + S) omega + b + noise).
+Mat3 gyro_calibration_matrix(const Eigen::Matrix<double, 9, 1>& c);
+
+// N = 6: the filter above. N = 15 (MekfCal): it also estimates the gyro's
+// scale factors and misalignments (docs/MODEL.md, "Calibrating filter"):
+// the rate is (I + S)^-1 (omega_m - b), and Phi gains the columns
+// -dt (I + S)^-1 Omega(w) of the calibration errors (constants: no process
+// noise on them).
+template <int N>
+class MekfT {
  public:
-  explicit Mekf(const MekfParams& p);
+  using State = MekfStateT<N>;
+  using VecN = Eigen::Matrix<double, N, 1>;
+  using MatN = Eigen::Matrix<double, N, N>;
+  explicit MekfT(const MekfParams& p);
   void reset(double t, const Vec3& sigma, const Vec3& bias);
   // A gyro sample at t (>= the current time): propagate to t, then hold it.
   // A rate sample (kGyroRate): over the interval the mean of the two samples
@@ -77,13 +102,15 @@ class Mekf {
   // A star tracker attitude exposed at t_exposure <= now; false if dropped.
   bool star(double t_exposure, const Vec3& sigma_m);
   // The state propagated from now to t >= now with the newest sample held (not stored).
-  MekfState predict(double t) const;
+  State predict(double t) const;
   // The same without copies: the current state itself when t is now, else the state
   // propagated into a scratch state of the filter (its covariance only if covariance, else
   // not to be read), valid until the next call or change of the filter.
-  const MekfState& predict_to(double t, bool covariance) const;
-  const MekfState& state() const { return cur(); }
+  const State& predict_to(double t, bool covariance) const;
+  const State& state() const { return cur(); }
   const Vec3& rate() const { return omega_m_; }  //!< the held gyro sample
+  // The body rate estimate of a state from the held sample: (I + S)^-1 (omega_m - b).
+  Vec3 rate_estimate(const State& s) const;
   const Vec3& innovation() const { return innov_; }  //!< [rad] last residual
   double nis() const { return nis_; }              //!< last z' S^-1 z
   double last_update_exposure() const { return last_exposure_; }
@@ -92,28 +119,28 @@ class Mekf {
 
  private:
   struct Snap {
-    MekfState s;
+    State s;
     Vec3 omega_m;        // the sample taken at s.t (held from it on)
     Vec3 interval_rate;  // the rate that propagated the previous snapshot into this one
     int output;          // the sample's kind (kGyroRate, kGyroMeanRate)
   };
-  void propagate(MekfState& s, const Vec3& omega_m, double dt) const { propagate_into(s, s, omega_m, dt); }
+  void propagate(State& s, const Vec3& omega_m, double dt) const { propagate_into(s, s, omega_m, dt); }
   // out = in propagated by dt (out may be in): a new snapshot is written where it is kept.
   // Without covariance only t, sigma and bias (out.P is left as it was).
-  void propagate_into(const MekfState& in, MekfState& out, const Vec3& omega_m, double dt,
+  void propagate_into(const State& in, State& out, const Vec3& omega_m, double dt,
                       bool covariance = true) const;
   // The current state: the newest snapshot (cur_slot_ its ring index) or, before the first
   // gyro sample or when an update moved it past the newest snapshot, ahead_.
-  const MekfState& cur() const { return cur_slot_ < 0 ? ahead_ : ring_[static_cast<std::size_t>(cur_slot_)].s; }
-  MekfState& cur() { return cur_slot_ < 0 ? ahead_ : ring_[static_cast<std::size_t>(cur_slot_)].s; }
-  void update(MekfState& s, const Vec3& sigma_m);
+  const State& cur() const { return cur_slot_ < 0 ? ahead_ : ring_[static_cast<std::size_t>(cur_slot_)].s; }
+  State& cur() { return cur_slot_ < 0 ? ahead_ : ring_[static_cast<std::size_t>(cur_slot_)].s; }
+  void update(State& s, const Vec3& sigma_m);
   MekfParams p_;
   Mat3 R_;
   std::vector<Snap> ring_;
   std::size_t head_ = 0, size_ = 0;  // head_: oldest
-  MekfState ahead_;
+  State ahead_;
   long cur_slot_ = -1;
-  MekfState scratch_;  // star(): an update between snapshots
+  State scratch_;  // star(): an update between snapshots
   Vec3 omega_m_ = Vec3::Zero();
   bool have_gyro_ = false;
   Vec3 innov_ = Vec3::Zero();
@@ -124,8 +151,12 @@ class Mekf {
   mutable double gm_dt_[kGmCache] = {-1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0};
   mutable double gm_a_[kGmCache] = {};
   mutable int gm_next_ = 0;
-  mutable MekfState pred_;  // predict_to's result when it propagates
+  mutable State pred_;  // predict_to's result when it propagates
 };
+using Mekf = MekfT<6>;
+using MekfCal = MekfT<15>;
+extern template class MekfT<6>;
+extern template class MekfT<15>;
 
 struct NavConfig {
   SensorParams sensors;
@@ -173,11 +204,22 @@ class Estimator {
   // updates since the last call (NaN: none), FLAG_NAV_DEGRADED. Leaves
   // tel->bias_true and tel->att_error alone (they need the truth).
   Measurement measure(const Measurement& truth, NavTelemetry* tel = nullptr);
+  //! the 6-state filter (not the one in use when MekfParams::calibrate)
   const Mekf& filter() const { return mekf_; }
+  //! the calibrating filter, when MekfParams::calibrate (else null)
+  const MekfCal* calibrating_filter() const { return cal_.get(); }
+  long updates() const;  //!< star tracker updates applied (the filter in use)
+  long dropped() const;  //!< exposures older than its ring
   bool use_estimate() const { return use_estimate_; }
 
  private:
+  // f(the filter in use)
+  template <class F>
+  auto with(F f) {
+    return cal_ ? f(*cal_) : f(mekf_);
+  }
   Mekf mekf_;
+  std::unique_ptr<MekfCal> cal_;
   double degraded_after_;  //!< [s] MekfParams::degraded_after
   bool use_estimate_;
   Vec4 wheel_ = Vec4::Zero();

@@ -344,10 +344,12 @@ class Scenario:
         m.nav_enabled = True
         m.nav_use_estimate = bool(nav.use_estimate)
         for name in ("arw", "rrw", "bias_sigma", "bias_tau", "quantization", "sigma_cross",
-                     "sigma_boresight", "initial_attitude_sigma", "initial_bias_sigma", "degraded_after"):
+                     "sigma_boresight", "initial_attitude_sigma", "initial_bias_sigma", "degraded_after",
+                     "initial_scale_factor_sigma", "initial_misalignment_sigma"):
             setattr(m, "nav_" + name, float(getattr(k, name)))
         m.nav_boresight = [float(v) for v in k.boresight]
         m.nav_history = int(k.history)
+        m.nav_calibrate = bool(k.calibrate)
         sigma0 = _core.initial_estimate(nav.sensors.seed, k.initial_attitude_sigma,
                                         np.asarray(self.initial.sigma_BN, float))
         m.nav_sigma0 = [float(v) for v in sigma0]

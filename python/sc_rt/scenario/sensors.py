@@ -91,6 +91,10 @@ class EstimatorSpec:
     initial_attitude_sigma: float = field(default=30.0, metadata=spec("number", ge=0))  # [arcsec]
     initial_bias_sigma: float = field(default=1.0, metadata=spec("number", ge=0))  # [deg/h]
     degraded_after: float = field(default=2.0, metadata=spec("number", gt=0))  # [s]
+    #: the calibrating filter: 15 states, also the gyro's scale factors and misalignments
+    calibrate: bool = field(default=False, metadata=spec("bool"))
+    initial_scale_factor_sigma: float = field(default=1000.0, metadata=spec("number", ge=0))  # [ppm]
+    initial_misalignment_sigma: float = field(default=200.0, metadata=spec("number", ge=0))  # [arcsec]
 
 
 @dataclass(frozen=True)
@@ -285,6 +289,9 @@ def nav_config(sensors: Sensors, plant_step: float, where: str = "scenario") -> 
     m.initial_attitude_sigma = e.initial_attitude_sigma * ARCSEC
     m.initial_bias_sigma = e.initial_bias_sigma * DEG_PER_H
     m.degraded_after = e.degraded_after
+    m.calibrate = bool(e.calibrate)
+    m.initial_scale_factor_sigma = e.initial_scale_factor_sigma * 1e-6
+    m.initial_misalignment_sigma = e.initial_misalignment_sigma * ARCSEC
     g_ticks = p.gyro.period_ticks if p.gyro.enabled else 1
     m.history = int(p.star_tracker.latency_ticks // g_ticks + 3) if p.star_tracker.enabled else 3
     c.use_estimate = sensors.measurement == "estimate"
