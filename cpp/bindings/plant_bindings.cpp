@@ -15,6 +15,7 @@
 
 #include "sc_rt/plant.hpp"
 #include "sc_rt/util.hpp"
+#include "sc_rt/wheels.hpp"
 #include "sensor_bindings.hpp"
 
 namespace py = pybind11;
@@ -176,5 +177,22 @@ void bind_plant(py::module_& m) {
         arg("u_cmd"), "One RK4 step from t to t + h [s], u_cmd held; then the MRP short set.");
   m.def("lumped_disturbance", &lumped_disturbance, arg("p"), arg("t"), arg("x"), arg("u_sat"),
         arg("accel"), "The true delta_2 of (20),(21) [rad/s^2].");
+  // flight-like wheels (issue #28; python/sc_rt/model/wheels.py is the reference)
+  m.def(
+      "wheel_applied_torque",
+      [](double u, double omega, double u_max, double u_min, double p_max, double omega_max) {
+        return wheel_applied_torque(u, omega, WheelLimits{u_max, u_min, p_max, omega_max});
+      },
+      arg("u"), arg("omega"), arg("u_max"), arg("u_min"), arg("p_max"), arg("omega_max"),
+      "The motor torque [N m] a wheel applies for the command u at the speed omega [rad/s]\n"
+      "(torque limit, deadband, power limit, speed limit; <= 0: none).");
+  m.def(
+      "wheel_friction_torque",
+      [](double omega, double coulomb, double static_, double beta, double viscous, double omega_lc,
+         bool stribeck) {
+        return wheel_friction_torque(omega, WheelFriction{coulomb, static_, beta, viscous, omega_lc}, stribeck);
+      },
+      arg("omega"), arg("coulomb"), arg("static"), arg("beta"), arg("viscous"), arg("omega_limit_cycle"),
+      arg("stribeck"), "The friction torque [N m] on a wheel at omega [rad/s] (opposing it).");
   sc_rt_bind::bind_sensors(m);  // sensor_bindings.hpp
 }

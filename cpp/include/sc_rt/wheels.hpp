@@ -1,0 +1,32 @@
+// Flight-like reaction wheel torques (issue #28, first part): the limits a
+// torque-commanded wheel applies to its command, and its friction, per
+// wheel. The same functions as python/sc_rt/model/wheels.py (its docstring
+// states the model and its source, Basilisk's reaction wheel effector),
+// bitwise (tests/test_wheels.py). Not yet in the plant.
+#pragma once
+
+namespace sc_rt {
+
+struct WheelLimits {
+  double u_max = 0.0;      //!< [N m] motor torque limit (<= 0: none)
+  double u_min = 0.0;      //!< [N m] deadband
+  double p_max = 0.0;      //!< [W] power limit on |u Omega| (<= 0: none)
+  double omega_max = 0.0;  //!< [rad/s] speed limit (<= 0: none)
+};
+
+struct WheelFriction {
+  double coulomb = 0.0;            //!< [N m]
+  double static_ = 0.0;            //!< [N m] breakaway torque (Stribeck)
+  double beta = 0.0;               //!< [rad/s] Stribeck speed (<= 0: no static part)
+  double viscous = 0.0;            //!< [N m s]
+  double omega_limit_cycle = 0.0;  //!< [rad/s] linear below it (<= 0: never)
+};
+
+// The motor torque applied for the command u at the wheel speed omega:
+// torque limit, deadband, power limit, speed limit, in that order.
+double wheel_applied_torque(double u, double omega, const WheelLimits& lim);
+
+// The friction torque at omega (opposing it); stribeck: the static part on.
+double wheel_friction_torque(double omega, const WheelFriction& f, bool stribeck);
+
+}  // namespace sc_rt

@@ -1,0 +1,93 @@
+"""Flight-like reaction wheel torques (issue #28, first part): the limits a
+torque-commanded wheel applies to its command and its friction, per wheel,
+as pure functions of the command and the wheel speed. The C++ twin is
+``sc_rt._core.wheel_applied_torque`` / ``wheel_friction_torque``
+(cpp/src/wheels.cpp), bitwise equal (tests/test_wheels.py).
+
+The conventions follow Basilisk's reaction wheel state effector (the C++ of
+its ConfigureRWRequests and updateContributions), so that a run can be compared with a Basilisk run of
+the same wheel number for number (docs/MODEL.md, "Flight-like wheels"):
+
+- the command is a motor torque u [N m]; in this order: the torque limit
+  (|u| <= u_max, u_max <= 0: none), the deadband (|u| < u_min -> 0), the
+  power limit (|u Omega| >= P_max -> P_max / |Omega| with u's sign,
+  P_max <= 0: none) and the speed limit (|Omega| >= Omega_max and u would
+  spin the wheel further up, u Omega >= 0 -> 0; a torque that slows it
+  passes; Omega_max <= 0: none);
+- friction opposes the speed: Coulomb f_c sign(Omega) + viscous c Omega; with
+  the static (Stribeck) part on (beta > 0 and the wheel starting from near
+  rest, ``stribeck``), sqrt(2 e) (f_s - f_c) exp(-(Omega/beta)^2 / 2)
+  Omega / (beta sqrt 2) + f_c tanh(10 Omega / beta) + c Omega; below the
+  limit-cycle speed omega_lc the friction is linear in Omega through its
+  value at omega_lc, so that the integration stays smooth near rest.
+
+Not yet wired into the plant (the paper's acceleration-commanded wheels stay
+the model); the plant integration, the motor lag and the faults follow.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["WheelLimits", "WheelFriction", "applied_torque", "friction_torque"]
+
+
+@dataclass(frozen=True)
+class WheelLimits:
+    """The limits of one torque-commanded wheel (0 or less: none)."""
+
+    u_max: float = 0.0      #: [N m] motor torque limit
+    u_min: float = 0.0      #: [N m] deadband: smaller commands give no torque
+    p_max: float = 0.0      #: [W] motor power limit on |u Omega|
+    omega_max: float = 0.0  #: [rad/s] speed limit
+
+
+@dataclass(frozen=True)
+class WheelFriction:
+    """The friction of one wheel (all zero: none)."""
+
+    coulomb: float = 0.0           #: [N m] f_c
+    static: float = 0.0            #: [N m] f_s, the breakaway torque (Stribeck)
+    beta: float = 0.0              #: [rad/s] Stribeck speed (0: no static part)
+    viscous: float = 0.0           #: [N m s] c
+    omega_limit_cycle: float = 0.0  #: [rad/s] below it friction is linear in Omega (0: never)
+
+
+def applied_torque(u: float, omega: float, lim: WheelLimits) -> float:
+    """The motor torque [N m] the wheel applies for the command ``u`` at the
+    speed ``omega`` [rad/s]: torque limit, deadband, power limit, speed
+    limit, in that order."""
+    if lim.u_max > 0.0:
+        if u > lim.u_max:
+            u = lim.u_max
+        elif u < -lim.u_max:
+            u = -lim.u_max
+    if abs(u) < lim.u_min:
+        u = 0.0
+    if lim.p_max > 0.0 and abs(u * omega) >= lim.p_max:
+        u = math.copysign(lim.p_max / abs(omega), u)
+    if lim.omega_max > 0.0 and abs(omega) >= lim.omega_max and omega * u >= 0.0:
+        u = 0.0
+    return u
+
+
+def _friction(omega: float, f: WheelFriction, stribeck: bool) -> float:
+    if stribeck:
+        b = f.beta
+        return (math.sqrt(2.0 * math.e) * (f.static - f.coulomb) * math.exp(-(omega / b) * (omega / b) / 2.0)
+                * omega / (b * math.sqrt(2.0)) + f.coulomb * math.tanh(omega * 10.0 / b) + f.viscous * omega)
+    sign = 1.0 if omega > 0.0 else -1.0 if omega < 0.0 else 0.0
+    return sign * f.coulomb + f.viscous * omega
+
+
+def friction_torque(omega: float, f: WheelFriction, stribeck: bool = False) -> float:
+    """The friction torque [N m] on the wheel at ``omega`` (opposing it):
+    Coulomb and viscous, with the static part when ``stribeck`` (and
+    beta > 0), linear below the limit-cycle speed."""
+    stribeck = stribeck and f.beta > 0.0
+    force = _friction(omega, f, stribeck)
+    lc = f.omega_limit_cycle
+    if lc > 0.0 and abs(omega) < lc:
+        force = _friction(lc, f, stribeck) / lc * omega
+    return -force
