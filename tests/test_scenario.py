@@ -96,6 +96,7 @@ EXPECTED_MSG = {
     "nav_bias_sigma": 0.0, "nav_bias_tau": 0.0, "nav_quantization": 0.0, "nav_sigma_cross": 0.0,
     "nav_sigma_boresight": 0.0, "nav_boresight": [0.0, 0.0, 0.0], "nav_initial_attitude_sigma": 0.0,
     "nav_initial_bias_sigma": 0.0, "nav_degraded_after": 0.0, "nav_history": 0, "nav_sigma0": [0.0, 0.0, 0.0],
+    "nav_calibrate": False, "nav_initial_scale_factor_sigma": 0.0, "nav_initial_misalignment_sigma": 0.0,
 }
 
 
