@@ -273,7 +273,7 @@ def soak(res: dict, out: str) -> None:
 LCM = (pytest.mark.lcm, pytest.mark.slow)
 SPECS = {
     "bench_core.py": dict(check=bench_core),
-    "bench_sim.py": dict(check=bench_sim),
+    "bench_sim.py": dict(check=bench_sim, marks=(pytest.mark.slow,)),  # ~0.8 s: the side-by-side rows
     "bench_montecarlo.py": dict(check=bench_montecarlo, marks=(pytest.mark.slow,)),  # ~7 s: Dask clusters
     "bench_hil.py": dict(check=bench_hil, marks=LCM, timeout=180),
     "bench_timing.py": dict(check=bench_timing, marks=LCM, timeout=240),
