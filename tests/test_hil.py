@@ -54,6 +54,8 @@ def test_lockstep_hil_is_bit_identical_to_offline_sim(scenario, tmp_path):
     # the counters agree with each other: one step and one row per state, none
     # dropped, stale, late or malformed in lockstep
     assert timing["mode"] == "lockstep" and summary["mode"] == "lockstep"
+    # real-time priority is the default of real time only (issue #31): lockstep runs without it
+    assert timing["scheduler"].startswith("SCHED_OTHER"), timing["scheduler"]
     assert timing["steps"] == summary["steps"] == timing["rows"] == metrics["steps"] == rows
     assert timing["dropped"] == 0 and timing["malformed"] == 0
     assert timing["stale_states"] == 0 and timing["deadline_misses"] == 0

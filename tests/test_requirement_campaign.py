@@ -340,3 +340,16 @@ def test_59_runs_state_the_95_percent_bound_they_support(tmp_path):
     assert "pointing_ensemble" in r.stdout and "MET at 95 %" in r.stdout
     assert f"{_brute_runs(0.9973, 0.975, 0)} runs needed" in r.stdout
     assert (out / "montecarlo_requirements.png").exists()
+
+
+def test_a_coverage_or_confidence_of_one_is_stated_not_a_crash():
+    """Every run must meet it (coverage 1, or an ensemble row at confidence
+    1): no finite campaign shows that, which the summary says instead of
+    dividing by log(1) (it used to raise ZeroDivisionError after the runs)."""
+    assert runs_needed(1.0, 0.95) is None and runs_needed(0.999, 0.95) is not None
+    rows = [_row("ape", True, 10.0) for _ in range(20)]
+    (s,) = campaign_requirements((APE,), rows, 300.0, 10.0, confidence=0.95, coverage=1.0)
+    assert s["met_at_confidence"] is False and s["runs_needed_without_failure"] is None
+    from sc_rt.studies.campaign.requirements import requirement_lines
+
+    assert any("no finite number of runs" in line for line in requirement_lines([s], 0.95, 1.0))

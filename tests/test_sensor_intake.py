@@ -157,6 +157,9 @@ def test_foreign_repeated_and_bad_samples_are_counted_and_change_nothing(scn):
         if kind == "gyro" and seq % 11 == 4:  # non-finite
             intake.offer_gyro(SESSION, seq + 1000, args[1], np.array([np.nan, 0.0, 0.0]))
             bad["n"] += 1
+        if kind == "gyro" and seq % 13 == 6:  # a gyro_t output kind nobody defined (0 rate, 1 mean rate)
+            intake.offer_gyro(SESSION, seq + 2000, args[1], args[2], 7)
+            bad["n"] += 1
         if kind == "star" and seq % 3 == 0:  # not an MRP, exposure after delivery
             intake.offer_star(SESSION, seq + 1000, args[1], args[2], np.array([2.0, 0.0, 0.0]))
             intake.offer_star(SESSION, seq + 1000, args[2] + 1.0, args[2], args[3])

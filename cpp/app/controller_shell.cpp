@@ -67,7 +67,7 @@ void Shell::handle_sensor(const lcm::ReceiveBuffer* rb, const std::string& chann
     const int n = msg.decode(rb->data, 0, size);
     ok = n >= 0 && n == size;
   }
-  std::lock_guard<std::mutex> lock(mu_);
+  std::lock_guard<PiMutex> lock(mu_);
   if (ok) {
     offer(msg);
   } else {
@@ -99,7 +99,7 @@ void Shell::handle_state(const lcm::ReceiveBuffer* rb) {
   // decoded before the lock: the step thread never waits on a decode or a tag
   sc_rt_lcm::plant_state_t msg;
   const int n = msg.decode(rb->data, 0, size);
-  std::unique_lock<std::mutex> lock(mu_);
+  std::unique_lock<PiMutex> lock(mu_);
   if (n < 0) {
     gate_->malformed();
     return;
@@ -146,7 +146,7 @@ void Shell::step(int64_t now, int64_t deadline) {
   int64_t rx;
   sc_rt::Measurement m_nav;
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::lock_guard<PiMutex> lock(mu_);
     st = state_;
     have = gate_->have_state();
     fresh = fresh_;
@@ -261,7 +261,7 @@ void Shell::publish_status(const sc_rt::Command& cmd, int64_t state_seq, double 
   s.stale_states = cnt_.stale_steps;
   s.rejected = gate_->counts().rejected();
   if (intake_) {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::lock_guard<PiMutex> lock(mu_);
     sc_rt::fill_nav_status(tel_, s);
     const sc_rt::SensorCounts& c = intake_->counts();
     s.gyro_used = c.used[0];
@@ -325,7 +325,7 @@ std::string Shell::summary_json(const std::string& scheduler) const {
     }
   }
   if (intake_) {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::lock_guard<PiMutex> lock(mu_);
     const sc_rt::SensorCounts& c = intake_->counts();
     char nb[512];
     std::snprintf(nb, sizeof nb,
@@ -348,7 +348,7 @@ std::string Shell::summary_json(const std::string& scheduler) const {
   js += ", \"auth\": " + std::string(auth_ ? "true" : "false") +
         ", \"auth_failed\": " + std::to_string(auth_failed_.load()) + ", \"plant_sessions\": [";
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::lock_guard<PiMutex> lock(mu_);
     for (std::size_t i = 0; i < plant_sessions_.size(); ++i)
       js += (i ? ", " : "") + std::to_string(plant_sessions_[i]);
   }

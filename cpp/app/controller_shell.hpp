@@ -7,6 +7,7 @@
 // malformed input is counted by kind and never applied (docs/HIL.md, "Bad
 // input").
 #pragma once
+#include <pthread.h>
 #include <time.h>
 
 #include <atomic>
@@ -36,6 +37,31 @@ inline int64_t wall_us() {
   clock_gettime(CLOCK_REALTIME, &ts);
   return int64_t(ts.tv_sec) * 1000000LL + ts.tv_nsec / 1000;
 }
+
+// A mutex with priority inheritance (PTHREAD_PRIO_INHERIT): while the step
+// thread (SCHED_FIFO 80) waits for it, the receive thread (70) that holds it
+// runs at 80, so a third thread cannot preempt the holder and delay the step
+// (no priority inversion). The receive thread holds it to hand samples to
+// the estimator, which propagates them (a star fix re-propagates its ring).
+class PiMutex {
+ public:
+  PiMutex() {
+    pthread_mutexattr_t a;
+    pthread_mutexattr_init(&a);
+    pthread_mutexattr_setprotocol(&a, PTHREAD_PRIO_INHERIT);
+    pthread_mutex_init(&m_, &a);
+    pthread_mutexattr_destroy(&a);
+  }
+  ~PiMutex() { pthread_mutex_destroy(&m_); }
+  PiMutex(const PiMutex&) = delete;
+  PiMutex& operator=(const PiMutex&) = delete;
+  void lock() { pthread_mutex_lock(&m_); }
+  void unlock() { pthread_mutex_unlock(&m_); }
+  bool try_lock() { return pthread_mutex_trylock(&m_) == 0; }
+
+ private:
+  pthread_mutex_t m_;
+};
 
 // Atomic: the real-time mode receives on its own thread. The input counters
 // (received, rejected by kind, sessions adopted) are the gate's (input_gate.hpp).
@@ -141,7 +167,7 @@ class Shell {
   std::atomic<int64_t> auth_failed_{0};      // states whose tag did not verify
   std::vector<int64_t> plant_sessions_;     // plant sessions followed, in order (under mu_)
   std::vector<uint8_t> tx_;                 // a message being encoded (step thread; reserved once)
-  mutable std::mutex mu_;  // guards the mailbox: state_, fresh_ and the gate's state
+  mutable PiMutex mu_;  // guards the mailbox: state_, fresh_, the gate's state and the intake
   sc_rt::Command last_cmd_;
   int64_t cmd_seq_ = 0;
   Counters cnt_;

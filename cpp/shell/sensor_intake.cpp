@@ -10,7 +10,7 @@ SensorIntake::SensorIntake(const MekfParams& p, bool use_estimate, const Vec3& s
 }
 
 void SensorIntake::offer_gyro(int64_t session, int64_t seq, const GyroSample& g) {
-  if (!std::isfinite(g.t) || !g.omega.allFinite()) {
+  if (!std::isfinite(g.t) || !g.omega.allFinite() || (g.output != kGyroRate && g.output != kGyroMeanRate)) {
     ++c_.invalid;
     return;
   }

@@ -71,7 +71,7 @@ enum class SensorKind { Gyro = 0, Star = 1, Tach = 2 };
 struct SensorCounts {
   int64_t used[3] = {0, 0, 0};  //!< applied, per SensorKind
   int64_t malformed = 0;        //!< did not decode, trailing bytes, tag did not verify
-  int64_t invalid = 0;          //!< non-finite values, |sigma| > 1, exposure after delivery
+  int64_t invalid = 0;          //!< non-finite values, |sigma| > 1, exposure after delivery, an unknown gyro output kind
   int64_t out_of_order = 0;     //!< seq not after the previous one of its kind (duplicates too)
   int64_t too_old = 0;          //!< older than the filter (a gyro sample) or its ring (an attitude)
   int64_t foreign = 0;          //!< of a session that was never followed

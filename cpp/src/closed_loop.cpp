@@ -53,8 +53,10 @@ ClosedLoop::~ClosedLoop() = default;
 const LawFailures& ClosedLoop::law_failures() const { return ctl_->law_failures(); }
 
 int ClosedLoop::run(int rows, ClosedLoopResult* out) {
-  if (out && rows > 0 && out->t.size() < static_cast<std::size_t>(rows))
-    throw std::invalid_argument("ClosedLoop::run: the result has room for fewer rows than asked");
+  if (out && rows > 0 &&
+      (out->t.size() < static_cast<std::size_t>(rows) || (nv_ && out->nis.size() < static_cast<std::size_t>(rows))))
+    throw std::invalid_argument("ClosedLoop::run: the result has room for fewer rows than asked "
+                                "(reserve_rows, with the navigation's columns when it runs sensors)");
   Navigation* nv = nv_.get();
   const std::int64_t nsub64 = n_sub_;
   int written = 0;

@@ -79,9 +79,10 @@ def add_floor_parser(sub) -> None:
                    help="the null-controller run (default: %(default)s)")
     f.add_argument("--rtt-count", type=integer(1), default=2000, metavar="N",
                    help="LCM round trips of sc-rt-lcm-pingpong (default: %(default)s)")
-    f.add_argument("--realtime-priority", action=argparse.BooleanOptionalAction, default=True,
+    f.add_argument("--realtime-priority", action=argparse.BooleanOptionalAction, default=None,
                    help="SCHED_FIFO + mlockall for the controller and the emulator where permitted (root or "
-                        "CAP_SYS_NICE; else SCHED_OTHER, said in the output) (default: on)")
+                        "CAP_SYS_NICE; else SCHED_OTHER, said in the output) (default: on in real time, off in "
+                        "lockstep)")
     f.add_argument("--json", action="store_true", help="print the floor as JSON")
     f.add_argument("--no-cache", action="store_true", help="do not write the floor cache")
     add_timing_options(f, floor_policy=False)
@@ -118,6 +119,8 @@ def cmd_floor(args: argparse.Namespace) -> int:
 
     scn = scenario_arg(args.scenario)
     setup = timing_setup(args)
+    if args.realtime_priority is None:  # as sc-rt hil: on in real time
+        args.realtime_priority = args.mode == "realtime"
     if args.no_cache:
         f = measure_floor(scn, run=run_hil, mode=args.mode, control_rate_hz=args.control_rate, duration=args.duration,
                           realtime_priority=args.realtime_priority, setup=setup, rtt_count=args.rtt_count)

@@ -147,9 +147,10 @@ def _add_hil(sub) -> None:
                    help="default: the scenario's")
     h.add_argument("--duration", type=number(unit="s"), metavar="S", help="default: the scenario's")
     h.add_argument("--out", default="out/hil", type=out_dir, metavar="DIR", help="default: %(default)s")
-    h.add_argument("--realtime-priority", action=argparse.BooleanOptionalAction, default=True,
-                   help="real time: the controller and the emulator ask for SCHED_FIFO + mlockall, and "
-                        "fall back to SCHED_OTHER where not permitted (the output says which) (default: on)")
+    h.add_argument("--realtime-priority", action=argparse.BooleanOptionalAction, default=None,
+                   help="the controller and the emulator ask for SCHED_FIFO + mlockall, and fall back to "
+                        "SCHED_OTHER where not permitted (the output says which) (default: on in real time, "
+                        "off in lockstep)")
     h.add_argument("--time-scale", type=number(0, MAX_TIME_SCALE), default=1.0, metavar="X",
                    help="real time: > 1 runs faster (default: %(default)s)")
     h.add_argument("--accept-fault-commands", action="store_true",

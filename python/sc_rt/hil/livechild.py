@@ -139,8 +139,8 @@ def beside_run(port: int | None, url: str | None, prefix: str = "",
         yield None
         return
     child = LiveChild(url, port, prefix=prefix, auth_key=auth_key)
-    child.start()
     try:
+        child.start()  # inside: an interrupt during its start-up still stops it
         yield child
     finally:
         child.stop()

@@ -224,7 +224,7 @@ def _stop(proc: subprocess.Popen, sig: int = signal.SIGTERM, timeout: float = 5.
 
 def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None = None,
             control_rate_hz: float | None = None, duration: float | None = None,
-            lcm_url: str | None = None, prefix: str = "", realtime_priority: bool = True,
+            lcm_url: str | None = None, prefix: str = "", realtime_priority: bool | None = None,
             time_scale: float = 1.0, accept_fault_commands: bool = False,
             plots: bool = True, external: str | None = None, external_wait: bool = False,
             start_timeout: float | None = None, auth_key: str | Path | None = None,
@@ -267,10 +267,11 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
         never cross).
     prefix : str
         Channel-name prefix ("": none), for two benches on one URL.
-    realtime_priority : bool
+    realtime_priority : bool, optional
         The controller and the emulator's thread ask for SCHED_FIFO and
-        mlockall (the default), each falling back to SCHED_OTHER with a
-        warning where that is not permitted; the run's timing says which.
+        mlockall, each falling back to SCHED_OTHER with a warning where that
+        is not permitted; the run's timing says which. None (the default):
+        in real time yes, in lockstep no.
     time_scale : float
         Real time: simulated seconds per wall-clock second (2.0: twice as fast).
     accept_fault_commands : bool
@@ -322,6 +323,8 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     OSError
         The run's files cannot be written.
     """
+    if realtime_priority is None:  # the default: real-time priority for real time
+        realtime_priority = mode == "realtime"
     if is_python_law(law):
         external, law = python_controller_command(law, realtime_priority), None
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
@@ -394,7 +397,8 @@ def _start_record(b: _Bench) -> bytes:
     law = ({"name": "external", "spec": b.ext.command_line, "source": "external"} if b.ext is not None
            else law_identity(b.scn.run.controller))
     rec = {"scenario": b.scn.name, "mode": b.mode,
-           "trigger": b.setup.trigger if b.mode == "realtime" else None,
+           # an external controller (or a Python law's process) has its own trigger, not the setup's
+           "trigger": b.setup.trigger if b.mode == "realtime" and b.ext is None else None,
            "control_rate_hz": float(b.scn.run.control_rate_hz), "duration_s": float(b.scn.run.duration),
            "time_scale": b.time_scale, "law": law, "run_id": claimed_run_id(b.out), "sc_rt": __version__,
            "requirements": [dataclasses.asdict(r) for r in b.scn.requirements]}

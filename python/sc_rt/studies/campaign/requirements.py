@@ -71,7 +71,8 @@ def _needs(p: float, confidence: float, k: int, n: int, lower: float) -> dict[st
     if failures and k / n >= p:
         out["runs_needed_with_these_failures"] = runs_needed(p, confidence, failures)
     elif failures:
-        out["runs_needed_with_these_failures"] = None  # the fraction seen is below p: no number of runs will do
+        # the fraction seen is below p: more runs show it only if they bring it above p
+        out["runs_needed_with_these_failures"] = None
     return out
 
 
@@ -242,11 +243,14 @@ def _detail(r: dict[str, Any], unit: str, c: str) -> str:
                 else f"(too few runs for its {c} upper bound)")
     if not r.get("met_at_confidence"):
         none = "none ever outside the bound" if s == "mixed" else "no failure"
-        text += f"; {r['runs_needed_without_failure']} runs needed with {none}"
+        need = r["runs_needed_without_failure"]
+        text += (f"; {need} runs needed with {none}" if need is not None
+                 else f"; no finite number of runs shows a fraction of {r['required']:g}")
         if s == "mixed" and r["mean_within"] < r["required"]:
             text += "; the fraction seen is below the required one"
         elif "runs_needed_with_these_failures" in r:
             more = r["runs_needed_with_these_failures"]
             text += (f", {more} with these failures and no more" if more is not None
-                     else "; the fraction seen is below the required one")
+                     else "; the fraction seen is below the required one (more runs show it only if "
+                          "they raise it)")
     return text

@@ -116,8 +116,11 @@ def quantile_upper_rank(n: int, p: float, confidence: float = 0.95) -> int:
     return r if r <= n else 0
 
 
-def runs_needed(p: float, confidence: float = 0.95, failures: int = 0) -> int:
+def runs_needed(p: float, confidence: float = 0.95, failures: int = 0) -> int | None:
     """The fewest runs for "a fraction >= p of runs meet it, at this
     confidence" with ``failures`` runs failing: with none, the n with
-    p^n <= 1 - confidence (59 for 95 %/95 %); with f, the Wilks order f + 1."""
+    p^n <= 1 - confidence (59 for 95 %/95 %); with f, the Wilks order f + 1.
+    None for p >= 1: no finite number of runs shows that every run would."""
+    if p >= 1.0:
+        return None
     return wilks_runs(p, confidence, order=failures + 1)
