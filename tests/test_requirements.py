@@ -561,6 +561,12 @@ def issues(path: Path) -> list:
      "requirements[0].unit", "Nms", "unit must be one of", "unit ="),
     ('[[requirements]]\nname = "a"\nkind = "momentum_margin"\nbound = 1.0\nwindow = 3.0\n',
      "requirements[0].window", 3.0, 'does not apply to a kind = "momentum_margin"', "window ="),
+    ('[[requirements]]\nname = "a"\nkind = "APE"\nbound = 3.0\nunit = "arcsec"\nconfidence = 0.9\nmode = "fine"\n',
+     "requirements[0].mode", "fine", 'must be one of "normal", "nav_ok"', "mode ="),
+    ('[[requirements]]\nname = "a"\nkind = "settling"\nbound = 3.0\nunit = "arcsec"\nsettle_by = 9.0\n'
+     'mode = "normal"\n', "requirements[0].mode", "normal", 'does not apply to a kind = "settling"', "mode ="),
+    ('[[requirements]]\nname = "a"\nkind = "max_torque"\nbound = 1.0\nunit = "Nm"\n',
+     "requirements[0].unit", "Nm", "unit must be one of", "unit ="),
 ])
 def test_a_bad_requirement_names_file_line_key_and_value(tmp_path, rows, key, value, message, line_text):
     p = write(tmp_path, rows)
@@ -660,3 +666,68 @@ def test_compare_ranks_the_laws_by_margin_per_requirement(tmp_path, capsys):
     assert doc["overall"] == sorted(worst, key=lambda law: -worst[law])
     assert "judged across runs only, by sc-rt montecarlo: pointing_ensemble, stability_mixed" in console
     assert "The laws ranked by margin" in (out / "compare.md").read_text()
+
+
+# --------------------------------------------------------------------------------------------- #
+# Mode windows and the commanded body torque (issue #27, item 1)
+
+
+def test_the_mode_constants_are_the_cores():
+    from sc_rt import _core
+    from sc_rt.results.pointing import FLAG_NAV_DEGRADED, MODE_NORMAL
+
+    assert (MODE_NORMAL, FLAG_NAV_DEGRADED) == (_core.MODE_NORMAL, _core.FLAG_NAV_DEGRADED)
+
+
+def test_a_requirement_in_the_normal_mode_leaves_the_safe_rows_out():
+    """5 arcsec while the law commands, 100 arcsec during a SAFE spell from
+    40 to 60 s: APE over every row sees the spell, APE in mode "normal" does
+    not (the nearest-rank quantile of the NORMAL rows, computed here); RPE in
+    mode "normal" keeps exactly the windows that touch no SAFE row."""
+    t = grid(120.0)
+    safe = (t >= 40.0) & (t < 60.0)
+    theta = np.where(safe, 100.0, 5.0 + 0.5 * np.sin(t)) * ARCSEC
+    mode = np.where(safe, 2, 1)
+    rows = [req("all", "APE", axis="x", bound=10.0, unit="arcsec", confidence=0.99, interpretation="temporal"),
+            req("normal", "APE", axis="x", bound=10.0, unit="arcsec", confidence=0.99, interpretation="temporal",
+                mode="normal"),
+            req("rpe", "RPE", axis="x", bound=10.0, unit="arcsec", confidence=0.9, interpretation="temporal",
+                window=7.0, mode="normal")]
+    run = run_of(t, about_x(theta), rows, ctrl_mode=mode)
+    everything, normal, rpe = result(run, "all"), result(run, "normal"), result(run, "rpe")
+    assert everything["passed"] is False and everything["value"] == pytest.approx(100.0, rel=1e-9)
+    direct = nearest_rank(np.abs(theta[~safe]) / ARCSEC, 0.99)
+    assert normal["value"] == pytest.approx(direct, rel=1e-9) and normal["passed"] is True
+    assert f'{int(safe.sum())} rows outside mode "normal" left out' in normal["note"]
+    n = int(round(7.0 * RATE))
+    starts = np.arange(0, len(t) - n + 1, n)
+    clean = [k for k in starts if not safe[k:k + n].any()]
+    assert rpe["windows"] == len(clean) < len(starts)
+    direct_rpe = [np.max(np.abs(theta[k:k + n] - theta[k:k + n].mean())) / ARCSEC for k in clean]
+    assert rpe["value"] == pytest.approx(nearest_rank(np.array(direct_rpe), 0.9), rel=1e-9)
+
+
+def test_max_torque_is_the_commanded_body_torque_and_nav_ok_leaves_degraded_rows_out():
+    from sc_rt.results.pointing import FLAG_NAV_DEGRADED
+
+    t = grid(30.0)
+    u = np.zeros((len(t), 4))
+    u[:, 0] = 2.0 * np.sin(t)
+    u[:, 3] = -1.5 + 0.1 * t
+    degraded = (t > 10.0) & (t < 12.0)
+    u[degraded, 1] = 9.0  # a burst while the navigation is degraded
+    flags = np.where(degraded, FLAG_NAV_DEGRADED, 0)
+    Cbar = np.array([[1.0, 0.0, 0.0, 0.6], [0.0, 1.0, 0.0, 0.64], [0.0, 0.0, 1.0, 0.48]])
+    Jw = np.array([0.1, 0.1, 0.1, 0.2])
+    meta = RunMeta(scenario="c", law="pd", engine="python", control_rate_hz=RATE, duration_s=30.0, ppc=WIDE,
+                   umin=(-7.0,) * 4, umax=(10.0,) * 4, Cbar=tuple(map(tuple, Cbar)), Jw=tuple(Jw),
+                   requirements=(req("tau", "max_torque", bound=500.0, unit="mN m"),
+                                 req("tau_nav", "max_torque", bound=500.0, unit="mN m", mode="nav_ok"),
+                                 req("cmd_nav", "max_command", bound=5.0, unit="rad/s^2", mode="nav_ok")))
+    run = finish_run(Run(meta, {"t": t, "sigma_BD": np.zeros((len(t), 3)), "u_cmd": u, "flags": flags}))
+    tau = np.array([np.linalg.norm(Cbar @ (Jw * row)) for row in u])  # row by row [N m]
+    assert result(run, "tau")["value"] == pytest.approx(1000.0 * tau.max(), rel=1e-12)
+    assert result(run, "tau")["passed"] is False  # the burst: 0.9 N m and more
+    assert result(run, "tau_nav")["value"] == pytest.approx(1000.0 * tau[~degraded].max(), rel=1e-12)
+    assert result(run, "tau_nav")["passed"] is True
+    assert result(run, "cmd_nav")["value"] == pytest.approx(np.abs(u[~degraded]).max(), rel=1e-12)

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.results.indices import index_values
+from sc_rt.results.pointing import mode_mask, outside_mode
 from sc_rt.results.requirements import is_sensed, knowledge_error, requirement_span
 from sc_rt.scenario.requirements import ANGLE_UNITS, KNOWLEDGE, PERFORMANCE
 
@@ -78,8 +79,10 @@ def campaign_series(run: Any, results: list[dict[str, Any]]) -> dict[str, dict[s
     for req in reqs:
         if req["kind"] in KNOWLEDGE and know is None:
             continue
-        out[req["name"]] = _series(req, run, t, end, perf if req["kind"] in PERFORMANCE else know,
-                                   settled, settle_by.get(req.get("settling", "")), width, nb)
+        sigma = perf if req["kind"] in PERFORMANCE else know
+        if req.get("mode"):  # as evaluate_requirements: only the rows in the mode's windows
+            sigma = outside_mode(sigma, mode_mask(run, req["mode"]))
+        out[req["name"]] = _series(req, run, t, end, sigma, settled, settle_by.get(req.get("settling", "")), width, nb)
     return out
 
 

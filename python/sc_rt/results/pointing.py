@@ -151,3 +151,35 @@ def wheel_momentum(wheel_speed: np.ndarray, Cbar: Any, Jw: Any) -> np.ndarray:
     (Jw Omega) [N m s] per row (N, 3), of the wheel speeds relative to the
     body (N, 4) [rad/s], the spin axes ``Cbar`` (3, 4) and inertias ``Jw`` (4,)."""
     return (np.asarray(wheel_speed, float) * np.asarray(Jw, float)) @ np.asarray(Cbar, float).T
+
+
+#: The core's ctrl_mode of a row whose law commanded, and the flag of a
+#: degraded navigation (sc_rt._core.MODE_NORMAL, FLAG_NAV_DEGRADED;
+#: tests/test_requirements.py checks they agree).
+MODE_NORMAL = 1
+FLAG_NAV_DEGRADED = 2048
+
+
+def mode_mask(run: Any, mode: str) -> np.ndarray:
+    """The rows (bool, N) inside a requirement's ``mode`` window: "normal"
+    (the law commanded: ctrl_mode NORMAL), "nav_ok" (no FLAG_NAV_DEGRADED),
+    "" (every row)."""
+    n = len(run["t"])
+    if mode == "normal":
+        return np.asarray(run["ctrl_mode"]) == MODE_NORMAL
+    if mode == "nav_ok":
+        return (np.asarray(run["flags"]) & FLAG_NAV_DEGRADED) == 0
+    if mode:
+        raise ValueError(f"unknown requirement mode {mode!r}")
+    return np.ones(n, bool)
+
+
+def outside_mode(sigma: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """``sigma`` with the rows outside the mode window set to NaN: the
+    indices leave them out as they leave out non-finite samples (an
+    instantaneous index its samples, a windowed one every window or pair
+    that touches them)."""
+    out = np.array(sigma, float, copy=True)
+    out[~np.asarray(inside, bool)] = np.nan
+    return out
+

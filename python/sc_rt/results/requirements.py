@@ -38,7 +38,8 @@ from typing import Any
 import numpy as np
 
 from sc_rt.results.indices import index_values
-from sc_rt.results.pointing import error_signal, mrp_subtract, nearest_rank, settling_time, wheel_momentum
+from sc_rt.results.pointing import (error_signal, mode_mask, mrp_subtract, nearest_rank, outside_mode,
+                                   settling_time, wheel_momentum)
 from sc_rt.scenario.requirements import ANGLE_UNITS, COUNTERPART, KNOWLEDGE, PERFORMANCE, UNITS
 
 __all__ = ["evaluate_requirements", "is_sensed", "knowledge_error", "requirement_span", "worst"]
@@ -242,6 +243,32 @@ def _evaluate(req: dict[str, Any], run: Any, t: np.ndarray, end: float, perf: np
     idx = _rows(t, start, stop)
     if idx.size == 0:
         return _result(req, note=f"the run ({end:g} s) has no row in the span {start:g}-{stop:g} s")
+    mode = req.get("mode", "")
+    if mode:  # only the span's rows inside the mode's windows are judged
+        inside = mode_mask(run, mode)
+        left = int((~inside[idx]).sum())
+        r = _in_mode(req, run, t, idx, inside, perf, know)
+        if r["status"] != "not evaluated" or left:
+            r["note"] = (r["note"] + "; " if r["note"] else "") + f'{left} rows outside mode "{mode}" left out'
+        return r
+    return _judge(req, run, t, idx, perf, know)
+
+
+def _in_mode(req: dict[str, Any], run: Any, t: np.ndarray, idx: np.ndarray, inside: np.ndarray,
+             perf: np.ndarray, know: np.ndarray | None) -> dict[str, Any]:
+    """A requirement judged on the rows of its span inside its mode window."""
+    if req["kind"] in PERFORMANCE + KNOWLEDGE:  # out-of-mode rows as non-finite samples (windows too)
+        return _judge(req, run, t, idx, outside_mode(perf, inside),
+                      None if know is None else outside_mode(know, inside))
+    kept = idx[inside[idx]]
+    if kept.size == 0:
+        return _result(req, note=f'no row of the span is in mode "{req["mode"]}"')
+    return _judge(req, run, t, kept, perf, know)
+
+
+def _judge(req: dict[str, Any], run: Any, t: np.ndarray, idx: np.ndarray, perf: np.ndarray,
+           know: np.ndarray | None) -> dict[str, Any]:
+    kind = req["kind"]
     if kind in PERFORMANCE:
         return _pointing(req, t, perf, idx, know)
     if kind in KNOWLEDGE:
@@ -258,6 +285,12 @@ def _evaluate(req: dict[str, Any], run: Any, t: np.ndarray, end: float, perf: np
         return _peak(req, t, h[:, None], idx, "wheel momentum", per_wheel=False)
     if kind == "max_command":
         return _peak(req, t, run["u_cmd"], idx, "command")
+    if kind == "max_torque":  # the body torque the wheel command asks for, |Cbar Jw u_cmd|
+        Cbar, Jw = getattr(run.meta, "Cbar", ()), getattr(run.meta, "Jw", ())
+        if len(Cbar) == 0 or len(Jw) == 0:
+            return _result(req, note="the run's record has no wheel axes and inertias (Cbar, Jw)")
+        tau = np.linalg.norm(wheel_momentum(run["u_cmd"], Cbar, Jw), axis=1)
+        return _peak(req, t, tau[:, None], idx, "commanded body torque", per_wheel=False)
     raise ValueError(f"unknown requirement kind {kind!r}")
 
 

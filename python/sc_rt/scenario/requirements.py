@@ -19,7 +19,8 @@ from typing import Any
 
 from sc_rt.scenario.schema import Spec, Table, format_value
 
-__all__ = ["ANGLE_UNITS", "AXES", "COUNTERPART", "INTERPRETATIONS", "KINDS", "KNOWLEDGE", "PAIRED", "PERFORMANCE",
+__all__ = ["ANGLE_UNITS", "AXES", "COUNTERPART", "INTERPRETATIONS", "KINDS", "KNOWLEDGE", "MODES", "PAIRED",
+           "PERFORMANCE",
            "UNITS", "WINDOWED", "Requirement", "read_requirements", "requirements_data"]
 
 #: ECSS performance indices (the truth against the reference) and knowledge
@@ -32,11 +33,17 @@ PAIRED = ("PDE", "PRE", "KDE", "KRE")
 #: Each performance index's knowledge index and back (the same statistic on the other error).
 COUNTERPART = {**dict(zip(PERFORMANCE, KNOWLEDGE)), **dict(zip(KNOWLEDGE, PERFORMANCE))}
 #: Every kind of requirement.
-KINDS = PERFORMANCE + KNOWLEDGE + ("settling", "wheel_speed_margin", "momentum_margin", "max_command", "envelope")
+KINDS = PERFORMANCE + KNOWLEDGE + ("settling", "wheel_speed_margin", "momentum_margin", "max_command", "max_torque",
+                                   "envelope")
 #: Which error component: a body axis (the rotation vector's component), the
 #: full rotation angle 4 atan|sigma|, or the half-cone angle about a boresight.
 AXES = ("x", "y", "z", "norm", "cone")
 INTERPRETATIONS = ("temporal", "ensemble", "mixed")
+#: The windows a requirement may be limited to (``mode``): the rows where
+#: the controller's law commanded (ctrl_mode NORMAL: not INIT, not SAFE), or
+#: where the navigation was not degraded (no FLAG_NAV_DEGRADED: star
+#: tracker fixes arriving). "" (the default): every row of the span.
+MODES = ("normal", "nav_ok")
 
 #: Unit -> its value in rad.
 ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "deg": math.pi / 180.0,
@@ -47,22 +54,25 @@ UNITS: dict[str, dict[str, float]] = {
     "wheel_speed_margin": {"rad/s": 1.0, "rpm": 2.0 * math.pi / 60.0},
     "momentum_margin": {"N m s": 1.0, "mN m s": 1e-3},
     "max_command": {"rad/s^2": 1.0},
+    "max_torque": {"N m": 1.0, "mN m": 1e-3},
     "envelope": {},
 }
 #: Kinds whose unit may be left out (their first unit is the default); an
 #: angle's unit is always stated (arcsec and rad differ by 2e5).
-_DEFAULT_UNIT = ("wheel_speed_margin", "momentum_margin", "max_command")
+_DEFAULT_UNIT = ("wheel_speed_margin", "momentum_margin", "max_command", "max_torque")
 
-_POINTING = ("axis", "boresight", "bound", "unit", "confidence", "interpretation", "t_from", "t_to", "settling")
+_POINTING = ("axis", "boresight", "bound", "unit", "confidence", "interpretation", "t_from", "t_to", "settling",
+             "mode")
 #: The keys each kind takes (besides name and kind).
 KEYS: dict[str, tuple[str, ...]] = {
     **{k: _POINTING for k in ("APE", "AKE")},
     **{k: _POINTING + ("window",) for k in WINDOWED},
     **{k: _POINTING + ("window", "separation") for k in PAIRED},
     "settling": ("axis", "boresight", "bound", "unit", "settle_by", "t_from", "t_to"),
-    "wheel_speed_margin": ("bound", "unit", "t_from", "t_to", "settling"),
-    "momentum_margin": ("bound", "unit", "t_from", "t_to", "settling"),
-    "max_command": ("bound", "unit", "t_from", "t_to", "settling"),
+    "wheel_speed_margin": ("bound", "unit", "t_from", "t_to", "settling", "mode"),
+    "momentum_margin": ("bound", "unit", "t_from", "t_to", "settling", "mode"),
+    "max_command": ("bound", "unit", "t_from", "t_to", "settling", "mode"),
+    "max_torque": ("bound", "unit", "t_from", "t_to", "settling", "mode"),
     "envelope": (),
 }
 _ALL_KEYS = ("name", "kind") + tuple(dict.fromkeys(k for keys in KEYS.values() for k in keys))
@@ -106,6 +116,8 @@ class Requirement:
         [s] settling: the time by which the error must have entered the bound for good.
     settling : str
         With t_from = "after_settling": the settling requirement whose time starts the span.
+    mode : str
+        One of ``MODES``: only the span's rows in that window are judged ("": all).
     """
 
     name: str
@@ -122,6 +134,7 @@ class Requirement:
     separation: float | None = None
     settle_by: float | None = None
     settling: str = ""
+    mode: str = ""
 
     def data(self) -> dict[str, Any]:
         """The row as the TOML data it reads back from (keys left at their
@@ -194,6 +207,8 @@ def _read_row(t: Table, duration: float | None) -> Requirement | None:
     if "t_from" in allowed:
         v.update(_read_span(t, kind, duration))
         ok = ok and v.pop("span_ok")
+    if "mode" in allowed:
+        v["mode"] = t.read("mode", Spec("str", choices=MODES), default="")
     t.finish()
     if not ok or any(x is None for k, x in v.items() if k not in ("t_to", "boresight")):
         return None
