@@ -477,7 +477,7 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
                                           stderr=subprocess.DEVNULL))
         exe = str(Path(sys.executable).parent / "sc-rt-controller")
         ctl = subprocess.Popen(["ip", "netns", "exec", a, exe, "--config", str(cfg), "--mode", "realtime",
-                                "--lcm-url", url, "--summary", str(work / "ctl.json"), *auth],
+                                "--trigger", "timer", "--lcm-url", url, "--summary", str(work / "ctl.json"), *auth],
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         procs.append(ctl)
         if "mode on" not in ctl.stderr.readline():

@@ -19,7 +19,8 @@ import sc_rt_lcm
 from sc_rt.hil.runner import controller_binary
 
 url, cfg, out = sys.argv[1:4]
-ctl = subprocess.Popen([controller_binary(), "--config", cfg, "--mode", "realtime", "--lcm-url", url,
+ctl = subprocess.Popen([controller_binary(), "--config", cfg, "--mode", "realtime", "--trigger", "timer",
+                        "--lcm-url", url,
                         "--summary", out + ".summary"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 ctl.stderr.readline()
 lc = lcm.LCM(url)

@@ -39,7 +39,7 @@ def test_killed_emulator_is_replaced_and_the_controller_adopts_it(tmp_path):
     # every step waits on an event: the controller's "mode on", its first
     # answer to the first emulator, a state before the kill
     script = f"""
-{ctl_bin} --config {cfg} --mode realtime --lcm-url '{url}' --summary {tmp_path}/ctl.json \\
+{ctl_bin} --config {cfg} --mode realtime --trigger timer --lcm-url '{url}' --summary {tmp_path}/ctl.json \\
     > /dev/null 2> {tmp_path}/ctl.err &
 CTL=$!
 for i in $(seq 600); do grep -q 'mode on' {tmp_path}/ctl.err && break; sleep 0.1; done

@@ -230,7 +230,7 @@ def test_asan_controller_realtime_and_the_lcm_round_trip_tool(asan, tmp_path):
     cfg = _config(scn, tmp_path / "cfg.bin")
     script = f"""
 set -e
-{ctl} --config {cfg} --mode realtime --lcm-url '{url}' --summary {tmp_path}/sum.json \\
+{ctl} --config {cfg} --mode realtime --trigger timer --lcm-url '{url}' --summary {tmp_path}/sum.json \\
     > /dev/null 2> {tmp_path}/ctl.err &
 CTL=$!
 {_wait_for('mode on', tmp_path / 'ctl.err')}
@@ -349,7 +349,8 @@ def test_tsan_controller_realtime_threads(tsan, tmp_path):
     key.write_bytes(b"the sanitizer bench's key")
     script = f"""
 set -e
-{ctl} --config {cfg} --mode realtime --auth-key {key} --lcm-url '{url}' --summary {tmp_path}/sum1.json \\
+{ctl} --config {cfg} --mode realtime --trigger timer --auth-key {key} --lcm-url '{url}' \\
+    --summary {tmp_path}/sum1.json \\
     > /dev/null 2> {tmp_path}/ctl1.err &
 CTL=$!
 {_wait_for('mode on', tmp_path / 'ctl1.err')}
@@ -357,7 +358,7 @@ CTL=$!
     > {tmp_path}/emu1.log 2>&1
 kill -TERM $CTL
 wait $CTL
-{ctl} --config {cfg} --mode realtime --lcm-url '{url}' --summary {tmp_path}/sum2.json \\
+{ctl} --config {cfg} --mode realtime --trigger timer --lcm-url '{url}' --summary {tmp_path}/sum2.json \\
     > /dev/null 2> {tmp_path}/ctl2.err &
 CTL=$!
 {_wait_for('mode on', tmp_path / 'ctl2.err')}
