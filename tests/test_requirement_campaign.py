@@ -350,6 +350,6 @@ def test_a_coverage_or_confidence_of_one_is_stated_not_a_crash():
     rows = [_row("ape", True, 10.0) for _ in range(20)]
     (s,) = campaign_requirements((APE,), rows, 300.0, 10.0, confidence=0.95, coverage=1.0)
     assert s["met_at_confidence"] is False and s["runs_needed_without_failure"] is None
-    from sc_rt.studies.campaign.requirements import requirement_lines
+    from sc_rt.cli.campaign_text import requirement_lines
 
     assert any("no finite number of runs" in line for line in requirement_lines([s], 0.95, 1.0))

@@ -289,7 +289,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
           + (f" at {res['runs_per_s']:.1f} runs/s on {res['workers']} workers ({res['backend']})"
              if res["runs_per_s"] else "") + f" -> {args.out}/")
     if res.get("requirements"):
-        from sc_rt.studies.campaign.requirements import requirement_lines
+        from sc_rt.cli.campaign_text import requirement_lines
 
         for line in requirement_lines(res["requirements"], res["requirements_confidence"],
                                       res["requirements_coverage"]):
