@@ -40,6 +40,15 @@ def test_timing_setup_and_the_floor_comparison():
     assert c["added_us"]["latency_us"] == {"p50": 40.0, "p99": 100.0}
     assert c["added_us"]["tick_lateness_us"] == {"p50": None, "p99": None}
     assert c["line"].startswith("bench floor p99 200 us; this controller added 100 us")
+    assert "not like for like" not in c["line"]
+    # a floor that ran under another scheduler than the run says so
+    mixed = compare_to_floor({**timing, "scheduler": "SCHED_FIFO 80 + mlockall"},
+                             {**floor, "scheduler": "SCHED_OTHER (SCHED_FIFO denied)"})
+    assert mixed["line"].endswith("(the floor ran SCHED_OTHER (SCHED_FIFO denied), this run SCHED_FIFO 80 + "
+                                  "mlockall: not like for like)")
+    same = compare_to_floor({**timing, "scheduler": "SCHED_FIFO 80 + mlockall"},
+                            {**floor, "scheduler": "SCHED_FIFO 80 + mlockall, CPU 1"})
+    assert "not like for like" not in same["line"]
 
 
 @pytest.mark.lcm

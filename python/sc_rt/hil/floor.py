@@ -199,4 +199,9 @@ def compare_to_floor(timing: dict[str, Any], floor: dict[str, Any]) -> dict[str,
                 f"{src})")
     else:
         line = "bench floor: no latency figures"
+    # the cache is keyed on the priority asked for: a floor measured where it was refused (or
+    # granted) compares with a run that got the other is said so, not silently compared
+    got, then = timing.get("scheduler"), floor.get("scheduler")
+    if got and then and got.split()[0] != then.split()[0]:
+        line += f" (the floor ran {then}, this run {got}: not like for like)"
     return {"added_us": added, "line": line}
