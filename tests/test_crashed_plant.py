@@ -18,6 +18,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.overrides import with_overrides
 
 import lcmnet
+from ctlscript import wait_for_line
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
@@ -42,7 +43,7 @@ def test_killed_emulator_is_replaced_and_the_controller_adopts_it(tmp_path):
 {ctl_bin} --config {cfg} --mode realtime --trigger timer --lcm-url '{url}' --summary {tmp_path}/ctl.json \\
     > /dev/null 2> {tmp_path}/ctl.err &
 CTL=$!
-for i in $(seq 600); do grep -q 'mode on' {tmp_path}/ctl.err && break; sleep 0.1; done
+{wait_for_line('mode on', tmp_path / 'ctl.err')}
 {emu} --duration 120 > {tmp_path}/e1.out 2> {tmp_path}/e1.err &
 E1=$!
 SCRT_WAIT_PID=$E1 {wait} cmd 60 > /dev/null || exit 3

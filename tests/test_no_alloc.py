@@ -22,6 +22,7 @@ from pathlib import Path
 import pytest
 
 import lcmnet
+from ctlscript import controller_config as _config, wait_for_line as _wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.lcm]
 
@@ -30,17 +31,6 @@ HERE = Path(__file__).resolve().parent
 PY = shlex.quote(sys.executable)
 CTL = Path(sys.executable).parent / "sc-rt-controller-alloc"
 WARMUP = 100  # cpp/app/alloc_probe.hpp: kAllocWarmupSteps
-
-
-def _config(scenario: str, out: Path) -> Path:
-    subprocess.run([sys.executable, "-m", "sc_rt.cli", "config", scenario, "--out", str(out)], check=True,
-                   capture_output=True, cwd=ROOT)
-    return out
-
-
-def _wait_for(pattern: str, err: Path) -> str:
-    """A bounded poll of the controller's stderr for its start line (60 s at most)."""
-    return f"for i in $(seq 600); do grep -q '{pattern}' {err} && break; sleep 0.1; done"
 
 
 def _run(tmp: Path, scn: str, port: int, *, ctl_args: str = "", emu_args: str = "", duration: float = 10,

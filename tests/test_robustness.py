@@ -17,6 +17,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet
+from ctlscript import wait_for_line
 from trajcmp import compared_fields
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -185,7 +186,7 @@ T_START=$({wait} state 60) || exit 3
 {shlex.quote(str(Path(sys.executable).parent / 'sc-rt-controller'))} --config {out}/controller_config.bin \\
     --mode realtime --lcm-url '{url}' > /dev/null 2> {tmp_path}/new.err &
 NEW=$!
-for i in $(seq 600); do grep -q 'mode on' {tmp_path}/new.err && break; sleep 0.1; done
+{wait_for_line('mode on', tmp_path / 'new.err')}
 T_READY=$({wait} state 60) || exit 3
 echo "$T_KILL $T_START $T_READY" > {tmp_path}/marks.txt
 wait $HIL

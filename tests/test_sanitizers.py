@@ -29,6 +29,7 @@ from pathlib import Path
 import pytest
 
 import lcmnet
+from ctlscript import controller_config as _config, wait_for_line as _wait_for
 
 pytestmark = pytest.mark.slow  # ~2 min once built; the builds from scratch ~6 min on 2 cores
 
@@ -137,12 +138,6 @@ def test_tsan_build_is_instrumented_and_a_race_fails_the_run(tsan):
 # ------------------------------------------------- the controller under ASan
 
 
-def _config(scenario: str, out: Path) -> Path:
-    subprocess.run([sys.executable, "-m", "sc_rt.cli", "config", scenario, "--out", str(out)], check=True,
-                   capture_output=True, cwd=ROOT)
-    return out
-
-
 def _bench(script: str, tmp: Path, env: dict[str, str], timeout: float = 600) -> str:
     """A shell script in a private network namespace (tests/lcmnet.py); the
     controller's stderr goes to tmp/ctl*.err. Returns all of it, checked clean."""
@@ -152,10 +147,6 @@ def _bench(script: str, tmp: Path, env: dict[str, str], timeout: float = 600) ->
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:] + errs[-8000:]
     _clean(errs + r.stderr, "sc-rt-controller")
     return errs
-
-
-def _wait_for(pattern: str, err: Path) -> str:
-    return f"for i in $(seq 600); do grep -q '{pattern}' {err} && break; sleep 0.1; done"
 
 
 def test_asan_controller_lockstep_sensors_auth_and_config_channel(asan, tmp_path):
