@@ -20,10 +20,9 @@ import time
 from common import ROOT, alternate, machine, mode, summary, write
 
 from sc_rt import _core
-from sc_rt.model import actuators, plant
 from sc_rt.scenario.overrides import with_overrides
 from sc_rt.scenario.reader import load_scenario
-from sc_rt.sim.engines import grid, initial_state, simulate
+from sc_rt.sim.engines import cpp_loop_args, simulate
 
 
 def bare_vs_engine(scn, rate: float, runs: int) -> dict:
@@ -32,9 +31,7 @@ def bare_vs_engine(scn, rate: float, runs: int) -> dict:
     wheels, plant; nothing recorded: _core.bare_closed_loop), alternated.
     Both end in the same state (tests/test_engines_bare.py)."""
     s = with_overrides(scn, control_rate_hz=rate)
-    n_ctrl, n_sub, _, r = grid(s)
-    args = (s.core_config(), plant.plant_params_to_cpp(s.plant), actuators.actuator_params_to_cpp(s.actuators),
-            initial_state(s), n_ctrl, n_sub, r)
+    args = cpp_loop_args(s)
     bare, engine = [], []
 
     def run_bare():

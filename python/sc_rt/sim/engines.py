@@ -34,7 +34,7 @@ from sc_rt.results.run import FIELD, Run, RunMeta
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
-__all__ = ["simulate", "PACKED", "ENGINES", "STOP"]
+__all__ = ["simulate", "cpp_loop_args", "PACKED", "ENGINES", "STOP"]
 
 #: Set (by a signal handler of the CLI) to end the python engine's run at
 #: its next step: the rows done are returned (the caller marks them partial).
@@ -102,11 +102,17 @@ def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, n
     return cols, rows, diverged
 
 
-def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
+def cpp_loop_args(scn: Scenario) -> tuple:
+    """The arguments of the C++ closed loop for ``scn``, as
+    ``_core.simulate_closed_loop`` and ``_core.bare_closed_loop`` take them:
+    (controller config, plant, actuators, x0, n_ctrl, n_sub, rate)."""
     n_ctrl, n_sub, _, rate = grid(scn)
-    res = _core.simulate_closed_loop(
-        scn.core_config(), plant.plant_params_to_cpp(scn.plant),
-        actuators.actuator_params_to_cpp(scn.actuators), initial_state(scn), n_ctrl, n_sub, rate)
+    return (scn.core_config(), plant.plant_params_to_cpp(scn.plant), actuators.actuator_params_to_cpp(scn.actuators),
+            initial_state(scn), n_ctrl, n_sub, rate)
+
+
+def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
+    res = _core.simulate_closed_loop(*cpp_loop_args(scn))
     rows = int(res.pop("rows"))
     diverged = bool(res.pop("diverged"))
     failures = res.pop("law_failures")
