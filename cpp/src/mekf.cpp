@@ -19,9 +19,9 @@ Mat3 rotation_exp(const Vec3& theta, double an) {
                    : Mat3(Mat3::Identity() - (std::sin(an) / an) * S + ((1.0 - std::cos(an)) / (an * an)) * S * S);
 }
 
-// (I + S)^-1 u: the body rate from the bias-corrected gyro reading u.
-Vec3 calibrated_rate(const Eigen::Matrix<double, 9, 1>& c, const Vec3& u) {
-  return (Mat3::Identity() + gyro_calibration_matrix(c)).inverse() * u;
+// (I + S)^-1: the body rate from the bias-corrected gyro reading u is (I + S)^-1 u.
+Mat3 calibration_inverse(const Eigen::Matrix<double, 9, 1>& c) {
+  return (Mat3::Identity() + gyro_calibration_matrix(c)).inverse();
 }
 
 // Omega(w) with dS w = Omega(w) dc, dc = [ds1 ds2 ds3, dku1 dku2 dku3, dkl1 dkl2 dkl3].
@@ -93,10 +93,14 @@ void MekfT<N>::propagate_into(const State& in, State& out, const Vec3& omega_m, 
     return;
   }
   Vec3 theta;
+  [[maybe_unused]] Mat3 Minv;  // N = 15: (I + S_est)^-1, once for the rate and for Phi
+  [[maybe_unused]] Vec3 w;     // N = 15: the calibrated rate
   if constexpr (N == 6) {
     theta = (omega_m - in.bias) * dt;
   } else {
-    theta = calibrated_rate(in.cal, omega_m - in.bias) * dt;
+    Minv = calibration_inverse(in.cal);
+    w = Minv * (omega_m - in.bias);
+    theta = w * dt;
   }
   const double an = theta.norm();  // once for the attitude and Phi
   out.sigma = mrp_rotate_body_by(in.sigma, theta, an);
@@ -128,8 +132,6 @@ void MekfT<N>::propagate_into(const State& in, State& out, const Vec3& omega_m, 
     mekf_detail::covariance_step(in.P, out.P, theta, an, dt, a, q11, r2 * dt * dt / 2.0, r2 * dt + qb);
   } else {
     // the calibrating filter: Phi with the calibration columns, dense (docs/MODEL.md)
-    const Mat3 Minv = (Mat3::Identity() + gyro_calibration_matrix(in.cal)).inverse();
-    const Vec3 w = theta / dt;
     MatN Phi = MatN::Identity();
     Phi.template topLeftCorner<3, 3>() = rotation_exp(theta, an);
     Phi.template block<3, 3>(0, 3) = -dt * Minv;
@@ -276,7 +278,7 @@ Vec3 MekfT<N>::rate_estimate(const State& s) const {
   if constexpr (N == 6) {
     return omega_m_ - s.bias;
   } else {
-    return calibrated_rate(s.cal, omega_m_ - s.bias);
+    return calibration_inverse(s.cal) * (omega_m_ - s.bias);
   }
 }
 
