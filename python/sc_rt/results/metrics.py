@@ -13,7 +13,7 @@ import numpy as np
 from sc_rt.results.estimation import estimation_metrics, fill_estimation_error, fill_true_tracking_error
 from sc_rt.results.requirements import evaluate_requirements
 from sc_rt.results.run import CORE_FIELDS, Run, json_safe
-from sc_rt.results.verdict import pointing_arcsec, safe_summary
+from sc_rt.results.verdict import SAFE_FLAGS, pointing_arcsec, safe_summary
 
 __all__ = ["METRIC_TIMES", "mark_invalid", "record_law_failures", "bound_ok", "compute_metrics", "fill_tracking_errors",
            "prescribed_chi", "finish_run", "json_safe"]
@@ -82,14 +82,8 @@ def bound_ok(ppc, t: np.ndarray, sigma_BD: np.ndarray) -> np.ndarray:
     return (sigma_BD > -dmin * chi) & (sigma_BD < dmax * chi)
 
 
-def _at(t: np.ndarray, values: np.ndarray, when: float) -> float | None:
-    if len(t) == 0 or when > t[-1] + 1e-9:
-        return None
-    k = int(np.argmin(np.abs(t - when)))
-    return float(np.linalg.norm(values[k]))
-
-
-def _max_after(t: np.ndarray, values: np.ndarray, after: float) -> float | None:
+def _max_abs_present(t: np.ndarray, values: np.ndarray, after: float) -> float | None:
+    """max |values| over the rows at or after ``after`` [s] that are not all NaN (None: none)."""
     if len(t) == 0:  # a run stopped before its first row
         return None
     sel = (t >= after - 1e-9) & ~np.all(np.isnan(values.reshape(len(t), -1)), axis=1)
@@ -111,81 +105,167 @@ def _key(s: float) -> str:
     return str(int(s)) if float(s).is_integer() else f"{s:g}"
 
 
+def _max(a: float | None, b: float | None) -> float | None:
+    """The larger (NaN wins, as numpy's max); None: nothing yet."""
+    return b if a is None else a if b is None else float(np.max([a, b]))
+
+
+class _Metrics:
+    """compute_metrics and finish_run's reductions over a run's chunks, in
+    order (results/run.py ``Run.chunks``): every one is a max, a sum, a
+    first or a last, so a run read a batch at a time gives the numbers of
+    the run held whole."""
+
+    def __init__(self, run: Run, sensed: bool):
+        m = run.meta
+        self.run, self.sensed = run, sensed
+        self.observer = m.law in LAWS_WITH_OBSERVER
+        self.marks = checkpoints(m.duration_s)
+        self.near: dict[tuple[str, float], tuple[float, np.ndarray]] = {}  # (field, mark) -> (|t - mark|, row)
+        self.rows = 0
+        self.finite = True
+        self.first_s = self.first_axis = None
+        self.saturated = 0
+        self.obs = self.w70 = self.u_max = self.acc_max = self.lam_max = self.point_max = None
+        self.final_speed = None
+        self.t_last = None
+        self.safe_steps = 0
+        self.safe_from = None
+        self.reasons = {text: 0 for text in SAFE_FLAGS.values()}
+        self.law_invalid = 0
+
+    def add(self, c: Run) -> None:
+        t = c["t"]
+        n = len(t)
+        if n == 0:
+            return
+        self.rows += n
+        self.t_last = float(t[-1])
+        for k in CORE_FIELDS:
+            if k != "bound_ok" and k not in CONTROLLER_TELEMETRY:
+                self.finite = self.finite and bool(np.all(np.isfinite(c[k])))
+        for k in CONTROLLER_TELEMETRY:  # missing rows are all NaN; anything else counts
+            v = c[k]
+            present = ~np.all(np.isnan(v), axis=1) if v.ndim == 2 else np.ones(len(v), bool)
+            self.finite = self.finite and bool(np.all(np.isfinite(v[present])))
+        bad = ~c["bound_ok"]
+        if self.first_s is None and np.any(bad):
+            k = int(np.argmax(np.any(bad, axis=1)))
+            self.first_s, self.first_axis = float(t[k]), int(np.argmax(bad[k])) + 1  # 1-based axis
+        u_cmd = c["u_cmd"]
+        self.saturated += int(np.sum(np.any(u_cmd != c["u_sat"], axis=1)))
+        z2 = c["z2"]
+        # reported for any law that reports an observer (decided over the whole run)
+        self.observer = self.observer or bool(np.any(np.nan_to_num(z2) != 0.0))
+        self.obs = _max(self.obs, _max_abs_present(t, z2 - c["delta2"], 30.0))
+        for name in ("sigma_BD", "omega_BD_B"):
+            v = c[name]
+            for mark in self.marks:
+                k = int(np.argmin(np.abs(t - mark)))
+                d = abs(float(t[k]) - mark)
+                if (name, mark) not in self.near or d < self.near[(name, mark)][0]:
+                    self.near[(name, mark)] = (d, v[k].copy())
+        self.w70 = _max(self.w70, _max_abs_present(t, c["omega_BD_B"], 70.0))
+        self.u_max = _max(self.u_max, float(np.max(np.abs(u_cmd))))
+        self.acc_max = _max(self.acc_max, float(np.max(np.abs(c["wheel_accel"]))))
+        self.final_speed = [float(v) for v in c["wheel_speed"][-1]]
+        s = safe_summary(t, c["ctrl_mode"], c["flags"])
+        self.safe_steps += s["safe_steps"]
+        if self.safe_from is None:
+            self.safe_from = s["safe_from_s"]
+        for text, v in s["safe_reasons"].items():
+            self.reasons[text] += v
+        # steps where the law failed (FLAG_LAW_INVALID, wheel_cmd_t): SAFE zeros instead
+        self.law_invalid += int(np.sum((np.asarray(c["flags"]) & 1024) != 0))
+        lam = c["lam"]
+        ok_lam = np.isfinite(lam)
+        # |lambda| = |sigma_BD| / chi of the controller; its worst value says how close the bound came
+        if np.any(ok_lam):
+            self.lam_max = _max(self.lam_max, float(np.max(np.abs(lam[ok_lam]))))
+        after = t >= 30.0 - 1e-9
+        if np.any(after):
+            self.point_max = _max(self.point_max, float(np.max(pointing_arcsec(c["sigma_BD"][after]))))
+
+    def metrics(self) -> dict[str, Any]:
+        m = self.run.meta
+
+        def at(name: str, mark: float) -> float | None:
+            if self.t_last is None or mark > self.t_last + 1e-9:
+                return None
+            return float(np.linalg.norm(self.near[(name, mark)][1]))
+
+        out = {
+            "scenario": m.scenario,
+            "controller": m.law,
+            "law": m.law_identity,
+            "engine": m.engine,
+            "control_rate_hz": float(m.control_rate_hz),
+            "duration_s": float(m.duration_s),
+            "steps": int(self.rows),
+            "wall_s": float(m.wall_s),
+            "finite": self.finite,
+            "first_bound_violation_s": self.first_s,
+            "first_bound_violation_axis": self.first_axis,
+            "sigma_e_norm": {_key(s): at("sigma_BD", s) for s in self.marks},
+            "omega_e_norm": {_key(s): at("omega_BD_B", s) for s in self.marks},
+            "max_abs_omega_e_after_70s": self.w70,
+            "max_observer_error_after_30s": self.obs if self.observer else None,
+            "max_abs_u_cmd": self.u_max,
+            "max_abs_wheel_accel": self.acc_max,
+            "saturated_fraction": self.saturated / self.rows if self.rows else 0.0,
+            "final_wheel_speed": self.final_speed,
+        }
+        return out
+
+    def finish_keys(self) -> dict[str, Any]:
+        return {"safe_steps": self.safe_steps, "safe_from_s": self.safe_from,
+                "safe_reasons": {k: v for k, v in self.reasons.items() if v},
+                "law_invalid_steps": self.law_invalid, "max_abs_lambda": self.lam_max,
+                "max_pointing_error_arcsec_after_30s": self.point_max}
+
+
 def compute_metrics(run: Run) -> dict[str, Any]:
-    """The metrics of one run (keys as documented in README, "metrics.json")."""
-    m = run.meta
-    t = run["t"]
-    ok = run["bound_ok"]
-    finite = all(bool(np.all(np.isfinite(run[k]))) for k in CORE_FIELDS
-                 if k != "bound_ok" and k not in CONTROLLER_TELEMETRY)
-    for k in CONTROLLER_TELEMETRY:  # missing rows are all NaN; anything else counts
-        v = run[k]
-        present = ~np.all(np.isnan(v), axis=1) if v.ndim == 2 else np.ones(len(v), bool)
-        finite = finite and bool(np.all(np.isfinite(v[present])))
-    first_s = first_axis = None
-    bad = ~ok
-    if np.any(bad):
-        k = int(np.argmax(np.any(bad, axis=1)))
-        first_s = float(t[k])
-        first_axis = int(np.argmax(bad[k])) + 1  # 1-based axis
-    sat = np.any(run["u_cmd"] != run["u_sat"], axis=1) if len(t) else np.zeros(0, bool)
-    obs = None
-    z2 = run["z2"]
-    if m.law in LAWS_WITH_OBSERVER or bool(np.any(np.nan_to_num(z2) != 0.0)):  # any law that reports an observer
-        obs = _max_after(t, run["z2"] - run["delta2"], 30.0)
-    marks = checkpoints(m.duration_s)
-    return {
-        "scenario": m.scenario,
-        "controller": m.law,
-        "law": m.law_identity,
-        "engine": m.engine,
-        "control_rate_hz": float(m.control_rate_hz),
-        "duration_s": float(m.duration_s),
-        "steps": int(len(t)),
-        "wall_s": float(m.wall_s),
-        "finite": finite,
-        "first_bound_violation_s": first_s,
-        "first_bound_violation_axis": first_axis,
-        "sigma_e_norm": {_key(s): _at(t, run["sigma_BD"], s) for s in marks},
-        "omega_e_norm": {_key(s): _at(t, run["omega_BD_B"], s) for s in marks},
-        "max_abs_omega_e_after_70s": _max_after(t, run["omega_BD_B"], 70.0),
-        "max_observer_error_after_30s": obs,
-        "max_abs_u_cmd": float(np.max(np.abs(run["u_cmd"]))) if len(t) else None,
-        "max_abs_wheel_accel": float(np.max(np.abs(run["wheel_accel"]))) if len(t) else None,
-        "saturated_fraction": float(np.mean(sat)) if len(t) else 0.0,
-        "final_wheel_speed": [float(v) for v in run["wheel_speed"][-1]] if len(t) else None,
-    }
+    """The metrics of one run (keys as documented in README, "metrics.json"),
+    read a chunk at a time (a run on disk: any length)."""
+    acc = _Metrics(run, False)
+    for c in run.chunks():
+        acc.add(c)
+    return acc.metrics()
+
+
+def _any_present(run: Run, name: str) -> bool:
+    return any(bool(c.present(name).any()) for c in run.chunks())
 
 
 def finish_run(run: Run) -> Run:
     """The derived fields and the metrics of a run its producer has filled:
     ``bound_ok`` from the envelope in ``run.meta``, then ``run.metrics``,
-    with the scenario's requirements judged (``metrics["requirements"]``)."""
+    with the scenario's requirements judged (``metrics["requirements"]``).
+    A run on disk is rewritten once (the derived fields) and read once."""
     # a producer that ran the sensors filled the estimator's fields (offline, or the bench from
     # controller_status_t)
-    sensed = bool(getattr(run.meta, "sensors", False)) and bool(run.present("sigma_BN_est").any())
-    if sensed:  # with sensors the bound is judged on the true attitude (sc_rt.results.estimation)
-        fill_true_tracking_error(run)
-        if not run.present("att_est_error").any():  # the bench: the estimate came over the bus
-            fill_estimation_error(run)
-    run["bound_ok"][:] = bound_ok(run.meta.ppc, run["t"], run["sigma_BD_true"] if sensed else run["sigma_BD"])
-    metrics = compute_metrics(run)
-    metrics.update(safe_summary(run["t"], run["ctrl_mode"], run["flags"]))
-    # steps where the law failed (FLAG_LAW_INVALID, wheel_cmd_t): SAFE zeros instead
-    metrics["law_invalid_steps"] = int(np.sum((np.asarray(run["flags"]) & 1024) != 0))
-    lam = run["lam"]
-    ok_lam = np.isfinite(lam)
-    # |lambda| = |sigma_BD| / chi of the controller; its worst value says how close the bound came
-    metrics["max_abs_lambda"] = float(np.max(np.abs(lam[ok_lam]))) if np.any(ok_lam) else None
-    metrics["max_pointing_error_arcsec_after_30s"] = (
-        float(np.max(pointing_arcsec(run["sigma_BD"][run["t"] >= 30.0 - 1e-9])))
-        if np.any(run["t"] >= 30.0 - 1e-9) else None)
+    sensed = bool(getattr(run.meta, "sensors", False)) and _any_present(run, "sigma_BN_est")
+    fill_est = sensed and not _any_present(run, "att_est_error")  # the bench: the estimate came over the bus
+
+    def derive(c: Run) -> None:
+        if sensed:  # with sensors the bound is judged on the true attitude (sc_rt.results.estimation)
+            fill_true_tracking_error(c)
+            if fill_est:
+                fill_estimation_error(c)
+        c["bound_ok"][:] = bound_ok(run.meta.ppc, c["t"], c["sigma_BD_true"] if sensed else c["sigma_BD"])
+
+    run.map_chunks(derive)
+    acc = _Metrics(run, sensed)
+    for c in run.chunks():
+        acc.add(c)
+    metrics = acc.metrics()
+    metrics.update(acc.finish_keys())
     if sensed:
         metrics.update(estimation_metrics(run))
         metrics["max_pointing_error_arcsec_after_30s"] = metrics["pointing_error_arcsec"]["true"]["max"]
     if run.diverged:
         metrics["diverged"] = True
-        metrics["diverged_after_s"] = float(run["t"][-1]) if len(run) else 0.0
+        metrics["diverged_after_s"] = acc.t_last if acc.t_last is not None else 0.0
         metrics["finite"] = False
     if run.partial:
         metrics["partial"] = True

@@ -221,6 +221,8 @@ class Run:
         self.diverged = diverged
         self.message = message
         self.partial = partial
+        #: the rows on disk (results/store.py), or None: in ``_a``
+        self._store: Any = None
 
     # --- construction ---------------------------------------------------
     @classmethod
@@ -228,37 +230,105 @@ class Run:
         """n rows at their fill values, to be filled row by row."""
         return cls(meta, {}, rows=n)
 
+    @classmethod
+    def stored(cls, meta: RunMeta, path: Path, **kw: Any) -> Run:
+        """A run whose rows are on disk (``trajectory.arrow``, results/store.py),
+        read a batch at a time (``chunks``); ``kw`` as the constructor's."""
+        from sc_rt.results.store import ChunkReader
+
+        r = cls(meta, {"t": np.zeros(0)}, **kw)
+        r._a = {}
+        r._store = ChunkReader(path)
+        missing = set(FIELD) - set(r._store.names)
+        if missing:
+            raise ValueError(f"{path}: not a run's rows (no {sorted(missing)[:3]})")
+        return r
+
+    @property
+    def is_stored(self) -> bool:
+        """The rows are on disk (``path``), not in memory."""
+        return self._store is not None
+
+    @property
+    def path(self) -> Path | None:
+        """The file of a stored run's rows (None: in memory)."""
+        return None if self._store is None else self._store.path
+
     def head(self, rows: int) -> Run:
         """The first ``rows`` rows (views), everything else shared."""
+        if self._store is not None:
+            raise ValueError("head() of a run on disk")
         r = Run.__new__(Run)
         r.__dict__.update(self.__dict__)
         r._a = {k: v[:rows] for k, v in self._a.items()}
         return r
 
+    def chunks(self) -> Iterator[Run]:
+        """The run as in-memory runs of consecutive rows, in order: itself
+        (one chunk) when in memory, a batch at a time when on disk. A chunk
+        shares ``meta`` and nothing else; writing into it changes this run
+        only when the run is in memory (``map_chunks`` writes either)."""
+        if self._store is None:
+            yield self
+            return
+        for i in range(self._store.n_batches):
+            yield Run(self.meta, self._store.batch(i), diverged=self.diverged, partial=self.partial)
+
+    def map_chunks(self, fn: Any) -> None:
+        """Call ``fn(chunk)`` on every chunk in order, keeping what it writes
+        into the chunk's arrays (a run on disk is rewritten, a batch at a time)."""
+        if self._store is None:
+            fn(self)
+            return
+        from sc_rt.results.store import ChunkFile, ChunkReader
+
+        src = self._store
+        tmp = src.path.with_name(src.path.name + ".new")
+        w = ChunkFile(tmp, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+                      {k: v for k, v in src.metadata.items() if k != "sc_rt.shapes"})
+        for c in self.chunks():
+            fn(c)
+            w.write(c._a, len(c))
+        w.close()
+        src.close()
+        tmp.replace(src.path)
+        self._store = ChunkReader(src.path)
+
     # --- access -----------------------------------------------------------
     def __getitem__(self, name: str) -> np.ndarray:
+        """The field's array; on disk, a copy of the whole column read now
+        (its size grows with the run: a long run reads ``chunks``)."""
+        if self._store is not None:
+            if name not in FIELD:
+                raise KeyError(name)
+            return self._store.column(name)
         return self._a[name]
 
     def __contains__(self, name: object) -> bool:
-        return name in self._a
+        return name in FIELD if self._store is not None else name in self._a
 
     def __iter__(self) -> Iterator[str]:
-        return iter(self._a)
+        return iter(FIELD) if self._store is not None else iter(self._a)
 
     def __len__(self) -> int:
-        return len(self._a["t"])
+        return self._store.rows if self._store is not None else len(self._a["t"])
 
     @property
     def t(self) -> np.ndarray:
-        return self._a["t"]
+        return self["t"]
 
     @property
     def trajectory(self) -> dict[str, np.ndarray]:
-        """The per-row arrays by name (every field of ``FIELDS``)."""
+        """The per-row arrays by name (every field of ``FIELDS``; a run on
+        disk reads them all now)."""
+        if self._store is not None:
+            return {f.name: self[f.name] for f in FIELDS}
         return self._a
 
     def present(self, name: str) -> np.ndarray:
         """Rows where the producer filled ``name`` (not its fill value)."""
+        if self._store is not None:
+            return np.concatenate([c.present(name) for c in self.chunks()]) if len(self) else np.zeros(0, bool)
         f, v = FIELD[name], self._a[name]
         flat = v.reshape(len(v), -1)
         if isinstance(f.fill, float) and math.isnan(f.fill):
@@ -268,9 +338,48 @@ class Run:
     # --- files ------------------------------------------------------------
     def save_npz(self, path: Path, *, compress: bool = True) -> Path:
         """trajectory.npz: every field by name, and the meta as JSON."""
+        if self._store is not None:
+            raise ValueError("a run on disk is saved as trajectory.arrow (save_arrow)")
         save = np.savez_compressed if compress else np.savez
         save(path, **self._a, meta_json=np.array(json.dumps(self.meta.to_json())))
         return path
+
+    def save_arrow(self, path: Path) -> Path:
+        """trajectory.arrow (results/store.py): every field, a batch at a
+        time, and the meta as JSON in the schema's metadata. A run on disk
+        moves its file there (it is the same format)."""
+        from sc_rt.results.store import ChunkFile, ChunkReader
+
+        path = Path(path)
+        if self._store is not None:
+            if self._store.path.resolve() != path.resolve():
+                self._store.close()
+                self._store.path.replace(path)
+                self._store = ChunkReader(path)
+            return path
+        w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+                      {"sc_rt.meta": json.dumps(self.meta.to_json())})
+        w.write(self._a, len(self))
+        return w.close()
+
+    @classmethod
+    def load(cls, run_dir: Path) -> Run:
+        """The run in ``run_dir``: trajectory.npz, or trajectory.arrow for a
+        run written on disk as it ran (metrics.json and timing.json read
+        when present)."""
+        run_dir = Path(run_dir)
+        npz, arrow = run_dir / "trajectory.npz", run_dir / "trajectory.arrow"
+        if npz.exists() or not arrow.exists():
+            return cls.load_npz(npz)
+        from sc_rt.results.store import ChunkReader
+
+        meta = RunMeta.from_json(json.loads(ChunkReader(arrow).metadata["sc_rt.meta"]))
+        run = cls.stored(meta, arrow)
+        for name, attr in (("metrics.json", "metrics"), ("timing.json", "timing")):
+            p = run_dir / name
+            if p.exists():
+                setattr(run, attr, json.loads(p.read_text()))
+        return run
 
     @classmethod
     def load_npz(cls, path: Path) -> Run:
