@@ -5,11 +5,12 @@ what they keep per state seq.
   answering k (its bytes, the monotonic ns of its receipt, its utime), the
   first status for k (its bytes, decoded after the run) and the times state
   k went out (the utime of its first publish, the monotonic ns of its last).
-  Numpy arrays for the n rows, allocated and filled when the emulator is
-  made (every page touched then): nothing grows per row while the run
-  lasts. A state seq outside [0, n) (a hostile or stray message) is counted
-  (``state_seq_out_of_range``) and not kept; -1 (answers no state) is not
-  kept either, as always.
+  Columns of the emulator's record (results/store.py ``RowRing``): two
+  chunks of rows live, allocated and touched when the emulator is made,
+  the older rows on disk, so nothing grows with the run. A state seq outside
+  [0, n) (a hostile or stray message) is counted (``state_seq_out_of_range``)
+  and not kept, as is one outside the live rows (``state_seq_not_live``);
+  -1 (answers no state) is not kept either, as always.
 - ``Receiver``: the handlers, a part of ``Emulator``; they never raise.
   Every message is decoded under guard and counted by kind (``counters``);
   commands and status come from one controller session at a time, a new one
@@ -36,8 +37,9 @@ from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING
 from sc_rt.emulator.peers import ControllerPeers
 from sc_rt.emulator.state import Shared
 from sc_rt.model.actuators import WheelFault
+from sc_rt.results.store import RowRing
 
-__all__ = ["Inbox", "Receiver", "Cmd"]
+__all__ = ["Inbox", "Receiver", "Cmd", "INBOX_COLUMNS", "decode_status", "fill_from_inbox"]
 
 # controller_status_t's fixed layout: fingerprint, then utime, cmd_seq,
 # session, state_seq (big-endian int64), as generated from the .lcm file
@@ -71,126 +73,158 @@ def _cmd_of(v: tuple) -> Cmd:
     return Cmd(seq=v[1], session=v[2], state_seq=v[3], u_cmd=v[5:9], u_sat=v[9:13], mode=v[13], flags=v[14])
 
 
+#: The inbox's columns in the emulator's record (results/store.py ``Column``):
+#: per state seq, the command and the status as received and their times.
+INBOX_COLUMNS = (
+    ("cmd_raw", (_CMD_SIZE,), "u1", 0),
+    ("cmd_rx", (), "i8", MISSING),  # [monotonic ns] receipt; MISSING: no command for k
+    ("cmd_utime", (), "i8", MISSING),  # [us] the command's utime (the controller's publish)
+    ("pub_wall_us", (), "i8", MISSING),  # [us] utime of state k's first publish
+    ("pub_ns", (), "i8", MISSING),  # [monotonic ns] state k's last publish
+    ("status_raw", (_STATUS_SIZE,), "u1", 0),
+    ("status_len", (), "i4", -1),  # -1: no status for k; 0: one not kept (too long)
+)
+
+
 class Inbox:
     """Per state seq of a run of ``n`` rows: its command, its status and
-    its publish times, preallocated (module docstring). The int64 times are
-    ``MISSING`` (emulator/loopstats.py) where there is none."""
+    its publish times (module docstring), in the live rows of the
+    emulator's record ``ring`` (results/store.py ``RowRing``: two chunks of
+    rows, the older ones on disk). The int64 times are ``MISSING``
+    (emulator/loopstats.py) where there is none. A message for a seq that is
+    no longer live (older than a chunk of rows) or not yet (ahead of the
+    states published) is counted (``state_seq_not_live``) and not kept.
+    Without ``ring`` every row is live (a ring of one chunk of ``n`` rows)."""
 
     #: bytes per row: the command and the status as received, four int64 times, the status length
     BYTES_PER_ROW = _CMD_SIZE + _STATUS_SIZE + 4 * 8 + 4
 
-    def __init__(self, n: int, counters: Counter):
+    def __init__(self, n: int, counters: Counter, ring: RowRing | None = None):
         self.n, self.counters = n, counters
-        # np.full writes every element: the pages are resident from here on
-        self.cmd_raw = np.full((n, _CMD_SIZE), 0, np.uint8)
-        self.cmd_rx = np.full(n, MISSING, np.int64)  # [monotonic ns] receipt; MISSING: no command for k
-        self.cmd_utime = np.full(n, MISSING, np.int64)  # [us] the command's utime (the controller's publish)
-        self.pub_wall_us = np.full(n, MISSING, np.int64)  # [us] utime of state k's first publish
-        self.pub_ns = np.full(n, MISSING, np.int64)  # [monotonic ns] state k's last publish
-        self.status_raw = np.full((n, _STATUS_SIZE), 0, np.uint8)
-        self.status_len = np.full(n, -1, np.int32)  # -1: no status for k; 0: one not kept (too long)
-        # the handlers write through memoryviews (a fraction of numpy's per-item cost)
-        self._cmd_mv = memoryview(self.cmd_raw.reshape(-1))
-        self._rx, self._utime = memoryview(self.cmd_rx), memoryview(self.cmd_utime)
-        self._wall, self._pub = memoryview(self.pub_wall_us), memoryview(self.pub_ns)
-        self._status_mv, self._status_len = memoryview(self.status_raw.reshape(-1)), memoryview(self.status_len)
+        self.ring = ring if ring is not None else RowRing(INBOX_COLUMNS, max(1, n), lambda *_: None)
 
-    @property
-    def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.cmd_raw, self.cmd_rx, self.cmd_utime, self.pub_wall_us,
-                                      self.pub_ns, self.status_raw, self.status_len))
-
-    def _kept(self, k: int) -> bool:
-        """k is a row of the run; a seq past the run is counted (-1 and
-        other negative seqs answer no state)."""
+    def _slot(self, k: int, count: bool = True) -> tuple[dict[str, np.ndarray], int] | None:
+        """Row k's columns and offset when k is a live row of the run; a seq
+        past the run, or not live, is counted (-1 and other negative seqs
+        answer no state)."""
         if 0 <= k < self.n:
-            return True
-        if k >= self.n:
+            s = self.ring.slot(k)
+            if s is None and count:
+                self.counters["state_seq_not_live"] += 1
+            return s
+        if k >= self.n and count:
             self.counters["state_seq_out_of_range"] += 1
-        return False
+        return None
 
     # --- commands ------------------------------------------------------------
     def put_cmd(self, k: int, data: bytes | None, msg: Cmd, now: int, utime: int = _NONE) -> None:
         """The first valid command answering state k (``data``: its bytes in
         the fixed layout, None: pack ``msg``); later ones are not kept."""
-        if not self._kept(k) or self._rx[k] != _NONE:
+        s = self._slot(k)
+        if s is None:
             return
-        off = k * _CMD_SIZE
+        c, j = s
+        if c["cmd_rx"][j] != _NONE:
+            return
         if data is not None:
-            self._cmd_mv[off:off + _CMD_SIZE] = data
+            c["cmd_raw"][j] = np.frombuffer(data, np.uint8)
         else:
-            _CMD_LAYOUT.pack_into(self._cmd_mv, off + 8, 0, msg.seq, msg.session, msg.state_seq, 0.0,
+            _CMD_LAYOUT.pack_into(c["cmd_raw"][j], 8, 0, msg.seq, msg.session, msg.state_seq, 0.0,
                                   *msg.u_cmd, *msg.u_sat, msg.mode, msg.flags)
-        self._rx[k] = now
-        self._utime[k] = utime
+        c["cmd_rx"][j] = now
+        c["cmd_utime"][j] = utime
 
     def has_cmd(self, k: int) -> bool:
-        return 0 <= k < self.n and self._rx[k] != _NONE
+        s = self._slot(k, count=False)
+        return s is not None and s[0]["cmd_rx"][s[1]] != _NONE
 
     def cmd(self, k: int) -> Cmd | None:
         """The first valid command answering state k, None when none came."""
-        if not self.has_cmd(k):
+        s = self._slot(k, count=False)
+        if s is None or s[0]["cmd_rx"][s[1]] == _NONE:
             return None
-        return _cmd_of(_CMD_LAYOUT.unpack_from(self._cmd_mv, k * _CMD_SIZE + 8))
+        return _cmd_of(_CMD_LAYOUT.unpack_from(s[0]["cmd_raw"][s[1]], 8))
 
     def cmd_session(self, k: int) -> int:
         """The session of the command answering k (has_cmd(k))."""
-        return _CMD_LAYOUT.unpack_from(self._cmd_mv, k * _CMD_SIZE + 8)[2]
+        c, j = self._slot(k, count=False)
+        return _CMD_LAYOUT.unpack_from(c["cmd_raw"][j], 8)[2]
+
+    def cmd_times(self, k: int) -> tuple[int, int]:
+        """(receipt [monotonic ns], utime [us]) of the command answering k (MISSING: none)."""
+        c, j = self._slot(k, count=False)
+        return int(c["cmd_rx"][j]), int(c["cmd_utime"][j])
 
     # --- status ----------------------------------------------------------------
     def put_status(self, k: int, data: bytes) -> None:
         """The first status for state k, as its bytes (one longer than the
         fixed layout, possible only for a type with variable fields, counts
         as received and is not kept: ``status_not_kept``)."""
-        if not self._kept(k) or self._status_len[k] >= 0:
+        s = self._slot(k)
+        if s is None:
+            return
+        c, j = s
+        if c["status_len"][j] >= 0:
             return
         m = len(data)
         if m > _STATUS_SIZE:
             self.counters["status_not_kept"] += 1
-            self._status_len[k] = 0
+            c["status_len"][j] = 0
             return
-        off = k * _STATUS_SIZE
-        self._status_mv[off:off + m] = data
-        self._status_len[k] = m
+        c["status_raw"][j][:m] = np.frombuffer(data, np.uint8)
+        c["status_len"][j] = m
 
     def has_status(self, k: int) -> bool:
-        return 0 <= k < self.n and self._status_len[k] >= 0
+        s = self._slot(k, count=False)
+        return s is not None and s[0]["status_len"][s[1]] >= 0
 
     def status(self, k: int):
         """State k's controller_status_t, decoded (None: none kept)."""
-        m = self._status_len[k] if 0 <= k < self.n else -1
-        if m <= 0:
-            return None
-        off = k * _STATUS_SIZE
-        return sc_rt_lcm.controller_status_t.decode(bytes(self._status_mv[off:off + m]))
+        s = self._slot(k, count=False)
+        return None if s is None else decode_status(s[0], s[1])
 
     # --- our states ------------------------------------------------------------
     def published(self, k: int, utime: int, now: int) -> None:
         """State k went out at ``utime`` [us] (the first time counts) and
         monotonic ``now`` [ns] (the last time counts)."""
-        if 0 <= k < self.n:
-            if self._wall[k] == _NONE:
-                self._wall[k] = utime
-            self._pub[k] = now
+        s = self._slot(k, count=False)
+        if s is not None:
+            c, j = s
+            if c["pub_wall_us"][j] == _NONE:
+                c["pub_wall_us"][j] = utime
+            c["pub_ns"][j] = now
 
-    def fill(self, run) -> None:
-        """The run's controller telemetry and timing from every status kept
-        (decoded now: ~35 us each), and its latency (state publish to the
-        command's receipt) for every state answered."""
-        rows = len(run)
-        for k in range(rows):
-            s = self.status(k)
-            if s is None:
-                continue
-            for name in STATUS_RUN_FIELDS + STATUS_TIMING_FIELDS:
+    def pub_times(self, k: int) -> tuple[int, int]:
+        """(first publish utime [us], last publish [monotonic ns]) of state k (MISSING: none)."""
+        c, j = self._slot(k, count=False)
+        return int(c["pub_wall_us"][j]), int(c["pub_ns"][j])
+
+
+def decode_status(cols: dict[str, np.ndarray], j: int):
+    """Row j's controller_status_t of an inbox's columns, decoded (None: none kept)."""
+    m = int(cols["status_len"][j])
+    if m <= 0:
+        return None
+    return sc_rt_lcm.controller_status_t.decode(cols["status_raw"][j][:m].tobytes())
+
+
+def fill_from_inbox(run, cols: dict[str, np.ndarray]) -> None:
+    """A chunk of the run's rows (``run``, in memory) and the inbox's columns
+    of the same rows (``cols``): the controller telemetry and timing from
+    every status kept (decoded now: ~35 us each), and the latency (state
+    publish to the command's receipt) of every state answered."""
+    rows = len(run)
+    for k in np.flatnonzero(cols["status_len"][:rows] > 0):
+        s = decode_status(cols, k)
+        for name in STATUS_RUN_FIELDS + STATUS_TIMING_FIELDS:
+            run[name][k] = getattr(s, name)
+        if s.nav:  # a [sensors] run: the controller's estimator, its flag into the row's (as offline)
+            for name in STATUS_NAV_FIELDS:
                 run[name][k] = getattr(s, name)
-            if s.nav:  # a [sensors] run: the controller's estimator, its flag into the row's (as offline)
-                for name in STATUS_NAV_FIELDS:
-                    run[name][k] = getattr(s, name)
-                run["flags"][k] |= s.nav_flags
-        rx, pub = self.cmd_rx[:rows], self.pub_ns[:rows]
-        ok = (rx != MISSING) & (pub != MISSING)
-        run["latency_us"][ok] = (rx[ok] - pub[ok]) / 1e3
+            run["flags"][k] |= s.nav_flags
+    rx, pub = cols["cmd_rx"][:rows], cols["pub_ns"][:rows]
+    ok = (rx != MISSING) & (pub != MISSING)
+    run["latency_us"][ok] = (rx[ok] - pub[ok]) / 1e3
 
 
 class Receiver:
@@ -207,7 +241,7 @@ class Receiver:
 
     def __init__(self, lc: Any, prefix: str, session: int, n_rows: int, shared: Shared, *,
                  guard: Any = None, peers: ControllerPeers | None = None, accept_faults: bool = False,
-                 authenticated: bool = False):
+                 authenticated: bool = False, ring: RowRing | None = None):
         self.lc, self.prefix, self.session, self.shared = lc, prefix, session, shared
         self.counters = shared.counters
         self.guard = guard
@@ -216,7 +250,7 @@ class Receiver:
         #: a bus with a key: a fault command must name this emulator's session and a seq above the last
         self.authenticated = authenticated
         self._last_fault_seq: int | None = None
-        self.inbox = Inbox(n_rows, self.counters)
+        self.inbox = Inbox(n_rows, self.counters, ring)
         self.newest_cmd: Cmd | None = None
         self.newest_cmd_ns = 0
         self._last_cmd_seq = -1

@@ -2,8 +2,9 @@
 the guidance and the state of a control instant, the truth of a row, the
 sensors' samples of a plant step (emulator/sensorpub.py), and draining what
 our own multicast brings back (handled by the receiver, emulator/inbox.py).
-Owns what it last sent (the guidance values of the newest state) and the
-gyro's true bias per row; shares nothing else."""
+Owns what it last sent (the guidance values of the newest state); writes
+the truth's fields of each row (and the gyro's true bias) into the
+emulator's record."""
 
 from __future__ import annotations
 
@@ -18,20 +19,22 @@ from sc_rt.emulator.peers import GuidancePublisher
 from sc_rt.emulator.sensorpub import SensorPublisher
 from sc_rt.emulator.twin import PlantTwin, state_bytes, truth_bytes
 from sc_rt.wire.lcmio import channel
+from sc_rt.results.store import RowRing
 
 __all__ = ["Publisher"]
 
 
 class Publisher:
     def __init__(self, lc: Any, prefix: str, session: int, guidance: GuidancePublisher, inbox: Inbox,
-                 twin: PlantTwin, sensors: SensorPublisher | None, n_rows: int):
+                 twin: PlantTwin, sensors: SensorPublisher | None, ring: RowRing):
         self.lc, self.session, self.guidance, self.inbox, self.twin = lc, session, guidance, inbox, twin
         self.sensors = sensors
         self._ch_state = channel("SCRT_STATE", prefix)
         self._ch_truth = channel("SCRT_TRUTH", prefix)
         self._guidance_sent: tuple = (-1, None)  # (seq, guidance values) of the newest state out
-        #: a [sensors] run: the gyro's true bias per row (the truth's gyro_bias, the run's bias_true)
-        self.bias_true = np.full((n_rows, 3), np.nan) if sensors is not None else None
+        #: the emulator's record (results/store.py): the truth's fields of each row go there,
+        #: and with [sensors] the gyro's true bias (the truth's gyro_bias, the run's bias_true)
+        self.ring = ring
 
     def state(self, k: int, t: float, x: np.ndarray, guidance: tuple | None = None) -> None:
         """State k (and its guidance first: a controller has it with the state)."""
@@ -50,7 +53,8 @@ class Publisher:
         one is due; the gyro's true bias of the row either way."""
         if i == self.sensors.next_tick:
             self.sensors.tick(i, t, x)
-        self.bias_true[row] = self.sensors.gyro_bias
+        c, j = self.ring.slot(row)
+        c["bias_true"][j] = self.sensors.gyro_bias
 
     def drain(self) -> None:
         """Handle what is already in the socket, without waiting."""
@@ -58,15 +62,16 @@ class Publisher:
         while select.select([fd], [], [], 0)[0]:
             self.lc.handle()
 
-    def truth(self, run, k, t, cmd_seq, u_cmd, accel, delta2, stale, act) -> None:
+    def truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale, act) -> None:
         """Row k's truth, with the faults ``act`` it was applied with; its
         fault fields go into the run's row too."""
         fault_y, eff_bias_stuck = self.twin.fault_fields(act, t)
-        bias = (0.0, 0.0, 0.0) if self.bias_true is None else self.bias_true[k]
+        row, j = self.ring.slot(k)
+        bias = (0.0, 0.0, 0.0) if self.sensors is None else row["bias_true"][j]
         self.lc.publish(self._ch_truth, truth_bytes(time.time_ns() // 1000, k, t, cmd_seq, u_cmd, accel, delta2,
                                                     self.twin.disturbance(t), fault_y, eff_bias_stuck, stale,
                                                     bias))
-        run["fault_Y"][k] = fault_y
-        run["fault_effectiveness"][k] = eff_bias_stuck[0:4]
-        run["fault_bias"][k] = eff_bias_stuck[4:8]
-        run["fault_stuck"][k] = eff_bias_stuck[8:12]
+        row["fault_Y"][j] = fault_y
+        row["fault_effectiveness"][j] = eff_bias_stuck[0:4]
+        row["fault_bias"][j] = eff_bias_stuck[4:8]
+        row["fault_stuck"][j] = eff_bias_stuck[8:12]

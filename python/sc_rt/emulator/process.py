@@ -32,37 +32,44 @@ memory stays flat while the run lasts.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import secrets
 import select
+import tempfile
 import time
 from collections import Counter
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from sc_rt.wire.auth import open_bus
 from sc_rt.emulator.collision import CollisionGuard
-from sc_rt.emulator.inbox import Inbox, Receiver
+from sc_rt.emulator.inbox import INBOX_COLUMNS, Inbox, Receiver, fill_from_inbox
 from sc_rt.emulator.outbox import Publisher
 from sc_rt.emulator.state import Options, Shared
 from sc_rt.wire.lcmio import channel
-from sc_rt.emulator.loopstats import loop_breakdown
+from sc_rt.emulator.loopstats import LoopBreakdown
 from sc_rt.emulator.peers import ControllerPeers, GuidancePublisher
 from sc_rt.emulator.rtproc import RealtimeThread
 from sc_rt.emulator.sensorpub import SensorPublisher
 from sc_rt.emulator.twin import PlantTwin
-from sc_rt.results.run import Run, RunMeta, provenance
+from sc_rt.results.run import FIELDS, Run, RunMeta, provenance
+from sc_rt.results.store import CHUNK_ROWS, ChunkFile, ChunkReader, RowRing
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
 __all__ = ["Emulator", "Options", "BYTES_PER_ROW"]
 
-#: the loop's monotonic stamps per row (``Emulator._stamps``)
+#: the loop's monotonic stamps per row (``stamps`` of the record)
 _STAMPS = 5
-#: what the emulator holds per row besides the Run, preallocated at start:
-#: the inbox (emulator/inbox.py) and the loop's stamps (cli/validate.py's estimate)
+#: what the emulator records per row besides the run's fields: the inbox
+#: (emulator/inbox.py) and the loop's stamps (cli/validate.py's estimate)
 BYTES_PER_ROW = Inbox.BYTES_PER_ROW + _STAMPS * 8
+#: the emulator's record (results/store.py): the run's fields, the inbox's, the stamps
+RECORD_COLUMNS = (*((f.name, f.shape, f.dtype, f.fill) for f in FIELDS), *INBOX_COLUMNS,
+                  ("stamps", (_STAMPS,), "i8", 0))
 
 
 class Emulator:
@@ -89,8 +96,8 @@ class Emulator:
         self._rt = RealtimeThread(freeze_gc=opts.freeze_gc, cpu=opts.cpu, fifo=opts.realtime_priority)
         #: the row's arithmetic: the C++ plant twin, or the Python model (emulator/twin.py)
         self.twin = PlantTwin(scn.plant, opts.cpp_plant)
-        #: per row, monotonic ns: [tick or answer, integrated, state published, truth started, truth done]
-        self._stamps: np.ndarray | None = None
+        #: where the loop's microseconds went (emulator/loopstats.py), after the run
+        self._breakdown: dict[str, Any] = {}
         #: real time: row k's record and truth wait (bounded) until the answer to
         #: state k + 1 is in, so the command is handled as it arrives
         self._pending: tuple | None = None
@@ -122,12 +129,20 @@ class Emulator:
         self._gap_start: float | None = None
         self.session = secrets.randbits(62)
         n_rows = grid(scn)[0] + 1
+        #: the run's record (results/store.py): every row's fields, its command and status as
+        #: received, its stamps; two chunks live, the older rows written as the run goes
+        #: (``record_dir``/trajectory.arrow, once the run outgrows the two chunks)
+        self._chunk = min(int(opts.record_chunk or CHUNK_ROWS), max(1, (n_rows + 1) // 2))  # a short run: no more
+        self.ring = RowRing(RECORD_COLUMNS, self._chunk, self._spill)
+        self._raw: ChunkFile | None = None
+        self._tmpdir: tempfile.TemporaryDirectory | None = None
+        self._last_t = 0.0  # [s] the newest row's time
         #: the handlers and, per state seq of the run's rows, its command,
         #: status and publish times, preallocated (emulator/inbox.py); a second
         #: bench on our URL and prefix stops the run, marked invalid (emulator/collision.py)
         self.receiver = Receiver(
             self.lc, opts.prefix, self.session, n_rows, self.shared, peers=self.peers,
-            accept_faults=opts.accept_fault_commands, authenticated=opts.auth_key is not None,
+            accept_faults=opts.accept_fault_commands, authenticated=opts.auth_key is not None, ring=self.ring,
             guard=CollisionGuard(opts.url, opts.prefix, self.session,
                                  alive_s=max(0.5, self.stale_periods / self.rate / opts.time_scale)))
         self.inbox = self.receiver.inbox
@@ -137,7 +152,7 @@ class Emulator:
         self.sensors = (SensorPublisher(scn, self.session, self.lc.publish, opts.prefix)
                         if scn.sensors is not None else None)
         self.publisher = Publisher(self.lc, opts.prefix, self.session, guidance, self.inbox, self.twin,
-                                   self.sensors, n_rows)
+                                   self.sensors, self.ring)
         self.guidance = guidance
 
     # the shared values, by their old names (the CLI, the HIL runner, tests)
@@ -209,9 +224,8 @@ class Emulator:
         return self._rt.description
 
     def breakdown(self) -> dict[str, Any]:
-        """Where each row's microseconds went (emulator/loopstats.py)."""
-        i = self.inbox
-        return loop_breakdown(self._stamps, self.mode, i.cmd_utime, i.pub_wall_us, i.cmd_rx, i.pub_ns)
+        """Where each row's microseconds went (emulator/loopstats.py), after the run."""
+        return self._breakdown
 
     def _await_controller(self, x0: np.ndarray) -> None:
         """Re-send state 0 until a controller answers it (raises RuntimeError
@@ -234,17 +248,22 @@ class Emulator:
                 self.lc.handle_timeout(20)
         self.start_wait_s = (time.monotonic_ns() - t_start) / 1e9
 
-    def _allocate(self, n: int) -> Run:
-        return Run.allocate(n, RunMeta.of_scenario(self.scn, f"hil-{self.mode}", mode=self.mode))
+    def _meta(self) -> RunMeta:
+        return RunMeta.of_scenario(self.scn, f"hil-{self.mode}", mode=self.mode)
 
-    @staticmethod
-    def _allocate_stamps(n: int) -> np.ndarray:
-        # np.full writes every element (np.zeros would leave the pages to the
-        # first write of each row: memory growing during the run)
-        return np.full((n, _STAMPS), 0, np.int64)
+    def _spill(self, cols: dict[str, np.ndarray], base: int, n: int) -> None:
+        """A chunk of the record leaves the live rows: to the raw file."""
+        if self._raw is None:
+            d = self.opts.record_dir
+            if d is None:
+                self._tmpdir = tempfile.TemporaryDirectory(prefix="sc-rt-record-")
+                d = self._tmpdir.name
+            self._raw = ChunkFile(Path(d) / "record.raw.arrow", RECORD_COLUMNS)
+        self._raw.write(cols, n)
 
-    @staticmethod
-    def _record(run, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2) -> None:
+    def _record(self, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2) -> None:
+        run, k = self.ring.slot(k)
+        self._last_t = t
         run["t"][k] = t
         run["sigma_BN"][k] = x[0:3]
         run["omega_BN_B"][k] = x[3:6]
@@ -262,9 +281,8 @@ class Emulator:
     def _run_lockstep(self) -> Run:
         scn = self.scn
         n_ctrl, n_sub, h, rate = grid(scn)
-        traj = self._allocate(n_ctrl + 1)
-        self._stamps = stamps = self._allocate_stamps(n_ctrl + 1)
         inbox = self.inbox
+        ring = self.ring
         x = initial_state(scn)
         rows = 0
         silent = 0  # consecutive states without an answer
@@ -272,6 +290,7 @@ class Emulator:
         for k in range(n_ctrl + 1):
             t = k / rate
             self.shared.t_now = t
+            ring.reach(k + 1)  # rows k and k + 1 live: the record's older chunk goes to disk
             cmd = None
             # a silent peer (crashed controller) gets one short wait per state
             # instead of the full timeout and retries: the run goes on under
@@ -305,13 +324,14 @@ class Emulator:
             if stale:
                 # watchdog: no answer to this state: apply zero, flag, go on
                 self.shared.counters["cmd_timeout"] += 1
-            stamps[k, 0] = time.monotonic_ns()
-            x = self._apply(traj, k, t, x, cmd, n_sub, h, None if k == n_ctrl else (k + 1, (k + 1) / rate),
-                            stamps[k])
+            row, j = ring.slot(k)
+            stamps = row["stamps"][j]
+            stamps[0] = time.monotonic_ns()
+            x = self._apply(k, t, x, cmd, n_sub, h, None if k == n_ctrl else (k + 1, (k + 1) / rate), stamps)
             rows = k + 1
             if k == n_ctrl or x is None or self._should_stop():
                 break
-        return self._finish(traj, rows, x is None and rows < n_ctrl + 1)
+        return self._finish(rows, x is None and rows < n_ctrl + 1)
 
     def _run_realtime(self) -> Run:
         scn = self.scn
@@ -319,11 +339,9 @@ class Emulator:
         period = 1.0 / rate
         wall_period_ns = int(round(period / self.time_scale * 1e9))
         stale_ns = int(self.stale_periods * wall_period_ns)
-        traj = self._allocate(n_ticks + 1)
-        self._stamps = stamps = self._allocate_stamps(n_ticks + 1)
+        ring = self.ring
         defer_ns = wall_period_ns // 2  # a row's truth waits at most half a period for the answer
         x = initial_state(scn)
-        lateness = traj["tick_lateness_us"]
         rows = 0
         self.publisher.state(0, 0.0, x)
         start = time.monotonic_ns()
@@ -331,27 +349,30 @@ class Emulator:
         for k in range(n_ticks + 1):
             t = k * period
             self.shared.t_now = t
+            ring.reach(k + 1)  # rows k and k + 1 live: the record's older chunk goes to disk
             deadline = start + (k + 1) * wall_period_ns
             # the next state's guidance while there is time (it needs no command)
             self._guidance_next = (self.guidance.values((k + 1) * period) if k < n_ticks else None)
             self._handle_until(deadline, spin)
             now = time.monotonic_ns()
-            stamps[k, 0] = now
-            lateness[k] = (now - deadline) / 1e3
+            row, j = ring.slot(k)
+            stamps = row["stamps"][j]
+            stamps[0] = now
+            row["tick_lateness_us"][j] = (now - deadline) / 1e3
             cmd = self.receiver.newest_cmd
             if cmd is None or now - self.receiver.newest_cmd_ns > stale_ns:
                 self.shared.counters["cmd_stale_ticks"] += 1
                 cmd = None
             elif cmd.state_seq == k:  # computed from the state of the period that just ended
                 self.fresh_ticks += 1
-            x = self._apply(traj, k, t, x, cmd, n_sub, h, None if k == n_ticks else (k + 1, (k + 1) * period),
-                            stamps[k], defer_ns=defer_ns)
+            x = self._apply(k, t, x, cmd, n_sub, h, None if k == n_ticks else (k + 1, (k + 1) * period),
+                            stamps, defer_ns=defer_ns)
             rows = k + 1
             if k == n_ticks or x is None or self._should_stop():
                 break
-        return self._finish(traj, rows, x is None and rows < n_ticks + 1)
+        return self._finish(rows, x is None and rows < n_ticks + 1)
 
-    def _apply(self, traj, k: int, t: float, x: np.ndarray, cmd, n_sub: int, h: float,
+    def _apply(self, k: int, t: float, x: np.ndarray, cmd, n_sub: int, h: float,
                next_state: tuple[int, float] | None = None, stamps=None, defer_ns: int | None = None):
         """Row k: apply ``cmd`` (None: the watchdog's zero) over one control
         period; publish the next state (``next_state``: its seq and t; not when
@@ -390,7 +411,7 @@ class Emulator:
             stamps[2] = time.monotonic_ns()
         if self._pending is not None:  # a late tick: the previous row's record and truth first, never lost
             self._flush_pending()
-        self._pending = (traj, k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps)
+        self._pending = (k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps)
         if defer_ns is None or next_state is None or not finite:
             self._flush_pending()
         else:
@@ -399,29 +420,27 @@ class Emulator:
 
     def _flush_pending(self) -> None:
         """The deferred part of a row: its record and its truth."""
-        traj, k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps = self._pending
+        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps = self._pending
         self._pending = None
         if stamps is not None:
             stamps[3] = time.monotonic_ns()
         _, accel, delta2 = self.twin.row(act, t, x, u_cmd)
-        self._record(traj, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2)
+        self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2)
         self.publisher.drain()  # an answer that came meanwhile is received now, not after the truth's publish
-        self.publisher.truth(traj, k, t, cmd_seq, u_cmd, accel, delta2, stale, act)
+        self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act)
         if stamps is not None:
             stamps[4] = time.monotonic_ns()
 
-    def _finish(self, run: Run, rows: int, diverged: bool) -> Run:
+    def _finish(self, rows: int, diverged: bool) -> Run:
         if self._pending is not None:
             self._flush_pending()
         if self._gap_start is not None and rows > 0:
-            self._gaps.append((self._gap_start, float(run["t"][rows - 1])))
+            self._gaps.append((self._gap_start, self._last_t))
             self._gap_start = None
         # let the last status arrive
         self._handle_until(time.monotonic_ns() + 20_000_000)
-        run = run.head(rows)
-        self.inbox.fill(run)
+        run = self._close_record(rows)
         if self.sensors is not None:
-            run["bias_true"][:] = self.publisher.bias_true[:rows]
             self.shared.counters.update(self.sensors.counters())
         run.counters = dict(self.shared.counters)
         run.gaps = list(self._gaps)
@@ -436,6 +455,40 @@ class Emulator:
         if self.shared.stopped is not None:
             run.partial = True
             run.message = self.shared.stopped
-            run.metrics.update(stopped=self.shared.stopped, t_reached_s=float(run["t"][rows - 1]) if rows else None)
+            run.metrics.update(stopped=self.shared.stopped, t_reached_s=self._last_t if rows else None)
         run.metrics.update(provenance(self.session, self.receiver.ctl_session, self.shared.invalid))
+        return run
+
+    def _close_record(self, rows: int) -> Run:
+        """The run from its record: held in memory when it fits in the two
+        live chunks; else the last rows go to the raw file too, and the rows
+        are read back a chunk at a time, the statuses decoded, and written as
+        trajectory.arrow (``record_dir``) that the run reads from."""
+        meta = self._meta()
+        loop = LoopBreakdown(self.mode)
+        if self._raw is None:  # the whole run is live, from row 0
+            cols = {n: np.concatenate([b[n] for b, _ in self.ring.iter_live()])[:rows] for n, *_ in RECORD_COLUMNS}
+            run = Run(meta, {f.name: cols[f.name] for f in FIELDS}, rows=rows)
+            fill_from_inbox(run, cols)
+            loop.add(cols["stamps"], cols["cmd_utime"], cols["pub_wall_us"], cols["cmd_rx"], cols["pub_ns"])
+            self._breakdown = loop.result()
+            return run
+        self.ring.finish(rows)
+        raw_path = self._raw.close()
+        out = raw_path.with_name("trajectory.arrow")
+        w = ChunkFile(out, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+                      {"sc_rt.meta": json.dumps(meta.to_json())})
+        src = ChunkReader(raw_path)
+        for i in range(src.n_batches):
+            cols = src.batch(i)
+            chunk = Run(meta, {f.name: cols[f.name] for f in FIELDS})
+            fill_from_inbox(chunk, cols)
+            loop.add(cols["stamps"], cols["cmd_utime"], cols["pub_wall_us"], cols["cmd_rx"], cols["pub_ns"])
+            w.write(chunk.trajectory, len(chunk))
+        src.close()
+        w.close()
+        raw_path.unlink()
+        self._breakdown = loop.result()
+        run = Run.stored(meta, out)
+        run.tmpdir = self._tmpdir  # a temporary directory lasts as long as the run
         return run

@@ -229,7 +229,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
             plots: bool = True, external: str | None = None, external_wait: bool = False,
             start_timeout: float | None = None, auth_key: str | Path | None = None,
             setup: TimingSetup | None = None, floor: dict | str | None = None,
-            rt_limits: RealtimeLimits | None = None) -> HilResult:
+            rt_limits: RealtimeLimits | None = None, record_chunk: int | None = None) -> HilResult:
     """A bench run. The controller is sc-rt-controller, or (hil/external.py)
     ``external``: a command line started instead (a Python law ``law`` =
     "module:Class" runs as ``sc-rt controller``), or, with ``external_wait``,
@@ -300,6 +300,10 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     rt_limits : RealtimeLimits, optional
         What "kept real time" means for a real-time run (sc_rt.logs.timing);
         a run beyond them is invalid. None: the defaults.
+    record_chunk : int, optional
+        Rows per chunk of the run's record (results/store.py; None: its
+        CHUNK_ROWS). A run longer than two chunks writes its rows to
+        ``out``/trajectory.arrow as it runs, and is read back a chunk at a time.
 
     Returns
     -------
@@ -353,7 +357,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
                    time_scale=time_scale, accept_fault_commands=accept_fault_commands, plots=plots,
                    ctl_bin=ctl_bin, logger_bin=logger_bin, cfg_path=cfg_path, log_path=log_path, ext=ext,
                    key=key, key_path=auth_key, setup=setup, floor=floor,
-                   rt_limits=rt_limits or RealtimeLimits())
+                   rt_limits=rt_limits or RealtimeLimits(), record_chunk=record_chunk)
     with Stopper() as stopper:
         return _run_children(bench, stopper)
 
@@ -383,6 +387,7 @@ class _Bench:
     setup: TimingSetup
     floor: dict | None
     rt_limits: RealtimeLimits = RealtimeLimits()
+    record_chunk: int | None = None
 
 
 def _start_record(b: _Bench) -> bytes:
@@ -497,7 +502,8 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
                                     accept_fault_commands=b.accept_fault_commands,
                                     start_timeout=ext.start_timeout if ext else None, auth_key=key,
                                     spin_us=setup.spin_us, cpu=setup.emulator_cpu,
-                                    realtime_priority=realtime_priority),
+                                    realtime_priority=realtime_priority, record_dir=out,
+                                    record_chunk=b.record_chunk),
                        stop=stopper)
         t0 = time.perf_counter()
         res = emu.run()

@@ -29,19 +29,22 @@ def log_missing(path: Path, prefix: str, rows: int, sent: dict[str, int] | None 
     """Per channel the emulator publishes once per row (state, truth,
     guidance), and per sensor channel in ``sent`` (channel -> samples the
     emulator sent, numbered from 0): how many of those messages the log lacks
-    (by count of distinct seqs; re-sent ones count once). Zero everywhere for
-    a complete log."""
+    (by seq: re-sent ones count once, seqs outside what was sent not at
+    all; a bit per seq, so any length of run). Zero everywhere for a complete log."""
     sent = {c: n for c, n in (sent or {}).items() if n}
-    want = {prefix + c: set() for c in ("SCRT_STATE", "SCRT_TRUTH", "SCRT_GUIDANCE", *sent)}
+    want = {c: sent.get(c, rows) for c in ("SCRT_STATE", "SCRT_TRUTH", "SCRT_GUIDANCE", *sent)}
+    seen = {prefix + c: np.zeros(n, bool) for c, n in want.items()}
     try:
         for _n, _t, ch, data in read_events(path, partial=True):
-            s = want.get(ch.decode("utf-8", "replace"))
+            s = seen.get(ch.decode("utf-8", "replace"))
             if s is not None and len(data) >= 24:
-                s.add(int.from_bytes(data[16:24], "big", signed=True))  # the seq after fingerprint, utime
+                k = int.from_bytes(data[16:24], "big", signed=True)  # the seq after fingerprint, utime
+                if 0 <= k < len(s):
+                    s[k] = True
     except (LogDamaged, OSError):
-        return {c[len(prefix):]: sent.get(c[len(prefix):], rows) for c in want}
-    seen = {c[len(prefix):]: len(s) for c, s in want.items()}
-    return {c: max(0, sent.get(c, rows) - n) if n or c != "SCRT_GUIDANCE" else 0 for c, n in seen.items()}
+        return dict(want)
+    got = {c[len(prefix):]: int(np.count_nonzero(s)) for c, s in seen.items()}
+    return {c: want[c] - n if n or c != "SCRT_GUIDANCE" else 0 for c, n in got.items()}
 
 
 def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, Any]:

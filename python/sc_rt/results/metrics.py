@@ -35,25 +35,33 @@ def fill_tracking_errors(run: Run, guidance) -> int:
     never used) get sigma_DN, sigma_BD and omega_BD_B from the plant state and
     the desired trajectory, computed as the controller does (guidance
     integrated with RK4 steps of at most one control period, (8), (11)).
-    ``guidance`` is a ``_core.GuidanceParams``. Returns the rows filled."""
+    ``guidance`` is a ``_core.GuidanceParams``. Returns the rows filled. A
+    run on disk is read (and, when a row lacks them, rewritten) a chunk at a time."""
     from sc_rt import _core
 
-    missing = np.flatnonzero(np.isnan(run["sigma_BD"]).any(axis=1))
-    if missing.size == 0:
+    if not any(bool(np.isnan(c["sigma_BD"]).any()) for c in run.chunks()):
         return 0
     g = _core.Guidance(guidance, 1.0 / run.meta.control_rate_hz)
     g.reset(0.0)
-    t_all, s_bn, w_bn = run["t"], run["sigma_BN"], run["omega_BN_B"]
-    s_dn, s_bd, w_bd = run["sigma_DN"], run["sigma_BD"], run["omega_BD_B"]
-    for k in missing:  # increasing times: the guidance only moves forward
-        t = float(t_all[k])
-        g.advance(t)
-        sd = np.asarray(g.sigma_DN)
-        x1 = np.asarray(_core.mrp_subtract(s_bn[k], sd))
-        s_dn[k] = sd
-        s_bd[k] = x1
-        w_bd[k] = w_bn[k] - _core.mrp_to_dcm(x1) @ _core.omega_d(guidance, t)
-    return int(missing.size)
+    filled = 0
+
+    def fill(c: Run) -> None:
+        nonlocal filled
+        missing = np.flatnonzero(np.isnan(c["sigma_BD"]).any(axis=1))
+        t_all, s_bn, w_bn = c["t"], c["sigma_BN"], c["omega_BN_B"]
+        s_dn, s_bd, w_bd = c["sigma_DN"], c["sigma_BD"], c["omega_BD_B"]
+        for k in missing:  # increasing times: the guidance only moves forward
+            t = float(t_all[k])
+            g.advance(t)
+            sd = np.asarray(g.sigma_DN)
+            x1 = np.asarray(_core.mrp_subtract(s_bn[k], sd))
+            s_dn[k] = sd
+            s_bd[k] = x1
+            w_bd[k] = w_bn[k] - _core.mrp_to_dcm(x1) @ _core.omega_d(guidance, t)
+        filled += int(missing.size)
+
+    run.map_chunks(fill)
+    return filled
 
 
 def _ppc_arrays(ppc) -> tuple[np.ndarray, ...]:

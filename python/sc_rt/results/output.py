@@ -28,10 +28,15 @@ def check_out_dir(out: Path, option: str = "--out") -> str | None:
     return None
 
 
+#: Rows a figure draws at most (a longer run is decimated: Run.decimated)
+FIGURE_ROWS = 40_000
+
+
 def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
               compress: bool = True) -> list[Path]:
-    """trajectory.npz, metrics.json, timing.json (bench runs) and the
-    figures into ``out``; returns every file written, in order.
+    """trajectory.npz (a run on disk: trajectory.arrow, results/store.py),
+    metrics.json, timing.json (bench runs) and the figures into ``out``;
+    returns every file written, in order.
 
     Parameters
     ----------
@@ -59,18 +64,20 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
     out.mkdir(parents=True, exist_ok=True)
     if (run_id := claimed_run_id(out)) is not None:  # the run that holds the directory (OutDir)
         run.metrics["run_id"] = run_id
-    paths = [run.save_npz(out / "trajectory.npz", compress=compress),
-             write_json(out / "metrics.json", run.metrics)]
+    traj = run.save_arrow(out / "trajectory.arrow") if run.is_stored else run.save_npz(out / "trajectory.npz",
+                                                                                      compress=compress)
+    paths = [traj, write_json(out / "metrics.json", run.metrics)]
     if run.timing is not None:
         paths.append(write_json(out / "timing.json", run.timing))
     if figures:
         from sc_rt.results import figures as fig
         from sc_rt.results.requirement_figures import requirement_figures
 
-        paths += fig.tracking_figures(run, out, title=title)
-        paths += requirement_figures(run, out, title=title)  # wheel_speeds.png, requirements.png
+        drawn = run.decimated(FIGURE_ROWS) if run.is_stored else run  # a run on disk: peaks kept
+        paths += fig.tracking_figures(drawn, out, title=title)
+        paths += requirement_figures(drawn, out, title=title)  # wheel_speeds.png, requirements.png
         if run.timing is not None:
-            paths += fig.timing_figures(run, out)
+            paths += fig.timing_figures(drawn, out)
     return paths
 
 

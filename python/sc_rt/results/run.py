@@ -294,6 +294,35 @@ class Run:
         tmp.replace(src.path)
         self._store = ChunkReader(src.path)
 
+    def decimated(self, max_rows: int) -> Run:
+        """An in-memory copy of at most about ``max_rows`` rows for figures:
+        the rows cut into buckets of consecutive rows, and of each bucket its
+        first row and the rows of the largest pointing error (|sigma_BD|),
+        state-to-command latency and compute time, so that peaks stay in
+        the picture. A run of at most ``max_rows`` rows: itself."""
+        n = len(self)
+        if n <= max_rows:
+            return self
+        per = max(1, -(-n // max(1, max_rows // 4)))  # rows per bucket
+        parts: dict[str, list[np.ndarray]] = {f.name: [] for f in FIELDS}
+        row0 = 0
+        for c in self.chunks():
+            m = len(c)
+            bucket = (row0 + np.arange(m)) // per
+            starts = np.flatnonzero(np.r_[True, bucket[1:] != bucket[:-1]])
+            keep = [starts]
+            for key in (np.linalg.norm(c["sigma_BD"], axis=1), c["latency_us"], c["compute_us"]):
+                v = np.where(np.isfinite(key), key, -np.inf)
+                keep.append(np.array([s + int(np.argmax(v[s:e])) for s, e in zip(starts, np.r_[starts[1:], m])]))
+            idx = np.unique(np.concatenate(keep))
+            for f in FIELDS:
+                parts[f.name].append(c[f.name][idx])
+            row0 += m
+        r = Run(self.meta, {k: np.concatenate(v) for k, v in parts.items()}, metrics=self.metrics,
+                timing=self.timing, counters=self.counters, gaps=self.gaps, faults_applied=self.faults_applied,
+                diverged=self.diverged, message=self.message, partial=self.partial)
+        return r
+
     # --- access -----------------------------------------------------------
     def __getitem__(self, name: str) -> np.ndarray:
         """The field's array; on disk, a copy of the whole column read now

@@ -54,10 +54,12 @@ def _to_arrow(a: np.ndarray):
 
 
 def _from_arrow(col, shape: tuple[int, ...], dtype: str) -> np.ndarray:
+    """A column of a batch as a numpy array of its own (writable: a chunk's
+    derived fields are filled in place)."""
     if not shape:
-        return np.asarray(col.to_numpy(zero_copy_only=False), dtype=dtype)
+        return np.array(col.to_numpy(zero_copy_only=False), dtype=dtype)
     flat = col.flatten().to_numpy(zero_copy_only=False)
-    return np.asarray(flat, dtype=dtype).reshape(-1, *shape)
+    return np.array(flat, dtype=dtype).reshape(-1, *shape)
 
 
 class ChunkFile:

@@ -1,0 +1,147 @@
+"""Runs on disk (issue #31, item 2): the rows of a long run go to an Arrow
+IPC file a chunk at a time (results/store.py), and everything after the run
+reads them back a chunk at a time.
+
+Checked against what does not share the chunked code: the same run held
+whole in memory (one chunk) and the offline simulator, bit for bit; the
+file read by pyarrow's own Feather reader; a lost-message count against
+sets of seqs."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sc_rt.results.metrics import finish_run
+from sc_rt.results.run import FIELDS, Run
+from sc_rt.results.store import ChunkFile, ChunkReader, RowRing
+from sc_rt.scenario.reader import load_scenario
+from sc_rt.sim.engines import simulate
+
+import lcmnet
+from trajcmp import compared_fields
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _on_disk(run: Run, path: Path, batch: int) -> Run:
+    """``run``'s rows written in batches of ``batch`` rows, opened on disk."""
+    w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS])
+    for k in range(0, len(run), batch):
+        w.write({f.name: run[f.name][k:k + batch] for f in FIELDS}, min(batch, len(run) - k))
+    w.close()
+    return Run.stored(run.meta, path)
+
+
+def test_the_file_is_arrow_that_pyarrow_reads_without_sc_rt(tmp_path, rng):
+    import pyarrow.feather as feather
+
+    cols = [("t", (), "f8", np.nan), ("v", (3,), "f8", np.nan), ("ok", (3,), "?", False), ("k", (), "i8", -1)]
+    n = 1_000
+    data = {"t": rng.standard_normal(n), "v": rng.standard_normal((n, 3)), "ok": rng.random((n, 3)) < 0.5,
+            "k": rng.integers(-5, 5, n)}
+    w = ChunkFile(tmp_path / "x.arrow", cols, {"note": "hello"})
+    for s in range(0, n, 300):
+        w.write({k: v[s:s + 300] for k, v in data.items()}, min(300, n - s))
+    w.close()
+    r = ChunkReader(tmp_path / "x.arrow")
+    assert (r.rows, r.n_batches, r.metadata["note"]) == (n, 4, "hello")
+    for k, v in data.items():
+        assert np.array_equal(r.column(k), v)
+    table = feather.read_table(tmp_path / "x.arrow")  # Feather v2 is the Arrow IPC file format
+    assert table.num_rows == n
+    assert np.array_equal(np.stack(table.column("v").to_pylist()), data["v"])
+    assert table.column("ok").to_pylist()[7] == list(data["ok"][7])
+
+
+def test_a_ring_hands_over_every_row_once_in_order():
+    got: list[tuple[int, int]] = []
+    seen = []
+    ring = RowRing([("k", (), "i8", -1)], 5, lambda cols, base, n: (got.append((base, n)),
+                                                                     seen.extend(cols["k"][:n])))
+    for k in range(23):
+        ring.reach(k + 1)
+        c, j = ring.slot(k)
+        c["k"][j] = k
+        assert ring.slot(k - 11) is None  # written already
+        assert ring.slot(k + 11) is None  # not live yet
+    ring.finish(23)
+    assert seen == list(range(23))
+    assert got == [(0, 5), (5, 5), (10, 5), (15, 5), (20, 3)]
+
+
+@pytest.mark.parametrize("scenario, batch", [("paper_faults", 97), ("ppc_feasible_1khz", 1_000)])
+def test_metrics_of_a_run_on_disk_equal_those_of_the_run_held_whole(scenario, batch, tmp_path):
+    scn = load_scenario(ROOT / "scenarios" / f"{scenario}.toml")
+    whole = simulate(scn, engine="cpp", duration=40.0)
+    disk = _on_disk(whole, tmp_path / "trajectory.arrow", batch)
+    assert disk.is_stored and len(disk) == len(whole)
+    disk.metrics = {}
+    finish_run(disk)  # rewrites the derived fields a batch at a time, then reads them
+    held = {k: v for k, v in whole.metrics.items() if k != "law_failures"}  # simulate adds it after finish_run
+    assert json.dumps(disk.metrics, sort_keys=True) == json.dumps(held, sort_keys=True)
+    for f in FIELDS:
+        assert np.array_equal(disk[f.name], whole[f.name], equal_nan=f.dtype == "f8"), f.name
+    # figures of a run on disk draw a decimated copy that keeps the peaks
+    drawn = disk.decimated(200)
+    assert len(drawn) < len(whole) // 3
+    s = np.linalg.norm(whole["sigma_BD"], axis=1)
+    assert np.linalg.norm(drawn["sigma_BD"], axis=1).max() == s.max()
+    assert drawn["t"][0] == 0.0 and np.all(np.diff(drawn["t"]) > 0)
+
+
+def test_log_missing_counts_each_seq_once_and_ignores_foreign_ones(tmp_path):
+    from sc_rt.logs.timing import log_missing
+
+    lcm = pytest.importorskip("lcm")
+    path = tmp_path / "x.lcmlog"
+    log = lcm.EventLog(str(path), "w", overwrite=True)
+
+    def msg(seq: int) -> bytes:
+        return b"\0" * 16 + int(seq).to_bytes(8, "big", signed=True) + b"\0" * 8
+
+    for seq in (0, 1, 1, 3, 4, 2**40, -7):  # 2 lost; a duplicate and two seqs of no row
+        log.write_event(0, "P_SCRT_STATE", msg(seq))
+    for seq in range(5):
+        log.write_event(0, "P_SCRT_TRUTH", msg(seq))
+    log.close()
+    expected_sets = {"SCRT_STATE": {0, 1, 3, 4}, "SCRT_TRUTH": set(range(5)), "SCRT_GUIDANCE": set()}
+    want = {c: (5 - len(s) if s or c != "SCRT_GUIDANCE" else 0) for c, s in expected_sets.items()}
+    assert log_missing(path, "P_", 5) == want == {"SCRT_STATE": 1, "SCRT_TRUTH": 0, "SCRT_GUIDANCE": 0}
+
+
+def test_lockstep_run_written_as_it_runs_is_bit_identical_to_offline_sim(tmp_path):
+    lcmnet.require()
+    out = tmp_path / "hil"
+    code = (f"from pathlib import Path; from sc_rt.hil.runner import run_hil; "
+            f"from sc_rt.scenario.reader import load_scenario; "
+            f"r = run_hil(load_scenario('paper_faults'), out=Path({str(out)!r}), mode='lockstep', duration=30.0, "
+            f"record_chunk=64); print(r.run.is_stored, len(r.run))")
+    r = lcmnet.run([sys.executable, "-c", code], timeout=300)
+    assert r.returncode == 0, r.stderr + r.stdout
+    assert r.stdout.split()[-2:] == ["True", "301"]
+    assert not (out / "trajectory.npz").exists() and not (out / "record.raw.arrow").exists()
+    hil = Run.load(out)
+    assert hil.is_stored and len(hil) == 301
+    sim = simulate(load_scenario(ROOT / "scenarios" / "paper_faults.toml"), engine="python", duration=30.0)
+
+    class Npz(dict):  # trajcmp's view of a trajectory.npz
+        files = property(lambda self: list(self))
+
+    compared_fields(Npz(hil.trajectory), sim)
+    m = json.loads((out / "metrics.json").read_text())
+    for k in ("first_bound_violation_s", "sigma_e_norm", "omega_e_norm", "max_abs_u_cmd", "saturated_fraction",
+              "final_wheel_speed", "requirements"):
+        assert m[k] == json.loads(json.dumps(sim.metrics[k])), k
+    assert m["valid"] is True
+    timing = json.loads((out / "timing.json").read_text())
+    assert set(timing["log_missing"].values()) == {0}
+    lat = hil["latency_us"]
+    assert np.all(np.isfinite(lat)) and np.all(lat > 0)  # every status and answer kept across the chunks
+    assert np.all(np.isfinite(hil["compute_us"]))
+    assert timing["emulator_breakdown_us"]["rows"] == 301
+    assert (out / "pointing_error.png").stat().st_size > 0
