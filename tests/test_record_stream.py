@@ -30,7 +30,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def _on_disk(run: Run, path: Path, batch: int) -> Run:
     """``run``'s rows written in batches of ``batch`` rows, opened on disk."""
-    w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS])
+    w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+                  {"sc_rt.meta": json.dumps(run.meta.to_json())})  # as the emulator writes it
     for k in range(0, len(run), batch):
         w.write({f.name: run[f.name][k:k + batch] for f in FIELDS}, min(batch, len(run) - k))
     w.close()
@@ -145,3 +146,24 @@ def test_lockstep_run_written_as_it_runs_is_bit_identical_to_offline_sim(tmp_pat
     assert np.all(np.isfinite(hil["compute_us"]))
     assert timing["emulator_breakdown_us"]["rows"] == 301
     assert (out / "pointing_error.png").stat().st_size > 0
+
+
+def test_the_report_of_a_run_on_disk_draws_the_timeline_of_the_run_held_whole(tmp_path):
+    import re
+
+    from sc_rt.results.html_report import render_html
+    from sc_rt.results.output import write_run
+
+    scn = load_scenario(ROOT / "scenarios" / "paper_faults.toml")
+    whole = simulate(scn, engine="cpp", duration=60.0)  # faults, SAFE-free, bound left on one axis
+    disk = _on_disk(whole, tmp_path / "rows.arrow", 50)
+    disk.metrics = dict(whole.metrics)
+    write_run(whole, tmp_path / "whole", figures=False)
+    write_run(disk, tmp_path / "disk", figures=False)
+    assert (tmp_path / "disk" / "trajectory.arrow").exists() and not (tmp_path / "disk" / "trajectory.npz").exists()
+
+    def svg(d: Path) -> str:
+        return re.search(r'<svg viewBox=.*?id="timeline-svg">.*?</svg>', render_html(d), re.S).group(0)
+
+    a, b = svg(tmp_path / "whole"), svg(tmp_path / "disk")
+    assert a == b and "wheel 1 fault" in a and "outside bound" in a

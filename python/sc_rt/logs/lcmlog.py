@@ -71,11 +71,22 @@ def read_events(path: str | Path, scan: LogScan | None = None, partial: bool = F
             yield from _events(mm, size, path, scan, partial)
 
 
+#: Bytes of the log read between two releases of the pages behind (a log of
+#: any length is read in this much resident memory)
+_RELEASE_BYTES = 16 << 20
+
+
 def _events(mm, size: int, path: Path, scan: LogScan, partial: bool):
     unpack = _HEADER.unpack_from
     hsize = _HEADER.size
     pos = 0
+    released = 0  # the pages below this offset are given back (every event yielded is a copy)
+    drop = getattr(mmap, "MADV_DONTNEED", None)
     while pos < size:
+        if drop is not None and pos - released > _RELEASE_BYTES:
+            cut = pos - pos % mmap.PAGESIZE
+            mm.madvise(drop, released, cut - released)
+            released = cut
         if size - pos < hsize:
             what = f"truncated log: a torn event header ({size - pos} of {hsize} bytes)"
             if not partial:

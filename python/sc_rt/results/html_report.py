@@ -131,6 +131,8 @@ def _load(run_dir: Path) -> dict[str, Any]:
     traj: dict[str, np.ndarray] = {}
     meta: dict[str, Any] = {}
     p = run_dir / "trajectory.npz"
+    if not p.exists() and (run_dir / "trajectory.arrow").exists():
+        traj, meta = _timeline_of_stored(run_dir / "trajectory.arrow")
     if p.exists():
         with np.load(p, allow_pickle=False) as z:
             for k in ("t", "bound_ok", "ctrl_mode", "flags", "fault_Y", "cmd_stale"):
@@ -143,6 +145,35 @@ def _load(run_dir: Path) -> dict[str, Any]:
                   key=lambda q: (list(FIGURES).index(q.name) if q.name in FIGURES else len(FIGURES), q.name))
     return {"metrics": metrics, "timing": js("timing.json"), "report": js("report.json"), "traj": traj,
             "meta": meta, "figures": figs}
+
+
+def _timeline_of_stored(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """What the timeline draws of a run on disk (trajectory.arrow), read a
+    chunk at a time and kept at its change points only: the rows where the
+    mode, the flags, a command gap, the bound or a fault's activity (Y > 0)
+    changes, and the last row. Every span the timeline draws ends at the
+    next change, so the spans are those of every row."""
+    from sc_rt.results.store import ChunkReader
+
+    r = ChunkReader(path)
+    names = ("t", "bound_ok", "ctrl_mode", "flags", "fault_Y", "cmd_stale")
+    kept: dict[str, list[np.ndarray]] = {k: [] for k in names}
+    prev = None
+    for i in range(r.n_batches):
+        c = r.batch(i, names)
+        c["fault_Y"] = (np.nan_to_num(c["fault_Y"]) > 0).astype(float)  # all the timeline uses of it
+        key = np.column_stack([c["bound_ok"], c["ctrl_mode"], c["flags"], c["fault_Y"], c["cmd_stale"] != 0])
+        change = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]
+        if prev is not None:
+            change[0] = bool(np.any(key[0] != prev))
+        if i == r.n_batches - 1:
+            change[-1] = True
+        prev = key[-1]
+        for k in names:
+            kept[k].append(c[k][change])
+    meta = json.loads(r.metadata.get("sc_rt.meta", "{}"))
+    r.close()
+    return ({k: np.concatenate(v) for k, v in kept.items()} if r.n_batches else {}), meta
 
 
 def _scheduled(d: dict[str, Any]) -> list[dict[str, Any]]:
