@@ -1,6 +1,6 @@
 """The emulator's per-state-seq inbox (emulator/inbox.py): two chunks of
 rows live in the emulator's record, allocated and touched at start, the
-older rows written to disk, so nothing grows as a run of ten times as many
+older rows written to disk, so nothing grows as a run of 25 times as many
 rows fills; seqs outside the run or the live rows counted and ignored; what
 it keeps per row is what the disk estimate of a bench run counts
 (cli/validate.py)."""
@@ -51,7 +51,7 @@ from pathlib import Path
 import test_inbox as T
 from sc_rt.emulator.inbox import INBOX_COLUMNS
 from sc_rt.results.store import ChunkFile, ChunkReader, RowRing
-n, chunk = 40_000, 2_000
+n, chunk = 100_000, 2_000
 before = T._rss_kb()
 f = ChunkFile(Path(sys.argv[1]) / "inbox.arrow", INBOX_COLUMNS)
 ring = RowRing(INBOX_COLUMNS, chunk, lambda cols, base, rows: f.write(cols, rows))
@@ -78,17 +78,18 @@ print(r.rows, int((r.column("status_len") > 0).sum()), int((r.column("pub_wall_u
 """
 
 
-def test_two_chunks_live_then_flat_while_ten_times_as_many_rows_fill(tmp_path):
+def test_two_chunks_live_then_flat_while_25_times_as_many_rows_fill(tmp_path):
     # a fresh interpreter: in this one, pages freed by earlier tests would
     # be resident already and hide the allocation
     r = subprocess.run([sys.executable, "-c", _MEASURE, str(tmp_path)], capture_output=True, text=True,
                        timeout=120, cwd=Path(__file__).parent)
     assert r.returncode == 0, r.stderr
     rows, statuses, times_ok, allocated_kb, grown_kb = map(int, r.stdout.split())
-    assert (rows, statuses, times_ok) == (40_000, 40_000, 1)  # every row written, none lost
+    assert (rows, statuses, times_ok) == (100_000, 100_000, 1)  # every row written, none lost
     assert allocated_kb * 1024 >= 0.9 * 2 * 2_000 * Inbox.BYTES_PER_ROW, allocated_kb  # resident from the start
-    # 36,000 rows (36 MB of inbox) after the warm-up: the resident memory does not follow them
-    assert grown_kb <= 2048, grown_kb
+    # 92,000 rows (85 MB of inbox) after the warm-up: the resident memory does not follow
+    # them (it moves by 0-4 MB, the same for 40,000 or 400,000 rows: the allocators' own pools)
+    assert grown_kb <= 8192, grown_kb
 
 
 def test_commands_come_back_as_received_and_the_first_one_counts():

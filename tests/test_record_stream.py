@@ -146,6 +146,11 @@ def test_lockstep_run_written_as_it_runs_is_bit_identical_to_offline_sim(tmp_pat
     assert np.all(np.isfinite(hil["compute_us"]))
     assert timing["emulator_breakdown_us"]["rows"] == 301
     assert (out / "pointing_error.png").stat().st_size > 0
+    # what the bench wrote per row is within the disk estimate a run is refused by (cli/validate.py)
+    from sc_rt.cli.validate import disk_bytes_per_row
+
+    written = (out / "trajectory.arrow").stat().st_size + (out / "run.lcmlog").stat().st_size
+    assert written / 301 <= disk_bytes_per_row(), (written / 301, disk_bytes_per_row())
 
 
 def test_the_report_of_a_run_on_disk_draws_the_timeline_of_the_run_held_whole(tmp_path):

@@ -90,7 +90,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
     if args.mode == "realtime":
         sizes["time_scale"] = "--time-scale"
     check_run_size(scn, given_options(args, **sizes), bus=True, realtime=args.mode == "realtime",
-                   time_scale=args.time_scale)
+                   time_scale=args.time_scale, out=out)
     url = resolve_url(args.lcm_url, None)
     live = getattr(args, "live", None)  # --live [PORT]: sc-rt live beside the run (sc_rt/hil/livechild.py)
     if live is not None and url is None:
@@ -178,7 +178,8 @@ def cmd_emulator(args: argparse.Namespace) -> int:
         checked_out(args.out)
     scn = with_overrides(scenario_arg(args.scenario), control_rate_hz=args.rate, duration=args.duration)
     check_run_size(scn, given_options(args, rate="--rate", duration="--duration", time_scale="--time-scale"),
-                   bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale)
+                   bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale,
+                   out=Path(args.out) if args.out else None)
     url = resolve_url(args.lcm_url, DEFAULT_URL)
     if args.out:
         claim_out(Path(args.out))
@@ -186,13 +187,14 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     with flag_signals(sig.append):  # from here the run stops at its next step, its rows kept
         emu = Emulator(scn, Options(mode=args.mode, url=url, prefix=args.prefix, time_scale=args.time_scale,
                                     accept_fault_commands=args.accept_fault_commands,
-                                    start_timeout=args.start_timeout, auth_key=load_key(args.auth_key)),
+                                    start_timeout=args.start_timeout, auth_key=load_key(args.auth_key),
+                                    record_dir=Path(args.out) if args.out else None),
                        stop=lambda: f"interrupted by {signal.Signals(sig[0]).name}" if sig else None)
         print(f"sc-rt emulator: LCM URL {url}", file=sys.stderr, flush=True)
         res = emu.run()
     summary = {"rows": len(res), "counters": dict(res.counters), "gaps_s": rounded(res.gaps),
                "diverged": res.diverged, "partial": res.partial,
-               "t_reached_s": float(res.t[-1]) if len(res) else None}
+               "t_reached_s": emu.t_reached if len(res) else None}
     if args.out:
         from sc_rt.results.metrics import fill_tracking_errors, finish_run
         from sc_rt.results.output import write_run

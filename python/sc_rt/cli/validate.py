@@ -5,8 +5,10 @@
   value (``OneLineParser``), exit code 2, no child process started;
 - ``check_run_size``: the rows and the plant steps a run of a scenario will
   take, its memory estimated from the ``Run`` field table (rows x bytes per
-  row) against the memory available, and a real-time tick the emulator can
-  keep; a run that cannot fit is refused with the numbers (``UsageError``).
+  row) against the memory available (a bench run, which writes its rows as
+  it runs: its disk use against the space free), and a real-time tick the
+  emulator can keep; a run that cannot fit is refused with the numbers
+  (``UsageError``).
 """
 
 from __future__ import annotations
@@ -16,13 +18,15 @@ import math
 import os
 import re
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 __all__ = ["UsageError", "OneLineParser", "number", "integer", "out_dir", "out_file", "lcm_url", "auth_key_file",
-           "resolve_url", "bytes_per_row", "bus_bytes_per_row", "available_memory", "check_run_size",
+           "resolve_url", "bytes_per_row", "bus_bytes_per_row", "disk_bytes_per_row", "free_disk", "available_memory",
+           "check_run_size",
            "rounded", "MAX_RATE_HZ", "MAX_TIME_SCALE", "MAX_PLANT_STEPS", "MIN_WALL_TICK_S", "ENGINE_COPIES"]
 
 #: Rates above this are not a control loop any bench here can close (10 us a step).
@@ -225,13 +229,38 @@ def _size(n: float) -> str:
     return f"{n:.3g} PB"  # pragma: no cover
 
 
+def disk_bytes_per_row() -> int:
+    """What a bench run writes per row at most: the emulator's record
+    (the run's fields and ``bus_bytes_per_row``, until it is read back) and
+    trajectory.arrow (the run's fields), both before their LZ4 compression,
+    and the LCM log (one state, truth, guidance, command and status, each
+    with its event header and channel name)."""
+    import sc_rt_lcm
+
+    msgs = (sc_rt_lcm.plant_state_t, sc_rt_lcm.plant_truth_t, sc_rt_lcm.guidance_t, sc_rt_lcm.wheel_cmd_t,
+            sc_rt_lcm.controller_status_t)
+    log = sum(len(m().encode()) + 20 + 20 for m in msgs)  # header 20 B, a channel name (and prefix) <= 20 B
+    return 2 * bytes_per_row() + bus_bytes_per_row() + log
+
+
+def free_disk(path: Path) -> int:
+    """Bytes free on the file system of ``path`` (or of its nearest existing parent)."""
+    import shutil
+
+    p = Path(path).absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return shutil.disk_usage(p).free
+
+
 def check_run_size(scn: Any, given: str, *, bus: bool = False, realtime: bool = False,
-                   time_scale: float = 1.0, copies: int = 1) -> None:
+                   time_scale: float = 1.0, copies: int = 1, out: Path | None = None) -> None:
     """Refuse (UsageError) a run of ``scn`` (overrides applied) that cannot
     fit in memory or time. ``given``: the options that set its size, as the
-    user typed them (for the message); ``bus``: a bench run (the emulator's
-    per-row records, ``bus_bytes_per_row``); ``copies``: runs held at once
-    (Monte Carlo workers)."""
+    user typed them (for the message); ``bus``: a bench run, which writes
+    its rows as it runs: its disk use (``disk_bytes_per_row``) against the
+    space free in ``out`` (None: the temporary directory) instead of its
+    memory; ``copies``: runs held at once (Monte Carlo workers)."""
     run = scn.run
     rows = math.floor(run.duration * run.control_rate_hz + 0.5) + 1
     steps = run.duration / run.plant_step
@@ -239,9 +268,20 @@ def check_run_size(scn: Any, given: str, *, bus: bool = False, realtime: bool = 
     if steps > MAX_PLANT_STEPS:
         raise UsageError(f"{what}{steps:.3g} plant steps (duration {run.duration:g} s / plant step "
                          f"{run.plant_step:g} s), more than the {MAX_PLANT_STEPS:.0e} a run may take")
-    per_row = bytes_per_row() * ENGINE_COPIES + (bus_bytes_per_row() if bus else 0)
-    need = float(rows) * per_row * copies
-    have = available_memory()
+    if bus:  # the bench writes its rows as it runs (results/store.py): a disk estimate
+        where = Path(out) if out is not None else Path(tempfile.gettempdir())
+        need = float(rows) * disk_bytes_per_row()
+        have = free_disk(where)
+        if need > have:
+            raise UsageError(f"{what}{rows:.6g} rows ({run.duration:g} s at {run.control_rate_hz:g} Hz) x "
+                             f"{_size(disk_bytes_per_row())} per row on disk at most (the record, "
+                             f"trajectory.arrow, the LCM log) = {_size(need)}, more than the {_size(have)} "
+                             f"free in {where}")
+        need = have = 0.0
+    else:
+        per_row = bytes_per_row() * ENGINE_COPIES
+        need = float(rows) * per_row * copies
+        have = available_memory()
     if need > MEMORY_FRACTION * have:
         raise UsageError(f"{what}{rows:.6g} rows ({run.duration:g} s at {run.control_rate_hz:g} Hz) x "
                          f"{_size(per_row)} per row"

@@ -223,6 +223,11 @@ class Emulator:
         """What the emulator's thread got (emulator/rtproc.py)."""
         return self._rt.description
 
+    @property
+    def t_reached(self) -> float:
+        """[s] the time of the newest row recorded."""
+        return self._last_t
+
     def breakdown(self) -> dict[str, Any]:
         """Where each row's microseconds went (emulator/loopstats.py), after the run."""
         return self._breakdown

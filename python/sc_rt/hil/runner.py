@@ -442,14 +442,19 @@ def _judge_real_time(res: Run, summary: dict[str, Any], limits: RealtimeLimits) 
 def _death_line(res: Run, died: str, ext: ExternalController | None) -> str:
     """One line: which process died, how, and when (the time of the last
     state it answered, and of the row the bench stopped at)."""
-    t = res["t"]
     # a state answered by a command of its own (latency measured); a held
     # command (real time) is not an answer
-    answered = np.flatnonzero(np.isfinite(res["latency_us"])) if len(res) else np.array([], int)
-    when = f"at t = {t[answered[-1]]:.3f} s (the last state it answered)" if answered.size else \
+    last = t_end = None
+    for c in res.chunks():
+        answered = np.flatnonzero(np.isfinite(c["latency_us"]))
+        if answered.size:
+            last = float(c["t"][answered[-1]])
+        if len(c):
+            t_end = float(c["t"][-1])
+    when = f"at t = {last:.3f} s (the last state it answered)" if last is not None else \
         "before it answered any state"
     where = f"its stderr: {ext.stderr_name}" if ext else "its stderr: controller_stderr.txt"
-    stop_t = f"; the run stopped at t = {t[-1]:.3f} s" if len(res) else ""
+    stop_t = f"; the run stopped at t = {t_end:.3f} s" if t_end is not None else ""
     return f"{died} {when}{stop_t}; the run is invalid ({where})"
 
 
@@ -526,7 +531,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
         # the logger failed at the very end (its last flush): the log may be short of the run
         stopped = f"sc-rt-logger exited with code {logger_rc} at the end of the run"
         res.partial = True
-        res.metrics.update(stopped=stopped, t_reached_s=float(res.t[-1]) if len(res) else None)
+        res.metrics.update(stopped=stopped, t_reached_s=emu.t_reached if len(res) else None)
     if stopped and logger_err and logger_rc not in (0, -signal.SIGINT):
         stopped += f" (sc-rt-logger: {logger_err.splitlines()[-1]})"
         res.metrics["stopped"] = stopped

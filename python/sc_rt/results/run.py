@@ -382,8 +382,10 @@ class Run:
         path = Path(path)
         if self._store is not None:
             if self._store.path.resolve() != path.resolve():
+                import shutil
+
                 self._store.close()
-                self._store.path.replace(path)
+                shutil.move(self._store.path, path)  # (a temporary directory may be another file system)
                 self._store = ChunkReader(path)
             return path
         w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
