@@ -172,3 +172,24 @@ def test_the_report_of_a_run_on_disk_draws_the_timeline_of_the_run_held_whole(tm
 
     a, b = svg(tmp_path / "whole"), svg(tmp_path / "disk")
     assert a == b and "wheel 1 fault" in a and "outside bound" in a
+
+
+def test_a_long_cpp_run_goes_to_disk_as_it_runs_bit_identical_to_the_run_held_whole(tmp_path, monkeypatch):
+    from sc_rt.sim import engines
+
+    scn = load_scenario(ROOT / "scenarios" / "paper_faults.toml")
+    whole = simulate(scn, engine="cpp", duration=100.0)  # 1001 rows in one call of the C++ loop
+    assert not whole.is_stored
+    monkeypatch.setattr(engines, "OFFLINE_CHUNK_ROWS", 64)  # 16 chunks, the last one short
+    disk = simulate(scn, engine="cpp", duration=100.0, record_dir=tmp_path)
+    assert disk.is_stored and disk.path == tmp_path / "trajectory.arrow" and len(disk) == 1001
+    for f in FIELDS:
+        assert np.array_equal(disk[f.name], whole[f.name], equal_nan=f.dtype == "f8"), f.name
+    a = {k: v for k, v in disk.metrics.items() if k != "wall_s"}
+    b = {k: v for k, v in whole.metrics.items() if k != "wall_s"}
+    assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+    # a run on disk crosses a process boundary by its path (a contained plugin's child)
+    import pickle
+
+    again = pickle.loads(pickle.dumps(disk))
+    assert again.is_stored and np.array_equal(again["sigma_BD"], whole["sigma_BD"])

@@ -294,6 +294,46 @@ void bind_controllers(py::module_& m) {
       "n_sub plant RK4 steps each; returns rows, diverged and the trajectory arrays (one row per\n"
       "control instant; CLOSED_LOOP_FIELDS: (name, width) in dict order).");
 
+  // The resumable loop, a chunk of rows per call (sc_rt.sim.engines: a long run
+  // written to disk as it runs, in memory that does not grow with it).
+  struct ChunkedLoop {
+    std::unique_ptr<ClosedLoop> loop;
+    ClosedLoopResult buf;
+    int capacity = 0;
+  };
+  py::class_<ChunkedLoop>(m, "ClosedLoop",
+                          "simulate_closed_loop's loop, resumable: run(rows) advances it by up to rows\n"
+                          "control instants and returns their columns as simulate_closed_loop does.")
+      .def(py::init([](const ControllerConfig& cfg, const PlantParams& plant, const ActuatorParams& act,
+                       const Eigen::Matrix<double, 10, 1>& x0, int n_ctrl, int n_sub, double rate) {
+             PlantState x{x0.segment<3>(0), x0.segment<3>(3), x0.segment<4>(6)};
+             auto c = std::make_unique<ChunkedLoop>();
+             c->loop = std::make_unique<ClosedLoop>(cfg, plant, act, x, n_ctrl, n_sub, rate);
+             return c;
+           }),
+           arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"))
+      .def(
+          "run",
+          [](ChunkedLoop& c, int rows) {
+            if (rows <= 0) throw std::invalid_argument("ClosedLoop.run: rows must be > 0");
+            if (rows > c.capacity) {  // sized once for the largest chunk asked
+              c.buf.reserve_rows(static_cast<std::size_t>(rows), false);
+              c.capacity = rows;
+            }
+            {
+              py::gil_scoped_release release;
+              c.loop->run(rows, &c.buf);
+            }
+            c.buf.diverged = c.loop->diverged();
+            c.buf.law_failures = c.loop->law_failures();
+            return sc_rt_bind::closed_loop_dict(c.buf, sc_rt_bind::kPlainLoopColumns);
+          },
+          arg("rows"),
+          "Up to rows more control instants (fewer at the end or where the plant diverged): a dict\n"
+          "as simulate_closed_loop's, of these rows only.")
+      .def_property_readonly("done", [](const ChunkedLoop& c) { return c.loop->done(); })
+      .def_property_readonly("next_row", [](const ChunkedLoop& c) { return c.loop->next_row(); });
+
   m.def(
       "bare_closed_loop",
       [](const ControllerConfig& cfg, const PlantParams& plant, const ActuatorParams& act,

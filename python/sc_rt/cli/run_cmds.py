@@ -37,7 +37,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
         if (why := refusal(pylaw or scn.run.controller)) is not None:
             raise UsageError(f"--engine unsampled: {why}")
     check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
-                                      plant_step="--plant-step"))
+                                      plant_step="--plant-step"), on_disk=args.engine == "cpp" and scn.sensors is None,
+                   out=out)
     claim_out(out)
     from sc_rt.sim import engines
 
@@ -50,7 +51,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     with flag_signals(lambda _s: engines.STOP.set()) as signals:
         try:  # a plugin's native code runs in a child: its crash is one line, not exit 139
-            res = simulate_contained(scn, engine=args.engine, law=pylaw)
+            res = simulate_contained(scn, engine=args.engine, law=pylaw, record_dir=out)
         except RunCrashed as e:
             print(f"sc-rt sim: FAILED: {e}", file=sys.stderr)
             return 1

@@ -254,13 +254,16 @@ def free_disk(path: Path) -> int:
 
 
 def check_run_size(scn: Any, given: str, *, bus: bool = False, realtime: bool = False,
-                   time_scale: float = 1.0, copies: int = 1, out: Path | None = None) -> None:
+                   time_scale: float = 1.0, copies: int = 1, out: Path | None = None,
+                   on_disk: bool = False) -> None:
     """Refuse (UsageError) a run of ``scn`` (overrides applied) that cannot
     fit in memory or time. ``given``: the options that set its size, as the
     user typed them (for the message); ``bus``: a bench run, which writes
     its rows as it runs: its disk use (``disk_bytes_per_row``) against the
     space free in ``out`` (None: the temporary directory) instead of its
-    memory; ``copies``: runs held at once (Monte Carlo workers)."""
+    memory; ``on_disk``: an offline run written to disk as it runs (the cpp
+    engine, sc_rt.sim.engines): its trajectory.arrow against the space free;
+    ``copies``: runs held at once (Monte Carlo workers)."""
     run = scn.run
     rows = math.floor(run.duration * run.control_rate_hz + 0.5) + 1
     steps = run.duration / run.plant_step
@@ -268,15 +271,16 @@ def check_run_size(scn: Any, given: str, *, bus: bool = False, realtime: bool = 
     if steps > MAX_PLANT_STEPS:
         raise UsageError(f"{what}{steps:.3g} plant steps (duration {run.duration:g} s / plant step "
                          f"{run.plant_step:g} s), more than the {MAX_PLANT_STEPS:.0e} a run may take")
-    if bus:  # the bench writes its rows as it runs (results/store.py): a disk estimate
+    if bus or on_disk:  # the rows go to disk as the run goes (results/store.py): a disk estimate
         where = Path(out) if out is not None else Path(tempfile.gettempdir())
-        need = float(rows) * disk_bytes_per_row()
+        per_disk = disk_bytes_per_row() if bus else bytes_per_row()
+        need = float(rows) * per_disk
         have = free_disk(where)
         if need > have:
             raise UsageError(f"{what}{rows:.6g} rows ({run.duration:g} s at {run.control_rate_hz:g} Hz) x "
-                             f"{_size(disk_bytes_per_row())} per row on disk at most (the record, "
-                             f"trajectory.arrow, the LCM log) = {_size(need)}, more than the {_size(have)} "
-                             f"free in {where}")
+                             f"{_size(per_disk)} per row on disk at most ("
+                             + ("the record, trajectory.arrow, the LCM log" if bus else "trajectory.arrow")
+                             + f") = {_size(need)}, more than the {_size(have)} free in {where}")
         need = have = 0.0
     else:
         per_row = bytes_per_row() * ENGINE_COPIES

@@ -134,6 +134,8 @@ class Emulator:
         #: (``record_dir``/trajectory.arrow, once the run outgrows the two chunks)
         self._chunk = min(int(opts.record_chunk or CHUNK_ROWS), max(1, (n_rows + 1) // 2))  # a short run: no more
         self.ring = RowRing(RECORD_COLUMNS, self._chunk, self._spill)
+        if n_rows > 2 * self._chunk:  # the record will go to disk: its writer loaded now, not mid-run
+            import pyarrow  # noqa: F401
         self._raw: ChunkFile | None = None
         self._tmpdir: tempfile.TemporaryDirectory | None = None
         self._last_t = 0.0  # [s] the newest row's time

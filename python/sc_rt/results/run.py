@@ -323,6 +323,21 @@ class Run:
                 diverged=self.diverged, message=self.message, partial=self.partial)
         return r
 
+    # --- pickling (a run crosses to its parent from a contained child) -----
+    def __getstate__(self) -> dict[str, Any]:
+        d = dict(self.__dict__)
+        if d.get("_store") is not None:  # the file, by its path (its directory must outlive the child)
+            d["_store"] = str(self._store.path)
+            d.pop("tmpdir", None)
+        return d
+
+    def __setstate__(self, d: dict[str, Any]) -> None:
+        if isinstance(d.get("_store"), str):
+            from sc_rt.results.store import ChunkReader
+
+            d["_store"] = ChunkReader(Path(d["_store"]))
+        self.__dict__.update(d)
+
     # --- access -----------------------------------------------------------
     def __getitem__(self, name: str) -> np.ndarray:
         """The field's array; on disk, a copy of the whole column read now

@@ -19,9 +19,12 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
+import tempfile
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -30,7 +33,7 @@ from sc_rt.model import actuators, plant
 from sc_rt.pylaw import PACKED_SLICES, PyController, is_python_law, law_label, load_law
 from sc_rt.results.metrics import finish_run, record_law_failures
 from sc_rt.sim.columns import LAW_FAILURES, loop_columns
-from sc_rt.results.run import FIELD, Run, RunMeta
+from sc_rt.results.run import FIELD, FIELDS, Run, RunMeta
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
@@ -111,6 +114,36 @@ def cpp_loop_args(scn: Scenario) -> tuple:
             initial_state(scn), n_ctrl, n_sub, rate)
 
 
+#: A C++-engine run longer than this many rows is written to disk as it runs,
+#: in chunks of this many rows (57 MB of fields), and read back a chunk at a
+#: time (results/store.py): its memory does not grow with its length.
+OFFLINE_CHUNK_ROWS = 65_536
+
+
+def _run_cpp_chunked(scn: Scenario, path: Path, meta: RunMeta) -> tuple[int, bool, dict, float]:
+    """The C++ loop a chunk at a time, each chunk's rows appended to ``path``
+    (trajectory.arrow): (rows, diverged, the law's failures, the last row's t)."""
+    from sc_rt.results.store import ChunkFile
+
+    loop = _core.ClosedLoop(*cpp_loop_args(scn))
+    w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+                  {"sc_rt.meta": json.dumps(meta.to_json())})
+    rows, diverged, failures, t_end = 0, False, {}, 0.0
+    while not loop.done and not STOP.is_set():
+        res = loop.run(OFFLINE_CHUNK_ROWS)
+        n = int(res.pop("rows"))
+        diverged = bool(res.pop("diverged"))
+        failures = res.pop("law_failures")
+        if n == 0:
+            break
+        cols = Run(meta, res, rows=n)  # every field, the ones the loop does not fill at their fill value
+        w.write(cols.trajectory, n)
+        rows += n
+        t_end = float(cols.t[-1])
+    w.close()
+    return rows, diverged, failures, t_end
+
+
 def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     res = _core.simulate_closed_loop(*cpp_loop_args(scn))
     rows = int(res.pop("rows"))
@@ -124,7 +157,7 @@ def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
 
 def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
              control_rate_hz: float | None = None, duration: float | None = None,
-             plant_step: float | None = None) -> Run:
+             plant_step: float | None = None, record_dir: str | Path | None = None) -> Run:
     """Run the scenario's closed loop offline.
 
     Parameters
@@ -144,6 +177,11 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         [s] override of the scenario's duration.
     plant_step : float, optional
         [s] override of the plant step (see ``sc_rt.scenario.overrides.with_overrides``).
+    record_dir : path, optional
+        Where a "cpp" run of more than ``OFFLINE_CHUNK_ROWS`` rows writes its
+        rows as it runs (trajectory.arrow; the run reads it a chunk at a
+        time, results/store.py). None: a temporary directory that lasts as
+        long as the run.
 
     Returns
     -------
@@ -168,6 +206,18 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     scn = with_overrides(scn, law=None if law_cls else law, control_rate_hz=control_rate_hz,
                          duration=duration, plant_step=plant_step)
     t0 = time.perf_counter()
+    n_rows = grid(scn).n_ctrl + 1
+    if engine == "cpp" and scn.sensors is None and n_rows > OFFLINE_CHUNK_ROWS:  # on disk as it runs
+        tmp = None
+        if record_dir is None:
+            tmp = tempfile.TemporaryDirectory(prefix="sc-rt-record-")
+            record_dir = tmp.name
+        path = Path(record_dir) / "trajectory.arrow"
+        rows, diverged, failures, t_end = _run_cpp_chunked(scn, path, RunMeta.of_scenario(scn, engine))
+        run = Run.stored(RunMeta.of_scenario(scn, engine, wall_s=time.perf_counter() - t0), path,
+                         diverged=diverged)
+        run.tmpdir = tmp  # a temporary directory lasts as long as the run
+        return _finished(run, scn, rows, failures, t_end)
     if scn.sensors is not None:  # sensors and the estimator in the loop (sc_rt.sim.sensed)
         if law_cls is not None:
             raise ValueError("a scenario with [sensors] runs the core's laws only (not a Python law, yet)")
@@ -188,9 +238,14 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     if law_cls is not None:
         meta = dataclasses.replace(meta, law=law_label(law_cls))
     run = Run(meta, cols, rows=rows, diverged=diverged)
-    if diverged:
+    return _finished(run, scn, rows, failures, float(run.t[-1]) if rows else 0.0)
+
+
+def _finished(run: Run, scn: Scenario, rows: int, failures: dict | None, t_end: float) -> Run:
+    """The run's message, derived fields, metrics and the law's failures."""
+    if run.diverged:
         n_ctrl = grid(scn).n_ctrl
-        run.message = (f"the plant state became non-finite after t = {run.t[-1]:.6g} s: "
+        run.message = (f"the plant state became non-finite after t = {t_end:.6g} s: "
                        f"the run stopped there ({rows} of {n_ctrl + 1} rows)")
     finish_run(run)
     record_law_failures(run, failures)  # a law that failed: counted, named, the run invalid
