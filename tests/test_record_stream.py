@@ -193,3 +193,39 @@ def test_a_long_cpp_run_goes_to_disk_as_it_runs_bit_identical_to_the_run_held_wh
 
     again = pickle.loads(pickle.dumps(disk))
     assert again.is_stored and np.array_equal(again["sigma_BD"], whole["sigma_BD"])
+
+
+@pytest.mark.parametrize("stored", [False, True])
+def test_record_every_keeps_every_nth_row_and_judges_every_row(tmp_path, monkeypatch, stored):
+    from sc_rt.results.output import write_run
+    from sc_rt.sim import engines
+
+    text = (ROOT / "scenarios" / "paper_faults.toml").read_text()
+    (tmp_path / "thin.toml").write_text(text + "\n[record]\nevery = 7\n")
+    thin_scn = load_scenario(tmp_path / "thin.toml")
+    assert thin_scn.record.every == 7
+    if stored:
+        monkeypatch.setattr(engines, "OFFLINE_CHUNK_ROWS", 50)
+    full = simulate(load_scenario(ROOT / "scenarios" / "paper_faults.toml"), engine="cpp", duration=60.0)
+    run = simulate(thin_scn, engine="cpp", duration=60.0, record_dir=tmp_path / "rec")
+    assert run.is_stored == stored
+    write_run(run, tmp_path / "out", figures=False)
+    saved = Run.load(tmp_path / "out")
+    k = np.r_[np.arange(0, 601, 7), 600]  # every 7th control instant and the last
+    assert len(saved) == len(k) and np.array_equal(saved["t"], full["t"][k])
+    assert np.array_equal(saved["sigma_BD"], full["sigma_BD"][k])
+    m = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    for key in ("first_bound_violation_s", "sigma_e_norm", "max_abs_u_cmd", "saturated_fraction", "steps"):
+        assert m[key] == json.loads(json.dumps(full.metrics[key])), key  # judged on all 601 rows
+    assert saved.meta.record_every == 7
+
+
+def test_a_bad_record_every_names_the_key_and_its_line(tmp_path):
+    from sc_rt.scenario.schema import ScenarioError
+
+    text = (ROOT / "scenarios" / "paper_faults.toml").read_text()
+    (tmp_path / "bad.toml").write_text(text + "\n[record]\nevery = 0\n")
+    with pytest.raises(ScenarioError) as e:
+        load_scenario(tmp_path / "bad.toml")
+    line = len(text.splitlines()) + 3
+    assert "record.every" in str(e.value) and f":{line}" in str(e.value), str(e.value)

@@ -36,7 +36,6 @@ import json
 import math
 import secrets
 import select
-import tempfile
 import time
 from collections import Counter
 from pathlib import Path
@@ -56,7 +55,7 @@ from sc_rt.emulator.rtproc import RealtimeThread
 from sc_rt.emulator.sensorpub import SensorPublisher
 from sc_rt.emulator.twin import PlantTwin
 from sc_rt.results.run import FIELDS, Run, RunMeta, provenance
-from sc_rt.results.store import CHUNK_ROWS, ChunkFile, ChunkReader, RowRing
+from sc_rt.results.store import CHUNK_ROWS, ChunkFile, ChunkReader, RowRing, remove_with, scratch_dir
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
@@ -137,7 +136,7 @@ class Emulator:
         if n_rows > 2 * self._chunk:  # the record will go to disk: its writer loaded now, not mid-run
             import pyarrow  # noqa: F401
         self._raw: ChunkFile | None = None
-        self._tmpdir: tempfile.TemporaryDirectory | None = None
+        self._tmpdir: Path | None = None  # the record's directory when none was given
         self._last_t = 0.0  # [s] the newest row's time
         #: the handlers and, per state seq of the run's rows, its command,
         #: status and publish times, preallocated (emulator/inbox.py); a second
@@ -263,8 +262,7 @@ class Emulator:
         if self._raw is None:
             d = self.opts.record_dir
             if d is None:
-                self._tmpdir = tempfile.TemporaryDirectory(prefix="sc-rt-record-")
-                d = self._tmpdir.name
+                d = self._tmpdir = scratch_dir()
             self._raw = ChunkFile(Path(d) / "record.raw.arrow", RECORD_COLUMNS)
         self._raw.write(cols, n)
 
@@ -497,5 +495,6 @@ class Emulator:
         raw_path.unlink()
         self._breakdown = loop.result()
         run = Run.stored(meta, out)
-        run.tmpdir = self._tmpdir  # a temporary directory lasts as long as the run
+        if self._tmpdir is not None:
+            remove_with(run, self._tmpdir)  # a temporary directory lasts as long as the run
         return run

@@ -21,8 +21,8 @@ class RunMeta:
     """What a run is: its scenario, law, engine and the parameters its
     figures and checks need (so no consumer needs the scenario file).
 
-    Usually built by :meth:`of_scenario`; saved in trajectory.npz as JSON
-    (:meth:`to_json`, :meth:`from_json`).
+    Usually built by :meth:`of_scenario`; saved in trajectory.npz (or in
+    trajectory.arrow's schema metadata) as JSON (:meth:`to_json`, :meth:`from_json`).
 
     Attributes
     ----------
@@ -72,6 +72,10 @@ class RunMeta:
     max_wheel_speed : tuple of float
         [rad/s] the actuator model's wheel speed limits (4, inf: none);
         ``()``: not recorded.
+    record_every : int
+        The scenario's ``[record] every``: the saved rows keep every this
+        many control instants and the last (1: every row); the metrics were
+        computed on every row.
     """
 
     scenario: str
@@ -100,6 +104,9 @@ class RunMeta:
     Cbar: tuple[tuple[float, ...], ...] = ()
     Jw: tuple[float, ...] = ()
     max_wheel_speed: tuple[float, ...] = ()
+    #: the scenario's [record] every: the saved rows keep every this many control instants
+    #: (and the last); the metrics were computed on every row
+    record_every: int = 1
 
     def to_json(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self))
@@ -136,7 +143,8 @@ class RunMeta:
                   requirements=tuple(dataclasses.asdict(r) for r in getattr(scn, "requirements", ())),
                   Cbar=tuple(tuple(float(x) for x in row) for row in np.asarray(plant.Cbar, float)),
                   Jw=tuple(float(x) for x in np.asarray(plant.Jw, float)),
-                  max_wheel_speed=tuple(float(x) for x in np.asarray(a.max_wheel_speed, float)))
+                  max_wheel_speed=tuple(float(x) for x in np.asarray(a.max_wheel_speed, float)),
+                  record_every=int(getattr(getattr(scn, "record", None), "every", 1)))
         sensors = getattr(scn, "sensors", None)
         if sensors is not None:
             kw.update(sensors=True, measurement=sensors.measurement)

@@ -64,20 +64,30 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
     out.mkdir(parents=True, exist_ok=True)
     if (run_id := claimed_run_id(out)) is not None:  # the run that holds the directory (OutDir)
         run.metrics["run_id"] = run_id
-    traj = run.save_arrow(out / "trajectory.arrow") if run.is_stored else run.save_npz(out / "trajectory.npz",
-                                                                                      compress=compress)
+    every = int(getattr(run.meta, "record_every", 1))
+    if figures:  # from every row, before the saved rows are thinned ([record] every)
+        paths_fig = _figures(run, out, title)
+    saved = run.thinned(every)
+    traj = saved.save_arrow(out / "trajectory.arrow") if saved.is_stored else saved.save_npz(
+        out / "trajectory.npz", compress=compress)
     paths = [traj, write_json(out / "metrics.json", run.metrics)]
     if run.timing is not None:
         paths.append(write_json(out / "timing.json", run.timing))
     if figures:
-        from sc_rt.results import figures as fig
-        from sc_rt.results.requirement_figures import requirement_figures
+        paths += paths_fig
+    return paths
 
-        drawn = run.decimated(FIGURE_ROWS) if run.is_stored else run  # a run on disk: peaks kept
-        paths += fig.tracking_figures(drawn, out, title=title)
-        paths += requirement_figures(drawn, out, title=title)  # wheel_speeds.png, requirements.png
-        if run.timing is not None:
-            paths += fig.timing_figures(drawn, out)
+
+def _figures(run: Run, out: Path, title: str) -> list[Path]:
+    """The tracking, wheel speed, requirements and (bench runs) timing figures."""
+    from sc_rt.results import figures as fig
+    from sc_rt.results.requirement_figures import requirement_figures
+
+    drawn = run.decimated(FIGURE_ROWS) if run.is_stored else run  # a run on disk: peaks kept
+    paths = fig.tracking_figures(drawn, out, title=title)
+    paths += requirement_figures(drawn, out, title=title)  # wheel_speeds.png, requirements.png
+    if run.timing is not None:
+        paths += fig.timing_figures(drawn, out)
     return paths
 
 

@@ -294,6 +294,36 @@ class Run:
         tmp.replace(src.path)
         self._store = ChunkReader(src.path)
 
+    def thinned(self, every: int) -> Run:
+        """The run keeping every ``every``-th row (t_k with k a multiple of
+        ``every``) and the last one, for saving (``[record] every``): a run
+        on disk rewrites its file, a batch at a time."""
+        if every <= 1 or len(self) == 0:
+            return self
+        n = len(self)
+        if self._store is None:
+            idx = np.unique(np.r_[np.arange(0, n, every), n - 1])
+            r = self.head(n)
+            r._a = {k: v[idx] for k, v in self._a.items()}
+            return r
+        from sc_rt.results.store import ChunkFile, ChunkReader
+
+        src = self._store
+        tmp = src.path.with_name(src.path.name + ".thin")
+        w = ChunkFile(tmp, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+                      {k: v for k, v in src.metadata.items() if k != "sc_rt.shapes"})
+        row0 = 0
+        for c in self.chunks():
+            k = row0 + np.arange(len(c))
+            keep = (k % every == 0) | (k == n - 1)
+            w.write({f.name: c[f.name][keep] for f in FIELDS}, int(keep.sum()))
+            row0 += len(c)
+        w.close()
+        src.close()
+        tmp.replace(src.path)
+        self._store = ChunkReader(src.path)
+        return self
+
     def decimated(self, max_rows: int) -> Run:
         """An in-memory copy of at most about ``max_rows`` rows for figures:
         the rows cut into buckets of consecutive rows, and of each bucket its
@@ -328,7 +358,6 @@ class Run:
         d = dict(self.__dict__)
         if d.get("_store") is not None:  # the file, by its path (its directory must outlive the child)
             d["_store"] = str(self._store.path)
-            d.pop("tmpdir", None)
         return d
 
     def __setstate__(self, d: dict[str, Any]) -> None:

@@ -30,13 +30,28 @@ from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
 
-__all__ = ["CHUNK_ROWS", "Column", "ChunkFile", "ChunkReader", "RowRing"]
+__all__ = ["CHUNK_ROWS", "Column", "ChunkFile", "ChunkReader", "RowRing", "scratch_dir", "remove_with"]
 
 #: Rows per batch: ~3.5 MB of a run's fields (867 B/row), a few seconds at 1 kHz.
 CHUNK_ROWS = 4096
 
 #: (name, row shape, numpy dtype, fill value) of one column
 Column = tuple[str, tuple[int, ...], str, Any]
+
+
+def scratch_dir() -> Path:
+    """A new temporary directory for a run's rows (``remove_with`` ties it to the run)."""
+    import tempfile
+
+    return Path(tempfile.mkdtemp(prefix="sc-rt-record-"))
+
+
+def remove_with(owner: Any, path: Path) -> None:
+    """Remove directory ``path`` when ``owner`` (the run reading from it) is gone."""
+    import shutil
+    import weakref
+
+    weakref.finalize(owner, shutil.rmtree, str(path), True)
 
 
 def _pa():

@@ -117,6 +117,15 @@ class RunParams:
 
 
 @dataclass(frozen=True)
+class RecordParams:
+    """``[record]``: what a run keeps of its rows (docs/SCENARIOS.md)."""
+
+    # keep every this many control instants in trajectory.npz / .arrow (and the last);
+    # the metrics and the verdict are computed on every row first. 1: every row.
+    every: int = field(default=1, metadata=spec("int", ge=1))
+
+
+@dataclass(frozen=True)
 class InitialState:
     """Plant state at t = 0."""
 
@@ -264,6 +273,9 @@ class Scenario:
     requirements : tuple of Requirement
         The ``[[requirements]]`` rows (sc_rt.scenario.requirements), what a
         run is judged by (sc_rt.results.requirements); ``()`` without any.
+    record : RecordParams
+        ``[record]``: what a run keeps of its rows (``every``: the saved rows
+        keep every this many control instants; 1 without the table).
     """
 
     name: str
@@ -285,6 +297,8 @@ class Scenario:
     expect: str = ""
     # the [[requirements]] rows (sc_rt.scenario.requirements.Requirement), () without any
     requirements: tuple = ()
+    # [record]: what a run keeps of its rows
+    record: RecordParams = RecordParams()
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None

@@ -39,7 +39,8 @@ from sc_rt.scenario.sensors import read_sensors
 from sc_rt.scenario.shipped import resolve
 
 from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, PLUGIN_PREFIX, ControllerParams, DscGains, InitialState,
-                                  NesoParams, PdGains, PpcParams, RftGains, RunParams, SafetyLimits, Scenario,
+                                  NesoParams, PdGains, PpcParams, RecordParams, RftGains, RunParams, SafetyLimits,
+                                  Scenario,
                                   law_problem, law_spec)
 
 __all__ = ["load_scenario", "scenario_from_data", "read_run", "check_law", "with_run"]
@@ -320,6 +321,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     controller = _read_controller(controller_table)
     faults = _read_faults(root)
     requirements = read_requirements(root, run.duration if run else None)
+    record = read_fields(root.sub("record", required=False), RecordParams)
     montecarlo = root.sub("montecarlo", required=False)  # read last: it names the others' keys
     root.finish()
     if initial is not None and actuators is not None:
@@ -345,6 +347,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         controller=controller,
         sensors=sensors,
         requirements=requirements,
+        record=record,
     )
     check_law(doc, scenario, "controller.law" if "law" in ctl_data else "run.controller",
                "controller.params")

@@ -21,7 +21,6 @@ import dataclasses
 import functools
 import json
 import math
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -34,6 +33,7 @@ from sc_rt.pylaw import PACKED_SLICES, PyController, is_python_law, law_label, l
 from sc_rt.results.metrics import finish_run, record_law_failures
 from sc_rt.sim.columns import LAW_FAILURES, loop_columns
 from sc_rt.results.run import FIELD, FIELDS, Run, RunMeta
+from sc_rt.results.store import remove_with, scratch_dir
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
@@ -208,15 +208,15 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     t0 = time.perf_counter()
     n_rows = grid(scn).n_ctrl + 1
     if engine == "cpp" and scn.sensors is None and n_rows > OFFLINE_CHUNK_ROWS:  # on disk as it runs
-        tmp = None
-        if record_dir is None:
-            tmp = tempfile.TemporaryDirectory(prefix="sc-rt-record-")
-            record_dir = tmp.name
+        tmp = scratch_dir() if record_dir is None else None
+        record_dir = tmp or record_dir
+        Path(record_dir).mkdir(parents=True, exist_ok=True)
         path = Path(record_dir) / "trajectory.arrow"
         rows, diverged, failures, t_end = _run_cpp_chunked(scn, path, RunMeta.of_scenario(scn, engine))
         run = Run.stored(RunMeta.of_scenario(scn, engine, wall_s=time.perf_counter() - t0), path,
                          diverged=diverged)
-        run.tmpdir = tmp  # a temporary directory lasts as long as the run
+        if tmp is not None:
+            remove_with(run, tmp)  # a temporary directory lasts as long as the run
         return _finished(run, scn, rows, failures, t_end)
     if scn.sensors is not None:  # sensors and the estimator in the loop (sc_rt.sim.sensed)
         if law_cls is not None:
