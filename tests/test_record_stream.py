@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parent.parent
 def _on_disk(run: Run, path: Path, batch: int) -> Run:
     """``run``'s rows written in batches of ``batch`` rows, opened on disk."""
     w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
-                  {"sc_rt.meta": json.dumps(run.meta.to_json())})  # as the emulator writes it
+                  {"sc-rt:meta": json.dumps(run.meta.to_json())})  # as the emulator writes it
     for k in range(0, len(run), batch):
         w.write({f.name: run[f.name][k:k + batch] for f in FIELDS}, min(batch, len(run) - k))
     w.close()

@@ -324,7 +324,7 @@ class Receiver:
 
     def on_status(self, _ch: str, data: bytes) -> None:
         # The loop needs only the header (session, seqs) now; the full decode
-        # (~35 us in Python) waits until the run is over (Inbox.fill).
+        # (~35 us in Python) waits until the run is over (fill_from_inbox).
         now = time.monotonic_ns()
         if len(data) == _STATUS_SIZE and data[:8] == _STATUS_FP:
             _, cmd_seq, session, state_seq = _STATUS_HEAD.unpack_from(data, 8)

@@ -482,7 +482,7 @@ class Emulator:
         raw_path = self._raw.close()
         out = raw_path.with_name("trajectory.arrow")
         w = ChunkFile(out, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
-                      {"sc_rt.meta": json.dumps(meta.to_json())})
+                      {"sc-rt:meta": json.dumps(meta.to_json())})
         src = ChunkReader(raw_path)
         for i in range(src.n_batches):
             cols = src.batch(i)

@@ -171,7 +171,7 @@ def _timeline_of_stored(path: Path) -> tuple[dict[str, np.ndarray], dict[str, An
         prev = key[-1]
         for k in names:
             kept[k].append(c[k][change])
-    meta = json.loads(r.metadata.get("sc_rt.meta", "{}"))
+    meta = json.loads(r.metadata.get("sc-rt:meta", "{}"))
     r.close()
     return ({k: np.concatenate(v) for k, v in kept.items()} if r.n_batches else {}), meta
 

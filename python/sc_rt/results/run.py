@@ -285,7 +285,7 @@ class Run:
         src = self._store
         tmp = src.path.with_name(src.path.name + ".new")
         w = ChunkFile(tmp, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
-                      {k: v for k, v in src.metadata.items() if k != "sc_rt.shapes"})
+                      {k: v for k, v in src.metadata.items() if k != "sc-rt:shapes"})
         for c in self.chunks():
             fn(c)
             w.write(c._a, len(c))
@@ -311,7 +311,7 @@ class Run:
         src = self._store
         tmp = src.path.with_name(src.path.name + ".thin")
         w = ChunkFile(tmp, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
-                      {k: v for k, v in src.metadata.items() if k != "sc_rt.shapes"})
+                      {k: v for k, v in src.metadata.items() if k != "sc-rt:shapes"})
         row0 = 0
         for c in self.chunks():
             k = row0 + np.arange(len(c))
@@ -433,7 +433,7 @@ class Run:
                 self._store = ChunkReader(path)
             return path
         w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
-                      {"sc_rt.meta": json.dumps(self.meta.to_json())})
+                      {"sc-rt:meta": json.dumps(self.meta.to_json())})
         w.write(self._a, len(self))
         return w.close()
 
@@ -448,7 +448,7 @@ class Run:
             return cls.load_npz(npz)
         from sc_rt.results.store import ChunkReader
 
-        meta = RunMeta.from_json(json.loads(ChunkReader(arrow).metadata["sc_rt.meta"]))
+        meta = RunMeta.from_json(json.loads(ChunkReader(arrow).metadata["sc-rt:meta"]))
         run = cls.stored(meta, arrow)
         for name, attr in (("metrics.json", "metrics"), ("timing.json", "timing")):
             p = run_dir / name

@@ -8,8 +8,8 @@ them back a batch at a time. The format is Arrow's IPC file format (the
 without sc-rt, random access by batch, no compression to undo on the hot
 path. One column per field; a field with a row shape (a 3-vector, a 4-vector)
 is a fixed-size list of its flattened row. The schema's metadata carries
-every field's row shape and dtype (``sc_rt.shapes``) and whatever the writer
-adds (the run's meta as JSON: ``sc_rt.meta``).
+every field's row shape and dtype (``sc-rt:shapes``) and whatever the writer
+adds (the run's meta as JSON: ``sc-rt:meta``).
 
 - ``ChunkFile``: the writer, one batch per ``write``.
 - ``ChunkReader``: the reader; ``batch(i, names)`` and ``column(name)``.
@@ -87,7 +87,7 @@ class ChunkFile:
     columns : iterable of Column
         The columns, in order: name, row shape, dtype, fill.
     metadata : dict of str to str, optional
-        More schema metadata (e.g. ``{"sc_rt.meta": json}``).
+        More schema metadata (e.g. ``{"sc-rt:meta": json}``).
     """
 
     def __init__(self, path: Path, columns: Iterable[Column], metadata: dict[str, str] | None = None):
@@ -102,7 +102,7 @@ class ChunkFile:
                 t = pa.list_(t, int(np.prod(shape)))
             fields.append(pa.field(name, t, nullable=False))
         shapes = {name: [list(shape), dtype] for name, shape, dtype, _ in self.columns}
-        meta = {"sc_rt.shapes": json.dumps(shapes), **(metadata or {})}
+        meta = {"sc-rt:shapes": json.dumps(shapes), **(metadata or {})}
         self.schema = pa.schema(fields, metadata=meta)
         self._sink = pa.OSFile(str(self.path), "wb")
         # LZ4 frames: the fields a producer leaves at their fill value cost next to nothing
@@ -136,7 +136,7 @@ class ChunkReader:
         self._r = pa.ipc.open_file(self._src)
         md = self._r.schema.metadata or {}
         self.metadata = {k.decode(): v.decode() for k, v in md.items()}
-        self.shapes = {k: (tuple(s), d) for k, (s, d) in json.loads(self.metadata["sc_rt.shapes"]).items()}
+        self.shapes = {k: (tuple(s), d) for k, (s, d) in json.loads(self.metadata["sc-rt:shapes"]).items()}
         self.n_batches = self._r.num_record_batches
         self.rows = int(self._r.count_rows())  # from the batches' headers, not their data
 

@@ -127,7 +127,7 @@ def _run_cpp_chunked(scn: Scenario, path: Path, meta: RunMeta) -> tuple[int, boo
 
     loop = _core.ClosedLoop(*cpp_loop_args(scn))
     w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
-                  {"sc_rt.meta": json.dumps(meta.to_json())})
+                  {"sc-rt:meta": json.dumps(meta.to_json())})
     rows, diverged, failures, t_end = 0, False, {}, 0.0
     while not loop.done and not STOP.is_set():
         res = loop.run(OFFLINE_CHUNK_ROWS)

@@ -1,0 +1,146 @@
+"""The plant with torque-commanded reaction wheels (issue #28, second part):
+the Python reference of the dynamics, checked against Basilisk's own test
+cases and closed forms (tests/test_torque_plant.py). Not yet a scenario
+option: the engines, the C++ twin and the emulator still run the paper's
+acceleration-commanded wheels (sc_rt.model.plant).
+
+The state is the paper's, x = [sigma_BN, omega_BN_B, Omega_w]: the wheel
+speeds relative to the body. With the motor torque u_i [N m] of wheel i on
+its axis g_i (the columns of Cbar), the wheel's spin obeys
+Jw_i (g_i' omega_dot + Omega_dot_i) = u_i, and the body gets -g_i u_i.
+Put into (7) (J omega_dot = -omega^ H - Cbar Jw Omega_dot + u_g + d, with
+J the whole spacecraft's inertia, wheels included, and H = J omega +
+Cbar Jw Omega_w):
+
+    M omega_dot = -omega^ H - Cbar u + u_g + d,   M = J - Cbar diag(Jw) Cbar'
+    Omega_dot_i = u_i / Jw_i - g_i' omega_dot
+
+M is the inertia without the wheels' spin inertia about their axes (the
+"hub" of Basilisk's balanced-wheel model, whose hub inertia, too, is the
+spacecraft's without the wheels' spin). u is the net torque on each wheel:
+the motor torque after its limits (sc_rt.model.wheels.applied_torque: torque
+limit, deadband, power and speed limits), taken once per step at the step's
+start speed and held over it, plus the friction
+(sc_rt.model.wheels.friction_torque) at each RK4 stage's wheel speed, as
+Basilisk takes them (docs/MODEL.md, "Flight-like wheels").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sc_rt.model.plant import PlantParams, _inv3, _make_disturbance, _make_rhs, _mrp_to_dcm
+from sc_rt.model.wheels import WheelFriction, WheelLimits, applied_torque, friction_torque
+
+__all__ = ["TorqueWheels", "TorquePlant"]
+
+
+@dataclass(frozen=True)
+class TorqueWheels:
+    """The four torque-commanded wheels' limits and friction."""
+
+    limits: tuple[WheelLimits, ...] = field(default=(WheelLimits(),) * 4)
+    friction: tuple[WheelFriction, ...] = field(default=(WheelFriction(),) * 4)
+    #: the static (Stribeck) part of the friction (a wheel starting from rest)
+    stribeck: bool = False
+
+    def __post_init__(self) -> None:
+        if len(self.limits) != 4 or len(self.friction) != 4:
+            raise ValueError(f"TorqueWheels: 4 limits and 4 frictions, got {len(self.limits)} and "
+                             f"{len(self.friction)}")
+
+
+class TorquePlant:
+    """The plant ``p`` on the wheels ``wheels`` (module docstring).
+
+    Parameters
+    ----------
+    p : PlantParams
+        The spacecraft (J = J0 + dJ, the whole spacecraft's inertia with the
+        wheels; Cbar; Jw; w0; the disturbance).
+    wheels : TorqueWheels
+        The wheels' limits and friction.
+
+    Raises
+    ------
+    ValueError
+        M = J - Cbar diag(Jw) Cbar' is not positive definite (the wheels'
+        spin inertia is more than the spacecraft's).
+    """
+
+    def __init__(self, p: PlantParams, wheels: TorqueWheels = TorqueWheels()):
+        self.p, self.wheels = p, wheels
+        J = np.asarray(p.J, float).tolist()
+        C = np.asarray(p.Cbar, float).tolist()
+        Jw = [float(v) for v in p.Jw]
+        # M, element by element, the wheels subtracted in order 1..4 (a C++ twin repeats it)
+        M = [[J[r][c] for c in range(3)] for r in range(3)]
+        for r in range(3):
+            for c in range(3):
+                for i in range(4):
+                    M[r][c] -= (C[r][i] * Jw[i]) * C[c][i]
+        Mn = np.array(M)
+        if not np.all(np.linalg.eigvalsh(0.5 * (Mn + Mn.T)) > 0.0):
+            raise ValueError(f"TorquePlant: J - Cbar diag(Jw) Cbar' is not positive definite: {M!r}")
+        self.M = Mn
+        self._f = _make_rhs(p.J, _inv3(Mn), 3.0 * p.w0 * p.w0)  # H and u_g with J, solved with M
+        self._C, self._Jw = C, Jw
+        self._CJ = [[C[r][i] * Jw[i] for i in range(4)] for r in range(3)]
+        self._dist = _make_disturbance(p.disturbance)
+
+    def motor_torques(self, u_cmd, omega_w) -> list[float]:
+        """[N m] the motor torques the wheels apply for the commands ``u_cmd``
+        at the wheel speeds ``omega_w`` (their limits)."""
+        return [applied_torque(float(u_cmd[i]), float(omega_w[i]), self.wheels.limits[i]) for i in range(4)]
+
+    def net_torques(self, u_motor, omega_w) -> list[float]:
+        """[N m] motor torque plus friction at the wheel speeds ``omega_w``."""
+        w = self.wheels
+        return [u_motor[i] + friction_torque(float(omega_w[i]), w.friction[i], w.stribeck) for i in range(4)]
+
+    def derivative(self, t: float, x, u_motor) -> list[float]:
+        """x_dot (10) at time ``t`` [s] and state ``x`` with the motor torques
+        ``u_motor`` [N m] (after their limits; the friction is added here)."""
+        s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = (float(v) for v in x)
+        u1, u2, u3, u4 = self.net_torques(u_motor, (O1, O2, O3, O4))
+        C, CJ, Jw = self._C, self._CJ, self._Jw
+        hw = [CJ[r][0] * O1 + CJ[r][1] * O2 + CJ[r][2] * O3 + CJ[r][3] * O4 for r in range(3)]
+        tw = [C[r][0] * u1 + C[r][1] * u2 + C[r][2] * u3 + C[r][3] * u4 for r in range(3)]
+        sd1, sd2, sd3, a1, a2, a3 = self._f(s1, s2, s3, w1, w2, w3, *hw, *tw, *self._dist(float(t)))
+        return [sd1, sd2, sd3, a1, a2, a3,
+                *(u / Jw[i] - (C[0][i] * a1 + C[1][i] * a2 + C[2][i] * a3)
+                  for i, u in enumerate((u1, u2, u3, u4)))]
+
+    def step(self, t: float, x, h: float, u_cmd) -> np.ndarray:
+        """One classical RK4 step from t to t + h [s] with the motor commands
+        ``u_cmd`` [N m] held (their limits at the step's start speed), the
+        friction at each stage; the attitude mapped to the MRP short set after."""
+        x0 = [float(v) for v in x]
+        u = self.motor_torques(u_cmd, x0[6:10])
+        hh = 0.5 * h
+        k1 = self.derivative(t, x0, u)
+        k2 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k1)], u)
+        k3 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k2)], u)
+        k4 = self.derivative(t + h, [a + h * b for a, b in zip(x0, k3)], u)
+        h6 = h / 6.0
+        out = [a + h6 * (b + 2.0 * (c + d) + e) for a, b, c, d, e in zip(x0, k1, k2, k3, k4)]
+        ss = out[0] * out[0] + out[1] * out[1] + out[2] * out[2]
+        if ss > 1.0:  # MRP shadow set: same attitude, |sigma| <= 1
+            out[0:3] = [-v / ss for v in out[0:3]]
+        return np.array(out)
+
+    def momentum_N(self, x) -> np.ndarray:
+        """[N m s] the spacecraft's and wheels' angular momentum in N (3,)."""
+        xs = np.asarray(x, float)
+        H_B = np.asarray(self.p.J) @ xs[3:6] + (np.asarray(self.p.Cbar) * np.asarray(self.p.Jw)) @ xs[6:10]
+        return _mrp_to_dcm(xs[0:3]).T @ H_B
+
+    def energy(self, x) -> float:
+        """[J] the rotational kinetic energy of spacecraft and wheels:
+        1/2 omega' M omega + 1/2 sum Jw_i (g_i' omega + Omega_i)^2."""
+        xs = np.asarray(x, float)
+        w, wheel = xs[3:6], xs[6:10]
+        spin = np.asarray(self.p.Cbar).T @ w + wheel
+        return float(0.5 * w @ self.M @ w + 0.5 * np.sum(np.asarray(self.p.Jw) * spin * spin))
