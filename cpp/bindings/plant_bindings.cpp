@@ -9,11 +9,14 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "sc_rt/plant.hpp"
+#include "sc_rt/torque_plant.hpp"
 #include "sc_rt/util.hpp"
 #include "sc_rt/wheels.hpp"
 #include "sensor_bindings.hpp"
@@ -194,5 +197,36 @@ void bind_plant(py::module_& m) {
       },
       arg("omega"), arg("coulomb"), arg("static"), arg("beta"), arg("viscous"), arg("omega_limit_cycle"),
       arg("stribeck"), "The friction torque [N m] on a wheel at omega [rad/s] (opposing it).");
+  py::class_<TorquePlant>(m, "TorquePlant",
+                          "The plant with torque-commanded wheels (sc_rt.model.torque_plant.TorquePlant's\n"
+                          "twin, bitwise equal).")
+      .def(py::init([](const PlantParams& p, const std::vector<std::array<double, 4>>& limits,
+                       const std::vector<std::array<double, 5>>& friction, bool stribeck) {
+             if (limits.size() != 4 || friction.size() != 4)
+               throw std::invalid_argument("TorquePlant: 4 limits and 4 frictions");
+             TorqueWheels w;
+             w.stribeck = stribeck;
+             for (std::size_t i = 0; i < 4; ++i) {
+               const auto& l = limits[i];
+               const auto& f = friction[i];
+               w.limits[i] = WheelLimits{l[0], l[1], l[2], l[3]};
+               w.friction[i] = WheelFriction{f[0], f[1], f[2], f[3], f[4]};
+             }
+             return std::make_unique<TorquePlant>(p, w);
+           }),
+           arg("plant"), arg("limits"), arg("friction"), arg("stribeck") = false,
+           "limits: 4 x (u_max, u_min, p_max, omega_max); friction: 4 x (coulomb, static, beta,\n"
+           "viscous, omega_limit_cycle).")
+      .def(
+          "step",
+          [](const TorquePlant& tp, double t, const Eigen::Matrix<double, 10, 1>& x, double h, const Vec4& u) {
+            const PlantState s{x.segment<3>(0), x.segment<3>(3), x.segment<4>(6)};
+            const PlantState r = tp.step(t, s, h, u);
+            Eigen::Matrix<double, 10, 1> out;
+            out << r.sigma_BN, r.omega_BN_B, r.wheel_speed;
+            return out;
+          },
+          arg("t"), arg("x"), arg("h"), arg("u_cmd"), "One RK4 step from t to t + h [s], u_cmd [N m] held.")
+      .def_property_readonly("M", &TorquePlant::M, "J - Cbar diag(Jw) Cbar' [kg m^2].");
   sc_rt_bind::bind_sensors(m);  // sensor_bindings.hpp
 }

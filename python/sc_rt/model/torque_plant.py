@@ -4,6 +4,9 @@ cases and closed forms (tests/test_torque_plant.py). Not yet a scenario
 option: the engines, the C++ twin and the emulator still run the paper's
 acceleration-commanded wheels (sc_rt.model.plant).
 
+Its C++ twin, ``sc_rt._core.TorquePlant`` (cpp/src/torque_plant.cpp,
+``torque_plant_to_cpp``), gives the same bits.
+
 The state is the paper's, x = [sigma_BN, omega_BN_B, Omega_w]: the wheel
 speeds relative to the body. With the motor torque u_i [N m] of wheel i on
 its axis g_i (the columns of Cbar), the wheel's spin obeys
@@ -34,7 +37,7 @@ import numpy as np
 from sc_rt.model.plant import PlantParams, _inv3, _make_disturbance, _make_rhs, _mrp_to_dcm
 from sc_rt.model.wheels import WheelFriction, WheelLimits, applied_torque, friction_torque
 
-__all__ = ["TorqueWheels", "TorquePlant"]
+__all__ = ["TorqueWheels", "TorquePlant", "torque_plant_to_cpp"]
 
 
 @dataclass(frozen=True)
@@ -144,3 +147,13 @@ class TorquePlant:
         w, wheel = xs[3:6], xs[6:10]
         spin = np.asarray(self.p.Cbar).T @ w + wheel
         return float(0.5 * w @ self.M @ w + 0.5 * np.sum(np.asarray(self.p.Jw) * spin * spin))
+
+
+def torque_plant_to_cpp(p: PlantParams, wheels: TorqueWheels = TorqueWheels()):
+    """The C++ twin, ``sc_rt._core.TorquePlant``, of ``TorquePlant(p, wheels)``."""
+    from sc_rt import _core
+    from sc_rt.model.plant import plant_params_to_cpp
+
+    limits = [(w.u_max, w.u_min, w.p_max, w.omega_max) for w in wheels.limits]
+    friction = [(f.coulomb, f.static, f.beta, f.viscous, f.omega_limit_cycle) for f in wheels.friction]
+    return _core.TorquePlant(plant_params_to_cpp(p), limits, friction, wheels.stribeck)

@@ -1,0 +1,117 @@
+// The plant's scalar kernels (inv3, Rhs, WheelMap, dist3), shared by the
+// plant with the paper's wheels (plant.cpp) and with torque-commanded wheels
+// (torque_plant.cpp). Internal to the core: not a public header.
+#pragma once
+#include <cmath>
+
+#include "sc_rt/plant.hpp"
+
+namespace sc_rt::detail {
+
+// ---------------------------------------------------------------------------
+// The hot path, written as plain scalar expressions in EXACTLY the order of
+// the Python reference (sc_rt/model/plant.py: _inv3, _make_rhs, _make_wheel_map,
+// _make_disturbance, rk4_step; sc_rt/model/actuators.py: sat4, accel4), so that
+// both engines give bit-identical results (IEEE double, -ffp-contract=off,
+// the same glibc cos/expm1). Python evaluates a + b + c as (a + b) + c, as
+// C++ does; no Eigen products here (their summation order is Eigen's own).
+// Changing an expression here means changing its Python twin the same way
+// (tests/test_plant.py holds the two to np.array_equal).
+// ---------------------------------------------------------------------------
+
+// Inverse of a 3x3 matrix by cofactors: inv = adj(M) / det(M) (plant.py _inv3).
+inline void inv3(const Mat3& M, double I[3][3]) {
+  const double a = M(0, 0), b = M(0, 1), c = M(0, 2);
+  const double d = M(1, 0), e = M(1, 1), f = M(1, 2);
+  const double g = M(2, 0), h = M(2, 1), i = M(2, 2);
+  const double A = e * i - f * h;
+  const double B = f * g - d * i;
+  const double C = d * h - e * g;
+  const double det = a * A + b * B + c * C;
+  I[0][0] = A / det;
+  I[0][1] = (c * h - b * i) / det;
+  I[0][2] = (b * f - c * e) / det;
+  I[1][0] = B / det;
+  I[1][1] = (a * i - c * g) / det;
+  I[1][2] = (c * d - a * f) / det;
+  I[2][0] = C / det;
+  I[2][1] = (b * g - a * h) / det;
+  I[2][2] = (a * e - b * d) / det;
+}
+
+// One right-hand side of (1),(2),(7) (plant.py _make_rhs): J, its inverse and
+// k = 3 w0^2 as plain doubles.
+struct Rhs {
+  double J[3][3];
+  double I[3][3];
+  double k;
+  Rhs(const Mat3& Jm, double w0) : Rhs(Jm, Jm, w0) {}
+  // H and u_g with J, omega_dot solved with M (torque-commanded wheels: M = J -
+  // Cbar diag(Jw) Cbar', torque_plant.cpp; plant.py TorquePlant's _make_rhs(J, inv(M), k))
+  Rhs(const Mat3& Jm, const Mat3& Mm, double w0) : k(3.0 * w0 * w0) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) J[r][c] = Jm(r, c);
+    inv3(Mm, I);
+  }
+  // out = (sigma_dot (3), omega_dot (3)) of sigma s, rate w, wheel momentum
+  // hw = Cbar Jw Omega_w, wheel torque tw = Cbar Jw Omega_w_dot, disturbance d.
+  void operator()(const double s[3], const double w[3], const double hw[3], const double tw[3],
+                  const double d[3], double out[6]) const {
+    const double s1 = s[0], s2 = s[1], s3 = s[2], w1 = w[0], w2 = w[1], w3 = w[2];
+    const double ss = s1 * s1 + s2 * s2 + s3 * s3;
+    const double c = 0.25 * (1.0 - ss);
+    const double e = 0.5 * (s1 * w1 + s2 * w2 + s3 * w3);
+    const double H1 = J[0][0] * w1 + J[0][1] * w2 + J[0][2] * w3 + hw[0];
+    const double H2 = J[1][0] * w1 + J[1][1] * w2 + J[1][2] * w3 + hw[1];
+    const double H3 = J[2][0] * w1 + J[2][1] * w2 + J[2][2] * w3 + hw[2];
+    double T1 = (w3 * H2 - w2 * H3) - tw[0] + d[0];
+    double T2 = (w1 * H3 - w3 * H1) - tw[1] + d[1];
+    double T3 = (w2 * H1 - w1 * H2) - tw[2] + d[2];
+    if (k != 0.0) {
+      // (5),(6),(10): u_g = 3 w0^2 R3^ J R3, R3 = R(sigma) e3
+      const double q = 1.0 / ((1.0 + ss) * (1.0 + ss));
+      const double m4 = 4.0 * (1.0 - ss);
+      const double r1 = (8.0 * s1 * s3 - m4 * s2) * q;
+      const double r2 = (8.0 * s2 * s3 + m4 * s1) * q;
+      const double r3 = 1.0 + 8.0 * (s3 * s3 - ss) * q;
+      const double g1 = J[0][0] * r1 + J[0][1] * r2 + J[0][2] * r3;
+      const double g2 = J[1][0] * r1 + J[1][1] * r2 + J[1][2] * r3;
+      const double g3 = J[2][0] * r1 + J[2][1] * r2 + J[2][2] * r3;
+      T1 += k * (r2 * g3 - r3 * g2);
+      T2 += k * (r3 * g1 - r1 * g3);
+      T3 += k * (r1 * g2 - r2 * g1);
+    }
+    out[0] = c * w1 + 0.5 * (s2 * w3 - s3 * w2) + e * s1;
+    out[1] = c * w2 + 0.5 * (s3 * w1 - s1 * w3) + e * s2;
+    out[2] = c * w3 + 0.5 * (s1 * w2 - s2 * w1) + e * s3;
+    out[3] = I[0][0] * T1 + I[0][1] * T2 + I[0][2] * T3;
+    out[4] = I[1][0] * T1 + I[1][1] * T2 + I[1][2] * T3;
+    out[5] = I[2][0] * T1 + I[2][1] * T2 + I[2][2] * T3;
+  }
+};
+
+// Cbar Jw v (plant.py _make_wheel_map): of wheel speeds the wheels' momentum
+// in B, of wheel accelerations their reaction torque with its sign flipped.
+struct WheelMap {
+  double C[3][4];
+  explicit WheelMap(const PlantParams& p) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) C[r][c] = p.Cbar(r, c) * p.Jw(c);
+  }
+  void operator()(const double v[4], double out[3]) const {
+    for (int r = 0; r < 3; ++r)
+      out[r] = C[r][0] * v[0] + C[r][1] * v[1] + C[r][2] * v[2] + C[r][3] * v[3];
+  }
+};
+
+// d(t) (plant.py _make_disturbance): the bias alone when every amplitude is 0.
+inline void dist3(const PlantParams& p, double t, double out[3]) {
+  if (p.dist_amp(0) == 0.0 && p.dist_amp(1) == 0.0 && p.dist_amp(2) == 0.0) {
+    for (int i = 0; i < 3; ++i) out[i] = p.dist_bias(i);
+    return;
+  }
+  for (int i = 0; i < 3; ++i)
+    out[i] = p.dist_bias(i) + p.dist_amp(i) * std::cos(p.dist_freq(i) * t);
+}
+
+}  // namespace sc_rt::detail
