@@ -257,7 +257,7 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
                        "p99_ratio": w["last"]["p99"] / w["first"]["p99"] if w["first"]["p99"] else None,
                        "max_ratio": w["last"]["max"] / w["first"]["max"] if w["first"]["max"] else None}
     logc = log_check(out, rows, steps)
-    return {"minutes": minutes, "rate_hz": rate, "mode": mode, "rows": rows, "controller_steps": steps,
+    return {"minutes": minutes, "rate_hz": rate, "loop_mode": mode, "rows": rows, "controller_steps": steps,
             "controller_percentiles": {k: summary.get(k) for k in ("compute_us", "wake_lateness_us", "state_age_us",
                                                                    "latency_us") if k in summary},
             "metrics_valid": json.loads((out / "metrics.json").read_text()).get("valid"),
@@ -291,10 +291,10 @@ def main() -> int:
         a.sample = 0.25 if a.smoke else 5.0
     r = soak(a.minutes, a.rate, Path(a.out), a.sample, scenario=a.scenario, renice_logger=not a.no_renice,
              warmup_s=warmup, mode=a.mode)
-    r["length"] = "smoke" if a.smoke else "full"
+    r["mode"] = "smoke" if a.smoke else "full"
     Path(a.json).parent.mkdir(parents=True, exist_ok=True)
     Path(a.json).write_text(json.dumps({k: v for k, v in r.items() if k != "samples"}, indent=2) + "\n")
-    print(json.dumps({k: r[k] for k in ("mode", "length", "minutes", "rows", "memory", "timing_drift",
+    print(json.dumps({k: r[k] for k in ("mode", "loop_mode", "minutes", "rows", "memory", "timing_drift",
                                         "lost_log_events", "deadline_misses", "dropped")}, indent=2))
     m = r["memory"]
     ok = bool(m) and m["controller"]["flat"] and m["emulator"]["flat"] and r["lost_log_events"] == 0

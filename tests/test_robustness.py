@@ -18,7 +18,7 @@ from sc_rt.sim.engines import simulate
 
 import lcmnet
 from ctlscript import wait_for_line
-from trajcmp import compared_fields
+from trajcmp import compared_fields, load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
@@ -105,7 +105,7 @@ wait $HIL
     assert during > 0.5 * hostile_rejected, (genuine[first], genuine[last], hostile_rejected)
     assert genuine[last] <= sum(rej.values())
     # and the trajectory is bit-identical to a clean offline run
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario(ROOT / "scenarios/paper_faults.toml"), law="dsc", engine="python",
                    duration=2000)
     compared_fields(hil, sim)
@@ -212,7 +212,7 @@ wait $NEW
     assert g1 - g0 >= 1.2, outage  # 1.5 s of outage, less the watchdog's 0.1 s
     assert all(b - a < 0.5 for a, b in gaps if [a, b] != outage[0]), gaps
     assert g1 + 0.5 < duration, f"the restart came too late in the run to see control resume: {gaps}"
-    tr = np.load(out / "trajectory.npz")
+    tr = load_traj(out)
     t, u = tr["t"], tr["u_cmd"]
     # rows without controller telemetry (the gap) still have true tracking
     # errors, and the run's metrics stay finite
@@ -294,7 +294,7 @@ def test_cross_host_lockstep_run_over_a_veth_pair(tmp_path):
             ctl.stderr.close()
         summary = json.loads((out / "emulator.json").read_text())
         assert summary["counters"].get("cmd_timeout", 0) == 0
-        hil = np.load(out / "trajectory.npz")
+        hil = load_traj(out)
         sim = simulate(load_scenario(scn_path), engine="python", duration=20)
         compared_fields(hil, sim)
         assert np.median(hil["latency_us"]) > 0

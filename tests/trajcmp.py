@@ -41,3 +41,24 @@ def compared_fields(hil, sim) -> list[str]:
     missing = set(CORE_FIELDS) - set(done)
     assert not missing, f"not compared: {sorted(missing)}"
     return done
+
+
+class _Columns(dict):
+    """A run's columns by name, read like a trajectory.npz (``.files``)."""
+
+    @property
+    def files(self) -> list[str]:
+        return list(self)
+
+
+def load_traj(out):
+    """The per-row arrays a run wrote into ``out``: its trajectory.npz, or
+    (a run written to disk as it ran) its trajectory.arrow's columns."""
+    from pathlib import Path
+
+    out = Path(out)
+    if (out / "trajectory.npz").exists():
+        return np.load(out / "trajectory.npz")
+    from sc_rt.results.run import Run
+
+    return _Columns(Run.load(out).trajectory)
