@@ -24,52 +24,40 @@ the tick and polls from there.
 The publishing side (guidance, state, truth, the sensors' samples) is
 emulator/outbox.py; the receive side is emulator/inbox.py: the handlers (bad input never stops the
 loop: every message is decoded under guard and counted by kind,
-``counters``) and, per state seq, the commands, statuses and publish times,
-preallocated for the run's rows when the emulator is made, so that its
-memory stays flat while the run lasts.
+``counters``) and, per state seq, the commands, statuses and publish times.
+Both write into the run's record, emulator/record.py: two chunks of rows
+allocated when the emulator is made, the older rows written to disk as the
+run goes, so that its memory stays flat however long the run lasts.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import secrets
 import select
 import time
 from collections import Counter
-from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from sc_rt.wire.auth import open_bus
 from sc_rt.emulator.collision import CollisionGuard
-from sc_rt.emulator.inbox import INBOX_COLUMNS, Inbox, Receiver, fill_from_inbox
+from sc_rt.emulator.inbox import Receiver
+from sc_rt.emulator.record import BYTES_PER_ROW, Record
 from sc_rt.emulator.outbox import Publisher
 from sc_rt.emulator.state import Options, Shared
 from sc_rt.wire.lcmio import channel
-from sc_rt.emulator.loopstats import LoopBreakdown
 from sc_rt.emulator.peers import ControllerPeers, GuidancePublisher
 from sc_rt.emulator.rtproc import RealtimeThread
 from sc_rt.emulator.sensorpub import SensorPublisher
 from sc_rt.emulator.twin import PlantTwin
-from sc_rt.results.run import FIELDS, Run, RunMeta, provenance
-from sc_rt.results.store import CHUNK_ROWS, ChunkFile, ChunkReader, RowRing, load_arrow, remove_with, scratch_dir
+from sc_rt.results.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
 __all__ = ["Emulator", "Options", "BYTES_PER_ROW"]
-
-#: the loop's monotonic stamps per row (``stamps`` of the record)
-_STAMPS = 5
-#: what the emulator records per row besides the run's fields: the inbox
-#: (emulator/inbox.py) and the loop's stamps (cli/validate.py's estimate)
-BYTES_PER_ROW = Inbox.BYTES_PER_ROW + _STAMPS * 8
-#: the emulator's record (results/store.py): the run's fields, the inbox's, the stamps
-RECORD_COLUMNS = (*((f.name, f.shape, f.dtype, f.fill) for f in FIELDS), *INBOX_COLUMNS,
-                  ("stamps", (_STAMPS,), "i8", 0))
-
 
 class Emulator:
     """The plant process: the loops (lockstep, real time) over its parts,
@@ -131,13 +119,9 @@ class Emulator:
         #: the run's record (results/store.py): every row's fields, its command and status as
         #: received, its stamps; two chunks live, the older rows written as the run goes
         #: (``record_dir``/trajectory.arrow, once the run outgrows the two chunks)
-        self._chunk = min(int(opts.record_chunk or CHUNK_ROWS), max(1, (n_rows + 1) // 2))  # a short run: no more
-        self.ring = RowRing(RECORD_COLUMNS, self._chunk, self._spill)
-        self._raw: ChunkFile | None = None
-        self._tmpdir: Path | None = None  # the record's directory when none was given
+        self.record = Record(n_rows, opts.record_chunk, opts.record_dir)
+        self.ring = self.record.ring
         self._last_t = 0.0  # [s] the newest row's time
-        if n_rows > 2 * self._chunk:  # the record will go to disk
-            self._prepare_record()
         #: the handlers and, per state seq of the run's rows, its command,
         #: status and publish times, preallocated (emulator/inbox.py); a second
         #: bench on our URL and prefix stops the run, marked invalid (emulator/collision.py)
@@ -256,35 +240,6 @@ class Emulator:
 
     def _meta(self) -> RunMeta:
         return RunMeta.of_scenario(self.scn, f"hil-{self.mode}", mode=self.mode)
-
-    def _prepare_record(self) -> None:
-        """The record's writer loaded, warmed and its file opened before the
-        run, not in the middle of it: two chunks of data that does not
-        compress (as a run's does not) written to a file dropped at once, so that the
-        allocator's buffers for a batch exist from here on and the run's
-        memory is flat from its first row, even under mlockall (measured:
-        +25 MB at the first batch of a real-time run without this)."""
-        load_arrow()
-        rng = np.random.default_rng(0)
-        noise = {n: (rng.random((self._chunk, *shape)) * 100).astype(dtype) for n, shape, dtype, _ in RECORD_COLUMNS}
-        self._open_raw()
-        warm = ChunkFile(self._raw.path.with_name(".warm.arrow"), RECORD_COLUMNS)  # as the record's own file
-        for _ in range(2):
-            warm.write(noise, self._chunk)
-        warm.close().unlink()
-
-    def _open_raw(self) -> None:
-        """The raw record's file, in ``record_dir`` (None: a temporary directory)."""
-        d = self.opts.record_dir
-        if d is None:
-            d = self._tmpdir = scratch_dir()
-        self._raw = ChunkFile(Path(d) / "record.raw.arrow", RECORD_COLUMNS)
-
-    def _spill(self, cols: dict[str, np.ndarray], base: int, n: int) -> None:
-        """A chunk of the record leaves the live rows: to the raw file."""
-        if self._raw is None:
-            self._open_raw()
-        self._raw.write(cols, n)
 
     def _record(self, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2) -> None:
         run, k = self.ring.slot(k)
@@ -464,7 +419,7 @@ class Emulator:
             self._gap_start = None
         # let the last status arrive
         self._handle_until(time.monotonic_ns() + 20_000_000)
-        run = self._close_record(rows)
+        run, self._breakdown = self.record.close(rows, self._meta(), self.mode)
         if self.sensors is not None:
             self.shared.counters.update(self.sensors.counters())
         run.counters = dict(self.shared.counters)
@@ -482,39 +437,4 @@ class Emulator:
             run.message = self.shared.stopped
             run.metrics.update(stopped=self.shared.stopped, t_reached_s=self._last_t if rows else None)
         run.metrics.update(provenance(self.session, self.receiver.ctl_session, self.shared.invalid))
-        return run
-
-    def _close_record(self, rows: int) -> Run:
-        """The run from its record: held in memory when it fits in the two
-        live chunks; else the last rows go to the raw file too, and the rows
-        are read back a chunk at a time, the statuses decoded, and written as
-        trajectory.arrow (``record_dir``) that the run reads from."""
-        meta = self._meta()
-        loop = LoopBreakdown(self.mode)
-        if self._raw is None:  # the whole run is live, from row 0
-            cols = {n: np.concatenate([b[n] for b, _ in self.ring.iter_live()])[:rows] for n, *_ in RECORD_COLUMNS}
-            run = Run(meta, {f.name: cols[f.name] for f in FIELDS}, rows=rows)
-            fill_from_inbox(run, cols)
-            loop.add(cols["stamps"], cols["cmd_utime"], cols["pub_wall_us"], cols["cmd_rx"], cols["pub_ns"])
-            self._breakdown = loop.result()
-            return run
-        self.ring.finish(rows)
-        raw_path = self._raw.close()
-        out = raw_path.with_name("trajectory.arrow")
-        w = ChunkFile(out, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
-                      {"sc-rt:meta": json.dumps(meta.to_json())})
-        src = ChunkReader(raw_path)
-        for i in range(src.n_batches):
-            cols = src.batch(i)
-            chunk = Run(meta, {f.name: cols[f.name] for f in FIELDS})
-            fill_from_inbox(chunk, cols)
-            loop.add(cols["stamps"], cols["cmd_utime"], cols["pub_wall_us"], cols["cmd_rx"], cols["pub_ns"])
-            w.write(chunk.trajectory, len(chunk))
-        src.close()
-        w.close()
-        raw_path.unlink()
-        self._breakdown = loop.result()
-        run = Run.stored(meta, out)
-        if self._tmpdir is not None:
-            remove_with(run, self._tmpdir)  # a temporary directory lasts as long as the run
         return run

@@ -1,0 +1,123 @@
+"""The plant emulator's record of its rows (a part of ``emulator.process.Emulator``).
+
+Every row's run fields, the command and the status of its state as received
+(the inbox's columns, emulator/inbox.py) and the loop's time stamps live in
+two chunks of rows (results/store.py ``RowRing``), allocated and touched
+before the run. When the run reaches the end of the newer chunk, the older
+one goes to ``record.raw.arrow`` in the record's directory, so nothing
+grows with the run (docs/HIL.md, "Long runs"). After the run, ``close``
+reads the record back a chunk at a time, decodes the statuses and writes
+``trajectory.arrow``; a run that fits in the two chunks never touches the
+disk and is returned in memory.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sc_rt.emulator.inbox import INBOX_COLUMNS, Inbox, fill_from_inbox
+from sc_rt.emulator.loopstats import LoopBreakdown
+from sc_rt.results.run import FIELDS, Run, RunMeta
+from sc_rt.results.store import CHUNK_ROWS, ChunkFile, ChunkReader, RowRing, load_arrow, remove_with, scratch_dir
+
+__all__ = ["Record", "RECORD_COLUMNS", "BYTES_PER_ROW"]
+
+#: the loop's monotonic stamps per row (``stamps``): [tick or answer, integrated,
+#: state published, truth started, truth done]
+_STAMPS = 5
+#: what the emulator records per row besides the run's fields: the inbox
+#: (emulator/inbox.py) and the loop's stamps (cli/validate.py's estimate)
+BYTES_PER_ROW = Inbox.BYTES_PER_ROW + _STAMPS * 8
+#: the record's columns: the run's fields, the inbox's, the stamps
+RECORD_COLUMNS = (*((f.name, f.shape, f.dtype, f.fill) for f in FIELDS), *INBOX_COLUMNS,
+                  ("stamps", (_STAMPS,), "i8", 0))
+
+
+class Record:
+    """The record of a run of ``n_rows`` rows (module docstring).
+
+    Parameters
+    ----------
+    n_rows : int
+        The run's rows.
+    chunk : int or None
+        Rows per chunk (None: results/store.py ``CHUNK_ROWS``; a short run's
+        chunks are no longer than half the run).
+    directory : path or None
+        Where the raw record and trajectory.arrow go (None: a temporary
+        directory that lasts as long as the run read from it).
+    """
+
+    def __init__(self, n_rows: int, chunk: int | None, directory: Any = None):
+        self.chunk = min(int(chunk or CHUNK_ROWS), max(1, (n_rows + 1) // 2))
+        self.ring = RowRing(RECORD_COLUMNS, self.chunk, self._spill)
+        self.directory = directory
+        self._raw: ChunkFile | None = None
+        self._tmpdir: Path | None = None
+        if n_rows > 2 * self.chunk:  # the rows will go to disk
+            self._prepare()
+
+    def _prepare(self) -> None:
+        """The writer loaded, warmed and its file opened before the run, not
+        in the middle of it: two chunks of data that does not compress (as a
+        run's does not) written to a file dropped at once, so that the
+        allocator's buffers for a batch exist from here on and the run's
+        memory is flat from its first row, even under mlockall (measured:
+        +25 MB at the first batch of a real-time run without this)."""
+        load_arrow()
+        rng = np.random.default_rng(0)
+        noise = {n: (rng.random((self.chunk, *shape)) * 100).astype(dtype) for n, shape, dtype, _ in RECORD_COLUMNS}
+        self._open()
+        warm = ChunkFile(self._raw.path.with_name(".warm.arrow"), RECORD_COLUMNS)  # as the record's own file
+        for _ in range(2):
+            warm.write(noise, self.chunk)
+        warm.close().unlink()
+
+    def _open(self) -> None:
+        d = self.directory
+        if d is None:
+            d = self._tmpdir = scratch_dir()
+        self._raw = ChunkFile(Path(d) / "record.raw.arrow", RECORD_COLUMNS)
+
+    def _spill(self, cols: dict[str, np.ndarray], base: int, n: int) -> None:
+        """A chunk leaves the live rows: to the raw file."""
+        if self._raw is None:
+            self._open()
+        self._raw.write(cols, n)
+
+    def close(self, rows: int, meta: RunMeta, mode: str) -> tuple[Run, dict[str, Any]]:
+        """The run of the first ``rows`` rows and where the loop's
+        microseconds went (emulator/loopstats.py): held in memory when the
+        rows fit in the two live chunks; else the last rows go to the raw
+        file too, and the rows are read back a chunk at a time, the statuses
+        decoded, and written as trajectory.arrow, which the run reads."""
+        loop = LoopBreakdown(mode)
+        if self._raw is None:  # the whole run is live, from row 0
+            cols = {n: np.concatenate([b[n] for b, _ in self.ring.iter_live()])[:rows] for n, *_ in RECORD_COLUMNS}
+            run = Run(meta, {f.name: cols[f.name] for f in FIELDS}, rows=rows)
+            fill_from_inbox(run, cols)
+            loop.add(cols["stamps"], cols["cmd_utime"], cols["pub_wall_us"], cols["cmd_rx"], cols["pub_ns"])
+            return run, loop.result()
+        self.ring.finish(rows)
+        raw_path = self._raw.close()
+        out = raw_path.with_name("trajectory.arrow")
+        w = ChunkFile(out, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+                      {"sc-rt:meta": json.dumps(meta.to_json())})
+        src = ChunkReader(raw_path)
+        for i in range(src.n_batches):
+            cols = src.batch(i)
+            chunk = Run(meta, {f.name: cols[f.name] for f in FIELDS})
+            fill_from_inbox(chunk, cols)
+            loop.add(cols["stamps"], cols["cmd_utime"], cols["pub_wall_us"], cols["cmd_rx"], cols["pub_ns"])
+            w.write(chunk.trajectory, len(chunk))
+        src.close()
+        w.close()
+        raw_path.unlink()
+        run = Run.stored(meta, out)
+        if self._tmpdir is not None:
+            remove_with(run, self._tmpdir)  # a temporary directory lasts as long as the run
+        return run, loop.result()
