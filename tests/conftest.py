@@ -60,6 +60,8 @@ def rng() -> np.random.Generator:
 #: cores), left out of the fast loop (`pytest -m "not slow"`, under a minute)
 #: and run by `make test` like every other: whole LCM runs, CLI round trips.
 SLOW_TESTS = (
+    "tests/test_record_stream.py::test_lockstep_run_written_as_it_runs_is_bit_identical_to_offline_sim",
+    "tests/test_inbox.py::test_two_chunks_live_then_flat_while_25_times_as_many_rows_fill",
     "tests/test_auth_config.py::test_config_channel_takes_only_a_verified_configuration",
     "tests/test_check.py::test_cli_exit_codes",
     "tests/test_cli_input.py::test_scrt_lcm_url_is_the_url_of_hil_and_emulator",
