@@ -21,6 +21,7 @@ import numpy as np
 
 from sc_rt.emulator.inbox import INBOX_COLUMNS, Inbox, fill_from_inbox
 from sc_rt.emulator.loopstats import LoopBreakdown
+from sc_rt.results.fields import COLUMNS
 from sc_rt.results.run import FIELDS, Run, RunMeta
 from sc_rt.results.store import CHUNK_ROWS, ChunkFile, ChunkReader, RowRing, load_arrow, remove_with, scratch_dir
 
@@ -33,7 +34,7 @@ _STAMPS = 5
 #: (emulator/inbox.py) and the loop's stamps (cli/validate.py's estimate)
 BYTES_PER_ROW = Inbox.BYTES_PER_ROW + _STAMPS * 8
 #: the record's columns: the run's fields, the inbox's, the stamps
-RECORD_COLUMNS = (*((f.name, f.shape, f.dtype, f.fill) for f in FIELDS), *INBOX_COLUMNS,
+RECORD_COLUMNS = (*COLUMNS, *INBOX_COLUMNS,
                   ("stamps", (_STAMPS,), "i8", 0))
 
 
@@ -105,7 +106,7 @@ class Record:
         self.ring.finish(rows)
         raw_path = self._raw.close()
         out = raw_path.with_name("trajectory.arrow")
-        w = ChunkFile(out, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+        w = ChunkFile(out, COLUMNS,
                       {"sc-rt:meta": json.dumps(meta.to_json())})
         src = ChunkReader(raw_path)
         for i in range(src.n_batches):

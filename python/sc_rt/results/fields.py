@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "SOURCES", "empty_arrays"]
+__all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "COLUMNS", "SOURCES", "empty_arrays"]
 
 SOURCES = ("plant", "controller", "truth", "timing", "derived", "estimator")
 
@@ -116,6 +116,8 @@ FIELDS: tuple[Field, ...] = (
     _f("state_log_us", (), "us", "timing", "logger receive time of the state (log rebuilds)"),
 )
 FIELD: dict[str, Field] = {f.name: f for f in FIELDS}
+#: The fields as the columns of a run's file (results/store.py ``Column``: name, row shape, dtype, fill).
+COLUMNS: tuple[tuple[str, tuple[int, ...], str, Any], ...] = tuple((f.name, f.shape, f.dtype, f.fill) for f in FIELDS)
 #: The trajectory every producer fills (checked for finiteness by the metrics).
 CORE_FIELDS: tuple[str, ...] = tuple(f.name for f in FIELDS if f.core)
 assert all(f.source in SOURCES for f in FIELDS)

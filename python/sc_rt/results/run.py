@@ -20,7 +20,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from sc_rt.results.fields import CORE_FIELDS, FIELD, FIELDS, Field, empty_arrays
+from sc_rt.results.fields import COLUMNS, CORE_FIELDS, FIELD, FIELDS, Field, empty_arrays
 from sc_rt.results.jsonsafe import json_safe, write_json
 from sc_rt.results.meta import RunMeta
 
@@ -167,15 +167,26 @@ class Run:
         if self._store is None:
             fn(self)
             return
+
+        def keep_all(c: Run, _row0: int) -> Run:
+            fn(c)
+            return c
+
+        self._rewrite(keep_all)
+
+    def _rewrite(self, fn: Any) -> None:
+        """A run on disk: its file replaced by ``fn(chunk, first row)`` of each
+        chunk in order (an in-memory run of the rows to keep), a batch at a time."""
         from sc_rt.results.store import ChunkFile, ChunkReader
 
         src = self._store
         tmp = src.path.with_name(src.path.name + ".new")
-        w = ChunkFile(tmp, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
-                      {k: v for k, v in src.metadata.items() if k != "sc-rt:shapes"})
+        w = ChunkFile(tmp, COLUMNS, {k: v for k, v in src.metadata.items() if k != "sc-rt:shapes"})
+        row0 = 0
         for c in self.chunks():
-            fn(c)
-            w.write(c._a, len(c))
+            out = fn(c, row0)
+            w.write(out._a, len(out))
+            row0 += len(c)
         w.close()
         src.close()
         tmp.replace(src.path)
@@ -193,22 +204,13 @@ class Run:
             r = self.head(n)
             r._a = {k: v[idx] for k, v in self._a.items()}
             return r
-        from sc_rt.results.store import ChunkFile, ChunkReader
 
-        src = self._store
-        tmp = src.path.with_name(src.path.name + ".thin")
-        w = ChunkFile(tmp, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
-                      {k: v for k, v in src.metadata.items() if k != "sc-rt:shapes"})
-        row0 = 0
-        for c in self.chunks():
+        def every_nth(c: Run, row0: int) -> Run:
             k = row0 + np.arange(len(c))
             keep = (k % every == 0) | (k == n - 1)
-            w.write({f.name: c[f.name][keep] for f in FIELDS}, int(keep.sum()))
-            row0 += len(c)
-        w.close()
-        src.close()
-        tmp.replace(src.path)
-        self._store = ChunkReader(src.path)
+            return Run(self.meta, {f.name: c[f.name][keep] for f in FIELDS})
+
+        self._rewrite(every_nth)
         return self
 
     def decimated(self, max_rows: int) -> Run:
@@ -319,7 +321,7 @@ class Run:
                 shutil.move(self._store.path, path)  # (a temporary directory may be another file system)
                 self._store = ChunkReader(path)
             return path
-        w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+        w = ChunkFile(path, COLUMNS,
                       {"sc-rt:meta": json.dumps(self.meta.to_json())})
         w.write(self._a, len(self))
         return w.close()

@@ -32,7 +32,8 @@ from sc_rt.model import actuators, plant
 from sc_rt.pylaw import PACKED_SLICES, PyController, is_python_law, law_label, load_law
 from sc_rt.results.metrics import finish_run, record_law_failures
 from sc_rt.sim.columns import LAW_FAILURES, loop_columns
-from sc_rt.results.run import FIELD, FIELDS, Run, RunMeta
+from sc_rt.results.fields import COLUMNS
+from sc_rt.results.run import FIELD, Run, RunMeta
 from sc_rt.results.store import remove_with, scratch_dir
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
@@ -126,7 +127,7 @@ def _run_cpp_chunked(scn: Scenario, path: Path, meta: RunMeta) -> tuple[int, boo
     from sc_rt.results.store import ChunkFile
 
     loop = _core.ClosedLoop(*cpp_loop_args(scn))
-    w = ChunkFile(path, [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS],
+    w = ChunkFile(path, COLUMNS,
                   {"sc-rt:meta": json.dumps(meta.to_json())})
     rows, diverged, failures, t_end = 0, False, {}, 0.0
     while not loop.done and not STOP.is_set():
