@@ -461,7 +461,7 @@ BROKEN = [
     ("fault without onset", "onset = 10.0 ", "",
      "faults[1].onset", "required key is missing", "[[faults]]\nwheel = 2", 1),
     ("stuck with a bias", "end = 15.0", "end = 15.0\nstuck = true",
-     "faults[2].stuck", "a stuck wheel ignores effectiveness and bias", "stuck =", 1),
+     "faults[2].stuck", "a stuck wheel ignores effectiveness, bias", "stuck =", 1),
     ("initial wheel speed over the limit", "wheel_speed = [0.0, 0.0, 0.0, 0.0]",
      "wheel_speed = [0.0, 700.0, 0.0, 0.0]",
      "initial.wheel_speed", "must be <= spacecraft.max_wheel_speed = [600.0, 600.0, 600.0, 600.0]",

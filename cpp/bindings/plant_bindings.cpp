@@ -11,6 +11,7 @@
 
 #include <array>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -48,6 +49,22 @@ void set_faults(ActuatorParams& a, const std::vector<WheelFault>& faults) {
         "ActuatorParams.faults must hold 4 WheelFault (one per wheel), got " +
         std::to_string(faults.size()));
   for (std::size_t i = 0; i < 4; ++i) a.faults[i] = faults[i];
+}
+
+TorqueWheels torque_wheels(const std::vector<std::array<double, 4>>& limits,
+                           const std::vector<std::array<double, 5>>& friction, bool stribeck, bool torque_command) {
+  if (limits.size() != 4 || friction.size() != 4) throw std::invalid_argument("TorqueWheels: 4 limits and 4 frictions");
+  TorqueWheels w;
+  w.enabled = true;
+  w.stribeck = stribeck;
+  w.torque_command = torque_command;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const auto& l = limits[i];
+    const auto& f = friction[i];
+    w.limits[i] = WheelLimits{l[0], l[1], l[2], l[3]};
+    w.friction[i] = WheelFriction{f[0], f[1], f[2], f[3], f[4]};
+  }
+  return w;
 }
 }  // namespace
 
@@ -92,41 +109,53 @@ void bind_plant(py::module_& m) {
                          "One wheel's fault of (16); inactive by default. The keyword "
                          "constructor validates an active fault.")
       .def(py::init([](bool active, double effectiveness, double bias, double onset, double end,
-                       double rate, bool stuck) {
-             WheelFault f{active, effectiveness, bias, onset, end, rate, stuck};
+                       double rate, bool stuck, double friction) {
+             WheelFault f{active, effectiveness, bias, onset, end, rate, stuck, friction};
              throw_if_errors("WheelFault", validate(f));
              return f;
            }),
            arg("active") = F.active, arg("effectiveness") = F.effectiveness,
            arg("bias") = F.bias, arg("onset") = F.onset, arg("end") = F.end,
-           arg("rate") = F.rate, arg("stuck") = F.stuck)
+           arg("rate") = F.rate, arg("stuck") = F.stuck, arg("friction") = F.friction)
       .def_readwrite("active", &WheelFault::active, "false: healthy wheel")
       .def_readwrite("effectiveness", &WheelFault::effectiveness, "[-] L_i in [0, 1]")
       .def_readwrite("bias", &WheelFault::bias, "[rad/s^2] ubar_i")
       .def_readwrite("onset", &WheelFault::onset, "[s] T_i")
       .def_readwrite("end", &WheelFault::end, "[s] abrupt end (inf: never)")
       .def_readwrite("rate", &WheelFault::rate, "[1/s] a_i")
-      .def_readwrite("stuck", &WheelFault::stuck, "zero acceleration while active");
+      .def_readwrite("stuck", &WheelFault::stuck, "zero acceleration while active")
+      .def_readwrite("friction", &WheelFault::friction, "[-] friction multiplier as Y -> 1 (torque wheels)");
   m.def("validate", py::overload_cast<const WheelFault&>(&validate), arg("f"),
         "Problems of one fault (none when inactive).");
   m.def("fault_Y", &fault_Y, arg("f"), arg("t"), "Y_i(t) of (16) [-].");
+
+  py::class_<TorqueWheels>(m, "TorqueWheels", "Flight-like torque-commanded wheels (sc_rt.model.wheels.TorqueWheels).")
+      .def(py::init(&torque_wheels), arg("limits"), arg("friction"), arg("stribeck") = false,
+           arg("torque_command") = false,
+           "limits: 4 x (u_max, u_min, p_max, omega_max); friction: 4 x (coulomb, static, beta, viscous,\n"
+           "omega_limit_cycle).")
+      .def_readonly("enabled", &TorqueWheels::enabled)
+      .def_readonly("stribeck", &TorqueWheels::stribeck)
+      .def_readonly("torque_command", &TorqueWheels::torque_command);
 
   py::class_<ActuatorParams>(m, "ActuatorParams",
                              "Wheel limits and faults (C++ engine). The keyword constructor "
                              "validates.")
       .def(py::init([](const Vec4& umin, const Vec4& umax, const Vec4& max_wheel_speed,
-                       const std::vector<WheelFault>& faults) {
+                       const std::vector<WheelFault>& faults, const std::optional<TorqueWheels>& wheels) {
              ActuatorParams a;
              a.umin = umin;
              a.umax = umax;
              a.max_wheel_speed = max_wheel_speed;
              set_faults(a, faults);
+             if (wheels) a.wheels = *wheels;
              throw_if_errors("ActuatorParams", validate(a));
              return a;
            }),
            arg("umin") = A.umin, arg("umax") = A.umax,
            arg("max_wheel_speed") = A.max_wheel_speed,
-           arg("faults") = std::vector<WheelFault>(A.faults.begin(), A.faults.end()))
+           arg("faults") = std::vector<WheelFault>(A.faults.begin(), A.faults.end()),
+           arg("wheels") = py::none())
       .def_readwrite("umin", &ActuatorParams::umin, "[rad/s^2] lower limits (4)")
       .def_readwrite("umax", &ActuatorParams::umax, "[rad/s^2] upper limits (4)")
       .def_readwrite("max_wheel_speed", &ActuatorParams::max_wheel_speed,
@@ -142,7 +171,8 @@ void bind_plant(py::module_& m) {
           },
           &set_faults,
           "The 4 wheels' faults: a tuple of references (assigning their fields edits this "
-          "object); assign a sequence of 4 WheelFault to replace them all.");
+          "object); assign a sequence of 4 WheelFault to replace them all.")
+      .def_readonly("wheels", &ActuatorParams::wheels, "the torque-commanded wheels (enabled false: the paper's)");
   m.def("validate", py::overload_cast<const ActuatorParams&>(&validate), arg("a"),
         "Every problem with the actuator parameters (empty list: valid).");
 
@@ -197,6 +227,10 @@ void bind_plant(py::module_& m) {
       },
       arg("omega"), arg("coulomb"), arg("static"), arg("beta"), arg("viscous"), arg("omega_limit_cycle"),
       arg("stribeck"), "The friction torque [N m] on a wheel at omega [rad/s] (opposing it).");
+  m.def("plant_row", &plant_row, arg("p"), arg("a"), arg("t"), arg("x"), arg("u_cmd"),
+        "The wheels' output of a row at (t, x) for u_cmd, either wheel model (sc_rt.model.truth.row).");
+  m.def("wheel_torque_command", &wheel_torque_command, arg("u"), arg("Jw"), arg("torque_command"),
+        "The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).");
   py::class_<TorquePlant>(m, "TorquePlant",
                           "The plant with torque-commanded wheels (sc_rt.model.torque_plant.TorquePlant's\n"
                           "twin, bitwise equal).")
@@ -204,15 +238,7 @@ void bind_plant(py::module_& m) {
                        const std::vector<std::array<double, 5>>& friction, bool stribeck) {
              if (limits.size() != 4 || friction.size() != 4)
                throw std::invalid_argument("TorquePlant: 4 limits and 4 frictions");
-             TorqueWheels w;
-             w.stribeck = stribeck;
-             for (std::size_t i = 0; i < 4; ++i) {
-               const auto& l = limits[i];
-               const auto& f = friction[i];
-               w.limits[i] = WheelLimits{l[0], l[1], l[2], l[3]};
-               w.friction[i] = WheelFriction{f[0], f[1], f[2], f[3], f[4]};
-             }
-             return std::make_unique<TorquePlant>(p, w);
+             return std::make_unique<TorquePlant>(p, torque_wheels(limits, friction, stribeck, false));
            }),
            arg("plant"), arg("limits"), arg("friction"), arg("stribeck") = false,
            "limits: 4 x (u_max, u_min, p_max, omega_max); friction: 4 x (coulomb, static, beta,\n"

@@ -70,7 +70,7 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
     }
     const Command c = ctl_->step(nv ? nv->measure(t, x_, out ? &tel_ : nullptr)
                                     : Measurement{t, x_.sigma_BN, x_.omega_BN_B, x_.wheel_speed});
-    const WheelOutput w = wheel_accel(act_, t, c.u_cmd, x_.wheel_speed);
+    const WheelOutput w = plant_row(plant_, act_, t, x_, c.u_cmd);
     if (out) {
       out->t[static_cast<std::size_t>(i)] = t;
       put(out->sigma_BN, i, x_.sigma_BN);

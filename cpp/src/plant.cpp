@@ -44,6 +44,8 @@ void check_fault(const WheelFault& f, const std::string& pre, std::vector<std::s
                    format_double(f.end));
   if (!(std::isfinite(f.rate) && f.rate > 0.0))
     errs.push_back(pre + "rate must be finite and > 0, got " + format_double(f.rate));
+  if (!(std::isfinite(f.friction) && f.friction >= 0.0))
+    errs.push_back(pre + "friction must be finite and >= 0, got " + format_double(f.friction));
 }
 
 // (15) saturation as comparisons, NaN stays NaN (actuators.py _sat4).
@@ -156,7 +158,22 @@ std::vector<std::string> validate(const ActuatorParams& a) {
     if (!(a.max_wheel_speed(i) > 0.0))  // NaN fails too; +inf: no limit
       errs.push_back(idx("max_wheel_speed", i) + " must be > 0, got " +
                      format_double(a.max_wheel_speed(i)));
-    check_fault(a.faults[static_cast<std::size_t>(i)], idx("faults", i) + ".", errs);
+    const WheelFault& f = a.faults[static_cast<std::size_t>(i)];
+    check_fault(f, idx("faults", i) + ".", errs);
+    if (f.active && f.friction != 1.0 && !a.wheels.enabled)
+      errs.push_back(idx("faults", i) + ".friction needs torque-commanded wheels (wheels.enabled)");
+    if (a.wheels.enabled) {
+      const WheelLimits& l = a.wheels.limits[static_cast<std::size_t>(i)];
+      const WheelFriction& fr = a.wheels.friction[static_cast<std::size_t>(i)];
+      const double v[] = {l.u_max, l.u_min, l.p_max, l.omega_max, fr.coulomb, fr.static_, fr.beta, fr.viscous,
+                          fr.omega_limit_cycle};
+      for (double x : v)
+        if (!(std::isfinite(x) && x >= 0.0)) {
+          errs.push_back(idx("wheels", i) + ": limits and friction must be finite and >= 0, got " +
+                         format_double(x));
+          break;
+        }
+    }
   }
   return errs;
 }
@@ -208,6 +225,7 @@ PlantState plant_derivative(const PlantParams& p, double t, const PlantState& x,
 
 PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t,
                           const PlantState& x, double h, const Vec4& u_cmd) {
+  if (a.wheels.enabled) return torque_rk4_step(p, a, t, x, h, u_cmd);
   // The mirror of plant.py rk4_step, operation for operation. The wheel
   // states enter (7) only through hw = Cbar Jw Omega_w and tw = Cbar Jw
   // Omega_w_dot: a stage's hw is hw0 + c tw_prev (linearity), not Cbar Jw

@@ -4,6 +4,7 @@
 #include "sc_rt/torque_plant.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -21,55 +22,58 @@ struct TorquePlant::Kernel {
   }
 };
 
-TorquePlant::TorquePlant(const PlantParams& p, const TorqueWheels& wheels) : p_(p), w_(wheels) {
+namespace {
+
+constexpr double kOnes[4] = {1.0, 1.0, 1.0, 1.0};
+constexpr double kZeros[4] = {0.0, 0.0, 0.0, 0.0};
+
+// x_dot of the torque-commanded plant (TorquePlant.derivative in Python).
+void torque_derivative(const PlantParams& p, const TorqueWheels& w, const detail::Rhs& rhs, const double C[3][4],
+                       const double CJ[3][4], const double Jw[4], double t, const double x[10],
+                       const double u_motor[4], const double scale[4], const double brake[4], double out[10]) {
+  double u[4];
+  for (int i = 0; i < 4; ++i)
+    u[i] = u_motor[i] + scale[i] * wheel_friction_torque(x[6 + i], w.friction[static_cast<std::size_t>(i)], w.stribeck) -
+           brake[i] * x[6 + i];
+  double hw[3], tw[3], d[3], sw[6];
+  for (int r = 0; r < 3; ++r) {
+    hw[r] = CJ[r][0] * x[6] + CJ[r][1] * x[7] + CJ[r][2] * x[8] + CJ[r][3] * x[9];
+    tw[r] = C[r][0] * u[0] + C[r][1] * u[1] + C[r][2] * u[2] + C[r][3] * u[3];
+  }
+  detail::dist3(p, t, d);
+  rhs(x, x + 3, hw, tw, d, sw);
+  for (int i = 0; i < 6; ++i) out[i] = sw[i];
+  for (int i = 0; i < 4; ++i) out[6 + i] = u[i] / Jw[i] - (C[0][i] * sw[3] + C[1][i] * sw[4] + C[2][i] * sw[5]);
+}
+
+// M = J - Cbar diag(Jw) Cbar', element by element, the wheels in order (TorquePlant.__init__).
+Mat3 hub_inertia(const PlantParams& p) {
   const Mat3 J = p.J0 + p.dJ;
+  Mat3 M;
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) {
       double m = J(r, c);
       for (int i = 0; i < 4; ++i) m -= (p.Cbar(r, i) * p.Jw(i)) * p.Cbar(c, i);
-      M_(r, c) = m;
+      M(r, c) = m;
     }
-  Eigen::SelfAdjointEigenSolver<Mat3> es(0.5 * (M_ + M_.transpose()));
-  if (!(es.eigenvalues().minCoeff() > 0.0))
-    throw std::invalid_argument("TorquePlant: J - Cbar diag(Jw) Cbar' is not positive definite");
-  k_ = std::make_unique<const Kernel>(p, M_);
+  return M;
 }
 
-TorquePlant::~TorquePlant() = default;
-
-void TorquePlant::derivative(double t, const double x[10], const double u_motor[4], double out[10]) const {
-  const Kernel& k = *k_;
-  double u[4];
-  for (int i = 0; i < 4; ++i)
-    u[i] = u_motor[i] + wheel_friction_torque(x[6 + i], w_.friction[static_cast<std::size_t>(i)], w_.stribeck);
-  double hw[3], tw[3], d[3], sw[6];
-  for (int r = 0; r < 3; ++r) {
-    hw[r] = k.CJ[r][0] * x[6] + k.CJ[r][1] * x[7] + k.CJ[r][2] * x[8] + k.CJ[r][3] * x[9];
-    tw[r] = k.C[r][0] * u[0] + k.C[r][1] * u[1] + k.C[r][2] * u[2] + k.C[r][3] * u[3];
-  }
-  detail::dist3(p_, t, d);
-  k.rhs(x, x + 3, hw, tw, d, sw);
-  for (int i = 0; i < 6; ++i) out[i] = sw[i];
-  for (int i = 0; i < 4; ++i)
-    out[6 + i] = u[i] / k.Jw[i] - (k.C[0][i] * sw[3] + k.C[1][i] * sw[4] + k.C[2][i] * sw[5]);
-}
-
-PlantState TorquePlant::step(double t, const PlantState& x, double h, const Vec4& u_cmd) const {
+// RK4 with u, scale, brake held; the MRP short set after (TorquePlant.step_held).
+template <class Deriv>
+PlantState rk4_held(const Deriv& f, double t, const PlantState& x, double h) {
   double x0[10];
   for (int i = 0; i < 3; ++i) x0[i] = x.sigma_BN(i), x0[3 + i] = x.omega_BN_B(i);
   for (int i = 0; i < 4; ++i) x0[6 + i] = x.wheel_speed(i);
-  double u[4];
-  for (int i = 0; i < 4; ++i)
-    u[i] = wheel_applied_torque(u_cmd(i), x0[6 + i], w_.limits[static_cast<std::size_t>(i)]);
   const double hh = 0.5 * h;
   double k1[10], k2[10], k3[10], k4[10], xs[10];
-  derivative(t, x0, u, k1);
+  f(t, x0, k1);
   for (int i = 0; i < 10; ++i) xs[i] = x0[i] + hh * k1[i];
-  derivative(t + hh, xs, u, k2);
+  f(t + hh, xs, k2);
   for (int i = 0; i < 10; ++i) xs[i] = x0[i] + hh * k2[i];
-  derivative(t + hh, xs, u, k3);
+  f(t + hh, xs, k3);
   for (int i = 0; i < 10; ++i) xs[i] = x0[i] + h * k3[i];
-  derivative(t + h, xs, u, k4);
+  f(t + h, xs, k4);
   const double h6 = h / 6.0;
   double o[10];
   for (int i = 0; i < 10; ++i) o[i] = x0[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
@@ -80,6 +84,106 @@ PlantState TorquePlant::step(double t, const PlantState& x, double h, const Vec4
   for (int i = 0; i < 3; ++i) r.sigma_BN(i) = o[i], r.omega_BN_B(i) = o[3 + i];
   for (int i = 0; i < 4; ++i) r.wheel_speed(i) = o[6 + i];
   return r;
+}
+
+// The kernel's constants on the stack (the plant's step path does not allocate).
+struct StackKernel {
+  detail::Rhs rhs;
+  double C[3][4], CJ[3][4], Jw[4];
+  explicit StackKernel(const PlantParams& p) : rhs(p.J0 + p.dJ, hub_inertia(p), p.w0) {
+    for (int i = 0; i < 4; ++i) Jw[i] = p.Jw(i);
+    for (int r = 0; r < 3; ++r)
+      for (int i = 0; i < 4; ++i) C[r][i] = p.Cbar(r, i), CJ[r][i] = p.Cbar(r, i) * p.Jw(i);
+  }
+};
+
+}  // namespace
+
+TorquePlant::TorquePlant(const PlantParams& p, const TorqueWheels& wheels) : p_(p), w_(wheels) {
+  M_ = hub_inertia(p);
+  Eigen::SelfAdjointEigenSolver<Mat3> es(0.5 * (M_ + M_.transpose()));
+  if (!(es.eigenvalues().minCoeff() > 0.0))
+    throw std::invalid_argument("TorquePlant: J - Cbar diag(Jw) Cbar' is not positive definite");
+  k_ = std::make_unique<const Kernel>(p, M_);
+}
+
+TorquePlant::~TorquePlant() = default;
+
+
+void torque_step_inputs(const PlantParams& p, const ActuatorParams& a, double t, const Vec4& u_cmd,
+                        const Vec4& wheel_speed, double u[4], double scale[4], double brake[4]) {
+  const TorqueWheels& w = a.wheels;
+  for (int i = 0; i < 4; ++i) {
+    const auto s = static_cast<std::size_t>(i);
+    u[i] = wheel_applied_torque(wheel_torque_command(u_cmd(i), p.Jw(i), w.torque_command), wheel_speed(i),
+                                w.limits[s]);
+    scale[i] = 1.0;
+    brake[i] = 0.0;
+  }
+  for (int i = 0; i < 4; ++i) {  // step_inputs takes the faults in wheel order too
+    const WheelFault& f = a.faults[static_cast<std::size_t>(i)];
+    if (!(f.active && f.onset <= t && t < f.end)) continue;
+    if (f.stuck) {
+      u[i] = 0.0;
+      brake[i] = p.Jw(i) * f.rate;
+    } else {
+      const double Y = -std::expm1(-f.rate * (t - f.onset));
+      u[i] = u[i] + Y * ((f.effectiveness - 1.0) * u[i] + p.Jw(i) * f.bias);
+      scale[i] = 1.0 + Y * (f.friction - 1.0);
+    }
+  }
+}
+
+PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
+                           double h, const Vec4& u_cmd) {
+  const StackKernel k(p);
+  double u[4], scale[4], brake[4];
+  torque_step_inputs(p, a, t, u_cmd, x.wheel_speed, u, scale, brake);
+  auto f = [&](double ts, const double* xs, double* out) {
+    torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, ts, xs, u, scale, brake, out);
+  };
+  return rk4_held(f, t, x, h);
+}
+
+WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
+                      const Vec4& u_cmd) {
+  if (!a.wheels.enabled) return wheel_accel(a, t, u_cmd, x.wheel_speed);
+  const StackKernel k(p);
+  double u[4], scale[4], brake[4], x0[10], d[10];
+  torque_step_inputs(p, a, t, u_cmd, x.wheel_speed, u, scale, brake);
+  for (int i = 0; i < 3; ++i) x0[i] = x.sigma_BN(i), x0[3 + i] = x.omega_BN_B(i);
+  for (int i = 0; i < 4; ++i) x0[6 + i] = x.wheel_speed(i);
+  torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, t, x0, u, scale, brake, d);
+  WheelOutput out;
+  for (int i = 0; i < 4; ++i) {
+    out.u_sat(i) = u[i] / p.Jw(i);
+    out.accel(i) = d[6 + i];
+    out.Y(i) = fault_Y(a.faults[static_cast<std::size_t>(i)], t);
+  }
+  return out;
+}
+
+void TorquePlant::derivative(double t, const double x[10], const double u_motor[4], double out[10]) const {
+  derivative(t, x, u_motor, kOnes, kZeros, out);
+}
+
+void TorquePlant::derivative(double t, const double x[10], const double u_motor[4], const double scale[4],
+                             const double brake[4], double out[10]) const {
+  const Kernel& k = *k_;
+  torque_derivative(p_, w_, k.rhs, k.C, k.CJ, k.Jw, t, x, u_motor, scale, brake, out);
+}
+
+PlantState TorquePlant::step_held(double t, const PlantState& x, double h, const double u[4],
+                                  const double scale[4], const double brake[4]) const {
+  auto f = [&](double ts, const double* xs, double* out) { derivative(ts, xs, u, scale, brake, out); };
+  return rk4_held(f, t, x, h);
+}
+
+PlantState TorquePlant::step(double t, const PlantState& x, double h, const Vec4& u_cmd) const {
+  double u[4];
+  for (int i = 0; i < 4; ++i)
+    u[i] = wheel_applied_torque(u_cmd(i), x.wheel_speed(i), w_.limits[static_cast<std::size_t>(i)]);
+  return step_held(t, x, h, u, kOnes, kZeros);
 }
 
 }  // namespace sc_rt

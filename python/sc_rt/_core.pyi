@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_row', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -811,7 +811,7 @@ class WheelFault:
     """
     One wheel's fault of (16); inactive by default. The keyword constructor validates an active fault.
     """
-    def __init__(self, active: bool = False, effectiveness: typing.SupportsFloat | typing.SupportsIndex = 1.0, bias: typing.SupportsFloat | typing.SupportsIndex = 0.0, onset: typing.SupportsFloat | typing.SupportsIndex = 0.0, end: typing.SupportsFloat | typing.SupportsIndex = ..., rate: typing.SupportsFloat | typing.SupportsIndex = 1.0, stuck: bool = False) -> None:
+    def __init__(self, active: bool = False, effectiveness: typing.SupportsFloat | typing.SupportsIndex = 1.0, bias: typing.SupportsFloat | typing.SupportsIndex = 0.0, onset: typing.SupportsFloat | typing.SupportsIndex = 0.0, end: typing.SupportsFloat | typing.SupportsIndex = ..., rate: typing.SupportsFloat | typing.SupportsIndex = 1.0, stuck: bool = False, friction: typing.SupportsFloat | typing.SupportsIndex = 1.0) -> None:
         ...
     @property
     def active(self) -> bool:
@@ -846,6 +846,14 @@ class WheelFault:
     def end(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
     @property
+    def friction(self) -> float:
+        """
+        [-] friction multiplier as Y -> 1 (torque wheels)
+        """
+    @friction.setter
+    def friction(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
     def onset(self) -> float:
         """
         [s] T_i
@@ -869,11 +877,29 @@ class WheelFault:
     @stuck.setter
     def stuck(self, arg0: bool) -> None:
         ...
+class TorqueWheels:
+    """
+    Flight-like torque-commanded wheels (sc_rt.model.wheels.TorqueWheels).
+    """
+    def __init__(self, limits: collections.abc.Sequence[typing.Annotated[collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], "FixedSize(4)"]], friction: collections.abc.Sequence[typing.Annotated[collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], "FixedSize(5)"]], stribeck: bool = False, torque_command: bool = False) -> None:
+        """
+        limits: 4 x (u_max, u_min, p_max, omega_max); friction: 4 x (coulomb, static, beta, viscous,
+        omega_limit_cycle).
+        """
+    @property
+    def enabled(self) -> bool:
+        ...
+    @property
+    def stribeck(self) -> bool:
+        ...
+    @property
+    def torque_command(self) -> bool:
+        ...
 class ActuatorParams:
     """
     Wheel limits and faults (C++ engine). The keyword constructor validates.
     """
-    def __init__(self, umin: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., umax: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., max_wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., faults: collections.abc.Sequence[WheelFault] = ...) -> None:
+    def __init__(self, umin: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., umax: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., max_wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., faults: collections.abc.Sequence[WheelFault] = ..., wheels: TorqueWheels | None = None) -> None:
         ...
     @property
     def faults(self) -> tuple:
@@ -907,6 +933,11 @@ class ActuatorParams:
     @umin.setter
     def umin(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> None:
         ...
+    @property
+    def wheels(self) -> TorqueWheels:
+        """
+        the torque-commanded wheels (enabled false: the paper's)
+        """
 class PlantState:
     """
     Plant state; as a vector [sigma_BN, omega_BN_B, wheel_speed].
@@ -1888,6 +1919,10 @@ def plant_rk4_step(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | 
     """
     One RK4 step from t to t + h [s], u_cmd held; then the MRP short set.
     """
+def plant_row(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> WheelOutput:
+    """
+    The wheels' output of a row at (t, x) for u_cmd, either wheel model (sc_rt.model.truth.row).
+    """
 def ppc_chi(p: PpcParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     ...
 def ppc_chi_dot(p: PpcParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
@@ -2004,6 +2039,10 @@ def wheel_applied_torque(u: typing.SupportsFloat | typing.SupportsIndex, omega: 
 def wheel_friction_torque(omega: typing.SupportsFloat | typing.SupportsIndex, coulomb: typing.SupportsFloat | typing.SupportsIndex, static: typing.SupportsFloat | typing.SupportsIndex, beta: typing.SupportsFloat | typing.SupportsIndex, viscous: typing.SupportsFloat | typing.SupportsIndex, omega_limit_cycle: typing.SupportsFloat | typing.SupportsIndex, stribeck: bool) -> float:
     """
     The friction torque [N m] on a wheel at omega [rad/s] (opposing it).
+    """
+def wheel_torque_command(u: typing.SupportsFloat | typing.SupportsIndex, Jw: typing.SupportsFloat | typing.SupportsIndex, torque_command: bool) -> float:
+    """
+    The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).
     """
 CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('flags', 1), ('ctrl_mode', 1)]
 DEFAULT_LAW: str = 'dsc-ppc'

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "sc_rt/types.hpp"
+#include "sc_rt/wheels.hpp"
 
 namespace sc_rt {
 
@@ -57,6 +58,7 @@ struct WheelFault {
   double end = std::numeric_limits<double>::infinity();   //!< [s] abrupt end (inf: never)
   double rate = 1.0;                                      //!< [1/s] a_i
   bool stuck = false;                                     //!< zero acceleration while active
+  double friction = 1.0;  //!< [-] friction multiplier as Y -> 1 (torque-commanded wheels)
 };
 
 struct ActuatorParams {
@@ -64,6 +66,7 @@ struct ActuatorParams {
   Vec4 umax = Vec4::Constant(10.0);  //!< [rad/s^2] upper limits of (15)
   Vec4 max_wheel_speed = Vec4::Constant(std::numeric_limits<double>::infinity());  //!< [rad/s]
   std::array<WheelFault, 4> faults{};  //!< faults[i] is wheel i's (0-based)
+  TorqueWheels wheels{};  //!< enabled: flight-like wheels replace umin/umax/max_wheel_speed
 };
 
 struct PlantState {
@@ -91,6 +94,23 @@ double fault_Y(const WheelFault& f, double t);
 // Saturation and the fault model (15),(16), stuck wheels, speed limit.
 WheelOutput wheel_accel(const ActuatorParams& a, double t, const Vec4& u_cmd,
                         const Vec4& wheel_speed);
+
+// The wheels' output of a row at (t, x) for the command u_cmd, either wheel
+// model: for the paper's wheels wheel_accel's; for torque-commanded ones
+// u_sat = the applied motor torque / Jw, accel = Omega_w_dot of the dynamics
+// (torque_plant.cpp; sc_rt.model.truth.row).
+WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
+                      const Vec4& u_cmd);
+
+// What torque-commanded wheels hold over a step from t (sc_rt.model.torque_plant.step_inputs):
+// motor torques [N m], friction scales, seizure brakes [N m s].
+void torque_step_inputs(const PlantParams& p, const ActuatorParams& a, double t, const Vec4& u_cmd,
+                        const Vec4& wheel_speed, double u[4], double scale[4], double brake[4]);
+
+// One RK4 step of the plant on torque-commanded wheels (plant_rk4_step calls it
+// when a.wheels.enabled). No allocation.
+PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
+                           double h, const Vec4& u_cmd);
 
 // d(t) = bias + amp cos(freq t) [N m], in B.
 Vec3 disturbance(const PlantParams& p, double t);

@@ -16,12 +16,6 @@
 
 namespace sc_rt {
 
-struct TorqueWheels {
-  std::array<WheelLimits, 4> limits{};
-  std::array<WheelFriction, 4> friction{};
-  bool stribeck = false;  //!< the static (Stribeck) part of the friction
-};
-
 class TorquePlant {
  public:
   //! Throws std::invalid_argument when M is not positive definite.
@@ -33,6 +27,12 @@ class TorquePlant {
   PlantState step(double t, const PlantState& x, double h, const Vec4& u_cmd) const;
   //! x_dot at (t, x) with the motor torques u_motor [N m] (after their limits).
   void derivative(double t, const double x[10], const double u_motor[4], double out[10]) const;
+  //! The same with friction scales and seizure brakes (step_inputs).
+  void derivative(double t, const double x[10], const double u_motor[4], const double scale[4],
+                  const double brake[4], double out[10]) const;
+  //! One RK4 step with the motor torques u, friction scales and brakes held.
+  PlantState step_held(double t, const PlantState& x, double h, const double u[4], const double scale[4],
+                       const double brake[4]) const;
   const Mat3& M() const { return M_; }
 
  private:

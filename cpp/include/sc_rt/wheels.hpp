@@ -2,8 +2,10 @@
 // torque-commanded wheel applies to its command, and its friction, per
 // wheel. The same functions as python/sc_rt/model/wheels.py (its docstring
 // states the model and its source, Basilisk's reaction wheel effector),
-// bitwise (tests/test_wheels.py). Not yet in the plant.
+// bitwise (tests/test_wheels.py). ActuatorParams::wheels (plant.hpp) puts
+// them in the plant (torque_plant.cpp).
 #pragma once
+#include <array>
 
 namespace sc_rt {
 
@@ -21,6 +23,21 @@ struct WheelFriction {
   double viscous = 0.0;            //!< [N m s]
   double omega_limit_cycle = 0.0;  //!< [rad/s] linear below it (<= 0: never)
 };
+
+// The four torque-commanded wheels (sc_rt.model.wheels.TorqueWheels).
+struct TorqueWheels {
+  bool enabled = false;   //!< false: the paper's acceleration-commanded wheels
+  std::array<WheelLimits, 4> limits{};
+  std::array<WheelFriction, 4> friction{};
+  bool stribeck = false;        //!< the static (Stribeck) part of the friction
+  bool torque_command = false;  //!< the command is a motor torque [N m], not an acceleration [rad/s^2]
+};
+
+// The motor torque [N m] a wheel command u asks of a wheel of spin inertia Jw:
+// Jw u for an acceleration command [rad/s^2], u for a torque command.
+inline double wheel_torque_command(double u, double Jw, bool torque_command) {
+  return torque_command ? u : Jw * u;
+}
 
 // The motor torque applied for the command u at the wheel speed omega:
 // torque limit, deadband, power limit, speed limit, in that order.

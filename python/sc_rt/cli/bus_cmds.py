@@ -49,7 +49,8 @@ def cmd_fault(args: argparse.Namespace) -> int:
     try:
         if args.action == "inject":
             msg = inject_msg(args.wheel, effectiveness=args.effectiveness, bias=args.bias,
-                             stuck=args.stuck, at=args.at, until=args.until, rate=args.rate)
+                             stuck=args.stuck, at=args.at, until=args.until, rate=args.rate,
+                             friction=args.friction)
         else:
             msg = clear_msg(args.wheel)
         url = bus_url(args)
@@ -63,7 +64,7 @@ def cmd_fault(args: argparse.Namespace) -> int:
     ch = sent.channel
     when = "now" if msg.now else f"at t = {msg.t_onset:g} s"
     what = (f"effectiveness {msg.effectiveness:g}, bias {msg.bias:g} rad/s^2, rate {msg.rate:g} 1/s"
-            f"{', stuck' if msg.stuck else ''}, {when}"
+            f"{', stuck' if msg.stuck else ''}{f', friction x{msg.friction:g}' if msg.friction != 1.0 else ''}, {when}"
             f"{'' if msg.t_end < 0 else f' until t = {msg.t_end:g} s'}") if args.action == "inject" else "now"
     head = f"sc-rt fault: {args.action} wheel {msg.wheel} ({what}) -> {ch} on {url} (seq {msg.seq})"
     if args.no_wait:

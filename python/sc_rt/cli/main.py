@@ -58,7 +58,10 @@ def _add_monitoring(sub) -> None:
                     help="L in [0, 1] (default: %(default)s)")
     fi.add_argument("--bias", type=float, default=0.0, metavar="B",
                     help="bias ubar [rad/s^2] (default: %(default)s)")
-    fi.add_argument("--stuck", action="store_true", help="the wheel keeps its speed at onset")
+    fi.add_argument("--stuck", action="store_true",
+                    help="the wheel keeps its speed at onset (on [wheels]: seizes, its speed decaying with 1/rate)")
+    fi.add_argument("--friction", type=float, default=1.0, metavar="K",
+                    help="friction multiplier, torque-commanded wheels only (default: %(default)s)")
     when = fi.add_mutually_exclusive_group()
     when.add_argument("--at", type=float, metavar="T",
                       help="onset at simulation time T [s] (refused when the emulator is already past it)")

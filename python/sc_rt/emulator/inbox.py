@@ -383,10 +383,12 @@ class Receiver:
         elif m.action == sc_rt_lcm.fault_cmd_t.ACTION_INJECT:
             onset = self.shared.t_now if m.now else m.t_onset
             fault = WheelFault(wheel=w, effectiveness=m.effectiveness, bias=m.bias, onset=onset,
-                               end=None if m.t_end < 0 else m.t_end, rate=m.rate, stuck=bool(m.stuck))
+                               end=None if m.t_end < 0 else m.t_end, rate=m.rate, stuck=bool(m.stuck),
+                               friction=m.friction)
             new = others + (fault,)
             rec = {"t": self.shared.t_now, "wheel": m.wheel, "action": "inject",
-                   **{k: getattr(fault, k) for k in ("effectiveness", "bias", "onset", "end", "rate", "stuck")}}
+                   **{k: getattr(fault, k) for k in ("effectiveness", "bias", "onset", "end", "rate", "stuck",
+                                                             "friction")}}
         else:
             raise ValueError(f"unknown action {m.action}")
         self.shared.act = dataclasses.replace(self.shared.act, faults=new)  # validated by ActuatorParams

@@ -3,7 +3,7 @@
 
 - ``PlantTwin``: ``n_sub`` RK4 steps with the command held, the C++ plant
   twin (``_core.plant_rk4_step``, bitwise the Python
-  ``model.plant.rk4_step``) or, with ``cpp=False``, the Python one (for a
+  ``model.truth.rk4_step``) or, with ``cpp=False``, the Python one (for a
   changed model/plant.py); a row's wheel saturation, acceleration and
   lumped disturbance (the C++ twins of ``actuators.wheel_accel`` and
   ``plant.lumped_disturbance``, bitwise, or those); the truth's fault
@@ -21,7 +21,7 @@ import numpy as np
 import sc_rt_lcm
 
 from sc_rt import _core
-from sc_rt.model import actuators, plant
+from sc_rt.model import actuators, plant, truth
 
 __all__ = ["PlantTwin", "state_bytes", "truth_bytes"]
 
@@ -75,7 +75,7 @@ class PlantTwin:
             for j in range(n_sub):
                 if j > 0 and sensors is not None and i0 + j == sensors.next_tick:
                     sensors.tick(i0 + j, t + j * h, x)
-                x = plant.rk4_step(self.params, act, t + j * h, x, h, u_cmd)
+                x = truth.rk4_step(self.params, act, t + j * h, x, h, u_cmd)
             return x
         pp, ap = self._cpp(act)
         xs = _core.PlantState.from_vector(x)
@@ -89,12 +89,12 @@ class PlantTwin:
         """(u_sat, wheel accel, delta2) of the row at t, state x, command u_cmd."""
         if self.cpp:
             pp, ap = self._cpp(act)
-            w = _core.wheel_accel(ap, t, u_cmd, x[6:10])
+            xs = _core.PlantState.from_vector(x)
+            w = _core.plant_row(pp, ap, t, xs, u_cmd)
             u_sat, accel = w.u_sat, w.accel
-            delta2 = _core.lumped_disturbance(pp, t, _core.PlantState.from_vector(x), u_sat, accel)
+            delta2 = _core.lumped_disturbance(pp, t, xs, u_sat, accel)
         else:
-            u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
-            delta2 = plant.lumped_disturbance(self.params, t, x, u_sat, accel)
+            u_sat, accel, delta2 = truth.row(self.params, act, t, x, u_cmd)
         return u_sat, accel, delta2
 
     def fault_fields(self, act, t: float) -> tuple[list, list]:

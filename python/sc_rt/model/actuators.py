@@ -33,6 +33,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sc_rt.model.wheels import TorqueWheels
+
 __all__ = [
     "WheelFault",
     "ActuatorParams",
@@ -89,6 +91,9 @@ class WheelFault:
     end: float | None = None  # [s] abrupt end; None: never ends
     rate: float = 1.0  # [1/s] a_i, evolution rate of Y_i
     stuck: bool = False  # wheel stuck: zero acceleration from onset (until end)
+    #: [-] friction multiplier reached as Y -> 1 (torque-commanded wheels only:
+    #: a friction rise, 1 + Y (friction - 1) times the wheel's friction)
+    friction: float = 1.0
 
     def __post_init__(self) -> None:
         errors = self.problems()
@@ -116,6 +121,8 @@ class WheelFault:
                 errs.append(f"WheelFault.end must be > onset ({self.onset!r}), got {self.end!r}")
         if not (_is_real(self.rate) and math.isfinite(self.rate) and self.rate > 0.0):
             errs.append(f"WheelFault.rate must be finite and > 0, got {self.rate!r}")
+        if not (_is_real(self.friction) and math.isfinite(self.friction) and self.friction >= 0.0):
+            errs.append(f"WheelFault.friction must be finite and >= 0, got {self.friction!r}")
         if not isinstance(self.stuck, (bool, np.bool_)):
             errs.append(f"WheelFault.stuck must be a bool, got {self.stuck!r}")
         return errs
@@ -140,6 +147,9 @@ class ActuatorParams:
     umax: np.ndarray  # [rad/s^2] (4,)
     max_wheel_speed: np.ndarray = field(default_factory=lambda: np.full(4, np.inf))  # [rad/s]
     faults: tuple[WheelFault, ...] = ()
+    #: flight-like torque-commanded wheels (None: the paper's, umin/umax/
+    #: max_wheel_speed above; set: these replace them in the plant)
+    wheels: TorqueWheels | None = None
 
     def __post_init__(self) -> None:
         errs: list[str] = []
@@ -184,6 +194,13 @@ class ActuatorParams:
                     f"(faults[{k}]); at most one fault per wheel"
                 )
             seen.add(int(f.wheel))
+        if self.wheels is not None and not isinstance(self.wheels, TorqueWheels):
+            errs.append(f"ActuatorParams.wheels must be a TorqueWheels or None, got {self.wheels!r}")
+        if self.wheels is None:
+            for k, f in enumerate(faults):
+                if isinstance(f, WheelFault) and f.friction != 1.0:
+                    errs.append(f"ActuatorParams.faults[{k}].friction = {f.friction!r} needs torque-commanded "
+                                "wheels (ActuatorParams.wheels): the paper's wheels have no friction")
         if errs:
             raise ValueError("invalid ActuatorParams: " + "; ".join(errs))
         object.__setattr__(self, "umin", umin)
@@ -191,6 +208,10 @@ class ActuatorParams:
         object.__setattr__(self, "max_wheel_speed", wmax)
         object.__setattr__(self, "faults", faults)
         object.__setattr__(self, "_fast", _ActuatorFast(umin, umax, wmax, faults))
+
+    def __getstate__(self) -> dict:
+        # the TorquePlant sc_rt.model.truth caches here holds closures: not pickled
+        return {k: v for k, v in self.__dict__.items() if k != "_torque_plant"}
 
     def fault_of(self, wheel: int) -> WheelFault | None:
         """The fault of wheel ``wheel`` (0..3), or None."""
@@ -356,10 +377,18 @@ def actuator_params_to_cpp(a: ActuatorParams):
             end=f.end_time,
             rate=float(f.rate),
             stuck=bool(f.stuck),
+            friction=float(f.friction),
         )
+    wheels = None
+    if a.wheels is not None:
+        w = a.wheels
+        wheels = _core.TorqueWheels([(v.u_max, v.u_min, v.p_max, v.omega_max) for v in w.limits],
+                                    [(f.coulomb, f.static, f.beta, f.viscous, f.omega_limit_cycle)
+                                     for f in w.friction], w.stribeck, w.command == "torque")
     return _core.ActuatorParams(
         umin=np.array(a.umin),
         umax=np.array(a.umax),
         max_wheel_speed=np.array(a.max_wheel_speed),
         faults=faults,
+        wheels=wheels,
     )

@@ -1,8 +1,7 @@
-"""The plant with torque-commanded reaction wheels (issue #28, second part):
-the Python reference of the dynamics, checked against Basilisk's own test
-cases and closed forms (tests/test_torque_plant.py). Not yet a scenario
-option: the engines, the C++ twin and the emulator still run the paper's
-acceleration-commanded wheels (sc_rt.model.plant).
+"""The plant with torque-commanded reaction wheels (issue #28): the Python
+reference of the dynamics, checked against Basilisk's own test cases and
+closed forms (tests/test_torque_plant.py). A scenario with a ``[wheels]``
+table runs it (sc_rt.model.truth picks it from ``ActuatorParams.wheels``).
 
 Its C++ twin, ``sc_rt._core.TorquePlant`` (cpp/src/torque_plant.cpp,
 ``torque_plant_to_cpp``), gives the same bits.
@@ -30,29 +29,19 @@ Basilisk takes them (docs/MODEL.md, "Flight-like wheels").
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
 
 import numpy as np
 
+from sc_rt.model.actuators import ActuatorParams
 from sc_rt.model.plant import PlantParams, _inv3, _make_disturbance, _make_rhs, _mrp_to_dcm
-from sc_rt.model.wheels import WheelFriction, WheelLimits, applied_torque, friction_torque
+from sc_rt.model.wheels import TorqueWheels, applied_torque, friction_torque, wheel_torque_command
 
-__all__ = ["TorqueWheels", "TorquePlant", "torque_plant_to_cpp"]
+__all__ = ["TorqueWheels", "TorquePlant", "torque_plant_to_cpp", "step_inputs"]
 
-
-@dataclass(frozen=True)
-class TorqueWheels:
-    """The four torque-commanded wheels' limits and friction."""
-
-    limits: tuple[WheelLimits, ...] = field(default=(WheelLimits(),) * 4)
-    friction: tuple[WheelFriction, ...] = field(default=(WheelFriction(),) * 4)
-    #: the static (Stribeck) part of the friction (a wheel starting from rest)
-    stribeck: bool = False
-
-    def __post_init__(self) -> None:
-        if len(self.limits) != 4 or len(self.friction) != 4:
-            raise ValueError(f"TorqueWheels: 4 limits and 4 frictions, got {len(self.limits)} and "
-                             f"{len(self.friction)}")
+_FREE = TorqueWheels()  # no limits, no friction
+_ONES = (1.0, 1.0, 1.0, 1.0)
+_ZEROS = (0.0, 0.0, 0.0, 0.0)
 
 
 class TorquePlant:
@@ -73,7 +62,7 @@ class TorquePlant:
         spin inertia is more than the spacecraft's).
     """
 
-    def __init__(self, p: PlantParams, wheels: TorqueWheels = TorqueWheels()):
+    def __init__(self, p: PlantParams, wheels: TorqueWheels = _FREE):
         self.p, self.wheels = p, wheels
         J = np.asarray(p.J, float).tolist()
         C = np.asarray(p.Cbar, float).tolist()
@@ -98,16 +87,20 @@ class TorquePlant:
         at the wheel speeds ``omega_w`` (their limits)."""
         return [applied_torque(float(u_cmd[i]), float(omega_w[i]), self.wheels.limits[i]) for i in range(4)]
 
-    def net_torques(self, u_motor, omega_w) -> list[float]:
-        """[N m] motor torque plus friction at the wheel speeds ``omega_w``."""
+    def net_torques(self, u_motor, omega_w, scale=_ONES, brake=_ZEROS) -> list[float]:
+        """[N m] motor torque plus friction (times ``scale``, a friction-rise
+        fault) minus the seizure brake ``brake`` Omega at the wheel speeds
+        ``omega_w``."""
         w = self.wheels
-        return [u_motor[i] + friction_torque(float(omega_w[i]), w.friction[i], w.stribeck) for i in range(4)]
+        return [u_motor[i] + scale[i] * friction_torque(float(omega_w[i]), w.friction[i], w.stribeck)
+                - brake[i] * float(omega_w[i]) for i in range(4)]
 
-    def derivative(self, t: float, x, u_motor) -> list[float]:
+    def derivative(self, t: float, x, u_motor, scale=_ONES, brake=_ZEROS) -> list[float]:
         """x_dot (10) at time ``t`` [s] and state ``x`` with the motor torques
-        ``u_motor`` [N m] (after their limits; the friction is added here)."""
+        ``u_motor`` [N m] (after their limits; the friction, times
+        ``scale``, and the seizure brake are added here)."""
         s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = (float(v) for v in x)
-        u1, u2, u3, u4 = self.net_torques(u_motor, (O1, O2, O3, O4))
+        u1, u2, u3, u4 = self.net_torques(u_motor, (O1, O2, O3, O4), scale, brake)
         C, CJ, Jw = self._C, self._CJ, self._Jw
         hw = [CJ[r][0] * O1 + CJ[r][1] * O2 + CJ[r][2] * O3 + CJ[r][3] * O4 for r in range(3)]
         tw = [C[r][0] * u1 + C[r][1] * u2 + C[r][2] * u3 + C[r][3] * u4 for r in range(3)]
@@ -121,12 +114,17 @@ class TorquePlant:
         ``u_cmd`` [N m] held (their limits at the step's start speed), the
         friction at each stage; the attitude mapped to the MRP short set after."""
         x0 = [float(v) for v in x]
-        u = self.motor_torques(u_cmd, x0[6:10])
+        return self.step_held(t, x0, h, self.motor_torques(u_cmd, x0[6:10]))
+
+    def step_held(self, t: float, x, h: float, u, scale=_ONES, brake=_ZEROS) -> np.ndarray:
+        """One RK4 step with the motor torques ``u`` [N m] (after limits and
+        faults), the friction scale and the seizure brake held over it."""
+        x0 = [float(v) for v in x]
         hh = 0.5 * h
-        k1 = self.derivative(t, x0, u)
-        k2 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k1)], u)
-        k3 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k2)], u)
-        k4 = self.derivative(t + h, [a + h * b for a, b in zip(x0, k3)], u)
+        k1 = self.derivative(t, x0, u, scale, brake)
+        k2 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k1)], u, scale, brake)
+        k3 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k2)], u, scale, brake)
+        k4 = self.derivative(t + h, [a + h * b for a, b in zip(x0, k3)], u, scale, brake)
         h6 = h / 6.0
         out = [a + h6 * (b + 2.0 * (c + d) + e) for a, b, c, d, e in zip(x0, k1, k2, k3, k4)]
         ss = out[0] * out[0] + out[1] * out[1] + out[2] * out[2]
@@ -149,7 +147,37 @@ class TorquePlant:
         return float(0.5 * w @ self.M @ w + 0.5 * np.sum(np.asarray(self.p.Jw) * spin * spin))
 
 
-def torque_plant_to_cpp(p: PlantParams, wheels: TorqueWheels = TorqueWheels()):
+def step_inputs(act: ActuatorParams, Jw, t: float, u_cmd, omega_w) -> tuple[list, list, list]:
+    """What the wheels ``act.wheels`` hold over a step from ``t``: (motor
+    torques [N m], friction scales [-], seizure brakes [N m s]).
+
+    Per wheel: the command as a motor torque (``wheel_torque_command``), its
+    limits at the speed ``omega_w`` (``applied_torque``), then its fault while
+    active (onset <= t < end): a seized wheel (``stuck``) gets no motor torque
+    and a brake Jw rate, so that its speed decays with the time constant
+    1/rate; any other fault, with Y = 1 - exp(-rate (t - onset)), changes the
+    torque to u + Y ((L - 1) u + Jw bias) and multiplies the friction by
+    1 + Y (friction - 1) (torque loss, friction rise).
+    """
+    w = act.wheels
+    u, scale, brake = [0.0] * 4, [1.0] * 4, [0.0] * 4
+    for i in range(4):
+        u[i] = applied_torque(wheel_torque_command(float(u_cmd[i]), float(Jw[i]), w.command),
+                              float(omega_w[i]), w.limits[i])
+    for f in act.faults:
+        i = f.wheel
+        if not (f.onset <= t < f.end_time):
+            continue
+        if f.stuck:
+            u[i], brake[i] = 0.0, float(Jw[i]) * f.rate
+        else:
+            Y = -math.expm1(-f.rate * (t - f.onset))
+            u[i] = u[i] + Y * ((f.effectiveness - 1.0) * u[i] + float(Jw[i]) * f.bias)
+            scale[i] = 1.0 + Y * (f.friction - 1.0)
+    return u, scale, brake
+
+
+def torque_plant_to_cpp(p: PlantParams, wheels: TorqueWheels = _FREE):
     """The C++ twin, ``sc_rt._core.TorquePlant``, of ``TorquePlant(p, wheels)``."""
     from sc_rt import _core
     from sc_rt.model.plant import plant_params_to_cpp

@@ -21,8 +21,13 @@ the same wheel number for number (docs/MODEL.md, "Flight-like wheels"):
   limit-cycle speed omega_lc the friction is linear in Omega through its
   value at omega_lc, so that the integration stays smooth near rest.
 
-Not yet wired into the plant (the paper's acceleration-commanded wheels stay
-the model); the plant integration, the motor lag and the faults follow.
+``TorqueWheels`` gathers the four wheels' limits and friction and the
+command interface: a scenario's ``[wheels]`` table (docs/SCENARIOS.md) puts
+it in ``ActuatorParams.wheels``, and the plant then integrates the
+torque-commanded dynamics (sc_rt.model.torque_plant, sc_rt.model.truth).
+With ``command = "acceleration"`` (a law's wheel command in rad/s^2, as the
+built-in laws give it) the drive turns the command into a motor torque with
+``wheel_torque_command`` (the twin of the core's ``wheel_torque_command``).
 """
 
 from __future__ import annotations
@@ -30,7 +35,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["WheelLimits", "WheelFriction", "applied_torque", "friction_torque"]
+__all__ = ["WheelLimits", "WheelFriction", "TorqueWheels", "COMMANDS", "applied_torque", "friction_torque",
+           "wheel_torque_command"]
+
+#: the wheel command interfaces: a wheel acceleration [rad/s^2] or a motor torque [N m]
+COMMANDS = ("acceleration", "torque")
 
 
 @dataclass(frozen=True)
@@ -52,6 +61,38 @@ class WheelFriction:
     beta: float = 0.0              #: [rad/s] Stribeck speed (0: no static part)
     viscous: float = 0.0           #: [N m s] c
     omega_limit_cycle: float = 0.0  #: [rad/s] below it friction is linear in Omega (0: never)
+
+
+@dataclass(frozen=True)
+class TorqueWheels:
+    """The four torque-commanded wheels: limits, friction, command interface."""
+
+    limits: tuple[WheelLimits, ...] = (WheelLimits(),) * 4
+    friction: tuple[WheelFriction, ...] = (WheelFriction(),) * 4
+    #: the static (Stribeck) part of the friction (a wheel starting from rest)
+    stribeck: bool = False
+    #: what the 4 numbers of a wheel command are: "acceleration" [rad/s^2]
+    #: (turned into Jw a by the drive) or "torque" [N m]
+    command: str = "acceleration"
+
+    def __post_init__(self) -> None:
+        if len(self.limits) != 4 or len(self.friction) != 4:
+            raise ValueError(f"TorqueWheels: 4 limits and 4 frictions, got {len(self.limits)} and "
+                             f"{len(self.friction)}")
+        if self.command not in COMMANDS:
+            raise ValueError(f"TorqueWheels.command must be one of {COMMANDS}, got {self.command!r}")
+        for i, (lim, f) in enumerate(zip(self.limits, self.friction)):
+            for name, v in (*vars(lim).items(), *vars(f).items()):
+                if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0.0):
+                    raise ValueError(f"TorqueWheels: wheel {i + 1} {name} must be finite and >= 0, got {v!r}")
+
+
+def wheel_torque_command(u: float, Jw: float, command: str) -> float:
+    """The motor torque [N m] a wheel command ``u`` asks of a wheel of spin
+    inertia ``Jw`` [kg m^2]: ``Jw u`` for an acceleration command (the
+    torque that gives a free wheel the acceleration u), ``u`` for a torque
+    command."""
+    return Jw * u if command == "acceleration" else u
 
 
 def applied_torque(u: float, omega: float, lim: WheelLimits) -> float:

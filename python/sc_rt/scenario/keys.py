@@ -44,6 +44,8 @@ def scenario_data(scn: Any) -> dict[str, Any]:
         if not f.stuck:  # the reader refuses effectiveness and bias next to stuck
             entry["effectiveness"] = float(f.effectiveness)
             entry["bias"] = float(f.bias)
+            if a.wheels is not None:  # friction rise: torque-commanded wheels only
+                entry["friction"] = float(f.friction)
         if f.end is not None:
             entry["end"] = float(f.end)
         faults.append(entry)
@@ -64,7 +66,19 @@ def scenario_data(scn: Any) -> dict[str, Any]:
         "faults": faults,
         **_sensors(scn, controller),
         **_requirements(scn),
+        **_wheels(a.wheels),
     }
+
+
+def _wheels(w: Any) -> dict[str, Any]:
+    """The [wheels] table, every value written out per wheel, if any."""
+    if w is None:
+        return {}
+    table: dict[str, Any] = {"command": w.command, "stribeck": bool(w.stribeck)}
+    for group in (w.limits, w.friction):
+        for name in (f.name for f in dataclasses.fields(group[0])):
+            table[name] = [float(getattr(g, name)) for g in group]
+    return {"wheels": table}
 
 
 def _requirements(scn: Any) -> dict[str, Any]:

@@ -16,6 +16,7 @@ from sc_rt import _core
 from sc_rt.isolate import ChildDied, call_in_child
 from sc_rt._core import mrp_to_dcm
 from sc_rt.model.actuators import ActuatorParams, WheelFault
+from sc_rt.scenario.wheels import check_wheel_fault, read_wheels
 from sc_rt.model.combined import RigidBody, combine
 from sc_rt.model.plant import DisturbanceParams, PlantParams
 from sc_rt.scenario.dispersions import read_montecarlo
@@ -223,7 +224,7 @@ def _read_spacecraft(t: Table, dist: Table) -> tuple[PlantParams | None, Actuato
     return plant, actuators
 
 
-def _read_faults(root: Table) -> tuple[WheelFault, ...] | None:
+def _read_faults(root: Table, plant_step: float | None) -> tuple[WheelFault, ...] | None:
     root.used.add("faults")
     raw = root.raw("faults") if root.has("faults") else []
     if not (isinstance(raw, list) and all(isinstance(f, dict) for f in raw)):
@@ -239,7 +240,9 @@ def _read_faults(root: Table) -> tuple[WheelFault, ...] | None:
         end = t.read("end", Spec("number"), default=_FAULT.end)
         rate = t.read("rate", Spec("number", gt=0), default=_FAULT.rate)
         stuck = t.read("stuck", Spec("bool"), default=_FAULT.stuck)
+        friction = t.read("friction", Spec("number", ge=0), default=_FAULT.friction)
         t.finish()
+        check_wheel_fault(t, bool(stuck), rate, root.has("wheels"), plant_step)
         if wheel is not None and wheel in first_of_wheel:
             t.fail("wheel", f"wheel {wheel} already has a fault (faults[{first_of_wheel[wheel]}]): "
                    "one fault per wheel")  # fmt: skip
@@ -249,14 +252,14 @@ def _read_faults(root: Table) -> tuple[WheelFault, ...] | None:
         if end is not None and onset is not None and end <= onset:
             t.fail("end", f"end must be > onset ({onset:g} s)")
             onset = None
-        if stuck and (t.has("effectiveness") or t.has("bias")):
-            t.fail("stuck", "a stuck wheel ignores effectiveness and bias: give stuck or those")
+        if stuck and (t.has("effectiveness") or t.has("bias") or t.has("friction")):
+            t.fail("stuck", "a stuck wheel ignores effectiveness, bias and friction: give stuck or those")
             stuck = None
         if t.has("end") and end is None:  # end was given but is bad (reported)
             continue
         fault = build(
             t, WheelFault, ("end",), wheel=None if wheel is None else wheel - 1,
-            effectiveness=eff, bias=bias, onset=onset, end=end, rate=rate, stuck=stuck,
+            effectiveness=eff, bias=bias, onset=onset, end=end, rate=rate, stuck=stuck, friction=friction,
         )  # fmt: skip
         if fault is not None:
             faults.append(fault)
@@ -319,11 +322,14 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     controller_table = root.sub("controller", required=False)
     sensors = read_sensors(root, controller_table, run)  # [sensors], [controller] measurement, estimator
     controller = _read_controller(controller_table)
-    faults = _read_faults(root)
+    faults = _read_faults(root, run.plant_step if run else None)
+    wheels = read_wheels(root)
     requirements = read_requirements(root, run.duration if run else None)
     record = read_fields(root.sub("record", required=False), RecordParams)
     montecarlo = root.sub("montecarlo", required=False)  # read last: it names the others' keys
     root.finish()
+    if wheels is False:
+        actuators = None  # (reported)
     if initial is not None and actuators is not None:
         if np.any(np.abs(initial.wheel_speed) > actuators.max_wheel_speed):
             initial_table.fail(
@@ -341,7 +347,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         path=path,
         run=run,
         plant=plant,
-        actuators=dataclasses.replace(actuators, faults=faults),
+        actuators=dataclasses.replace(actuators, faults=faults, wheels=wheels),
         initial=initial,
         guidance=guidance,
         controller=controller,

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.model import actuators, plant
+from sc_rt.model import actuators, plant, truth
 from sc_rt.pylaw import PACKED_SLICES, PyController, is_python_law, law_label, load_law
 from sc_rt.results.metrics import finish_run, record_law_failures
 from sc_rt.sim.columns import LAW_FAILURES, loop_columns
@@ -81,18 +81,18 @@ def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, n
     u_slice = PACKED["u_cmd"]
     rows = 0
     diverged = False
-    wheel_accel, lumped, rk4 = actuators.wheel_accel, plant.lumped_disturbance, plant.rk4_step
+    plant_row, rk4 = truth.row, truth.rk4_step
     isfinite = math.isfinite
     for k in range(n):
         t = k / rate
         out = step(t, x)
         u_cmd = out[u_slice]
-        u_sat, accel, _ = wheel_accel(act, t, u_cmd, x[6:10])
+        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd)
         T[k] = t
         X[k] = x
         OUT[k] = out
         ACC[k] = accel
-        D2[k] = lumped(pp, t, x, u_sat, accel)
+        D2[k] = delta2
         rows = k + 1
         if k == n_ctrl or STOP.is_set():
             break

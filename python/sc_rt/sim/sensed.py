@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.model import actuators, plant
+from sc_rt.model import actuators, plant, truth
 from sc_rt.results.run import FIELD
 from sc_rt.scenario.overrides import grid, initial_state
 from sc_rt.scenario.schema import ScenarioError, ScenarioIssue
@@ -72,7 +72,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
     D2 = np.full((n, 3), np.nan)
     items = list(packed.items())
     rows, diverged = 0, False
-    wheel_accel, lumped, rk4 = actuators.wheel_accel, plant.lumped_disturbance, plant.rk4_step
+    plant_row, rk4 = truth.row, truth.rk4_step
     isfinite = math.isfinite
     for k in range(n):
         t = k / rate
@@ -86,12 +86,12 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
         for name, sl in items:
             row[sl] = getattr(c, name)
         u_cmd = row[packed["u_cmd"]].copy()
-        u_sat, accel, _ = wheel_accel(act, t, u_cmd, x[6:10])
+        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd)
         T[k] = t
         X[k] = x
         NAVT[k] = tel
         ACC[k] = accel
-        D2[k] = lumped(pp, t, x, u_sat, accel)
+        D2[k] = delta2
         rows = k + 1
         if k == n_ctrl:
             break

@@ -46,6 +46,9 @@ class _Law:
         self.law = scn.run.controller
         if (why := refusal(self.law)) is not None:
             raise ValueError(why)
+        if scn.actuators.wheels is not None:
+            raise ValueError("the unsampled engine has the paper's wheels only, not the scenario's [wheels]; "
+                             "use --engine python or cpp")
         self.cfg = cfg
         self.model = _core.SpacecraftModel(cfg.spacecraft)
         self.B = np.asarray(self.model.B)

@@ -43,23 +43,29 @@ def _base(wheel: int, action: int) -> sc_rt_lcm.fault_cmd_t:
     m.t_end = -1.0
     m.effectiveness = 1.0
     m.rate = 1.0
+    m.friction = 1.0
     return m
 
 
 def inject_msg(wheel: int, *, effectiveness: float = 1.0, bias: float = 0.0, stuck: bool = False,
                at: float | None = None, until: float | None = None,
-               rate: float = 1.0) -> sc_rt_lcm.fault_cmd_t:
+               rate: float = 1.0, friction: float = 1.0) -> sc_rt_lcm.fault_cmd_t:
     """A validated ACTION_INJECT command. ``at`` is the onset in simulation
     time [s]; None: now (the emulator's current time). ``until``: the end in
-    simulation time, None: no end. ``rate`` [1/s]: a of (16)."""
+    simulation time, None: no end. ``rate`` [1/s]: a of (16). ``friction``:
+    the friction multiplier (torque-commanded wheels)."""
     _check_wheel(wheel)
-    for name, v in (("effectiveness", effectiveness), ("bias", bias), ("rate", rate)):
+    for name, v in (("effectiveness", effectiveness), ("bias", bias), ("rate", rate), ("friction", friction)):
         if not math.isfinite(v):
             raise FaultArgError(f"--{name} must be finite, got {v}")
     if not 0.0 <= effectiveness <= 1.0:
         raise FaultArgError(f"--effectiveness must be in [0, 1], got {effectiveness}")
     if not rate > 0:
         raise FaultArgError(f"--rate must be > 0, got {rate}")
+    if not friction >= 0:
+        raise FaultArgError(f"--friction must be >= 0, got {friction}")
+    if stuck and friction != 1.0:
+        raise FaultArgError("a stuck (seized) wheel ignores --friction: give --stuck or --friction")
     if at is not None and not (math.isfinite(at) and at >= 0):
         raise FaultArgError(f"--at must be a simulation time >= 0 s, got {at}")
     if until is not None:
@@ -67,8 +73,8 @@ def inject_msg(wheel: int, *, effectiveness: float = 1.0, bias: float = 0.0, stu
             raise FaultArgError(f"--until must be a simulation time >= 0 s, got {until}")
         if at is not None and not until > at:
             raise FaultArgError(f"--until must be after --at, got --at {at} --until {until}")
-    if effectiveness == 1.0 and bias == 0.0 and not stuck:
-        raise FaultArgError("a fault with --effectiveness 1, --bias 0 and not --stuck changes nothing: "
+    if effectiveness == 1.0 and bias == 0.0 and friction == 1.0 and not stuck:
+        raise FaultArgError("a fault with --effectiveness 1, --bias 0, --friction 1 and not --stuck changes nothing: "
                             "give one of them (sc-rt fault clear heals a wheel)")
     m = _base(wheel, sc_rt_lcm.fault_cmd_t.ACTION_INJECT)
     m.now = at is None
@@ -78,6 +84,7 @@ def inject_msg(wheel: int, *, effectiveness: float = 1.0, bias: float = 0.0, stu
     m.bias = float(bias)
     m.rate = float(rate)
     m.stuck = bool(stuck)
+    m.friction = float(friction)
     return m
 
 

@@ -1,0 +1,61 @@
+"""The true plant a run integrates, whichever wheels its scenario has: the
+paper's acceleration-commanded wheels (sc_rt.model.plant, actuators) or,
+when ``ActuatorParams.wheels`` is set, flight-like torque-commanded wheels
+(sc_rt.model.torque_plant). The engines and the emulator call only this
+module; the C++ twins are ``_core.plant_rk4_step`` and ``_core.plant_row``
+(cpp/src/plant.cpp and torque_plant.cpp), bitwise equal.
+
+With the paper's wheels every function here is exactly the old call
+(tests/test_plant_pin.py pins the shipped scenarios' runs).
+"""
+
+from __future__ import annotations
+
+from sc_rt.model import actuators, plant
+from sc_rt.model.actuators import ActuatorParams
+from sc_rt.model.plant import PlantParams
+from sc_rt.model.torque_plant import TorquePlant, step_inputs
+
+__all__ = ["rk4_step", "row", "torque_plant"]
+
+
+def torque_plant(p: PlantParams, act: ActuatorParams) -> TorquePlant:
+    """The TorquePlant of ``p`` on ``act.wheels``, built once per pair."""
+    cached = act.__dict__.get("_torque_plant")
+    if cached is None or cached[0] is not p:
+        cached = (p, TorquePlant(p, act.wheels))
+        object.__setattr__(act, "_torque_plant", cached)
+    return cached[1]
+
+
+def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd):
+    """One RK4 step of the true plant from t to t + h [s], the wheel command
+    ``u_cmd`` held (sc_rt.model.plant.rk4_step for the paper's wheels; for
+    torque-commanded ones, the torques of ``step_inputs`` at t held)."""
+    if act.wheels is None:
+        return plant.rk4_step(p, act, t, x, h, u_cmd)
+    tp = torque_plant(p, act)
+    x0 = [float(v) for v in x]
+    u, scale, brake = step_inputs(act, p.Jw, float(t), u_cmd, x0[6:10])
+    return tp.step_held(float(t), x0, float(h), u, scale, brake)
+
+
+def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd) -> tuple:
+    """(u_sat, wheel accel, delta2) of a row: the command after the wheels'
+    limits [rad/s^2], the wheels' actual acceleration relative to the body
+    Omega_w_dot [rad/s^2] and the true lumped disturbance delta_2 [rad/s^2].
+
+    For torque-commanded wheels u_sat is the applied motor torque over Jw
+    (the acceleration it gives a free wheel) and the acceleration comes from
+    the dynamics at (t, x); delta_2 is then exact, since (7) holds for them
+    with the true Omega_w_dot.
+    """
+    if act.wheels is None:
+        u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
+    else:
+        tp = torque_plant(p, act)
+        x0 = [float(v) for v in x]
+        u, scale, brake = step_inputs(act, p.Jw, float(t), u_cmd, x0[6:10])
+        accel = tp.derivative(float(t), x0, u, scale, brake)[6:10]
+        u_sat = [u[i] / float(p.Jw[i]) for i in range(4)]
+    return u_sat, accel, plant.lumped_disturbance(p, t, x, u_sat, accel)
