@@ -52,6 +52,8 @@ def cli(*args: str) -> subprocess.CompletedProcess:
     (["inject", "--wheel", "1"], "changes nothing"),
     (["inject", "--wheel", "1", "--effectiveness", "1", "--bias", "0", "--at", "3"], "changes nothing"),
     (["inject", "--wheel", "x"], "invalid int value: 'x'"),
+    (["inject", "--wheel", "1", "--friction", "-1"], "--friction must be >= 0, got -1.0"),
+    (["inject", "--wheel", "1", "--friction", "2", "--stuck"], "ignores --friction"),
     (["inject", "--wheel", "1", "--bias", "0.1", "--timeout", "0"], "argument --timeout: 0: must be"),
     (["clear", "--wheel", "1", "--timeout", "nan"], "argument --timeout: nan: must be"),
 ])
@@ -123,12 +125,12 @@ def test_messages():
     assert c.action == c.ACTION_CLEAR and c.wheel == 4
 
 
-def _receiver(accept: bool) -> Receiver:
+def _receiver(accept: bool, scenario: str = "paper_fault_free") -> Receiver:
     """The emulator's receiver built alone (no emulator, no loop) on an
     in-process bus, with the shared values it writes."""
     import lcm
 
-    scn = load_scenario(ROOT / "scenarios" / "paper_fault_free.toml")
+    scn = load_scenario(ROOT / "scenarios" / f"{scenario}.toml")
     return Receiver(lcm.LCM("memq://"), "", 1, 10, Shared(Counter(), scn.actuators), accept_faults=accept)
 
 
@@ -166,6 +168,21 @@ def test_emulator_applies_faults_only_when_it_accepts_them():
     actions = [r.get("action", "rejected") for r in emu.faults_applied]
     assert actions == ["inject", "inject", "inject", "clear", "rejected", "rejected"]
     assert emu.faults_applied[0]["t"] == 12.5 and emu.faults_applied[0]["onset"] == 20.0
+
+
+def test_a_live_friction_rise_needs_flight_wheels():
+    # the paper's wheels have no friction: refused, named
+    rx = _receiver(True)
+    rx.on_fault("SCRT_FAULT", inject_msg(3, friction=4.0).encode())
+    assert rx.shared.counters["fault_rejected"] == 1 and rx.shared.act.faults == ()
+    assert "friction" in rx.shared.faults_applied[0]["rejected"]
+    # on flight_wheels' torque-commanded wheels it applies
+    rx = _receiver(True, "flight_wheels")
+    rx.shared.t_now = 7.0
+    rx.on_fault("SCRT_FAULT", inject_msg(3, friction=4.0, rate=0.5).encode())
+    (f,) = rx.shared.act.faults
+    assert (f.wheel, f.friction, f.onset, f.rate, f.effectiveness) == (2, 4.0, 7.0, 0.5, 1.0)
+    assert rx.shared.faults_applied[0]["friction"] == 4.0
 
 
 @pytest.mark.slow  # ~10-16 s: an 8 s real-time run and its report with figures

@@ -287,7 +287,8 @@ def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
                      "action": {1: "inject", 2: "clear"}.get(int(rec["action"]), int(rec["action"])),
                      "now": bool(rec["now"]), "t_onset": float(rec["t_onset"]), "t_end": float(rec["t_end"]),
                      "effectiveness": float(rec["effectiveness"]), "bias": float(rec["bias"]),
-                     "rate": float(rec["rate"]), "stuck": bool(rec["stuck"])})
+                     "rate": float(rec["rate"]), "stuck": bool(rec["stuck"]),
+                     "friction": float(rec["friction"])})
     changes: list[dict[str, Any]] = []
     h = r.has_truth
     L, B, K, Y = (r.arrays[k][h] for k in ("fault_effectiveness", "fault_bias", "fault_stuck", "fault_Y"))
