@@ -136,7 +136,8 @@ void bind_plant(py::module_& m) {
            "omega_limit_cycle).")
       .def_readonly("enabled", &TorqueWheels::enabled)
       .def_readonly("stribeck", &TorqueWheels::stribeck)
-      .def_readonly("torque_command", &TorqueWheels::torque_command);
+      .def_readonly("torque_command", &TorqueWheels::torque_command)
+      .def_readwrite("lag", &TorqueWheels::lag, "[s] motor lag time constants (0: none)");
 
   py::class_<ActuatorParams>(m, "ActuatorParams",
                              "Wheel limits and faults (C++ engine). The keyword constructor "
@@ -206,7 +207,10 @@ void bind_plant(py::module_& m) {
   m.def("plant_derivative", &plant_derivative, arg("p"), arg("t"), arg("x"),
         arg("wheel_accel"),
         "State derivative (1),(2),(7) for the actual wheel accelerations [rad/s^2].");
-  m.def("plant_rk4_step", &plant_rk4_step, arg("p"), arg("a"), arg("t"), arg("x"), arg("h"),
+  m.def("plant_rk4_step",
+        py::overload_cast<const PlantParams&, const ActuatorParams&, double, const PlantState&, double,
+                          const Vec4&>(&plant_rk4_step),
+        arg("p"), arg("a"), arg("t"), arg("x"), arg("h"),
         arg("u_cmd"), "One RK4 step from t to t + h [s], u_cmd held; then the MRP short set.");
   m.def("lumped_disturbance", &lumped_disturbance, arg("p"), arg("t"), arg("x"), arg("u_sat"),
         arg("accel"), "The true delta_2 of (20),(21) [rad/s^2].");
@@ -227,8 +231,22 @@ void bind_plant(py::module_& m) {
       },
       arg("omega"), arg("coulomb"), arg("static"), arg("beta"), arg("viscous"), arg("omega_limit_cycle"),
       arg("stribeck"), "The friction torque [N m] on a wheel at omega [rad/s] (opposing it).");
-  m.def("plant_row", &plant_row, arg("p"), arg("a"), arg("t"), arg("x"), arg("u_cmd"),
-        "The wheels' output of a row at (t, x) for u_cmd, either wheel model (sc_rt.model.truth.row).");
+  m.def(
+      "plant_row",
+      [](const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x, const Vec4& u_cmd,
+         const std::optional<Vec4>& motor) { return plant_row(p, a, t, x, u_cmd, motor ? &*motor : nullptr); },
+      arg("p"), arg("a"), arg("t"), arg("x"), arg("u_cmd"), arg("motor") = py::none(),
+      "The wheels' output of a row at (t, x) for u_cmd, either wheel model (sc_rt.model.truth.row);\n"
+      "motor: the motor torques at t of lagged wheels.");
+  m.def(
+      "plant_rk4_step_motor",
+      [](const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x, double h, const Vec4& u_cmd,
+         Vec4 motor) {
+        const PlantState r = plant_rk4_step(p, a, t, x, h, u_cmd, motor);
+        return py::make_tuple(r, motor);
+      },
+      arg("p"), arg("a"), arg("t"), arg("x"), arg("h"), arg("u_cmd"), arg("motor"),
+      "plant_rk4_step carrying the motor torques of torque-commanded wheels: (state, motor at t + h).");
   m.def("wheel_torque_command", &wheel_torque_command, arg("u"), arg("Jw"), arg("torque_command"),
         "The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).");
   py::class_<TorquePlant>(m, "TorquePlant",

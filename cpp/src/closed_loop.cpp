@@ -70,7 +70,7 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
     }
     const Command c = ctl_->step(nv ? nv->measure(t, x_, out ? &tel_ : nullptr)
                                     : Measurement{t, x_.sigma_BN, x_.omega_BN_B, x_.wheel_speed});
-    const WheelOutput w = plant_row(plant_, act_, t, x_, c.u_cmd);
+    const WheelOutput w = plant_row(plant_, act_, t, x_, c.u_cmd, &motor_);
     if (out) {
       out->t[static_cast<std::size_t>(i)] = t;
       put(out->sigma_BN, i, x_.sigma_BN);
@@ -113,7 +113,7 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
         nv->tick(next_, t + j * h_, x_);
         next_ = nv->next_tick(next_);
       }
-      x_ = plant_rk4_step(plant_, act_, t + j * h_, x_, h_, c.u_cmd);
+      x_ = plant_rk4_step(plant_, act_, t + j * h_, x_, h_, c.u_cmd, motor_);
     }
     if (!finite(x_)) {
       diverged_ = done_ = true;

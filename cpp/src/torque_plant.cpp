@@ -134,23 +134,52 @@ void torque_step_inputs(const PlantParams& p, const ActuatorParams& a, double t,
   }
 }
 
+namespace {
+bool lagged(const ActuatorParams& a, const void* motor) {
+  bool any = false;
+  for (double tau : a.wheels.lag) any = any || tau > 0.0;
+  if (any && motor == nullptr)
+    throw std::invalid_argument("wheels with a motor lag need the motor state (plant_rk4_step's motor)");
+  return any;
+}
+}  // namespace
+
 PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                           double h, const Vec4& u_cmd) {
+                           double h, const Vec4& u_cmd, Vec4* motor) {
   const StackKernel k(p);
   double u[4], scale[4], brake[4];
   torque_step_inputs(p, a, t, u_cmd, x.wheel_speed, u, scale, brake);
+  if (lagged(a, motor)) {
+    for (int i = 0; i < 4; ++i) {
+      double avg, end;
+      motor_lag(u[i], (*motor)(i), a.wheels.lag[static_cast<std::size_t>(i)], h, &avg, &end);
+      u[i] = avg;
+      (*motor)(i) = end;
+    }
+  } else if (motor != nullptr) {
+    for (int i = 0; i < 4; ++i) (*motor)(i) = u[i];
+  }
   auto f = [&](double ts, const double* xs, double* out) {
     torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, ts, xs, u, scale, brake, out);
   };
   return rk4_held(f, t, x, h);
 }
 
+PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
+                          double h, const Vec4& u_cmd, Vec4& motor) {
+  if (a.wheels.enabled) return torque_rk4_step(p, a, t, x, h, u_cmd, &motor);
+  return plant_rk4_step(p, a, t, x, h, u_cmd);
+}
+
 WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                      const Vec4& u_cmd) {
+                      const Vec4& u_cmd, const Vec4* motor) {
   if (!a.wheels.enabled) return wheel_accel(a, t, u_cmd, x.wheel_speed);
   const StackKernel k(p);
   double u[4], scale[4], brake[4], x0[10], d[10];
   torque_step_inputs(p, a, t, u_cmd, x.wheel_speed, u, scale, brake);
+  if (lagged(a, motor))
+    for (int i = 0; i < 4; ++i)
+      if (a.wheels.lag[static_cast<std::size_t>(i)] > 0.0) u[i] = (*motor)(i);
   for (int i = 0; i < 3; ++i) x0[i] = x.sigma_BN(i), x0[3 + i] = x.omega_BN_B(i);
   for (int i = 0; i < 4; ++i) x0[6 + i] = x.wheel_speed(i);
   torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, t, x0, u, scale, brake, d);

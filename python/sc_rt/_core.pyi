@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_row', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -888,6 +888,14 @@ class TorqueWheels:
         """
     @property
     def enabled(self) -> bool:
+        ...
+    @property
+    def lag(self) -> typing.Annotated[list[float], "FixedSize(4)"]:
+        """
+        [s] motor lag time constants (0: none)
+        """
+    @lag.setter
+    def lag(self, arg0: typing.Annotated[collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex], "FixedSize(4)"]) -> None:
         ...
     @property
     def stribeck(self) -> bool:
@@ -1919,9 +1927,14 @@ def plant_rk4_step(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | 
     """
     One RK4 step from t to t + h [s], u_cmd held; then the MRP short set.
     """
-def plant_row(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> WheelOutput:
+def plant_rk4_step_motor(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> tuple[PlantState, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]]:
     """
-    The wheels' output of a row at (t, x) for u_cmd, either wheel model (sc_rt.model.truth.row).
+    plant_rk4_step carrying the motor torques of torque-commanded wheels: (state, motor at t + h).
+    """
+def plant_row(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] | None = None) -> WheelOutput:
+    """
+    The wheels' output of a row at (t, x) for u_cmd, either wheel model (sc_rt.model.truth.row);
+    motor: the motor torques at t of lagged wheels.
     """
 def ppc_chi(p: PpcParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     ...

@@ -6,6 +6,7 @@
 // them in the plant (torque_plant.cpp).
 #pragma once
 #include <array>
+#include <cmath>
 
 namespace sc_rt {
 
@@ -31,7 +32,22 @@ struct TorqueWheels {
   std::array<WheelFriction, 4> friction{};
   bool stribeck = false;        //!< the static (Stribeck) part of the friction
   bool torque_command = false;  //!< the command is a motor torque [N m], not an acceleration [rad/s^2]
+  std::array<double, 4> lag{};  //!< [s] first-order motor lag time constants (0: none)
 };
+
+// A first-order motor lag over a step h [s] toward the torque c from the motor
+// torque m [N m], time constant tau [s] (sc_rt.model.wheels.motor_lag): the
+// torque averaged over the step in *avg, the torque at its end in *end.
+inline void motor_lag(double c, double m, double tau, double h, double* avg, double* end) {
+  if (tau <= 0.0) {
+    *avg = c;
+    *end = c;
+    return;
+  }
+  const double d = m - c;
+  *avg = c + d * (tau / h) * -std::expm1(-h / tau);
+  *end = c + d * std::exp(-h / tau);
+}
 
 // The motor torque [N m] a wheel command u asks of a wheel of spin inertia Jw:
 // Jw u for an acceleration command [rad/s^2], u for a torque command.

@@ -391,7 +391,7 @@ class Emulator:
             stamps[2] = time.monotonic_ns()
         if self._pending is not None:  # a late tick: the previous row's record and truth first, never lost
             self._flush_pending()
-        self._pending = (k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps)
+        self._pending = (k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, self.twin.motor_at_start)
         if defer_ns is None or next_state is None or not finite:
             self._flush_pending()
         else:
@@ -400,11 +400,11 @@ class Emulator:
 
     def _flush_pending(self) -> None:
         """The deferred part of a row: its record and its truth."""
-        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps = self._pending
+        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, motor = self._pending
         self._pending = None
         if stamps is not None:
             stamps[3] = time.monotonic_ns()
-        _, accel, delta2 = self.twin.row(act, t, x, u_cmd)
+        _, accel, delta2 = self.twin.row(act, t, x, u_cmd, motor)
         self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2)
         self.publisher.drain()  # an answer that came meanwhile is received now, not after the truth's publish
         self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act)

@@ -56,6 +56,10 @@ class PlantTwin:
 
     def __init__(self, params, cpp: bool = True):
         self.params, self.cpp = params, cpp
+        #: the motor torques of torque-commanded wheels (their lag's state), carried
+        #: from row to row; ``motor_at_start``: as they were at the latest row's start
+        self.motor: list[float] | None = None
+        self.motor_at_start: tuple | None = None
         self._cpp_params: tuple = (None,)
         self._fault_fields: tuple = (None,)
 
@@ -71,30 +75,40 @@ class PlantTwin:
         ticked before each sub-step j > 0 whose plant step i0 + j it names
         (``next_tick``), at t + j h with the state then, as the offline loop
         does (sim/sensed.py)."""
+        if act.wheels is not None and self.motor is None:
+            self.motor = truth.new_motor(act)
+        self.motor_at_start = None if self.motor is None else tuple(self.motor)
         if not self.cpp:
             for j in range(n_sub):
                 if j > 0 and sensors is not None and i0 + j == sensors.next_tick:
                     sensors.tick(i0 + j, t + j * h, x)
-                x = truth.rk4_step(self.params, act, t + j * h, x, h, u_cmd)
+                x = truth.rk4_step(self.params, act, t + j * h, x, h, u_cmd, self.motor)
             return x
         pp, ap = self._cpp(act)
         xs = _core.PlantState.from_vector(x)
+        motor = None if self.motor is None else np.array(self.motor)
         for j in range(n_sub):
             if j > 0 and sensors is not None and i0 + j == sensors.next_tick:
                 sensors.tick(i0 + j, t + j * h, xs.to_vector())
-            xs = _core.plant_rk4_step(pp, ap, t + j * h, xs, h, u_cmd)
+            if motor is None:
+                xs = _core.plant_rk4_step(pp, ap, t + j * h, xs, h, u_cmd)
+            else:
+                xs, motor = _core.plant_rk4_step_motor(pp, ap, t + j * h, xs, h, u_cmd, motor)
+        if motor is not None:
+            self.motor[:] = motor.tolist()
         return xs.to_vector()
 
-    def row(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray) -> tuple:
-        """(u_sat, wheel accel, delta2) of the row at t, state x, command u_cmd."""
+    def row(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, motor=None) -> tuple:
+        """(u_sat, wheel accel, delta2) of the row at t, state x, command u_cmd
+        (``motor``: the motor torques at t, ``motor_at_start`` of its integrate)."""
         if self.cpp:
             pp, ap = self._cpp(act)
             xs = _core.PlantState.from_vector(x)
-            w = _core.plant_row(pp, ap, t, xs, u_cmd)
+            w = _core.plant_row(pp, ap, t, xs, u_cmd, None if motor is None else np.array(motor))
             u_sat, accel = w.u_sat, w.accel
             delta2 = _core.lumped_disturbance(pp, t, xs, u_sat, accel)
         else:
-            u_sat, accel, delta2 = truth.row(self.params, act, t, x, u_cmd)
+            u_sat, accel, delta2 = truth.row(self.params, act, t, x, u_cmd, None if motor is None else list(motor))
         return u_sat, accel, delta2
 
     def fault_fields(self, act, t: float) -> tuple[list, list]:

@@ -385,6 +385,7 @@ def actuator_params_to_cpp(a: ActuatorParams):
         wheels = _core.TorqueWheels([(v.u_max, v.u_min, v.p_max, v.omega_max) for v in w.limits],
                                     [(f.coulomb, f.static, f.beta, f.viscous, f.omega_limit_cycle)
                                      for f in w.friction], w.stribeck, w.command == "torque")
+        wheels.lag = list(w.lag)
     return _core.ActuatorParams(
         umin=np.array(a.umin),
         umax=np.array(a.umax),

@@ -15,8 +15,24 @@ from sc_rt.model import actuators, plant
 from sc_rt.model.actuators import ActuatorParams
 from sc_rt.model.plant import PlantParams
 from sc_rt.model.torque_plant import TorquePlant, step_inputs
+from sc_rt.model.wheels import motor_lag
 
-__all__ = ["rk4_step", "row", "torque_plant"]
+__all__ = ["rk4_step", "row", "torque_plant", "new_motor"]
+
+
+def new_motor(act: ActuatorParams) -> list[float] | None:
+    """The motor torques a run carries from step to step [N m], all 0 at the
+    start (torque-commanded wheels; None for the paper's). ``rk4_step``
+    updates it in place, ``row`` reads it."""
+    return None if act.wheels is None else [0.0] * 4
+
+
+def _lagged(act: ActuatorParams, motor) -> bool:
+    if not any(act.wheels.lag):
+        return False
+    if motor is None:
+        raise ValueError("wheels with a motor lag need the motor state (truth.new_motor)")
+    return True
 
 
 def torque_plant(p: PlantParams, act: ActuatorParams) -> TorquePlant:
@@ -28,19 +44,27 @@ def torque_plant(p: PlantParams, act: ActuatorParams) -> TorquePlant:
     return cached[1]
 
 
-def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd):
+def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd, motor=None):
     """One RK4 step of the true plant from t to t + h [s], the wheel command
     ``u_cmd`` held (sc_rt.model.plant.rk4_step for the paper's wheels; for
-    torque-commanded ones, the torques of ``step_inputs`` at t held)."""
+    torque-commanded ones, the torques of ``step_inputs`` at t held, through
+    the motor lag when there is one: ``motor``, from ``new_motor``, is then
+    advanced to t + h in place)."""
     if act.wheels is None:
         return plant.rk4_step(p, act, t, x, h, u_cmd)
     tp = torque_plant(p, act)
     x0 = [float(v) for v in x]
+    h = float(h)
     u, scale, brake = step_inputs(act, p.Jw, float(t), u_cmd, x0[6:10])
-    return tp.step_held(float(t), x0, float(h), u, scale, brake)
+    if _lagged(act, motor):
+        for i, tau in enumerate(act.wheels.lag):
+            u[i], motor[i] = motor_lag(u[i], motor[i], tau, h)
+    elif motor is not None:
+        motor[:] = u
+    return tp.step_held(float(t), x0, h, u, scale, brake)
 
 
-def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd) -> tuple:
+def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> tuple:
     """(u_sat, wheel accel, delta2) of a row: the command after the wheels'
     limits [rad/s^2], the wheels' actual acceleration relative to the body
     Omega_w_dot [rad/s^2] and the true lumped disturbance delta_2 [rad/s^2].
@@ -48,7 +72,8 @@ def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd) -> tuple:
     For torque-commanded wheels u_sat is the applied motor torque over Jw
     (the acceleration it gives a free wheel) and the acceleration comes from
     the dynamics at (t, x); delta_2 is then exact, since (7) holds for them
-    with the true Omega_w_dot.
+    with the true Omega_w_dot. With a motor lag the motor torque at t is the
+    state ``motor`` (before this row's step), not the command.
     """
     if act.wheels is None:
         u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
@@ -56,6 +81,8 @@ def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd) -> tuple:
         tp = torque_plant(p, act)
         x0 = [float(v) for v in x]
         u, scale, brake = step_inputs(act, p.Jw, float(t), u_cmd, x0[6:10])
+        if _lagged(act, motor):
+            u = [m if tau > 0.0 else c for m, c, tau in zip(motor, u, act.wheels.lag)]
         accel = tp.derivative(float(t), x0, u, scale, brake)[6:10]
         u_sat = [u[i] / float(p.Jw[i]) for i in range(4)]
     return u_sat, accel, plant.lumped_disturbance(p, t, x, u_sat, accel)

@@ -36,7 +36,7 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["WheelLimits", "WheelFriction", "TorqueWheels", "COMMANDS", "applied_torque", "friction_torque",
-           "wheel_torque_command"]
+           "wheel_torque_command", "motor_lag"]
 
 #: the wheel command interfaces: a wheel acceleration [rad/s^2] or a motor torque [N m]
 COMMANDS = ("acceleration", "torque")
@@ -74,11 +74,16 @@ class TorqueWheels:
     #: what the 4 numbers of a wheel command are: "acceleration" [rad/s^2]
     #: (turned into Jw a by the drive) or "torque" [N m]
     command: str = "acceleration"
+    #: [s] first-order motor lag time constant per wheel (0: none, the torque follows at once)
+    lag: tuple[float, ...] = (0.0,) * 4
 
     def __post_init__(self) -> None:
         if len(self.limits) != 4 or len(self.friction) != 4:
             raise ValueError(f"TorqueWheels: 4 limits and 4 frictions, got {len(self.limits)} and "
                              f"{len(self.friction)}")
+        if len(self.lag) != 4 or not all(isinstance(v, (int, float)) and math.isfinite(v) and v >= 0.0
+                                         for v in self.lag):
+            raise ValueError(f"TorqueWheels.lag must be 4 times >= 0 [s], got {self.lag!r}")
         if self.command not in COMMANDS:
             raise ValueError(f"TorqueWheels.command must be one of {COMMANDS}, got {self.command!r}")
         for i, (lim, f) in enumerate(zip(self.limits, self.friction)):
@@ -93,6 +98,18 @@ def wheel_torque_command(u: float, Jw: float, command: str) -> float:
     torque that gives a free wheel the acceleration u), ``u`` for a torque
     command."""
     return Jw * u if command == "acceleration" else u
+
+
+def motor_lag(c: float, m: float, tau: float, h: float) -> tuple[float, float]:
+    """A first-order motor lag over a step of ``h`` [s] toward the torque
+    ``c`` from the motor torque ``m`` [N m], time constant ``tau`` [s]:
+    (the torque averaged over the step, the torque at its end). The average
+    ``c + (m - c) (tau/h) (1 - exp(-h/tau))``, held over the step, gives the
+    wheel the exact impulse of the lag; ``tau`` <= 0: (c, c)."""
+    if tau <= 0.0:
+        return c, c
+    d = m - c
+    return c + d * (tau / h) * -math.expm1(-h / tau), c + d * math.exp(-h / tau)
 
 
 def applied_torque(u: float, omega: float, lim: WheelLimits) -> float:

@@ -74,7 +74,7 @@ def _wheels(w: Any) -> dict[str, Any]:
     """The [wheels] table, every value written out per wheel, if any."""
     if w is None:
         return {}
-    table: dict[str, Any] = {"command": w.command, "stribeck": bool(w.stribeck)}
+    table: dict[str, Any] = {"command": w.command, "stribeck": bool(w.stribeck), "lag": [float(v) for v in w.lag]}
     for group in (w.limits, w.friction):
         for name in (f.name for f in dataclasses.fields(group[0])):
             table[name] = [float(getattr(g, name)) for g in group]

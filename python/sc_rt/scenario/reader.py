@@ -52,8 +52,15 @@ _FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
 def check_law(doc: Doc, scn: Scenario, law_key: str, params_key: str) -> None:
     """Load and construct the scenario's law once (a plugin, or any law given
     parameters), probe one step at rest: its problems as scenario errors on
-    ``law_key`` / ``params_key.<key>``."""
+    ``law_key`` / ``params_key.<key>``. A built-in law on torque-commanded
+    wheels that take a torque (they command wheel accelerations) is refused too."""
     c = scn.controller
+    w = scn.actuators.wheels
+    if w is not None and w.command == "torque" and scn.run.controller in LAWS:
+        doc.error(law_key, scn.run.controller,
+                  f"law {scn.run.controller} commands wheel accelerations [rad/s^2] but [wheels] command = "
+                  '"torque" takes motor torques [N m]: use command = "acceleration" (the drive applies Jw a) '
+                  "or a law that commands torque")
     if not (scn.run.controller.startswith(PLUGIN_PREFIX) or c.law_params):
         return
     try:

@@ -64,11 +64,12 @@ def read_wheels(root: Table) -> TorqueWheels | None | bool:
     preset = PRESETS.get(preset_name, {})
     command = t.read("command", Spec("str", choices=COMMANDS), default="acceleration")
     stribeck = t.read("stribeck", Spec("bool"), default=False)
+    lag = t.read("lag", _PER_WHEEL, default=np.zeros(4))
     values: dict[str, np.ndarray | None] = {}
     for key in (*LIMIT_KEYS, *FRICTION_KEYS):
         values[key] = t.read(key, _PER_WHEEL, default=np.full(4, float(preset.get(key, 0.0))))
     t.finish()
-    if command is None or stribeck is None or any(v is None for v in values.values()):
+    if command is None or stribeck is None or lag is None or any(v is None for v in values.values()):
         return False
     if stribeck and not np.all(values["beta"] > 0.0):
         t.fail("stribeck", "the static (Stribeck) friction needs beta > 0 on every wheel")
@@ -78,7 +79,8 @@ def read_wheels(root: Table) -> TorqueWheels | None | bool:
         return False
     limits = tuple(WheelLimits(**{k: float(values[k][i]) for k in LIMIT_KEYS}) for i in range(4))
     friction = tuple(WheelFriction(**{k: float(values[k][i]) for k in FRICTION_KEYS}) for i in range(4))
-    return TorqueWheels(limits=limits, friction=friction, stribeck=bool(stribeck), command=command)
+    return TorqueWheels(limits=limits, friction=friction, stribeck=bool(stribeck), command=command,
+                        lag=tuple(float(v) for v in lag))
 
 
 def check_wheel_fault(t: Table, stuck: bool, rate: float | None, has_wheels: bool,

@@ -82,12 +82,13 @@ def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, n
     rows = 0
     diverged = False
     plant_row, rk4 = truth.row, truth.rk4_step
+    motor = truth.new_motor(act)  # the wheels' motor torques (a lag's state), None for the paper's
     isfinite = math.isfinite
     for k in range(n):
         t = k / rate
         out = step(t, x)
         u_cmd = out[u_slice]
-        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd)
+        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd, motor)
         T[k] = t
         X[k] = x
         OUT[k] = out
@@ -97,7 +98,7 @@ def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, n
         if k == n_ctrl or STOP.is_set():
             break
         for j in range(n_sub):
-            x = rk4(pp, act, t + j * h, x, h, u_cmd)
+            x = rk4(pp, act, t + j * h, x, h, u_cmd, motor)
         if not all(map(isfinite, x)):
             diverged = True
             break

@@ -73,6 +73,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
     items = list(packed.items())
     rows, diverged = 0, False
     plant_row, rk4 = truth.row, truth.rk4_step
+    motor = truth.new_motor(act)  # the wheels' motor torques (a lag's state), None for the paper's
     isfinite = math.isfinite
     for k in range(n):
         t = k / rate
@@ -86,7 +87,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
         for name, sl in items:
             row[sl] = getattr(c, name)
         u_cmd = row[packed["u_cmd"]].copy()
-        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd)
+        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd, motor)
         T[k] = t
         X[k] = x
         NAVT[k] = tel
@@ -99,7 +100,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
             if j > 0 and i0 + j == nxt:
                 nav.tick(i0 + j, t + j * h, x)
                 nxt = nav.next_tick(i0 + j)
-            x = rk4(pp, act, t + j * h, x, h, u_cmd)
+            x = rk4(pp, act, t + j * h, x, h, u_cmd, motor)
         if not all(map(isfinite, x)):
             diverged = True
             break
