@@ -195,6 +195,7 @@ def test_the_shipped_flight_wheels_scenario_reaches_the_speed_limit():
     assert omega_max == pytest.approx(2 * math.pi * 100.0)  # 6000 rpm
     top = np.abs(run["wheel_speed"]).max()
     assert omega_max <= top < omega_max + 0.3
+    assert run.meta.max_wheel_speed == (omega_max,) * 4  # drawn as the limit in the wheel figure
 
 
 def test_the_unsampled_engine_refuses_flight_wheels():

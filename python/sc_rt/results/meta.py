@@ -143,10 +143,18 @@ class RunMeta:
                   requirements=tuple(dataclasses.asdict(r) for r in getattr(scn, "requirements", ())),
                   Cbar=tuple(tuple(float(x) for x in row) for row in np.asarray(plant.Cbar, float)),
                   Jw=tuple(float(x) for x in np.asarray(plant.Jw, float)),
-                  max_wheel_speed=tuple(float(x) for x in np.asarray(a.max_wheel_speed, float)),
+                  max_wheel_speed=_speed_limits(a),
                   record_every=int(getattr(getattr(scn, "record", None), "every", 1)))
         sensors = getattr(scn, "sensors", None)
         if sensors is not None:
             kw.update(sensors=True, measurement=sensors.measurement)
         kw.update(over)
         return cls(**kw)
+
+
+def _speed_limits(a) -> tuple[float, ...]:
+    """The wheels' speed limits [rad/s] (inf: none): the [wheels]' omega_max
+    on flight-like wheels, else [spacecraft] max_wheel_speed."""
+    if getattr(a, "wheels", None) is not None:
+        return tuple(float(w.omega_max) if w.omega_max > 0.0 else math.inf for w in a.wheels.limits)
+    return tuple(float(x) for x in np.asarray(a.max_wheel_speed, float))
