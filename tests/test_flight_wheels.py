@@ -239,10 +239,11 @@ def test_bad_wheel_values_exit_2_naming_key_and_line(tmp_path, edit, key, messag
     assert message in hit.message and hit.line is not None
     lines = path.read_text().splitlines()
     assert key.split(".")[-1].split("[")[0] in lines[hit.line - 1] or key.startswith("faults")
-    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", str(path), "--out", str(tmp_path / "o")],
-                       capture_output=True, text=True, cwd=tmp_path)
-    assert r.returncode == 2 and f"{path}:{hit.line}" in r.stderr and key in r.stderr
-    assert not (tmp_path / "o").exists()
+    if key == "wheels.u_max":  # the command line says the same (one spawn: the others only load)
+        r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", str(path), "--out", str(tmp_path / "o")],
+                           capture_output=True, text=True, cwd=tmp_path)
+        assert r.returncode == 2 and f"{path}:{hit.line}" in r.stderr and key in r.stderr
+        assert not (tmp_path / "o").exists()
 
 
 def test_a_built_in_law_cannot_command_torque(tmp_path):

@@ -52,7 +52,8 @@ def test_every_shipped_scenario_without_wheels_is_pinned():
     assert "flight_wheels" in shipped() and "flight_wheels" not in paper
 
 
-@pytest.mark.parametrize("name", sorted(PINS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if "1khz" in n else n
+                                  for n in sorted(PINS)])  # the 1 kHz runs: 3 s each
 def test_shipped_run_is_bitwise_unchanged(name):
     scn = load_scenario(shipped()[name][0])
     cpp_pin, py_pin = PINS[name]
