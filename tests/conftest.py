@@ -28,7 +28,15 @@ def reference_params(c: _core.ControllerConfig) -> dict:
     sc = c.spacecraft
     g = c.guidance
     p = c.ppc
-    n = c.neso
+
+    def law(name: str) -> dict:  # the law's declared defaults, overlaid with the config's table for it
+        v = {k: list(x) for k, x in _core.law_info(name)["defaults"]}
+        if c.law == name:
+            v.update({k: list(x) for k, x in c.law_params})
+        return {k: (x[0] if len(x) == 1 else np.broadcast_to(np.array(x, float), (3,))) for k, x in v.items()}
+
+    dsc_law = c.law if c.law in ("dsc-ppc", "dsc") else "dsc-ppc"
+    d, pd, rft = law(dsc_law), law("pd"), law("rft")
     return dict(
         sc=dict(J0=np.array(sc.J0), Cbar=np.array(sc.Cbar), Jw=np.array(sc.Jw),
                 umin=np.array(sc.umin), umax=np.array(sc.umax), w0=sc.w0),
@@ -36,12 +44,13 @@ def reference_params(c: _core.ControllerConfig) -> dict:
                cos=np.array(g.omega_cos), sin=np.array(g.omega_sin), freq=g.omega_freq),
         ppc_p=dict(chi0=np.array(p.chi0), chiinf=np.array(p.chiinf), gamma=np.array(p.gamma),
                    dmin=np.array(p.dmin), dmax=np.array(p.dmax)),
-        neso=dict(k1=np.array(n.k1), k2=np.array(n.k2), k3=np.array(n.k3), k4=np.array(n.k4),
-                  alpha=n.alpha, substeps=n.substeps, init_from_measurement=n.init_from_measurement),
-        dsc=dict(k1=c.dsc.k1, k2=c.dsc.k2, k3=c.dsc.k3, k4=c.dsc.k4, tau=c.dsc.tau),
-        pd=dict(beta1=c.pd.beta1, beta2=c.pd.beta2),
-        rft=dict(c=c.rft.c, k=c.rft.k, gain=c.rft.gain, leak=c.rft.leak, phi=c.rft.phi,
-                 rho0=c.rft.rho0),
+        neso=dict(k1=np.broadcast_to(d["neso_k1"], (3,)), k2=np.broadcast_to(d["neso_k2"], (3,)),
+                  k3=np.broadcast_to(d["neso_k3"], (3,)), k4=np.broadcast_to(d["neso_k4"], (3,)),
+                  alpha=d["neso_alpha"], substeps=int(d["neso_substeps"]),
+                  init_from_measurement=bool(d["neso_init_from_measurement"])),
+        dsc=dict(k1=d["k1"], k2=d["k2"], k3=d["k3"], k4=d["k4"], tau=d["tau"]),
+        pd=dict(beta1=pd["beta1"], beta2=pd["beta2"]),
+        rft=dict(c=rft["c"], k=rft["k"], gain=rft["gain"], leak=rft["leak"], phi=rft["phi"], rho0=rft["rho0"]),
         rate=c.control_rate_hz,
     )
 

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from sc_rt.cli import main
-from sc_rt.scenario.variants import with_dsc, with_ppc, without_faults
+from sc_rt.scenario.variants import with_law_params, with_ppc, without_faults
 from sc_rt.sim.engines import simulate
 from sc_rt.studies import reproduce as R
 
@@ -467,9 +467,9 @@ def test_search_finds_the_predicted_smallest_chiinf_at_10hz():
     analysis' smallest stable chiinf, with the paper's k2 and with k2 T = 1.6."""
     paper = R.shipped_scenario("paper_faults")
     for k2 in (4.0, 16.0):
-        r = R.tightest_chiinf(with_dsc(paper, k2=k2), 10.0, rtol=0.02)
+        r = R.tightest_chiinf(with_law_params(paper, "dsc-ppc", k2=k2), 10.0, rtol=0.02)
         assert r["bracket_ok"], r
         assert 0.95 <= r["factor_fails"] < r["factor_holds"] <= 1.05, r
     # k2 T = 1.6 halves the achievable bound at 10 Hz (chiinf_min ~ 1/sqrt(k2))
-    ratio = R.chiinf_min(with_dsc(paper, k2=16.0), 10.0) / R.chiinf_min(paper, 10.0)
+    ratio = R.chiinf_min(with_law_params(paper, "dsc-ppc", k2=16.0), 10.0) / R.chiinf_min(paper, 10.0)
     assert ratio == pytest.approx([0.5, 0.5, 0.5], rel=0.01)

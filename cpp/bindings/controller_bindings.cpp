@@ -112,9 +112,12 @@ void bind_controllers(py::module_& m) {
         d["doc"] = e.doc;
         d["source"] = e.source;
         d["code"] = e.code;
+        d["defaults"] = e.defaults;
         return d;
       },
-      arg("spec"), "name, doc, source (\"built-in\" or the library) and code of a law spec.");
+      arg("spec"),
+      "name, doc, source (\"built-in\" or the library), code and defaults (its parameters'\n"
+      "values when its table omits them: [(key, [numbers])], empty for a plugin) of a law spec.");
   m.def("check_law", &check_law, arg("c"),
         "Construct the configured law once and probe one step at rest, without running:\n"
         "[(key, message)] per problem; key \"law\" or \"params.<key>\" (empty: fine).");
@@ -126,26 +129,6 @@ void bind_controllers(py::module_& m) {
            {"FLAG_TIME_NOT_ADVANCING", FLAG_TIME_NOT_ADVANCING},
            {"FLAG_LAW_INVALID", FLAG_LAW_INVALID}})
     m.attr(name) = v;
-  py::class_<DscGains>(m, "DscGains")
-      .def(py::init<>())
-      .def_readwrite("k1", &DscGains::k1)
-      .def_readwrite("k2", &DscGains::k2)
-      .def_readwrite("k3", &DscGains::k3)
-      .def_readwrite("k4", &DscGains::k4)
-      .def_readwrite("k6", &DscGains::k6)
-      .def_readwrite("tau", &DscGains::tau, "[s]");
-  py::class_<PdGains>(m, "PdGains")
-      .def(py::init<>())
-      .def_readwrite("beta1", &PdGains::beta1, "[1/s^2]")
-      .def_readwrite("beta2", &PdGains::beta2, "[1/s]");
-  py::class_<RftGains>(m, "RftGains")
-      .def(py::init<>())
-      .def_readwrite("c", &RftGains::c)
-      .def_readwrite("k", &RftGains::k)
-      .def_readwrite("gain", &RftGains::gain)
-      .def_readwrite("leak", &RftGains::leak)
-      .def_readwrite("phi", &RftGains::phi)
-      .def_readwrite("rho0", &RftGains::rho0);
   py::class_<SafetyLimits>(m, "SafetyLimits")
       .def(py::init<>())
       .def_readwrite("max_rate", &SafetyLimits::max_rate, "[rad/s]")
@@ -156,15 +139,11 @@ void bind_controllers(py::module_& m) {
       .def_readwrite("law", &ControllerConfig::law,
                      "law spec: a registered name or \"plugin:PATH_OR_NAME\"")
       .def_readwrite("law_params", &ControllerConfig::law_params,
-                     "[controller.params]: [(key, [numbers])]")
+                     "the law's own table ([laws.NAME]): [(key, [numbers])]")
       .def_readwrite("control_rate_hz", &ControllerConfig::control_rate_hz)
       .def_readwrite("spacecraft", &ControllerConfig::spacecraft)
       .def_readwrite("guidance", &ControllerConfig::guidance)
       .def_readwrite("ppc", &ControllerConfig::ppc)
-      .def_readwrite("neso", &ControllerConfig::neso)
-      .def_readwrite("dsc", &ControllerConfig::dsc)
-      .def_readwrite("pd", &ControllerConfig::pd)
-      .def_readwrite("rft", &ControllerConfig::rft)
       .def_readwrite("safety", &ControllerConfig::safety)
       .def_static("from_lcm_bytes",
                   [](const py::bytes& b) {

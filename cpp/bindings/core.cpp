@@ -53,6 +53,10 @@ void bind_math(py::module_& m) {
       .def_readwrite("Jw", &SpacecraftParams::Jw, "[kg m^2] wheel spin inertias (4)")
       .def_readwrite("umin", &SpacecraftParams::umin, "[rad/s^2] lower limits (4)")
       .def_readwrite("umax", &SpacecraftParams::umax, "[rad/s^2] upper limits (4)")
+      .def_readwrite("wheel_torque_command", &SpacecraftParams::wheel_torque_command,
+                     "the wheels take a motor torque [N m] (umin/umax then in N m)")
+      .def_readwrite("wheel_speed_max", &SpacecraftParams::wheel_speed_max,
+                     "[rad/s] the wheels' speed limits (4; inf: none), for the law")
       .def_readwrite("w0", &SpacecraftParams::w0, "[rad/s] orbit rate")
       .def_readwrite("pinv_damping", &SpacecraftParams::pinv_damping,
                      "[-] damping of B+ (0: exact pseudo-inverse)");

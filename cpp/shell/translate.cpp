@@ -20,6 +20,11 @@ void put(double (&a)[N], const V& v) {
 
 ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   ControllerConfig c;
+  if (m.law_api_version != SC_RT_LAW_API_VERSION)
+    throw std::invalid_argument("controller_config_t is for the law interface version " +
+                                std::to_string(m.law_api_version) + ", this controller has " +
+                                std::to_string(SC_RT_LAW_API_VERSION) +
+                                ": send it from an sc-rt of the same version");
   c.law = m.law;  // resolved (a plugin loaded) by the Controller
   if (m.n_law_params < 0 || m.n_law_param_values < 0)
     throw std::invalid_argument("controller_config_t: negative law parameter counts");
@@ -42,6 +47,8 @@ ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   s.Jw = vec(m.Jw);
   s.umin = vec(m.umin);
   s.umax = vec(m.umax);
+  s.wheel_torque_command = m.wheel_torque_command;
+  s.wheel_speed_max = vec(m.wheel_speed_max);
   s.w0 = m.w0;
   s.pinv_damping = m.pinv_damping;
   GuidanceParams& g = c.guidance;
@@ -76,17 +83,6 @@ ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   p.gamma = vec(m.ppc_gamma);
   p.dmin = vec(m.ppc_dmin);
   p.dmax = vec(m.ppc_dmax);
-  NesoParams& n = c.neso;
-  n.k1 = vec(m.neso_k1);
-  n.k2 = vec(m.neso_k2);
-  n.k3 = vec(m.neso_k3);
-  n.k4 = vec(m.neso_k4);
-  n.alpha = m.neso_alpha;
-  n.substeps = m.neso_substeps;
-  n.init_from_measurement = m.neso_init_from_measurement;
-  c.dsc = {m.dsc_k1, m.dsc_k2, m.dsc_k3, m.dsc_k4, m.dsc_k6, m.dsc_tau};
-  c.pd = {m.pd_beta1, m.pd_beta2};
-  c.rft = {m.rft_c, m.rft_k, m.rft_gain, m.rft_leak, m.rft_phi, m.rft_rho0};
   c.safety = {m.max_rate, m.max_wheel_speed, m.stale_periods};
   return c;
 }
@@ -96,6 +92,7 @@ sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const st
   m.utime = 0;
   m.scenario = scenario;
   m.law = c.law;
+  m.law_api_version = SC_RT_LAW_API_VERSION;
   m.n_law_params = static_cast<int32_t>(c.law_params.size());
   for (const auto& [key, values] : c.law_params) {
     m.law_param_keys.push_back(key);
@@ -112,6 +109,8 @@ sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const st
   put(m.Jw, s.Jw);
   put(m.umin, s.umin);
   put(m.umax, s.umax);
+  m.wheel_torque_command = s.wheel_torque_command;
+  put(m.wheel_speed_max, s.wheel_speed_max);
   m.w0 = s.w0;
   m.pinv_damping = s.pinv_damping;
   put(m.sigma_d0, c.guidance.sigma_d0);
@@ -139,27 +138,6 @@ sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const st
   put(m.ppc_gamma, c.ppc.gamma);
   put(m.ppc_dmin, c.ppc.dmin);
   put(m.ppc_dmax, c.ppc.dmax);
-  put(m.neso_k1, c.neso.k1);
-  put(m.neso_k2, c.neso.k2);
-  put(m.neso_k3, c.neso.k3);
-  put(m.neso_k4, c.neso.k4);
-  m.neso_alpha = c.neso.alpha;
-  m.neso_substeps = c.neso.substeps;
-  m.neso_init_from_measurement = c.neso.init_from_measurement;
-  m.dsc_k1 = c.dsc.k1;
-  m.dsc_k2 = c.dsc.k2;
-  m.dsc_k3 = c.dsc.k3;
-  m.dsc_k4 = c.dsc.k4;
-  m.dsc_k6 = c.dsc.k6;
-  m.dsc_tau = c.dsc.tau;
-  m.pd_beta1 = c.pd.beta1;
-  m.pd_beta2 = c.pd.beta2;
-  m.rft_c = c.rft.c;
-  m.rft_k = c.rft.k;
-  m.rft_gain = c.rft.gain;
-  m.rft_leak = c.rft.leak;
-  m.rft_phi = c.rft.phi;
-  m.rft_rho0 = c.rft.rho0;
   m.max_rate = c.safety.max_rate;
   m.max_wheel_speed = c.safety.max_wheel_speed;
   m.stale_periods = c.safety.stale_periods;

@@ -26,21 +26,6 @@ std::vector<std::string> validate(const ControllerConfig& c) {
   append(errs, validate(c.spacecraft));
   append(errs, validate(c.guidance));
   append(errs, validate(c.ppc));
-  append(errs, validate(c.neso));
-  positive(errs, "dsc.k1", c.dsc.k1);
-  positive(errs, "dsc.k2", c.dsc.k2);
-  positive(errs, "dsc.k3", c.dsc.k3, true);
-  positive(errs, "dsc.k4", c.dsc.k4);
-  positive(errs, "dsc.k6", c.dsc.k6);
-  positive(errs, "dsc.tau", c.dsc.tau);
-  positive(errs, "pd.beta1", c.pd.beta1);
-  positive(errs, "pd.beta2", c.pd.beta2);
-  positive(errs, "rft.c", c.rft.c);
-  positive(errs, "rft.k", c.rft.k);
-  positive(errs, "rft.gain", c.rft.gain, true);
-  positive(errs, "rft.leak", c.rft.leak, true);
-  positive(errs, "rft.phi", c.rft.phi);
-  positive(errs, "rft.rho0", c.rft.rho0, true);
   positive(errs, "safety.max_rate", c.safety.max_rate);
   positive(errs, "safety.max_wheel_speed", c.safety.max_wheel_speed);
   positive(errs, "safety.stale_periods", c.safety.stale_periods);
@@ -86,6 +71,8 @@ LawModel law_model(const SpacecraftModel& sc) {
   m.Jw = p.Jw;
   m.umin = p.umin;
   m.umax = p.umax;
+  m.wheel_torque_command = p.wheel_torque_command;
+  m.wheel_speed_max = p.wheel_speed_max;
   m.w0 = p.w0;
   m.B = sc.B();
   m.B_pinv = sc.B_pinv();
@@ -106,13 +93,13 @@ Controller::Controller(const ControllerConfig& c)
       entry_(resolve_law(c.law)) {
   const std::string who = "law " + law_label(entry_) + ": ";
   LawParams params(cfg_.law_params);
-  const LawSetup setup{law_model_, cfg_.control_rate_hz, params, &cfg_};
+  const LawSetup setup{law_model_, cfg_.control_rate_hz, params};
   try {
     law_ = entry_.create(setup);
   } catch (const LawParamError& e) {
     std::string d = e.what();
     if (d.compare(0, e.key().size() + 2, e.key() + ": ") == 0) d = d.substr(e.key().size() + 2);
-    throw LawError("params." + e.key(), who + "controller.params." + e.key() + ": " + d, d);
+    throw LawError("params." + e.key(), who + "laws." + entry_.name + "." + e.key() + ": " + d, d);
   } catch (const std::exception& e) {
     throw LawError("law", who + "construction failed: " + e.what(),
                    std::string("construction failed: ") + e.what());
@@ -122,7 +109,7 @@ Controller::Controller(const ControllerConfig& c)
   if (!law_) throw LawError("law", who + "its factory returned no law", "its factory returned no law");
   for (const std::string& k : params.unused()) {
     const std::string d = "unknown parameter of law " + entry_.name;
-    throw LawError("params." + k, who + "controller.params." + k + ": " + d, d);
+    throw LawError("params." + k, who + "laws." + entry_.name + "." + k + ": " + d, d);
   }
   telemetry_names_ = law_->telemetry_names();
   if (telemetry_names_.size() > static_cast<std::size_t>(kLawMaxTelemetry)) {

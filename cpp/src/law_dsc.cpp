@@ -1,7 +1,9 @@
 // The paper's law (docs/MODEL.md section 7), two registry entries:
 //   dsc-ppc: (36), (37), corrected (41), anti-windup (42), observer (22)
 //   dsc    : the same with e1 = x1, r = I and no chi_dot term
-// Gains: ControllerConfig::dsc, ::neso, ::ppc (the scenario's [controller.*]).
+// Parameters: the law's own table ([laws.dsc-ppc] / [laws.dsc] of the
+// scenario) through LawParams, like any plugin's: the DSC gains and the
+// observer's (neso_*). The envelope is the controller's ([controller.ppc]).
 #include <cmath>
 
 #include "sc_rt/controllers.hpp"
@@ -11,11 +13,78 @@ namespace sc_rt {
 
 namespace {
 
+// The paper's values (section 4, docs/MODEL.md section 8).
+const LawParams::Items& dsc_defaults() {
+  static const LawParams::Items d = {
+      {"k1", {0.1}},    // [1/s] (36)
+      {"k2", {4.0}},    // [1/s] (41)
+      {"k3", {0.01}},   // [-] (41) anti-windup coupling
+      {"k4", {22.0}},   // [1/s] (42)
+      {"k6", {1.0}},    // [-] Theorem 1 only
+      {"tau", {0.1}},   // [s] filter time constant (37)
+      {"neso_k1", {0.2, 0.2, 0.2}},     // [-] kappa1 of the observer (22)
+      {"neso_k2", {0.03, 0.03, 0.03}},  // [-] kappa2
+      {"neso_k3", {0.08, 0.08, 0.08}},  // [-] kappa3
+      {"neso_k4", {0.06, 0.06, 0.06}},  // [-] kappa4
+      {"neso_alpha", {0.7}},            // [-] in [0.5, 1]
+      {"neso_substeps", {1}},           // RK4 steps of the observer per control period
+      {"neso_init_from_measurement", {0}},  // 1: z1(t0) = x2(t0); 0: z1(t0) = 0 (the paper)
+  };
+  return d;
+}
+
+struct DscGains {
+  double k1, k2, k3, k4, k6, tau;
+};
+
+const std::vector<double>& dsc_default(const char* key) {
+  for (const auto& kv : dsc_defaults())
+    if (kv.first == key) return kv.second;
+  throw std::logic_error(std::string("no default for ") + key);
+}
+
+DscGains dsc_gains(const LawParams& p) {
+  auto d = [](const char* k) { return dsc_default(k)[0]; };
+  const double k3 = p.number("k3", d("k3"));
+  if (!(k3 >= 0.0)) LawParams::fail("k3", "must be >= 0, got " + LawParams::text(k3));
+  return {p.positive("k1", d("k1")), p.positive("k2", d("k2")), k3, p.positive("k4", d("k4")),
+          p.positive("k6", d("k6")), p.positive("tau", d("tau"))};
+}
+
+Vec3 vec3_default(const char* key) {
+  const std::vector<double>& v = dsc_default(key);
+  return Vec3(v[0], v[1], v[2]);
+}
+
+NesoParams neso_params(const LawParams& p) {
+  NesoParams n;
+  n.k1 = p.vec3("neso_k1", vec3_default("neso_k1"));
+  n.k2 = p.vec3("neso_k2", vec3_default("neso_k2"));
+  n.k3 = p.vec3("neso_k3", vec3_default("neso_k3"));
+  n.k4 = p.vec3("neso_k4", vec3_default("neso_k4"));
+  n.alpha = p.number("neso_alpha", dsc_default("neso_alpha")[0]);
+  const double sub = p.number("neso_substeps", dsc_default("neso_substeps")[0]);
+  if (!(sub >= 1.0 && sub <= 10000.0 && sub == std::floor(sub)))
+    LawParams::fail("neso_substeps", "must be an integer in [1, 10000], got " + LawParams::text(sub));
+  n.substeps = static_cast<int>(sub);
+  const double init = p.number("neso_init_from_measurement", dsc_default("neso_init_from_measurement")[0]);
+  if (!(init == 0.0 || init == 1.0))
+    LawParams::fail("neso_init_from_measurement", "must be 0 or 1 (false or true), got " + LawParams::text(init));
+  n.init_from_measurement = init == 1.0;
+  const char* keys[4] = {"neso_k1", "neso_k2", "neso_k3", "neso_k4"};
+  const Vec3* ks[4] = {&n.k1, &n.k2, &n.k3, &n.k4};
+  for (int i = 0; i < 4; ++i)
+    if (ks[i]->minCoeff() <= 0.0) LawParams::fail(keys[i], "must be > 0 on every axis");
+  if (!(n.alpha >= 0.5 && n.alpha <= 1.0))
+    LawParams::fail("neso_alpha", "must be in [0.5, 1], got " + LawParams::text(n.alpha));
+  return n;
+}
+
 class DscLaw final : public ControlLaw {
  public:
   DscLaw(const LawSetup& s, bool use_ppc)
-      : model_(s.model), g_(s.config->dsc), neso_p_(s.config->neso), use_ppc_(use_ppc),
-        neso_(s.config->neso) {}
+      : model_(s.model), g_(dsc_gains(s.params)), neso_p_(neso_params(s.params)), use_ppc_(use_ppc),
+        neso_(neso_p_) {}
 
   void reset(const LawInput& in) override {
     Vec3 e1, r;
@@ -96,9 +165,9 @@ class DscLaw final : public ControlLaw {
 
 void register_dsc_laws() {
   register_law("dsc-ppc", "dynamic surface control with prescribed performance and NESO (the paper's law)",
-               [](const LawSetup& s) { return std::make_unique<DscLaw>(s, true); });
+               [](const LawSetup& s) { return std::make_unique<DscLaw>(s, true); }, dsc_defaults());
   register_law("dsc", "dynamic surface control with NESO, no prescribed performance",
-               [](const LawSetup& s) { return std::make_unique<DscLaw>(s, false); });
+               [](const LawSetup& s) { return std::make_unique<DscLaw>(s, false); }, dsc_defaults());
 }
 
 }  // namespace sc_rt

@@ -85,7 +85,8 @@ std::string locate(const std::string& spec) {
 
 }  // namespace
 
-void register_law(const std::string& name, const std::string& doc, LawFactory create) {
+void register_law(const std::string& name, const std::string& doc, LawFactory create,
+                  LawParams::Items defaults) {
   // Also called by the built-ins from inside registry() (recursive mutex).
   Registry& reg = registry();
   std::lock_guard<std::recursive_mutex> lock(reg.mu);
@@ -99,6 +100,7 @@ void register_law(const std::string& name, const std::string& doc, LawFactory cr
   e.source = "built-in";
   e.code = static_cast<int>(reg.entries.size());
   e.create = std::move(create);
+  e.defaults = std::move(defaults);
   reg.entries.push_back(std::move(e));
 }
 

@@ -1,4 +1,5 @@
-// Adaptive boundary-layer sliding mode (docs/CORE.md). Gains: ControllerConfig::rft.
+// Adaptive boundary-layer sliding mode (docs/CORE.md). Its parameters, from
+// its own table ([laws.rft] of the scenario) through LawParams.
 //   s = x2 + c x1
 //   uc = B+ [ -A - c G(x1) x2 - k s - rho_hat sat(s / phi) ]
 //   rho_hat_dot = gain |s| - leak rho_hat   (exact with |s| held over a period)
@@ -11,9 +12,38 @@ namespace sc_rt {
 
 namespace {
 
+// This project's values (the paper's RFT reference is not identified, docs/MODEL.md section 7).
+const LawParams::Items& rft_defaults() {
+  static const LawParams::Items d = {
+      {"c", {0.2}},      // [1/s] sliding surface s = x2 + c x1
+      {"k", {0.4}},      // [1/s] linear reaching gain
+      {"gain", {0.5}},   // [1/s] adaptation gain of rho_hat_dot = gain |s| - leak rho_hat
+      {"leak", {0.01}},  // [1/s] leakage (sigma-modification)
+      {"phi", {1e-2}},   // [rad/s] boundary layer width (wider than s moves in one period)
+      {"rho0", {0.0}},   // [rad/s^2] rho_hat(t0)
+  };
+  return d;
+}
+
+struct RftGains {
+  double c, k, gain, leak, phi, rho0;
+};
+
+double at_least_zero(const LawParams& p, const std::string& key, double def) {
+  const double v = p.number(key, def);
+  if (!(v >= 0.0)) LawParams::fail(key, "must be >= 0, got " + LawParams::text(v));
+  return v;
+}
+
+RftGains rft_gains(const LawParams& p) {
+  auto d = [](int i) { return rft_defaults()[static_cast<std::size_t>(i)].second[0]; };
+  return {p.positive("c", d(0)), p.positive("k", d(1)), at_least_zero(p, "gain", d(2)),
+          at_least_zero(p, "leak", d(3)), p.positive("phi", d(4)), at_least_zero(p, "rho0", d(5))};
+}
+
 class RftLaw final : public ControlLaw {
  public:
-  explicit RftLaw(const LawSetup& s) : Bp_(s.model.B_pinv), g_(s.config->rft) {}
+  explicit RftLaw(const LawSetup& s) : Bp_(s.model.B_pinv), g_(rft_gains(s.params)) {}
   void reset(const LawInput& in) override {
     rho_ = g_.rho0;
     s_norm_prev_ = (in.e.omega_BD_B + g_.c * in.e.sigma_BD).norm();
@@ -50,7 +80,7 @@ class RftLaw final : public ControlLaw {
 
 void register_rft_law() {
   register_law("rft", "adaptive boundary-layer sliding mode (RFT baseline)",
-               [](const LawSetup& s) { return std::make_unique<RftLaw>(s); });
+               [](const LawSetup& s) { return std::make_unique<RftLaw>(s); }, rft_defaults());
 }
 
 }  // namespace sc_rt

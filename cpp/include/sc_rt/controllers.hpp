@@ -29,32 +29,6 @@ enum Flags : int {
   FLAG_LAW_INVALID = 1024,  //!< the law returned a non-finite command or threw: SAFE
 };
 
-struct DscGains {
-  double k1 = 0.1;   //!< [1/s] (36)
-  double k2 = 4.0;   //!< [1/s] (41)
-  double k3 = 0.01;  //!< [-] (41) anti-windup coupling
-  double k4 = 22.0;  //!< [1/s] (42)
-  double k6 = 1.0;   //!< [-] Theorem 1 only
-  double tau = 0.1;  //!< [s] filter time constant (37)
-};
-
-// Designed by sc_rt.design.default_pd_design (`sc-rt design`, docs/DESIGN.md):
-// critically damped, 2 % settling time ln(50)/min(gamma) = 48.9 s of the
-// paper's slowest prescribed envelope; beta1 = 4 wn^2, beta2 = 2 wn, 4 digits.
-struct PdGains {
-  double beta1 = 0.05693;  //!< [1/s^2] on sigma_BD
-  double beta2 = 0.2386;   //!< [1/s] on omega_BD_B
-};
-
-struct RftGains {
-  double c = 0.2;      //!< [1/s] sliding surface s = x2 + c x1
-  double k = 0.4;      //!< [1/s] linear reaching gain
-  double gain = 0.5;   //!< [1/s] adaptation gain of rho_hat_dot = gain |s| - leak rho_hat
-  double leak = 0.01;  //!< [1/s] leakage (sigma-modification)
-  double phi = 1e-2;   //!< [rad/s] boundary layer width (wider than s moves in one period)
-  double rho0 = 0.0;   //!< [rad/s^2] rho_hat(t0)
-};
-
 struct SafetyLimits {
   double max_rate = 10.0;          //!< [rad/s] a measured |omega| beyond this is rejected
   double max_wheel_speed = 1e4;    //!< [rad/s] a measured |wheel speed| beyond this is rejected
@@ -70,10 +44,6 @@ struct ControllerConfig {
   SpacecraftParams spacecraft;
   GuidanceParams guidance;
   PpcParams ppc;
-  NesoParams neso;
-  DscGains dsc;
-  PdGains pd;
-  RftGains rft;
   SafetyLimits safety;
 };
 

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -26,7 +27,7 @@
 
 #include "sc_rt/types.hpp"
 
-#define SC_RT_LAW_API_VERSION 1
+#define SC_RT_LAW_API_VERSION 2
 
 // The compiler / ABI facts that must match between the core and a plugin
 // (the types below cross the boundary by reference). Eigen's static
@@ -90,14 +91,23 @@ struct LawModel {
   Mat3 J0_inv = Mat3::Identity();  //!< [1/(kg m^2)]
   Mat34 Cbar = Mat34::Zero();      //!< [-] wheel spin axes in B (columns)
   Vec4 Jw = Vec4::Zero();          //!< [kg m^2] wheel spin inertias
-  Vec4 umin = Vec4::Zero();        //!< [rad/s^2] lower wheel acceleration limits
-  Vec4 umax = Vec4::Zero();        //!< [rad/s^2] upper wheel acceleration limits
+  Vec4 umin = Vec4::Zero();        //!< lower wheel command limits ([rad/s^2]; [N m] on torque-commanded wheels)
+  Vec4 umax = Vec4::Zero();        //!< upper wheel command limits (the same unit)
+  //! What the wheels take (the scenario's [wheels] command): false, a wheel
+  //! acceleration [rad/s^2] (what B and wheels_for_torque give); true, a motor
+  //! torque [N m] (wheel_torque_for gives it: Jw times the acceleration)
+  bool wheel_torque_command = false;
+  //! [rad/s] the wheels' speed limits (inf: none): momentum a law can still store
+  Vec4 wheel_speed_max = Vec4::Constant(std::numeric_limits<double>::infinity());
   double w0 = 0.0;                 //!< [rad/s] orbit rate (gravity gradient)
   Mat34 B = Mat34::Zero();         //!< [1/s^2 per rad/s^2] B = -J0^-1 Cbar Jw of (21)
   Mat43 B_pinv = Mat43::Zero();    //!< B+ : wheel accelerations for a wanted x2_dot
   //! The wheel accelerations [rad/s^2] that give the body torque tau [N m]:
   //! J0 x2_dot = tau through B, i.e. u = B+ J0^-1 tau.
   Vec4 wheels_for_torque(const Vec3& tau) const { return B_pinv * (J0_inv * tau); }
+  //! The wheel command for the wheel accelerations a [rad/s^2], in the unit
+  //! the wheels take: a itself, or the motor torques Jw a [N m].
+  Vec4 wheel_command(const Vec4& a) const { return wheel_torque_command ? Vec4(Jw.cwiseProduct(a)) : a; }
 };
 
 // The reference: the desired attitude from the guidance at this step.
@@ -141,7 +151,7 @@ struct LawOutput {
 };
 
 // The error a law throws for a bad parameter: the key is reported with the
-// scenario file and line (controller.params.<key>).
+// scenario file and line (laws.<law>.<key>).
 class LawParamError : public std::invalid_argument {
  public:
   LawParamError(std::string key, const std::string& what)
@@ -152,7 +162,7 @@ class LawParamError : public std::invalid_argument {
   std::string key_;
 };
 
-// The [controller.params] table: numbers and arrays of numbers by key.
+// A law's parameter table (the scenario's [laws.NAME]): numbers and arrays of numbers by key.
 // A law reads what it needs; a key it never reads is an error ("unknown
 // parameter"), reported by the core after the law's construction.
 class LawParams {
@@ -239,16 +249,12 @@ class LawParams {
   mutable std::vector<char> used_;
 };
 
-struct ControllerConfig;  // the core's whole configuration (sc_rt/controllers.hpp)
-
-// What a law's constructor gets, once.
+// What a law's constructor gets, once: the same for a built-in law and a
+// plugin (the built-in laws read their gains from params too).
 struct LawSetup {
   const LawModel& model;        //!< the spacecraft as the controller knows it
   double control_rate_hz;       //!< [Hz] nominal rate (steps may come at other times: use dt)
-  const LawParams& params;      //!< [controller.params]
-  //! The core's full configuration: the built-in laws read their gains from
-  //! it (include sc_rt/controllers.hpp); a plugin needs only params.
-  const ControllerConfig* config;
+  const LawParams& params;      //!< the law's own table ([laws.NAME] of the scenario)
 };
 
 // The interface. No clocks, no I/O and no allocation in reset() and step().

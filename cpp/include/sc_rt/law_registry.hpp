@@ -26,6 +26,9 @@ struct LawEntry {
   std::string source;  //!< "built-in" or the plugin library's path
   int code = -1;       //!< registry order (controller_status_t.law)
   LawFactory create;
+  //! Its parameters and their defaults (a built-in law declares them: the
+  //! values it uses for a key its table does not give; empty for a plugin)
+  LawParams::Items defaults;
 };
 
 // A bad law spec, plugin or parameter. key(): "law" or "params.<key>";
@@ -41,8 +44,10 @@ class LawError : public std::invalid_argument {
   std::string key_, detail_;
 };
 
-// Register a law under a new name (std::invalid_argument if taken).
-void register_law(const std::string& name, const std::string& doc, LawFactory create);
+// Register a law under a new name (std::invalid_argument if taken), with
+// the defaults of its parameters.
+void register_law(const std::string& name, const std::string& doc, LawFactory create,
+                  LawParams::Items defaults = {});
 // Every registered name, registry order (the built-ins first).
 std::vector<std::string> law_names();
 // The entry of a registered name, or of "plugin:PATH_OR_NAME" (loaded on

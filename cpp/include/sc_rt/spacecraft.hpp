@@ -1,6 +1,7 @@
 // Spacecraft parameters the controller knows (J0 only, never dJ (12)) and the
 // quantities derived from them once: B and B+ of (21).
 #pragma once
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,10 @@ struct SpacecraftParams {
   Vec4 Jw = Vec4::Constant(0.338);    //!< [kg m^2] wheel spin inertias
   Vec4 umin = Vec4::Constant(-7.0);   //!< [rad/s^2] lower wheel acceleration limits
   Vec4 umax = Vec4::Constant(10.0);   //!< [rad/s^2] upper wheel acceleration limits
+  //! the wheels take a motor torque [N m] (umin/umax then in N m), not an acceleration
+  bool wheel_torque_command = false;
+  //! [rad/s] the wheels' speed limits (inf: none), for the law (LawModel)
+  Vec4 wheel_speed_max = Vec4::Constant(std::numeric_limits<double>::infinity());
   double w0 = 0.0011;                 //!< [rad/s] orbit rate (not given by the paper)
   double pinv_damping = 0.0;          //!< [-] damping of B+ (0: exact pseudo-inverse)
 };

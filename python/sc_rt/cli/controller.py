@@ -88,7 +88,7 @@ def cmd_controller(args: argparse.Namespace) -> int:
     from sc_rt.wire.lcmio import DEFAULT_URL
     from sc_rt.wire.auth import load_key
     from sc_rt.controller.pycontroller import PyControllerProcess, write_summary
-    from sc_rt.pylaw import load_law
+    from sc_rt.pylaw import law_label, load_law
 
     if not is_python_law(args.law):
         raise UsageError(f"--law {args.law}: sc-rt controller runs Python laws (module:Class); "
@@ -109,6 +109,10 @@ def cmd_controller(args: argparse.Namespace) -> int:
 
         scn = with_overrides(load_scenario(args.scenario), control_rate_hz=args.control_rate)
         cfg, nav, where = scn.core_config(), scn.sensors is not None, args.scenario
+        try:  # the Python law's own table ([laws.NAME], NAME its name attribute or class name)
+            cfg.law_params = [(k, list(v)) for k, v in scn.controller.table(law_label(load_law(args.law)))]
+        except ValueError as e:
+            raise UsageError(str(e)) from e
     if nav:  # as sc-rt sim: the estimator runs in front of the core's laws only
         raise UsageError(f"{where}: a scenario with [sensors] runs the core's laws only (not a Python "
                          "law, yet): use sc-rt-controller, or a scenario without [sensors]")

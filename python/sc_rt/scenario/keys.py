@@ -32,11 +32,10 @@ def scenario_data(scn: Any) -> dict[str, Any]:
     numbers (the reader of sc_rt.scenario.model accepts it: no capture table,
     J0 and Cbar written out; every controller value written out)."""
     p, a, c = scn.plant, scn.actuators, scn.controller
-    controller = {name: _group(getattr(c, name))
-                  for name in ("ppc", "neso", "dsc", "pd", "rft", "safety")}  # fmt: skip
+    controller = {name: _group(getattr(c, name)) for name in ("ppc", "safety")}
     controller["pinv_damping"] = float(c.pinv_damping)
-    if c.law_params:  # [controller.params] of the law (a plugin's): one number as a scalar
-        controller["params"] = {k: (v[0] if len(v) == 1 else list(v)) for k, v in c.law_params}
+    # [laws.NAME]: every law's table as given (one number as a scalar)
+    laws = {law: {k: (v[0] if len(v) == 1 else list(v)) for k, v in items} for law, items in c.laws}
     faults = []
     for f in a.faults:
         entry: dict[str, Any] = {"wheel": int(f.wheel) + 1, "onset": float(f.onset),
@@ -63,6 +62,7 @@ def scenario_data(scn: Any) -> dict[str, Any]:
         "initial": _group(scn.initial),
         "guidance": scn.guidance.data(),  # its kind's keys (sc_rt.scenario.guidance)
         "controller": controller,
+        **({"laws": laws} if laws else {}),
         "faults": faults,
         **_sensors(scn, controller),
         **_requirements(scn),

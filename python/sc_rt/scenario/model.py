@@ -40,6 +40,7 @@ from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIs
     spec,
     vector_spec,
 )
+from sc_rt.scenario.laws import items_of, law_table_name, resolved
 from sc_rt.scenario.guidance import (
     FileGuidance,
     Guidance,
@@ -56,16 +57,12 @@ __all__ = [
     "law_problem",
     "law_spec",
     "ControllerParams",
-    "DscGains",
     "FileGuidance",
     "Guidance",
     "GuidanceParams",
     "HoldGuidance",
     "InitialState",
-    "NesoParams",
-    "PdGains",
     "PpcParams",
-    "RftGains",
     "RunParams",
     "SafetyLimits",
     "Scenario",
@@ -146,55 +143,6 @@ class PpcParams:
 
 
 @dataclass(frozen=True)
-class NesoParams:
-    """Observer (22); defaults: the paper's kappa1..kappa4 = 0.2, 0.03, 0.08, 0.06 I, alpha 0.7."""
-
-    k1: np.ndarray = _paper(lambda c: c.neso.k1, vector_spec(3, scalar_ok=True, gt=0))  # kappa1 diag
-    k2: np.ndarray = _paper(lambda c: c.neso.k2, vector_spec(3, scalar_ok=True, gt=0))  # kappa2 diag
-    k3: np.ndarray = _paper(lambda c: c.neso.k3, vector_spec(3, scalar_ok=True, gt=0))  # kappa3 diag
-    k4: np.ndarray = _paper(lambda c: c.neso.k4, vector_spec(3, scalar_ok=True, gt=0))  # kappa4 diag
-    alpha: float = field(default=PAPER_DEFAULTS.neso.alpha, metadata=spec("number", ge=0.5, le=1.0))
-    # RK4 steps of the observer per control period
-    substeps: int = field(default=PAPER_DEFAULTS.neso.substeps, metadata=spec("int", ge=1, le=10000))
-    # z1(t0) = measured x2(t0) instead of 0 (paper: 0)
-    init_from_measurement: bool = field(
-        default=PAPER_DEFAULTS.neso.init_from_measurement, metadata=spec("bool")
-    )
-
-
-@dataclass(frozen=True)
-class DscGains:
-    """Dynamic surface control (36)-(42); defaults: the paper's."""
-
-    k1: float = field(default=PAPER_DEFAULTS.dsc.k1, metadata=spec("number", gt=0))  # [1/s] (36)
-    k2: float = field(default=PAPER_DEFAULTS.dsc.k2, metadata=spec("number", gt=0))  # [1/s] (41)
-    k3: float = field(default=PAPER_DEFAULTS.dsc.k3, metadata=spec("number", ge=0))  # [-] (41)
-    k4: float = field(default=PAPER_DEFAULTS.dsc.k4, metadata=spec("number", gt=0))  # [1/s] (42)
-    k6: float = field(default=PAPER_DEFAULTS.dsc.k6, metadata=spec("number", gt=0))  # [-] Theorem 1
-    tau: float = field(default=PAPER_DEFAULTS.dsc.tau, metadata=spec("number", gt=0))  # [s] (37)
-
-
-@dataclass(frozen=True)
-class PdGains:
-    """PD baseline uc = -B+ (beta1 x1 + beta2 x2); not from the paper."""
-
-    beta1: float = field(default=PAPER_DEFAULTS.pd.beta1, metadata=spec("number", gt=0))  # [1/s^2]
-    beta2: float = field(default=PAPER_DEFAULTS.pd.beta2, metadata=spec("number", gt=0))  # [1/s]
-
-
-@dataclass(frozen=True)
-class RftGains:
-    """RFT baseline, adaptive sliding mode (docs/CORE.md); not from the paper."""
-
-    c: float = field(default=PAPER_DEFAULTS.rft.c, metadata=spec("number", gt=0))  # [1/s]
-    k: float = field(default=PAPER_DEFAULTS.rft.k, metadata=spec("number", gt=0))  # [1/s]
-    gain: float = field(default=PAPER_DEFAULTS.rft.gain, metadata=spec("number", ge=0))  # [1/s]
-    leak: float = field(default=PAPER_DEFAULTS.rft.leak, metadata=spec("number", ge=0))  # [1/s]
-    phi: float = field(default=PAPER_DEFAULTS.rft.phi, metadata=spec("number", gt=0))  # [rad/s]
-    rho0: float = field(default=PAPER_DEFAULTS.rft.rho0, metadata=spec("number", ge=0))  # [rad/s^2]
-
-
-@dataclass(frozen=True)
 class SafetyLimits:
     """The controller's safe-mode limits; not from the paper."""
 
@@ -212,21 +160,27 @@ class SafetyLimits:
 
 @dataclass(frozen=True)
 class ControllerParams:
-    """Every controller gain and limit; ControllerParams() is the paper's controller."""
+    """The controller's common parts (the envelope, the safe-mode limits, B+)
+    and every law's own parameters; ControllerParams() is the paper's controller."""
 
     ppc: PpcParams = field(default_factory=PpcParams)
-    neso: NesoParams = field(default_factory=NesoParams)
-    dsc: DscGains = field(default_factory=DscGains)
-    pd: PdGains = field(default_factory=PdGains)
-    rft: RftGains = field(default_factory=RftGains)
     safety: SafetyLimits = field(default_factory=SafetyLimits)
     # [-] damping of B+ = B'(BB' + damping^2 I)^-1; 0: exact pseudo-inverse
     pinv_damping: float = field(
         default=PAPER_DEFAULTS.spacecraft.pinv_damping, metadata=spec("number", ge=0)
     )
-    # [controller.params]: the law's own parameters, ((key, (numbers...)), ...),
-    # handed to the law's constructor, which validates them (docs/LAWS.md)
-    law_params: tuple = field(default=(), metadata=spec("params"))
+    # [laws.NAME]: each law's own parameters, ((law name, ((key, (numbers...)), ...)), ...),
+    # handed to that law's constructor, which validates them (docs/LAWS.md); a law
+    # without a table runs its defaults (sc_rt.scenario.laws)
+    laws: tuple = field(default=(), metadata=spec("params"))
+
+    def table(self, law: str) -> tuple:
+        """The items of law ``law``'s table (a registry name; () without one)."""
+        return items_of(self.laws, law)
+
+    def resolved(self, law: str) -> dict[str, Any]:
+        """Law ``law``'s parameters as it runs them: its defaults overlaid with its table."""
+        return resolved(self.laws, law)
 
 
 @dataclass(frozen=True)
@@ -299,6 +253,8 @@ class Scenario:
     requirements: tuple = ()
     # [record]: what a run keeps of its rows
     record: RecordParams = RecordParams()
+    # one line per older table the file gave, read as its new form (sc_rt.scenario.laws)
+    deprecations: tuple = ()
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None
@@ -320,10 +276,12 @@ class Scenario:
         m.utime = time.time_ns() // 1000
         m.scenario = self.name
         m.law = law
-        m.n_law_params = len(c.law_params)
-        m.law_param_keys = [k for k, _ in c.law_params]
-        m.law_param_len = [len(v) for _, v in c.law_params]
-        m.law_param_values = [float(x) for _, v in c.law_params for x in v]
+        m.law_api_version = _core.LAW_API_VERSION
+        table = c.table(law_table_name(law))
+        m.n_law_params = len(table)
+        m.law_param_keys = [k for k, _ in table]
+        m.law_param_len = [len(v) for _, v in table]
+        m.law_param_values = [float(x) for _, v in table for x in v]
         m.n_law_param_values = len(m.law_param_values)
         m.control_rate_hz = float(rate)
         m.J0 = p.J0.tolist()
@@ -331,11 +289,13 @@ class Scenario:
         m.Jw = p.Jw.tolist()
         m.umin = a.umin.tolist()
         m.umax = a.umax.tolist()
+        m.wheel_torque_command = a.wheels is not None and a.wheels.command == "torque"
+        m.wheel_speed_max = ([float(w.omega_max) if w.omega_max > 0 else float("inf") for w in a.wheels.limits]
+                             if a.wheels is not None else [float(v) for v in a.max_wheel_speed])
         m.w0 = float(p.w0)
         g.fill_config(m)
         # The wire names are the field names with a prefix (safety: none).
-        for prefix, group in (("ppc_", c.ppc), ("neso_", c.neso), ("dsc_", c.dsc),
-                              ("pd_", c.pd), ("rft_", c.rft), ("", c.safety)):  # fmt: skip
+        for prefix, group in (("ppc_", c.ppc), ("", c.safety)):
             for f in dataclasses.fields(group):
                 value = getattr(group, f.name)
                 wire = value.tolist() if isinstance(value, np.ndarray) else value

@@ -39,9 +39,9 @@ from sc_rt.scenario.requirements import read_requirements
 from sc_rt.scenario.sensors import read_sensors
 from sc_rt.scenario.shipped import resolve
 
-from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, PLUGIN_PREFIX, ControllerParams, DscGains, InitialState,
-                                  NesoParams, PdGains, PpcParams, RecordParams, RftGains, RunParams, SafetyLimits,
-                                  Scenario,
+from sc_rt.scenario.laws import law_table_name, read_laws
+from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, PLUGIN_PREFIX, ControllerParams, InitialState,
+                                  PpcParams, RecordParams, RunParams, SafetyLimits, Scenario,
                                   law_problem, law_spec)
 
 __all__ = ["load_scenario", "scenario_from_data", "read_run", "check_law", "with_run"]
@@ -49,59 +49,70 @@ __all__ = ["load_scenario", "scenario_from_data", "read_run", "check_law", "with
 _FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
 
 
-def check_law(doc: Doc, scn: Scenario, law_key: str, params_key: str) -> None:
-    """Load and construct the scenario's law once (a plugin, or any law given
-    parameters), probe one step at rest: its problems as scenario errors on
-    ``law_key`` / ``params_key.<key>``. A built-in law on torque-commanded
-    wheels that take a torque (they command wheel accelerations) is refused too."""
-    c = scn.controller
+def check_law(doc: Doc, scn: Scenario, law_key: str, where: dict | None = None) -> None:
+    """Load and construct the scenario's law once, and every built-in law
+    that has a table, probe one step at rest: their problems as scenario
+    errors on ``law_key`` or on the parameter's own key (``where``: (law,
+    key) -> the dotted key it came from; default ``laws.<law>.<key>``). A
+    built-in law on torque-commanded wheels that take a torque (they command
+    wheel accelerations) is refused too."""
+    where = where or {}
     w = scn.actuators.wheels
-    if w is not None and w.command == "torque" and scn.run.controller in LAWS:
-        doc.error(law_key, scn.run.controller,
-                  f"law {scn.run.controller} commands wheel accelerations [rad/s^2] but [wheels] command = "
+    run_law = scn.run.controller
+    if w is not None and w.command == "torque" and run_law in LAWS:
+        doc.error(law_key, run_law,
+                  f"law {run_law} commands wheel accelerations [rad/s^2] but [wheels] command = "
                   '"torque" takes motor torques [N m]: use command = "acceleration" (the drive applies Jw a) '
                   "or a law that commands torque")
-    if not (scn.run.controller.startswith(PLUGIN_PREFIX) or c.law_params):
+    from sc_rt.pylaw import is_python_law
+
+    checks = [(law, law) for law, items in scn.controller.laws if law in LAWS and law != run_law]
+    if not is_python_law(run_law):
+        checks.insert(0, (run_law, None))
+    seen: set[tuple[str, str]] = set()
+    for spec, name in checks:
+        _check_one(doc, scn, spec, name, law_key, where, seen)
+
+
+def _check_one(doc: Doc, scn: Scenario, spec: str, name: str | None, law_key: str, where: dict,
+               seen: set) -> None:
+    """Probe law ``spec`` (its table ``name``; None: the run's, resolved here)."""
+    try:
+        name = law_table_name(spec) if name is None else name
+    except ValueError as e:  # a plugin that does not load
+        doc.error(law_key, spec, str(e))
+        return
+    table = dict(scn.controller.table(name))
+    if not (spec.startswith(PLUGIN_PREFIX) or table):
         return
     try:
-        cfg = scn.core_config()
-        if scn.run.controller.startswith(PLUGIN_PREFIX):  # native code: a crash in the probe is a refusal
+        cfg = scn.core_config(law=spec)
+        if spec.startswith(PLUGIN_PREFIX):  # native code: a crash in the probe is a refusal
             try:
                 issues = call_in_child(_core.check_law, cfg)
             except ChildDied as e:
-                issues = [("law", f"law {scn.run.controller}: crashed the process when probed at rest "
+                issues = [("law", f"law {spec}: crashed the process when probed at rest "
                                   f"at t = 0 ({e.how})")]
         else:
             issues = _core.check_law(cfg)
     except ValueError as e:  # the config itself (LCM translation)
         issues = [("law", str(e))]
-    params = dict(c.law_params)
     for key, message in issues:
         if key.startswith("params."):
-            name = key[len("params."):]
-            value = params.get(name)
-            message = message.replace(f"controller.params.{name}: ", "")  # the key is the issue's
-            doc.error(f"{params_key}.{name}", None if value is None else _param_value(value), message)
+            param = key[len("params."):]
+            value = table.get(param)
+            message = message.replace(f"laws.{name}.{param}: ", "")
+            dotted = where.get((name, param), f"laws.{name}.{param}")
+            if (dotted, message) in seen:  # an older table feeds two laws: said once
+                continue
+            seen.add((dotted, message))
+            doc.error(dotted, None if value is None else _param_value(value), message)
         else:
-            doc.error(law_key, scn.run.controller, message)
+            doc.error(law_key, spec, message)
 
 
 def _param_value(v: tuple) -> Any:
     return v[0] if len(v) == 1 else list(v)
-
-
-def _read_params(t: Table) -> tuple | None:
-    """[controller.params]: every value a number or a list of numbers."""
-    items, ok = [], True
-    for name, value in (t.data or {}).items():
-        t.used.add(name)
-        vals = value if isinstance(value, list) else [value]
-        if not vals or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in vals):
-            t.fail(name, f"{name} must be a number or a list of numbers (a law parameter)")
-            ok = False
-            continue
-        items.append((name, tuple(float(x) for x in vals)))
-    return tuple(items) if ok else None
 
 
 def read_run(t: Table) -> RunParams | None:
@@ -273,24 +284,25 @@ def _read_faults(root: Table, plant_step: float | None) -> tuple[WheelFault, ...
     return tuple(faults) if len(faults) == len(raw) else None
 
 
-def _read_controller(t: Table) -> ControllerParams | None:
+def _read_controller(root: Table, t: Table, run_law: str | None) -> tuple[ControllerParams | None, dict, list]:
+    """[controller] (the common parts) and the laws' tables ([laws.NAME],
+    and the older [controller.params|dsc|neso|pd|rft]): (params or None,
+    (law, key) -> dotted key, deprecation notes)."""
     ppc_table = t.sub("ppc", required=False)
     ppc = read_fields(ppc_table, PpcParams)
     if ppc is not None and np.any(ppc.chi0 < ppc.chiinf):
         ppc_table.fail("chi0", f"chi0 must be >= chiinf = {format_value(ppc.chiinf)} on every axis")
         ppc = None
-    groups = {"ppc": ppc}
-    for name, cls in (("neso", NesoParams), ("dsc", DscGains), ("pd", PdGains),
-                      ("rft", RftGains), ("safety", SafetyLimits)):  # fmt: skip
-        groups[name] = read_fields(t.sub(name, required=False), cls)
+    safety = read_fields(t.sub("safety", required=False), SafetyLimits)
     damping = t.read("pinv_damping", field_spec(ControllerParams, "pinv_damping"),
                      default=PAPER_DEFAULTS.spacecraft.pinv_damping)  # fmt: skip
-    params = _read_params(t.sub("params", required=False))
+    laws = read_laws(root, t, run_law)
     t.used.add("law")  # read by _read_scenario
     t.finish()
-    if damping is None or params is None or any(v is None for v in groups.values()):
-        return None
-    return ControllerParams(**groups, pinv_damping=damping, law_params=params)
+    if damping is None or laws is None or ppc is None or safety is None:
+        return None, {}, []
+    tables, where, notes = laws
+    return ControllerParams(ppc=ppc, safety=safety, pinv_damping=damping, laws=tables), where, notes
 
 
 def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | None:
@@ -328,7 +340,11 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     guidance = read_guidance(root.sub("guidance"), run.duration if run else None, path.parent)
     controller_table = root.sub("controller", required=False)
     sensors = read_sensors(root, controller_table, run)  # [sensors], [controller] measurement, estimator
-    controller = _read_controller(controller_table)
+    try:
+        run_law = law_table_name(run.controller) if run is not None else None
+    except ValueError:  # a plugin that does not load: check_law reports it
+        run_law = None
+    controller, where, deprecations = _read_controller(root, controller_table, run_law)
     faults = _read_faults(root, run.plant_step if run else None)
     wheels = read_wheels(root)
     requirements = read_requirements(root, run.duration if run else None)
@@ -361,9 +377,9 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         sensors=sensors,
         requirements=requirements,
         record=record,
+        deprecations=tuple(deprecations),
     )
-    check_law(doc, scenario, "controller.law" if "law" in ctl_data else "run.controller",
-               "controller.params")
+    check_law(doc, scenario, "controller.law" if "law" in ctl_data else "run.controller", where)
     if doc.errors:
         return None
     return dataclasses.replace(scenario, montecarlo=read_montecarlo(montecarlo, scenario))
@@ -439,7 +455,7 @@ def with_run(scn: Scenario, **changes: Any) -> Scenario:
         raise ScenarioError(doc.path, doc.errors)
     new = dataclasses.replace(scn, run=run)
     if run.controller != scn.run.controller:
-        check_law(doc, new, "run.controller", "controller.params")
+        check_law(doc, new, "run.controller")
         if doc.errors:
             raise ScenarioError(doc.path, doc.errors)
     return new

@@ -13,9 +13,10 @@ from typing import Any
 
 import numpy as np
 
+from sc_rt.scenario.laws import with_items
 from sc_rt.scenario.model import Scenario
 
-__all__ = ["with_dsc", "with_ppc", "without_faults"]
+__all__ = ["with_law_params", "with_ppc", "without_faults"]
 
 
 def with_ppc(scn: Scenario, **ppc: Any) -> Scenario:
@@ -26,10 +27,11 @@ def with_ppc(scn: Scenario, **ppc: Any) -> Scenario:
         c, ppc=dataclasses.replace(c.ppc, **{k: np.asarray(v, float) for k, v in ppc.items()})))
 
 
-def with_dsc(scn: Scenario, **dsc: Any) -> Scenario:
-    """The scenario with DSC gains replaced as given (``with_dsc(scn, k2=16.0)``)."""
+def with_law_params(scn: Scenario, law: str, **values: Any) -> Scenario:
+    """The scenario with parameters of law ``law``'s table replaced as given
+    (``with_law_params(scn, "dsc-ppc", k2=16.0)``)."""
     c = scn.controller
-    return dataclasses.replace(scn, controller=dataclasses.replace(c, dsc=dataclasses.replace(c.dsc, **dsc)))
+    return dataclasses.replace(scn, controller=dataclasses.replace(c, laws=with_items(c.laws, law, **values)))
 
 
 def without_faults(scn: Scenario) -> Scenario:

@@ -68,7 +68,9 @@ def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, n
         ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
         step = functools.partial(_core.step_packed, ctl)
     else:  # a Python law behind the same common parts (sc_rt.pylaw)
-        pyctl = PyController(scn.core_config(), law_cls)
+        cfg = scn.core_config()
+        cfg.law_params = [(k, list(v)) for k, v in scn.controller.table(law_label(law_cls))]  # its own table
+        pyctl = PyController(cfg, law_cls)
         pyctl.reset(0.0, x)
         step = pyctl.step
     n = n_ctrl + 1

@@ -54,9 +54,12 @@ class _Law:
         self.B = np.asarray(self.model.B)
         self.Bp = np.asarray(self.model.B_pinv)
         self.umin, self.umax = np.asarray(cfg.spacecraft.umin), np.asarray(cfg.spacecraft.umax)
-        n = cfg.neso
-        self.k1o, self.k2o, self.k3o, self.k4o = (np.asarray(v) for v in (n.k1, n.k2, n.k3, n.k4))
-        self.alpha = n.alpha
+        # the law's parameters as the C++ law runs them: its defaults and its table
+        self.p = p = scn.controller.resolved(self.law)
+        if self.law in ("dsc-ppc", "dsc"):
+            self.k1o, self.k2o, self.k3o, self.k4o = (np.broadcast_to(np.asarray(p[f"neso_{k}"], float), 3)
+                                                      for k in ("k1", "k2", "k3", "k4"))
+            self.alpha = p["neso_alpha"]
         # the paper's sigma_d is a state of the ODE; a hold, slew or table is a closed form
         self.integrated = _core.guidance_integrated(cfg.guidance)
 
@@ -76,18 +79,18 @@ class _Law:
         dX[0:3] = np.asarray(_core.mrp_G(sd)) @ od  # guidance
         tel = {"sigma_DN": sd, "sigma_BD": x1, "omega_BD_B": x2, "chi": np.asarray(ppc.chi),
                "lam": np.asarray(ppc.lambda_), "z1": z1, "z2": z2}
+        p = self.p
         if self.law in ("dsc-ppc", "dsc"):
-            d = c.dsc
             Ginv = np.asarray(_core.mrp_G_inverse(x1))
             if self.law == "dsc":
                 e1, r = x1, np.ones(3)
-                x2bar = -Ginv @ (d.k1 * e1)
+                x2bar = -Ginv @ (p["k1"] * e1)
             else:
                 e1, r = np.asarray(ppc.e1), np.asarray(ppc.r)
-                x2bar = -Ginv @ (d.k1 * e1 / r - np.asarray(ppc.lambda_) * np.asarray(ppc.chi_dot))  # (36)
-            x2d_dot = (x2bar - x2d) / d.tau  # (37)
+                x2bar = -Ginv @ (p["k1"] * e1 / r - np.asarray(ppc.lambda_) * np.asarray(ppc.chi_dot))  # (36)
+            x2d_dot = (x2bar - x2d) / p["tau"]  # (37)
             e2 = x2 - x2d  # (27)
-            u = self.Bp @ (-A - d.k2 * e2 - G.T @ (r * e1) - d.k3 * self.B @ vs - z2 + x2d_dot)  # (41)
+            u = self.Bp @ (-A - p["k2"] * e2 - G.T @ (r * e1) - p["k3"] * self.B @ vs - z2 + x2d_dot)  # (41)
             usat = np.clip(u, self.umin, self.umax)
             ev = z1 - x2
             sa = np.sign(ev) * np.abs(ev) ** self.alpha
@@ -95,14 +98,13 @@ class _Law:
             dX[3:6] = A + self.B @ usat + z2 - self.k1o * sa - self.k2o * ev  # (22)
             dX[6:9] = -self.k3o * sb - self.k4o * ev
             dX[9:12] = x2d_dot
-            dX[12:16] = -d.k4 * vs + (usat - u)  # (42)
+            dX[12:16] = -p["k4"] * vs + (usat - u)  # (42)
         elif self.law == "pd":
-            u = -self.Bp @ (c.pd.beta1 * x1 + c.pd.beta2 * x2)
+            u = -self.Bp @ (p["beta1"] * x1 + p["beta2"] * x2)
         else:  # rft (the only law left: __init__ refused the others)
-            g = c.rft
-            s = x2 + g.c * x1
-            u = self.Bp @ (-A - g.c * G @ x2 - g.k * s - rho * np.clip(s / g.phi, -1, 1))
-            dX[16] = g.gain * np.linalg.norm(s) - g.leak * rho
+            s = x2 + p["c"] * x1
+            u = self.Bp @ (-A - p["c"] * G @ x2 - p["k"] * s - rho * np.clip(s / p["phi"], -1, 1))
+            dX[16] = p["gain"] * np.linalg.norm(s) - p["leak"] * rho
         return u, tel, dX
 
 
@@ -112,12 +114,12 @@ def _init_states(law: _Law, scn: Scenario, x0: np.ndarray) -> np.ndarray:
     X = np.zeros(27)
     X[0:10] = x0
     X[10:13] = sd
-    X[26] = c.rft.rho0
+    X[26] = law.p["rho0"] if law.law == "rft" else 0.0
     if law.law in ("dsc-ppc", "dsc"):
         # x2d(0) = x2bar(0) (37): evaluate the law once with x2d = 0, take x2bar
         u0, tel, dX = law.evaluate(0.0, X)
-        X[19:22] = dX[9:12] * c.dsc.tau  # x2d_dot * tau = x2bar - 0
-        if c.neso.init_from_measurement:
+        X[19:22] = dX[9:12] * law.p["tau"]  # x2d_dot * tau = x2bar - 0
+        if law.p["neso_init_from_measurement"] == 1.0:
             X[13:16] = tel["omega_BD_B"]
     return X
 

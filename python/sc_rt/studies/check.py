@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.studies.lawparams import dsc_gains, neso_core, neso_params
 from sc_rt.scenario.model import Scenario, ScenarioError
 from sc_rt.scenario.reader import load_scenario, with_run
 
@@ -167,13 +168,13 @@ def _check_initial_bound(scn: Scenario, law: str = "dsc-ppc") -> list[Finding]:
 
 
 def _check_observer(scn: Scenario) -> list[Finding]:
-    cfg = scn.core_config()
-    m = np.asarray(_core.neso_condition_26(cfg.neso))
-    n = scn.controller.neso
+    law = scn.run.controller
+    m = np.asarray(_core.neso_condition_26(neso_core(scn, law)))
+    n = neso_params(scn, law)
     if np.all(m > 0):
-        return [Finding("ok", "controller.neso", "", f"condition (26) holds on every axis (margins {_fmt(m)})")]
+        return [Finding("ok", f"laws.{law}", "", f"condition (26) holds on every axis (margins {_fmt(m)})")]
     axes = [i + 1 for i in range(3) if m[i] <= 0]
-    return [Finding("warning", "controller.neso.k4", _fmt(n.k4),
+    return [Finding("warning", f"laws.{law}.neso_k4", _fmt(n.k4),
                     f"observer condition (26) fails on axis {axes} (margins {_fmt(m)}): "
                     "k3 k4 > k2^2 k3 / alpha + (alpha + 1)^2 k1^2 k2^2 (stricter reading)")]
 
@@ -191,7 +192,7 @@ def _r_bound(scn: Scenario) -> float:
 
 
 def _check_theorem1(scn: Scenario, run_estimate: bool) -> list[Finding]:
-    d = scn.controller.dsc
+    d = dsc_gains(scn, "dsc-ppc")
     cfg = scn.core_config()
     k5 = float(np.linalg.norm(np.asarray(_core.SpacecraftModel(cfg.spacecraft).B), 2))
     out = []
@@ -201,13 +202,13 @@ def _check_theorem1(scn: Scenario, run_estimate: bool) -> list[Finding]:
     rM = _r_bound(scn) if run_estimate else r0
     src = "max along an offline DSC+PPC run" if run_estimate else "at x1 = 0, t = 0 (a lower bound)"
     conds = [
-        ("controller.dsc.k1", d.k1, 16 * d.k1 > 3 * rM**2 * d.tau,
+        ("laws.dsc-ppc.k1", d.k1, 16 * d.k1 > 3 * rM**2 * d.tau,
          f"16 k1 > 3 rM^2 tau with rM = {rM:.4g} ({src}; ||r|| at x1 = 0, t = 0 is {r0:.4g}, "
          f"the condition needs rM < {math.sqrt(16 * d.k1 / (3 * d.tau)):.4g}): "
          f"{16 * d.k1:.4g} vs {3 * rM**2 * d.tau:.4g}"),
-        ("controller.dsc.k2", d.k2, 4 * d.k2 * d.k6 > 3,
+        ("laws.dsc-ppc.k2", d.k2, 4 * d.k2 * d.k6 > 3,
          f"4 k2 k6 > 3: {4 * d.k2 * d.k6:.4g} vs 3"),
-        ("controller.dsc.k3", d.k3, 8 * d.k2 * d.k4 > 9 * d.k3**2 * k5**2,
+        ("laws.dsc-ppc.k3", d.k3, 8 * d.k2 * d.k4 > 9 * d.k3**2 * k5**2,
          f"8 k2 k4 > 9 k3^2 k5^2 with k5 = ||B|| = {k5:.4g}: {8 * d.k2 * d.k4:.4g} vs {9 * d.k3**2 * k5**2:.4g}"),
     ]
     for key, val, ok, msg in conds:

@@ -16,6 +16,7 @@ from sc_rt.studies.design.linear import AXES, INERTIAS, input_matrices
 from sc_rt.studies.design.margins import DEFAULT_LATENCY_S, closed_form_pd_margins, coupling, pd_margins
 from sc_rt.studies.design.noise import noise_floor_report
 from sc_rt.studies.design.pd import PdDesign, default_pd_design
+from sc_rt.studies.lawparams import pd_gains
 from sc_rt.studies.design.stability import (compare_loss_of_stability, simulated_loss_of_stability,
                                             stability_limit, without_wheel_limits)
 
@@ -115,8 +116,7 @@ def design_report(scn: Scenario, rate: float | None = None, *, latency: float = 
         "rate_hz": rate,
         "latency_s": latency,
         "pd": asdict(pd),
-        "pd_in_scenario": {"beta1": float(scn.controller.pd.beta1),
-                           "beta2": float(scn.controller.pd.beta2)},
+        "pd_in_scenario": vars(pd_gains(scn)),
         "closed_form": {inertia_: [closed_form_pd_margins(pd.beta1, pd.beta2, m, rate)
                                    for m in np.diag(input_matrices(scn, inertia_).M)]
                         for inertia_ in INERTIAS},

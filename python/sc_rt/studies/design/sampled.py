@@ -26,6 +26,7 @@ import control
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.studies.lawparams import dsc_gains, neso_params
 from sc_rt.scenario.model import Scenario
 from sc_rt.studies.design.linear import error_state_space, input_matrices, wheel_effectiveness
 
@@ -87,7 +88,7 @@ def ppc_gain(scn: Scenario, t: float, ppc=None) -> tuple[np.ndarray, np.ndarray,
 
 def observer_gains(scn: Scenario, observer: str, amplitude: float) -> tuple[np.ndarray, np.ndarray]:
     """The observer's linear gains (K1, K2) on e = z1 - x2: "linear-part" or "local-gain"."""
-    n = scn.controller.neso
+    n = neso_params(scn)
     if observer == "linear-part":
         return np.array(n.k2, float), np.array(n.k4, float)
     if observer == "local-gain":
@@ -144,8 +145,8 @@ class SampledLoop:
         self.B, self.Bp = im.B, im.B_pinv
         self.Bpl_healthy = im.B_plant
         self.O = observer_map(*observer_gains(scn, observer, observer_amplitude), T,
-                              int(scn.controller.neso.substeps))
-        self.g = scn.controller.dsc
+                              neso_params(scn).substeps)
+        self.g = dsc_gains(scn)
         self.ppc = scn.core_config().ppc
         # plant x1' = x2/4, x2' = w (axis acceleration), ZOH over one period
         Pd = control.c2d(error_state_space(np.eye(3)), T, method="zoh")

@@ -19,6 +19,7 @@ import numpy as np
 import scipy.optimize
 
 from sc_rt.scenario.model import Scenario
+from sc_rt.studies.lawparams import dsc_gains
 from sc_rt.studies.design.linear import AXES
 from sc_rt.studies.design.sampled import SAMPLED_STATES, SampledLoop, ppc_gain
 
@@ -43,7 +44,7 @@ def critical_r_estimate(scn: Scenario, rate: float) -> float:
     of T/2, so the mode loses its damping when (r/4)^2 T/2 = k2. Within 1 %
     of the exact spectral-radius crossing for the paper (docs/DESIGN.md).
     """
-    return 4.0 * math.sqrt(2.0 * scn.controller.dsc.k2 * rate)
+    return 4.0 * math.sqrt(2.0 * dsc_gains(scn).k2 * rate)
 
 
 

@@ -15,7 +15,7 @@ numbers, a verdict and the command that made it.
 - ``search``: the tightest chiinf that holds (bisection), the feasible designs;
 - ``report``: ``reproduce``, which runs all of it and writes the files.
 
-The scenario variants the studies use (``with_ppc``, ``with_dsc``,
+The scenario variants the studies use (``with_ppc``, ``with_law_params``,
 ``without_faults``) are ``sc_rt.scenario.variants``.
 """
 

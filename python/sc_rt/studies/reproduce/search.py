@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.scenario.model import Scenario
-from sc_rt.scenario.variants import with_dsc, with_ppc, without_faults
+from sc_rt.scenario.variants import with_law_params, with_ppc, without_faults
 from sc_rt.sim.engines import simulate
 from sc_rt.studies.reproduce.cases import CASES, scenario_label, shipped_scenario
 from sc_rt.studies.reproduce.claims import fmt
@@ -69,8 +69,8 @@ def feasible_search(*, engine: str = "cpp", rates=(10.0, 100.0, 1000.0)) -> dict
     paper = shipped_scenario(CASES["faults"])
     rows = []
     for rate in rates:
-        for k2 in (paper.controller.dsc.k2, 1.6 * rate):
-            r = tightest_chiinf(with_dsc(paper, k2=float(k2)), rate, engine=engine)
+        for k2 in (paper.controller.resolved("dsc-ppc")["k2"], 1.6 * rate):
+            r = tightest_chiinf(with_law_params(paper, "dsc-ppc", k2=float(k2)), rate, engine=engine)
             r["k2"] = float(k2)
             rows.append(r)
     shipped = []
@@ -83,7 +83,7 @@ def feasible_search(*, engine: str = "cpp", rates=(10.0, 100.0, 1000.0)) -> dict
             res = simulate(s, engine=engine)
             m = res.metrics
             shipped.append({"file": scenario_label(name), "case": case, "rate_hz": rate,
-                            "k2": scn.controller.dsc.k2,
+                            "k2": scn.controller.resolved("dsc-ppc")["k2"],
                             "chiinf": [float(v) for v in scn.controller.ppc.chiinf],
                             "first_bound_violation_s": m["first_bound_violation_s"],
                             "max_abs_lambda": float(np.nanmax(np.abs(res["lam"]))),

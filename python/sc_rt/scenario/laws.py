@@ -1,0 +1,165 @@
+"""Every law's parameters in one scenario: the ``[laws.NAME]`` tables
+(docs/SCENARIOS.md). One file serves ``compare`` and ``montecarlo`` across
+laws: a run takes the table of the law it runs, and the law itself
+validates it (the built-in laws as any plugin, through ``LawParams``), so
+the scenario reader knows no law's parameter names.
+
+A table's name is the law's registry name: a built-in ("dsc-ppc", "dsc",
+"pd", "rft"), a plugin's declared name ("quaternion-feedback", not its
+path), or a Python law's ``name`` attribute (default: its class name).
+
+Older files keep loading: ``[controller.params]`` is the table of the law
+the file runs; the tables ``[controller.dsc]`` and ``[controller.neso]``
+(both laws of the paper), ``[controller.pd]`` and ``[controller.rft]``
+become the built-in laws' tables, with one deprecation note
+(``Scenario.deprecations``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from sc_rt import _core
+from sc_rt.scenario.schema import Table
+
+__all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "resolved", "items_of", "with_items"]
+
+#: the tables of files written before [laws.NAME]: table -> (the laws it feeds, key prefix)
+LEGACY_TABLES: dict[str, tuple[tuple[str, ...], str]] = {
+    "dsc": (("dsc-ppc", "dsc"), ""),
+    "neso": (("dsc-ppc", "dsc"), "neso_"),
+    "pd": (("pd",), ""),
+    "rft": (("rft",), ""),
+}
+
+
+def _numbers(t: Table, name: str, value: Any) -> tuple[float, ...] | None:
+    vals = value if isinstance(value, list) else [value]
+    if isinstance(value, bool):  # a flag: 1 or 0
+        return (1.0 if value else 0.0,)
+    if vals and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in vals):
+        return tuple(float(x) for x in vals)
+    t.fail(name, f"{name} must be a number, a list of numbers or true/false (a law parameter)")
+    return None
+
+
+def _table_items(t: Table) -> tuple | None:
+    items, ok = [], True
+    for name, value in (t.data or {}).items():
+        t.used.add(name)
+        vals = _numbers(t, name, value)
+        ok = ok and vals is not None
+        if vals is not None:
+            items.append((name, vals))
+    return tuple(items) if ok else None
+
+
+def read_laws(root: Table, controller: Table, run_law: str | None) -> tuple[tuple, dict, list[str]] | None:
+    """(the laws' tables ((name, items), ...), the dotted key of each
+    (name, key) for errors, the deprecation notes), or None after reporting
+    a problem. ``run_law``: the name of the law the file runs (for
+    ``[controller.params]``)."""
+    tables: dict[str, dict[str, tuple[float, ...]]] = {}
+    where: dict[tuple[str, str], str] = {}
+    notes: list[str] = []
+    ok = True
+    laws = root.sub("laws", required=False)
+    for name, value in (laws.data or {}).items():
+        laws.used.add(name)
+        if not isinstance(value, dict):
+            laws.fail(name, f"laws.{name} must be a table of the law's parameters ([laws.{name}])")
+            ok = False
+            continue
+        t = Table(root.doc, f"laws.{name}", value)
+        items = _table_items(t)
+        if items is None:
+            ok = False
+            continue
+        tables[name] = dict(items)
+        where.update({(name, k): f"laws.{name}.{k}" for k, _ in items})
+    if controller.has("params"):
+        t = controller.sub("params")
+        items = _table_items(t)
+        if items is None:
+            ok = False
+        elif run_law is not None and run_law in tables and items:
+            controller.fail("params", f"give the parameters of {run_law} once: [laws.{run_law}] or "
+                                      "[controller.params], not both")
+            ok = False
+        elif run_law is not None:
+            tables.setdefault(run_law, {}).update(dict(items))
+            where.update({(run_law, k): f"controller.params.{k}" for k, _ in items})
+    old = [name for name in LEGACY_TABLES if controller.has(name)]
+    for name in old:
+        t = controller.sub(name)
+        items = _table_items(t)
+        if items is None:
+            ok = False
+            continue
+        feeds, prefix = LEGACY_TABLES[name]
+        for law in feeds:
+            table = tables.setdefault(law, {})
+            for k, v in items:
+                key = prefix + k
+                if (law, key) in where and where[(law, key)].startswith("laws."):
+                    continue  # [laws.NAME] wins over the older table
+                table[key] = v
+                where[(law, key)] = f"controller.{name}.{k}"
+    if old:
+        notes.append(f"{root.doc.path}: " + ", ".join(f"[controller.{n}]" for n in old)
+                     + " read as the built-in laws' [laws.NAME] tables; write them so (docs/SCENARIOS.md, [laws])")
+    if not ok:
+        return None
+    return tuple((name, tuple(table.items())) for name, table in tables.items()), where, notes
+
+
+def law_table_name(spec: str) -> str:
+    """The table name of a law spec: its registry name (a plugin's declared
+    name: the library is loaded), or the spec itself (a Python law's is its
+    ``name``, see ``sc_rt.pylaw.law_label``)."""
+    if spec.startswith("plugin:"):
+        return _core.law_info(spec)["name"]
+    from sc_rt.pylaw import is_python_law, law_label, load_law
+
+    if is_python_law(spec):
+        return law_label(load_law(spec))
+    return spec
+
+
+def items_of(laws: tuple, name: str) -> tuple:
+    """The items ((key, (numbers...)), ...) of law ``name``'s table (() without one)."""
+    for law, items in laws:
+        if law == name:
+            return items
+    return ()
+
+
+def resolved(laws: tuple, name: str) -> dict[str, Any]:
+    """Law ``name``'s parameters as it runs them: its declared defaults
+    (a built-in law's, ``_core.law_info``) overlaid with its table; one number
+    as a float, more as an array."""
+    defaults = dict(_core.law_info(name)["defaults"]) if name in _core.law_names() else {}
+    values = {k: tuple(v) for k, v in defaults.items()}
+    values.update(dict(items_of(laws, name)))
+    return {k: (float(v[0]) if len(v) == 1 else np.asarray(v, float)) for k, v in values.items()}
+
+
+def with_items(laws: tuple, name: str, **values: Any) -> tuple:
+    """``laws`` with law ``name``'s table given ``values`` (key -> a number or
+    numbers; the table is added when the law has none). Not validated: for
+    studies that vary a parameter around a validated scenario."""
+    def numbers(v: Any) -> tuple[float, ...]:
+        return tuple(float(x) for x in np.atleast_1d(np.asarray(v, float)))
+
+    out, done = [], False
+    for law, items in laws:
+        if law == name:
+            table = dict(items)
+            table.update({k: numbers(v) for k, v in values.items()})
+            items, done = tuple(table.items()), True
+        out.append((law, items))
+    if not done:
+        out.append((name, tuple((k, numbers(v)) for k, v in values.items())))
+    return tuple(out)
