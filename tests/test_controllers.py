@@ -9,6 +9,9 @@ from sc_rt import _core
 import refmath as ref
 from conftest import LAWS, OMEGA0, SIGMA0, core_config, measurement, reference_params
 
+#: the DSC laws' gains a default config runs: their declared defaults (cpp/src/law_dsc.cpp)
+DSC = {k: v[0] for k, v in _core.law_info("dsc-ppc")["defaults"]}
+
 ALL_LAWS = list(LAWS)
 
 
@@ -102,7 +105,7 @@ def test_corrected_41_gives_the_e2_dynamics_of_44(rng):
         du = cmd.u_sat - cmd.u_cmd
         ev2 = cmd.z2 - delta
         G = ref.G(cmd.sigma_BD)
-        rhs = (-c.dsc.k2 * cmd.e2 - G.T @ (exp["r"] * cmd.e1) - c.dsc.k3 * B @ cmd.vs - ev2 + B @ du)
+        rhs = (-DSC["k2"] * cmd.e2 - G.T @ (exp["r"] * cmd.e1) - DSC["k3"] * B @ cmd.vs - ev2 + B @ du)
         scale = np.abs(B @ cmd.u_cmd).max() + 1.0
         np.testing.assert_allclose(e2_dot, rhs, atol=1e-12 * scale)
         checked += 1
@@ -136,8 +139,8 @@ def test_anti_windup_follows_42_exactly_under_saturation():
         cmd = ctl.step(as_meas(d))
         dt = d["t"] - t_prev
         # (42) vs_dot = -k4 vs + du, du held: exact solution over dt
-        b = np.exp(-c.dsc.k4 * dt)
-        vs = b * vs + (1 - b) / c.dsc.k4 * du_prev
+        b = np.exp(-DSC["k4"] * dt)
+        vs = b * vs + (1 - b) / DSC["k4"] * du_prev
         np.testing.assert_allclose(cmd.vs, vs, rtol=1e-13, atol=1e-300)
         du_prev = cmd.u_sat - cmd.u_cmd
         saturated += np.any(du_prev != 0)
@@ -219,12 +222,16 @@ def test_time_not_advancing_is_flagged():
     (lambda c: setattr(c.spacecraft, "umin", np.array([-7.0, 10.0, -7.0, -7.0])), "umin >= umax for wheel 2"),
     (lambda c: setattr(c.spacecraft, "Cbar", np.array([[1.0, 1, 1, 1], [0, 0, 0, 0], [0, 0, 0, 0]])),
      "Cbar is rank-deficient"),
-    (lambda c: setattr(c.dsc, "tau", 0.0), "dsc.tau must be > 0"),
+    (lambda c: setattr(c, "law_params", [("tau", [0.0])]), "laws.dsc-ppc.tau: must be > 0, got 0"),
     (lambda c: setattr(c, "control_rate_hz", -1.0), "control_rate_hz must be > 0"),
-    (lambda c: setattr(c.rft, "phi", 0.0), "rft.phi must be > 0"),
-    (lambda c: setattr(c.neso, "alpha", 2.0), "alpha must be in [0.5, 1]"),
+    (lambda c: (setattr(c, "law", "rft"), setattr(c, "law_params", [("phi", [0.0])])), "laws.rft.phi: must be > 0"),
+    (lambda c: setattr(c, "law_params", [("neso_alpha", [2.0])]), "neso_alpha: must be in [0.5, 1]"),
+    (lambda c: setattr(c, "law_params", [("neso_k1", [0.2, 0.2])]), "neso_k1: must be 3 numbers"),
+    (lambda c: setattr(c, "law_params", [("k2", [4.0]), ("kk", [1.0])]), "unknown parameter"),
 ])
 def test_invalid_configuration_raises_with_the_value(edit, fragment):
+    """A built-in law's bad gain is its own refusal (through LawParams, as a
+    plugin's), with the law, the key and the value."""
     c = core_config("dsc-ppc")
     edit(c)
     with pytest.raises(ValueError) as ei:
@@ -234,8 +241,8 @@ def test_invalid_configuration_raises_with_the_value(edit, fragment):
 
 def test_all_problems_reported_together():
     c = core_config()
-    c.dsc.tau = -1.0
-    c.pd.beta1 = 0.0
+    c.control_rate_hz = 0.0
+    c.ppc.gamma = np.array([-1.0, 0.1, 0.1])
     c.spacecraft.w0 = -1.0
     errs = _core.validate(c)
     assert len(errs) == 3, errs
@@ -251,9 +258,13 @@ def test_damped_pseudo_inverse_for_a_rank_deficient_B():
 
 def test_config_round_trips_through_lcm():
     c = core_config("rft", 100.0)
-    c.neso.substeps = 4
+    c.law_params = [("phi", [0.02]), ("k", [0.5])]
+    c.spacecraft.wheel_torque_command = True
+    c.spacecraft.wheel_speed_max = np.array([600.0, np.inf, 500.0, np.inf])
     c2 = _core.ControllerConfig.from_lcm_bytes(c.to_lcm_bytes("x"))
-    assert c2.law == "rft" and c2.control_rate_hz == 100.0 and c2.neso.substeps == 4
+    assert c2.law == "rft" and c2.control_rate_hz == 100.0 and c2.law_params == c.law_params
+    assert c2.spacecraft.wheel_torque_command
+    np.testing.assert_array_equal(c2.spacecraft.wheel_speed_max, c.spacecraft.wheel_speed_max)
     np.testing.assert_array_equal(c2.spacecraft.Cbar, c.spacecraft.Cbar)
     np.testing.assert_array_equal(c2.ppc.chiinf, c.ppc.chiinf)
     with pytest.raises(ValueError, match="cannot decode controller_config_t"):
@@ -322,3 +333,13 @@ def test_guidance_reset_before_its_time_starts_the_time_line_again():
     a2.reset(10.0)
     assert np.array_equal(b.sigma_DN, a2.sigma_DN) and b.t == 10.0
     assert not np.array_equal(a.sigma_DN, a2.sigma_DN)
+
+
+def test_a_config_for_another_law_interface_version_is_refused():
+    import sc_rt_lcm
+
+    m = sc_rt_lcm.controller_config_t.decode(core_config("pd").to_lcm_bytes("x"))
+    assert m.law_api_version == _core.LAW_API_VERSION == 2
+    m.law_api_version = 1
+    with pytest.raises(ValueError, match="law interface version 1, this controller has 2"):
+        _core.ControllerConfig.from_lcm_bytes(m.encode())

@@ -11,6 +11,7 @@ import control
 import numpy as np
 import pytest
 
+from sc_rt.scenario.variants import with_law_params
 from sc_rt import _core
 from sc_rt.studies import design as D
 from sc_rt.cli import main
@@ -108,11 +109,14 @@ def test_default_pd_design_follows_the_envelope_rule_and_feeds_the_scenarios(pap
     assert abs(np.interp(Ts, t, x)) == pytest.approx(0.02, rel=1e-6)
     assert np.all(np.abs(x[t > Ts * 1.0001]) < 0.02) and np.any(np.abs(x[t < Ts * 0.999]) > 0.02)
     # the scenario files and the core's defaults carry these gains (4 digits)
+    # the core's PD declares these gains as its defaults (4 digits), which the paper files run
+    core = dict(_core.law_info("pd")["defaults"])
+    assert core["beta1"][0] == pytest.approx(pd.beta1, rel=1e-4)
+    assert core["beta2"][0] == pytest.approx(pd.beta2, rel=1e-4)
     for scn in (paper, paper_faults):
-        assert scn.controller.pd.beta1 == pytest.approx(pd.beta1, rel=1e-4)
-        assert scn.controller.pd.beta2 == pytest.approx(pd.beta2, rel=1e-4)
-    core = _core.ControllerConfig().pd
-    assert (core.beta1, core.beta2) == (paper.controller.pd.beta1, paper.controller.pd.beta2)
+        assert scn.controller.table("pd") == ()
+        assert (scn.controller.resolved("pd")["beta1"], scn.controller.resolved("pd")["beta2"]) == (
+            core["beta1"][0], core["beta2"][0])
 
 
 @pytest.mark.parametrize("zeta", [0.5, 0.7, 1.0, 1.5])
@@ -210,8 +214,8 @@ def _linear_probe(paper, chi, rate=100.0, steps=300):
     )
     c = scn.controller
     scn = dataclasses.replace(scn, controller=dataclasses.replace(
-        c, ppc=dataclasses.replace(c.ppc, chi0=np.array(chi), chiinf=np.array(chi), gamma=np.zeros(3)),
-        neso=dataclasses.replace(c.neso, alpha=1.0, substeps=2)))
+        c, ppc=dataclasses.replace(c.ppc, chi0=np.array(chi), chiinf=np.array(chi), gamma=np.zeros(3))))
+    scn = with_law_params(scn, "dsc-ppc", neso_alpha=1.0, neso_substeps=2)
     return scn, simulate(scn, engine="cpp", control_rate_hz=rate, duration=steps / rate)
 
 
@@ -297,9 +301,8 @@ def test_linearised_controller_step_is_the_cores_step(paper_faults, rng, law, ra
     scn = replace(paper_faults, plant=dict(w0=0.0),
                   guidance=dict(sigma_d0=np.zeros(3), omega_bias=np.zeros(3),
                                 omega_cos=np.zeros(3), omega_sin=np.zeros(3)))
-    c = scn.controller
-    scn = dataclasses.replace(scn, controller=dataclasses.replace(
-        c, neso=dataclasses.replace(c.neso, alpha=1.0, substeps=3)))
+    for name in ("dsc-ppc", "dsc"):
+        scn = with_law_params(scn, name, neso_alpha=1.0, neso_substeps=3)
     N = 30
     a, b = rng.standard_normal((N, 3)), rng.standard_normal((N, 3))
     ref = _core_step_derivative(scn, law, rate, a, b)

@@ -36,7 +36,7 @@ low = -3.0
 high = 3.0
 
 [[montecarlo.disperse]]
-key = "controller.dsc.k2"
+key = "laws.dsc-ppc.k2"
 dist = "choice"
 values = [3.0, 4.0, 5.0]
 
@@ -48,7 +48,7 @@ std = [0.01, 0.0, 0.01, 0.0]
 apply = "scale"
 
 [[montecarlo.disperse]]
-key = "controller.neso.substeps"
+key = "laws.dsc-ppc.neso_substeps"
 dist = "choice"
 values = [1, 2]
 """
@@ -79,9 +79,8 @@ def test_draws_stay_in_their_distributions_per_element(tmp_path):
         assert np.all(np.abs(dJ - dJ0) <= 0.5) and np.array_equal(dJ, dJ.T)  # symmetric draw
         dJs.append(dJ)
         assert abs(d.actuators.faults[1].onset - onset0) <= 3.0
-        seen_k2.add(d.controller.dsc.k2)
-        seen_sub.add(d.controller.neso.substeps)
-        assert isinstance(d.controller.neso.substeps, int)
+        seen_k2.add(d.controller.resolved("dsc-ppc")["k2"])
+        seen_sub.add(d.controller.resolved("dsc-ppc")["neso_substeps"])
         Jw = np.asarray(d.plant.Jw)
         assert Jw[1] == s.plant.Jw[1] and Jw[3] == s.plant.Jw[3]  # std 0: untouched
         assert Jw[0] != s.plant.Jw[0]
@@ -112,8 +111,10 @@ def test_draws_stay_in_their_distributions_per_element(tmp_path):
     ('key = "spacecraft.w0"\ndist = "choice"\nvalues = []', "montecarlo.disperse[0].values", "non-empty"),
     ('key = "spacecraft.w0"\ndist = "choice"\nvalues = [1, 2]\nweights = [1]', "montecarlo.disperse[0].weights",
      "2 numbers"),
-    ('key = "controller.neso.substeps"\ndist = "uniform"\nlow = 1\nhigh = 3', "montecarlo.disperse[0].dist",
+    ('key = "faults[0].wheel"\ndist = "uniform"\nlow = 1\nhigh = 3', "montecarlo.disperse[0].dist",
      "takes integers"),
+    ('key = "laws.dsc-ppc.k9"\ndist = "uniform"\nlow = 1\nhigh = 3', "montecarlo.disperse[0].key",
+     "is not a numeric key"),
     ('key = "spacecraft.w0"\ndist = "normal"\nstd = 1\napply = "multiply"', "montecarlo.disperse[0].apply",
      "apply must be one of"),
     ('key = "spacecraft.w0"\ndist = "normal"\nstd = 1\nsymmetric = false', "montecarlo.disperse[0].symmetric",
@@ -197,11 +198,11 @@ def test_a_run_with_no_valid_draw_is_failed_after_max_redraws(tmp_path):
 
 def test_a_table_campaign_stores_its_values_and_reruns_bitwise(tmp_path):
     s = with_overrides(scenario(tmp_path, TABLE), duration=20)
-    c = Campaign(s, NO_SHORTCUTS, seed=9, law="dsc")
+    c = Campaign(s, NO_SHORTCUTS, seed=9, law="dsc-ppc")
     run_campaign(c, 4, tmp_path / "mc", workers=2, progress=False)
     rows = RunStore(tmp_path / "mc", c.columns()).read().to_pylist()
-    assert {"spacecraft.dJ[1][2]", "faults[1].onset", "controller.dsc.k2", "spacecraft.Jw[3]",
-            "controller.neso.substeps"} <= set(rows[0])
+    assert {"spacecraft.dJ[1][2]", "faults[1].onset", "laws.dsc-ppc.k2", "spacecraft.Jw[3]",
+            "laws.dsc-ppc.neso_substeps"} <= set(rows[0])
     assert "initial.omega_BN_B[0]" not in rows[0]  # with a table the shortcuts are off
     assert repr({k: run_one(c, 2).get(k) for k in rows[2]}) == repr(rows[2])
     assert get_key(scenario_data(s), "faults[1].onset") == s.actuators.faults[1].onset
@@ -214,6 +215,6 @@ def test_the_documented_example_reads(tmp_path):
     block = block[:block.index("```")]
     s = scenario(tmp_path, "\n" + block)
     assert [e.key for e in s.montecarlo.disperse] == ["spacecraft.dJ", "faults[1].onset", "spacecraft.Jw",
-                                                      "controller.dsc.k2"]
+                                                      "laws.dsc-ppc.k2"]
     d, values, _, _ = draw_run(s, NO_SHORTCUTS, 0, 0)
-    assert d is not None and values["controller.dsc.k2"] in (12.0, 16.0, 20.0)
+    assert d is not None and values["laws.dsc-ppc.k2"] in (12.0, 16.0, 20.0)

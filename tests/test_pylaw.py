@@ -55,7 +55,8 @@ class _PD:
     """The PD for the step-by-step comparison (no file import)."""
 
     def __init__(self, setup):
-        self.B_pinv, self.b1, self.b2 = setup.model.B_pinv, setup.config.pd.beta1, setup.config.pd.beta2
+        pd = dict(_core.law_info("pd")["defaults"])  # the built-in PD's gains (a default config's law table is empty)
+        self.B_pinv, self.b1, self.b2 = setup.model.B_pinv, pd["beta1"][0], pd["beta2"][0]
         self.resets = 0
 
     def reset(self, inp):

@@ -36,17 +36,22 @@ CBAR = [
 EXPECTED_MSG = {
     "scenario": "paper_fault_free",
     "law": "dsc-ppc",
-    "n_law_params": 0,
-    "law_param_keys": [],
-    "law_param_len": [],
-    "n_law_param_values": 0,
-    "law_param_values": [],
+    "law_api_version": 2,
+    # [laws.dsc-ppc] of the file, in its order: the observer's, then the DSC gains (paper s4)
+    "n_law_params": 13,
+    "law_param_keys": ("neso_k1", "neso_k2", "neso_k3", "neso_k4", "neso_alpha", "neso_substeps",
+                       "neso_init_from_measurement", "k1", "k2", "k3", "k4", "k6", "tau"),
+    "law_param_len": [1.0] * 13,
+    "n_law_param_values": 13,
+    "law_param_values": [0.2, 0.03, 0.08, 0.06, 0.7, 1.0, 0.0, 0.1, 4.0, 0.01, 22.0, 1.0, 0.1],
     "control_rate_hz": 10.0,
     "J0": [[10, 0, 0], [0, 15, 0], [0, 0, 20]],
     "Cbar": CBAR,
     "Jw": [0.338] * 4,
     "umin": [-7.0] * 4,
     "umax": [10.0] * 4,
+    "wheel_torque_command": False,  # the paper's wheels take an acceleration
+    "wheel_speed_max": [0.0] * 4,   # no speed limit (0 on the wire)
     "w0": 0.0011,
     "guidance_kind": 0,  # GUIDANCE_PAPER: no kind key in the paper's files
     "sigma_d0": [0.217, -0.109, -0.163],
@@ -66,27 +71,6 @@ EXPECTED_MSG = {
     "ppc_gamma": [0.12, 0.12, 0.08],
     "ppc_dmin": [0.7, 1.0, 1.0],
     "ppc_dmax": [1.0, 0.7, 0.3],
-    "neso_k1": [0.2] * 3,
-    "neso_k2": [0.03] * 3,
-    "neso_k3": [0.08] * 3,
-    "neso_k4": [0.06] * 3,
-    "neso_alpha": 0.7,
-    "neso_substeps": 1,
-    "neso_init_from_measurement": False,
-    "dsc_k1": 0.1,
-    "dsc_k2": 4.0,
-    "dsc_k3": 0.01,
-    "dsc_k4": 22.0,
-    "dsc_k6": 1.0,
-    "dsc_tau": 0.1,
-    "pd_beta1": 0.05693,  # sc_rt.studies.design.default_pd_design, 4 digits
-    "pd_beta2": 0.2386,
-    "rft_c": 0.2,
-    "rft_k": 0.4,
-    "rft_gain": 0.5,
-    "rft_leak": 0.01,
-    "rft_phi": 1e-2,
-    "rft_rho0": 0.0,
     "pinv_damping": 0.0,
     "max_rate": 10.0,
     "max_wheel_speed": 1e4,
@@ -103,7 +87,9 @@ EXPECTED_MSG = {
 def assert_msg_equals(msg: controller_config_t, expected: dict) -> None:
     for name, value in expected.items():
         got = getattr(msg, name)
-        if isinstance(value, (list, float)):
+        if isinstance(value, tuple):  # strings
+            assert list(got) == list(value), name
+        elif isinstance(value, (list, float)):
             np.testing.assert_array_equal(np.array(got, dtype=float), np.array(value, dtype=float),
                                           err_msg=name)  # fmt: skip
         else:
@@ -168,12 +154,16 @@ def test_paper_scenarios_hold_model_md_values(path):
     np.testing.assert_array_equal(c.ppc.gamma, [0.12, 0.12, 0.08])
     np.testing.assert_array_equal(c.ppc.dmin, [0.7, 1.0, 1.0])
     np.testing.assert_array_equal(c.ppc.dmax, [1.0, 0.7, 0.3])
-    for k, v in (("k1", 0.2), ("k2", 0.03), ("k3", 0.08), ("k4", 0.06)):
-        np.testing.assert_array_equal(getattr(c.neso, k), [v] * 3)
-    assert (c.neso.alpha, c.neso.substeps, c.neso.init_from_measurement) == (0.7, 1, False)
-    assert dataclasses.astuple(c.dsc) == (0.1, 4.0, 0.01, 22.0, 1.0, 0.1)
-    assert dataclasses.astuple(c.pd) == (0.05693, 0.2386)  # sc_rt.studies.design (docs/DESIGN.md)
-    assert dataclasses.astuple(c.rft) == (0.2, 0.4, 0.5, 0.01, 1e-2, 0.0)
+    assert [law for law, _ in c.laws] == ["dsc-ppc"]  # the table of the law the file runs, only
+    d = c.resolved("dsc-ppc")
+    for k, v in (("neso_k1", 0.2), ("neso_k2", 0.03), ("neso_k3", 0.08), ("neso_k4", 0.06)):
+        np.testing.assert_array_equal(np.broadcast_to(d[k], 3), [v] * 3)
+    assert (d["neso_alpha"], d["neso_substeps"], d["neso_init_from_measurement"]) == (0.7, 1.0, 0.0)
+    assert tuple(d[k] for k in ("k1", "k2", "k3", "k4", "k6", "tau")) == (0.1, 4.0, 0.01, 22.0, 1.0, 0.1)
+    # the other laws run their own defaults: the PD's design (docs/DESIGN.md), this project's RFT
+    assert (c.resolved("pd")["beta1"], c.resolved("pd")["beta2"]) == (0.05693, 0.2386)
+    assert tuple(c.resolved("rft")[k] for k in ("c", "k", "gain", "leak", "phi", "rho0")) == (
+        0.2, 0.4, 0.5, 0.01, 1e-2, 0.0)
     assert dataclasses.astuple(c.safety) == (10.0, 1e4, 5.0)
     assert c.pinv_damping == 0.0
 
@@ -206,10 +196,18 @@ def test_every_value_of_the_paper_files_carries_a_comment():
 
 def test_defaults_are_the_paper_controller(write):
     # A file without any [controller] table gets the paper's controller.
+    # The paper's file gives its law's table with the paper's values: the law's own defaults.
     text = FAULT_FREE.read_text()
-    bare = text[: text.index("[controller]")]
-    assert_same(load_scenario(write(bare, "bare")).controller, load_scenario(FAULT_FREE).controller)
-    assert_same(ControllerParams(), load_scenario(FAULT_FREE).controller)
+    bare, full = load_scenario(write(text[: text.index("[controller]")], "bare")), load_scenario(FAULT_FREE)
+    assert bare.controller.laws == ()
+    for law in LAWS:  # a number for all three axes is the same as three equal ones
+        a, b = bare.controller.resolved(law), full.controller.resolved(law)
+        assert a.keys() == b.keys()
+        for k in a:
+            shape = np.broadcast_shapes(np.shape(a[k]), np.shape(b[k]))
+            np.testing.assert_array_equal(np.broadcast_to(a[k], shape), np.broadcast_to(b[k], shape), err_msg=k)
+    assert_same(ControllerParams().ppc, full.controller.ppc)
+    assert_same(ControllerParams().safety, full.controller.safety)
 
 
 def test_controller_config_msg_fills_every_field():
@@ -230,7 +228,8 @@ def test_controller_config_round_trips_through_the_cpp_decoder():
     # And a few fields read directly from the C++ structs.
     np.testing.assert_array_equal(cfg.spacecraft.Cbar, CBAR)
     np.testing.assert_array_equal(cfg.ppc.chiinf, [4e-6, 2e-6, 1.4e-6])
-    assert (cfg.dsc.k4, cfg.neso.alpha, cfg.guidance.omega_freq) == (22.0, 0.7, 0.01)
+    assert (dict(cfg.law_params)["k4"], dict(cfg.law_params)["neso_alpha"], cfg.guidance.omega_freq) == (
+        [22.0], [0.7], 0.01)
     assert cfg.law == "dsc-ppc"
 
 
@@ -257,8 +256,10 @@ def test_law_table_matches_the_wire_and_the_core():
     assert LAWS == {"dsc-ppc": 0, "dsc": 1, "pd": 2, "rft": 3}
     assert _core.law_names()[:4] == list(LAWS)
     for name, code in LAWS.items():
-        assert _core.law_info(name) == {"name": name, "doc": _core.law_info(name)["doc"],
-                                        "source": "built-in", "code": code}
+        info = _core.law_info(name)
+        assert {k: info[k] for k in ("name", "source", "code")} == {"name": name, "source": "built-in",
+                                                                   "code": code}
+        assert info["defaults"]  # each built-in declares its parameters and their defaults
 
 
 def test_msg_overrides_and_their_errors():
@@ -321,7 +322,7 @@ def edit(text: str, old: str, new: str) -> str:
 
 def test_scalars_broadcast_and_optional_keys_default(write):
     text = FAULTS.read_text()
-    text = edit(text, "k1 = 0.2 ", "k1 = [0.1, 0.2, 0.3] ")
+    text = edit(text, "neso_k1 = 0.2 ", "neso_k1 = [0.1, 0.2, 0.3] ")
     text = edit(text, "Jw = 0.338", "Jw = [0.3, 0.31, 0.32, 0.33]")
     text = edit(text, "bias = [0.0, 0.0, 0.0]      # [N m] none in the paper\n", "")
     text = edit(text, "w0 = 0.0011", "max_wheel_speed = 600.0\nw0 = 0.0011")
@@ -329,7 +330,7 @@ def test_scalars_broadcast_and_optional_keys_default(write):
     text = edit(text, "rate = 1.0           # [1/s] a_3 = 1; paper s4.2\n", "")
     text += "\n[[faults]]\nwheel = 4\nonset = 20.0\nstuck = true\n"
     s = load_scenario(write(text))
-    np.testing.assert_array_equal(s.controller.neso.k1, [0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(s.controller.resolved("dsc-ppc")["neso_k1"], [0.1, 0.2, 0.3])
     np.testing.assert_array_equal(s.plant.Jw, [0.3, 0.31, 0.32, 0.33])
     np.testing.assert_array_equal(s.plant.disturbance.bias, [0.0, 0.0, 0.0])
     np.testing.assert_array_equal(s.actuators.max_wheel_speed, [600.0] * 4)
@@ -337,7 +338,7 @@ def test_scalars_broadcast_and_optional_keys_default(write):
                                                end=15.0, rate=1.0)  # fmt: skip
     assert s.actuators.faults[3] == WheelFault(wheel=3, onset=20.0, stuck=True)
     cfg = s.core_config()
-    np.testing.assert_array_equal(cfg.neso.k1, [0.1, 0.2, 0.3])
+    assert dict(cfg.law_params)["neso_k1"] == [0.1, 0.2, 0.3]
     np.testing.assert_array_equal(cfg.spacecraft.Jw, [0.3, 0.31, 0.32, 0.33])
 
 
@@ -393,14 +394,17 @@ BROKEN = [
      "spacecraft.Jw", "required key is missing", "[spacecraft]", 1),
     ("missing J0", "J0 = [[10.0, 0.0, 0.0], [0.0, 15.0, 0.0], [0.0, 0.0, 20.0]]\n", "",
      "spacecraft.J0", "missing (or give a [spacecraft.capture] table)", "[spacecraft]", 1),
-    ("unknown table", "[controller.rft]", "[controller.rtf]",
-     "controller.rtf", "unknown table (did you mean 'rft'?)", "[controller.rtf]", 1),
+    ("unknown table", "[controller.safety]", "[controller.safty]",
+     "controller.safty", "unknown table (did you mean 'safety'?)", "[controller.safty]", 1),
     ("string for number", "w0 = 0.0011", 'w0 = "0.0011"',
      "spacecraft.w0", "w0 must be a number", "w0 =", 1),
-    ("float for int", "substeps = 1 ", "substeps = 2.0 ",
-     "controller.neso.substeps", "substeps must be an integer", "substeps =", 1),
-    ("int for bool", "init_from_measurement = false", "init_from_measurement = 0",
-     "controller.neso.init_from_measurement", "must be true or false", "init_from_measurement", 1),
+    ("float for int", "neso_substeps = 1 ", "neso_substeps = 2.5 ",
+     "laws.dsc-ppc.neso_substeps", "must be an integer in [1, 10000], got 2.5", "neso_substeps =", 1),
+    ("int for bool", "neso_init_from_measurement = false", "neso_init_from_measurement = 2",
+     "laws.dsc-ppc.neso_init_from_measurement", "must be 0 or 1 (false or true), got 2",
+     "neso_init_from_measurement", 1),
+    ("unknown law parameter", "tau = 0.1 ", "taux = 0.1 ",
+     "laws.dsc-ppc.taux", "unknown parameter", "taux =", 1),
     ("vector length", "sigma_BN = [0.323, -0.194, -0.388]", "sigma_BN = [0.323, -0.194]",
      "initial.sigma_BN", "sigma_BN must be a list of 3 numbers", "sigma_BN", 1),
     ("matrix shape", "  [ 0.0009, -0.6658,  0.7461,  0.0469],\n", "",
@@ -443,12 +447,12 @@ BROKEN = [
      "controller =", 1),
     ("chi0 < chiinf", "chi0 = [0.11, 0.14, 0.2]", "chi0 = [0.11, 1e-6, 0.2]",
      "controller.ppc.chi0", "chi0 must be >= chiinf = [4e-06, 2e-06, 1.4e-06]", "chi0 =", 1),
-    ("alpha", "alpha = 0.7", "alpha = 0.4",
-     "controller.neso.alpha", "alpha must be in [0.5, 1]", "alpha =", 1),
-    ("neso gain", "k3 = 0.08", "k3 = -0.08",
-     "controller.neso.k3", "k3 must have every element > 0", "k3 = -0.08", 1),
+    ("alpha", "neso_alpha = 0.7", "neso_alpha = 0.4",
+     "laws.dsc-ppc.neso_alpha", "must be in [0.5, 1], got 0.4", "neso_alpha =", 1),
+    ("neso gain", "neso_k3 = 0.08", "neso_k3 = -0.08",
+     "laws.dsc-ppc.neso_k3", "must be > 0 on every axis", "neso_k3 = -0.08", 1),
     ("dsc tau", "tau = 0.1 ", "tau = 0.0 ",
-     "controller.dsc.tau", "tau must be > 0", "tau =", 1),
+     "laws.dsc-ppc.tau", "must be > 0, got 0", "tau =", 1),
     ("fault wheel", "wheel = 3 ", "wheel = 0 ",
      "faults[2].wheel", "wheel must be in [1, 4]", "wheel = 0", 1),
     ("duplicate wheel", "wheel = 3 ", "wheel = 1 ",
@@ -533,7 +537,7 @@ def test_toml_syntax_error_names_the_line(write):
 
 def test_all_errors_of_a_file_are_reported_together(write):
     text = FAULTS.read_text()
-    text = edit(text, "alpha = 0.7", "alpha = 2.0")
+    text = edit(text, "neso_alpha = 0.7", "neso_alpha = 2.0")
     text = edit(text, "umax = 10.0", "umax = -10.0")
     text = edit(text, "onset = 10.0 ", "onset = -1.0 ")
     path = write(text)
@@ -541,7 +545,7 @@ def test_all_errors_of_a_file_are_reported_together(write):
         load_scenario(path)
     lines = str(e.value).splitlines()
     assert len(lines) == len(e.value.errors) == 3
-    expected = [("spacecraft.umin", "umin ="), ("controller.neso.alpha", "alpha = 2.0"),
+    expected = [("spacecraft.umin", "umin ="), ("laws.dsc-ppc.neso_alpha", "neso_alpha = 2.0"),
                 ("faults[1].onset", "onset = -1.0")]  # in line order  # fmt: skip
     for line, err, (key, anchor) in zip(lines, e.value.errors, expected):
         assert err.key == key and err.line == line_of(text, anchor)
@@ -606,5 +610,5 @@ k = 2
 def test_scenario_type_has_the_documented_fields():
     assert [f.name for f in dataclasses.fields(Scenario)] == [
         "name", "description", "path", "run", "plant", "actuators", "initial", "guidance",
-        "controller", "montecarlo", "sensors", "expect", "requirements", "record",
+        "controller", "montecarlo", "sensors", "expect", "requirements", "record", "deprecations",
     ]  # fmt: skip

@@ -1,6 +1,7 @@
 #include "translate.hpp"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace sc_rt {
@@ -49,6 +50,8 @@ ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   s.umax = vec(m.umax);
   s.wheel_torque_command = m.wheel_torque_command;
   s.wheel_speed_max = vec(m.wheel_speed_max);
+  for (int i = 0; i < 4; ++i)  // 0 on the wire: no limit
+    if (!(s.wheel_speed_max(i) > 0.0)) s.wheel_speed_max(i) = std::numeric_limits<double>::infinity();
   s.w0 = m.w0;
   s.pinv_damping = m.pinv_damping;
   GuidanceParams& g = c.guidance;
@@ -110,7 +113,8 @@ sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const st
   put(m.umin, s.umin);
   put(m.umax, s.umax);
   m.wheel_torque_command = s.wheel_torque_command;
-  put(m.wheel_speed_max, s.wheel_speed_max);
+  for (int i = 0; i < 4; ++i)  // no limit (inf) is 0 on the wire
+    m.wheel_speed_max[i] = std::isfinite(s.wheel_speed_max(i)) ? s.wheel_speed_max(i) : 0.0;
   m.w0 = s.w0;
   m.pinv_damping = s.pinv_damping;
   put(m.sigma_d0, c.guidance.sigma_d0);

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DscGains', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PdGains', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'RftGains', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -69,6 +69,22 @@ class SpacecraftParams:
         """
     @w0.setter
     def w0(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def wheel_speed_max(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        [rad/s] the wheels' speed limits (4; inf: none), for the law
+        """
+    @wheel_speed_max.setter
+    def wheel_speed_max(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> None:
+        ...
+    @property
+    def wheel_torque_command(self) -> bool:
+        """
+        the wheels take a motor torque [N m] (umin/umax then in N m)
+        """
+    @wheel_torque_command.setter
+    def wheel_torque_command(self, arg0: bool) -> None:
         ...
 class SpacecraftModel:
     """
@@ -395,105 +411,6 @@ class PpcResult:
         """
 class LawError(ValueError):
     pass
-class DscGains:
-    def __init__(self) -> None:
-        ...
-    @property
-    def k1(self) -> float:
-        ...
-    @k1.setter
-    def k1(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def k2(self) -> float:
-        ...
-    @k2.setter
-    def k2(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def k3(self) -> float:
-        ...
-    @k3.setter
-    def k3(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def k4(self) -> float:
-        ...
-    @k4.setter
-    def k4(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def k6(self) -> float:
-        ...
-    @k6.setter
-    def k6(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def tau(self) -> float:
-        """
-        [s]
-        """
-    @tau.setter
-    def tau(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-class PdGains:
-    def __init__(self) -> None:
-        ...
-    @property
-    def beta1(self) -> float:
-        """
-        [1/s^2]
-        """
-    @beta1.setter
-    def beta1(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def beta2(self) -> float:
-        """
-        [1/s]
-        """
-    @beta2.setter
-    def beta2(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-class RftGains:
-    def __init__(self) -> None:
-        ...
-    @property
-    def c(self) -> float:
-        ...
-    @c.setter
-    def c(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def gain(self) -> float:
-        ...
-    @gain.setter
-    def gain(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def k(self) -> float:
-        ...
-    @k.setter
-    def k(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def leak(self) -> float:
-        ...
-    @leak.setter
-    def leak(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def phi(self) -> float:
-        ...
-    @phi.setter
-    def phi(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
-    @property
-    def rho0(self) -> float:
-        ...
-    @rho0.setter
-    def rho0(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
 class SafetyLimits:
     def __init__(self) -> None:
         ...
@@ -523,12 +440,8 @@ class ControllerConfig:
     """
     Everything a controller needs.
     """
-    dsc: DscGains
     guidance: GuidanceParams
-    neso: NesoParams
-    pd: PdGains
     ppc: PpcParams
-    rft: RftGains
     safety: SafetyLimits
     spacecraft: SpacecraftParams
     @staticmethod
@@ -559,7 +472,7 @@ class ControllerConfig:
     @property
     def law_params(self) -> list[tuple[str, list[float]]]:
         """
-        [controller.params]: [(key, [numbers])]
+        the law's own table ([laws.NAME]): [(key, [numbers])]
         """
     @law_params.setter
     def law_params(self, arg0: collections.abc.Sequence[tuple[str, collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex]]]) -> None:
@@ -1846,7 +1759,8 @@ def initial_estimate(seed: typing.SupportsInt | typing.SupportsIndex, sigma: typ
     """
 def law_info(spec: str) -> dict:
     """
-    name, doc, source ("built-in" or the library) and code of a law spec.
+    name, doc, source ("built-in" or the library), code and defaults (its parameters'
+    values when its table omits them: [(key, [numbers])], empty for a plugin) of a law spec.
     """
 def law_names() -> list[str]:
     """
@@ -2072,8 +1986,8 @@ FLAG_TIME_NOT_ADVANCING: int = 512
 GUIDANCE_TABLE_MAX: int = 2000
 GYRO_MEAN_RATE: int = 1
 GYRO_RATE: int = 0
-LAW_API_VERSION: int = 1
-LAW_FINGERPRINT: str = 'api-1 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
+LAW_API_VERSION: int = 2
+LAW_FINGERPRINT: str = 'api-2 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
 LAW_MAX_TELEMETRY: int = 8
 MODE_INIT: int = 0
 MODE_NORMAL: int = 1

@@ -5,9 +5,10 @@ inputs and outputs as the C++ interface (cpp/include/sc_rt/law.hpp), numpy
 arrays for vectors:
 
 - ``Law(setup)``: ``setup.model`` (``LawModel``: J0, J0_inv, Cbar, Jw, umin,
-  umax, w0, B, B_pinv, ``wheels_for_torque(tau)``), ``setup.control_rate_hz``,
-  ``setup.params`` (the scenario's ``[controller.params]`` as a dict),
-  ``setup.config`` (the core's full ``_core.ControllerConfig``);
+  umax, wheel_torque_command, wheel_speed_max, w0, B, B_pinv,
+  ``wheels_for_torque(tau)``), ``setup.control_rate_hz``, ``setup.params``
+  (the law's own table, ``[laws.NAME]`` of the scenario with NAME its
+  ``name``, as a dict): the same door as a C++ law's;
 - ``inp`` (``LawInput``): ``t``, ``t_engaged`` (since reset), ``dt`` (since
   the previous step; 0 at reset and when time did not advance), ``m`` (the
   measurement: t, sigma_BN, omega_BN_B, wheel_speed), ``ref`` (the guidance:
@@ -35,17 +36,14 @@ both kinds of law.
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import math
-import sys
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.lawload import is_python_law, law_label, load_law  # noqa: F401  (public here too)
 
 __all__ = ["LawInput", "LawModel", "LawSetup", "Reference", "PyController", "TELEMETRY", "load_law",
            "is_python_law", "law_label", "PACKED_SLICES", "FLAG_LAW_INVALID"]
@@ -76,8 +74,10 @@ class LawModel:
     J0_inv: np.ndarray  # (3, 3)
     Cbar: np.ndarray  # (3, 4) wheel axes in B
     Jw: np.ndarray  # (4,) [kg m^2]
-    umin: np.ndarray  # (4,) [rad/s^2]
-    umax: np.ndarray  # (4,) [rad/s^2]
+    umin: np.ndarray  # (4,) [rad/s^2] ([N m] when the wheels take a torque)
+    umax: np.ndarray  # (4,) the same unit
+    wheel_torque_command: bool  # the wheels take a motor torque [N m], not an acceleration
+    wheel_speed_max: np.ndarray  # (4,) [rad/s] the wheels' speed limits (inf: none)
     w0: float  # [rad/s] orbit rate
     B: np.ndarray  # (3, 4) B = -J0^-1 Cbar Jw of (21)
     B_pinv: np.ndarray  # (4, 3) B+ (damped as configured)
@@ -93,8 +93,7 @@ class LawSetup:
 
     model: LawModel
     control_rate_hz: float
-    params: dict[str, Any]  # [controller.params]: key -> float or array
-    config: Any  # _core.ControllerConfig
+    params: dict[str, Any]  # the law's own table ([laws.NAME]): key -> float or array
 
 
 @dataclass(frozen=True)
@@ -128,50 +127,6 @@ def _params(config) -> dict[str, Any]:
     return out
 
 
-def is_python_law(spec: str | None) -> bool:
-    """Whether ``--law`` names a Python class (``module:Class`` or ``file.py:Class``)."""
-    return isinstance(spec, str) and ":" in spec and not spec.startswith("plugin:")
-
-
-def load_law(spec: str) -> type:
-    """The class named by ``module:Class`` or ``path/to/file.py:Class``.
-    Raises ValueError with a one-line reason."""
-    mod_name, sep, cls_name = spec.rpartition(":")
-    if not sep or not mod_name or not cls_name.isidentifier():
-        raise ValueError(f"--law {spec!r}: expected module:Class or file.py:Class")
-    try:
-        if mod_name.endswith(".py"):
-            path = Path(mod_name)
-            if not path.is_file():
-                raise ValueError(f"--law {spec!r}: no such file {mod_name}")
-            key = f"sc_rt_user_law_{abs(hash(str(path.resolve())))}"
-            mod = sys.modules.get(key)
-            if mod is None:
-                s = importlib.util.spec_from_file_location(key, path)
-                mod = importlib.util.module_from_spec(s)
-                sys.modules[key] = mod
-                s.loader.exec_module(mod)
-        else:
-            mod = importlib.import_module(mod_name)
-    except ValueError:
-        raise
-    except Exception as e:  # the user's module failed to import: say so in one line
-        raise ValueError(f"--law {spec!r}: cannot import {mod_name}: {type(e).__name__}: {e}") from e
-    cls = getattr(mod, cls_name, None)
-    if not isinstance(cls, type):
-        raise ValueError(f"--law {spec!r}: {mod_name} has no class {cls_name}")
-    for meth in ("reset", "step"):
-        if not callable(getattr(cls, meth, None)):
-            raise ValueError(f"--law {spec!r}: {cls_name} has no {meth}() method")
-    return cls
-
-
-def law_label(cls: type) -> str:
-    """The run's label of a Python law: its ``name`` attribute, else the class name."""
-    name = getattr(cls, "name", None)
-    return name if isinstance(name, str) and name else cls.__name__
-
-
 class PyController:
     """A Python law behind the controller's common parts (``Controller::step``)."""
 
@@ -183,10 +138,12 @@ class PyController:
         sc = config.spacecraft
         J0 = _vec(sc.J0)
         self.model = LawModel(J0=J0, J0_inv=np.linalg.inv(J0), Cbar=_vec(sc.Cbar), Jw=_vec(sc.Jw),
-                              umin=_vec(sc.umin), umax=_vec(sc.umax), w0=float(sc.w0),
+                              umin=_vec(sc.umin), umax=_vec(sc.umax),
+                              wheel_torque_command=bool(sc.wheel_torque_command),
+                              wheel_speed_max=_vec(sc.wheel_speed_max), w0=float(sc.w0),
                               B=_vec(core_model.B), B_pinv=_vec(core_model.B_pinv))
         self.setup = LawSetup(model=self.model, control_rate_hz=float(config.control_rate_hz),
-                              params=_params(config), config=config)
+                              params=_params(config))
         self.law = law_cls(self.setup)
         self.name = law_label(law_cls)
         self._after = getattr(self.law, "after", None)

@@ -15,9 +15,13 @@ LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 
 
 def scenario_arg(path: str, args: argparse.Namespace | None = None):
+    """The scenario a command names; its deprecation notes on stderr, one line each."""
     from sc_rt.scenario.reader import load_scenario
 
-    return load_scenario(path)
+    scn = load_scenario(path)
+    for note in scn.deprecations:
+        print(f"sc-rt: note: {note}", file=sys.stderr)
+    return scn
 
 
 def print_metrics(m: dict, faults=()) -> None:

@@ -180,7 +180,7 @@ def add_parser(sub) -> None:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from sc_rt.pylaw import is_python_law
-    from sc_rt.scenario.reader import load_scenario
+    from sc_rt.cli.common import scenario_arg
     from sc_rt.scenario.overrides import with_overrides
 
     if args.duration is not None and not args.duration > 0:
@@ -189,7 +189,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if not 0 < args.settle < 1:
         print(f"sc-rt compare: --settle {args.settle:g}: must be in (0, 1)", file=sys.stderr)
         return 2
-    scn = load_scenario(args.scenario)
+    scn = scenario_arg(args.scenario)
     check_run_size(with_overrides(scn, duration=args.duration), given_options(args, duration="--duration"))
     # every law checked (a plugin constructed with the scenario's params) before any run
     scns = {}
@@ -207,6 +207,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
             from sc_rt import _core
 
             label = _core.law_info(law)["name"]
+        elif py:  # its name, which also names its table ([laws.NAME])
+            from sc_rt.pylaw import law_label, load_law
+
+            label = law_label(load_law(law))
         run_scn, kw = (scn if py else scns[law]), dict(law=law if py else None, engine="python" if py else args.engine,
                                                         duration=args.duration if py else None)
         try:  # a plugin runs in a child of its own: its crash fails its row, not the comparison

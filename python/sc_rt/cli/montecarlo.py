@@ -225,13 +225,13 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         o = parse_options(args)
     except BadOption as e:
         return _fail(str(e))
-    from sc_rt.scenario.reader import load_scenario
+    from sc_rt.cli.common import scenario_arg
     from sc_rt.studies.campaign import (Campaign, CampaignExists, SchedulerUnreachable, make_backend,
                                         rerun, run_campaign, write_summary)
     from sc_rt.studies.campaign.runner import check_out
     from sc_rt.studies.campaign.store import RunStore
 
-    scn = load_scenario(args.scenario)  # ScenarioError: exit 2 with file, line, key, value
+    scn = scenario_arg(args.scenario)  # ScenarioError: exit 2 with file, line, key, value
     from sc_rt.cli.validate import UsageError, check_run_size
     from sc_rt.scenario.overrides import with_overrides
 

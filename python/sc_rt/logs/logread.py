@@ -20,6 +20,7 @@ import numpy as np
 from sc_rt.wire.lcmio import CHANNELS
 from sc_rt.wire.startrec import start_record
 from sc_rt.wire.codec import TYPES, decode_any, decode_array, numpy_dtype
+from sc_rt.wire.legacy import upgrade
 
 __all__ = ["LogData", "read_log"]
 
@@ -110,6 +111,7 @@ def read_log(path: str | Path, prefix: str | None = None) -> LogData:
             msgs = []
             for e in lst:
                 _c, m = decode_any(e[3], counts)
+                m = upgrade(m)  # an older layout (a log written before it changed) as today's
                 if m is not None and isinstance(m, cls):
                     msgs.append((e[1], m))
                 elif m is not None:

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.lawload import is_python_law, law_label, load_law
 from sc_rt.scenario.schema import Table
 
 __all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "resolved", "items_of", "with_items"]
@@ -121,8 +122,6 @@ def law_table_name(spec: str) -> str:
     ``name``, see ``sc_rt.pylaw.law_label``)."""
     if spec.startswith("plugin:"):
         return _core.law_info(spec)["name"]
-    from sc_rt.pylaw import is_python_law, law_label, load_law
-
     if is_python_law(spec):
         return law_label(load_law(spec))
     return spec

@@ -217,8 +217,10 @@ class Scenario:
         The ``[guidance]`` table's kind: GuidanceParams (the paper's),
         HoldGuidance, SlewGuidance or FileGuidance.
     controller : ControllerParams
-        ``[controller]``: every gain and limit of the laws, and the law's own
-        parameters (``[controller.params]``).
+        ``[controller]``: the controller's common parts (the envelope, the
+        safe-mode limits, the pseudo-inverse's damping), and every law's own
+        parameter table (``[laws.NAME]``; ``controller.table(name)``,
+        ``controller.resolved(name)``).
     montecarlo : MonteCarloTable or None
         The ``[montecarlo]`` table (sc_rt.scenario.dispersions), None without one.
     sensors : Sensors or None
@@ -230,6 +232,10 @@ class Scenario:
     record : RecordParams
         ``[record]``: what a run keeps of its rows (``every``: the saved rows
         keep every this many control instants; 1 without the table).
+    deprecations : tuple of str
+        One line per older table the file gave (``[controller.dsc]``, ...),
+        read as its new form; the command line prints them
+        (sc_rt.scenario.laws).
     """
 
     name: str
@@ -290,8 +296,9 @@ class Scenario:
         m.umin = a.umin.tolist()
         m.umax = a.umax.tolist()
         m.wheel_torque_command = a.wheels is not None and a.wheels.command == "torque"
-        m.wheel_speed_max = ([float(w.omega_max) if w.omega_max > 0 else float("inf") for w in a.wheels.limits]
-                             if a.wheels is not None else [float(v) for v in a.max_wheel_speed])
+        # the wheels' speed limits, 0 for none (finite on the wire; the core reads 0 as inf)
+        m.wheel_speed_max = ([max(float(w.omega_max), 0.0) for w in a.wheels.limits] if a.wheels is not None
+                             else [float(v) if np.isfinite(v) else 0.0 for v in a.max_wheel_speed])
         m.w0 = float(p.w0)
         g.fill_config(m)
         # The wire names are the field names with a prefix (safety: none).

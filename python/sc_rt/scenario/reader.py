@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.lawload import is_python_law
 from sc_rt.isolate import ChildDied, call_in_child
 from sc_rt._core import mrp_to_dcm
 from sc_rt.model.actuators import ActuatorParams, WheelFault
@@ -40,7 +41,7 @@ from sc_rt.scenario.sensors import read_sensors
 from sc_rt.scenario.shipped import resolve
 
 from sc_rt.scenario.laws import law_table_name, read_laws
-from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, PLUGIN_PREFIX, ControllerParams, InitialState,
+from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, ControllerParams, InitialState,
                                   PpcParams, RecordParams, RunParams, SafetyLimits, Scenario,
                                   law_problem, law_spec)
 
@@ -50,12 +51,13 @@ _FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
 
 
 def check_law(doc: Doc, scn: Scenario, law_key: str, where: dict | None = None) -> None:
-    """Load and construct the scenario's law once, and every built-in law
-    that has a table, probe one step at rest: their problems as scenario
-    errors on ``law_key`` or on the parameter's own key (``where``: (law,
-    key) -> the dotted key it came from; default ``laws.<law>.<key>``). A
-    built-in law on torque-commanded wheels that take a torque (they command
-    wheel accelerations) is refused too."""
+    """Load and construct the scenario's law once (a plugin, or any law given
+    a table), probe one step at rest: its problems as scenario errors on
+    ``law_key`` or on the parameter's own key (``where``: (law, key) -> the
+    dotted key it came from; default ``laws.<law>.<key>``). A built-in law on
+    torque-commanded wheels that take a torque (they command wheel
+    accelerations) is refused too. The built-in laws' tables are checked as
+    the file is read (``check_tables``)."""
     where = where or {}
     w = scn.actuators.wheels
     run_law = scn.run.controller
@@ -64,43 +66,47 @@ def check_law(doc: Doc, scn: Scenario, law_key: str, where: dict | None = None) 
                   f"law {run_law} commands wheel accelerations [rad/s^2] but [wheels] command = "
                   '"torque" takes motor torques [N m]: use command = "acceleration" (the drive applies Jw a) '
                   "or a law that commands torque")
-    from sc_rt.pylaw import is_python_law
-
-    checks = [(law, law) for law, items in scn.controller.laws if law in LAWS and law != run_law]
-    if not is_python_law(run_law):
-        checks.insert(0, (run_law, None))
-    seen: set[tuple[str, str]] = set()
-    for spec, name in checks:
-        _check_one(doc, scn, spec, name, law_key, where, seen)
-
-
-def _check_one(doc: Doc, scn: Scenario, spec: str, name: str | None, law_key: str, where: dict,
-               seen: set) -> None:
-    """Probe law ``spec`` (its table ``name``; None: the run's, resolved here)."""
+    if is_python_law(run_law) or run_law in LAWS:
+        return
     try:
-        name = law_table_name(spec) if name is None else name
+        name = law_table_name(run_law)
     except ValueError as e:  # a plugin that does not load
-        doc.error(law_key, spec, str(e))
+        doc.error(law_key, run_law, str(e))
         return
-    table = dict(scn.controller.table(name))
-    if not (spec.startswith(PLUGIN_PREFIX) or table):
-        return
+    table = scn.controller.table(name)
     try:
-        cfg = scn.core_config(law=spec)
-        if spec.startswith(PLUGIN_PREFIX):  # native code: a crash in the probe is a refusal
-            try:
-                issues = call_in_child(_core.check_law, cfg)
-            except ChildDied as e:
-                issues = [("law", f"law {spec}: crashed the process when probed at rest "
-                                  f"at t = 0 ({e.how})")]
-        else:
-            issues = _core.check_law(cfg)
+        cfg = scn.core_config(law=run_law)
+        try:  # native code: a crash in the probe is a refusal
+            issues = call_in_child(_core.check_law, cfg)
+        except ChildDied as e:
+            issues = [("law", f"law {run_law}: crashed the process when probed at rest at t = 0 ({e.how})")]
     except ValueError as e:  # the config itself (LCM translation)
         issues = [("law", str(e))]
+    _report(doc, issues, run_law, name, table, law_key, where, set())
+
+
+def check_tables(doc: Doc, laws: tuple, where: dict) -> None:
+    """Each built-in law's table, checked by that law (constructed once with
+    the paper's spacecraft: its parameters do not depend on the rest of the
+    file, so their problems are reported with the file's others)."""
+    seen: set[tuple[str, str]] = set()
+    for name, table in laws:
+        if name not in LAWS:
+            continue
+        cfg = _core.ControllerConfig()
+        cfg.law = name
+        cfg.law_params = [(k, list(v)) for k, v in table]
+        _report(doc, _core.check_law(cfg), name, name, table, f"laws.{name}", where, seen)
+
+
+def _report(doc: Doc, issues, spec: str, name: str, table: tuple, law_key: str, where: dict,
+            seen: set) -> None:
+    """The probe's ``issues`` as errors: a parameter's on its own key."""
+    values = dict(table)
     for key, message in issues:
         if key.startswith("params."):
             param = key[len("params."):]
-            value = table.get(param)
+            value = values.get(param)
             message = message.replace(f"laws.{name}.{param}: ", "")
             dotted = where.get((name, param), f"laws.{name}.{param}")
             if (dotted, message) in seen:  # an older table feeds two laws: said once
@@ -345,6 +351,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     except ValueError:  # a plugin that does not load: check_law reports it
         run_law = None
     controller, where, deprecations = _read_controller(root, controller_table, run_law)
+    if controller is not None:
+        check_tables(doc, controller.laws, where)
     faults = _read_faults(root, run.plant_step if run else None)
     wheels = read_wheels(root)
     requirements = read_requirements(root, run.duration if run else None)

@@ -1,0 +1,67 @@
+"""Messages of layouts sc-rt no longer sends, turned into the current ones,
+so that a log written before a layout changed still reads (docs/LOGS.md).
+
+- ``controller_config_v1_t`` (before the law interface version 2, issue
+  #26): the built-in laws' gains were fields of their own (``dsc_*``,
+  ``neso_*``, ``pd_*``, ``rft_*``); now each law takes its own parameter
+  table. ``upgrade`` moves the gains of the law the message names into its
+  table, under the names that law reads (cpp/src/law_dsc.cpp, law_pd.cpp,
+  law_rft.cpp); a plugin's table is kept as it was.
+"""
+
+from __future__ import annotations
+
+import sc_rt_lcm
+
+__all__ = ["LEGACY", "upgrade"]
+
+#: the old layout's class -> the current one it becomes
+LEGACY = {sc_rt_lcm.controller_config_v1_t: sc_rt_lcm.controller_config_t}
+
+_DSC = ("k1", "k2", "k3", "k4", "k6", "tau")
+_NESO = ("k1", "k2", "k3", "k4")
+_RFT = ("c", "k", "gain", "leak", "phi", "rho0")
+
+
+def _law_table(m) -> list[tuple[str, list[float]]]:
+    """The v1 message's gains of the law it names, as that law's table."""
+    law = m.law
+    if law in ("dsc-ppc", "dsc"):
+        items = [(k, [float(getattr(m, "dsc_" + k))]) for k in _DSC]
+        items += [("neso_" + k, [float(x) for x in getattr(m, "neso_" + k)]) for k in _NESO]
+        items += [("neso_alpha", [float(m.neso_alpha)]), ("neso_substeps", [float(m.neso_substeps)]),
+                  ("neso_init_from_measurement", [1.0 if m.neso_init_from_measurement else 0.0])]
+        return items
+    if law == "pd":
+        return [("beta1", [float(m.pd_beta1)]), ("beta2", [float(m.pd_beta2)])]
+    if law == "rft":
+        return [(k, [float(getattr(m, "rft_" + k))]) for k in _RFT]
+    return []
+
+
+def upgrade(m):
+    """A message of a legacy layout as its current type (others unchanged)."""
+    if not isinstance(m, sc_rt_lcm.controller_config_v1_t):
+        return m
+    from sc_rt import _core
+
+    new = sc_rt_lcm.controller_config_t()
+    new_fields = set(new.__slots__)
+    for name in m.__slots__:  # every field the two layouts share, as it was
+        if name in new_fields:
+            setattr(new, name, getattr(m, name))
+    # the plugin's own table (its [controller.params]) first, then the built-in law's gains
+    table, at = [], 0
+    for key, n in zip(m.law_param_keys, m.law_param_len):
+        table.append((key, list(m.law_param_values[at:at + n])))
+        at += n
+    table += _law_table(m)
+    new.law_api_version = _core.LAW_API_VERSION
+    new.n_law_params = len(table)
+    new.law_param_keys = [k for k, _ in table]
+    new.law_param_len = [len(v) for _, v in table]
+    new.law_param_values = [x for _, v in table for x in v]
+    new.n_law_param_values = len(new.law_param_values)
+    new.wheel_torque_command = False  # the paper's wheels: the only ones then
+    new.wheel_speed_max = [0.0] * 4  # none (0 on the wire)
+    return new
