@@ -103,7 +103,8 @@ sc_rt_add_law(@IDENT@ @IDENT@.cpp)
 // The control law @NAME@: an sc-rt law plugin (docs/LAWS.md). It starts as a
 // PD on the tracking errors the core computes,
 //   u_cmd = -B+ (kp sigma_BD + kd omega_BD_B)        [rad/s^2 per wheel]
-// with kp [1/s^2] and kd [1/s] from the scenario's [controller.params].
+// with kp [1/s^2] and kd [1/s] from its own table in the scenario,
+// [laws.@NAME@] (the name it registers below).
 // Change step() to your law; keep reset() and step() free of allocation.
 #include <sc_rt/law.hpp>
 
@@ -196,7 +197,8 @@ or from a scenario file:
 ```toml
 [controller]
 law = "plugin:build/lib@IDENT@.so"   # relative to the scenario file
-[controller.params]
+
+[laws.@NAME@]   # its parameters (a scenario holds one such table per law it may run)
 kp = 0.05693   # [1/s^2]
 kd = 0.2386    # [1/s]
 ```
