@@ -441,7 +441,7 @@ def test_design_cli_writes_its_files(tmp_path, capsys):
     p, k2 = d["chiinf_check"], 4.0  # paper k2 [1/s]
     scn = load_scenario(FAULT_FREE)
     ppc = scn.controller.ppc
-    assert scn.controller.dsc.k2 == k2
+    assert scn.controller.resolved("dsc-ppc")["k2"] == k2
     rule = (1 / ppc.dmin + 1 / ppc.dmax) / (2 * 4 * math.sqrt(2 * k2 * 100.0))
     np.testing.assert_allclose(p["chiinf_min"], rule, rtol=0.01)
     np.testing.assert_allclose(p["ratio"], ppc.chiinf / rule, rtol=0.01)

@@ -53,7 +53,8 @@ const char* kUsage =
     "  --check                validate the configuration, print it, exit\n"
     "  --law-plugin PATH      run the law of this plugin library instead of the\n"
     "                         configuration's (docs/LAWS.md; the config's law\n"
-    "                         parameters are handed to it)\n"
+    "                         table is handed to it when it is that law's, else\n"
+    "                         it runs its defaults)\n"
     "  --mode MODE            lockstep (default) or realtime\n"
     "  --lcm-url URL          default " SCRT_DEFAULT_LCM_URL "\n"
     "  --prefix P             channel name prefix (default none)\n"
@@ -156,10 +157,16 @@ std::string setup_scheduler(bool want_rt, int cpu) {
 }
 
 // The configuration with --law-plugin applied, its law checked (constructed
-// and probed once at rest): throws with the plugin's problem.
+// and probed once at rest): throws with the plugin's problem. The table the
+// configuration carries is its law's: a plugin that replaces another law runs
+// its own defaults.
 sc_rt::ControllerConfig load_config(const std::vector<char>& bytes, const Options& o) {
   sc_rt::ControllerConfig cfg = sc_rt::config_from_bytes(bytes.data(), int(bytes.size()));
-  if (!o.law_plugin.empty()) cfg.law = sc_rt::kPluginPrefix + o.law_plugin;
+  if (!o.law_plugin.empty()) {
+    const std::string spec = sc_rt::kPluginPrefix + o.law_plugin;
+    if (cfg.law != spec && cfg.law != sc_rt::resolve_law(spec).name) cfg.law_params.clear();
+    cfg.law = spec;
+  }
   const auto problems = sc_rt::check_law(cfg);
   if (!problems.empty()) throw std::invalid_argument(problems.front().second);
   return cfg;

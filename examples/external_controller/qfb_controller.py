@@ -15,7 +15,8 @@ cfg = controller_config_t.decode(open(sys.argv[1] if len(sys.argv) > 1 else os.e
 J0, Cbar, Jw = np.array(cfg.J0), np.array(cfg.Cbar), np.array(cfg.Jw)
 B_pinv = np.linalg.pinv(-np.linalg.solve(J0, Cbar * Jw))     # u = B+ v, B = -J0^-1 Cbar Jw
 umin, umax = np.array(cfg.umin), np.array(cfg.umax)
-KP, KD = 0.5 * cfg.pd_beta1, cfg.pd_beta2
+table = dict(zip(cfg.law_param_keys, cfg.law_param_values)) if set(cfg.law_param_len) <= {1} else {}
+KP, KD = table.get("kp", 0.5 * 0.05693), table.get("kd", 0.2386)  # the law's table, else the PD's defaults
 lc, session = lcm.LCM(os.environ.get("SCRT_LCM_URL", "")), secrets.randbits(62)
 st = {"seq": 0, "plant": None, "guid": {}, "last": None}
 
