@@ -156,3 +156,47 @@ def test_a_log_written_before_the_change_still_reports(tmp_path):
     sim = simulate(load_scenario("paper_faults"), engine="python", duration=3.0).metrics
     for k in ("steps", "first_bound_violation_s", "max_abs_u_cmd", "saturated_fraction"):
         assert m[k] == sim[k], k
+
+
+def _python_law_file(tmp_path: Path) -> Path:
+    """paper_fault_free running examples/python_laws/pd.py:PythonPD, named in the
+    file by a path relative to it, with the law's own table."""
+    text = (ROOT / "scenarios" / "paper_fault_free.toml").read_text()
+    rel = Path("../" * len(tmp_path.relative_to("/").parts)) / ROOT.relative_to("/") / "examples/python_laws/pd.py"
+    text = text.replace("[controller]\n", f'[controller]\nlaw = "python:{rel.as_posix()}:PythonPD"\n', 1)
+    text = text.replace('controller = "dsc-ppc"', "", 1)
+    path = tmp_path / "pylaw.toml"
+    path.write_text(text + "\n[laws.python-pd]\nbeta1 = 0.3\nbeta2 = 0.7\n")
+    return path
+
+
+def test_a_scenario_names_a_python_law_which_gets_its_table(tmp_path):
+    scn = load_scenario(_python_law_file(tmp_path))
+    assert scn.run.controller == f"python:{ROOT}/examples/python_laws/pd.py:PythonPD"  # made absolute
+    run = simulate(scn, duration=1.0)  # the python engine runs it
+    assert run.meta.law == "python-pd"
+    np.testing.assert_allclose(run["u_cmd"][0], _pd_first(scn, 0.3, 0.7), rtol=1e-9)
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", str(tmp_path / "pylaw.toml"), "--engine", "cpp",
+                        "--out", str(tmp_path / "o")], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2 and "runs on the python engine only" in r.stderr and not (tmp_path / "o").exists()
+    bad = tmp_path / "bad.toml"
+    bad.write_text((tmp_path / "pylaw.toml").read_text().replace("pd.py:PythonPD", "pd.py:NoSuchLaw"))
+    with pytest.raises(ScenarioError) as e:
+        load_scenario(bad)
+    [x] = e.value.errors
+    assert x.key == "controller.law" and "has no class NoSuchLaw" in x.message
+
+
+@pytest.mark.lcm
+def test_a_python_law_named_by_the_scenario_runs_in_lockstep_bitwise(tmp_path):
+    import lcmnet
+
+    lcmnet.require()
+    path = _python_law_file(tmp_path)
+    out = tmp_path / "hil"
+    r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", "10", "--out", str(out), "--no-plots"])
+    assert r.returncode == 0, r.stderr + r.stdout
+    hil = np.load(out / "trajectory.npz")
+    sim = simulate(load_scenario(path), duration=10.0)
+    for name in ("sigma_BN", "omega_BN_B", "wheel_speed", "u_cmd"):
+        assert np.array_equal(hil[name], sim[name]), name

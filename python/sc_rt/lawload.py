@@ -1,4 +1,5 @@
-"""A Python law named by a spec (``module:Class`` or ``path/to/file.py:Class``):
+"""A Python law named by a spec (``module:Class`` or ``path/to/file.py:Class``,
+optionally prefixed ``python:``, the form a scenario's ``law`` key takes):
 telling one, loading its class and its label. Below the scenario layer (a
 scenario names its laws' tables by these labels); the contract a law class
 keeps and the controller that runs it are in sc_rt.pylaw."""
@@ -10,18 +11,23 @@ import importlib.util
 import sys
 from pathlib import Path
 
-__all__ = ["is_python_law", "load_law", "law_label"]
+__all__ = ["PYTHON_PREFIX", "is_python_law", "load_law", "law_label"]
+
+#: the prefix of a Python law in a scenario file: ``law = "python:file.py:Class"``
+PYTHON_PREFIX = "python:"
 
 
 def is_python_law(spec: str | None) -> bool:
-    """Whether ``--law`` names a Python class (``module:Class`` or ``file.py:Class``)."""
+    """Whether ``spec`` names a Python class (``module:Class``, ``file.py:Class``,
+    either with ``python:`` before it)."""
     return isinstance(spec, str) and ":" in spec and not spec.startswith("plugin:")
 
 
 def load_law(spec: str) -> type:
-    """The class named by ``module:Class`` or ``path/to/file.py:Class``.
+    """The class named by ``[python:]module:Class`` or ``[python:]path/to/file.py:Class``.
     Raises ValueError with a one-line reason."""
-    mod_name, sep, cls_name = spec.rpartition(":")
+    target = spec[len(PYTHON_PREFIX):] if spec.startswith(PYTHON_PREFIX) else spec
+    mod_name, sep, cls_name = target.rpartition(":")
     if not sep or not mod_name or not cls_name.isidentifier():
         raise ValueError(f"--law {spec!r}: expected module:Class or file.py:Class")
     try:

@@ -24,10 +24,12 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     out = checked_out(args.out)
     pylaw = args.law if is_python_law(args.law) else None  # a Python law: sc_rt.pylaw
-    if pylaw and args.engine != "python":
-        raise UsageError(f"--engine {args.engine}: a Python law (--law {pylaw}) runs on the python engine only")
     scn = with_overrides(scenario_arg(args.scenario), law=None if pylaw else args.law,
                          control_rate_hz=args.control_rate, duration=args.duration, plant_step=args.plant_step)
+    if pylaw is None and is_python_law(scn.run.controller):  # the scenario names one
+        pylaw = scn.run.controller
+    if pylaw and args.engine != "python":
+        raise UsageError(f"--engine {args.engine}: a Python law ({pylaw}) runs on the python engine only")
     if pylaw and scn.sensors is not None:
         raise UsageError(f"--law {pylaw}: a scenario with [sensors] ({scn.name}) runs the core's laws and "
                          "plugins only, not a Python law (yet)")

@@ -329,8 +329,11 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     """
     if realtime_priority is None:  # the default: real-time priority for real time
         realtime_priority = mode == "realtime"
-    if is_python_law(law):
-        external, law = python_controller_command(law, realtime_priority), None
+    python_law = law if is_python_law(law) else None
+    if python_law is None and law is None and is_python_law(scn.run.controller):  # the scenario names one
+        python_law = scn.run.controller
+    if python_law is not None:  # run by sc-rt controller, with the config of its own table
+        external, law = python_controller_command(python_law, realtime_priority), None
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
     setup = setup or TimingSetup()
     if isinstance(floor, str):  # the floor's own short run first, before this run's children
@@ -345,7 +348,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     logger_bin = bench_binary("sc-rt-logger")  # lcm-logger's format, a deep queue (cpp/tools/sc_rt_logger.cpp)
     out.mkdir(parents=True, exist_ok=True)
     cfg_path = out / "controller_config.bin"
-    cfg_path.write_bytes(scn.controller_config_msg().encode())
+    cfg_path.write_bytes(scn.controller_config_msg(law=python_law).encode())
     log_path = out / "run.lcmlog"
     if log_path.exists():
         log_path.unlink()

@@ -40,6 +40,7 @@ from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIs
     spec,
     vector_spec,
 )
+from sc_rt.lawload import PYTHON_PREFIX, is_python_law
 from sc_rt.scenario.laws import items_of, law_table_name, resolved
 from sc_rt.scenario.guidance import (
     FileGuidance,
@@ -275,7 +276,7 @@ class Scenario:
             _, problem = convert(value, field_spec(RunParams, name))
             if problem:
                 raise ValueError(f"{name} {problem}, got {value!r}")
-        if problem := law_problem(law):
+        if not is_python_law(law) and (problem := law_problem(law)):
             raise ValueError(f"controller {problem}, got {law!r}")
         p, a, g, c = self.plant, self.actuators, self.guidance, self.controller
         m = controller_config_t()
@@ -362,7 +363,13 @@ def law_identity(spec: str) -> dict[str, Any]:
 def law_spec(spec: str, base: Path) -> str:
     """``spec`` with a relative plugin file path made absolute against ``base``
     (a path: has a "/" or ends in ".so"; a plugin name is searched in
-    SCRT_LAW_PATH by the core)."""
+    SCRT_LAW_PATH by the core), and so a Python law's file
+    (``python:file.py:Class``)."""
+    if spec.startswith(PYTHON_PREFIX):
+        target, sep, cls = spec[len(PYTHON_PREFIX):].rpartition(":")
+        if sep and target.endswith(".py") and not Path(target).is_absolute():
+            return f"{PYTHON_PREFIX}{(base / target).resolve()}:{cls}"
+        return spec
     if not spec.startswith(PLUGIN_PREFIX):
         return spec
     target = spec[len(PLUGIN_PREFIX):]
@@ -379,7 +386,9 @@ def law_problem(spec: Any) -> str:
         return "must be a string"
     if spec.startswith(PLUGIN_PREFIX):
         return "" if spec[len(PLUGIN_PREFIX):] else "plugin: needs a library path or name"
+    if spec.startswith(PYTHON_PREFIX):  # the class itself is checked by check_law
+        return "" if ":" in spec[len(PYTHON_PREFIX):] else "python: needs module:Class or file.py:Class"
     if spec in LAWS or spec in _core.law_names():
         return ""
     return ("must be one of " + ", ".join(f'"{n}"' for n in _core.law_names())
-            + ' or "plugin:PATH_OR_NAME" (docs/LAWS.md)')
+            + ', "plugin:PATH_OR_NAME" or "python:FILE_OR_MODULE:Class" (docs/LAWS.md)')

@@ -204,6 +204,8 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if law is None and is_python_law(scn.run.controller):  # the scenario names a Python law
+        law = scn.run.controller
     law_cls = law if isinstance(law, type) else load_law(law) if is_python_law(law) else None
     if law_cls is not None and engine != "python":
         raise ValueError(f"a Python law ({law_label(law_cls)}) runs on the python engine only, got {engine!r}")
