@@ -179,6 +179,9 @@ def test_a_scenario_names_a_python_law_which_gets_its_table(tmp_path):
     r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", str(tmp_path / "pylaw.toml"), "--engine", "cpp",
                         "--out", str(tmp_path / "o")], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 2 and "runs on the python engine only" in r.stderr and not (tmp_path / "o").exists()
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "montecarlo", str(tmp_path / "pylaw.toml"), "--runs", "2",
+                        "--out", str(tmp_path / "mc")], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2 and "not in montecarlo yet" in r.stderr and not (tmp_path / "mc").exists()
     bad = tmp_path / "bad.toml"
     bad.write_text((tmp_path / "pylaw.toml").read_text().replace("pd.py:PythonPD", "pd.py:NoSuchLaw"))
     with pytest.raises(ScenarioError) as e:

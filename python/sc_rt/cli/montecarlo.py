@@ -232,6 +232,11 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     from sc_rt.studies.campaign.store import RunStore
 
     scn = scenario_arg(args.scenario)  # ScenarioError: exit 2 with file, line, key, value
+    from sc_rt.lawload import is_python_law
+
+    if is_python_law(args.law or scn.run.controller):
+        return _fail(f"{'--law ' + args.law if args.law else scn.name + ': law ' + scn.run.controller}: a Python "
+                     "law runs in sim, compare, hil and controller, not in montecarlo yet (its runs are C++)")
     from sc_rt.cli.validate import UsageError, check_run_size
     from sc_rt.scenario.overrides import with_overrides
 
