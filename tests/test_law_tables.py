@@ -203,3 +203,26 @@ def test_a_python_law_named_by_the_scenario_runs_in_lockstep_bitwise(tmp_path):
     sim = simulate(load_scenario(path), duration=10.0)
     for name in ("sigma_BN", "omega_BN_B", "wheel_speed", "u_cmd"):
         assert np.array_equal(hil[name], sim[name]), name
+
+
+def test_the_fixed_telemetry_slots_are_recorded_offline():
+    """x2d and rho_hat (LawOutput's slots) are run fields of both engines,
+    bitwise equal; RFT's rho_hat follows its adaptation law computed here
+    from the recorded sliding variable (e2 = s), and DSC's x2d is x2 - e2 (27)."""
+    scn = load_scenario("paper_faults")
+    rft = {e: simulate(scn, engine=e, law="rft", duration=30.0) for e in ("python", "cpp")}
+    assert np.array_equal(rft["python"]["rho_hat"], rft["cpp"]["rho_hat"])
+    p = scn.controller.resolved("rft")
+    s_norm = np.linalg.norm(rft["cpp"]["e2"], axis=1)
+    dt = 1.0 / scn.run.control_rate_hz
+    a = np.exp(-p["leak"] * dt)
+    rho = [p["rho0"]]
+    for k in range(1, len(s_norm)):
+        rho.append(a * rho[-1] + (1 - a) / p["leak"] * p["gain"] * s_norm[k - 1])
+    np.testing.assert_allclose(rft["cpp"]["rho_hat"], rho, rtol=1e-12, atol=1e-15)
+    assert rft["cpp"]["rho_hat"][-1] > 0
+    dsc = {e: simulate(scn, engine=e, duration=30.0) for e in ("python", "cpp")}
+    assert np.array_equal(dsc["python"]["x2d"], dsc["cpp"]["x2d"])
+    np.testing.assert_allclose(dsc["cpp"]["x2d"], dsc["cpp"]["omega_BD_B"] - dsc["cpp"]["e2"], rtol=0, atol=1e-15)
+    assert np.abs(dsc["cpp"]["x2d"]).max() > 1e-3
+    assert np.all(rft["cpp"]["x2d"] == 0.0)  # a law that does not use the slot leaves it at 0

@@ -40,6 +40,8 @@ inline const LoopColumn kLoopColumns[] = {
     {"u_sat", 4, &R::u_sat},
     {"wheel_accel", 4, &R::wheel_accel},
     {"vs", 4, &R::vs},
+    {"x2d", 3, &R::x2d},
+    {"rho_hat", 1, &R::rho_hat},
     // navigation (simulate_closed_loop_sensed)
     {"sigma_BN_est", 3, &R::sigma_BN_est},
     {"bias_est", 3, &R::bias_est},
@@ -49,7 +51,7 @@ inline const LoopColumn kLoopColumns[] = {
     {"innovation", 3, &R::innovation},
     {"nis", 1, &R::nis},
 };
-constexpr std::size_t kPlainLoopColumns = 18;  // the columns before the navigation's
+constexpr std::size_t kPlainLoopColumns = 20;  // the columns before the navigation's
 constexpr std::size_t kAllLoopColumns = std::size(kLoopColumns);
 
 // A law's contained failures as a dict: reset, step, after (counts) and last

@@ -18,8 +18,10 @@ bool finite(const PlantState& x) {
 
 void ClosedLoopResult::reserve_rows(std::size_t n, bool nav) {
   t.resize(n);
-  for (auto* v : {&sigma_BN, &omega_BN_B, &sigma_DN, &sigma_BD, &omega_BD_B, &z1, &z2, &delta2, &chi, &lam, &e1, &e2})
+  for (auto* v : {&sigma_BN, &omega_BN_B, &sigma_DN, &sigma_BD, &omega_BD_B, &z1, &z2, &delta2, &chi, &lam, &e1, &e2,
+                  &x2d})
     v->resize(3 * n);
+  rho_hat.resize(n);
   for (auto* v : {&wheel_speed, &u_cmd, &u_sat, &wheel_accel, &vs}) v->resize(4 * n);
   flags.resize(n);
   ctrl_mode.resize(n);
@@ -90,6 +92,8 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
       put(out->e1, i, c.e1);
       put(out->e2, i, c.e2);
       put(out->vs, i, c.vs);
+      put(out->x2d, i, c.x2d);
+      out->rho_hat[static_cast<std::size_t>(i)] = c.rho_hat;
       out->flags[static_cast<std::size_t>(i)] = nv ? (c.flags | tel_.flags) : c.flags;
       if (nv) {
         put(out->sigma_BN_est, i, tel_.sigma_est);

@@ -18,8 +18,9 @@ struct ClosedLoopResult {
   // One row per control instant, row-major, widths as named.
   std::vector<double> t;                                           // 1
   std::vector<double> sigma_BN, omega_BN_B, sigma_DN, sigma_BD;    // 3
-  std::vector<double> omega_BD_B, z1, z2, delta2, chi, lam, e1, e2;  // 3
+  std::vector<double> omega_BD_B, z1, z2, delta2, chi, lam, e1, e2, x2d;  // 3
   std::vector<double> wheel_speed, u_cmd, u_sat, wheel_accel, vs;  // 4
+  std::vector<double> rho_hat;                                     // 1
   std::vector<int> flags;                                          // 1
   std::vector<int> ctrl_mode;                                      // 1 (MODE_*)
   // With sensors (nav given; empty otherwise): NavTelemetry per row.

@@ -15,7 +15,8 @@ def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[st
     cols = {"t": T, "sigma_BN": X[:, 0:3], "omega_BN_B": X[:, 3:6], "wheel_speed": X[:, 6:10],
             "wheel_accel": ACC, "delta2": D2}
     for name, p in recorded.items():
-        cols[name] = OUT[:, packed[p]]
+        col = OUT[:, packed[p]]
+        cols[name] = col[:, 0] if col.shape[1] == 1 else col  # a scalar field: one column
     cols["flags"] = np.nan_to_num(OUT[:, packed["flags"]][:, 0]).astype(np.int64)
     cols["ctrl_mode"] = np.nan_to_num(OUT[:, packed["mode"]][:, 0], nan=-1).astype(np.int64)
     return cols

@@ -54,9 +54,9 @@ PACKED: dict[str, slice] = PACKED_SLICES
 #: Packed telemetry recorded in the run: run field -> packed name.
 RECORDED = {"u_cmd": "u_cmd", "u_sat": "u_sat", "sigma_DN": "sigma_DN", "sigma_BD": "sigma_BD",
             "omega_BD_B": "omega_BD_B", "z1": "z1", "z2": "z2", "chi": "chi", "lam": "lam",
-            "e1": "e1", "e2": "e2", "vs": "vs"}
-for _k, _p in RECORDED.items():  # the run declares each with the packed width
-    assert FIELD[_k].shape == (PACKED[_p].stop - PACKED[_p].start,), _k
+            "e1": "e1", "e2": "e2", "vs": "vs", "x2d": "x2d", "rho_hat": "rho_hat"}
+for _k, _p in RECORDED.items():  # the run declares each with the packed width (a scalar: width 1)
+    assert FIELD[_k].shape in ((PACKED[_p].stop - PACKED[_p].start,), ()), _k
 
 
 def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, np.ndarray], int, bool]:

@@ -59,6 +59,8 @@ STATUS_NOT_CARRIED: dict[str, str] = {
     "u_cmd": "wheel_cmd_t (the command itself)", "u_sat": "wheel_cmd_t", "flags": "wheel_cmd_t",
     "ctrl_mode": "wheel_cmd_t", "latency_us": "the emulator's receipt time of the command",
     "tick_lateness_us": "the emulator's own loop", "state_log_us": "lcm-logger's receive time of the state",
+    "x2d": "not on the bus yet: offline runs record it (issue #26, item 3)",
+    "rho_hat": "not on the bus yet: offline runs record it (issue #26, item 3)",
 }
 
 
