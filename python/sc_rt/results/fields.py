@@ -82,7 +82,7 @@ FIELDS: tuple[Field, ...] = (
     _f("e1", (3,), "-", "controller", "transformed error of the PPC (34)"),
     _f("e2", (3,), "rad/s", "controller", "second DSC surface error (27)"),
     _f("vs", (4,), "rad/s^2", "controller", "anti-windup auxiliary state (42)"),
-    _f("x2d", (3,), "rad/s", "controller", "the law's filtered virtual control (37) (LawOutput.x2d; 0 unused)"),
+    _f("x2d", (3,), "rad/s", "controller", "the law's filtered virtual control, DSC's filter output (LawOutput.x2d; 0 unused)"),
     _f("rho_hat", (), "rad/s^2", "controller", "the law's adaptive gain (LawOutput.rho_hat: RFT's; 0 unused)"),
     _f("flags", (), "-", "controller", "controller flags bit set (safety, bound, invalid input)",
        dtype="i8", fill=0),
