@@ -1971,7 +1971,7 @@ def wheel_torque_command(u: typing.SupportsFloat | typing.SupportsIndex, Jw: typ
     """
     The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).
     """
-CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('flags', 1), ('ctrl_mode', 1)]
+CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('flags', 1), ('ctrl_mode', 1)]
 DEFAULT_LAW: str = 'dsc-ppc'
 DEFAULT_LCM_URL: str = 'udpm://239.255.76.67:7667?ttl=0'
 FLAG_BOUND_X: int = 1
