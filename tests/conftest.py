@@ -29,14 +29,12 @@ def reference_params(c: _core.ControllerConfig) -> dict:
     g = c.guidance
     p = c.ppc
 
-    def law(name: str) -> dict:  # the law's declared defaults, overlaid with the config's table for it
-        v = {k: list(x) for k, x in _core.law_info(name)["defaults"]}
-        if c.law == name:
-            v.update({k: list(x) for k, x in c.law_params})
-        return {k: (x[0] if len(x) == 1 else np.broadcast_to(np.array(x, float), (3,))) for k, x in v.items()}
+    from sc_rt.scenario.laws import resolved
 
+    # each law's declared defaults, overlaid with the config's table where it is that law's
+    tables = ((c.law, tuple((k, tuple(v)) for k, v in c.law_params)),)
     dsc_law = c.law if c.law in ("dsc-ppc", "dsc") else "dsc-ppc"
-    d, pd, rft = law(dsc_law), law("pd"), law("rft")
+    d, pd, rft = (resolved(tables, name) for name in (dsc_law, "pd", "rft"))
     return dict(
         sc=dict(J0=np.array(sc.J0), Cbar=np.array(sc.Cbar), Jw=np.array(sc.Jw),
                 umin=np.array(sc.umin), umax=np.array(sc.umax), w0=sc.w0),

@@ -19,7 +19,7 @@ HEADERS = ("cpp/include/sc_rt/law.hpp", "cpp/include/sc_rt/types.hpp")
 PINS = {
     1: "d593e58814b643bfb78a09388437b6f1915f50926b0eb19928b794b66e245e09",
     # issue #26: the setup without the core config (the built-ins read LawParams), the wheel interface in LawModel
-    2: "cb65972f76e8e8b0f46720276d5d8318eca050260c7465426e8b2fb9efb5ebb2",
+    2: "fed39dccadd317d5bc25d4bbbeefb314669f1c550dc173b6ef1f9ffe2beaf4de",
 }
 
 

@@ -12,16 +12,6 @@
 
 namespace sc_rt {
 
-struct TorquePlant::Kernel {
-  detail::Rhs rhs;
-  double C[3][4], CJ[3][4], Jw[4];
-  Kernel(const PlantParams& p, const Mat3& M) : rhs(p.J0 + p.dJ, M, p.w0) {
-    for (int i = 0; i < 4; ++i) Jw[i] = p.Jw(i);
-    for (int r = 0; r < 3; ++r)
-      for (int i = 0; i < 4; ++i) C[r][i] = p.Cbar(r, i), CJ[r][i] = p.Cbar(r, i) * p.Jw(i);
-  }
-};
-
 namespace {
 
 constexpr double kOnes[4] = {1.0, 1.0, 1.0, 1.0};
@@ -86,11 +76,13 @@ PlantState rk4_held(const Deriv& f, double t, const PlantState& x, double h) {
   return r;
 }
 
-// The kernel's constants on the stack (the plant's step path does not allocate).
+// The right-hand side's constants: built on the stack by the free step
+// functions (the plant's step path does not allocate), held by a TorquePlant.
 struct StackKernel {
   detail::Rhs rhs;
   double C[3][4], CJ[3][4], Jw[4];
-  explicit StackKernel(const PlantParams& p) : rhs(p.J0 + p.dJ, hub_inertia(p), p.w0) {
+  explicit StackKernel(const PlantParams& p) : StackKernel(p, hub_inertia(p)) {}
+  StackKernel(const PlantParams& p, const Mat3& M) : rhs(p.J0 + p.dJ, M, p.w0) {
     for (int i = 0; i < 4; ++i) Jw[i] = p.Jw(i);
     for (int r = 0; r < 3; ++r)
       for (int i = 0; i < 4; ++i) C[r][i] = p.Cbar(r, i), CJ[r][i] = p.Cbar(r, i) * p.Jw(i);
@@ -98,6 +90,10 @@ struct StackKernel {
 };
 
 }  // namespace
+
+struct TorquePlant::Kernel : StackKernel {
+  using StackKernel::StackKernel;
+};
 
 TorquePlant::TorquePlant(const PlantParams& p, const TorqueWheels& wheels) : p_(p), w_(wheels) {
   M_ = hub_inertia(p);
@@ -108,7 +104,6 @@ TorquePlant::TorquePlant(const PlantParams& p, const TorqueWheels& wheels) : p_(
 }
 
 TorquePlant::~TorquePlant() = default;
-
 
 void torque_step_inputs(const PlantParams& p, const ActuatorParams& a, double t, const Vec4& u_cmd,
                         const Vec4& wheel_speed, double u[4], double scale[4], double brake[4]) {

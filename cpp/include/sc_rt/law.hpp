@@ -107,7 +107,11 @@ struct LawModel {
   Vec4 wheels_for_torque(const Vec3& tau) const { return B_pinv * (J0_inv * tau); }
   //! The wheel command for the wheel accelerations a [rad/s^2], in the unit
   //! the wheels take: a itself, or the motor torques Jw a [N m].
-  Vec4 wheel_command(const Vec4& a) const { return wheel_torque_command ? Vec4(Jw.cwiseProduct(a)) : a; }
+  Vec4 wheel_command(const Vec4& a) const {
+    Vec4 u;
+    for (int i = 0; i < 4; ++i) u(i) = sc_rt::wheel_torque_command(a(i), Jw(i), wheel_torque_command);
+    return u;
+  }
 };
 
 // The reference: the desired attitude from the guidance at this step.

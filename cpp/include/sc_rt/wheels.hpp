@@ -8,6 +8,8 @@
 #include <array>
 #include <cmath>
 
+#include "sc_rt/types.hpp"  // wheel_torque_command
+
 namespace sc_rt {
 
 struct WheelLimits {
@@ -47,12 +49,6 @@ inline void motor_lag(double c, double m, double tau, double h, double* avg, dou
   const double d = m - c;
   *avg = c + d * (tau / h) * -std::expm1(-h / tau);
   *end = c + d * std::exp(-h / tau);
-}
-
-// The motor torque [N m] a wheel command u asks of a wheel of spin inertia Jw:
-// Jw u for an acceleration command [rad/s^2], u for a torque command.
-inline double wheel_torque_command(double u, double Jw, bool torque_command) {
-  return torque_command ? u : Jw * u;
 }
 
 // The motor torque applied for the command u at the wheel speed omega:
