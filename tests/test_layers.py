@@ -1,5 +1,5 @@
 """The package's imports run one way (pyproject.toml, [tool.importlinter]):
-model | wire -> scenario -> results -> pylaw -> sim | emulator | controller |
+model | wire | pylaw -> scenario -> results -> sim | emulator | controller |
 logs | tools -> export -> live -> hil -> studies -> cli. Checked with import-linter
 on the real tree, and shown to catch violations: a copy of the package in
 which the plant model imports the CLI, or in which one of the peer packages

@@ -1,6 +1,8 @@
-"""Python laws (sc_rt.pylaw): the contract, the common controller parts
-checked against the C++ Controller::step, and the example PD against the
-core's built-in PD on both paper scenarios."""
+"""Python laws (sc_rt.pylaw): the contract, a Python law inside the core's
+Controller (the pybind11 trampoline) checked step by step against the C++
+PD through every branch of Controller::step, its failures contained by the
+core's policy, and the example PD against the core's built-in PD on both
+paper scenarios and every engine."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import numpy as np
 import pytest
 
 from sc_rt import _core
-from sc_rt.pylaw import FLAG_LAW_INVALID, PACKED_SLICES, PyController, load_law
+from sc_rt.pylaw import FLAG_LAW_INVALID, LawParamError, load_law, register
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
@@ -24,11 +26,12 @@ COMPARED = ("sigma_BN", "omega_BN_B", "wheel_speed", "u_cmd", "u_sat", "wheel_ac
             "sigma_BD", "omega_BD_B", "e1", "e2", "chi", "lam", "flags", "ctrl_mode", "delta2")
 
 
-@pytest.mark.parametrize("scenario", ["paper_fault_free", "paper_faults"])
-def test_python_pd_equals_the_core_pd(scenario):
+@pytest.mark.parametrize("scenario,engine", [("paper_fault_free", "python"), ("paper_faults", "python"),
+                                             ("paper_faults", "cpp")])
+def test_python_pd_equals_the_core_pd(scenario, engine):
     scn = load_scenario(scenario)
-    core = simulate(scn, law="pd")
-    py = simulate(scn, law=PD_SPEC)
+    core = simulate(scn, law="pd", engine=engine)
+    py = simulate(scn, law=PD_SPEC, engine=engine)
     assert len(core) == len(py) == int(scn.run.duration * scn.run.control_rate_hz) + 1
     for k in COMPARED:
         a, b = np.asarray(core[k], float), np.asarray(py[k], float)
@@ -92,54 +95,106 @@ def _states():
     return seq
 
 
-@pytest.mark.parametrize("rate", [10.0, 50.0])
-def test_common_parts_match_controller_step(rate):
+def _controller(cls, rate: float = 10.0, params=()):
+    """The core's Controller running the Python law ``cls`` (sc_rt.pylaw.register)."""
     cfg = core_config("pd", rate)
-    cpp = _core.Controller(cfg)
-    py = PyController(cfg, _PD)
+    cfg.law = register(cls)
+    cfg.law_params = list(params)
+    return _core.Controller(cfg)
+
+
+def _step(ctl, t, x):
+    return ctl.step(_core.Measurement(t, x[0:3], x[3:6], x[6:10]))
+
+
+FIELDS = ("u_cmd", "u_sat", "sigma_DN", "sigma_BD", "omega_BD_B", "e1", "e2", "z1", "z2", "chi", "lam", "x2d",
+          "vs", "rho_hat", "mode", "flags")
+
+
+@pytest.mark.parametrize("rate", [10.0, 50.0])
+def test_a_python_pd_in_the_controller_matches_the_core_pd(rate):
+    """The trampoline against the C++ PD, step by step, through every branch
+    of Controller::step (saturation, an invalid state, a finite state past
+    the safety limit, re-engagement, time repeated and going back)."""
+    cpp = _core.Controller(core_config("pd", rate))
+    py = _controller(_PD, rate)
+    assert py.law_name == "_PD" and py.law_code == -1 and py.telemetry_names == []
     seq = _states()
     t0, x0 = seq[0]
-    cpp.reset(_core.Measurement(t0, x0[0:3], x0[3:6], x0[6:10]))
-    py.reset(t0, x0)
+    for c in (cpp, py):
+        c.reset(_core.Measurement(t0, x0[0:3], x0[3:6], x0[6:10]))
     seen_flags = 0
     for t, x in seq:
-        a = np.asarray(_core.step_packed(cpp, t, x))
-        b = py.step(t, x)
-        assert np.allclose(a, b, rtol=0, atol=1e-12, equal_nan=True), (t, a - b)
-        seen_flags |= int(a[PACKED_SLICES["flags"]][0])
-    # the sequence went through the branches it was built for
+        a, b = _step(cpp, t, x), _step(py, t, x)
+        for k in FIELDS:
+            assert np.allclose(getattr(a, k), getattr(b, k), rtol=0, atol=1e-12, equal_nan=True), (t, k)
+        seen_flags |= a.flags
     for f in (_core.FLAG_INVALID_STATE, _core.FLAG_TIME_NOT_ADVANCING, _core.FLAG_SAT_1):
         assert seen_flags & f, f
+    assert py.law_failures["step"] == 0 and py.law_failures["reset"] == 0
 
 
 def test_named_telemetry_bad_commands_and_failures():
     class Named(_PD):
-        def step(self, inp):
-            return np.zeros(4), {"my_gain": 2.5, "z1": np.ones(3)}
+        telemetry_names = ("my_gain", "tau_x")
 
+        def step(self, inp):
+            return np.zeros(4), {"my_gain": 2.5, "z1": np.ones(3), "rho_hat": 0.5}
+
+    x = np.zeros(10)
+    ctl = _controller(Named)
+    assert ctl.telemetry_names == ["my_gain", "tau_x"]
+    ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
+    c = _step(ctl, 0.0, x)
+    assert c.telemetry[0] == 2.5 and c.telemetry[1] == 0.0 and list(c.z1) == [1.0, 1.0, 1.0] and c.rho_hat == 0.5
+
+    # a wrong-shaped command or telemetry, or an undeclared name, is a failure
+    # of the law, contained by the core like a raise or a NaN
     class Short(_PD):
         def step(self, inp):
             return np.zeros(3)
 
-    x = np.zeros(10)
-    ctl = PyController(core_config("pd"), Named)
-    ctl.reset(0.0, x)
-    out = ctl.step(0.0, x)
-    assert ctl.named_telemetry == {"my_gain": 2.5}
-    assert list(out[PACKED_SLICES["z1"]]) == [1.0, 1.0, 1.0]
-    # a wrong-shaped command or telemetry is a failure of the law, contained
-    # like a raise or a NaN (issue #25; it raised out of the controller before)
     class BadTelemetry(_PD):
         def step(self, inp):
             return np.zeros(4), {"x2d": np.ones(2)}
 
-    for cls, what in ((Short, "u_cmd of shape (3,)"), (BadTelemetry, "telemetry 'x2d' of shape (2,)")):
-        ctl = PyController(core_config("pd"), cls)
-        ctl.reset(0.0, x)
-        out = ctl.step(0.0, x)
-        assert int(out[PACKED_SLICES["mode"]][0]) == _core.MODE_SAFE
-        assert int(out[PACKED_SLICES["flags"]][0]) & _core.FLAG_LAW_INVALID
-        assert ctl.law_failures["step"] == 1 and what in ctl.law_failures["last"]["what"]
+    class Undeclared(_PD):
+        def step(self, inp):
+            return np.zeros(4), {"my_gain": 1.0}
+
+    for cls, what in ((Short, "u_cmd of shape (3,)"), (BadTelemetry, "telemetry 'x2d' of shape (2,)"),
+                      (Undeclared, "telemetry 'my_gain' is not declared")):
+        ctl = _controller(cls)
+        ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
+        c = _step(ctl, 0.0, x)
+        assert c.mode == _core.MODE_SAFE and c.flags & _core.FLAG_LAW_INVALID
+        f = ctl.law_failures
+        assert f["step"] == 1 and what in f["last"]["what"], f
+
+
+def test_telemetry_names_and_parameters_are_checked_at_setup():
+    class TooMany(_PD):
+        telemetry_names = [f"v{i}" for i in range(_core.LAW_MAX_TELEMETRY + 1)]
+
+    class Slot(_PD):
+        telemetry_names = ("z1",)
+
+    for cls, what in ((TooMany, "at most"), (Slot, "not a fixed slot")):
+        with pytest.raises(ValueError, match=what):
+            _controller(cls)
+
+    class Gains(_PD):
+        def __init__(self, setup):
+            super().__init__(setup)
+            self.kp = setup.params.get("kp", 1.0)
+            if not self.kp > 0:
+                raise LawParamError("kp", "must be > 0")
+
+    assert _controller(Gains, params=[("kp", [2.0])]).law_failures["step"] == 0
+    with pytest.raises(ValueError, match=r"laws\.Gains\.kp: must be > 0"):
+        _controller(Gains, params=[("kp", [-1.0])])
+    with pytest.raises(ValueError, match=r"laws\.Gains\.kd: unknown parameter of law Gains"):
+        _controller(Gains, params=[("kd", [1.0])])
 
 
 def test_a_law_whose_reset_raises_at_reengagement_is_contained():
@@ -158,19 +213,25 @@ def test_a_law_whose_reset_raises_at_reengagement_is_contained():
             return super().step(inp)
 
     x = np.zeros(10)
-    ctl = PyController(core_config("pd"), ResetOnce)
-    assert ctl.reset(0.0, x)
-    modes = [int(ctl.step(0.1 * k, x)[PACKED_SLICES["mode"]][0]) for k in range(6)]
+    ctl = _controller(ResetOnce)
+    ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
+    assert ctl.law_failures["reset"] == 0
+    modes = [_step(ctl, 0.1 * k, x).mode for k in range(6)]
     assert modes[:3] == [_core.MODE_NORMAL] * 3 and modes[3:] == [_core.MODE_SAFE] * 3
     f = ctl.law_failures
     assert f["step"] == 1 and f["reset"] == 2 and f["last"]["call"] == "reset"
-    assert f["last"]["t"] == pytest.approx(0.5) and "reset exploded" in f["last"]["what"]
+    assert f["last"]["t"] == pytest.approx(0.5) and "RuntimeError: reset exploded" in f["last"]["what"]
 
 
 @pytest.mark.parametrize("failure", ["nan", "raise"])
 def test_an_invalid_law_command_is_safe_and_the_law_re_engages(failure):
+    resets = []
+
     class Flaky(_PD):
         calls = 0
+
+        def reset(self, inp):
+            resets.append(inp.t)
 
         def step(self, inp):
             Flaky.calls += 1
@@ -182,16 +243,23 @@ def test_an_invalid_law_command_is_safe_and_the_law_re_engages(failure):
 
     x = np.zeros(10)
     x[0:3] = [0.1, -0.1, 0.05]
-    ctl = PyController(core_config("pd"), Flaky)
-    ctl.reset(0.0, x)
-    rows = [ctl.step(0.1 * k, x) for k in range(5)]
-    P = PACKED_SLICES
-    modes = [int(r[P["mode"]][0]) for r in rows]
-    assert modes == [_core.MODE_NORMAL] * 2 + [_core.MODE_SAFE] + [_core.MODE_NORMAL] * 2
+    ctl = _controller(Flaky)
+    ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
+    rows = [_step(ctl, 0.1 * k, x) for k in range(5)]
+    assert [r.mode for r in rows] == [_core.MODE_NORMAL] * 2 + [_core.MODE_SAFE] + [_core.MODE_NORMAL] * 2
     bad = rows[2]
-    assert int(bad[P["flags"]][0]) & FLAG_LAW_INVALID and not np.any(bad[P["u_cmd"]])
-    assert np.all(np.isfinite(bad[P["sigma_BD"]])) and np.any(bad[P["sigma_BD"]])  # telemetry kept
-    assert ctl.law.resets == 2  # engaged at the start and again after the SAFE step
+    assert bad.flags & FLAG_LAW_INVALID and not np.any(bad.u_cmd)
+    assert np.all(np.isfinite(bad.sigma_BD)) and np.any(bad.sigma_BD)  # telemetry kept
+    assert resets == [0.0, pytest.approx(0.3)]  # engaged at the start and again after the SAFE step
+    want = "ZeroDivisionError: boom" if failure == "raise" else "non-finite command"
+    assert ctl.law_failures["last"]["what"] == want
+
+
+def test_a_python_law_is_not_loaded_in_a_process_that_did_not_register_it():
+    cfg = core_config("pd")
+    cfg.law = "python:nosuch_module_xyz:Law"
+    with pytest.raises(ValueError, match="not loaded here"):
+        _core.Controller(cfg)
 
 
 @pytest.mark.parametrize("spec,word", [("nosuchmodule_xyz:Law", "cannot import"),

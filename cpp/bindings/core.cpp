@@ -27,6 +27,7 @@ using py::arg;
 void bind_controllers(pybind11::module_& m);
 void bind_plant(pybind11::module_& m);
 void bind_shell(pybind11::module_& m);
+void bind_pylaw(pybind11::module_& m);
 
 namespace {
 
@@ -188,6 +189,7 @@ PYBIND11_MODULE(_core, m) {
 
   bind_math(m);
   bind_controllers(m);
+  bind_pylaw(m);
   bind_plant(m);
   bind_shell(m);
 }

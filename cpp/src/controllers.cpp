@@ -286,7 +286,7 @@ std::vector<std::pair<std::string, std::string>> check_law(const ControllerConfi
   Measurement m;
   const Command cmd = ctl->step(m);
   if (cmd.flags & FLAG_LAW_INVALID)
-    out.emplace_back("law", "law " + law_label(resolve_law(ctl->law_name())) + ": returns a non-finite command (or throws) at rest (probe step at t = 0)");
+    out.emplace_back("law", "law " + law_label(resolve_law(ctl->config().law)) + ": returns a non-finite command (or throws) at rest (probe step at t = 0)");
   return out;
 }
 

@@ -13,6 +13,7 @@ namespace sc_rt {
 
 const char* const kDefaultLaw = "dsc-ppc";
 const char* const kPluginPrefix = "plugin:";
+const char* const kPythonPrefix = "python:";
 
 // The built-in laws, each registered by its own file (in this order: the
 // codes 0..3 of controller_status_t.law).
@@ -26,6 +27,7 @@ struct Registry {
   std::recursive_mutex mu;
   std::vector<LawEntry> entries;
   std::map<std::string, std::string> loaded;  // real path -> law name
+  std::map<std::string, LawEntry> python;     // "python:..." spec -> its entry
   bool builtins = false;
 };
 
@@ -104,6 +106,29 @@ void register_law(const std::string& name, const std::string& doc, LawFactory cr
   reg.entries.push_back(std::move(e));
 }
 
+void register_python_law(const std::string& spec, const std::string& name, const std::string& doc,
+                         LawFactory create) {
+  Registry& reg = registry();
+  std::lock_guard<std::recursive_mutex> lock(reg.mu);
+  const std::size_t n = std::strlen(kPythonPrefix);
+  if (spec.compare(0, n, kPythonPrefix) != 0 || spec.size() == n)
+    throw std::invalid_argument("a Python law's spec starts with \"python:\", got \"" + spec + "\"");
+  if (name.empty()) throw std::invalid_argument("law " + spec + ": empty name");
+  LawEntry e;
+  e.name = name;
+  e.doc = doc;
+  e.source = spec;
+  e.code = -1;
+  e.create = std::move(create);
+  reg.python[spec] = std::move(e);
+}
+
+void clear_python_laws() {
+  Registry& reg = registry();
+  std::lock_guard<std::recursive_mutex> lock(reg.mu);
+  reg.python.clear();
+}
+
 std::vector<std::string> law_names() {
   Registry& r = registry();
   std::lock_guard<std::recursive_mutex> lock(r.mu);
@@ -172,6 +197,13 @@ LawEntry resolve_law(const std::string& spec) {
   std::lock_guard<std::recursive_mutex> lock(r.mu);
   const std::size_t n = std::strlen(kPluginPrefix);
   std::string name = spec;
+  if (spec.compare(0, std::strlen(kPythonPrefix), kPythonPrefix) == 0) {
+    if (auto it = r.python.find(spec); it != r.python.end()) return it->second;
+    const std::string detail = "law " + spec +
+                               ": a Python law runs in a process that loaded it (sc-rt sim, sc-rt controller); "
+                               "it is not loaded here";
+    throw LawError("law", detail, detail);
+  }
   if (spec.compare(0, n, kPluginPrefix) == 0) {
     if (spec.size() == n) fail("", "empty plugin path or name");
     name = load_law_plugin(spec.substr(n));

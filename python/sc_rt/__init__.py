@@ -12,8 +12,9 @@ the command line (``sc-rt``). The Python API (docs/API.md)::
     run["sigma_BD"]                                 # (rows, 3) array, see sc_rt.FIELDS
 
 Layers (imports run one way, checked by tests/test_layers.py): ``model``
-(plant, wheels) | ``wire`` (LCM transport and codecs) -> ``scenario`` ->
-``results`` (the Run record, metrics, figures) -> ``pylaw`` -> ``sim``
+(plant, wheels) | ``wire`` (LCM transport and codecs) | ``pylaw`` (Python
+laws into the core's registry) -> ``scenario`` -> ``results`` (the Run
+record, metrics, figures) -> ``sim``
 (offline engines) | ``emulator`` (the plant process) | ``controller`` (the
 Python controller process) | ``logs`` (log reading, report) | ``tools``
 (spy, lcm-spy, fault) -> ``export`` (MCAP) -> ``hil`` (orchestration) ->

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -650,6 +650,134 @@ class ClosedLoop:
     @property
     def next_row(self) -> int:
         ...
+class LawModel:
+    """
+    What the controller knows of the spacecraft (sc_rt/law.hpp): a law's setup.model.
+    """
+    def wheel_command(self, a: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        the wheel command for the wheel accelerations a, in the unit the wheels take
+        """
+    def wheels_for_torque(self, tau: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        wheel accelerations [rad/s^2] for the body torque tau [N m]: B+ J0^-1 tau
+        """
+    @property
+    def B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 4]"]:
+        """
+        B = -J0^-1 Cbar Jw of (21)
+        """
+    @property
+    def B_pinv(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 3]"]:
+        """
+        B+
+        """
+    @property
+    def Cbar(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 4]"]:
+        """
+        wheel spin axes in B (columns)
+        """
+    @property
+    def J0(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
+        """
+        [kg m^2] nominal inertia
+        """
+    @property
+    def J0_inv(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
+        ...
+    @property
+    def Jw(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        [kg m^2] wheel spin inertias
+        """
+    @property
+    def umax(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        upper command limits (the same unit)
+        """
+    @property
+    def umin(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        lower command limits ([rad/s^2]; [N m] on torque-commanded wheels)
+        """
+    @property
+    def w0(self) -> float:
+        """
+        [rad/s] orbit rate
+        """
+    @property
+    def wheel_speed_max(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        [rad/s] the wheels' speed limits (inf: none)
+        """
+    @property
+    def wheel_torque_command(self) -> bool:
+        """
+        the wheels take a motor torque [N m], not an acceleration
+        """
+class Reference:
+    """
+    The guidance at this step.
+    """
+    @property
+    def omega_DN_D(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [rad/s] desired rate in D
+        """
+    @property
+    def omega_dot_DN_D(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [rad/s^2] its derivative in D
+        """
+    @property
+    def sigma_DN(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        desired attitude
+        """
+class LawInput:
+    """
+    Everything a law gets at reset and at every step (sc_rt/law.hpp).
+    """
+    @property
+    def dt(self) -> float:
+        """
+        [s] since the previous step (0 at reset, when time did not advance)
+        """
+    @property
+    def e(self) -> TrackingErrors:
+        """
+        the tracking errors
+        """
+    @property
+    def m(self) -> Measurement:
+        """
+        the measurement
+        """
+    @property
+    def ppc(self) -> PpcResult:
+        """
+        the PPC transform of e.sigma_BD
+        """
+    @property
+    def ref(self) -> Reference:
+        """
+        the guidance
+        """
+    @property
+    def t(self) -> float:
+        """
+        [s] time of the measurement
+        """
+    @property
+    def t_engaged(self) -> float:
+        """
+        [s] since the engagement (reset)
+        """
+    @property
+    def u_sat_prev(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        the saturated command of the period that just ended
+        """
 class PlantParams:
     """
     True plant parameters (C++ engine); defaults are the paper's. The keyword constructor validates.
@@ -1722,6 +1850,11 @@ def check_law(c: ...) -> list[tuple[str, str]]:
     Construct the configured law once and probe one step at rest, without running:
     [(key, message)] per problem; key "law" or "params.<key>" (empty: fine).
     """
+def clear_python_laws() -> None:
+    """
+    Forget every Python law of the registry (sc_rt.pylaw calls it at exit, before the
+    interpreter goes away).
+    """
 def disturbance(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     d(t) [N m] in B.
@@ -1858,6 +1991,11 @@ def ppc_inverse(p: PpcParams, e1: typing.Annotated[numpy.typing.ArrayLike, numpy
     ...
 def ppc_transform(p: PpcParams, x1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], t: typing.SupportsFloat | typing.SupportsIndex) -> PpcResult:
     ...
+def register_python_law(spec: str, name: str, doc: str, factory: typing.Any) -> None:
+    """
+    Put a Python law in the registry under spec ("python:..."; again: replaced). factory(model,
+    rate, items) returns sc_rt.pylaw's adapter (sc_rt.pylaw.register calls this).
+    """
 def run_sensors(p: SensorParams, n_ticks: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> dict:
     """
     Every sensor sample of n_ticks plant steps (t = i p.dt) from the constant state x (10,).
@@ -1996,4 +2134,5 @@ NAV_FIELDS: list = [('sigma_BN_est', 3), ('bias_est', 3), ('bias_true', 3), ('P_
 NAV_SIZE: int = 23
 PACKED_FIELDS: list = [('u_cmd', 4), ('u_sat', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('e1', 3), ('e2', 3), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('x2d', 3), ('vs', 4), ('rho_hat', 1), ('mode', 1), ('flags', 1)]
 PACKED_SIZE: int = 45
+PYTHON_LAW_OUT_SIZE: int = 32
 __version__: str = '0.1.0'

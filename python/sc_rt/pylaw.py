@@ -1,290 +1,295 @@
 """Control laws written in Python (docs/LAWS.md, "Python laws").
 
-A Python law is a class with ``reset(inp)`` and ``step(inp)`` and the same
-inputs and outputs as the C++ interface (cpp/include/sc_rt/law.hpp), numpy
-arrays for vectors:
+A Python law runs inside the core's ``Controller``, through the same door as
+a C++ law (cpp/include/sc_rt/law.hpp; the trampoline is
+cpp/bindings/pylaw_bindings.cpp): the controller's policy (validation, SAFE,
+re-engagement, containment of a failing law) is the C++ one, so a Python law
+runs on every engine, with sensors and the estimator, in ``montecarlo`` and
+in ``sc-rt controller``. A law is a class:
 
-- ``Law(setup)``: ``setup.model`` (``LawModel``: J0, J0_inv, Cbar, Jw, umin,
-  umax, wheel_torque_command, wheel_speed_max, w0, B, B_pinv,
-  ``wheels_for_torque(tau)``), ``setup.control_rate_hz``, ``setup.params``
-  (the law's own table, ``[laws.NAME]`` of the scenario with NAME its
-  ``name``, as a dict): the same door as a C++ law's;
-- ``inp`` (``LawInput``): ``t``, ``t_engaged`` (since reset), ``dt`` (since
-  the previous step; 0 at reset and when time did not advance), ``m`` (the
-  measurement: t, sigma_BN, omega_BN_B, wheel_speed), ``ref`` (the guidance:
-  sigma_DN, omega_DN_D, omega_dot_DN_D), ``e`` (the core's
-  ``_core.tracking_errors``: sigma_BD, omega_BD_B, R_BD, omega_DN_B, A,
-  u_g0), ``ppc`` (the core's ``_core.ppc_transform``: chi, chi_dot, lambda_,
-  eps, e1, r, violated), ``u_sat_prev``;
-- ``step`` returns u_cmd (4,) [rad/s^2], or ``(u_cmd, telemetry)`` with a
-  dict of named values: the fixed slots ``TELEMETRY`` (e1, e2, z1, z2, x2d,
-  vs, rho_hat) are recorded in the run as the C++ laws' are; other names are
-  kept in ``PyController.named_telemetry`` (the newest step's);
-- optional ``after(u_cmd, u_sat)`` (anti-windup), and a ``name`` attribute
-  (default: the class name) that labels the run.
+- ``Law(setup)``: ``setup.model`` (``_core.LawModel``: J0, J0_inv, Cbar, Jw,
+  umin, umax, wheel_torque_command, wheel_speed_max, w0, B, B_pinv,
+  ``wheels_for_torque(tau)``, ``wheel_command(a)``), ``setup.control_rate_hz``,
+  ``setup.params`` (its own table, ``[laws.NAME]`` of the scenario with NAME
+  its ``name``, as a dict; a key it never reads is an unknown parameter). A bad
+  value: raise ``LawParamError(key, why)``;
+- ``reset(inp)`` and ``step(inp)`` with ``inp`` a ``_core.LawInput`` (t,
+  t_engaged, dt, m, ref, e, ppc, u_sat_prev: the C++ LawInput, read-only);
+- ``step`` returns u_cmd (4,) [rad/s^2], or ``(u_cmd, telemetry)`` with a dict
+  holding any of the fixed slots ``TELEMETRY`` (e1, e2, z1, z2, x2d, vs,
+  rho_hat) and the law's named values;
+- optional: ``telemetry_names`` (at most ``_core.LAW_MAX_TELEMETRY`` names,
+  a sequence or a method, read once at setup: the names ``step`` may give,
+  recorded in the run, the status and the log), ``after(u_cmd, u_sat)``
+  (anti-windup), ``name`` (default: the class name; labels the run and names
+  its table).
 
-``PyController`` wraps a law in the common controller parts exactly as
-``Controller::step`` (cpp/src/controllers.cpp) does: SAFE zero command on an
-invalid state and re-engagement (reset) at the next valid one, the guidance
-advanced to each measurement, the time-not-advancing flag, a non-finite
-command (or an exception of the law) answered by a SAFE zero command with
-FLAG_LAW_INVALID, saturation to the wheel limits with the FLAG_SAT bits, the
-PPC bound flags. Its ``step`` returns the packed row of ``_core.step_packed``,
-so the offline engine's loop and the LCM controller process are the same for
-both kinds of law.
+A wrong-shaped command or telemetry, an undeclared telemetry name, an
+exception or a non-finite command is a failure of the law, contained by the
+controller as SAFE + FLAG_LAW_INVALID and counted in ``law_failures``.
+
+A law is named by a spec (``[python:]module:Class`` or
+``[python:]path/to/file.py:Class``) or given as a class; ``register`` puts it
+in the core's registry under ``python:...``, after which a
+``ControllerConfig`` with that law runs it. This module sits below the
+scenario layer (a scenario names its Python law and that law's table).
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+import atexit
+import importlib
+import importlib.util
+import sys
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.lawload import is_python_law, law_label, load_law  # noqa: F401  (public here too)
 
-__all__ = ["LawInput", "LawModel", "LawSetup", "Reference", "PyController", "TELEMETRY", "load_law",
-           "is_python_law", "law_label", "PACKED_SLICES", "FLAG_LAW_INVALID"]
+__all__ = ["PYTHON_PREFIX", "TELEMETRY", "LawParamError", "LawSetup", "is_python_law", "load_law",
+           "law_label", "law_spec", "register", "FLAG_LAW_INVALID"]
 
-#: Named telemetry with a slot in the run (the packed fields a C++ law fills).
-TELEMETRY = ("e1", "e2", "z1", "z2", "x2d", "vs", "rho_hat")
+#: the prefix of a Python law's spec: ``law = "python:file.py:Class"``
+PYTHON_PREFIX = "python:"
 #: wheel_cmd_t.FLAG_LAW_INVALID: the law gave a non-finite command or failed
-FLAG_LAW_INVALID = int(getattr(_core, "FLAG_LAW_INVALID", 1024))
+FLAG_LAW_INVALID = int(_core.FLAG_LAW_INVALID)
+#: The fixed telemetry slots (the C++ LawOutput's): name -> (offset, width)
+#: in the adapter's output row, after u_cmd (4).
+TELEMETRY: dict[str, tuple[int, int]] = {"e1": (4, 3), "e2": (7, 3), "z1": (10, 3), "z2": (13, 3),
+                                         "x2d": (16, 3), "vs": (19, 4), "rho_hat": (23, 1)}
+_NAMED = 24  # the named telemetry's offset in the row
+assert _NAMED + _core.LAW_MAX_TELEMETRY == _core.PYTHON_LAW_OUT_SIZE
 
-#: Layout of the packed row (name -> slice), from _core.PACKED_FIELDS.
-PACKED_SLICES: dict[str, slice] = {}
-_o = 0
-for _name, _n in _core.PACKED_FIELDS:
-    PACKED_SLICES[_name] = slice(_o, _o + _n)
-    _o += _n
-assert _o == _core.PACKED_SIZE
+#: classes registered as classes (not loadable by a spec): spec -> class
+_CLASSES: dict[str, type] = {}
+# the registry's Python laws go before the interpreter does (their factories hold Python objects)
+atexit.register(_core.clear_python_laws)
 
 
-def _vec(x) -> np.ndarray:
-    return np.asarray(x, dtype=float)
+class LawParamError(ValueError):
+    """A bad parameter of a Python law: reported as ``laws.NAME.key``, with
+    the scenario's file and line, like a C++ law's."""
 
-
-@dataclass(frozen=True)
-class LawModel:
-    """What the controller knows of the spacecraft (the C++ LawModel)."""
-
-    J0: np.ndarray  # (3, 3) [kg m^2]
-    J0_inv: np.ndarray  # (3, 3)
-    Cbar: np.ndarray  # (3, 4) wheel axes in B
-    Jw: np.ndarray  # (4,) [kg m^2]
-    umin: np.ndarray  # (4,) [rad/s^2] ([N m] when the wheels take a torque)
-    umax: np.ndarray  # (4,) the same unit
-    wheel_torque_command: bool  # the wheels take a motor torque [N m], not an acceleration
-    wheel_speed_max: np.ndarray  # (4,) [rad/s] the wheels' speed limits (inf: none)
-    w0: float  # [rad/s] orbit rate
-    B: np.ndarray  # (3, 4) B = -J0^-1 Cbar Jw of (21)
-    B_pinv: np.ndarray  # (4, 3) B+ (damped as configured)
-
-    def wheels_for_torque(self, tau) -> np.ndarray:
-        """u_cmd [rad/s^2] for a body torque tau [N m]: B+ J0^-1 tau."""
-        return self.B_pinv @ (self.J0_inv @ _vec(tau))
+    def __init__(self, key: str, why: str):
+        super().__init__(why)
+        self.key = key
 
 
 @dataclass(frozen=True)
 class LawSetup:
-    """The constructor's argument."""
+    """The constructor's argument (the C++ LawSetup)."""
 
-    model: LawModel
+    model: Any  # _core.LawModel
     control_rate_hz: float
     params: dict[str, Any]  # the law's own table ([laws.NAME]): key -> float or array
 
 
-@dataclass(frozen=True)
-class Reference:
-    """The guidance at this step."""
-
-    sigma_DN: np.ndarray  # (3,) desired attitude
-    omega_DN_D: np.ndarray  # (3,) [rad/s] desired rate, D frame
-    omega_dot_DN_D: np.ndarray  # (3,) [rad/s^2]
+def is_python_law(spec: Any) -> bool:
+    """Whether ``spec`` names a Python class (``module:Class``, ``file.py:Class``,
+    either with ``python:`` before it)."""
+    return isinstance(spec, str) and ":" in spec and not spec.startswith("plugin:")
 
 
-@dataclass
-class LawInput:
-    """One step's inputs (the C++ LawInput by the same names)."""
-
-    t: float  # [s] time of the measurement
-    t_engaged: float  # [s] since reset
-    dt: float  # [s] since the previous step
-    m: Any  # _core.Measurement
-    ref: Reference
-    e: Any  # _core.TrackingErrors
-    ppc: Any  # _core.PpcResult
-    u_sat_prev: np.ndarray = field(default_factory=lambda: np.zeros(4))  # (4,) [rad/s^2]
+def _prefixed(spec: str) -> str:
+    return spec if spec.startswith(PYTHON_PREFIX) else PYTHON_PREFIX + spec
 
 
-def _params(config) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, values in getattr(config, "law_params", None) or ():
-        v = [float(x) for x in values]
-        out[key] = v[0] if len(v) == 1 else np.array(v)
-    return out
+def load_law(spec: str) -> type:
+    """The class named by ``[python:]module:Class`` or ``[python:]path/to/file.py:Class``
+    (or registered as a class). Raises ValueError with a one-line reason."""
+    if (cls := _CLASSES.get(_prefixed(spec))) is not None:
+        return cls
+    target = spec[len(PYTHON_PREFIX):] if spec.startswith(PYTHON_PREFIX) else spec
+    mod_name, sep, cls_name = target.rpartition(":")
+    if not sep or not mod_name or not cls_name.isidentifier():
+        raise ValueError(f"--law {spec!r}: expected module:Class or file.py:Class")
+    try:
+        if mod_name.endswith(".py"):
+            path = Path(mod_name)
+            if not path.is_file():
+                raise ValueError(f"--law {spec!r}: no such file {mod_name}")
+            key = f"sc_rt_user_law_{abs(hash(str(path.resolve())))}"
+            mod = sys.modules.get(key)
+            if mod is None:
+                s = importlib.util.spec_from_file_location(key, path)
+                mod = importlib.util.module_from_spec(s)
+                sys.modules[key] = mod
+                try:
+                    s.loader.exec_module(mod)
+                except BaseException:
+                    del sys.modules[key]
+                    raise
+        else:
+            mod = importlib.import_module(mod_name)
+    except ValueError:
+        raise
+    except Exception as e:  # the user's module failed to import: say so in one line
+        raise ValueError(f"--law {spec!r}: cannot import {mod_name}: {type(e).__name__}: {e}") from e
+    cls = getattr(mod, cls_name, None)
+    if not isinstance(cls, type):
+        raise ValueError(f"--law {spec!r}: {mod_name} has no class {cls_name}")
+    for meth in ("reset", "step"):
+        if not callable(getattr(cls, meth, None)):
+            raise ValueError(f"--law {spec!r}: {cls_name} has no {meth}() method")
+    return cls
 
 
-class PyController:
-    """A Python law behind the controller's common parts (``Controller::step``)."""
+def law_label(cls: type) -> str:
+    """The run's label of a Python law: its ``name`` attribute, else the class name."""
+    name = getattr(cls, "name", None)
+    return name if isinstance(name, str) and name else cls.__name__
 
-    def __init__(self, config, law_cls: type):
-        self.config = config
-        core_model = _core.SpacecraftModel(config.spacecraft)
-        self._core_model = core_model
-        self.guidance = _core.Guidance(config.guidance, 1.0 / config.control_rate_hz)
-        sc = config.spacecraft
-        J0 = _vec(sc.J0)
-        self.model = LawModel(J0=J0, J0_inv=np.linalg.inv(J0), Cbar=_vec(sc.Cbar), Jw=_vec(sc.Jw),
-                              umin=_vec(sc.umin), umax=_vec(sc.umax),
-                              wheel_torque_command=bool(sc.wheel_torque_command),
-                              wheel_speed_max=_vec(sc.wheel_speed_max), w0=float(sc.w0),
-                              B=_vec(core_model.B), B_pinv=_vec(core_model.B_pinv))
-        self.setup = LawSetup(model=self.model, control_rate_hz=float(config.control_rate_hz),
-                              params=_params(config))
-        self.law = law_cls(self.setup)
-        self.name = law_label(law_cls)
-        self._after = getattr(self.law, "after", None)
-        self.named_telemetry: dict[str, Any] = {}
-        #: the law's contained failures, as ``Controller::law_failures``
-        self.law_failures: dict[str, Any] = {"reset": 0, "step": 0, "after": 0, "last": None}
-        self._t0 = self._t_prev = 0.0
-        self._u_sat_prev = np.zeros(4)
-        self._engaged = False
-        self._first = True
 
-    # --- the common parts, in Controller::step's order -----------------------
-    def _inputs(self, m, t: float, dt: float) -> LawInput:
-        gp = self.config.guidance
-        ref = Reference(_vec(self.guidance.sigma_DN), _vec(_core.omega_d(gp, t)),
-                        _vec(_core.omega_d_dot(gp, t)))
-        e = _core.tracking_errors(self._core_model, m, ref.sigma_DN, ref.omega_DN_D, ref.omega_dot_DN_D)
-        p = _core.ppc_transform(self.config.ppc, e.sigma_BD, t - self._t0)
-        return LawInput(t=t, t_engaged=t - self._t0, dt=dt, m=m, ref=ref, e=e, ppc=p,
-                        u_sat_prev=self._u_sat_prev.copy())
+def law_spec(law: str | type) -> str:
+    """The registry spec (``python:...``) of a Python law given as a spec or a
+    class. A class that its module does not expose by name (defined in a
+    function) gets a spec of its own in this process."""
+    if isinstance(law, str):
+        return _prefixed(law)
+    mod = sys.modules.get(law.__module__)
+    if getattr(mod, law.__qualname__, None) is law and mod is not None and "." not in law.__qualname__:
+        origin = getattr(mod, "__file__", None)
+        if law.__module__.startswith("sc_rt_user_law_") and origin:  # loaded from a file
+            return f"{PYTHON_PREFIX}{origin}:{law.__qualname__}"
+        return f"{PYTHON_PREFIX}{law.__module__}:{law.__qualname__}"
+    spec = f"{PYTHON_PREFIX}{law.__module__}:{law.__qualname__}@{id(law):x}"
+    _CLASSES[spec] = law
+    return spec
 
-    def _failed(self, call: str, t: float, what: str) -> None:
-        """A contained failure of the law's ``call`` at t: counted and named,
-        the law disengaged (the next valid step re-engages it)."""
-        self.law_failures[call] += 1
-        self.law_failures["last"] = {"call": call, "t": float(t), "what": what}
-        self._engaged = False
 
-    def reset(self, t: float, x: np.ndarray) -> bool:
-        """Engage from the state x = [sigma_BN, omega_BN_B, wheel_speed] at t
-        (``Controller::reset``); False (counted) when the law's reset raised."""
-        m = _core.Measurement(t, x[0:3], x[3:6], x[6:10])
-        self._t0 = self._t_prev = t
-        self.guidance.reset(t)
-        self._u_sat_prev = np.zeros(4)
+def register(law: str | type) -> str:
+    """Put the Python law (a spec or a class) in the core's registry; returns
+    its spec, the ``law`` of a ``ControllerConfig`` that runs it. Raises
+    ValueError (one line) when the class does not load."""
+    spec = law_spec(law)
+    cls = law if isinstance(law, type) else load_law(spec)
+    doc = (cls.__doc__ or "").strip().splitlines()
+    _core.register_python_law(spec, law_label(cls), doc[0] if doc else "", _factory(cls))
+    return spec
+
+
+class _Params(dict):
+    """A law's table as a dict that remembers which keys the law read (the
+    core reports the others as unknown parameters)."""
+
+    def __init__(self, items):
+        super().__init__()
+        for key, values in items:
+            v = [float(x) for x in values]
+            dict.__setitem__(self, key, v[0] if len(v) == 1 else np.array(v))
+        self.read: set[str] = set()
+
+    def __getitem__(self, key):
+        self.read.add(key)
+        return dict.__getitem__(self, key)
+
+    def get(self, key, default=None):
+        self.read.add(key)
+        return dict.get(self, key, default)
+
+    def __contains__(self, key):
+        self.read.add(key)
+        return dict.__contains__(self, key)
+
+    def _all(self):
+        self.read.update(dict.keys(self))
+
+    def keys(self):
+        self._all()
+        return dict.keys(self)
+
+    def items(self):
+        self._all()
+        return dict.items(self)
+
+    def values(self):
+        self._all()
+        return dict.values(self)
+
+    def __iter__(self):
+        self._all()
+        return dict.__iter__(self)
+
+
+def _names(law: Any) -> list[str]:
+    names = getattr(law, "telemetry_names", ())
+    names = list(names() if callable(names) else names)
+    n = _core.LAW_MAX_TELEMETRY
+    if not all(isinstance(x, str) and x for x in names):
+        raise ValueError(f"telemetry_names must be non-empty strings, got {names!r}")
+    if len(set(names)) != len(names) or set(names) & set(TELEMETRY):
+        raise ValueError(f"telemetry_names must be unique and not a fixed slot ({', '.join(TELEMETRY)}), "
+                         f"got {names!r}")
+    if len(names) > n:
+        raise ValueError(f"declares {len(names)} telemetry names, at most {n}")
+    return names
+
+
+class _Adapter:
+    """The law as the trampoline calls it: the law's results checked and
+    packed into one row (u_cmd, the fixed slots, the named values), its
+    exceptions formatted ("Type: what")."""
+
+    def __init__(self, law: Any, params: _Params):
+        self.law = law
+        self.names = _names(law)
+        self.used = sorted(params.read)
+        self._index = {k: _NAMED + i for i, k in enumerate(self.names)}
+        self.after = self._after if callable(getattr(law, "after", None)) else None
+
+    def reset(self, inp) -> None:
         try:
-            self.law.reset(self._inputs(m, t, 0.0))
-        except Exception as e:  # contained, as the core does
-            self._failed("reset", t, f"{type(e).__name__}: {e}")
-            return False
-        self._engaged = True
-        self._first = True
-        return True
+            self.law.reset(inp)
+        except Exception as e:
+            raise RuntimeError(f"{type(e).__name__}: {e}") from None
 
-    def _checked(self, res: Any) -> tuple[np.ndarray, dict[str, Any] | None]:
-        """The law's step result as (u_cmd (4,), telemetry), or ValueError
-        naming what has the wrong shape or type."""
+    def step(self, inp) -> np.ndarray:
+        try:
+            res = self.law.step(inp)
+        except Exception as e:
+            raise RuntimeError(f"{type(e).__name__}: {e}") from None
         u_cmd, tel = res if isinstance(res, tuple) and len(res) == 2 else (res, None)
-        u_cmd = np.asarray(u_cmd, dtype=float).reshape(-1)
-        if u_cmd.shape != (4,):
-            raise ValueError(f"u_cmd of shape {u_cmd.shape}, expected (4,)")
+        out = np.zeros(_core.PYTHON_LAW_OUT_SIZE)
+        u = np.asarray(u_cmd, dtype=float).reshape(-1)
+        if u.shape != (4,):
+            raise ValueError(f"u_cmd of shape {u.shape}, expected (4,)")
+        out[0:4] = u
         if tel is None:
-            return u_cmd, None
+            return out
         if not isinstance(tel, dict):
             raise ValueError(f"telemetry of type {type(tel).__name__}, expected a dict")
-        out = {}
         for k, v in tel.items():
             a = np.asarray(v, dtype=float).reshape(-1)
-            want = (PACKED_SLICES[k].stop - PACKED_SLICES[k].start) if k in TELEMETRY else 1
-            if a.shape != (want,):
-                raise ValueError(f"telemetry {k!r} of shape {a.shape}, expected ({want},)")
-            out[k] = a if k in TELEMETRY else float(a[0])
-        return u_cmd, out
-
-    def safe_command(self, t: float, flags: int) -> np.ndarray:
-        """A SAFE zero command (the law re-engages at the next valid step), as
-        ``Controller::safe_command``: the packed row."""
-        out = np.zeros(_core.PACKED_SIZE)
-        out[PACKED_SLICES["sigma_DN"]] = self.guidance.sigma_DN
-        return self._safe(out, flags)
-
-    def _safe(self, out: np.ndarray, flags: int) -> np.ndarray:
-        out[PACKED_SLICES["u_cmd"]] = 0.0
-        out[PACKED_SLICES["u_sat"]] = 0.0
-        out[PACKED_SLICES["mode"]] = _core.MODE_SAFE
-        out[PACKED_SLICES["flags"]] = flags
-        self._engaged = False
+            if k in TELEMETRY:
+                o, w = TELEMETRY[k]
+            elif k in self._index:
+                o, w = self._index[k], 1
+            else:
+                raise ValueError(f"telemetry {k!r} is not declared (telemetry_names: {self.names})")
+            if a.shape != (w,):
+                raise ValueError(f"telemetry {k!r} of shape {a.shape}, expected ({w},)")
+            out[o:o + w] = a
         return out
 
-    def step(self, t: float, x: np.ndarray) -> np.ndarray:
-        """One step; the packed row of ``_core.step_packed`` (PACKED_SLICES)."""
-        P = PACKED_SLICES
-        out = np.zeros(_core.PACKED_SIZE)
-        m = _core.Measurement(t, x[0:3], x[3:6], x[6:10])
-        if not _core.measurement_valid(m, self.config.safety):
-            flags = _core.FLAG_INVALID_STATE
-            out[P["sigma_DN"]] = self.guidance.sigma_DN
-            # finite but out of range (a tumble past max_rate): the errors are defined
-            if math.isfinite(t) and np.all(np.isfinite(x[0:10])) and t >= self.guidance.t:
-                flags |= self._observe(m, t, out).ppc.violated
-            return self._safe(out, flags)
-        if not self._engaged and not self.reset(t, x):  # a reset that raised: SAFE
-            out[P["sigma_DN"]] = self.guidance.sigma_DN
-            return self._safe(out, FLAG_LAW_INVALID)
-        flags = 0
-        dt = t - self._t_prev
-        if dt < 0.0 or (dt == 0.0 and not self._first):
-            flags |= _core.FLAG_TIME_NOT_ADVANCING
-            dt = 0.0
-        self._first = False
-        inp = self._observe(m, t, out, dt)
-        flags |= inp.ppc.violated
-        try:  # a failing law (raises, wrong shape, non-finite): SAFE, as the core does
-            u_cmd, tel = self._checked(self.law.step(inp))
-            if not np.all(np.isfinite(u_cmd)):
-                raise ValueError("non-finite command")
+    def _after(self, u_cmd, u_sat) -> None:
+        try:
+            self.law.after(u_cmd, u_sat)
         except Exception as e:
-            self._failed("step", t, f"{type(e).__name__}: {e}" if not isinstance(e, ValueError) else str(e))
-            return self._safe(out, flags | FLAG_LAW_INVALID)
-        if tel:
-            for k, v in tel.items():
-                if k in TELEMETRY:
-                    out[P[k]] = v
-                else:
-                    self.named_telemetry[k] = v
-        u_sat = _vec(self._core_model.saturate(u_cmd))
-        for i in range(4):
-            if u_sat[i] != u_cmd[i]:
-                flags |= _core.FLAG_SAT_1 << i
-        self._u_sat_prev = u_sat
-        if self._after is not None:
-            try:
-                self._after(u_cmd, u_sat)
-            except Exception as e:  # the law's state after this command is unknown: SAFE now
-                self._failed("after", t, f"{type(e).__name__}: {e}")
-                return self._safe(out, flags | FLAG_LAW_INVALID)
-        if dt > 0.0:
-            self._t_prev = t
-        out[P["u_cmd"]] = u_cmd
-        out[P["u_sat"]] = u_sat
-        out[P["mode"]] = _core.MODE_NORMAL
-        out[P["flags"]] = flags
-        return out
+            raise RuntimeError(f"{type(e).__name__}: {e}") from None
 
-    def _observe(self, m, t: float, out: np.ndarray, dt: float = 0.0) -> LawInput:
-        self.guidance.advance(t)
-        inp = self._inputs(m, t, dt)
-        P = PACKED_SLICES
-        out[P["sigma_DN"]] = inp.ref.sigma_DN
-        out[P["sigma_BD"]] = inp.e.sigma_BD
-        out[P["omega_BD_B"]] = inp.e.omega_BD_B
-        out[P["chi"]] = inp.ppc.chi
-        out[P["lam"]] = inp.ppc.lambda_
-        return inp
+
+def _factory(cls: type):
+    def make(model, rate: float, items) -> _Adapter:
+        params = _Params(items)
+        try:
+            law = cls(LawSetup(model=model, control_rate_hz=float(rate), params=params))
+        except LawParamError:
+            raise
+        except Exception as e:
+            raise RuntimeError(f"{type(e).__name__}: {e}") from None
+        return _Adapter(law, params)
+
+    return make

@@ -17,6 +17,10 @@ namespace sc_rt {
 extern const char* const kDefaultLaw;
 //! The prefix of a plugin spec: "plugin:PATH_OR_NAME".
 extern const char* const kPluginPrefix;
+//! The prefix of a Python law's spec ("python:file.py:Class"): a law hosted by
+//! the Python interpreter of the process (sc_rt.pylaw registers it through the
+//! bindings); a process without one (sc-rt-controller) cannot resolve it.
+extern const char* const kPythonPrefix;
 
 using LawFactory = std::function<std::unique_ptr<ControlLaw>(const LawSetup&)>;
 
@@ -48,10 +52,18 @@ class LawError : public std::invalid_argument {
 // the defaults of its parameters.
 void register_law(const std::string& name, const std::string& doc, LawFactory create,
                   LawParams::Items defaults = {});
+// Register a Python law under its whole spec ("python:..."), or replace the
+// factory of a spec registered before (the same spec, loaded again). Its
+// entry: name (the law's label, its table's name), source = spec, code -1
+// (not a registry code: controller_info_t carries the name).
+void register_python_law(const std::string& spec, const std::string& name, const std::string& doc,
+                         LawFactory create);
+// Forget every Python law (the interpreter that hosts them is going away).
+void clear_python_laws();
 // Every registered name, registry order (the built-ins first).
 std::vector<std::string> law_names();
-// The entry of a registered name, or of "plugin:PATH_OR_NAME" (loaded on
-// first use). Throws LawError.
+// The entry of a registered name, of "plugin:PATH_OR_NAME" (loaded on
+// first use) or of a registered "python:..." spec. Throws LawError.
 LawEntry resolve_law(const std::string& spec);
 // Load a plugin library (a path, or a name searched in SCRT_LAW_PATH as
 // libNAME.so / NAME.so); returns its law name. Loading the same file again

@@ -179,8 +179,8 @@ def add_parser(sub) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from sc_rt.pylaw import is_python_law
     from sc_rt.cli.common import scenario_arg
+    from sc_rt.scenario.model import law_identity
     from sc_rt.scenario.overrides import with_overrides
 
     if args.duration is not None and not args.duration > 0:
@@ -191,28 +191,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
         return 2
     scn = scenario_arg(args.scenario)
     check_run_size(with_overrides(scn, duration=args.duration), given_options(args, duration="--duration"))
-    # every law checked (a plugin constructed with the scenario's params) before any run
-    scns = {}
-    for law in args.laws:
-        if not is_python_law(law):
-            scns[law] = with_overrides(scn, law=law, duration=args.duration)
+    # every law checked (a plugin or a Python law constructed with its table) before any run
+    scns = {law: with_overrides(scn, law=law, duration=args.duration) for law in args.laws}
     from sc_rt.sim.isolated import RunCrashed, simulate_contained
 
     rows = []
     failed = 0
     for law in args.laws:
-        py = is_python_law(law)
-        label = law
-        if law.startswith("plugin:"):
-            from sc_rt import _core
-
-            label = _core.law_info(law)["name"]
-        elif py:  # its name, which also names its table ([laws.NAME])
-            from sc_rt.pylaw import law_label, load_law
-
-            label = law_label(load_law(law))
-        run_scn, kw = (scn if py else scns[law]), dict(law=law if py else None, engine="python" if py else args.engine,
-                                                        duration=args.duration if py else None)
+        # its label: a plugin's or a Python law's name (which also names its table, [laws.NAME])
+        label = law_identity(scns[law].run.controller)["name"]
+        run_scn, kw = scns[law], dict(engine=args.engine)
         try:  # a plugin runs in a child of its own: its crash fails its row, not the comparison
             run = simulate_contained(run_scn, **kw)
         except RunCrashed as e:

@@ -88,38 +88,39 @@ def cmd_controller(args: argparse.Namespace) -> int:
     from sc_rt.wire.lcmio import DEFAULT_URL
     from sc_rt.wire.auth import load_key
     from sc_rt.controller.pycontroller import PyControllerProcess, write_summary
-    from sc_rt.pylaw import law_label, load_law
+    from sc_rt.pylaw import register
 
     if not is_python_law(args.law):
         raise UsageError(f"--law {args.law}: sc-rt controller runs Python laws (module:Class); "
                          "the core's laws run in sc-rt-controller")
     if (args.scenario is None) == (args.config is None):
         raise UsageError("give exactly one of SCENARIO and --config FILE")
+    try:
+        spec = register(args.law)  # into the core's registry: the Controller runs it
+    except ValueError as e:
+        raise UsageError(str(e)) from e
     if args.config:
         try:
             raw = Path(args.config).read_bytes()
             cfg = _core.ControllerConfig.from_lcm_bytes(raw)
-            nav = _core.nav_from_config_bytes(raw)[0]
+            nav = _core.nav_from_config_bytes(raw)
         except (OSError, ValueError, RuntimeError) as e:
             raise UsageError(f"--config {args.config}: {e}") from e
-        where = f"--config {args.config}"
+        cfg.law = spec  # the config's table is this law's (sc-rt hil writes the Python law's)
     else:
         from sc_rt.scenario.reader import load_scenario
         from sc_rt.scenario.overrides import with_overrides
 
-        scn = with_overrides(load_scenario(args.scenario), control_rate_hz=args.control_rate)
-        cfg, nav, where = scn.core_config(), scn.sensors is not None, args.scenario
         try:  # the Python law's own table ([laws.NAME], NAME its name attribute or class name)
-            cfg.law_params = [(k, list(v)) for k, v in scn.controller.table(law_label(load_law(args.law)))]
+            scn = with_overrides(load_scenario(args.scenario), control_rate_hz=args.control_rate)
+            msg = scn.controller_config_msg(law=spec)
         except ValueError as e:
             raise UsageError(str(e)) from e
-    if nav:  # as sc-rt sim: the estimator runs in front of the core's laws only
-        raise UsageError(f"{where}: a scenario with [sensors] runs the core's laws only (not a Python "
-                         "law, yet): use sc-rt-controller, or a scenario without [sensors]")
+        cfg, nav = _core.ControllerConfig.from_lcm_bytes(msg.encode()), _core.nav_from_config_bytes(msg.encode())
     try:
-        proc = PyControllerProcess(cfg, load_law(args.law), url=resolve_url(args.lcm_url, DEFAULT_URL),
+        proc = PyControllerProcess(cfg, url=resolve_url(args.lcm_url, DEFAULT_URL),
                                    prefix=args.prefix, mode=args.mode, max_steps=args.max_steps,
-                                   phase_offset_us=args.phase_offset, auth_key=load_key(args.auth_key))
+                                   phase_offset_us=args.phase_offset, auth_key=load_key(args.auth_key), nav=nav)
     except ValueError as e:
         raise UsageError(str(e)) from e
     write_summary(proc.run(), args.summary)

@@ -43,7 +43,7 @@ def law_choice(value: str) -> str:
             load_law(value)
         except ValueError as e:
             raise argparse.ArgumentTypeError(str(e).removeprefix(f"--law {value!r}: ")) from e
-        return value
+        return law_spec(value, Path.cwd())  # python:..., a file made absolute (a worker's cwd may differ)
     raise argparse.ArgumentTypeError(f"{value!r} is not one of {', '.join(LAWS)} "
                                      "nor a Python law module:Class")
 

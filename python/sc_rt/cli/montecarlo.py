@@ -18,7 +18,7 @@ from typing import Any
 __all__ = ["add_parser", "cmd_montecarlo", "headline"]
 
 from sc_rt.scenario.model import LAWS  # noqa: E402
-from sc_rt.cli.lawarg import core_law_choice  # noqa: E402
+from sc_rt.cli.lawarg import LAW_HELP, law_choice  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 SHORTCUTS = ("inertia", "onset", "effectiveness", "attitude", "rate")
@@ -37,7 +37,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     m.add_argument("--workers", metavar="K", help="local worker processes (default: all cores)")
     m.add_argument("--seed", default="0", metavar="S", help="campaign seed, an integer >= 0 (default 0)")
     m.add_argument("--law", "--controller", dest="law", metavar="LAW",
-                   help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME")
+                   help=LAW_HELP)
     m.add_argument("--control-rate", metavar="HZ", help="default: the scenario's")
     m.add_argument("--backend", default="local", metavar="NAME",
                    help="local (process pool, the default), dask (a Dask LocalCluster of --workers)")
@@ -116,13 +116,11 @@ def parse_options(args: argparse.Namespace) -> dict[str, Any]:
         "confidence": _float("--confidence", args.confidence, 0.0, 1.0, open_lo=True, open_hi=True),
         "coverage": _float("--coverage", args.coverage, 0.0, 1.0, open_lo=True),
     }
-    if args.law is not None and args.law.startswith("plugin:"):  # a C++ law plugin, loaded now
+    if args.law is not None:  # a plugin or a Python law: loaded now
         try:
-            args.law = core_law_choice(args.law)
+            args.law = law_choice(args.law)
         except argparse.ArgumentTypeError as e:
             raise BadOption(f"--law {args.law}: {e}") from None
-    elif args.law is not None and args.law not in LAW_CHOICES:
-        raise BadOption(f"--law {args.law}: must be one of " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME")
     if args.backend not in ("local", "dask"):
         raise BadOption(f"--backend {args.backend}: must be local or dask")
     if args.scheduler and args.scheduler_file:
@@ -232,11 +230,6 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     from sc_rt.studies.campaign.store import RunStore
 
     scn = scenario_arg(args.scenario)  # ScenarioError: exit 2 with file, line, key, value
-    from sc_rt.lawload import is_python_law
-
-    if is_python_law(args.law or scn.run.controller):
-        return _fail(f"{'--law ' + args.law if args.law else scn.name + ': law ' + scn.run.controller}: a Python "
-                     "law runs in sim, compare, hil and controller, not in montecarlo yet (its runs are C++)")
     from sc_rt.cli.validate import UsageError, check_run_size
     from sc_rt.scenario.overrides import with_overrides
 

@@ -20,23 +20,14 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     from sc_rt.scenario.overrides import with_overrides
 
-    from sc_rt.pylaw import is_python_law
-
     out = checked_out(args.out)
-    pylaw = args.law if is_python_law(args.law) else None  # a Python law: sc_rt.pylaw
-    scn = with_overrides(scenario_arg(args.scenario), law=None if pylaw else args.law,
+    # any law, a Python one too (sc_rt.pylaw: it runs inside the core's controller, on every engine)
+    scn = with_overrides(scenario_arg(args.scenario), law=args.law,
                          control_rate_hz=args.control_rate, duration=args.duration, plant_step=args.plant_step)
-    if pylaw is None and is_python_law(scn.run.controller):  # the scenario names one
-        pylaw = scn.run.controller
-    if pylaw and args.engine != "python":
-        raise UsageError(f"--engine {args.engine}: a Python law ({pylaw}) runs on the python engine only")
-    if pylaw and scn.sensors is not None:
-        raise UsageError(f"--law {pylaw}: a scenario with [sensors] ({scn.name}) runs the core's laws and "
-                         "plugins only, not a Python law (yet)")
     if args.engine == "unsampled":
         from sc_rt.sim.unsampled import refusal
 
-        if (why := refusal(pylaw or scn.run.controller)) is not None:
+        if (why := refusal(scn.run.controller)) is not None:
             raise UsageError(f"--engine unsampled: {why}")
     check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
                                       plant_step="--plant-step"), on_disk=args.engine == "cpp" and scn.sensors is None,
@@ -53,7 +44,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     with flag_signals(lambda _s: engines.STOP.set()) as signals:
         try:  # a plugin's native code runs in a child: its crash is one line, not exit 139
-            res = simulate_contained(scn, engine=args.engine, law=pylaw, record_dir=out)
+            res = simulate_contained(scn, engine=args.engine, record_dir=out)
         except RunCrashed as e:
             print(f"sc-rt sim: FAILED: {e}", file=sys.stderr)
             return 1

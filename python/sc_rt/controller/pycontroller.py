@@ -3,8 +3,10 @@ controller process, for prototyping at 10-100 Hz.
 
 The same shell as sc-rt-controller (cpp/app/controller_shell.cpp), with the
 C++ shell's policy through the bindings: ``_core.InputGate`` (session
-adoption, duplicates, order, rejection counters) and ``_core.PhaseLock``
-(real-time deadlines phase-locked to the state arrivals). Two modes:
+adoption, duplicates, order, rejection counters), ``_core.PhaseLock``
+(real-time deadlines phase-locked to the state arrivals) and, for a scenario
+with [sensors], ``_core.SensorIntake`` (the emulator's sensor messages into
+the core's estimator). Two modes:
 
 - lockstep: one command per state, on arrival, answering its seq; a re-sent
   state (a duplicate) is answered again with the same command;
@@ -14,8 +16,9 @@ adoption, duplicates, order, rejection counters) and ``_core.PhaseLock``
 It publishes wheel_cmd_t and controller_status_t per step, announces itself
 with controller_info_t (at start and at each new plant session), and writes
 the exit summary with the C++ process's keys (controller_summary.json). The
-law runs behind ``sc_rt.pylaw.PyController``, so a lockstep run equals
-``sc-rt sim --law module:Class`` to the last bit.
+law runs inside the core's ``Controller`` (sc_rt.pylaw registers it), the
+same controller as every other law's, so a lockstep run equals
+``sc-rt sim --law module:Class`` to the last bit, with sensors too.
 """
 
 from __future__ import annotations
@@ -29,16 +32,27 @@ import time
 from collections import Counter
 from typing import Any
 
-import numpy as np
 import sc_rt_lcm
 
 from sc_rt import _core
 from sc_rt.wire.auth import open_bus
 from sc_rt.wire.lcmio import channel
 from sc_rt.wire.codec import decode_as
-from sc_rt.pylaw import PACKED_SLICES as P, PyController
 
-__all__ = ["PyControllerProcess", "nearest_rank", "write_summary"]
+__all__ = ["PyControllerProcess", "nearest_rank", "write_summary", "STATUS_FROM_COMMAND"]
+
+#: controller_status_t's fields from the core's Command, same name
+#: (translate.cpp's fill_status, whose twin this is)
+STATUS_FROM_COMMAND = ("sigma_DN", "sigma_BD", "omega_BD_B", "e1", "e2", "z1", "z2", "chi", "lam", "u_cmd",
+                       "u_sat", "vs")
+#: the estimator's status fields: status field -> _core.NAV_FIELDS name (fill_nav_status's twin)
+STATUS_FROM_NAV = {"sigma_BN_est": "sigma_BN_est", "bias_est": "bias_est", "P_diag": "P_diag",
+                   "innovation": "innovation"}
+_NAV: dict[str, slice] = {}
+_o = 0
+for _name, _n in _core.NAV_FIELDS:
+    _NAV[_name] = slice(_o, _o + _n)
+    _o += _n
 
 _STATE_SIZE = len(sc_rt_lcm.plant_state_t().encode())
 _V = _core.GateVerdict
@@ -57,12 +71,18 @@ def nearest_rank(v: list[float]) -> dict[str, float]:
 
 
 class PyControllerProcess:
-    def __init__(self, config, law_cls: type, *, url: str, prefix: str = "", mode: str = "lockstep",
+    def __init__(self, config, *, url: str, prefix: str = "", mode: str = "lockstep",
                  max_steps: int | None = None, phase_offset_us: float = 50.0,
-                 auth_key: bytes | None = None):
+                 auth_key: bytes | None = None, nav: tuple | None = None):
+        """``config``: a ControllerConfig whose law is registered (sc_rt.pylaw.register);
+        ``nav``: (enabled, use_estimate, MekfParams, sigma0) of _core.nav_from_config_bytes."""
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"--mode must be lockstep or realtime, got {mode!r}")
-        self.ctl = PyController(config, law_cls)
+        self.ctl = _core.Controller(config)
+        self.config = config
+        self.intake = (_core.SensorIntake(nav[2], bool(nav[1]), nav[3]) if nav is not None and nav[0]
+                       else None)
+        self._nav_tel = None
         self.realtime = mode == "realtime"
         self.mode, self.prefix, self.max_steps = mode, prefix, max_steps
         self.phase_offset_us = phase_offset_us
@@ -81,13 +101,38 @@ class PyControllerProcess:
         self._state = None
         self._fresh = self._reengage = False
         self._announced: int | None = None
-        self._last: np.ndarray | None = None
+        self._last = None  # the last _core.Command
+        self._last_flags = 0
+        self._stale_hold = False
         self._used_fresh, self._used_rx = False, 0
         self._cmd_seq = 0
         self.stop = False
         self._ch_cmd, self._ch_status = channel("SCRT_CMD", prefix), channel("SCRT_CTRL_STATUS", prefix)
         self._ch_info = channel("SCRT_CTRL_INFO", prefix)
         self.lc.subscribe(channel("SCRT_STATE", prefix), self._on_state).set_queue_capacity(100_000)
+        if self.intake is not None:  # [sensors]: the estimator runs here, as in sc-rt-controller
+            for name, cls, offer in (("SCRT_GYRO", sc_rt_lcm.gyro_t, self._gyro),
+                                     ("SCRT_STAR", sc_rt_lcm.star_tracker_t, self._star),
+                                     ("SCRT_TACH", sc_rt_lcm.tachometer_t, self._tach)):
+                self.lc.subscribe(channel(name, prefix), self._on_sensor(cls, offer)).set_queue_capacity(100_000)
+
+    def _on_sensor(self, cls, offer):
+        def handle(_ch: str, data: bytes) -> None:
+            msg = decode_as(cls, data, Counter())
+            if msg is None:
+                self.intake.malformed()
+            else:
+                offer(msg)
+        return handle
+
+    def _gyro(self, m) -> None:
+        self.intake.offer_gyro(m.session, m.seq, m.t, list(m.omega), m.output)
+
+    def _star(self, m) -> None:
+        self.intake.offer_star(m.session, m.seq, m.t_exposure, m.t_delivery, list(m.sigma_BN))
+
+    def _tach(self, m) -> None:
+        self.intake.offer_tach(m.session, m.seq, m.t, list(m.wheel_speed))
 
     # --- input --------------------------------------------------------------
     def _on_state(self, _ch: str, data: bytes) -> None:
@@ -97,14 +142,13 @@ class PyControllerProcess:
         if msg is None:
             (self.gate.trailing_bytes if bad["trailing_bytes"] else self.gate.malformed)()
             return
-        x = np.array([*msg.sigma_BN, *msg.omega_BN_B, *msg.wheel_speed])
-        m = _core.Measurement(msg.t, x[0:3], x[3:6], x[6:10])
-        valid = _core.measurement_valid(m, self.ctl.config.safety)
+        m = _core.Measurement(msg.t, list(msg.sigma_BN), list(msg.omega_BN_B), list(msg.wheel_speed))
+        valid = _core.measurement_valid(m, self.config.safety)
         v = self.gate.offer(now, msg.session, msg.seq, valid)
         if v == _V.Duplicate:
             # lockstep: the plant re-sent a state it had no answer to: answer again
             if not self.realtime and self._last is not None:
-                self._publish(self._last, msg.seq, 0.0, 0.0, 0.0)
+                self._publish(self._last, self._last_flags, msg.seq, 0.0, 0.0, 0.0)
             return
         if v not in (_V.Accept, _V.Adopt):
             return
@@ -116,7 +160,9 @@ class PyControllerProcess:
         if msg.session != self._announced:
             self._announced = msg.session
             self.announce()
-        self._state = (msg.seq, msg.t, x)
+        if self.intake is not None:
+            self.intake.use(msg.session, msg.t)  # its sensor samples up to msg.t feed the estimator
+        self._state = (msg.seq, msg.t, m)
         self._fresh = True
         if not self.realtime:
             self.step(now, now)
@@ -127,30 +173,41 @@ class PyControllerProcess:
         have, fresh, rx = self.gate.have_state, self._fresh, self.gate.last_rx_ns
         self._fresh = False
         st = self._state
+        nav_ready, m = True, st[2] if have else None
+        if self.intake is not None and have and fresh:  # the estimate at the state's time
+            nav_ready = not self.intake.use_estimate or self.intake.ready
+            if nav_ready:
+                m, self._nav_tel = self.intake.measure(st[2])
         stale = not have or (self.realtime and t_start - rx > self.stale_ns)
         if stale:
-            out = self.ctl.safe_command(st[1] if have else 0.0, _core.FLAG_STALE_STATE)
+            cmd = self.ctl.safe_command(st[1] if have else 0.0, _core.FLAG_STALE_STATE)
             self.cnt["stale_steps"] += 1
             self.cnt["safe_steps"] += 1
         elif not fresh:  # real time, no new state yet: hold the last command
             self.cnt["stale_steps"] += 1
-            out = self._last.copy()
-            out[P["flags"]] = int(out[P["flags"]][0]) | _core.FLAG_STALE_STATE
+            cmd = self._last
+            self._stale_hold = True
+        elif not nav_ready:  # estimate mode, no attitude yet: SAFE until the first fix
+            cmd = self.ctl.safe_command(st[1], _core.FLAG_NAV_DEGRADED)
+            self.cnt["safe_steps"] += 1
+            self._reengage = True
         else:
             if self._reengage:
                 self._reengage = False
-                self.ctl.reset(st[1], st[2])
-            out = self.ctl.step(st[1], st[2])
-            if int(out[P["mode"]][0]) == _core.MODE_SAFE:
+                self.ctl.reset(m)
+            cmd = self.ctl.step(m)
+            if cmd.mode == _core.MODE_SAFE:
                 self.cnt["safe_steps"] += 1
         self._used_fresh, self._used_rx = fresh and not stale, rx
         age_us = (t_start - rx) / 1e3 if have else 0.0
         t_end = time.monotonic_ns()
-        self._last = out
+        flags = cmd.flags | (_core.FLAG_STALE_STATE if self._stale_hold else 0)
+        self._stale_hold = False
+        self._last = cmd
         comp_us, late_us = (t_end - t_start) / 1e3, (now - deadline) / 1e3
         self.cnt["steps"] += 1
         used_seq = st[0] if have else -1
-        self._publish(out, used_seq, late_us, comp_us, age_us)
+        self._publish(cmd, flags, used_seq, late_us, comp_us, age_us)
         if self.realtime and time.monotonic_ns() > deadline + self.period_ns:
             self.cnt["deadline_misses"] += 1
         self.lat.append(late_us)
@@ -164,26 +221,35 @@ class PyControllerProcess:
         m = sc_rt_lcm.controller_info_t()
         m.utime, m.session = time.time_ns() // 1000, self.session
         m.protocol = sc_rt_lcm.controller_info_t.PROTOCOL_VERSION
-        m.sends_status, m.law = True, self.ctl.name
-        m.description = f"sc-rt controller (Python law {type(self.ctl.law).__module__}.{type(self.ctl.law).__name__})"
+        m.sends_status, m.law = True, self.ctl.law_name
+        m.description = f"sc-rt controller (Python law {self.config.law})"
         self.lc.publish(self._ch_info, m.encode())
 
-    def _publish(self, out: np.ndarray, state_seq: int, late_us: float, comp_us: float, age_us: float) -> None:
+    def _publish(self, cmd, flags: int, state_seq: int, late_us: float, comp_us: float, age_us: float) -> None:
+        self._last_flags = flags
         c = sc_rt_lcm.wheel_cmd_t()
         c.utime, c.seq, c.session, c.state_seq = time.time_ns() // 1000, self._cmd_seq, self.session, state_seq
-        c.t = float(self._state[1]) if self._state is not None else 0.0
-        c.u_cmd, c.u_sat = out[P["u_cmd"]].tolist(), out[P["u_sat"]].tolist()
-        c.mode, c.flags = int(out[P["mode"]][0]), int(out[P["flags"]][0])
+        c.t, c.u_cmd, c.u_sat = cmd.t, cmd.u_cmd.tolist(), cmd.u_sat.tolist()
+        c.mode, c.flags = cmd.mode, flags
         self.lc.publish(self._ch_cmd, c.encode())
         s = sc_rt_lcm.controller_status_t()
         s.utime, s.cmd_seq, s.session, s.state_seq, s.t = c.utime, self._cmd_seq, self.session, state_seq, c.t
-        s.law, s.mode, s.flags = -1, c.mode, c.flags  # -1: not a registry law (its name: controller_info_t)
-        for name in ("sigma_DN", "sigma_BD", "omega_BD_B", "e1", "e2", "z1", "z2", "chi", "lam", "u_cmd",
-                     "u_sat", "vs"):
-            setattr(s, name, out[P[name]].tolist())
+        s.law, s.mode, s.flags = self.ctl.law_code, c.mode, flags  # a Python law: -1 (its name: controller_info_t)
+        for name in STATUS_FROM_COMMAND:
+            setattr(s, name, getattr(cmd, name).tolist())
         s.wake_lateness_us, s.compute_us, s.state_age_us = late_us, comp_us, age_us
         s.steps, s.deadline_misses = self.cnt["steps"], self.cnt["deadline_misses"]
         s.stale_states, s.rejected = self.cnt["stale_steps"], self.gate.counts().rejected
+        if self.intake is not None:
+            tel = self._nav_tel
+            s.nav = True
+            if tel is not None:
+                for field, name in STATUS_FROM_NAV.items():
+                    setattr(s, field, tel[_NAV[name]].tolist())
+                s.nis, s.nav_flags = float(tel[_NAV["nis"]][0]), int(tel[_NAV["nav_flags"]][0])
+            c_ = self.intake.counts()
+            s.gyro_used, s.star_used, s.tach_used = (int(v) for v in c_.used)
+            s.sensor_rejected = c_.rejected
         self.lc.publish(self._ch_status, s.encode())
         self._cmd_seq += 1
 
@@ -192,7 +258,7 @@ class PyControllerProcess:
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, self._on_signal)
         self.announce()
-        print(f"sc-rt controller: {self.mode} mode on {self.url}, law {self.ctl.name}, SCHED_OTHER",
+        print(f"sc-rt controller: {self.mode} mode on {self.url}, law {self.ctl.law_name}, SCHED_OTHER",
               file=sys.stderr, flush=True)
         if not self.realtime:
             while not self.stop:
@@ -231,7 +297,7 @@ class PyControllerProcess:
 
     def summary(self) -> dict[str, Any]:
         g = self.gate.counts()
-        return {"mode": self.mode, "control_rate_hz": 1e9 / self.period_ns, "law": self.ctl.name,
+        return {"mode": self.mode, "control_rate_hz": 1e9 / self.period_ns, "law": self.ctl.law_name,
                 "steps": self.cnt["steps"], "deadline_misses": self.cnt["deadline_misses"],
                 "scheduler": "SCHED_OTHER", "wake_lateness_us": nearest_rank(self.lat),
                 "compute_us": nearest_rank(self.comp), "state_age_us": nearest_rank(self.age),

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.lawload import is_python_law, law_label, load_law
+from sc_rt.pylaw import is_python_law, law_label, load_law
 from sc_rt.scenario.schema import Table
 
 __all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "resolved", "items_of", "with_items"]

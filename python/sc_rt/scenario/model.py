@@ -40,7 +40,7 @@ from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIs
     spec,
     vector_spec,
 )
-from sc_rt.lawload import PYTHON_PREFIX, is_python_law
+from sc_rt.pylaw import PYTHON_PREFIX, is_python_law, law_label, load_law, register
 from sc_rt.scenario.laws import items_of, law_table_name, resolved
 from sc_rt.scenario.guidance import (
     FileGuidance,
@@ -339,8 +339,12 @@ class Scenario:
     def core_config(
         self, law: str | None = None, control_rate_hz: float | None = None
     ) -> _core.ControllerConfig:
-        """The C++ config, decoded from the LCM bytes as the real-time process does."""
+        """The C++ config, decoded from the LCM bytes as the real-time process
+        does. A Python law is put in the core's registry first (sc_rt.pylaw),
+        so that a controller built from the config in this process runs it."""
         msg = self.controller_config_msg(law, control_rate_hz)
+        if is_python_law(msg.law):
+            register(msg.law)
         return _core.ControllerConfig.from_lcm_bytes(msg.encode())
 
 
@@ -349,7 +353,17 @@ def law_identity(spec: str) -> dict[str, Any]:
     registered name: a plugin is labelled by it, not by its path), ``spec``,
     and for a plugin its ``source`` file and that file's ``sha256`` (the
     same name from another build is another law). A spec the registry does
-    not know (a Python law, an external controller) is its own name."""
+    not know (an external controller) is its own name. A Python law is
+    labelled by its ``name``; its file (when given by one) and that file's
+    ``sha256`` are kept as a plugin's."""
+    if is_python_law(spec):
+        import hashlib
+
+        target = spec[len(PYTHON_PREFIX):] if spec.startswith(PYTHON_PREFIX) else spec
+        src = Path(target.rpartition(":")[0])
+        is_file = src.suffix == ".py" and src.is_file()
+        return {"name": law_label(load_law(spec)), "spec": spec, "source": str(src) if is_file else "python",
+                "sha256": hashlib.sha256(src.read_bytes()).hexdigest() if is_file else None}
     if not spec.startswith(PLUGIN_PREFIX):
         return {"name": spec, "spec": spec, "source": "built-in" if spec in LAWS else "external"}
     import hashlib
@@ -364,7 +378,10 @@ def law_spec(spec: str, base: Path) -> str:
     """``spec`` with a relative plugin file path made absolute against ``base``
     (a path: has a "/" or ends in ".so"; a plugin name is searched in
     SCRT_LAW_PATH by the core), and so a Python law's file
-    (``python:file.py:Class``)."""
+    (``python:file.py:Class``; ``file.py:Class`` and ``module:Class`` get the
+    prefix)."""
+    if is_python_law(spec) and not spec.startswith(PYTHON_PREFIX):
+        spec = PYTHON_PREFIX + spec
     if spec.startswith(PYTHON_PREFIX):
         target, sep, cls = spec[len(PYTHON_PREFIX):].rpartition(":")
         if sep and target.endswith(".py") and not Path(target).is_absolute():

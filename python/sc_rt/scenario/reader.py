@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.lawload import is_python_law, load_law
+from sc_rt.pylaw import is_python_law, load_law
 from sc_rt.isolate import ChildDied, call_in_child
 from sc_rt._core import mrp_to_dcm
 from sc_rt.model.actuators import ActuatorParams, WheelFault
@@ -68,12 +68,12 @@ def check_law(doc: Doc, scn: Scenario, law_key: str, where: dict | None = None) 
                   "or a law that commands torque")
     if run_law in LAWS:
         return
-    if is_python_law(run_law):  # a Python law: its class loads (its table is read when it runs)
+    if is_python_law(run_law):  # a Python law: its class loads, then it is checked as a plugin is
         try:
             load_law(run_law)
         except ValueError as e:
             doc.error(law_key, run_law, str(e).replace("--law ", "law ", 1))
-        return
+            return
     try:
         name = law_table_name(run_law)
     except ValueError as e:  # a plugin that does not load

@@ -17,7 +17,6 @@ same numbers to the last bit as ``engine="python"``.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import json
 import math
@@ -29,7 +28,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
-from sc_rt.pylaw import PACKED_SLICES, PyController, is_python_law, law_label, load_law
+from sc_rt.pylaw import is_python_law, register
 from sc_rt.results.metrics import finish_run, record_law_failures
 from sc_rt.sim.columns import LAW_FAILURES, loop_columns
 from sc_rt.results.fields import COLUMNS
@@ -47,9 +46,13 @@ STOP = threading.Event()
 ENGINES = ("python", "cpp", "unsampled")
 
 #: Layout of _core.step_packed's output (name -> slice), from the C++ list
-#: _core.PACKED_FIELDS ((name, width) in the order the C++ writes them);
-#: built once, in sc_rt.pylaw, which writes the same row for Python laws.
-PACKED: dict[str, slice] = PACKED_SLICES
+#: _core.PACKED_FIELDS ((name, width) in the order the C++ writes them).
+PACKED: dict[str, slice] = {}
+_o = 0
+for _name, _n in _core.PACKED_FIELDS:
+    PACKED[_name] = slice(_o, _o + _n)
+    _o += _n
+assert _o == _core.PACKED_SIZE
 
 #: Packed telemetry recorded in the run: run field -> packed name.
 RECORDED = {"u_cmd": "u_cmd", "u_sat": "u_sat", "sigma_DN": "sigma_DN", "sigma_BD": "sigma_BD",
@@ -59,20 +62,13 @@ for _k, _p in RECORDED.items():  # the run declares each with the packed width (
     assert FIELD[_k].shape in ((PACKED[_p].stop - PACKED[_p].start,), ()), _k
 
 
-def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, np.ndarray], int, bool]:
+def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     n_ctrl, n_sub, h, rate = grid(scn)
     pp, act = scn.plant, scn.actuators
     x = initial_state(scn)
-    if law_cls is None:  # a law of the C++ core
-        ctl = _core.Controller(scn.core_config())
-        ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
-        step = functools.partial(_core.step_packed, ctl)
-    else:  # a Python law behind the same common parts (sc_rt.pylaw)
-        cfg = scn.core_config()
-        cfg.law_params = [(k, list(v)) for k, v in scn.controller.table(law_label(law_cls))]  # its own table
-        pyctl = PyController(cfg, law_cls)
-        pyctl.reset(0.0, x)
-        step = pyctl.step
+    ctl = _core.Controller(scn.core_config())  # any law: built-in, plugin or Python (sc_rt.pylaw)
+    ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
+    step = functools.partial(_core.step_packed, ctl)
     n = n_ctrl + 1
     # one row assignment per array and step; columns are split at the end
     T = np.full(n, np.nan)
@@ -105,7 +101,7 @@ def _run_python(scn: Scenario, law_cls: type | None = None) -> tuple[dict[str, n
             diverged = True
             break
     cols = loop_columns(T, X, ACC, D2, OUT, PACKED, RECORDED)
-    cols[LAW_FAILURES] = ctl.law_failures if law_cls is None else pyctl.law_failures
+    cols[LAW_FAILURES] = ctl.law_failures
     return cols, rows, diverged
 
 
@@ -169,8 +165,9 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     scn : Scenario
         The scenario (``sc_rt.load_scenario``).
     law : str or type, optional
-        "dsc-ppc", "dsc", "pd" or "rft" (default: the scenario's), or a Python law:
-        "module:Class", "file.py:Class" or the class itself (sc_rt.pylaw; python engine).
+        "dsc-ppc", "dsc", "pd" or "rft" (default: the scenario's), "plugin:PATH_OR_NAME",
+        or a Python law: "module:Class", "file.py:Class" or the class itself (sc_rt.pylaw;
+        every engine but "unsampled").
     engine : {"python", "cpp", "unsampled"}
         "python": the reference plant (sc_rt.model.plant) stepped from Python;
         "cpp": its compiled twin, the whole loop in C++ (bitwise equal);
@@ -197,19 +194,16 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     Raises
     ------
     ValueError
-        An unknown ``engine``; a Python law on another engine than "python";
-        a Python law with a scenario that has ``[sensors]``.
+        An unknown ``engine``; a Python law that does not load, or on the
+        "unsampled" engine.
     ScenarioError
         An override is invalid (``sc_rt.with_overrides``).
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    if law is None and is_python_law(scn.run.controller):  # the scenario names a Python law
-        law = scn.run.controller
-    law_cls = law if isinstance(law, type) else load_law(law) if is_python_law(law) else None
-    if law_cls is not None and engine != "python":
-        raise ValueError(f"a Python law ({law_label(law_cls)}) runs on the python engine only, got {engine!r}")
-    scn = with_overrides(scn, law=None if law_cls else law, control_rate_hz=control_rate_hz,
+    if isinstance(law, type) or is_python_law(law):  # a Python law: into the core's registry
+        law = register(law)
+    scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz,
                          duration=duration, plant_step=plant_step)
     t0 = time.perf_counter()
     n_rows = grid(scn).n_ctrl + 1
@@ -225,13 +219,11 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
             remove_with(run, tmp)  # a temporary directory lasts as long as the run
         return _finished(run, scn, rows, failures, t_end)
     if scn.sensors is not None:  # sensors and the estimator in the loop (sc_rt.sim.sensed)
-        if law_cls is not None:
-            raise ValueError("a scenario with [sensors] runs the core's laws only (not a Python law, yet)")
         from sc_rt.sim.sensed import run_sensed
 
         cols, rows, diverged = run_sensed(scn, engine, PACKED, RECORDED)
     elif engine == "python":
-        cols, rows, diverged = _run_python(scn, law_cls)
+        cols, rows, diverged = _run_python(scn)
     elif engine == "cpp":
         cols, rows, diverged = _run_cpp(scn)
     else:
@@ -241,8 +233,6 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     wall = time.perf_counter() - t0
     failures = cols.pop(LAW_FAILURES, None)
     meta = RunMeta.of_scenario(scn, engine, wall_s=wall)
-    if law_cls is not None:
-        meta = dataclasses.replace(meta, law=law_label(law_cls))
     run = Run(meta, cols, rows=rows, diverged=diverged)
     return _finished(run, scn, rows, failures, float(run.t[-1]) if rows else 0.0)
 
