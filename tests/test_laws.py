@@ -134,7 +134,7 @@ def test_plugin_command_is_the_papers_formula(plugins):
     ctl.reset(m)
     cmd = ctl.step(m)
     np.testing.assert_allclose(cmd.u_cmd, _qf_expected(scn, x), rtol=1e-12, atol=1e-14)
-    assert ctl.telemetry_names == ["q0", "torque_norm"]
+    assert ctl.telemetry_names == ["q0", "torque_norm [N m]"]
     assert cmd.telemetry[0] == pytest.approx(mrp_to_quat(mrp_sub(x[0:3], scn.guidance.sigma_d0))[0], abs=1e-15)
 
 

@@ -252,7 +252,7 @@ void Shell::publish_status(const sc_rt::Command& cmd, int64_t state_seq, double 
   s.cmd_seq = cmd_seq_ - 1;
   s.session = session_;
   s.state_seq = state_seq;
-  sc_rt::fill_status(cmd, ctl_->law_code(), s);
+  sc_rt::fill_status(cmd, ctl_->law_code(), static_cast<int>(ctl_->telemetry_names().size()), s);
   s.wake_lateness_us = late_us;
   s.compute_us = comp_us;
   s.state_age_us = age_us;

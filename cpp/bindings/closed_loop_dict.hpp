@@ -42,6 +42,7 @@ inline const LoopColumn kLoopColumns[] = {
     {"vs", 4, &R::vs},
     {"x2d", 3, &R::x2d},
     {"rho_hat", 1, &R::rho_hat},
+    {"telemetry", sc_rt::kLawMaxTelemetry, &R::telemetry},
     // navigation (simulate_closed_loop_sensed)
     {"sigma_BN_est", 3, &R::sigma_BN_est},
     {"bias_est", 3, &R::bias_est},
@@ -51,7 +52,7 @@ inline const LoopColumn kLoopColumns[] = {
     {"innovation", 3, &R::innovation},
     {"nis", 1, &R::nis},
 };
-constexpr std::size_t kPlainLoopColumns = 20;  // the columns before the navigation's
+constexpr std::size_t kPlainLoopColumns = 21;  // the columns before the navigation's
 constexpr std::size_t kAllLoopColumns = std::size(kLoopColumns);
 
 // A law's contained failures as a dict: reset, step, after (counts) and last

@@ -41,6 +41,7 @@ void for_each_packed(const Command& c, F&& f) {
   f("x2d", c.x2d);
   f("vs", c.vs);
   f("rho_hat", c.rho_hat);
+  f("telemetry", Eigen::Map<const Eigen::Matrix<double, kLawMaxTelemetry, 1>>(c.telemetry.data()));
   f("mode", c.mode);
   f("flags", c.flags);
 }
@@ -51,7 +52,7 @@ int packed_width(const T& v) {
   else
     return static_cast<int>(v.size());
 }
-constexpr int kPackedSize = 45;
+constexpr int kPackedSize = 45 + kLawMaxTelemetry;
 
 
 template <typename T>
@@ -243,8 +244,9 @@ void bind_controllers(py::module_& m) {
       },
       arg("controller"), arg("t"), arg("x"),
       "One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];\n"
-      "returns the packed telemetry (45,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,\n"
-      "omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, mode, flags\n"
+      "returns the packed telemetry (53,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,\n"
+      "omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, telemetry 8,\n"
+      "mode, flags\n"
       "(PACKED_FIELDS: (name, width) in this order).");
 
   {

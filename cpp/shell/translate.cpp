@@ -174,7 +174,7 @@ void fill_wheel_cmd(const Command& c, sc_rt_lcm::wheel_cmd_t& msg) {
   msg.flags = c.flags;
 }
 
-void fill_status(const Command& c, int law, sc_rt_lcm::controller_status_t& msg) {
+void fill_status(const Command& c, int law, int n_telemetry, sc_rt_lcm::controller_status_t& msg) {
   msg.t = c.t;
   msg.law = static_cast<int8_t>(law);
   msg.mode = static_cast<int8_t>(c.mode);
@@ -191,6 +191,10 @@ void fill_status(const Command& c, int law, sc_rt_lcm::controller_status_t& msg)
   put(msg.u_cmd, c.u_cmd);
   put(msg.u_sat, c.u_sat);
   put(msg.vs, c.vs);
+  put(msg.x2d, c.x2d);
+  msg.rho_hat = c.rho_hat;
+  msg.n_telemetry = static_cast<int8_t>(n_telemetry);
+  for (int i = 0; i < kLawMaxTelemetry; ++i) msg.telemetry[i] = c.telemetry[static_cast<std::size_t>(i)];
 }
 
 NavSetup nav_from_lcm(const sc_rt_lcm::controller_config_t& m) {

@@ -27,7 +27,8 @@ Measurement measurement_from_lcm(const sc_rt_lcm::plant_state_t& msg);
 
 void fill_wheel_cmd(const Command& c, sc_rt_lcm::wheel_cmd_t& msg);
 // law: the controller's law code (Controller::law_code()).
-void fill_status(const Command& c, int law, sc_rt_lcm::controller_status_t& msg);
+// n_telemetry: how many named values the law declared (Controller::telemetry_names)
+void fill_status(const Command& c, int law, int n_telemetry, sc_rt_lcm::controller_status_t& msg);
 
 // The estimator's part of a controller_config_t (nav_*): enabled only for a
 // scenario with [sensors]. Throws std::invalid_argument when inconsistent.

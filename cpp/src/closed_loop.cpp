@@ -1,5 +1,6 @@
 #include "sc_rt/closed_loop.hpp"
 
+#include <algorithm>
 #include <memory>
 #include <stdexcept>
 #include <utility>
@@ -22,6 +23,7 @@ void ClosedLoopResult::reserve_rows(std::size_t n, bool nav) {
                   &x2d})
     v->resize(3 * n);
   rho_hat.resize(n);
+  telemetry.resize(static_cast<std::size_t>(kLawMaxTelemetry) * n);
   for (auto* v : {&wheel_speed, &u_cmd, &u_sat, &wheel_accel, &vs}) v->resize(4 * n);
   flags.resize(n);
   ctrl_mode.resize(n);
@@ -94,6 +96,8 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
       put(out->vs, i, c.vs);
       put(out->x2d, i, c.x2d);
       out->rho_hat[static_cast<std::size_t>(i)] = c.rho_hat;
+      std::copy(c.telemetry.begin(), c.telemetry.end(),
+                out->telemetry.begin() + static_cast<std::ptrdiff_t>(i) * kLawMaxTelemetry);
       out->flags[static_cast<std::size_t>(i)] = nv ? (c.flags | tel_.flags) : c.flags;
       if (nv) {
         put(out->sigma_BN_est, i, tel_.sigma_est);

@@ -53,7 +53,7 @@ class QuaternionFeedback final : public sc_rt::ControlLaw {
     out.telemetry[1] = tau.norm();
   }
 
-  std::vector<std::string> telemetry_names() const override { return {"q0", "torque_norm"}; }
+  std::vector<std::string> telemetry_names() const override { return {"q0", "torque_norm [N m]"}; }
 
  private:
   sc_rt::LawModel model_;

@@ -2042,8 +2042,9 @@ def slew_axis(p: GuidanceParams) -> typing.Annotated[numpy.typing.NDArray[numpy.
 def step_packed(controller: Controller, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> numpy.typing.NDArray[numpy.float64]:
     """
     One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];
-    returns the packed telemetry (45,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,
-    omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, mode, flags
+    returns the packed telemetry (53,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,
+    omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, telemetry 8,
+    mode, flags
     (PACKED_FIELDS: (name, width) in this order).
     """
 def time_estimator(c: NavConfig, rate: typing.SupportsFloat | typing.SupportsIndex, n_ctrl: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], reps: typing.SupportsInt | typing.SupportsIndex) -> dict:
@@ -2109,7 +2110,7 @@ def wheel_torque_command(u: typing.SupportsFloat | typing.SupportsIndex, Jw: typ
     """
     The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).
     """
-CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('flags', 1), ('ctrl_mode', 1)]
+CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1)]
 DEFAULT_LAW: str = 'dsc-ppc'
 DEFAULT_LCM_URL: str = 'udpm://239.255.76.67:7667?ttl=0'
 FLAG_BOUND_X: int = 1
@@ -2132,7 +2133,7 @@ MODE_NORMAL: int = 1
 MODE_SAFE: int = 2
 NAV_FIELDS: list = [('sigma_BN_est', 3), ('bias_est', 3), ('bias_true', 3), ('P_diag', 6), ('att_est_error', 3), ('innovation', 3), ('nis', 1), ('nav_flags', 1)]
 NAV_SIZE: int = 23
-PACKED_FIELDS: list = [('u_cmd', 4), ('u_sat', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('e1', 3), ('e2', 3), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('x2d', 3), ('vs', 4), ('rho_hat', 1), ('mode', 1), ('flags', 1)]
-PACKED_SIZE: int = 45
+PACKED_FIELDS: list = [('u_cmd', 4), ('u_sat', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('e1', 3), ('e2', 3), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('x2d', 3), ('vs', 4), ('rho_hat', 1), ('telemetry', 8), ('mode', 1), ('flags', 1)]
+PACKED_SIZE: int = 53
 PYTHON_LAW_OUT_SIZE: int = 32
 __version__: str = '0.1.0'

@@ -237,7 +237,9 @@ class _Adapter:
         self.law = law
         self.names = _names(law)
         self.used = sorted(params.read)
+        # a value by its declared name, or by the name without its unit ("tau_x" for "tau_x [N m]")
         self._index = {k: _NAMED + i for i, k in enumerate(self.names)}
+        self._index.update({k.split(" [", 1)[0]: _NAMED + i for i, k in enumerate(self.names)})
         self.after = self._after if callable(getattr(law, "after", None)) else None
 
     def reset(self, inp) -> None:

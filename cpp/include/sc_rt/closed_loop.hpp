@@ -21,6 +21,7 @@ struct ClosedLoopResult {
   std::vector<double> omega_BD_B, z1, z2, delta2, chi, lam, e1, e2, x2d;  // 3
   std::vector<double> wheel_speed, u_cmd, u_sat, wheel_accel, vs;  // 4
   std::vector<double> rho_hat;                                     // 1
+  std::vector<double> telemetry;                                   // kLawMaxTelemetry: the law's named values
   std::vector<int> flags;                                          // 1
   std::vector<int> ctrl_mode;                                      // 1 (MODE_*)
   // With sensors (nav given; empty otherwise): NavTelemetry per row.

@@ -44,7 +44,7 @@ __all__ = ["PyControllerProcess", "nearest_rank", "write_summary", "STATUS_FROM_
 #: controller_status_t's fields from the core's Command, same name
 #: (translate.cpp's fill_status, whose twin this is)
 STATUS_FROM_COMMAND = ("sigma_DN", "sigma_BD", "omega_BD_B", "e1", "e2", "z1", "z2", "chi", "lam", "u_cmd",
-                       "u_sat", "vs")
+                       "u_sat", "vs", "x2d", "telemetry")
 #: the estimator's status fields: status field -> _core.NAV_FIELDS name (fill_nav_status's twin)
 STATUS_FROM_NAV = {"sigma_BN_est": "sigma_BN_est", "bias_est": "bias_est", "P_diag": "P_diag",
                    "innovation": "innovation"}
@@ -236,7 +236,8 @@ class PyControllerProcess:
         s.utime, s.cmd_seq, s.session, s.state_seq, s.t = c.utime, self._cmd_seq, self.session, state_seq, c.t
         s.law, s.mode, s.flags = self.ctl.law_code, c.mode, flags  # a Python law: -1 (its name: controller_info_t)
         for name in STATUS_FROM_COMMAND:
-            setattr(s, name, getattr(cmd, name).tolist())
+            setattr(s, name, [float(v) for v in getattr(cmd, name)])
+        s.rho_hat, s.n_telemetry = cmd.rho_hat, len(self.ctl.telemetry_names)
         s.wake_lateness_us, s.compute_us, s.state_age_us = late_us, comp_us, age_us
         s.steps, s.deadline_misses = self.cnt["steps"], self.cnt["deadline_misses"]
         s.stale_states, s.rejected = self.cnt["stale_steps"], self.gate.counts().rejected

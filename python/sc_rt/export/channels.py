@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sc_rt.wire.codec import TYPES, decode_any, decode_array, identify, numpy_dtype
+from sc_rt.wire.codec import TYPES, decode_any, identify, numpy_dtype
+from sc_rt.wire.legacy import decode_current
 from sc_rt.wire.lcmdefs import LcmStruct, json_schema
 from sc_rt.wire.lcmio import CHANNELS
 from sc_rt.wire.lcmjson import RowEncoder, count_none, dumps, json_value
@@ -129,7 +130,7 @@ class JsonRows:
         out = Decoded()
         cls = self.cls
         if self.enc is not None and self.enc.ok:
-            rec, pos = decode_array(cls, datas, kinds)
+            rec, pos = decode_current(cls, datas, kinds)  # an older layout (wire/legacy.py) too
             out.rec, out.pos = rec, pos.tolist()
             out.rows = self.enc.rows(rec, non_finite)
             out.utime = (rec["utime"].astype(np.int64).tolist() if "utime" in (rec.dtype.names or ())

@@ -37,7 +37,7 @@ from sc_rt.results.metrics import fill_tracking_errors, finish_run, mark_invalid
 from sc_rt.results.output import write_run
 from sc_rt.pylaw import is_python_law
 from sc_rt.results.run import Run, provenance
-from sc_rt import __version__
+from sc_rt import __version__, _core
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
 
@@ -356,11 +356,12 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
                              out=out, config=cfg_path) if external or external_wait else None
     if ext is not None and auth_key is not None:
         ext.env["SCRT_AUTH_KEY"] = str(Path(auth_key).resolve())  # sc-rt controller reads it
+    names = () if (external or external_wait) and python_law is None else _telemetry_names(scn, python_law)
     bench = _Bench(scn=scn, out=out, url=url, mode=mode, prefix=prefix, realtime_priority=realtime_priority,
                    time_scale=time_scale, accept_fault_commands=accept_fault_commands, plots=plots,
                    ctl_bin=ctl_bin, logger_bin=logger_bin, cfg_path=cfg_path, log_path=log_path, ext=ext,
                    key=key, key_path=auth_key, setup=setup, floor=floor,
-                   rt_limits=rt_limits or RealtimeLimits(), record_chunk=record_chunk)
+                   rt_limits=rt_limits or RealtimeLimits(), record_chunk=record_chunk, telemetry_names=names)
     with Stopper() as stopper:
         return _run_children(bench, stopper)
 
@@ -391,6 +392,22 @@ class _Bench:
     floor: dict | None
     rt_limits: RealtimeLimits = RealtimeLimits()
     record_chunk: int | None = None
+    #: the law's telemetry names (the run's telemetry columns), () when the bench does not know the law
+    telemetry_names: tuple[str, ...] = ()
+
+
+def _telemetry_names(scn: Scenario, python_law: str | None) -> tuple[str, ...]:
+    """The telemetry names of the law the controller runs, from the law
+    constructed once with the run's configuration in a child of its own (a
+    plugin's native code). () when it cannot be constructed (the controller
+    then refuses the configuration itself)."""
+    from sc_rt.isolate import ChildDied, call_in_child
+
+    cfg = scn.core_config(law=python_law)
+    try:
+        return tuple(call_in_child(lambda: list(_core.Controller(cfg).telemetry_names)))
+    except (ChildDied, ValueError, RuntimeError):
+        return ()
 
 
 def _start_record(b: _Bench) -> bytes:
@@ -409,7 +426,8 @@ def _start_record(b: _Bench) -> bytes:
            "trigger": b.setup.trigger if b.mode == "realtime" and b.ext is None else None,
            "control_rate_hz": float(b.scn.run.control_rate_hz), "duration_s": float(b.scn.run.duration),
            "time_scale": b.time_scale, "law": law, "run_id": claimed_run_id(b.out), "sc_rt": __version__,
-           "requirements": [dataclasses.asdict(r) for r in b.scn.requirements]}
+           "requirements": [dataclasses.asdict(r) for r in b.scn.requirements],
+           "telemetry_names": list(b.telemetry_names)}
     return encode_start(rec)
 
 
@@ -559,7 +577,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
         res.metrics.update(provenance(emu.session, res.metrics.get("controller_session"), why))
         stopped = stopped or why
 
-    res.meta = dataclasses.replace(res.meta, wall_s=wall)
+    res.meta = dataclasses.replace(res.meta, wall_s=wall, telemetry_names=b.telemetry_names)
     fill_tracking_errors(res, scn.core_config().guidance)
     finish_run(res)
     record_law_failures(res, summary.get("law_failures"))  # the controller's summary: counted, named, invalid

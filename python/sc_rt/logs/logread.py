@@ -19,8 +19,8 @@ import numpy as np
 
 from sc_rt.wire.lcmio import CHANNELS
 from sc_rt.wire.startrec import start_record
-from sc_rt.wire.codec import TYPES, decode_any, decode_array, numpy_dtype
-from sc_rt.wire.legacy import upgrade
+from sc_rt.wire.codec import TYPES, decode_any, numpy_dtype
+from sc_rt.wire.legacy import decode_current, upgrade
 
 __all__ = ["LogData", "read_log"]
 
@@ -104,7 +104,7 @@ def read_log(path: str | Path, prefix: str | None = None) -> LogData:
         cls = TYPES[tname]
         counts: Counter = Counter()
         if numpy_dtype(cls) is not None:
-            rec, idx = decode_array(cls, [e[3] for e in lst], counts)
+            rec, idx = decode_current(cls, [e[3] for e in lst], counts)  # an older layout too
             records[base] = rec
             stamps[base] = np.fromiter((e[1] for e in lst), np.int64, len(lst))[idx]
         else:

@@ -129,7 +129,8 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
         law = ident["name"]  # an external controller: the name it announced (controller_label)
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
-                   wall_s=wall, mode=r.mode, law_identity=ident, requirements=_requirements(d, scenario), **extra)
+                   wall_s=wall, mode=r.mode, law_identity=ident, requirements=_requirements(d, scenario),
+                   telemetry_names=tuple((d.start or {}).get("telemetry_names") or ()), **extra)
     run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:
         run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None}

@@ -85,6 +85,9 @@ FIELDS: tuple[Field, ...] = (
     _f("x2d", (3,), "rad/s", "controller",
        "the law's filtered virtual control, DSC's filter output (LawOutput.x2d; 0 unused)"),
     _f("rho_hat", (), "rad/s^2", "controller", "the law's adaptive gain (LawOutput.rho_hat: RFT's; 0 unused)"),
+    _f("telemetry", (8,), "-", "controller",
+       "the law's named telemetry (LawOutput.telemetry): column i is the run's telemetry_names[i], "
+       "unit as its name gives it ('name [unit]'); 0 unused"),
     _f("flags", (), "-", "controller", "controller flags bit set (safety, bound, invalid input)",
        dtype="i8", fill=0),
     _f("ctrl_mode", (), "-", "controller", "controller mode: 0 INIT, 1 NORMAL, 2 SAFE; -1 unknown",

@@ -76,6 +76,11 @@ class RunMeta:
         The scenario's ``[record] every``: the saved rows keep every this
         many control instants and the last (1: every row); the metrics were
         computed on every row.
+    telemetry_names : tuple of str
+        The law's telemetry names (its ``telemetry_names()``): the columns
+        of the run's ``telemetry`` field, ``"name [unit]"`` where the law
+        gives a unit (``Run.named_telemetry``); () for none or unknown (an
+        external controller's).
     """
 
     scenario: str
@@ -107,6 +112,9 @@ class RunMeta:
     #: the scenario's [record] every: the saved rows keep every this many control instants
     #: (and the last); the metrics were computed on every row
     record_every: int = 1
+    #: the law's telemetry names (its telemetry_names(): the columns of the run's telemetry field;
+    #: "name [unit]" where the law gives a unit); () for none or unknown
+    telemetry_names: tuple[str, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self))
@@ -118,6 +126,7 @@ class RunMeta:
         d["umin"], d["umax"] = tuple(d["umin"]), tuple(d["umax"])
         d["faults"] = tuple(d.get("faults", ()))
         d["requirements"] = tuple(d.get("requirements", ()))
+        d["telemetry_names"] = tuple(d.get("telemetry_names", ()))
         d["Cbar"] = tuple(tuple(float(x) for x in row) for row in d.get("Cbar", ()))
         for k in ("Jw", "max_wheel_speed"):
             d[k] = tuple(math.inf if x is None else float(x) for x in d.get(k, ()))

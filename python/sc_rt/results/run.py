@@ -266,6 +266,18 @@ class Run:
             return self._store.column(name)
         return self._a[name]
 
+    def named_telemetry(self, name: str) -> np.ndarray:
+        """The column of the law's named telemetry value ``name`` (as the law
+        declared it, ``"tau_x [N m]"``, or without its unit, ``"tau_x"``):
+        ``self["telemetry"][:, i]`` with i its place in
+        ``meta.telemetry_names``. KeyError naming the declared ones."""
+        names = list(self.meta.telemetry_names)
+        bare = [n.split(" [", 1)[0] for n in names]
+        i = names.index(name) if name in names else bare.index(name) if name in bare else None
+        if i is None:
+            raise KeyError(f"{name!r}: the law's telemetry names are {names}")
+        return self["telemetry"][:, i]
+
     def __contains__(self, name: object) -> bool:
         return name in FIELD if self._store is not None else name in self._a
 

@@ -57,7 +57,7 @@ assert _o == _core.PACKED_SIZE
 #: Packed telemetry recorded in the run: run field -> packed name.
 RECORDED = {"u_cmd": "u_cmd", "u_sat": "u_sat", "sigma_DN": "sigma_DN", "sigma_BD": "sigma_BD",
             "omega_BD_B": "omega_BD_B", "z1": "z1", "z2": "z2", "chi": "chi", "lam": "lam",
-            "e1": "e1", "e2": "e2", "vs": "vs", "x2d": "x2d", "rho_hat": "rho_hat"}
+            "e1": "e1", "e2": "e2", "vs": "vs", "x2d": "x2d", "rho_hat": "rho_hat", "telemetry": "telemetry"}
 for _k, _p in RECORDED.items():  # the run declares each with the packed width (a scalar: width 1)
     assert FIELD[_k].shape in ((PACKED[_p].stop - PACKED[_p].start,), ()), _k
 
@@ -205,6 +205,8 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         law = register(law)
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz,
                          duration=duration, plant_step=plant_step)
+    # the law's telemetry names, from the law as configured (what the run's telemetry columns hold)
+    names = () if engine == "unsampled" else tuple(_core.Controller(scn.core_config()).telemetry_names)
     t0 = time.perf_counter()
     n_rows = grid(scn).n_ctrl + 1
     if engine == "cpp" and scn.sensors is None and n_rows > OFFLINE_CHUNK_ROWS:  # on disk as it runs
@@ -213,8 +215,8 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         Path(record_dir).mkdir(parents=True, exist_ok=True)
         path = Path(record_dir) / "trajectory.arrow"
         rows, diverged, failures, t_end = _run_cpp_chunked(scn, path, RunMeta.of_scenario(scn, engine))
-        run = Run.stored(RunMeta.of_scenario(scn, engine, wall_s=time.perf_counter() - t0), path,
-                         diverged=diverged)
+        run = Run.stored(RunMeta.of_scenario(scn, engine, wall_s=time.perf_counter() - t0, telemetry_names=names),
+                         path, diverged=diverged)
         if tmp is not None:
             remove_with(run, tmp)  # a temporary directory lasts as long as the run
         return _finished(run, scn, rows, failures, t_end)
@@ -232,7 +234,7 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         cols, rows, diverged = run_unsampled(scn)
     wall = time.perf_counter() - t0
     failures = cols.pop(LAW_FAILURES, None)
-    meta = RunMeta.of_scenario(scn, engine, wall_s=wall)
+    meta = RunMeta.of_scenario(scn, engine, wall_s=wall, telemetry_names=names)
     run = Run(meta, cols, rows=rows, diverged=diverged)
     return _finished(run, scn, rows, failures, float(run.t[-1]) if rows else 0.0)
 

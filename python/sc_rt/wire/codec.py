@@ -47,7 +47,8 @@ _DTYPES: dict[type, np.dtype | None] = {}
 #: Run fields a controller_status_t carries for the state it used, same name
 #: on both sides (the command's own fields, u_cmd, u_sat, flags and mode,
 #: come from wheel_cmd_t).
-STATUS_RUN_FIELDS: tuple[str, ...] = ("sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam", "e1", "e2", "vs")
+STATUS_RUN_FIELDS: tuple[str, ...] = ("sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam", "e1", "e2", "vs",
+                                      "x2d", "rho_hat", "telemetry")
 #: The estimator's run fields in controller_status_t (a [sensors] run; its
 #: nav_flags are OR-ed into the row's flags, as the offline loop does).
 STATUS_NAV_FIELDS: tuple[str, ...] = ("sigma_BN_est", "bias_est", "P_diag", "innovation", "nis")
@@ -59,8 +60,6 @@ STATUS_NOT_CARRIED: dict[str, str] = {
     "u_cmd": "wheel_cmd_t (the command itself)", "u_sat": "wheel_cmd_t", "flags": "wheel_cmd_t",
     "ctrl_mode": "wheel_cmd_t", "latency_us": "the emulator's receipt time of the command",
     "tick_lateness_us": "the emulator's own loop", "state_log_us": "lcm-logger's receive time of the state",
-    "x2d": "not on the bus yet: offline runs record it (issue #26, item 3)",
-    "rho_hat": "not on the bus yet: offline runs record it (issue #26, item 3)",
 }
 
 

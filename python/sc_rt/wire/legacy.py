@@ -7,16 +7,56 @@ so that a log written before a layout changed still reads (docs/LOGS.md).
   table. ``upgrade`` moves the gains of the law the message names into its
   table, under the names that law reads (cpp/src/law_dsc.cpp, law_pd.cpp,
   law_rft.cpp); a plugin's table is kept as it was.
+- ``controller_status_v1_t`` (before the law's telemetry went on the bus,
+  issue #26): no ``x2d``, ``rho_hat``, ``n_telemetry``, ``telemetry``.
+  ``decode_current`` reads such messages with the current ones, those
+  fields NaN (``n_telemetry`` 0): not recorded, not zero.
 """
 
 from __future__ import annotations
 
+from collections import Counter
+
+import numpy as np
 import sc_rt_lcm
 
-__all__ = ["LEGACY", "upgrade"]
+from sc_rt.wire.codec import decode_array
+
+__all__ = ["LEGACY", "upgrade", "decode_current"]
 
 #: the old layout's class -> the current one it becomes
-LEGACY = {sc_rt_lcm.controller_config_v1_t: sc_rt_lcm.controller_config_t}
+LEGACY = {sc_rt_lcm.controller_config_v1_t: sc_rt_lcm.controller_config_t,
+          sc_rt_lcm.controller_status_v1_t: sc_rt_lcm.controller_status_t}
+#: a fixed-size current type -> its old layout (read by decode_current)
+_FIXED_OLD = {sc_rt_lcm.controller_status_t: sc_rt_lcm.controller_status_v1_t}
+
+
+def decode_current(cls, datas: list[bytes], counts: Counter | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``codec.decode_array`` of a fixed-size type, messages of its old layout
+    included: they become records of the current one (the fields they share
+    copied, the others NaN, or 0 for an integer). Returns (records, index)
+    in log order."""
+    counts = Counter() if counts is None else counts
+    old = _FIXED_OLD.get(cls)
+    if old is None:
+        return decode_array(cls, datas, counts)
+    fp = old._get_packed_fingerprint()
+    is_old = np.fromiter((bytes(d[:8]) == fp for d in datas), bool, len(datas))
+    if not is_old.any():
+        return decode_array(cls, datas, counts)
+    at_new, at_old = np.flatnonzero(~is_old), np.flatnonzero(is_old)
+    rec_new, i_new = decode_array(cls, [datas[i] for i in at_new], counts)
+    rec_old, i_old = decode_array(old, [datas[i] for i in at_old], counts)
+    up = np.zeros(len(rec_old), rec_new.dtype)
+    for name in up.dtype.names:
+        if name in rec_old.dtype.names:
+            up[name] = rec_old[name]
+        elif up.dtype[name].base.kind == "f":
+            up[name] = np.nan
+    up["_fp"] = int.from_bytes(cls._get_packed_fingerprint(), "big")
+    pos = np.concatenate([at_new[i_new], at_old[i_old]])
+    order = np.argsort(pos, kind="stable")
+    return np.concatenate([rec_new, up])[order], pos[order].astype(np.int64)
 
 _DSC = ("k1", "k2", "k3", "k4", "k6", "tau")
 _NESO = ("k1", "k2", "k3", "k4")
@@ -41,6 +81,12 @@ def _law_table(m) -> list[tuple[str, list[float]]]:
 
 def upgrade(m):
     """A message of a legacy layout as its current type (others unchanged)."""
+    if isinstance(m, sc_rt_lcm.controller_status_v1_t):
+        new = sc_rt_lcm.controller_status_t()
+        for name in m.__slots__:
+            setattr(new, name, getattr(m, name))
+        new.x2d, new.rho_hat, new.telemetry = [float("nan")] * 3, float("nan"), [float("nan")] * 8
+        return new
     if not isinstance(m, sc_rt_lcm.controller_config_v1_t):
         return m
     from sc_rt import _core
