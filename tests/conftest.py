@@ -102,6 +102,10 @@ SLOW_TESTS = (
     "tests/test_references.py::test_lockstep_hil_of_a_slew_is_bit_identical_to_sim",
     "tests/test_out_dir.py::test_an_out_held_by_a_live_run_is_refused_and_a_stale_claim_taken_over",
     "tests/test_library.py::test_sc_rt_scenarios_lists_them_outside_the_repository",
+    "tests/test_law_telemetry.py::test_the_fixed_slots_go_through_the_bench_bitwise",
+    "tests/test_pylaw_everywhere.py::test_a_python_law_with_sensors_in_lockstep_equals_sim",
+    "tests/test_pylaw_everywhere.py::test_a_python_law_runs_a_campaign_equal_to_the_builtin",
+    "tests/test_law_tables.py::test_a_python_law_named_by_the_scenario_runs_in_lockstep_bitwise",
 )
 
 

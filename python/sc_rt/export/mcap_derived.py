@@ -1,7 +1,8 @@
 """Derived channels of ``sc-rt export`` (JSON rows, vectorised over a batch):
 the frames B and D relative to N as ``foxglove.FrameTransform``, the
-pointing error against the prescribed bound, the wheel speeds; and their
-JSON schemas (Foxglove's well-known one for the frames)."""
+pointing error against the prescribed bound, the wheel speeds, the law's
+telemetry by name; and their JSON schemas (Foxglove's well-known one for the
+frames)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ import math
 
 import numpy as np
 
-__all__ = ["ARCSEC", "FOXGLOVE_SCHEMAS", "POINTING_SCHEMA", "WHEELS_SCHEMA", "Deriver", "mrp_to_quaternion",
-           "frame_messages", "pointing_messages", "wheel_messages", "derived_topics"]
+__all__ = ["ARCSEC", "FOXGLOVE_SCHEMAS", "POINTING_SCHEMA", "WHEELS_SCHEMA", "TELEMETRY_SCHEMA", "Deriver",
+           "mrp_to_quaternion", "frame_messages", "pointing_messages", "wheel_messages", "telemetry_messages",
+           "derived_topics"]
 
 #: [arcsec / rad]
 ARCSEC = 180.0 / math.pi * 3600.0
@@ -70,6 +72,54 @@ WHEELS_SCHEMA = {
     },
     "required": ["t", "speed_rad_s", "speed_rpm"],
 }
+
+_NUM = {"type": ["number", "null"]}
+TELEMETRY_SCHEMA = {
+    "title": "sc_rt.law_telemetry",
+    "description": "The control law's telemetry from controller_status_t: the fixed slots and its named values "
+                   "under the names of the run's start record (SCRT_HIL_START telemetry_names; 'telemetry[i]' "
+                   "where the log has none); null: not recorded (a log written before the law's telemetry "
+                   "was on the bus) or not finite",
+    "type": "object",
+    "properties": {
+        "t": {"type": "number", "description": "[s] simulation time"},
+        "e1": {**_AX, "description": "LawOutput.e1"}, "e2": {**_AX, "description": "LawOutput.e2"},
+        "z1": {**_AX, "description": "LawOutput.z1"}, "z2": {**_AX, "description": "LawOutput.z2"},
+        "x2d": {"type": "object", "properties": {k: _NUM for k in "xyz"},
+                "description": "[rad/s] LawOutput.x2d, the filtered virtual control"},
+        "vs": {"type": "array", "items": _NUM, "description": "LawOutput.vs, the anti-windup state (4)"},
+        "rho_hat": {**_NUM, "description": "LawOutput.rho_hat, an adaptive gain"},
+        "values": {"type": "object", "additionalProperties": _NUM,
+                   "description": "the named values, 'name [unit]' as the law declared them"},
+    },
+    "required": ["t", "values"],
+}
+
+
+def _finite(v: float) -> float | None:
+    return v if math.isfinite(v) else None
+
+
+def telemetry_messages(rec, names: tuple[str, ...]) -> list[bytes | None]:
+    """sc_rt.law_telemetry rows of controller_status_t records (None where t
+    is not finite); ``names``: the law's telemetry names (from the start record)."""
+    out: list[bytes | None] = []
+    fields = rec.dtype.names or ()
+    n_tel = rec["n_telemetry"].astype(int).tolist() if "n_telemetry" in fields else [0] * len(rec)
+    for k, t in enumerate(np.asarray(rec["t"], float).tolist()):
+        if not math.isfinite(t):
+            out.append(None)
+            continue
+        row: dict = {"t": t}
+        for name in ("e1", "e2", "z1", "z2", "x2d"):
+            row[name] = dict(zip("xyz", map(_finite, np.asarray(rec[name][k], float).tolist())))
+        row["vs"] = [_finite(v) for v in np.asarray(rec["vs"][k], float).tolist()]
+        row["rho_hat"] = _finite(float(rec["rho_hat"][k]))
+        vals = np.asarray(rec["telemetry"][k], float).tolist()
+        n = max(0, min(n_tel[k], len(vals)))
+        row["values"] = {(names[i] if i < len(names) else f"telemetry[{i}]"): _finite(vals[i]) for i in range(n)}
+        out.append(json.dumps(row, separators=(",", ":")).encode())
+    return out
 
 
 def mrp_to_quaternion(sigma: np.ndarray) -> np.ndarray:
@@ -172,7 +222,8 @@ def derived_topics(type_name: str, prefix: str) -> list[tuple[str, dict]]:
     tf = ("/tf", FOXGLOVE_SCHEMAS["foxglove.FrameTransform"])
     return {"plant_state_t": [tf, (_root(prefix) + "/wheels", WHEELS_SCHEMA)],
             "guidance_t": [tf],
-            "controller_status_t": [tf, (_root(prefix) + "/pointing", POINTING_SCHEMA)]}.get(type_name, [])
+            "controller_status_t": [tf, (_root(prefix) + "/pointing", POINTING_SCHEMA),
+                                    (_root(prefix) + "/telemetry", TELEMETRY_SCHEMA)]}.get(type_name, [])
 
 
 class Deriver:
@@ -184,6 +235,7 @@ class Deriver:
 
     def __init__(self):
         self.ppc: dict[str, object] = {}  # prefix -> _core.PpcParams
+        self.names: dict[str, tuple[str, ...]] = {}  # prefix -> the law's telemetry names
         self.guidance: set[str] = set()
         self.rejected_configs = 0
 
@@ -198,6 +250,12 @@ class Deriver:
             self.ppc[prefix] = _core.ControllerConfig.from_lcm_bytes(bytes(data)).ppc
         except (ValueError, RuntimeError, TypeError):
             self.rejected_configs += 1
+
+    def start(self, prefix: str, record: dict | None) -> None:
+        """The names of a bench's law telemetry, from its run's start record (SCRT_HIL_START)."""
+        names = (record or {}).get("telemetry_names") or ()
+        if isinstance(names, list) and all(isinstance(x, str) for x in names):
+            self.names[prefix] = tuple(names)
 
     def messages(self, type_name: str, prefix: str | None, rec, stamps: list[int]) -> list[tuple]:
         """[(counter, topic, schema, one message or None per record)]."""
@@ -216,5 +274,7 @@ class Deriver:
             out = [] if p in self.guidance else [
                 ("frame_D", "/tf", tf, frame_messages(rec["sigma_DN"], stamps, p + "N", p + "D"))]
             return out + [("pointing", root + "/pointing", POINTING_SCHEMA,
-                           pointing_messages(rec["t"], rec["mode"], rec["sigma_BD"], self.ppc.get(p)))]
+                           pointing_messages(rec["t"], rec["mode"], rec["sigma_BD"], self.ppc.get(p))),
+                          ("telemetry", root + "/telemetry", TELEMETRY_SCHEMA,
+                           telemetry_messages(rec, self.names.get(p, ())))]
         return []

@@ -282,6 +282,8 @@ def export_mcap(log: str | Path, out: str | Path, *, partial: bool = False,
             for ev in read_events(log, scan, partial):
                 if start is None and ev[2].endswith(b"SCRT_HIL_START"):
                     start = start_record([ev])
+                    # the law's telemetry names, for the bench of this prefix (its derived telemetry topic)
+                    ex.deriver.start(ev[2][:-len(b"SCRT_HIL_START")].decode("utf-8", "replace"), start)
                 batch.append(ev)
                 if len(batch) >= BATCH:
                     summ.messages += ex.batch(batch)

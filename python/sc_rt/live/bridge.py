@@ -32,6 +32,7 @@ from sc_rt.wire.codec import TYPES
 from sc_rt.wire.lcmdefs import load_definitions
 from sc_rt.wire.lcmio import CHANNELS
 from sc_rt.wire.lcmjson import dumps
+from sc_rt.wire.startrec import decode_start
 
 __all__ = ["Bridge", "STATS_TOPIC", "LATCHED"]
 
@@ -181,6 +182,8 @@ class Bridge:
             if inp is None or (inp.cls is None and inp.raw is None and data):
                 inp = self._input(name, data)
             cls = inp.cls
+            if name.endswith("SCRT_HIL_START") and (start := decode_start(data)) is not None:
+                self.deriver.start(name[:-len("SCRT_HIL_START")], start)  # the law's telemetry names
             if cls is not None and cls.__name__ in LATCHED:
                 self.latest[name] = (bytes(data), log_ns)
                 if cls.__name__ == "controller_config_t" and inp.prefix is not None:

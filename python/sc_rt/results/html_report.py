@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.results.output import run_files
+from sc_rt.results.law_telemetry import telemetry_table
 from sc_rt.results.html_requirements import requirements_table
 from sc_rt.results.html_timeline import MODE_NAMES, spans, timeline_svg
 
@@ -44,6 +45,7 @@ FIGURES = {
     "disturbance_observer.png": "Lumped disturbance delta_2, its estimate z2 and the observer error [rad/s^2]",
     "faults.png": "Wheel faults as the plant reported them",
     "timing.png": "Timing: state-to-command latency, compute and wake lateness [us]",
+    "law_telemetry.png": "The law's own telemetry: its named values and the fixed slots it fills (x2d, rho_hat)",
 }
 CSS = """tr.pass td { background: #e6f4ea } tr.fail td { background: #fde7e9 }
 tr.not-evaluated td, tr.not-applicable td { color: #666 }
@@ -326,6 +328,8 @@ def _metrics_table(m: dict[str, Any]) -> str:
                 else:
                     rows.append((f"|omega_BD_B| at {tk} s", fmt(x), "rad/s"))
             continue
+        if k == "law_telemetry":  # its own section
+            continue
         if k == "safe_reasons":
             rows.append(("SAFE reasons", escape("; ".join(f"{a}: {b}" for a, b in v.items())) or "–", "steps"))
             continue
@@ -395,7 +399,9 @@ def render_html(run_dir: str | Path) -> str:
                      f"<figcaption>{escape(p.name)}: {escape(FIGURES.get(p.name, ''))}</figcaption></figure>")
     if not d["figures"]:
         parts.append("<p>No figures (run with plots to get them).</p>")
-    parts.append("</section><h2>Metrics</h2>" + _metrics_table(m))
+    parts.append('</section><h2>Law telemetry</h2><section id="telemetry">'
+                 + telemetry_table(m.get("law_telemetry")) + "</section>")
+    parts.append("<h2>Metrics</h2>" + _metrics_table(m))
     if d["timing"]:
         parts.append("<h2>Timing</h2>" + _timing_table(d["timing"]))
     rep = d["report"]

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.results.estimation import estimation_metrics, fill_estimation_error, fill_true_tracking_error
+from sc_rt.results.law_telemetry import TelemetryAcc
 from sc_rt.results.requirements import evaluate_requirements
 from sc_rt.results.run import CORE_FIELDS, Run, json_safe
 from sc_rt.results.verdict import SAFE_FLAGS, pointing_arcsec, safe_summary
@@ -263,9 +264,10 @@ def finish_run(run: Run) -> Run:
         c["bound_ok"][:] = bound_ok(run.meta.ppc, c["t"], c["sigma_BD_true"] if sensed else c["sigma_BD"])
 
     run.map_chunks(derive)
-    acc = _Metrics(run, sensed)
+    acc, tel = _Metrics(run, sensed), TelemetryAcc(run)
     for c in run.chunks():
         acc.add(c)
+        tel.add(c)
     metrics = acc.metrics()
     metrics.update(acc.finish_keys())
     if sensed:
@@ -279,6 +281,7 @@ def finish_run(run: Run) -> Run:
         metrics["partial"] = True
     # the scenario's [[requirements]], each judged (sc_rt.results.requirements); [] none stated
     metrics["requirements"] = evaluate_requirements(run, sensed)
+    metrics["law_telemetry"] = tel.summary()  # the law's own values (results/law_telemetry.py)
     metrics.update({k: v for k, v in run.metrics.items() if k not in metrics})
     run.metrics = metrics
     return run

@@ -81,11 +81,14 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
 def _figures(run: Run, out: Path, title: str) -> list[Path]:
     """The tracking, wheel speed, requirements and (bench runs) timing figures."""
     from sc_rt.results import figures as fig
+    from sc_rt.results.law_telemetry import telemetry_figure
     from sc_rt.results.requirement_figures import requirement_figures
 
     drawn = run.decimated(FIGURE_ROWS) if run.is_stored else run  # a run on disk: peaks kept
     paths = fig.tracking_figures(drawn, out, title=title)
     paths += requirement_figures(drawn, out, title=title)  # wheel_speeds.png, requirements.png
+    if (p := telemetry_figure(drawn, out, title)) is not None:  # the law's own telemetry, when it has any
+        paths.append(p)
     if run.timing is not None:
         paths += fig.timing_figures(drawn, out)
     return paths

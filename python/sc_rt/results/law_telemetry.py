@@ -1,0 +1,133 @@
+"""The control law's own telemetry in a run's outputs: the fixed slots a law
+may fill beside its command (x2d, rho_hat) and its named values (the run
+field ``telemetry``, named by ``meta.telemetry_names``), summarised in
+metrics.json (``law_telemetry``), drawn in law_telemetry.png and listed in
+report.html. A law that fills none of them gets none of these."""
+
+from __future__ import annotations
+
+import math
+from html import escape
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sc_rt.results.run import Run
+
+__all__ = ["TelemetryAcc", "telemetry_summary", "telemetry_figure", "telemetry_table", "split_unit"]
+
+
+def split_unit(name: str) -> tuple[str, str]:
+    """("tau_x", "N m") of a declared "tau_x [N m]"; (name, "") without a unit."""
+    base, sep, rest = name.partition(" [")
+    return (base, rest[:-1]) if sep and rest.endswith("]") else (name, "")
+
+
+def _series(run: Run) -> list[tuple[str, str, int | None]]:
+    """(label, run field, column or None) of the telemetry a run holds."""
+    out: list[tuple[str, str, int | None]] = []
+    for i, name in enumerate(run.meta.telemetry_names):
+        out.append((name, "telemetry", i))
+    return out
+
+
+class TelemetryAcc:
+    """Final, min and max of each named value, and whether the fixed slots
+    were used, a chunk at a time (the metrics' pass over a run on disk)."""
+
+    def __init__(self, run: Run):
+        self.series = _series(run)
+        self.stats = {label: [math.nan, math.inf, -math.inf, 0] for label, _, _ in self.series}
+        self.used = {"x2d": False, "rho_hat": False}
+
+    def add(self, c: Run) -> None:
+        for label, field, col in self.series:
+            v = np.asarray(c[field], float)
+            v = v[:, col] if col is not None else v
+            ok = v[np.isfinite(v)]
+            s = self.stats[label]
+            if ok.size:
+                s[0] = float(ok[-1])
+                s[1], s[2] = min(s[1], float(ok.min())), max(s[2], float(ok.max()))
+                s[3] += int(ok.size)
+        for slot in self.used:
+            if slot in c:
+                v = np.asarray(c[slot], float)
+                self.used[slot] = self.used[slot] or bool(np.any(np.isfinite(v) & (v != 0.0)))
+
+
+    def summary(self) -> dict[str, Any]:
+        """``{"names": [...], "values": {name: {unit, final, min, max}}, "fixed_slots_used": [...]}``."""
+        values = {}
+        for label, (final, lo, hi, n) in self.stats.items():
+            values[label] = {"unit": split_unit(label)[1], "final": final if n else None,
+                             "min": lo if n else None, "max": hi if n else None}
+        return {"names": [label for label, _, _ in self.series], "values": values,
+                "fixed_slots_used": [k for k, v in self.used.items() if v]}
+
+
+def telemetry_summary(run: Run) -> dict[str, Any]:
+    """The law's named values over the run's finite rows (final, min, max)
+    and which fixed slots (x2d, rho_hat) it filled: ``TelemetryAcc.summary``."""
+    acc = TelemetryAcc(run)
+    for c in run.chunks():
+        acc.add(c)
+    return acc.summary()
+
+
+def telemetry_figure(run: Run, out: Path, title: str = "") -> Path | None:
+    """law_telemetry.png: one panel per named value and per fixed slot the law
+    filled (x2d per axis, rho_hat); None when the law reports none."""
+    import matplotlib.pyplot as plt
+
+    from sc_rt.results.figures import mark_events, run_title, save_figure
+
+    summary = run.metrics.get("law_telemetry") or telemetry_summary(run)
+    panels: list[tuple[str, np.ndarray]] = []
+    t = np.asarray(run["t"], float)
+    if "x2d" in summary["fixed_slots_used"]:
+        panels.append(("x2d [rad/s] (filtered virtual control)", np.asarray(run["x2d"], float)))
+    if "rho_hat" in summary["fixed_slots_used"]:
+        panels.append(("rho_hat (adaptive gain)", np.asarray(run["rho_hat"], float)))
+    tel = np.asarray(run["telemetry"], float) if summary["names"] else None
+    for i, name in enumerate(summary["names"]):
+        panels.append((name, tel[:, i]))
+    if not panels:
+        return None
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 1.9 + 1.6 * len(panels)), sharex=True, squeeze=False)
+    for ax, (label, v) in zip(axes[:, 0], panels):
+        if v.ndim == 2:
+            for j in range(v.shape[1]):
+                ax.plot(t, v[:, j], lw=1, label="xyz"[j])
+            ax.legend(loc="upper right", fontsize=8)
+        else:
+            ax.plot(t, v, lw=1)
+        ax.set_ylabel(label, fontsize=8)
+        ax.grid(True, alpha=0.3)
+        mark_events(ax, run)
+    axes[-1, 0].set_xlabel("t [s]")
+    fig.suptitle(f"The law's telemetry\n{title or run_title(run)}", fontsize=10)
+    fig.tight_layout()
+    path = save_figure(fig, Path(out) / "law_telemetry.png")
+    plt.close(fig)
+    return path
+
+
+def telemetry_table(summary: dict[str, Any] | None) -> str:
+    """The HTML section of report.html: each named value (unit, final, min,
+    max) and the fixed slots the law filled; a line saying so when none."""
+    if not summary or (not summary.get("names") and not summary.get("fixed_slots_used")):
+        return "<p>The law reports no telemetry of its own (no named values, no x2d or rho_hat).</p>"
+    rows = []
+    for name, s in (summary.get("values") or {}).items():
+        base, unit = split_unit(name)
+        cells = "".join(f"<td class=num>{'-' if s.get(k) is None else f'{s[k]:.6g}'}</td>"
+                        for k in ("final", "min", "max"))
+        rows.append(f"<tr><td>{escape(base)}</td><td>{escape(unit or '-')}</td>{cells}</tr>")
+    html = ("<table id=law-telemetry><tr><th>named value</th><th>unit</th><th>final</th><th>min</th><th>max</th></tr>"
+            + "".join(rows) + "</table>") if rows else "<p>No named values.</p>"
+    slots = summary.get("fixed_slots_used") or []
+    if slots:
+        html += f"<p>Fixed slots the law filled: {escape(', '.join(slots))} (in trajectory and law_telemetry.png).</p>"
+    return html
