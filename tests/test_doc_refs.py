@@ -75,6 +75,7 @@ ALLOWED_PATH_PREFIXES = {
 ALLOWED_PYREFS = {
     "sc_rt.pointing": "an MCAP schema name the export writes (docs/LOGS.md), not a Python name",
     "sc_rt.wheels": "an MCAP schema name the export writes (docs/LOGS.md), not a Python name",
+    "sc_rt.law_telemetry": "an MCAP schema name the export writes (docs/LOGS.md), not a Python name",
     "sc_rt.lcm_raw_event": "an MCAP schema name the export writes (docs/LOGS.md), not a Python name",
 }
 # Names (CamelCase, snake_case in backticks) that are not identifiers of this repo's code.

@@ -102,7 +102,8 @@ def _check_bus(out: Path, sim, names: tuple[str, ...]) -> None:
             seen.setdefault(row["t"], row)
     assert len(seen) == len(sim)
     for k, t in enumerate(sim["t"]):
-        assert [seen[t]["values"][n] for n in names] == list(sim["telemetry"][k, :len(names)]), t
+        assert seen[t]["names"] == list(names), t
+        assert seen[t]["values"] == list(sim["telemetry"][k, :len(names)]), t
     html = (out / "report.html").read_text()
     if names:
         assert "id=law-telemetry" in html and all(n.split(" [")[0] in html for n in names)

@@ -28,7 +28,7 @@ import lcmnet
 
 ROOT = Path(__file__).resolve().parent.parent
 ARCSEC = 180.0 / math.pi * 3600.0
-DERIVED_TOPICS = ("/tf", "/derived/pointing", "/derived/wheels")
+DERIVED_TOPICS = ("/tf", "/derived/pointing", "/derived/wheels", "/derived/telemetry")
 
 
 @pytest.fixture(scope="module")
@@ -279,7 +279,7 @@ def test_schemas_validate_every_exported_message(exported):
         _structural(schema, body, topic)  # also without the jsonschema package
         n[sname] += 1
     assert set(n) >= {"sc_rt_lcm.plant_state_t", "sc_rt_lcm.controller_config_t", "foxglove.FrameTransform",
-                      "sc_rt.pointing", "sc_rt.wheels", "sc_rt.lcm_raw_event"}
+                      "sc_rt.pointing", "sc_rt.wheels", "sc_rt.law_telemetry", "sc_rt.lcm_raw_event"}
     # a schema that can fail: a wrong value is refused
     sch = next(m[7] for m in msgs if m[2] == "sc_rt_lcm.plant_state_t")
     bad = json.loads(next(m[6] for m in msgs if m[2] == "sc_rt_lcm.plant_state_t"))
@@ -560,7 +560,7 @@ def test_without_guidance_the_desired_frame_comes_from_the_status(tmp_path):
         w.write_event(1000 + k, "B2_SCRT_CTRL_STATUS", st.encode())
     w.close()
     s = export_mcap(log, tmp_path / "s.mcap")
-    assert s.derived == {"frame_D": 4, "pointing": 4}
+    assert s.derived == {"frame_D": 4, "pointing": 4, "telemetry": 4}
     msgs = read_mcap(tmp_path / "s.mcap")
     tfs = [json.loads(m[6]) for m in msgs if m[0] == "/tf"]
     assert [(t["parent_frame_id"], t["child_frame_id"]) for t in tfs] == [("B2_N", "B2_D")] * 4

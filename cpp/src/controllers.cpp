@@ -218,18 +218,23 @@ Command Controller::step(const Measurement& m) {
   observe(m, out, in);
   in.dt = dt;
   LawOutput lo;
-  const char* why = nullptr;
+  // The message is copied inside the handler: what() points into the
+  // exception, which is gone after it (the failure path may allocate).
+  std::string why;
+  bool threw = false;
   try {
     law_->step(in, lo);
   } catch (const std::exception& e) {
+    threw = true;
     why = e.what();
   } catch (...) {
+    threw = true;
     why = "unknown exception";
   }
-  if (why != nullptr || !lo.u_cmd.allFinite()) {
+  if (threw || !lo.u_cmd.allFinite()) {
     // A law that fails gives SAFE zeros; the next valid step re-engages it.
     ++failures_.step;
-    law_failed("step", m.t, why != nullptr ? why : "non-finite command");
+    law_failed("step", m.t, threw ? why.c_str() : "non-finite command");
     out.mode = MODE_SAFE;
     out.flags |= FLAG_LAW_INVALID;
     return out;
@@ -248,18 +253,21 @@ Command Controller::step(const Measurement& m) {
   for (int i = 0; i < 4; ++i)
     if (out.u_sat(i) != out.u_cmd(i)) out.flags |= (FLAG_SAT_1 << i);
   u_sat_prev_ = out.u_sat;
-  const char* after_why = nullptr;
+  std::string after_why;
+  bool after_threw = false;
   try {
     law_->after(out.u_cmd, out.u_sat);
   } catch (const std::exception& e) {
+    after_threw = true;
     after_why = e.what();
   } catch (...) {
+    after_threw = true;
     after_why = "unknown exception";
   }
-  if (after_why != nullptr) {
+  if (after_threw) {
     // The law's state after this command is unknown: SAFE now, re-engage next.
     ++failures_.after;
-    law_failed("after", m.t, after_why);
+    law_failed("after", m.t, after_why.c_str());
     Command safe = safe_command(m.t, out.flags | FLAG_LAW_INVALID);
     safe.sigma_DN = out.sigma_DN;
     safe.sigma_BD = out.sigma_BD;

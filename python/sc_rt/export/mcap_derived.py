@@ -73,26 +73,26 @@ WHEELS_SCHEMA = {
     "required": ["t", "speed_rad_s", "speed_rpm"],
 }
 
-_NUM = {"type": ["number", "null"]}
+_NUM = {"type": "number", "description": "(null: not finite)"}
 TELEMETRY_SCHEMA = {
     "title": "sc_rt.law_telemetry",
-    "description": "The control law's telemetry from controller_status_t: the fixed slots and its named values "
-                   "under the names of the run's start record (SCRT_HIL_START telemetry_names; 'telemetry[i]' "
-                   "where the log has none); null: not recorded (a log written before the law's telemetry "
-                   "was on the bus) or not finite",
+    "description": "The control law's telemetry from controller_status_t: the fixed slots and its named values, "
+                   "values[i] named names[i] (the run's start record, SCRT_HIL_START telemetry_names; "
+                   "'telemetry[i]' where the log has none); null: not finite, or not recorded (a log written "
+                   "before the law's telemetry was on the bus)",
     "type": "object",
     "properties": {
         "t": {"type": "number", "description": "[s] simulation time"},
-        "e1": {**_AX, "description": "LawOutput.e1"}, "e2": {**_AX, "description": "LawOutput.e2"},
-        "z1": {**_AX, "description": "LawOutput.z1"}, "z2": {**_AX, "description": "LawOutput.z2"},
-        "x2d": {"type": "object", "properties": {k: _NUM for k in "xyz"},
-                "description": "[rad/s] LawOutput.x2d, the filtered virtual control"},
-        "vs": {"type": "array", "items": _NUM, "description": "LawOutput.vs, the anti-windup state (4)"},
-        "rho_hat": {**_NUM, "description": "LawOutput.rho_hat, an adaptive gain"},
-        "values": {"type": "object", "additionalProperties": _NUM,
-                   "description": "the named values, 'name [unit]' as the law declared them"},
+        **{k: {"type": "object", "title": "xyz", "properties": {a: _NUM for a in "xyz"}, "required": list("xyz"),
+               "description": f"LawOutput.{k}"} for k in ("e1", "e2", "z1", "z2", "x2d")},
+        "vs": {"type": "array", "items": _NUM, "minItems": 4, "maxItems": 4,
+               "description": "LawOutput.vs, the anti-windup state"},
+        "rho_hat": {**_NUM, "description": "LawOutput.rho_hat, an adaptive gain (null: not finite)"},
+        "names": {"type": "array", "items": {"type": "string"},
+                  "description": "the named values' names, 'name [unit]' as the law declared them"},
+        "values": {"type": "array", "items": _NUM, "description": "the named values, in the order of names"},
     },
-    "required": ["t", "values"],
+    "required": ["t", "e1", "e2", "z1", "z2", "x2d", "vs", "rho_hat", "names", "values"],
 }
 
 
@@ -117,7 +117,8 @@ def telemetry_messages(rec, names: tuple[str, ...]) -> list[bytes | None]:
         row["rho_hat"] = _finite(float(rec["rho_hat"][k]))
         vals = np.asarray(rec["telemetry"][k], float).tolist()
         n = max(0, min(n_tel[k], len(vals)))
-        row["values"] = {(names[i] if i < len(names) else f"telemetry[{i}]"): _finite(vals[i]) for i in range(n)}
+        row["names"] = [names[i] if i < len(names) else f"telemetry[{i}]" for i in range(n)]
+        row["values"] = [_finite(v) for v in vals[:n]]
         out.append(json.dumps(row, separators=(",", ":")).encode())
     return out
 

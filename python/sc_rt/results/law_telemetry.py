@@ -1,21 +1,20 @@
 """The control law's own telemetry in a run's outputs: the fixed slots a law
 may fill beside its command (x2d, rho_hat) and its named values (the run
 field ``telemetry``, named by ``meta.telemetry_names``), summarised in
-metrics.json (``law_telemetry``), drawn in law_telemetry.png and listed in
-report.html. A law that fills none of them gets none of these."""
+metrics.json (``law_telemetry``), listed in report.html (and drawn in
+law_telemetry.png: sc_rt.results.telemetry_figure). A law that fills none of them gets none of these."""
 
 from __future__ import annotations
 
 import math
 from html import escape
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sc_rt.results.run import Run
 
-__all__ = ["TelemetryAcc", "telemetry_summary", "telemetry_figure", "telemetry_table", "split_unit"]
+__all__ = ["TelemetryAcc", "telemetry_summary", "telemetry_table", "split_unit"]
 
 
 def split_unit(name: str) -> tuple[str, str]:
@@ -74,44 +73,6 @@ def telemetry_summary(run: Run) -> dict[str, Any]:
     for c in run.chunks():
         acc.add(c)
     return acc.summary()
-
-
-def telemetry_figure(run: Run, out: Path, title: str = "") -> Path | None:
-    """law_telemetry.png: one panel per named value and per fixed slot the law
-    filled (x2d per axis, rho_hat); None when the law reports none."""
-    import matplotlib.pyplot as plt
-
-    from sc_rt.results.figures import mark_events, run_title, save_figure
-
-    summary = run.metrics.get("law_telemetry") or telemetry_summary(run)
-    panels: list[tuple[str, np.ndarray]] = []
-    t = np.asarray(run["t"], float)
-    if "x2d" in summary["fixed_slots_used"]:
-        panels.append(("x2d [rad/s] (filtered virtual control)", np.asarray(run["x2d"], float)))
-    if "rho_hat" in summary["fixed_slots_used"]:
-        panels.append(("rho_hat (adaptive gain)", np.asarray(run["rho_hat"], float)))
-    tel = np.asarray(run["telemetry"], float) if summary["names"] else None
-    for i, name in enumerate(summary["names"]):
-        panels.append((name, tel[:, i]))
-    if not panels:
-        return None
-    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 1.9 + 1.6 * len(panels)), sharex=True, squeeze=False)
-    for ax, (label, v) in zip(axes[:, 0], panels):
-        if v.ndim == 2:
-            for j in range(v.shape[1]):
-                ax.plot(t, v[:, j], lw=1, label="xyz"[j])
-            ax.legend(loc="upper right", fontsize=8)
-        else:
-            ax.plot(t, v, lw=1)
-        ax.set_ylabel(label, fontsize=8)
-        ax.grid(True, alpha=0.3)
-        mark_events(ax, run)
-    axes[-1, 0].set_xlabel("t [s]")
-    fig.suptitle(f"The law's telemetry\n{title or run_title(run)}", fontsize=10)
-    fig.tight_layout()
-    path = save_figure(fig, Path(out) / "law_telemetry.png")
-    plt.close(fig)
-    return path
 
 
 def telemetry_table(summary: dict[str, Any] | None) -> str:

@@ -81,7 +81,7 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
 def _figures(run: Run, out: Path, title: str) -> list[Path]:
     """The tracking, wheel speed, requirements and (bench runs) timing figures."""
     from sc_rt.results import figures as fig
-    from sc_rt.results.law_telemetry import telemetry_figure
+    from sc_rt.results.telemetry_figure import telemetry_figure
     from sc_rt.results.requirement_figures import requirement_figures
 
     drawn = run.decimated(FIGURE_ROWS) if run.is_stored else run  # a run on disk: peaks kept
