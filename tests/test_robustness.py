@@ -207,7 +207,9 @@ wait $NEW
     outage = [g for g in gaps if g[0] <= t_start <= g[1]]
     assert len(outage) == 1, (gaps, t_kill, t_start, t_ready)
     g0, g1 = outage[0]
-    assert t_kill < g0 < t_start, (g0, t_kill, t_start)
+    # (<=: in real time the controller's first commands (SAFE, no state yet) can
+    # come before the plant's first state, so a kill at t = 0 opens the gap at row 0)
+    assert t_kill <= g0 < t_start, (g0, t_kill, t_start)
     assert t_start <= g1 <= t_ready + 0.5, (g1, t_start, t_ready)
     assert g1 - g0 >= 1.2, outage  # 1.5 s of outage, less the watchdog's 0.1 s
     assert all(b - a < 0.5 for a, b in gaps if [a, b] != outage[0]), gaps
