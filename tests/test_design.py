@@ -471,3 +471,14 @@ def test_design_cli_rejects_a_bad_scenario_and_rate(tmp_path, capsys):
     assert "umin" in capsys.readouterr().err
     assert _exit_code(["design", str(FAULT_FREE), "--rate", "-5", "--out", str(tmp_path / "o")]) == 2
     assert not (tmp_path / "o").exists()
+
+
+def test_the_sampled_study_of_a_law_takes_that_laws_table():
+    """A dsc study reads [laws.dsc], not dsc-ppc's table (each law has its own
+    since issue #26): a gain set only for dsc reaches only the dsc loop."""
+    scn = with_law_params(load_scenario("paper_faults"), "dsc", k2=7.5, neso_substeps=3)
+    dsc, ppc = D.SampledLoop(scn, "dsc", None), D.SampledLoop(scn, "dsc-ppc", None)
+    assert dsc.g.k2 == 7.5 and ppc.g.k2 == scn.controller.resolved("dsc-ppc")["k2"] != 7.5
+    n_dsc, n_ppc = D.observer_gains(scn, "linear-part", 1e-5, "dsc"), D.observer_gains(scn, "linear-part", 1e-5)
+    np.testing.assert_array_equal(n_dsc[0], np.broadcast_to(scn.controller.resolved("dsc")["neso_k2"], (3,)))
+    np.testing.assert_array_equal(n_ppc[0], np.broadcast_to(scn.controller.resolved("dsc-ppc")["neso_k2"], (3,)))

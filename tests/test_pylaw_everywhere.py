@@ -61,6 +61,7 @@ def test_a_python_law_runs_a_campaign_equal_to_the_builtin(tmp_path):
         assert r.returncode in (0, 1), r.stderr  # 1: the PD does not hold the paper's bound (expected)
         res[name] = json.loads((tmp_path / name / "montecarlo.json").read_text())
     assert res["py"]["runs"] == 4 and res["py"]["status"]["ok"] == 4  # none failed, crashed or invalid
+    assert res["py"]["law_name"] == "python-pd" and res["core"]["law_name"] == "pd"
     for k in ("worst_final_sigma_BD", "median_final_sigma_BD"):
         assert res["py"][k] == pytest.approx(res["core"][k], rel=1e-9, abs=1e-12), k
     assert res["py"]["holds_bound"] == res["core"]["holds_bound"]

@@ -179,7 +179,7 @@ def headline(res: dict[str, Any]) -> str:
     requirements (or, judged by the envelope alone or with none stated, held
     the prescribed bound), with its interval, and the worst final error."""
     worst = res["worst_final_sigma_BD"]
-    head = f"{res['runs']} runs of {res['scenario']} ({res['law']}), seed {res['seed']}: "
+    head = f"{res['runs']} runs of {res['scenario']} ({res.get('law_name') or res['law']}), seed {res['seed']}: "
     lo, hi = res["fraction_holding_bound_ci95"]
     bound = (f"{100 * res['fraction_holding_bound']:.1f} % hold the bound (95 % CI {100 * lo:.1f}-"
              f"{100 * hi:.1f} %)")

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.scenario.keys import scenario_data
-from sc_rt.scenario.model import Scenario
+from sc_rt.scenario.model import Scenario, law_identity
 from sc_rt.studies.campaign.backends import make_backend
 from sc_rt.studies.campaign.draws import Dispersion, draw_run, value_columns
 from sc_rt.studies.campaign.requirements import campaign_requirements, row_columns
@@ -223,6 +223,8 @@ def summarize(c: Campaign, store: RunStore, runs: int, confidence: float = 0.95,
     return {
         "scenario": c.scenario.name,
         "law": c.law or c.scenario.run.controller,
+        # its name (a plugin's or a Python law's, not its path)
+        "law_name": law_identity(c.law or c.scenario.run.controller)["name"],
         "control_rate_hz": c.control_rate_hz or c.scenario.run.control_rate_hz,
         "duration_s": c.scenario.run.duration,
         "runs": n, "runs_requested": runs, "complete": n == runs, "seed": c.seed,

@@ -86,9 +86,11 @@ def ppc_gain(scn: Scenario, t: float, ppc=None) -> tuple[np.ndarray, np.ndarray,
     return chi, np.array(res.r, float), -np.array(res.chi_dot, float) / chi
 
 
-def observer_gains(scn: Scenario, observer: str, amplitude: float) -> tuple[np.ndarray, np.ndarray]:
-    """The observer's linear gains (K1, K2) on e = z1 - x2: "linear-part" or "local-gain"."""
-    n = neso_params(scn)
+def observer_gains(scn: Scenario, observer: str, amplitude: float,
+                   law: str = "dsc-ppc") -> tuple[np.ndarray, np.ndarray]:
+    """The observer's linear gains (K1, K2) on e = z1 - x2 of ``law``'s table:
+    "linear-part" or "local-gain"."""
+    n = neso_params(scn, law)
     if observer == "linear-part":
         return np.array(n.k2, float), np.array(n.k4, float)
     if observer == "local-gain":
@@ -144,9 +146,10 @@ class SampledLoop:
         im = input_matrices(scn, inertia)
         self.B, self.Bp = im.B, im.B_pinv
         self.Bpl_healthy = im.B_plant
-        self.O = observer_map(*observer_gains(scn, observer, observer_amplitude), T,
-                              neso_params(scn).substeps)
-        self.g = dsc_gains(scn)
+        # the gains of the law studied, from its own table ([laws.dsc-ppc] or [laws.dsc])
+        self.O = observer_map(*observer_gains(scn, observer, observer_amplitude, law), T,
+                              neso_params(scn, law).substeps)
+        self.g = dsc_gains(scn, law)
         self.ppc = scn.core_config().ppc
         # plant x1' = x2/4, x2' = w (axis acceleration), ZOH over one period
         Pd = control.c2d(error_state_space(np.eye(3)), T, method="zoh")
