@@ -344,7 +344,7 @@ class Scenario:
         so that a controller built from the config in this process runs it."""
         msg = self.controller_config_msg(law, control_rate_hz)
         if is_python_law(msg.law):
-            register(msg.law)
+            msg.law = register(msg.law)  # its registry spec, "python:..." (file.py:Class given without it too)
         return _core.ControllerConfig.from_lcm_bytes(msg.encode())
 
 
