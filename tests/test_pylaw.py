@@ -279,3 +279,14 @@ def test_cli_refuses_a_bad_law_before_running(tmp_path):
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and "--law" in r.stderr and "nosuchmodule_xyz" in r.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_a_config_names_a_python_law_by_its_registry_spec_in_any_form():
+    """file.py:Class (without python:) in a config runs: the config carries
+    the spec the registry knows (before, the bench's telemetry names of such
+    a law were lost: the controller was refused as an unknown law)."""
+    scn = load_scenario("paper_faults")
+    for spec in (PD_SPEC, "python:" + PD_SPEC):
+        cfg = scn.core_config(law=spec)
+        assert cfg.law == "python:" + PD_SPEC
+        assert _core.Controller(cfg).law_name == "python-pd"
