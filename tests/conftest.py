@@ -106,6 +106,10 @@ SLOW_TESTS = (
     "tests/test_pylaw_everywhere.py::test_a_python_law_with_sensors_in_lockstep_equals_sim",
     "tests/test_pylaw_everywhere.py::test_a_python_law_runs_a_campaign_equal_to_the_builtin",
     "tests/test_law_tables.py::test_a_python_law_named_by_the_scenario_runs_in_lockstep_bitwise",
+    "tests/test_law_tables.py::test_a_log_written_before_the_change_still_reports",
+    "tests/test_record_stream.py::test_metrics_of_a_run_on_disk_equal_those_of_the_run_held_whole",
+    "tests/test_flight_wheels.py::test_lockstep_hil_is_bitwise_sim_with_flight_wheels_and_their_faults",
+    "tests/test_hil.py::test_lockstep_hil_is_bit_identical_to_offline_sim",
 )
 
 
