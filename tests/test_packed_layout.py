@@ -64,6 +64,7 @@ def test_closed_loop_fields_are_the_result_columns(scn):
         5, 2, 10.0)
     assert (res.pop("rows"), res.pop("diverged")) == (6, False)
     assert res.pop("law_failures") == {"reset": 0, "step": 0, "after": 0, "last": None}
+    assert res.pop("telemetry_names") == []  # the law's (dsc-ppc names none)
     assert list(res) == [n for n, _ in _core.CLOSED_LOOP_FIELDS]
     for name, width in _core.CLOSED_LOOP_FIELDS:
         assert res[name].shape == ((6,) if width == 1 else (6, width)), name

@@ -3,6 +3,7 @@
 #pragma once
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
 
 #include <cstddef>
 #include <iterator>
@@ -86,6 +87,7 @@ inline py::dict closed_loop_dict(const R& r, std::size_t ncols) {
   d["rows"] = r.rows;
   d["diverged"] = r.diverged;
   d["law_failures"] = law_failures_dict(r.law_failures);
+  d["telemetry_names"] = r.telemetry_names;
   for (std::size_t i = 0; i < ncols; ++i) d[kLoopColumns[i].name] = arr(r.*(kLoopColumns[i].v), kLoopColumns[i].width);
   py::array_t<int> flags(n), mode(n);
   std::copy(r.flags.begin(), r.flags.begin() + n, flags.mutable_data());

@@ -290,6 +290,7 @@ void bind_controllers(py::module_& m) {
              PlantState x{x0.segment<3>(0), x0.segment<3>(3), x0.segment<4>(6)};
              auto c = std::make_unique<ChunkedLoop>();
              c->loop = std::make_unique<ClosedLoop>(cfg, plant, act, x, n_ctrl, n_sub, rate);
+             c->buf.telemetry_names = c->loop->telemetry_names();
              return c;
            }),
            arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"))
@@ -313,6 +314,8 @@ void bind_controllers(py::module_& m) {
           "Up to rows more control instants (fewer at the end or where the plant diverged): a dict\n"
           "as simulate_closed_loop's, of these rows only.")
       .def_property_readonly("done", [](const ChunkedLoop& c) { return c.loop->done(); })
+      .def_property_readonly("telemetry_names", [](const ChunkedLoop& c) { return c.loop->telemetry_names(); },
+                             "the law's telemetry names: the columns of its telemetry")
       .def_property_readonly("next_row", [](const ChunkedLoop& c) { return c.loop->next_row(); });
 
   m.def(

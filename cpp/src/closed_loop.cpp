@@ -55,6 +55,7 @@ ClosedLoop::ClosedLoop(const ControllerConfig& cfg, const PlantParams& plant, co
 ClosedLoop::~ClosedLoop() = default;
 
 const LawFailures& ClosedLoop::law_failures() const { return ctl_->law_failures(); }
+const std::vector<std::string>& ClosedLoop::telemetry_names() const { return ctl_->telemetry_names(); }
 
 int ClosedLoop::run(int rows, ClosedLoopResult* out) {
   if (out && rows > 0 &&
@@ -141,6 +142,7 @@ ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantPa
   loop.run(n_ctrl + 1, &r);
   r.diverged = loop.diverged();
   r.law_failures = loop.law_failures();
+  r.telemetry_names = loop.telemetry_names();
   return r;
 }
 

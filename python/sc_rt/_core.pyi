@@ -650,6 +650,11 @@ class ClosedLoop:
     @property
     def next_row(self) -> int:
         ...
+    @property
+    def telemetry_names(self) -> list[str]:
+        """
+        the law's telemetry names: the columns of its telemetry
+        """
 class LawModel:
     """
     What the controller knows of the spacecraft (sc_rt/law.hpp): a law's setup.model.

@@ -50,7 +50,7 @@ import numpy as np
 from sc_rt import _core
 
 __all__ = ["PYTHON_PREFIX", "TELEMETRY", "LawParamError", "LawSetup", "is_python_law", "load_law",
-           "law_label", "law_spec", "register", "FLAG_LAW_INVALID"]
+           "law_label", "law_spec", "register", "split_unit", "FLAG_LAW_INVALID"]
 
 #: the prefix of a Python law's spec: ``law = "python:file.py:Class"``
 PYTHON_PREFIX = "python:"
@@ -135,6 +135,12 @@ def load_law(spec: str) -> type:
         if not callable(getattr(cls, meth, None)):
             raise ValueError(f"--law {spec!r}: {cls_name} has no {meth}() method")
     return cls
+
+
+def split_unit(name: str) -> tuple[str, str]:
+    """("tau_x", "N m") of a telemetry name declared "tau_x [N m]"; (name, "") without a unit."""
+    base, sep, rest = name.partition(" [")
+    return (base, rest[:-1]) if sep and rest.endswith("]") else (name, "")
 
 
 def law_label(cls: type) -> str:
@@ -239,7 +245,7 @@ class _Adapter:
         self.used = sorted(params.read)
         # a value by its declared name, or by the name without its unit ("tau_x" for "tau_x [N m]")
         self._index = {k: _NAMED + i for i, k in enumerate(self.names)}
-        self._index.update({k.split(" [", 1)[0]: _NAMED + i for i, k in enumerate(self.names)})
+        self._index.update({split_unit(k)[0]: _NAMED + i for i, k in enumerate(self.names)})
         self.after = self._after if callable(getattr(law, "after", None)) else None
 
     def reset(self, inp) -> None:

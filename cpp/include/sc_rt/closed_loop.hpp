@@ -3,6 +3,7 @@
 // zero-order hold. Same loop, same order of operations as python/sc_rt/sim/engines.py.
 #pragma once
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "sc_rt/controllers.hpp"
@@ -15,6 +16,7 @@ struct ClosedLoopResult {
   int rows = 0;           //!< rows written (n_ctrl + 1 unless diverged)
   bool diverged = false;  //!< the plant state became non-finite
   LawFailures law_failures;  //!< the law's contained failures (Controller::law_failures)
+  std::vector<std::string> telemetry_names;  //!< the law's (Controller::telemetry_names): the telemetry columns
   // One row per control instant, row-major, widths as named.
   std::vector<double> t;                                           // 1
   std::vector<double> sigma_BN, omega_BN_B, sigma_DN, sigma_BD;    // 3
@@ -55,6 +57,8 @@ class ClosedLoop {
   int next_row() const { return k_; }  //!< the index of the next control instant
   const PlantState& state() const { return x_; }  //!< the plant state at next_row()'s instant
   const LawFailures& law_failures() const;
+  //! the law's telemetry names (the columns of ClosedLoopResult::telemetry)
+  const std::vector<std::string>& telemetry_names() const;
 
  private:
   PlantParams plant_;  // copies: the loop outlives its caller's arguments (chunked runs)

@@ -37,22 +37,13 @@ import sc_rt_lcm
 from sc_rt import _core
 from sc_rt.wire.auth import open_bus
 from sc_rt.wire.lcmio import channel
-from sc_rt.wire.codec import decode_as
+from sc_rt.results.fields import packed_layout
+from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, decode_as
 
-__all__ = ["PyControllerProcess", "nearest_rank", "write_summary", "STATUS_FROM_COMMAND"]
+__all__ = ["PyControllerProcess", "nearest_rank", "write_summary"]
 
-#: controller_status_t's fields from the core's Command, same name
-#: (translate.cpp's fill_status, whose twin this is)
-STATUS_FROM_COMMAND = ("sigma_DN", "sigma_BD", "omega_BD_B", "e1", "e2", "z1", "z2", "chi", "lam", "u_cmd",
-                       "u_sat", "vs", "x2d", "telemetry")
-#: the estimator's status fields: status field -> _core.NAV_FIELDS name (fill_nav_status's twin)
-STATUS_FROM_NAV = {"sigma_BN_est": "sigma_BN_est", "bias_est": "bias_est", "P_diag": "P_diag",
-                   "innovation": "innovation"}
-_NAV: dict[str, slice] = {}
-_o = 0
-for _name, _n in _core.NAV_FIELDS:
-    _NAV[_name] = slice(_o, _o + _n)
-    _o += _n
+#: the estimator's telemetry (_core.SensorIntake.measure's) by name
+_NAV: dict[str, slice] = packed_layout(_core.NAV_FIELDS, _core.NAV_SIZE)
 
 _STATE_SIZE = len(sc_rt_lcm.plant_state_t().encode())
 _V = _core.GateVerdict
@@ -235,19 +226,23 @@ class PyControllerProcess:
         s = sc_rt_lcm.controller_status_t()
         s.utime, s.cmd_seq, s.session, s.state_seq, s.t = c.utime, self._cmd_seq, self.session, state_seq, c.t
         s.law, s.mode, s.flags = self.ctl.law_code, c.mode, flags  # a Python law: -1 (its name: controller_info_t)
-        for name in STATUS_FROM_COMMAND:
-            setattr(s, name, [float(v) for v in getattr(cmd, name)])
-        s.rho_hat, s.n_telemetry = cmd.rho_hat, len(self.ctl.telemetry_names)
+        # the status-to-run table (wire/codec.py), read backwards: the Command's fields of those names
+        # (translate.cpp's fill_status, whose twin this is), and the command itself
+        for name in STATUS_RUN_FIELDS + ("u_cmd", "u_sat"):
+            v = getattr(cmd, name)
+            setattr(s, name, float(v) if isinstance(v, float) else [float(x) for x in v])
+        s.n_telemetry = len(self.ctl.telemetry_names)
         s.wake_lateness_us, s.compute_us, s.state_age_us = late_us, comp_us, age_us
         s.steps, s.deadline_misses = self.cnt["steps"], self.cnt["deadline_misses"]
         s.stale_states, s.rejected = self.cnt["stale_steps"], self.gate.counts().rejected
         if self.intake is not None:
             tel = self._nav_tel
             s.nav = True
-            if tel is not None:
-                for field, name in STATUS_FROM_NAV.items():
-                    setattr(s, field, tel[_NAV[name]].tolist())
-                s.nis, s.nav_flags = float(tel[_NAV["nis"]][0]), int(tel[_NAV["nav_flags"]][0])
+            if tel is not None:  # fill_nav_status's twin: the status fields of the run's names
+                for name in STATUS_NAV_FIELDS:
+                    v = tel[_NAV[name]]
+                    setattr(s, name, float(v[0]) if v.size == 1 else v.tolist())
+                s.nav_flags = int(tel[_NAV["nav_flags"]][0])
             c_ = self.intake.counts()
             s.gyro_used, s.star_used, s.tach_used = (int(v) for v in c_.used)
             s.sensor_rejected = c_.rejected

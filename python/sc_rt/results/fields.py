@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "COLUMNS", "SOURCES", "empty_arrays"]
+__all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "COLUMNS", "SOURCES", "empty_arrays", "packed_layout"]
 
 SOURCES = ("plant", "controller", "truth", "timing", "derived", "estimator")
 
@@ -132,3 +132,17 @@ assert all(f.source in SOURCES for f in FIELDS)
 def empty_arrays(n: int) -> dict[str, np.ndarray]:
     """Every field of ``n`` rows at its fill value."""
     return {f.name: np.full((n, *f.shape), f.fill, dtype=f.dtype) for f in FIELDS}
+
+
+def packed_layout(fields, size: int) -> dict[str, slice]:
+    """name -> slice of a packed row of the core (``_core.PACKED_FIELDS``,
+    ``_core.NAV_FIELDS``: (name, width) in the order the C++ writes them);
+    ValueError when the widths do not add up to ``size``."""
+    out: dict[str, slice] = {}
+    at = 0
+    for name, n in fields:
+        out[name] = slice(at, at + n)
+        at += n
+    if at != size:
+        raise ValueError(f"the packed fields add up to {at}, not {size}")
+    return out

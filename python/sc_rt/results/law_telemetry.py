@@ -12,23 +12,10 @@ from typing import Any
 
 import numpy as np
 
+from sc_rt.pylaw import split_unit
 from sc_rt.results.run import Run
 
-__all__ = ["TelemetryAcc", "telemetry_summary", "telemetry_table", "split_unit"]
-
-
-def split_unit(name: str) -> tuple[str, str]:
-    """("tau_x", "N m") of a declared "tau_x [N m]"; (name, "") without a unit."""
-    base, sep, rest = name.partition(" [")
-    return (base, rest[:-1]) if sep and rest.endswith("]") else (name, "")
-
-
-def _series(run: Run) -> list[tuple[str, str, int | None]]:
-    """(label, run field, column or None) of the telemetry a run holds."""
-    out: list[tuple[str, str, int | None]] = []
-    for i, name in enumerate(run.meta.telemetry_names):
-        out.append((name, "telemetry", i))
-    return out
+__all__ = ["TelemetryAcc", "telemetry_summary", "telemetry_table"]
 
 
 class TelemetryAcc:
@@ -36,33 +23,30 @@ class TelemetryAcc:
     were used, a chunk at a time (the metrics' pass over a run on disk)."""
 
     def __init__(self, run: Run):
-        self.series = _series(run)
-        self.stats = {label: [math.nan, math.inf, -math.inf, 0] for label, _, _ in self.series}
+        self.names = tuple(run.meta.telemetry_names)  # column i of the run's telemetry
+        self.stats = [[math.nan, math.inf, -math.inf, 0] for _ in self.names]  # final, min, max, finite rows
         self.used = {"x2d": False, "rho_hat": False}
 
     def add(self, c: Run) -> None:
-        for label, field, col in self.series:
-            v = np.asarray(c[field], float)
-            v = v[:, col] if col is not None else v
-            ok = v[np.isfinite(v)]
-            s = self.stats[label]
-            if ok.size:
-                s[0] = float(ok[-1])
-                s[1], s[2] = min(s[1], float(ok.min())), max(s[2], float(ok.max()))
-                s[3] += int(ok.size)
+        if self.names:
+            tel = np.asarray(c["telemetry"], float)
+            for i, s in enumerate(self.stats):
+                ok = tel[:, i][np.isfinite(tel[:, i])]
+                if ok.size:
+                    s[0] = float(ok[-1])
+                    s[1], s[2] = min(s[1], float(ok.min())), max(s[2], float(ok.max()))
+                    s[3] += int(ok.size)
         for slot in self.used:
             if slot in c:
                 v = np.asarray(c[slot], float)
                 self.used[slot] = self.used[slot] or bool(np.any(np.isfinite(v) & (v != 0.0)))
 
-
     def summary(self) -> dict[str, Any]:
         """``{"names": [...], "values": {name: {unit, final, min, max}}, "fixed_slots_used": [...]}``."""
-        values = {}
-        for label, (final, lo, hi, n) in self.stats.items():
-            values[label] = {"unit": split_unit(label)[1], "final": final if n else None,
-                             "min": lo if n else None, "max": hi if n else None}
-        return {"names": [label for label, _, _ in self.series], "values": values,
+        values = {name: {"unit": split_unit(name)[1], "final": final if n else None, "min": lo if n else None,
+                         "max": hi if n else None}
+                  for name, (final, lo, hi, n) in zip(self.names, self.stats)}
+        return {"names": list(self.names), "values": values,
                 "fixed_slots_used": [k for k, v in self.used.items() if v]}
 
 

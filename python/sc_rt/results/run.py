@@ -20,6 +20,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from sc_rt.pylaw import split_unit
 from sc_rt.results.fields import COLUMNS, CORE_FIELDS, FIELD, FIELDS, Field, empty_arrays
 from sc_rt.results.jsonsafe import json_safe, write_json
 from sc_rt.results.meta import RunMeta
@@ -272,7 +273,7 @@ class Run:
         ``self["telemetry"][:, i]`` with i its place in
         ``meta.telemetry_names``. KeyError naming the declared ones."""
         names = list(self.meta.telemetry_names)
-        bare = [n.split(" [", 1)[0] for n in names]
+        bare = [split_unit(n)[0] for n in names]
         i = names.index(name) if name in names else bare.index(name) if name in bare else None
         if i is None:
             raise KeyError(f"{name!r}: the law's telemetry names are {names}")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["loop_columns", "LAW_FAILURES"]
+__all__ = ["loop_columns", "LAW_FAILURES", "TELEMETRY_NAMES"]
 
 
 def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[str, str]) -> dict[str, np.ndarray]:
@@ -27,3 +27,8 @@ def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[st
 #: ``simulate`` beside its columns; ``simulate`` moves them to the run's
 #: metrics (``law_failures``). Not a run field.
 LAW_FAILURES = "_law_failures"
+
+#: The key under which an engine hands the law's telemetry names
+#: (``Controller.telemetry_names``: what the run's ``telemetry`` columns hold)
+#: to ``simulate``, which puts them in the run's meta. Not a run field.
+TELEMETRY_NAMES = "_telemetry_names"

@@ -17,6 +17,7 @@ same numbers to the last bit as ``engine="python"``.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import math
@@ -30,8 +31,8 @@ from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
 from sc_rt.pylaw import is_python_law, register
 from sc_rt.results.metrics import finish_run, record_law_failures
-from sc_rt.sim.columns import LAW_FAILURES, loop_columns
-from sc_rt.results.fields import COLUMNS
+from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, loop_columns
+from sc_rt.results.fields import COLUMNS, packed_layout
 from sc_rt.results.run import FIELD, Run, RunMeta
 from sc_rt.results.store import remove_with, scratch_dir
 from sc_rt.scenario.model import Scenario
@@ -47,12 +48,7 @@ ENGINES = ("python", "cpp", "unsampled")
 
 #: Layout of _core.step_packed's output (name -> slice), from the C++ list
 #: _core.PACKED_FIELDS ((name, width) in the order the C++ writes them).
-PACKED: dict[str, slice] = {}
-_o = 0
-for _name, _n in _core.PACKED_FIELDS:
-    PACKED[_name] = slice(_o, _o + _n)
-    _o += _n
-assert _o == _core.PACKED_SIZE
+PACKED: dict[str, slice] = packed_layout(_core.PACKED_FIELDS, _core.PACKED_SIZE)
 
 #: Packed telemetry recorded in the run: run field -> packed name.
 RECORDED = {"u_cmd": "u_cmd", "u_sat": "u_sat", "sigma_DN": "sigma_DN", "sigma_BD": "sigma_BD",
@@ -101,7 +97,7 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
             diverged = True
             break
     cols = loop_columns(T, X, ACC, D2, OUT, PACKED, RECORDED)
-    cols[LAW_FAILURES] = ctl.law_failures
+    cols[LAW_FAILURES], cols[TELEMETRY_NAMES] = ctl.law_failures, ctl.telemetry_names
     return cols, rows, diverged
 
 
@@ -120,12 +116,14 @@ def cpp_loop_args(scn: Scenario) -> tuple:
 OFFLINE_CHUNK_ROWS = 65_536
 
 
-def _run_cpp_chunked(scn: Scenario, path: Path, meta: RunMeta) -> tuple[int, bool, dict, float]:
+def _run_cpp_chunked(scn: Scenario, path: Path, meta: RunMeta) -> tuple[int, bool, dict, float, RunMeta]:
     """The C++ loop a chunk at a time, each chunk's rows appended to ``path``
-    (trajectory.arrow): (rows, diverged, the law's failures, the last row's t)."""
+    (trajectory.arrow): (rows, diverged, the law's failures, the last row's t,
+    ``meta`` with the law's telemetry names)."""
     from sc_rt.results.store import ChunkFile
 
     loop = _core.ClosedLoop(*cpp_loop_args(scn))
+    meta = dataclasses.replace(meta, telemetry_names=tuple(loop.telemetry_names))
     w = ChunkFile(path, COLUMNS,
                   {"sc-rt:meta": json.dumps(meta.to_json())})
     rows, diverged, failures, t_end = 0, False, {}, 0.0
@@ -134,6 +132,7 @@ def _run_cpp_chunked(scn: Scenario, path: Path, meta: RunMeta) -> tuple[int, boo
         n = int(res.pop("rows"))
         diverged = bool(res.pop("diverged"))
         failures = res.pop("law_failures")
+        res.pop("telemetry_names")
         if n == 0:
             break
         cols = Run(meta, res, rows=n)  # every field, the ones the loop does not fill at their fill value
@@ -141,18 +140,18 @@ def _run_cpp_chunked(scn: Scenario, path: Path, meta: RunMeta) -> tuple[int, boo
         rows += n
         t_end = float(cols.t[-1])
     w.close()
-    return rows, diverged, failures, t_end
+    return rows, diverged, failures, t_end, meta
 
 
 def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     res = _core.simulate_closed_loop(*cpp_loop_args(scn))
     rows = int(res.pop("rows"))
     diverged = bool(res.pop("diverged"))
-    failures = res.pop("law_failures")
+    failures, names = res.pop("law_failures"), res.pop("telemetry_names")
     unknown = set(res) - set(FIELD)
     if unknown:  # the C++ loop names its columns after the run's fields
         raise RuntimeError(f"simulate_closed_loop returned columns the run does not declare: {sorted(unknown)}")
-    return {**res, LAW_FAILURES: failures}, rows, diverged
+    return {**res, LAW_FAILURES: failures, TELEMETRY_NAMES: names}, rows, diverged
 
 
 def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
@@ -205,8 +204,6 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         law = register(law)
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz,
                          duration=duration, plant_step=plant_step)
-    # the law's telemetry names, from the law as configured (what the run's telemetry columns hold)
-    names = () if engine == "unsampled" else tuple(_core.Controller(scn.core_config()).telemetry_names)
     t0 = time.perf_counter()
     n_rows = grid(scn).n_ctrl + 1
     if engine == "cpp" and scn.sensors is None and n_rows > OFFLINE_CHUNK_ROWS:  # on disk as it runs
@@ -214,9 +211,8 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         record_dir = tmp or record_dir
         Path(record_dir).mkdir(parents=True, exist_ok=True)
         path = Path(record_dir) / "trajectory.arrow"
-        rows, diverged, failures, t_end = _run_cpp_chunked(scn, path, RunMeta.of_scenario(scn, engine))
-        run = Run.stored(RunMeta.of_scenario(scn, engine, wall_s=time.perf_counter() - t0, telemetry_names=names),
-                         path, diverged=diverged)
+        rows, diverged, failures, t_end, meta = _run_cpp_chunked(scn, path, RunMeta.of_scenario(scn, engine))
+        run = Run.stored(dataclasses.replace(meta, wall_s=time.perf_counter() - t0), path, diverged=diverged)
         if tmp is not None:
             remove_with(run, tmp)  # a temporary directory lasts as long as the run
         return _finished(run, scn, rows, failures, t_end)
@@ -234,6 +230,7 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         cols, rows, diverged = run_unsampled(scn)
     wall = time.perf_counter() - t0
     failures = cols.pop(LAW_FAILURES, None)
+    names = tuple(cols.pop(TELEMETRY_NAMES, ()))  # the law's, as its controller gave them (none: unsampled)
     meta = RunMeta.of_scenario(scn, engine, wall_s=wall, telemetry_names=names)
     run = Run(meta, cols, rows=rows, diverged=diverged)
     return _finished(run, scn, rows, failures, float(run.t[-1]) if rows else 0.0)

@@ -27,21 +27,17 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
+from sc_rt.results.fields import packed_layout
 from sc_rt.results.run import FIELD
 from sc_rt.scenario.overrides import grid, initial_state
 from sc_rt.scenario.schema import ScenarioError, ScenarioIssue
 from sc_rt.scenario.sensors import nav_config
-from sc_rt.sim.columns import LAW_FAILURES, loop_columns
+from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, loop_columns
 
 __all__ = ["run_sensed", "NAV", "NAV_RECORDED"]
 
 #: Layout of Navigation.measure's telemetry (name -> slice), from _core.NAV_FIELDS.
-NAV: dict[str, slice] = {}
-_o = 0
-for _name, _n in _core.NAV_FIELDS:
-    NAV[_name] = slice(_o, _o + _n)
-    _o += _n
-assert _o == _core.NAV_SIZE
+NAV: dict[str, slice] = packed_layout(_core.NAV_FIELDS, _core.NAV_SIZE)
 
 #: The navigation telemetry the run records (run field = telemetry name).
 NAV_RECORDED = ("sigma_BN_est", "bias_est", "bias_true", "P_diag", "att_est_error", "innovation", "nis")
@@ -109,7 +105,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
         v = NAVT[:, NAV[name]]
         cols[name] = v[:, 0] if v.shape[1] == 1 else v
     cols["flags"] |= np.nan_to_num(NAVT[:, NAV["nav_flags"]][:, 0]).astype(np.int64)
-    cols[LAW_FAILURES] = ctl.law_failures
+    cols[LAW_FAILURES], cols[TELEMETRY_NAMES] = ctl.law_failures, ctl.telemetry_names
     return cols, rows, diverged
 
 
@@ -121,11 +117,11 @@ def _run_cpp(scn):
         _config(scn))
     rows = int(res.pop("rows"))
     diverged = bool(res.pop("diverged"))
-    failures = res.pop("law_failures")
+    failures, names = res.pop("law_failures"), res.pop("telemetry_names")
     unknown = set(res) - set(FIELD)
     if unknown:
         raise RuntimeError(f"simulate_closed_loop_sensed returned columns the run does not declare: {sorted(unknown)}")
-    return {**res, LAW_FAILURES: failures}, rows, diverged
+    return {**res, LAW_FAILURES: failures, TELEMETRY_NAMES: names}, rows, diverged
 
 
 def run_sensed(scn, engine: str, packed: dict[str, slice], recorded: dict[str, str]):

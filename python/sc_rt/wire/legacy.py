@@ -20,15 +20,15 @@ from collections import Counter
 import numpy as np
 import sc_rt_lcm
 
-from sc_rt.wire.codec import decode_array
+from sc_rt.wire.codec import decode_array, numpy_dtype
 
 __all__ = ["LEGACY", "upgrade", "decode_current"]
 
 #: the old layout's class -> the current one it becomes
 LEGACY = {sc_rt_lcm.controller_config_v1_t: sc_rt_lcm.controller_config_t,
           sc_rt_lcm.controller_status_v1_t: sc_rt_lcm.controller_status_t}
-#: a fixed-size current type -> its old layout (read by decode_current)
-_FIXED_OLD = {sc_rt_lcm.controller_status_t: sc_rt_lcm.controller_status_v1_t}
+#: a fixed-size current type -> its old layout (read by decode_current; the others: upgrade)
+_FIXED_OLD = {new: old for old, new in LEGACY.items() if numpy_dtype(new) is not None}
 
 
 def decode_current(cls, datas: list[bytes], counts: Counter | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -80,13 +80,8 @@ def _law_table(m) -> list[tuple[str, list[float]]]:
 
 
 def upgrade(m):
-    """A message of a legacy layout as its current type (others unchanged)."""
-    if isinstance(m, sc_rt_lcm.controller_status_v1_t):
-        new = sc_rt_lcm.controller_status_t()
-        for name in m.__slots__:
-            setattr(new, name, getattr(m, name))
-        new.x2d, new.rho_hat, new.telemetry = [float("nan")] * 3, float("nan"), [float("nan")] * 8
-        return new
+    """A message of a legacy layout of a variable-size type as its current
+    type (others unchanged; the fixed-size ones are read by decode_current)."""
     if not isinstance(m, sc_rt_lcm.controller_config_v1_t):
         return m
     from sc_rt import _core
