@@ -106,7 +106,7 @@ def main() -> None:
             reads.append(d.decode_s)
         assert d.events == n and d.undecodable == 0, (d.events, d.undecodable)
         # the run rebuilt from the log: one row per plant state, the run's
-        # fields in Rebuilt.arrays (sc_rt.results.run.FIELDS)
+        # fields in Rebuilt.arrays (sc_rt.results.record.run.FIELDS)
         t0 = time.perf_counter()
         r = rebuild(d)
         res["rebuild_s"] = time.perf_counter() - t0

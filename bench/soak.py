@@ -217,7 +217,7 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
         raise RuntimeError(f"sc-rt hil exited {p.returncode}: {stderr[-2000:]}")
     timing = json.loads((out / "timing.json").read_text())
     summary = json.loads((out / "controller_summary.json").read_text())
-    from sc_rt.results.run import Run
+    from sc_rt.results.record.run import Run
 
     tr = Run.load(out)  # trajectory.npz, or trajectory.arrow read a chunk at a time
     rows, steps = timing["rows"], summary["steps"]

@@ -13,8 +13,8 @@ comments and docstrings of python/, cpp/, tests/, bench/ and examples/:
     as a member of the class body or an out-of-line definition; and a
     CamelCase name (``DscController``) or a backticked snake_case code name
     still occurs in the code (comments and docstrings do not count);
-(c) the equation numbers the run fields of python/sc_rt/results/run.py (and
-    RunMeta's, results/meta.py) cite
+(c) the equation numbers the run fields of python/sc_rt/results/record/run.py (and
+    RunMeta's, results/record/meta.py) cite
     are the numbers docs/MODEL.md gives the same quantity, read from
     MODEL.md's text.
 
@@ -35,8 +35,8 @@ ROOT = Path(__file__).resolve().parent.parent
 PKG = ROOT / "python" / "sc_rt"
 CPP = ROOT / "cpp"
 MODEL = ROOT / "docs" / "MODEL.md"
-RUN = PKG / "results" / "run.py"
-META = PKG / "results" / "meta.py"  # RunMeta, whose attributes cite equations too
+RUN = PKG / "results" / "record" / "run.py"
+META = PKG / "results" / "record" / "meta.py"  # RunMeta, whose attributes cite equations too
 
 DOCS = [*sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md"]
 CODE_DIRS = ("python", "cpp", "tests", "bench", "examples")
@@ -658,7 +658,7 @@ def model_numbers(text: str | None = None) -> dict[str, set[int]]:
 
 def run_field_citations() -> dict[str, set[int]]:
     """run field (or RunMeta attribute) -> the equation numbers its doc cites."""
-    from sc_rt.results.run import FIELDS
+    from sc_rt.results.record.run import FIELDS
 
     out = {f.name: _numbers(f.doc) for f in FIELDS}
     for m in re.finditer(r"#:([^\n]*)\n\s*(\w+)\s*:", read(RUN) + read(META)):

@@ -7,7 +7,7 @@ import matplotlib
 import numpy as np
 import pytest
 
-from sc_rt.results import figures
+from sc_rt.results.present import figures
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
@@ -90,7 +90,7 @@ def test_safe_spans_are_shaded(captured, tmp_path):
 
 
 def test_lockstep_timing_figure_has_no_empty_wake_panel(captured, tmp_path):
-    from sc_rt.results.run import Run, RunMeta
+    from sc_rt.results.record.run import Run, RunMeta
 
     scn = load_scenario("paper_faults")
     n = 50
@@ -118,7 +118,7 @@ def test_requirement_figures_draw_each_bound_over_its_span(requirements_run, cap
     their total momentum against the bounds; wheel_commands.png follows the
     commands, not the saturation limits."""
     run = requirements_run
-    from sc_rt.results.requirement_figures import requirement_figures
+    from sc_rt.results.present.requirement_figures import requirement_figures
 
     names = {p.name for p in requirement_figures(run, tmp_path)}
     assert names == {"requirements.png", "wheel_speeds.png"}

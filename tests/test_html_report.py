@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.results.html_report import render_html, timing_text, verdict_items, write_html_report
+from sc_rt.results.present.html_report import render_html, timing_text, verdict_items, write_html_report
 
 import lcmnet
 
@@ -227,7 +227,7 @@ def test_report_opens_with_the_requirement_table_in_chromium(tmp_path):
     requirement table (value, bound, margin, result) and the verdict is the
     requirements', green when all are met; a scenario without any says "no
     requirements stated", never "Bound violated"."""
-    from sc_rt.results.output import write_run
+    from sc_rt.results.present.output import write_run
     from sc_rt.sim.engines import simulate
     from sc_rt.scenario.reader import load_scenario
 

@@ -50,7 +50,7 @@ from collections import Counter
 from pathlib import Path
 import test_inbox as T
 from sc_rt.emulator.inbox import INBOX_COLUMNS
-from sc_rt.results.store import ChunkFile, ChunkReader, RowRing
+from sc_rt.results.record.store import ChunkFile, ChunkReader, RowRing
 n, chunk = 100_000, 2_000
 before = T._rss_kb()
 f = ChunkFile(Path(sys.argv[1]) / "inbox.arrow", INBOX_COLUMNS)

@@ -12,7 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from sc_rt.results.output import LOCK, MANIFEST
+from sc_rt.results.present.output import LOCK, MANIFEST
 
 ARGS = ["sim", "paper_fault_free", "--engine", "cpp", "--duration", "2"]
 

@@ -112,9 +112,9 @@ def test_validation_names_the_bad_value(field, value, fragment):
 
 
 def test_vectorised_envelope_equals_the_cores():
-    """results.metrics.prescribed_chi (numpy over all rows, used by the bound
+    """results.judge.metrics.prescribed_chi (numpy over all rows, used by the bound
     check and the figures) is the core's chi(t) (29) at every sample."""
-    from sc_rt.results.metrics import prescribed_chi
+    from sc_rt.results.judge.metrics import prescribed_chi
     from sc_rt.scenario.reader import load_scenario
 
     scn = load_scenario("paper_faults")

@@ -1,7 +1,7 @@
 """Numpydoc sections on the public API of ``sc_rt`` (issue #24, item 6).
 
 Every name of ``sc_rt._API`` but FIELDS (a tuple, documented where it is
-defined, python/sc_rt/results/run.py): a function documents each parameter
+defined, python/sc_rt/results/record/run.py): a function documents each parameter
 of its signature in "Parameters" (``*args`` / ``**kwargs`` spelled with their
 stars) and has "Returns"; a class documents its dataclass fields or its
 ``__init__`` parameters in "Parameters" or "Attributes". A section is a

@@ -1,5 +1,5 @@
 """Runs on disk (issue #31, item 2): the rows of a long run go to an Arrow
-IPC file a chunk at a time (results/store.py), and everything after the run
+IPC file a chunk at a time (results/record/store.py), and everything after the run
 reads them back a chunk at a time.
 
 Checked against what does not share the chunked code: the same run held
@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.results.metrics import finish_run
-from sc_rt.results.run import FIELDS, Run
-from sc_rt.results.store import ChunkFile, ChunkReader, RowRing
+from sc_rt.results.judge.metrics import finish_run
+from sc_rt.results.record.run import FIELDS, Run
+from sc_rt.results.record.store import ChunkFile, ChunkReader, RowRing
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
@@ -153,8 +153,8 @@ def test_lockstep_run_written_as_it_runs_is_bit_identical_to_offline_sim(tmp_pat
 def test_the_report_of_a_run_on_disk_draws_the_timeline_of_the_run_held_whole(tmp_path):
     import re
 
-    from sc_rt.results.html_report import render_html
-    from sc_rt.results.output import write_run
+    from sc_rt.results.present.html_report import render_html
+    from sc_rt.results.present.output import write_run
 
     scn = load_scenario(ROOT / "scenarios" / "paper_faults.toml")
     whole = simulate(scn, engine="cpp", duration=60.0)  # faults, SAFE-free, bound left on one axis
@@ -194,7 +194,7 @@ def test_a_long_cpp_run_goes_to_disk_as_it_runs_bit_identical_to_the_run_held_wh
 
 @pytest.mark.parametrize("stored", [False, True])
 def test_record_every_keeps_every_nth_row_and_judges_every_row(tmp_path, monkeypatch, stored):
-    from sc_rt.results.output import write_run
+    from sc_rt.results.present.output import write_run
     from sc_rt.sim import engines
 
     text = (ROOT / "scenarios" / "paper_faults.toml").read_text()
@@ -231,8 +231,8 @@ def test_a_bad_record_every_names_the_key_and_its_line(tmp_path):
 _LOCKED = """
 import ctypes, sys
 import numpy as np
-from sc_rt.results.run import FIELDS
-from sc_rt.results.store import ChunkFile
+from sc_rt.results.record.run import FIELDS
+from sc_rt.results.record.store import ChunkFile
 def rss():
     return next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith("VmRSS"))
 cols = [(f.name, f.shape, f.dtype, f.fill) for f in FIELDS]

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from sc_rt import _core
-from sc_rt.results.metrics import fill_tracking_errors
-from sc_rt.results.run import Run
+from sc_rt.results.judge.metrics import fill_tracking_errors
+from sc_rt.results.record.run import Run
 from sc_rt.scenario.model import ScenarioError
 from sc_rt.scenario.reader import load_scenario, with_run
 
@@ -227,7 +227,7 @@ def test_shipped_slew_scenario():
 
 def test_fill_tracking_errors_uses_the_slew():
     s = load_scenario("slew_rest_to_rest")
-    from sc_rt.results.run import RunMeta
+    from sc_rt.results.record.run import RunMeta
 
     t = np.arange(0, 1501) / 10.0
     run = Run.allocate(len(t), RunMeta.of_scenario(s, "test"))  # no controller telemetry

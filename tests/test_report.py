@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from sc_rt.wire import codec as wire
-from sc_rt.results.run import CORE_FIELDS
+from sc_rt.results.record.run import CORE_FIELDS
 from sc_rt.logs.report import read_log, write_report
 
 import figcheck

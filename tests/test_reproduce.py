@@ -102,8 +102,8 @@ def touching(scn, row: int, axis: int, side: float) -> np.ndarray:
 
 def synthetic_run(scn, law: str, sigma_BD: np.ndarray, *, omega_BD_B=None, u_cmd=None, z2=None):
     """A run of these arrays, its bound check and metrics made by sc_rt.results (as for a simulation)."""
-    from sc_rt.results.metrics import finish_run
-    from sc_rt.results.run import Run, RunMeta
+    from sc_rt.results.judge.metrics import finish_run
+    from sc_rt.results.record.run import Run, RunMeta
 
     n = len(T)
     u = np.zeros((n, 4)) if u_cmd is None else u_cmd

@@ -1,6 +1,6 @@
 """The requirements across the runs of a campaign (issue #27, items 3 and 6;
 sc_rt.studies.campaign.requirements, sc_rt.studies.campaign.stats,
-sc_rt.results.ensemble, docs/REQUIREMENTS.md section 4).
+sc_rt.results.judge.ensemble, docs/REQUIREMENTS.md section 4).
 
 Every statistic is checked against something computed independently here:
 
@@ -30,9 +30,9 @@ import numpy as np
 import pytest
 from scipy.stats import binom, binomtest
 
-from sc_rt.results.ensemble import bin_width, campaign_series, n_bins
-from sc_rt.results.metrics import finish_run
-from sc_rt.results.run import Run, RunMeta
+from sc_rt.results.judge.ensemble import bin_width, campaign_series, n_bins
+from sc_rt.results.judge.metrics import finish_run
+from sc_rt.results.record.run import Run, RunMeta
 from sc_rt.scenario.requirements import Requirement
 from sc_rt.studies.campaign.requirements import campaign_requirements, row_columns
 from sc_rt.studies.campaign.stats import (clopper_pearson_lower, hoeffding_lower, quantile_upper_rank,
@@ -350,6 +350,6 @@ def test_a_coverage_or_confidence_of_one_is_stated_not_a_crash():
     rows = [_row("ape", True, 10.0) for _ in range(20)]
     (s,) = campaign_requirements((APE,), rows, 300.0, 10.0, confidence=0.95, coverage=1.0)
     assert s["met_at_confidence"] is False and s["runs_needed_without_failure"] is None
-    from sc_rt.cli.campaign_text import requirement_lines
+    from sc_rt.studies.campaign.text import requirement_lines
 
     assert any("no finite number of runs" in line for line in requirement_lines([s], 0.95, 1.0))

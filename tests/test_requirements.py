@@ -1,5 +1,5 @@
 """The [[requirements]] of a scenario and their evaluation on a run (issue #27;
-sc_rt.scenario.requirements, sc_rt.results.requirements, docs/REQUIREMENTS.md).
+sc_rt.scenario.requirements, sc_rt.results.judge.requirements, docs/REQUIREMENTS.md).
 
 The statistics are checked against answers known by construction or computed
 here independently with numpy/scipy, never with the module's own helpers:
@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.results.metrics import finish_run
-from sc_rt.results.pointing import cone_vector, mrp_subtract, nearest_rank
-from sc_rt.results.run import Run, RunMeta
-from sc_rt.results.verdict import verdict_line
+from sc_rt.results.judge.metrics import finish_run
+from sc_rt.results.judge.pointing import cone_vector, mrp_subtract, nearest_rank
+from sc_rt.results.record.run import Run, RunMeta
+from sc_rt.results.judge.verdict import verdict_line
 from sc_rt.scenario.model import ScenarioError
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.requirements import Requirement
@@ -403,7 +403,7 @@ def test_knowledge_error_is_the_estimate_against_the_truth():
     assert ape["counterpart"] == {"kind": "AKE", "value": pytest.approx(ake["value"], rel=1e-12), "unit": "arcsec"}
     assert ake["counterpart"]["kind"] == "APE" and ake["counterpart"]["value"] == pytest.approx(ape["value"])
     assert rke["counterpart"]["kind"] == "RPE" and "beside it RPE" in rke["note"]
-    from sc_rt.results.html_requirements import requirements_table
+    from sc_rt.results.present.html_requirements import requirements_table
 
     html = requirements_table(run.metrics["requirements"])
     assert f"AKE {ake['value']:.4g} arcsec" in html and "beside it" in html
@@ -674,7 +674,7 @@ def test_compare_ranks_the_laws_by_margin_per_requirement(tmp_path, capsys):
 
 def test_the_mode_constants_are_the_cores():
     from sc_rt import _core
-    from sc_rt.results.pointing import FLAG_NAV_DEGRADED, MODE_NORMAL
+    from sc_rt.results.judge.pointing import FLAG_NAV_DEGRADED, MODE_NORMAL
 
     assert (MODE_NORMAL, FLAG_NAV_DEGRADED) == (_core.MODE_NORMAL, _core.FLAG_NAV_DEGRADED)
 
@@ -708,7 +708,7 @@ def test_a_requirement_in_the_normal_mode_leaves_the_safe_rows_out():
 
 
 def test_max_torque_is_the_commanded_body_torque_and_nav_ok_leaves_degraded_rows_out():
-    from sc_rt.results.pointing import FLAG_NAV_DEGRADED
+    from sc_rt.results.judge.pointing import FLAG_NAV_DEGRADED
 
     t = grid(30.0)
     u = np.zeros((len(t), 4))

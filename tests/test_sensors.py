@@ -385,8 +385,8 @@ def test_a_run_without_the_estimators_fields_gets_no_estimation_metrics():
     [sensors] scenario: the bound is judged on sigma_BD, no estimation metrics."""
     import dataclasses
 
-    from sc_rt.results.metrics import finish_run
-    from sc_rt.results.run import Run, RunMeta
+    from sc_rt.results.judge.metrics import finish_run
+    from sc_rt.results.record.run import Run, RunMeta
 
     scn = load_scenario(SENSED)
     base = simulate(dataclasses.replace(scn, sensors=None), engine="cpp", duration=5.0)

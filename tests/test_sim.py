@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.results.run import CORE_FIELDS
+from sc_rt.results.record.run import CORE_FIELDS
 from sc_rt.scenario.reader import load_scenario
-from sc_rt.results.output import write_run
+from sc_rt.results.present.output import write_run
 from sc_rt.scenario.overrides import with_overrides
 from sc_rt.sim.engines import simulate
 
@@ -134,8 +134,8 @@ def test_bound_check_is_independent_of_the_controller(scenarios):
 def _constructed_run(t, sigma_BD, ppc):
     """A run holding only t and sigma_BD (the rest at its fill values), its
     bound check and metrics computed as every producer does."""
-    from sc_rt.results.metrics import finish_run
-    from sc_rt.results.run import Run, RunMeta
+    from sc_rt.results.judge.metrics import finish_run
+    from sc_rt.results.record.run import Run, RunMeta
 
     t = np.asarray(t, float)
     meta = RunMeta(scenario="constructed", law="pd", engine="python", control_rate_hz=1.0,

@@ -5,7 +5,7 @@ carried with where it comes from; every carried name exists on both sides."""
 
 import sc_rt_lcm
 
-from sc_rt.results.run import FIELDS
+from sc_rt.results.record.run import FIELDS
 from sc_rt.wire import codec
 
 

@@ -59,6 +59,6 @@ def load_traj(out):
     out = Path(out)
     if (out / "trajectory.npz").exists():
         return np.load(out / "trajectory.npz")
-    from sc_rt.results.run import Run
+    from sc_rt.results.record.run import Run
 
     return _Columns(Run.load(out).trajectory)

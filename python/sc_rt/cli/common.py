@@ -25,7 +25,7 @@ def scenario_arg(path: str, args: argparse.Namespace | None = None):
 
 
 def print_metrics(m: dict, faults=()) -> None:
-    from sc_rt.results.verdict import verdict_line
+    from sc_rt.results.judge.verdict import verdict_line
 
     def f(v):
         return "-" if v is None else (f"{v:.3g}" if isinstance(v, float) else str(v))
@@ -126,7 +126,7 @@ def requirement_table(reqs: list) -> list[str]:
 
 def checked_out(value: str, option: str = "--out") -> Path:
     """The output directory, checked before anything runs (exit 2 if unusable)."""
-    from sc_rt.results.output import check_out_dir
+    from sc_rt.results.present.output import check_out_dir
 
     problem = check_out_dir(Path(value), option)
     if problem:
@@ -139,10 +139,10 @@ def claim_out(out: Path, option: str = "--out") -> None:
     starts (after every check: bad input writes nothing): refused (exit 2)
     while a live run holds it; the previous run's outputs there removed;
     released, its manifest written, when this process ends
-    (sc_rt.results.output.OutDir)."""
+    (sc_rt.results.present.output.OutDir)."""
     import atexit
 
-    from sc_rt.results.output import OutDir, OutDirInUse
+    from sc_rt.results.present.output import OutDir, OutDirInUse
 
     d = OutDir(Path(out), option)
     try:
@@ -153,8 +153,8 @@ def claim_out(out: Path, option: str = "--out") -> None:
 
 
 def html_report(out: Path, who: str) -> None:
-    """report.html of the run in ``out`` (sc_rt.results.html_report)."""
-    from sc_rt.results.html_report import write_html_report
+    """report.html of the run in ``out`` (sc_rt.results.present.html_report)."""
+    from sc_rt.results.present.html_report import write_html_report
 
     print(f"sc-rt {who}: report for reading: {write_html_report(out)}")
 

@@ -10,158 +10,10 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
 
-import numpy as np
+from sc_rt.cli.validate import LAW_HELP, check_run_size, given_options, law_choice, number, out_dir
 
-from sc_rt.cli.lawarg import LAW_HELP, law_choice
-from sc_rt.cli.validate import check_run_size, given_options, number, out_dir
-
-__all__ = ["add_parser", "cmd_compare", "compare_row", "overall", "rank_requirements", "ranking_table",
-           "settling_time", "COLUMNS"]
-
-#: (key, header, format) of the table's columns.
-COLUMNS = (
-    ("law", "law", "{}"),
-    ("bound_held", "bound held", "{}"),
-    ("first_bound_violation_s", "first violation [s]", "{:.1f}"),
-    ("bound_violation_fraction", "rows outside bound", "{:.3f}"),
-    ("settling_s", "settling [s]", "{:.1f}"),
-    ("final_pointing_arcsec", "final error [arcsec]", "{:.3g}"),
-    ("max_abs_wheel_accel", "peak wheel accel [rad/s^2]", "{:.3g}"),
-    ("safe_steps", "SAFE steps", "{}"),
-    ("law_invalid_steps", "law invalid", "{}"),
-    ("valid", "valid run", "{}"),
-)
-
-
-def settling_time(t: np.ndarray, sigma_BD: np.ndarray, frac: float) -> float | None:
-    """[s] the first time after which the pointing error stays within ``frac``
-    of its initial value (None if it does not settle by the end)."""
-    from sc_rt.results.verdict import pointing_arcsec
-
-    e = pointing_arcsec(sigma_BD)
-    if not len(e) or not np.all(np.isfinite(e)):
-        return None
-    out = np.flatnonzero(e > frac * e[0])
-    if not len(out):
-        return float(t[0])
-    k = int(out[-1]) + 1
-    return float(t[k]) if k < len(t) else None
-
-
-#: What a row keeps of each requirement's result.
-REQUIREMENT_KEYS = ("name", "kind", "axis", "interpretation", "confidence", "value", "bound", "unit", "margin",
-                    "relative_margin", "passed", "status")
-
-
-def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
-    from sc_rt.results.verdict import pointing_arcsec, requirements_summary
-
-    m = run.metrics
-    ok = np.all(run["bound_ok"], axis=1)
-    return {
-        "law": label,
-        "bound_held": bool(np.all(ok)),
-        "first_bound_violation_s": m.get("first_bound_violation_s"),
-        "bound_violation_fraction": float(np.mean(~ok)) if len(ok) else None,
-        "settling_s": settling_time(run["t"], run["sigma_BD"], settle_frac),
-        "final_pointing_arcsec": float(pointing_arcsec(run["sigma_BD"][-1:])[0]) if len(ok) else None,
-        "max_abs_wheel_accel": m.get("max_abs_wheel_accel"),
-        "safe_steps": m.get("safe_steps"),
-        "law_invalid_steps": m.get("law_invalid_steps"),
-        "diverged": bool(m.get("diverged", False)),
-        "valid": m.get("valid", True) is not False,
-        "invalid_reason": m.get("invalid_reason"),
-        "verdict": None if m.get("requirements") is None else requirements_summary(m["requirements"]),
-        "requirements": [{k: r.get(k) for k in REQUIREMENT_KEYS} for r in m.get("requirements") or []],
-    }
-
-
-def _rank_key(r: dict[str, Any]) -> tuple[int, float]:
-    """Best first: a larger margin relative to the bound; a failure without a
-    value (never settled) after every value; not evaluated last."""
-    if r.get("passed") is None:
-        return (2, 0.0)
-    m = r.get("relative_margin")
-    return (1, 0.0) if m is None else (0, -float(m))
-
-
-def rank_requirements(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
-    """Per requirement (in the scenario's order), the laws' results ranked by
-    their margin relative to the bound, best first (``rank`` 1, 2, ...;
-    None: not evaluated or not applicable for that law); a law whose run
-    failed (a crash) has no result and is left out."""
-    out: dict[str, list[dict[str, Any]]] = {}
-    for row in rows:
-        for r in row.get("requirements") or []:
-            if r.get("interpretation") not in ("ensemble", "mixed"):  # across runs: sc-rt montecarlo
-                out.setdefault(r["name"], []).append({"law": row["law"], **r})
-    for entries in out.values():
-        entries.sort(key=_rank_key)
-        for i, e in enumerate(entries):
-            e["rank"] = i + 1 if e.get("passed") is not None else None
-    return out
-
-
-def _num(v: Any, unit: str | None) -> str:
-    if v is None:
-        return "-"
-    return f"{v:.4g}" + ("" if unit in (None, "-") else f" {unit}")
-
-
-def ranking_table(ranked: dict[str, list[dict[str, Any]]]) -> str:
-    """The ranking as a markdown table: requirement, rank, law, value, bound,
-    margin (and relative to the bound), result."""
-    head = "| requirement | rank | law | value | bound | margin | result |\n|---|---|---|---|---|---|---|"
-    body = []
-    for name, entries in ranked.items():
-        for i, e in enumerate(entries):
-            unit = e.get("unit")
-            rel = e.get("relative_margin")
-            margin = "-" if e.get("margin") is None else (
-                f"{e['margin']:+.4g}" + ("" if unit in (None, "-") else f" {unit}")
-                + ("" if rel is None or unit == "-" else f" ({100 * rel:+.3g} %)"))
-            result = e["status"].upper() if e.get("status") in ("pass", "fail") else (e.get("status") or "-")
-            body.append(f"| {name if i == 0 else ''} | {e['rank'] or '-'} | {e['law']} | {_num(e.get('value'), unit)} "
-                        f"| {_num(e.get('bound'), unit)} | {margin} | {result} |")
-    return "\n".join([head, *body])
-
-
-def overall(rows: list[dict[str, Any]]) -> list[tuple[str, dict[str, Any] | None]]:
-    """The laws ordered by their worst requirement (the smallest margin
-    relative to its bound, as the verdict line): (law, that requirement)."""
-    from sc_rt.results.requirements import worst
-
-    judged = [(row["law"], worst(row.get("requirements") or [])) for row in rows if row.get("requirements")]
-    return sorted(judged, key=lambda x: (2, 0.0) if x[1] is None else _rank_key(x[1]))
-
-
-def _overall_line(rows: list[dict[str, Any]]) -> str:
-    parts = []
-    for i, (law, w) in enumerate(overall(rows)):
-        if w is None:
-            parts.append(f"{i + 1}. {law} (none evaluated)")
-        elif w.get("relative_margin") is None:
-            parts.append(f"{i + 1}. {law} ({w['name']} {w['status']})")
-        else:
-            parts.append(f"{i + 1}. {law} ({w['name']} {100 * w['relative_margin']:+.3g} %)")
-    return "Overall, by each law's worst margin relative to its bound: " + ", ".join(parts)
-
-
-def _cell(v: Any, fmt: str) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    return fmt.format(v)
-
-
-def table(rows: list[dict[str, Any]]) -> str:
-    head = "| " + " | ".join(h for _, h, _ in COLUMNS) + " |"
-    sep = "|" + "|".join("---" for _ in COLUMNS) + "|"
-    body = ["| " + " | ".join(_cell(r.get(k), f) for k, _, f in COLUMNS) + " |" for r in rows]
-    return "\n".join([head, sep, *body])
+__all__ = ["add_parser", "cmd_compare"]
 
 
 def add_parser(sub) -> None:
@@ -193,6 +45,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     check_run_size(with_overrides(scn, duration=args.duration), given_options(args, duration="--duration"))
     # every law checked (a plugin or a Python law constructed with its table) before any run
     scns = {law: with_overrides(scn, law=law, duration=args.duration) for law in args.laws}
+    from sc_rt.results.judge.compare import compare_row, overall, rank_requirements
+    from sc_rt.results.present.tables import overall_line, ranking_table, table
     from sc_rt.sim.isolated import RunCrashed, simulate_contained
 
     rows = []
@@ -221,13 +75,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
     ranked = rank_requirements(rows)
     if ranked:
         text += ("\n\nThe laws ranked by margin on each requirement (relative to its bound, best first):\n\n"
-                 + ranking_table(ranked) + "\n\n" + _overall_line(rows))
+                 + ranking_table(ranked) + "\n\n" + overall_line(rows))
         across = [r.name for r in scn.requirements if r.interpretation in ("ensemble", "mixed")]
         if across:
             text += f"\n(judged across runs only, by sc-rt montecarlo: {', '.join(across)})"
         print(text[text.index("\n\nThe laws ranked"):])
     if args.out:
-        from sc_rt.results.run import json_safe
+        from sc_rt.results.record.run import json_safe
 
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)

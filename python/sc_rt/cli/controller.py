@@ -11,9 +11,8 @@ import shlex
 import shutil
 import sys
 
-from sc_rt.cli.lawarg import law_choice
-from sc_rt.cli.validate import (AUTH_KEY_HELP, MAX_RATE_HZ, auth_key_file, UsageError, integer, lcm_url, number,
-                                resolve_url)
+from sc_rt.cli.validate import (AUTH_KEY_HELP, MAX_RATE_HZ, UsageError, auth_key_file, integer, law_choice, lcm_url,
+                                number, resolve_url)
 from sc_rt.pylaw import is_python_law
 
 __all__ = ["add_parser", "add_external_options", "external_choice", "cmd_controller"]

@@ -10,9 +10,8 @@ import sys
 
 from sc_rt import __version__
 from sc_rt.cli.interrupts import Interrupted, raise_on_signals
-from sc_rt.cli.validate import (AUTH_KEY_HELP, auth_key_file, MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError,
-                                integer, lcm_url, number, out_dir, out_file)
-from sc_rt.cli.lawarg import LAW_HELP, core_law_choice, law_choice
+from sc_rt.cli.validate import (AUTH_KEY_HELP, LAW_HELP, MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError,
+                                auth_key_file, core_law_choice, integer, lcm_url, law_choice, number, out_dir, out_file)
 from sc_rt.cli.controller import add_external_options
 from sc_rt.cli.floor_cmd import add_floor_parser, add_timing_options
 from sc_rt.cli.common import LAW_CHOICES

@@ -18,7 +18,7 @@ from typing import Any
 __all__ = ["add_parser", "cmd_montecarlo", "headline"]
 
 from sc_rt.scenario.model import LAWS  # noqa: E402
-from sc_rt.cli.lawarg import LAW_HELP, law_choice  # noqa: E402
+from sc_rt.cli.validate import LAW_HELP, law_choice  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 SHORTCUTS = ("inertia", "onset", "effectiveness", "attitude", "rate")
@@ -135,7 +135,7 @@ def parse_options(args: argparse.Namespace) -> dict[str, Any]:
         raise BadOption("--resume with --overwrite: give one of them")
     if args.rerun is not None and (args.resume or args.overwrite):
         raise BadOption(f"--rerun {args.rerun}: runs one run alone; --resume and --overwrite do not apply")
-    from sc_rt.results.output import check_out_dir  # not a directory, not writable
+    from sc_rt.results.present.output import check_out_dir  # not a directory, not writable
 
     problem = check_out_dir(Path(args.out), "--out")
     if problem:
@@ -287,7 +287,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
           + (f" at {res['runs_per_s']:.1f} runs/s on {res['workers']} workers ({res['backend']})"
              if res["runs_per_s"] else "") + f" -> {args.out}/")
     if res.get("requirements"):
-        from sc_rt.cli.campaign_text import requirement_lines
+        from sc_rt.studies.campaign.text import requirement_lines
 
         for line in requirement_lines(res["requirements"], res["requirements_confidence"],
                                       res["requirements_coverage"]):

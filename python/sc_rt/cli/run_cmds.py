@@ -16,7 +16,7 @@ from sc_rt.cli.common import (checked_out, claim_out, html_report, invalid_exit,
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
-    from sc_rt.results.output import write_run
+    from sc_rt.results.present.output import write_run
 
     from sc_rt.scenario.overrides import with_overrides
 
@@ -136,7 +136,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """The main job: the paper's law and the feasible design, each through
     the real LCM loop (controller process, emulator, lcm-logger)."""
     from sc_rt.hil.runner import run_hil
-    from sc_rt.results.verdict import verdict_line
+    from sc_rt.results.judge.verdict import verdict_line
 
     out = checked_out(args.out)
     claim_out(out)
@@ -190,8 +190,8 @@ def cmd_emulator(args: argparse.Namespace) -> int:
                "diverged": res.diverged, "partial": res.partial,
                "t_reached_s": emu.t_reached if len(res) else None}
     if args.out:
-        from sc_rt.results.metrics import fill_tracking_errors, finish_run
-        from sc_rt.results.output import write_run
+        from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run
+        from sc_rt.results.present.output import write_run
 
         out = Path(args.out)
         fill_tracking_errors(res, scn.core_config().guidance)  # rows without a status: from the plant side

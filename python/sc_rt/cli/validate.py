@@ -8,7 +8,11 @@
   row) against the memory available (a bench run, which writes its rows as
   it runs: its disk use against the space free), and a real-time tick the
   emulator can keep; a run that cannot fit is refused with the numbers
-  (``UsageError``).
+  (``UsageError``);
+- ``law_choice`` / ``core_law_choice`` for ``--law``: a law of the core's
+  table (sc_rt.scenario.model.LAWS), a C++ plugin ``plugin:PATH_OR_NAME``
+  (loaded now) or a Python law ``module:Class`` / ``file.py:Class``
+  (imported now): a law that does not load is refused in one line.
 """
 
 from __future__ import annotations
@@ -24,9 +28,13 @@ from typing import Any, Callable
 
 import numpy as np
 
+from sc_rt import _core
+from sc_rt.pylaw import is_python_law, load_law
+from sc_rt.scenario.model import LAWS, PLUGIN_PREFIX, law_spec
+
 __all__ = ["UsageError", "OneLineParser", "number", "integer", "out_dir", "out_file", "lcm_url", "auth_key_file",
            "resolve_url", "bytes_per_row", "bus_bytes_per_row", "disk_bytes_per_row", "free_disk", "available_memory",
-           "check_run_size",
+           "check_run_size", "law_choice", "core_law_choice", "LAW_HELP",
            "rounded", "MAX_RATE_HZ", "MAX_TIME_SCALE", "MAX_PLANT_STEPS", "MIN_WALL_TICK_S", "ENGINE_COPIES"]
 
 #: Rates above this are not a control loop any bench here can close (10 us a step).
@@ -97,7 +105,7 @@ def integer(lo: int = 1, hi: int | None = None) -> Callable[[str], int]:
 
 def out_dir(text: str) -> str:
     """type=: a directory a run can write into (existing or creatable)."""
-    from sc_rt.results.output import check_out_dir
+    from sc_rt.results.present.output import check_out_dir
 
     problem = check_out_dir(Path(text), "")
     if problem:
@@ -108,7 +116,7 @@ def out_dir(text: str) -> str:
 def out_file(text: str) -> str:
     """type=: a file that can be written (not a directory; its folder exists
     or can be created and is writable)."""
-    from sc_rt.results.output import check_out_dir
+    from sc_rt.results.present.output import check_out_dir
 
     p = Path(text)
     if p.is_dir():
@@ -188,8 +196,8 @@ def resolve_url(given: str | None, fallback: str | None) -> str | None:
 
 
 def bytes_per_row() -> int:
-    """Bytes of one row of a run, from the field table (sc_rt.results.run.FIELDS)."""
-    from sc_rt.results.run import FIELDS
+    """Bytes of one row of a run, from the field table (sc_rt.results.record.run.FIELDS)."""
+    from sc_rt.results.record.run import FIELDS
 
     return int(sum(int(np.prod(f.shape, dtype=np.int64)) * np.dtype(f.dtype).itemsize for f in FIELDS))
 
@@ -271,7 +279,7 @@ def check_run_size(scn: Any, given: str, *, bus: bool = False, realtime: bool = 
     if steps > MAX_PLANT_STEPS:
         raise UsageError(f"{what}{steps:.3g} plant steps (duration {run.duration:g} s / plant step "
                          f"{run.plant_step:g} s), more than the {MAX_PLANT_STEPS:.0e} a run may take")
-    if bus or on_disk:  # the rows go to disk as the run goes (results/store.py): a disk estimate
+    if bus or on_disk:  # the rows go to disk as the run goes (results/record/store.py): a disk estimate
         where = Path(out) if out is not None else Path(tempfile.gettempdir())
         per_disk = disk_bytes_per_row() if bus else bytes_per_row()
         need = float(rows) * per_disk
@@ -319,3 +327,45 @@ def rounded(obj: Any, digits: int = 4) -> Any:
 
 def warn(who: str, message: str) -> None:
     print(f"sc-rt {who}: {message}", file=sys.stderr)
+
+
+LAW_HELP = (f"control law: {', '.join(LAWS)} (default: the scenario's), a C++ law plugin "
+            "plugin:PATH_OR_NAME, or a Python law module:Class or path/file.py:Class (docs/LAWS.md)")
+
+
+def plugin_choice(value: str) -> str:
+    """A C++ law plugin ``plugin:PATH_OR_NAME``, loaded now (a relative path
+    against the working directory): its problem in one line (exit 2)."""
+    spec = law_spec(value, Path.cwd())
+    try:
+        _core.load_law_plugin(spec[len(PLUGIN_PREFIX):])
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from e
+    return spec
+
+
+def law_choice(value: str) -> str:
+    if value in LAWS:
+        return value
+    if value.startswith(PLUGIN_PREFIX):
+        return plugin_choice(value)
+    if is_python_law(value):
+        if os.getcwd() not in sys.path and "" not in sys.path:
+            sys.path.insert(0, os.getcwd())  # module:Class from the working directory, as python -m does
+        try:
+            load_law(value)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e).removeprefix(f"--law {value!r}: ")) from e
+        return law_spec(value, Path.cwd())  # python:..., a file made absolute (a worker's cwd may differ)
+    raise argparse.ArgumentTypeError(f"{value!r} is not one of {', '.join(LAWS)} "
+                                     "nor a Python law module:Class")
+
+
+def core_law_choice(value: str) -> str:
+    """Only a law of the core (commands that run the C++ controller)."""
+    if value in LAWS:
+        return value
+    if value.startswith(PLUGIN_PREFIX):
+        return plugin_choice(value)
+    raise argparse.ArgumentTypeError(f"invalid choice: {value!r} (choose from {', '.join(LAWS)} "
+                                     "or plugin:PATH_OR_NAME)")

@@ -37,7 +37,7 @@ import sc_rt_lcm
 from sc_rt import _core
 from sc_rt.wire.auth import open_bus
 from sc_rt.wire.lcmio import channel
-from sc_rt.results.fields import packed_layout
+from sc_rt.results.record.fields import packed_layout
 from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, decode_as
 
 __all__ = ["PyControllerProcess", "nearest_rank", "write_summary"]

@@ -5,7 +5,7 @@ what they keep per state seq.
   answering k (its bytes, the monotonic ns of its receipt, its utime), the
   first status for k (its bytes, decoded after the run) and the times state
   k went out (the utime of its first publish, the monotonic ns of its last).
-  Columns of the emulator's record (results/store.py ``RowRing``): two
+  Columns of the emulator's record (results/record/store.py ``RowRing``): two
   chunks of rows live, allocated and touched when the emulator is made,
   the older rows on disk, so nothing grows with the run. A state seq outside
   [0, n) (a hostile or stray message) is counted (``state_seq_out_of_range``)
@@ -37,7 +37,7 @@ from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING
 from sc_rt.emulator.peers import ControllerPeers
 from sc_rt.emulator.state import Shared
 from sc_rt.model.actuators import WheelFault
-from sc_rt.results.store import RowRing
+from sc_rt.results.record.store import RowRing
 
 __all__ = ["Inbox", "Receiver", "Cmd", "INBOX_COLUMNS", "decode_status", "fill_from_inbox"]
 
@@ -73,7 +73,7 @@ def _cmd_of(v: tuple) -> Cmd:
     return Cmd(seq=v[1], session=v[2], state_seq=v[3], u_cmd=v[5:9], u_sat=v[9:13], mode=v[13], flags=v[14])
 
 
-#: The inbox's columns in the emulator's record (results/store.py ``Column``):
+#: The inbox's columns in the emulator's record (results/record/store.py ``Column``):
 #: per state seq, the command and the status as received and their times.
 INBOX_COLUMNS = (
     ("cmd_raw", (_CMD_SIZE,), "u1", 0),
@@ -89,7 +89,7 @@ INBOX_COLUMNS = (
 class Inbox:
     """Per state seq of a run of ``n`` rows: its command, its status and
     its publish times (module docstring), in the live rows of the
-    emulator's record ``ring`` (results/store.py ``RowRing``: two chunks of
+    emulator's record ``ring`` (results/record/store.py ``RowRing``: two chunks of
     rows, the older ones on disk). The int64 times are ``MISSING``
     (emulator/loopstats.py) where there is none. A message for a seq that is
     no longer live (older than a chunk of rows) or not yet (ahead of the

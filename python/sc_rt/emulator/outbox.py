@@ -19,7 +19,7 @@ from sc_rt.emulator.peers import GuidancePublisher
 from sc_rt.emulator.sensorpub import SensorPublisher
 from sc_rt.emulator.twin import PlantTwin, state_bytes, truth_bytes
 from sc_rt.wire.lcmio import channel
-from sc_rt.results.store import RowRing
+from sc_rt.results.record.store import RowRing
 
 __all__ = ["Publisher"]
 
@@ -32,7 +32,7 @@ class Publisher:
         self._ch_state = channel("SCRT_STATE", prefix)
         self._ch_truth = channel("SCRT_TRUTH", prefix)
         self._guidance_sent: tuple = (-1, None)  # (seq, guidance values) of the newest state out
-        #: the emulator's record (results/store.py): the truth's fields of each row go there,
+        #: the emulator's record (results/record/store.py): the truth's fields of each row go there,
         #: and with [sensors] the gyro's true bias (the truth's gyro_bias, the run's bias_true)
         self.ring = ring
 

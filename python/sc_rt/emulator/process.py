@@ -53,7 +53,7 @@ from sc_rt.emulator.peers import ControllerPeers, GuidancePublisher
 from sc_rt.emulator.rtproc import RealtimeThread
 from sc_rt.emulator.sensorpub import SensorPublisher
 from sc_rt.emulator.twin import PlantTwin
-from sc_rt.results.run import Run, RunMeta, provenance
+from sc_rt.results.record.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
@@ -116,7 +116,7 @@ class Emulator:
         self._gap_start: float | None = None
         self.session = secrets.randbits(62)
         n_rows = grid(scn)[0] + 1
-        #: the run's record (results/store.py): every row's fields, its command and status as
+        #: the run's record (results/record/store.py): every row's fields, its command and status as
         #: received, its stamps; two chunks live, the older rows written as the run goes
         #: (``record_dir``/trajectory.arrow, once the run outgrows the two chunks)
         self.record = Record(n_rows, opts.record_chunk, opts.record_dir)
@@ -193,7 +193,7 @@ class Emulator:
     # --- the loops -----------------------------------------------------------
     def run(self) -> Run:
         """The whole run; returns its record (metrics are the caller's:
-        ``sc_rt.results.metrics.finish_run``)."""
+        ``sc_rt.results.judge.metrics.finish_run``)."""
         if self.sensors is not None:  # tick 0: its samples go out before state 0
             self.publisher.sense(0, 0.0, initial_state(self.scn), 0)
         if self.start_timeout is not None:

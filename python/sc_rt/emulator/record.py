@@ -2,7 +2,7 @@
 
 Every row's run fields, the command and the status of its state as received
 (the inbox's columns, emulator/inbox.py) and the loop's time stamps live in
-two chunks of rows (results/store.py ``RowRing``), allocated and touched
+two chunks of rows (results/record/store.py ``RowRing``), allocated and touched
 before the run. When the run reaches the end of the newer chunk, the older
 one goes to ``record.raw.arrow`` in the record's directory, so nothing
 grows with the run (docs/HIL.md, "Long runs"). After the run, ``close``
@@ -21,9 +21,9 @@ import numpy as np
 
 from sc_rt.emulator.inbox import INBOX_COLUMNS, Inbox, fill_from_inbox
 from sc_rt.emulator.loopstats import LoopBreakdown
-from sc_rt.results.fields import COLUMNS
-from sc_rt.results.run import FIELDS, Run, RunMeta
-from sc_rt.results.store import CHUNK_ROWS, ChunkFile, ChunkReader, RowRing, load_arrow, remove_with, scratch_dir
+from sc_rt.results.record.fields import COLUMNS
+from sc_rt.results.record.run import FIELDS, Run, RunMeta
+from sc_rt.results.record.store import CHUNK_ROWS, ChunkFile, ChunkReader, RowRing, load_arrow, remove_with, scratch_dir
 
 __all__ = ["Record", "RECORD_COLUMNS", "BYTES_PER_ROW"]
 
@@ -46,7 +46,7 @@ class Record:
     n_rows : int
         The run's rows.
     chunk : int or None
-        Rows per chunk (None: results/store.py ``CHUNK_ROWS``; a short run's
+        Rows per chunk (None: results/record/store.py ``CHUNK_ROWS``; a short run's
         chunks are no longer than half the run).
     directory : path or None
         Where the raw record and trajectory.arrow go (None: a temporary

@@ -59,9 +59,9 @@ class Options:
     #: the C++ plant twin (bitwise the Python model), False: the Python model
     cpp_plant: bool = True
     #: where a run longer than two record chunks writes its rows as it runs
-    #: (trajectory.arrow, results/store.py); None: a temporary directory
+    #: (trajectory.arrow, results/record/store.py); None: a temporary directory
     record_dir: Any = None
-    #: rows per record chunk (None: results/store.py CHUNK_ROWS)
+    #: rows per record chunk (None: results/record/store.py CHUNK_ROWS)
     record_chunk: int | None = None
 
 

@@ -33,10 +33,10 @@ from sc_rt.wire.lcmio import channel, free_port_url, open_lcm
 from sc_rt.wire.startrec import encode_start
 from sc_rt.logs.timing import RealtimeLimits, log_missing, realtime_shortfall, timing_report
 from sc_rt.emulator.sensorpub import SENT_COUNTERS
-from sc_rt.results.metrics import fill_tracking_errors, finish_run, mark_invalid, record_law_failures
-from sc_rt.results.output import write_run
+from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run, mark_invalid, record_law_failures
+from sc_rt.results.present.output import write_run
 from sc_rt.pylaw import is_python_law
-from sc_rt.results.run import Run, provenance
+from sc_rt.results.record.run import Run, provenance
 from sc_rt import __version__, _core
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
@@ -301,7 +301,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
         What "kept real time" means for a real-time run (sc_rt.logs.timing);
         a run beyond them is invalid. None: the defaults.
     record_chunk : int, optional
-        Rows per chunk of the run's record (results/store.py; None: its
+        Rows per chunk of the run's record (results/record/store.py; None: its
         CHUNK_ROWS). A run longer than two chunks writes its rows to
         ``out``/trajectory.arrow as it runs, and is read back a chunk at a time.
 
@@ -416,7 +416,7 @@ def _start_record(b: _Bench) -> bytes:
     guessing: scenario, mode, trigger, rate, the law's identity (name, spec,
     a plugin's file and SHA-256; an external controller's command), run id,
     and the scenario's requirements (what ``sc-rt report`` judges the log by)."""
-    from sc_rt.results.output import claimed_run_id
+    from sc_rt.results.present.output import claimed_run_id
     from sc_rt.scenario.model import law_identity
 
     law = ({"name": "external", "spec": b.ext.command_line, "source": "external"} if b.ext is not None

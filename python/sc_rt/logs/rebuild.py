@@ -14,7 +14,7 @@ import numpy as np
 
 from sc_rt.logs.logread import LogData
 from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
-from sc_rt.results.run import RunMeta, empty_arrays
+from sc_rt.results.record.run import RunMeta, empty_arrays
 from sc_rt.scenario.model import LAW_NAMES
 
 __all__ = ["Rebuilt", "rebuild", "sensor_summary", "logged_config", "run_params", "controller_label", "logged_guidance",
@@ -40,7 +40,7 @@ def _f(a) -> np.ndarray:
 class Rebuilt:
     """The run as the emulator recorded it, and what only the log knows."""
 
-    arrays: dict[str, np.ndarray]  # run fields (sc_rt.results.run.FIELDS)
+    arrays: dict[str, np.ndarray]  # run fields (sc_rt.results.record.run.FIELDS)
     has_truth: np.ndarray  # rows with their plant_truth_t
     last_status: dict[str, Any] | None
     mode: str

@@ -43,9 +43,9 @@ from sc_rt.logs.logread import LogData, read_log
 from sc_rt.logs.timing import log_missing, timing_report
 from sc_rt.logs.rebuild import (Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild,
                                run_params, sensor_summary)
-from sc_rt.results.metrics import fill_tracking_errors, finish_run
-from sc_rt.results.output import write_run
-from sc_rt.results.run import Run, RunMeta, json_safe, provenance
+from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run
+from sc_rt.results.present.output import write_run
+from sc_rt.results.record.run import Run, RunMeta, json_safe, provenance
 
 __all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command"]
 

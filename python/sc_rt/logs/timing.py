@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.logs.lcmlog import LogDamaged, read_events
-from sc_rt.results.run import Run
+from sc_rt.results.record.run import Run
 
 __all__ = ["percentiles", "timing_report", "log_missing", "RealtimeLimits", "realtime_shortfall"]
 

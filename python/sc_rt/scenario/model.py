@@ -229,7 +229,7 @@ class Scenario:
         (sc_rt.scenario.sensors), None without ``[sensors]``.
     requirements : tuple of Requirement
         The ``[[requirements]]`` rows (sc_rt.scenario.requirements), what a
-        run is judged by (sc_rt.results.requirements); ``()`` without any.
+        run is judged by (sc_rt.results.judge.requirements); ``()`` without any.
     record : RecordParams
         ``[record]``: what a run keeps of its rows (``every``: the saved rows
         keep every this many control instants; 1 without the table).

@@ -7,7 +7,7 @@ knowledge error), a settling time, a wheel speed margin, a wheel momentum
 margin, a bound on the commanded wheel acceleration, or the
 prescribed-performance envelope of ``[controller.ppc]``.
 This module only reads and validates the rows (file, line, key, value);
-``sc_rt.results.requirements`` evaluates them on a run.
+``sc_rt.results.judge.requirements`` evaluates them on a run.
 """
 
 from __future__ import annotations

@@ -30,11 +30,11 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
 from sc_rt.pylaw import is_python_law, register
-from sc_rt.results.metrics import finish_run, record_law_failures
+from sc_rt.results.judge.metrics import finish_run, record_law_failures
 from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, loop_columns
-from sc_rt.results.fields import COLUMNS, packed_layout
-from sc_rt.results.run import FIELD, Run, RunMeta
-from sc_rt.results.store import remove_with, scratch_dir
+from sc_rt.results.record.fields import COLUMNS, packed_layout
+from sc_rt.results.record.run import FIELD, Run, RunMeta
+from sc_rt.results.record.store import remove_with, scratch_dir
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
@@ -112,7 +112,7 @@ def cpp_loop_args(scn: Scenario) -> tuple:
 
 #: A C++-engine run longer than this many rows is written to disk as it runs,
 #: in chunks of this many rows (57 MB of fields), and read back a chunk at a
-#: time (results/store.py): its memory does not grow with its length.
+#: time (results/record/store.py): its memory does not grow with its length.
 OFFLINE_CHUNK_ROWS = 65_536
 
 
@@ -120,7 +120,7 @@ def _run_cpp_chunked(scn: Scenario, path: Path, meta: RunMeta) -> tuple[int, boo
     """The C++ loop a chunk at a time, each chunk's rows appended to ``path``
     (trajectory.arrow): (rows, diverged, the law's failures, the last row's t,
     ``meta`` with the law's telemetry names)."""
-    from sc_rt.results.store import ChunkFile
+    from sc_rt.results.record.store import ChunkFile
 
     loop = _core.ClosedLoop(*cpp_loop_args(scn))
     meta = dataclasses.replace(meta, telemetry_names=tuple(loop.telemetry_names))
@@ -180,7 +180,7 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     record_dir : path, optional
         Where a "cpp" run of more than ``OFFLINE_CHUNK_ROWS`` rows writes its
         rows as it runs (trajectory.arrow; the run reads it a chunk at a
-        time, results/store.py). None: a temporary directory that lasts as
+        time, results/record/store.py). None: a temporary directory that lasts as
         long as the run.
 
     Returns

@@ -27,8 +27,8 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
-from sc_rt.results.fields import packed_layout
-from sc_rt.results.run import FIELD
+from sc_rt.results.record.fields import packed_layout
+from sc_rt.results.record.run import FIELD
 from sc_rt.scenario.overrides import grid, initial_state
 from sc_rt.scenario.schema import ScenarioError, ScenarioIssue
 from sc_rt.scenario.sensors import nav_config

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sc_rt.scenario.model import LAW_NAMES
-from sc_rt.results.estimation import ARCSEC  # [rad]
-from sc_rt.results.metrics import json_safe
+from sc_rt.results.judge.estimation import ARCSEC  # [rad]
+from sc_rt.results.judge.metrics import json_safe
 from sc_rt.wire.auth import open_bus
 from sc_rt.wire.codec import decode_any, identify, numpy_dtype, to_plain
 from sc_rt.wire.startrec import decode_start

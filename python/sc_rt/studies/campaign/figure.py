@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.metrics import json_safe
+from sc_rt.results.judge.metrics import json_safe
 
 __all__ = ["figure", "requirements_figure", "write_summary"]
 
@@ -19,7 +19,7 @@ def write_summary(summary: dict[str, Any], rows: list[dict[str, Any]], out: Path
     """montecarlo.json (the summary) and montecarlo.png (the final error of
     every run; when runs leave the bound, when they do; otherwise it says that
     no run left it, rather than drawing an empty histogram)."""
-    from sc_rt.results import figures  # noqa: F401  (Agg backend)
+    from sc_rt.results.present import figures  # noqa: F401  (Agg backend)
     import matplotlib.pyplot as plt
 
     out.mkdir(parents=True, exist_ok=True)
@@ -36,7 +36,7 @@ def write_summary(summary: dict[str, Any], rows: list[dict[str, Any]], out: Path
 
 def figure(summary: dict[str, Any], rows: list[dict[str, Any]]):
     """The campaign's figure (a matplotlib Figure)."""
-    from sc_rt.results import figures  # noqa: F401  (Agg backend)
+    from sc_rt.results.present import figures  # noqa: F401  (Agg backend)
     import matplotlib.pyplot as plt
 
     final = summary["final_metric"]
@@ -75,7 +75,7 @@ def requirements_figure(summary: dict[str, Any]):
     upper confidence bound and the bound; then, per requirement, the fraction
     of runs (ensemble: at the worst time; mixed: of the time) with its
     two-sided interval, its one-sided lower bound and the fraction required."""
-    from sc_rt.results import figures  # noqa: F401  (Agg backend)
+    from sc_rt.results.present import figures  # noqa: F401  (Agg backend)
     import matplotlib.pyplot as plt
 
     reqs = [r for r in summary["requirements"] if r.get("met_at_confidence") is not None]

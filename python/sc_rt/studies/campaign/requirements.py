@@ -3,7 +3,7 @@ section 4).
 
 Each run's dataset row holds, per requirement, its result (columns
 ``req.NAME.passed``, ``.status``, ``.value``) and for the ensemble and mixed
-ones its binned series (``.bins``, ``.within``: sc_rt.results.ensemble).
+ones its binned series (``.bins``, ``.within``: sc_rt.results.judge.ensemble).
 From them, per requirement:
 
 - every kind: the runs meeting it, the fraction with its two-sided
@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.ensemble import bin_width
-from sc_rt.results.pointing import nearest_rank
+from sc_rt.results.judge.ensemble import bin_width
+from sc_rt.results.judge.pointing import nearest_rank
 from sc_rt.studies.campaign.stats import (clopper_pearson, clopper_pearson_lower, hoeffding_lower,
                                           quantile_upper_rank, runs_needed)
 
@@ -44,7 +44,7 @@ __all__ = ["campaign_requirements", "row_columns"]
 
 def row_columns(results: list[dict[str, Any]], series: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """A run's dataset columns for its requirements: ``results`` its
-    ``metrics["requirements"]``, ``series`` sc_rt.results.ensemble.campaign_series."""
+    ``metrics["requirements"]``, ``series`` sc_rt.results.judge.ensemble.campaign_series."""
     row: dict[str, Any] = {}
     for r in results:
         key = f"req.{r['name']}"

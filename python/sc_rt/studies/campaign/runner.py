@@ -113,7 +113,7 @@ def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple
                    message=m.get("invalid_reason", "") if law_failed else "")
         row.update(_metric_row(m))
         if m.get("requirements"):
-            from sc_rt.results.ensemble import campaign_series
+            from sc_rt.results.judge.ensemble import campaign_series
 
             row.update(row_columns(m["requirements"], campaign_series(res, m["requirements"])))
     return (row, scn, res) if keep else row
@@ -278,8 +278,8 @@ def rerun(c: Campaign, run: int, out: Path, plots: bool = True) -> dict[str, Any
     metrics.json, figures) plus run.json (its dataset row)."""
     import json
 
-    from sc_rt.results.metrics import json_safe
-    from sc_rt.results.output import write_run  # what sc-rt sim writes
+    from sc_rt.results.judge.metrics import json_safe
+    from sc_rt.results.present.output import write_run  # what sc-rt sim writes
 
     row, scn, res = run_one(c, run, keep=True)
     out.mkdir(parents=True, exist_ok=True)

@@ -19,7 +19,7 @@ __all__ = ["plot_loops", "plot_spectral"]
 
 def plot_loops(scn: Scenario, pd: PdDesign, rate: float, latency: float, out: Path) -> list[Path]:
     """bode.png and nichols.png: every PD loop of :func:`pd_margins`, per axis, in out/."""
-    from sc_rt.results.figures import save_figure  # sets the Agg backend
+    from sc_rt.results.present.figures import save_figure  # sets the Agg backend
 
     import matplotlib.pyplot as plt
 
@@ -75,7 +75,7 @@ def plot_loops(scn: Scenario, pd: PdDesign, rate: float, latency: float, out: Pa
 
 def plot_spectral(scn: Scenario, report: dict[str, Any], out: Path) -> Path:
     """spectral_radius.png: rho(t) of the sampled DSC+PPC loop per rate, chi(t) and the critical chi."""
-    from sc_rt.results.figures import save_figure  # sets the Agg backend
+    from sc_rt.results.present.figures import save_figure  # sets the Agg backend
 
     import matplotlib.pyplot as plt
 

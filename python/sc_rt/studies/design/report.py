@@ -238,7 +238,7 @@ def format_design_text(rep: dict[str, Any], out: Path | None = None,
 
 def write_design(report: dict[str, Any], scn: Scenario, out: Path, plots: bool = True) -> list[Path]:
     """design.json and the figures (bode.png, nichols.png, spectral_radius.png) into out/."""
-    from sc_rt.results.metrics import json_safe
+    from sc_rt.results.judge.metrics import json_safe
 
     out.mkdir(parents=True, exist_ok=True)
     paths = []

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.metrics import json_safe
+from sc_rt.results.judge.metrics import json_safe
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
 from sc_rt.studies.reproduce.cases import CASES, LAW_LABEL, Runs, scenario_label

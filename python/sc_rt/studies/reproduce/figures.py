@@ -2,7 +2,7 @@
 
 :func:`claim_figures` builds them and returns the Figures (so they can be
 inspected); :func:`write_figures` saves and closes them
-(``sc_rt.results.figures.save_figure``).
+(``sc_rt.results.present.figures.save_figure``).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.metrics import prescribed_chi
+from sc_rt.results.judge.metrics import prescribed_chi
 from sc_rt.studies.reproduce.cases import LAW_LABEL, Runs
 from sc_rt.studies.reproduce.claims import OBSERVER_THRESHOLD, OMEGA_E_THRESHOLD
 
@@ -35,7 +35,7 @@ def _pyplot():
 
 def write_figures(figs: dict[str, Any], out: Path, dpi: int = DPI) -> list[Path]:
     """Save (and close) every figure of ``figs`` (file name -> Figure) into ``out``."""
-    from sc_rt.results.figures import save_figure  # imports matplotlib: only when plotting
+    from sc_rt.results.present.figures import save_figure  # imports matplotlib: only when plotting
 
     return [save_figure(fig, Path(out) / name, dpi) for name, fig in figs.items()]
 

@@ -8,7 +8,7 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from sc_rt.results.metrics import json_safe
+from sc_rt.results.judge.metrics import json_safe
 from sc_rt.studies.reproduce.cases import run_all
 from sc_rt.studies.reproduce.claims import claims_of, format_claims_md
 from sc_rt.studies.reproduce.figures import DPI, claim_figures, write_figures

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.metrics import prescribed_chi
+from sc_rt.results.judge.metrics import prescribed_chi
 from sc_rt.scenario.model import Scenario
 from sc_rt.sim.engines import simulate
 from sc_rt.studies.reproduce.cases import CASES, load_cases, scenario_label
@@ -97,7 +97,7 @@ def root_cause_figure(scn: Scenario, *, engine: str = "cpp") -> tuple[dict[str, 
 def root_cause(out: Path, *, engine: str = "cpp", scenarios: dict[str, Scenario] | None = None,
                dpi: int = DPI) -> dict[str, Any]:
     """``root_cause.png`` in ``out`` (see :func:`root_cause_figure`) and its numbers."""
-    from sc_rt.results.figures import save_figure
+    from sc_rt.results.present.figures import save_figure
 
     scns = scenarios if scenarios is not None else load_cases()
     info, fig = root_cause_figure(scns["fault_free"], engine=engine)

@@ -21,10 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.output import run_files
-from sc_rt.results.law_telemetry import telemetry_table
-from sc_rt.results.html_requirements import requirements_table
-from sc_rt.results.html_timeline import MODE_NAMES, spans, timeline_svg
+from sc_rt.results.present.output import run_files
+from sc_rt.results.present.html_telemetry import telemetry_table
+from sc_rt.results.present.html_requirements import requirements_table
+from sc_rt.results.present.html_timeline import MODE_NAMES, spans, timeline_svg
 
 __all__ = ["write_html_report", "render_html", "verdict_items", "timing_text", "pointing_arcsec_of_mrp_norm"]
 
@@ -155,7 +155,7 @@ def _timeline_of_stored(path: Path) -> tuple[dict[str, np.ndarray], dict[str, An
     mode, the flags, a command gap, the bound or a fault's activity (Y > 0)
     changes, and the last row. Every span the timeline draws ends at the
     next change, so the spans are those of every row."""
-    from sc_rt.results.store import ChunkReader
+    from sc_rt.results.record.store import ChunkReader
 
     r = ChunkReader(path)
     names = ("t", "bound_ok", "ctrl_mode", "flags", "fault_Y", "cmd_stale")
@@ -283,7 +283,7 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
     reqs = m.get("requirements")
     by_requirements = reqs is not None and not (reqs and all(r.get("kind") == "envelope" for r in reqs))
     if by_requirements:
-        from sc_rt.results.verdict import requirements_summary
+        from sc_rt.results.judge.verdict import requirements_summary
 
         head = requirements_summary(reqs)
         held = all(r.get("passed") is not False for r in reqs)

@@ -10,11 +10,11 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.estimation import estimation_metrics, fill_estimation_error, fill_true_tracking_error
-from sc_rt.results.law_telemetry import TelemetryAcc
-from sc_rt.results.requirements import evaluate_requirements
-from sc_rt.results.run import CORE_FIELDS, Run, json_safe
-from sc_rt.results.verdict import SAFE_FLAGS, pointing_arcsec, safe_summary
+from sc_rt.results.judge.estimation import estimation_metrics, fill_estimation_error, fill_true_tracking_error
+from sc_rt.results.judge.law_telemetry import TelemetryAcc
+from sc_rt.results.judge.requirements import evaluate_requirements
+from sc_rt.results.record.run import CORE_FIELDS, Run, json_safe
+from sc_rt.results.judge.verdict import SAFE_FLAGS, pointing_arcsec, safe_summary
 
 __all__ = ["METRIC_TIMES", "mark_invalid", "record_law_failures", "bound_ok", "compute_metrics", "fill_tracking_errors",
            "prescribed_chi", "finish_run", "json_safe"]
@@ -121,7 +121,7 @@ def _max(a: float | None, b: float | None) -> float | None:
 
 class _Metrics:
     """compute_metrics and finish_run's reductions over a run's chunks, in
-    order (results/run.py ``Run.chunks``): every one is a max, a sum, a
+    order (results/record/run.py ``Run.chunks``): every one is a max, a sum, a
     first or a last, so a run read a batch at a time gives the numbers of
     the run held whole."""
 
@@ -257,7 +257,7 @@ def finish_run(run: Run) -> Run:
     fill_est = sensed and not _any_present(run, "att_est_error")  # the bench: the estimate came over the bus
 
     def derive(c: Run) -> None:
-        if sensed:  # with sensors the bound is judged on the true attitude (sc_rt.results.estimation)
+        if sensed:  # with sensors the bound is judged on the true attitude (sc_rt.results.judge.estimation)
             fill_true_tracking_error(c)
             if fill_est:
                 fill_estimation_error(c)
@@ -279,9 +279,9 @@ def finish_run(run: Run) -> Run:
         metrics["finite"] = False
     if run.partial:
         metrics["partial"] = True
-    # the scenario's [[requirements]], each judged (sc_rt.results.requirements); [] none stated
+    # the scenario's [[requirements]], each judged (sc_rt.results.judge.requirements); [] none stated
     metrics["requirements"] = evaluate_requirements(run, sensed)
-    metrics["law_telemetry"] = tel.summary()  # the law's own values (results/law_telemetry.py)
+    metrics["law_telemetry"] = tel.summary()  # the law's own values (results/judge/law_telemetry.py)
     metrics.update({k: v for k, v in run.metrics.items() if k not in metrics})
     run.metrics = metrics
     return run

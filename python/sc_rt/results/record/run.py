@@ -3,7 +3,7 @@
 Every producer (the python, cpp and unsampled engines, the LCM emulator, the
 rebuild of an ``lcm-logger`` log) returns a ``Run``, and every consumer
 (metrics, the bound check, figures, timing reports, studies) takes one. The
-per-row arrays are declared once, in ``FIELDS`` (results/fields.py): name,
+per-row arrays are declared once, in ``FIELDS`` (results/record/fields.py): name,
 shape of one row, unit, where the value comes from, and what it means. A producer fills the
 fields it has; the others keep their fill value (NaN, or the integer fill
 of the field), so every run has every field and readers never guess.
@@ -21,9 +21,9 @@ from typing import Any, Iterator
 import numpy as np
 
 from sc_rt.pylaw import split_unit
-from sc_rt.results.fields import COLUMNS, CORE_FIELDS, FIELD, FIELDS, Field, empty_arrays
-from sc_rt.results.jsonsafe import json_safe, write_json
-from sc_rt.results.meta import RunMeta
+from sc_rt.results.record.fields import COLUMNS, CORE_FIELDS, FIELD, FIELDS, Field, empty_arrays
+from sc_rt.results.record.jsonsafe import json_safe, write_json
+from sc_rt.results.record.meta import RunMeta
 
 __all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "RunMeta", "Run", "empty_arrays", "json_safe", "write_json",
            "provenance"]
@@ -86,7 +86,7 @@ class Run:
                  message: str = "", partial: bool = False):
         unknown = set(arrays) - set(FIELD)
         if unknown:
-            raise KeyError(f"not fields of a run: {sorted(unknown)} (declared in sc_rt.results.run.FIELDS)")
+            raise KeyError(f"not fields of a run: {sorted(unknown)} (declared in sc_rt.results.record.run.FIELDS)")
         n = len(arrays["t"]) if rows is None else rows
         self._a: dict[str, np.ndarray] = {}
         for f in FIELDS:
@@ -109,7 +109,7 @@ class Run:
         self.diverged = diverged
         self.message = message
         self.partial = partial
-        #: the rows on disk (results/store.py), or None: in ``_a``
+        #: the rows on disk (results/record/store.py), or None: in ``_a``
         self._store: Any = None
 
     # --- construction ---------------------------------------------------
@@ -120,9 +120,9 @@ class Run:
 
     @classmethod
     def stored(cls, meta: RunMeta, path: Path, **kw: Any) -> Run:
-        """A run whose rows are on disk (``trajectory.arrow``, results/store.py),
+        """A run whose rows are on disk (``trajectory.arrow``, results/record/store.py),
         read a batch at a time (``chunks``); ``kw`` as the constructor's."""
-        from sc_rt.results.store import ChunkReader
+        from sc_rt.results.record.store import ChunkReader
 
         r = cls(meta, {"t": np.zeros(0)}, **kw)
         r._a = {}
@@ -178,7 +178,7 @@ class Run:
     def _rewrite(self, fn: Any) -> None:
         """A run on disk: its file replaced by ``fn(chunk, first row)`` of each
         chunk in order (an in-memory run of the rows to keep), a batch at a time."""
-        from sc_rt.results.store import ChunkFile, ChunkReader
+        from sc_rt.results.record.store import ChunkFile, ChunkReader
 
         src = self._store
         tmp = src.path.with_name(src.path.name + ".new")
@@ -252,7 +252,7 @@ class Run:
 
     def __setstate__(self, d: dict[str, Any]) -> None:
         if isinstance(d.get("_store"), str):
-            from sc_rt.results.store import ChunkReader
+            from sc_rt.results.record.store import ChunkReader
 
             d["_store"] = ChunkReader(Path(d["_store"]))
         self.__dict__.update(d)
@@ -320,10 +320,10 @@ class Run:
         return path
 
     def save_arrow(self, path: Path) -> Path:
-        """trajectory.arrow (results/store.py): every field, a batch at a
+        """trajectory.arrow (results/record/store.py): every field, a batch at a
         time, and the meta as JSON in the schema's metadata. A run on disk
         moves its file there (it is the same format)."""
-        from sc_rt.results.store import ChunkFile, ChunkReader
+        from sc_rt.results.record.store import ChunkFile, ChunkReader
 
         path = Path(path)
         if self._store is not None:
@@ -348,7 +348,7 @@ class Run:
         npz, arrow = run_dir / "trajectory.npz", run_dir / "trajectory.arrow"
         if npz.exists() or not arrow.exists():
             return cls.load_npz(npz)
-        from sc_rt.results.store import ChunkReader
+        from sc_rt.results.record.store import ChunkReader
 
         meta = RunMeta.from_json(json.loads(ChunkReader(arrow).metadata["sc-rt:meta"]))
         run = cls.stored(meta, arrow)

@@ -1,5 +1,5 @@
 """law_telemetry.png: the control law's own telemetry over a run (its named
-values and the fixed slots it fills), from sc_rt.results.law_telemetry's
+values and the fixed slots it fills), from sc_rt.results.judge.law_telemetry's
 summary."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sc_rt.results.figures import mark_events, run_title, save_figure
-from sc_rt.results.law_telemetry import telemetry_summary
-from sc_rt.results.run import Run
+from sc_rt.results.present.figures import mark_events, run_title, save_figure
+from sc_rt.results.judge.law_telemetry import telemetry_summary
+from sc_rt.results.record.run import Run
 
 __all__ = ["telemetry_figure"]
 

@@ -1,6 +1,6 @@
 """A run judged against its scenario's ``[[requirements]]`` (docs/REQUIREMENTS.md).
 
-Pure numpy on a finished ``Run`` (sc_rt.results.run): the rows come from
+Pure numpy on a finished ``Run`` (sc_rt.results.record.run): the rows come from
 ``run.meta.requirements`` (the scenario's, as plain dicts), the signals from
 the run's fields:
 
@@ -24,9 +24,9 @@ The temporal interpretation is judged here, within the run: the value at
 the stated confidence p is the nearest-rank empirical p-quantile (the
 smallest value that at least a fraction p of the values do not exceed,
 numpy's ``method="inverted_cdf"``) of the index's values over the span
-(sc_rt.results.indices: samples, windows or pairs of windows). The ensemble
+(sc_rt.results.judge.indices: samples, windows or pairs of windows). The ensemble
 and mixed interpretations are statistics across the runs of a campaign
-(``sc-rt montecarlo``, sc_rt.results.ensemble): a single run reports them
+(``sc-rt montecarlo``, sc_rt.results.judge.ensemble): a single run reports them
 "not evaluated".
 """
 
@@ -37,8 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.indices import index_values
-from sc_rt.results.pointing import (error_signal, mode_mask, mrp_subtract, nearest_rank, outside_mode,
+from sc_rt.results.judge.indices import index_values
+from sc_rt.results.judge.pointing import (error_signal, mode_mask, mrp_subtract, nearest_rank, outside_mode,
                                    settling_time, wheel_momentum)
 from sc_rt.scenario.requirements import ANGLE_UNITS, COUNTERPART, KNOWLEDGE, PERFORMANCE, UNITS
 
@@ -139,7 +139,7 @@ def _peak(req: dict[str, Any], t: np.ndarray, values: np.ndarray, idx: np.ndarra
 def _ppc_ratio(ppc: dict[str, Any], t: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """|sigma_BD| as a fraction of the side of the envelope it is on (29):
     sigma / (dmax chi) above 0, -sigma / (dmin chi) below; chi(t) as
-    sc_rt.results.metrics.prescribed_chi."""
+    sc_rt.results.judge.metrics.prescribed_chi."""
     chi0, chiinf, gamma, dmin, dmax = (np.asarray(ppc[k], float) for k in ("chi0", "chiinf", "gamma", "dmin", "dmax"))
     chi = (chi0 - chiinf) * np.exp(-np.outer(np.asarray(t, float), gamma)) + chiinf
     return np.where(sigma >= 0, sigma / (dmax * chi), -sigma / (dmin * chi))

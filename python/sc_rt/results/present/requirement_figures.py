@@ -9,7 +9,7 @@
   against the wheel speed and momentum requirements and the actuator's
   speed limit.
 
-The y axes follow the data, not the limits (sc_rt.results.figures.limit_lines).
+The y axes follow the data, not the limits (sc_rt.results.present.figures.limit_lines).
 """
 
 from __future__ import annotations
@@ -19,12 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results import figures as _figures
-from sc_rt.results.figures import _legend_outside, _two_line, limit_lines, mark_events, plt
-from sc_rt.results.indices import index_values
-from sc_rt.results.pointing import error_signal, wheel_momentum
-from sc_rt.results.requirements import is_sensed, knowledge_error, requirement_span
-from sc_rt.results.run import Run
+from sc_rt.results.present import figures as _figures
+from sc_rt.results.present.figures import _legend_outside, _two_line, limit_lines, mark_events, plt
+from sc_rt.results.judge.indices import index_values
+from sc_rt.results.judge.pointing import error_signal, wheel_momentum
+from sc_rt.results.judge.requirements import is_sensed, knowledge_error, requirement_span
+from sc_rt.results.record.run import Run
 from sc_rt.scenario.requirements import ANGLE_UNITS, COUNTERPART, KNOWLEDGE, PERFORMANCE, UNITS
 
 __all__ = ["requirement_figure", "requirement_figures", "wheel_figure"]

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.requirements import worst
+from sc_rt.results.judge.requirements import worst
 
 __all__ = ["SAFE_FLAGS", "safe_summary", "verdict_line", "pointing_arcsec", "requirements_summary"]
 

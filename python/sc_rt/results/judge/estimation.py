@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.results.run import Run
+from sc_rt.results.record.run import Run
 
 __all__ = ["ARCSEC", "mrp_subtract_rows", "fill_true_tracking_error", "fill_estimation_error",
            "estimation_metrics", "AFTER_S"]

@@ -1,6 +1,6 @@
 """JSON that stays JSON: NaN and inf as null, numpy scalars and arrays as
 plain numbers and lists (every file a run writes). Re-exported by
-sc_rt.results.run."""
+sc_rt.results.record.run."""
 
 from __future__ import annotations
 

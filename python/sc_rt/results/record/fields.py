@@ -1,6 +1,6 @@
 """The declared per-row fields of a run (``FIELDS``): name, shape of one
 row, unit, where the value comes from, and what it means; the table every
-producer fills and every reader reads (results/run.py ``Run``)."""
+producer fills and every reader reads (results/record/run.py ``Run``)."""
 
 from __future__ import annotations
 
@@ -122,7 +122,7 @@ FIELDS: tuple[Field, ...] = (
     _f("state_log_us", (), "us", "timing", "logger receive time of the state (log rebuilds)"),
 )
 FIELD: dict[str, Field] = {f.name: f for f in FIELDS}
-#: The fields as the columns of a run's file (results/store.py ``Column``: name, row shape, dtype, fill).
+#: The fields as the columns of a run's file (results/record/store.py ``Column``: name, row shape, dtype, fill).
 COLUMNS: tuple[tuple[str, tuple[int, ...], str, Any], ...] = tuple((f.name, f.shape, f.dtype, f.fill) for f in FIELDS)
 #: The trajectory every producer fills (checked for finiteness by the metrics).
 CORE_FIELDS: tuple[str, ...] = tuple(f.name for f in FIELDS if f.core)

@@ -1,4 +1,4 @@
-"""The requirement table that opens ``report.html`` (sc_rt.results.html_report;
+"""The requirement table that opens ``report.html`` (sc_rt.results.present.html_report;
 docs/REQUIREMENTS.md): per requirement its measure, value, bound, margin and
 result, coloured, the counterpart index beside it (knowledge beside
 performance, with sensors) and how the value was found."""

@@ -5,7 +5,7 @@ statistics across runs without holding every trajectory.
 Per pointing requirement with ``interpretation = "ensemble"`` or
 ``"mixed"``, a run keeps:
 
-- ``bins``: the index's values (sc_rt.results.indices: samples, windows or
+- ``bins``: the index's values (sc_rt.results.judge.indices: samples, windows or
   pairs) as the largest value in each bin of a time grid common to every
   run of the campaign (bins of ``bin_width`` seconds from t = 0, about
   ``MAX_BINS`` over the run), in the bound's unit. A value that stands for
@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.indices import index_values
-from sc_rt.results.pointing import mode_mask, outside_mode
-from sc_rt.results.requirements import is_sensed, knowledge_error, requirement_span
+from sc_rt.results.judge.indices import index_values
+from sc_rt.results.judge.pointing import mode_mask, outside_mode
+from sc_rt.results.judge.requirements import is_sensed, knowledge_error, requirement_span
 from sc_rt.scenario.requirements import ANGLE_UNITS, KNOWLEDGE, PERFORMANCE
 
 __all__ = ["MAX_BINS", "bin_width", "campaign_series", "n_bins"]

@@ -10,9 +10,9 @@ the time interval it stands for (docs/REQUIREMENTS.md, section 2):
   the span; for PDE/KDE the later window lies in the span too, for PRE/KRE
   anywhere later in the run (another observation).
 
-A run's temporal value is a quantile of these (sc_rt.results.requirements);
+A run's temporal value is a quantile of these (sc_rt.results.judge.requirements);
 a campaign's ensemble and mixed statistics gather them across runs
-(sc_rt.results.ensemble).
+(sc_rt.results.judge.ensemble).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.pointing import error_signal, pair_differences, relative_errors, window_means, windows
+from sc_rt.results.judge.pointing import error_signal, pair_differences, relative_errors, window_means, windows
 from sc_rt.scenario.requirements import PAIRED
 
 __all__ = ["IndexValues", "index_values"]

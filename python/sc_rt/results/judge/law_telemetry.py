@@ -1,21 +1,22 @@
 """The control law's own telemetry in a run's outputs: the fixed slots a law
 may fill beside its command (x2d, rho_hat) and its named values (the run
 field ``telemetry``, named by ``meta.telemetry_names``), summarised in
-metrics.json (``law_telemetry``), listed in report.html (and drawn in
-law_telemetry.png: sc_rt.results.telemetry_figure). A law that fills none of them gets none of these."""
+metrics.json (``law_telemetry``), listed in report.html
+(sc_rt.results.present.html_telemetry) and drawn in law_telemetry.png
+(sc_rt.results.present.telemetry_figure). A law that fills none of them
+gets none of these."""
 
 from __future__ import annotations
 
 import math
-from html import escape
 from typing import Any
 
 import numpy as np
 
 from sc_rt.pylaw import split_unit
-from sc_rt.results.run import Run
+from sc_rt.results.record.run import Run
 
-__all__ = ["TelemetryAcc", "telemetry_summary", "telemetry_table"]
+__all__ = ["TelemetryAcc", "telemetry_summary"]
 
 
 class TelemetryAcc:
@@ -57,22 +58,3 @@ def telemetry_summary(run: Run) -> dict[str, Any]:
     for c in run.chunks():
         acc.add(c)
     return acc.summary()
-
-
-def telemetry_table(summary: dict[str, Any] | None) -> str:
-    """The HTML section of report.html: each named value (unit, final, min,
-    max) and the fixed slots the law filled; a line saying so when none."""
-    if not summary or (not summary.get("names") and not summary.get("fixed_slots_used")):
-        return "<p>The law reports no telemetry of its own (no named values, no x2d or rho_hat).</p>"
-    rows = []
-    for name, s in (summary.get("values") or {}).items():
-        base, unit = split_unit(name)
-        cells = "".join(f"<td class=num>{'-' if s.get(k) is None else f'{s[k]:.6g}'}</td>"
-                        for k in ("final", "min", "max"))
-        rows.append(f"<tr><td>{escape(base)}</td><td>{escape(unit or '-')}</td>{cells}</tr>")
-    html = ("<table id=law-telemetry><tr><th>named value</th><th>unit</th><th>final</th><th>min</th><th>max</th></tr>"
-            + "".join(rows) + "</table>") if rows else "<p>No named values.</p>"
-    slots = summary.get("fixed_slots_used") or []
-    if slots:
-        html += f"<p>Fixed slots the law filled: {escape(', '.join(slots))} (in trajectory and law_telemetry.png).</p>"
-    return html

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sc_rt.results.run import Run, write_json
+from sc_rt.results.record.run import Run, write_json
 
 __all__ = ["write_run", "check_out_dir", "OutDir", "OutDirInUse", "MANIFEST"]
 
@@ -34,7 +34,7 @@ FIGURE_ROWS = 40_000
 
 def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
               compress: bool = True) -> list[Path]:
-    """trajectory.npz (a run on disk: trajectory.arrow, results/store.py),
+    """trajectory.npz (a run on disk: trajectory.arrow, results/record/store.py),
     metrics.json, timing.json (bench runs) and the figures into ``out``;
     returns every file written, in order.
 
@@ -80,9 +80,9 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
 
 def _figures(run: Run, out: Path, title: str) -> list[Path]:
     """The tracking, wheel speed, requirements and (bench runs) timing figures."""
-    from sc_rt.results import figures as fig
-    from sc_rt.results.telemetry_figure import telemetry_figure
-    from sc_rt.results.requirement_figures import requirement_figures
+    from sc_rt.results.present import figures as fig
+    from sc_rt.results.present.telemetry_figure import telemetry_figure
+    from sc_rt.results.present.requirement_figures import requirement_figures
 
     drawn = run.decimated(FIGURE_ROWS) if run.is_stored else run  # a run on disk: peaks kept
     paths = fig.tracking_figures(drawn, out, title=title)

@@ -1,6 +1,6 @@
 """What a run is: ``RunMeta``, the scenario, law, engine and the
 parameters its figures and checks need (so that no consumer needs the
-scenario file). Re-exported by sc_rt.results.run beside the Run."""
+scenario file). Re-exported by sc_rt.results.record.run beside the Run."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.jsonsafe import json_safe
+from sc_rt.results.record.jsonsafe import json_safe
 
 __all__ = ["RunMeta"]
 
@@ -63,7 +63,7 @@ class RunMeta:
     requirements : tuple of dict
         The scenario's ``[[requirements]]`` rows (every field of
         ``sc_rt.scenario.requirements.Requirement``), what the run is judged
-        by (sc_rt.results.requirements); ``()``: none stated.
+        by (sc_rt.results.judge.requirements); ``()``: none stated.
     Cbar : tuple of tuple of float
         [-] the wheels' spin axes in B (3 rows of 4), the plant's; ``()``:
         not recorded (older runs).

@@ -11,8 +11,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sc_rt.results.metrics import prescribed_chi  # noqa: E402
-from sc_rt.results.run import Run  # noqa: E402
+from sc_rt.results.judge.metrics import prescribed_chi  # noqa: E402
+from sc_rt.results.record.run import Run  # noqa: E402
 
 __all__ = ["limit_lines", "tracking_figures", "timing_figures", "fault_figure", "estimation_figure", "mark_events",
            "run_title", "save_figure"]
@@ -42,7 +42,7 @@ def _two_line(what: str, run: Run, title: str = "") -> str:
 
 
 def _safe_mask(run: Run) -> np.ndarray:
-    from sc_rt.results.verdict import MODE_SAFE, SAFE_FLAGS
+    from sc_rt.results.judge.verdict import MODE_SAFE, SAFE_FLAGS
 
     known = run["ctrl_mode"] >= 0
     return np.where(known, run["ctrl_mode"] == MODE_SAFE, (run["flags"] & sum(SAFE_FLAGS)) != 0)
@@ -126,7 +126,7 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     and the faults when there are any. Every time plot marks fault onsets,
     the first bound violation and SAFE spans. The envelope and the wheel
     limits come from ``run.meta``."""
-    from sc_rt.results.verdict import pointing_arcsec
+    from sc_rt.results.judge.verdict import pointing_arcsec
 
     out.mkdir(parents=True, exist_ok=True)
     t = run["t"]

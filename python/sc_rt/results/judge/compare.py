@@ -1,0 +1,89 @@
+"""Laws compared on one scenario (``sc-rt compare``, docs/LAWS.md): a row of
+each law's run (verdict, bound, settling, peaks, SAFE and law-invalid
+steps, its requirement results), the laws ranked by margin on each
+requirement, and overall by each law's worst margin. Pure data from finished
+runs; the tables that show them: sc_rt.results.present.tables."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from sc_rt.results.judge.pointing import settling_time
+from sc_rt.results.judge.requirements import worst
+from sc_rt.results.judge.verdict import pointing_arcsec, requirements_summary
+
+__all__ = ["REQUIREMENT_KEYS", "compare_row", "overall", "rank_key", "rank_requirements", "settling_s"]
+
+
+def settling_s(t: np.ndarray, sigma_BD: np.ndarray, frac: float) -> float | None:
+    """[s] the first time from which the pointing error stays within ``frac``
+    of its initial value (pointing.settling_time, the requirements' own
+    definition, with the band ``frac * e(0)``); None if it does not settle by
+    the end or the initial error is not finite."""
+    e = pointing_arcsec(sigma_BD)
+    if not len(e) or not np.isfinite(e[0]):
+        return None
+    return settling_time(t, e, frac * float(e[0]))
+
+
+#: What a row keeps of each requirement's result.
+REQUIREMENT_KEYS = ("name", "kind", "axis", "interpretation", "confidence", "value", "bound", "unit", "margin",
+                    "relative_margin", "passed", "status")
+
+
+def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
+    """One law's row: its run's verdict, bound, settling within ``settle_frac``
+    of the initial error, peaks, SAFE and law-invalid steps, requirements."""
+    m = run.metrics
+    ok = np.all(run["bound_ok"], axis=1)
+    return {
+        "law": label,
+        "bound_held": bool(np.all(ok)),
+        "first_bound_violation_s": m.get("first_bound_violation_s"),
+        "bound_violation_fraction": float(np.mean(~ok)) if len(ok) else None,
+        "settling_s": settling_s(run["t"], run["sigma_BD"], settle_frac),
+        "final_pointing_arcsec": float(pointing_arcsec(run["sigma_BD"][-1:])[0]) if len(ok) else None,
+        "max_abs_wheel_accel": m.get("max_abs_wheel_accel"),
+        "safe_steps": m.get("safe_steps"),
+        "law_invalid_steps": m.get("law_invalid_steps"),
+        "diverged": bool(m.get("diverged", False)),
+        "valid": m.get("valid", True) is not False,
+        "invalid_reason": m.get("invalid_reason"),
+        "verdict": None if m.get("requirements") is None else requirements_summary(m["requirements"]),
+        "requirements": [{k: r.get(k) for k in REQUIREMENT_KEYS} for r in m.get("requirements") or []],
+    }
+
+
+def rank_key(r: dict[str, Any]) -> tuple[int, float]:
+    """Best first: a larger margin relative to the bound; a failure without a
+    value (never settled) after every value; not evaluated last."""
+    if r.get("passed") is None:
+        return (2, 0.0)
+    m = r.get("relative_margin")
+    return (1, 0.0) if m is None else (0, -float(m))
+
+
+def rank_requirements(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
+    """Per requirement (in the scenario's order), the laws' results ranked by
+    their margin relative to the bound, best first (``rank`` 1, 2, ...;
+    None: not evaluated or not applicable for that law); a law whose run
+    failed (a crash) has no result and is left out."""
+    out: dict[str, list[dict[str, Any]]] = {}
+    for row in rows:
+        for r in row.get("requirements") or []:
+            if r.get("interpretation") not in ("ensemble", "mixed"):  # across runs: sc-rt montecarlo
+                out.setdefault(r["name"], []).append({"law": row["law"], **r})
+    for entries in out.values():
+        entries.sort(key=rank_key)
+        for i, e in enumerate(entries):
+            e["rank"] = i + 1 if e.get("passed") is not None else None
+    return out
+
+
+def overall(rows: list[dict[str, Any]]) -> list[tuple[str, dict[str, Any] | None]]:
+    """The laws ordered by their worst requirement (the smallest margin
+    relative to its bound, as the verdict line): (law, that requirement)."""
+    judged = [(row["law"], worst(row.get("requirements") or [])) for row in rows if row.get("requirements")]
+    return sorted(judged, key=lambda x: (2, 0.0) if x[1] is None else rank_key(x[1]))
