@@ -16,7 +16,7 @@ import lcm
 import numpy as np
 import sc_rt_lcm
 
-from sc_rt.hil.runner import controller_binary
+from sc_rt.hil.procs import controller_binary
 
 url, cfg, out = sys.argv[1:4]
 ctl = subprocess.Popen([controller_binary(), "--config", cfg, "--mode", "realtime", "--trigger", "timer",

@@ -127,7 +127,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     except ValueError as e:
         print(f"sc-rt replay: error: {e}", file=sys.stderr)
         return 2
-    from sc_rt.hil.runner import child_kwargs
+    from sc_rt.hil.procs import child_kwargs
     from sc_rt.cli.interrupts import Interrupted
 
     proc = subprocess.Popen(cmd, **child_kwargs())  # its own group: stopped here, never orphaned

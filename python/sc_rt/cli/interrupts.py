@@ -4,7 +4,7 @@
 143, after a one-line message). A command that writes partial outputs
 handles them itself while it runs: ``flag_signals`` records the signal and
 lets the work stop at its next step (``sc-rt sim``'s python engine, the
-bench's emulator through ``sc_rt.hil.runner.Stopper``), and ``sc-rt
+bench's emulator through ``sc_rt.hil.procs.Stopper``), and ``sc-rt
 montecarlo`` keeps the runs already in its dataset.
 """
 

@@ -19,7 +19,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from sc_rt.hil.runner import child_kwargs
+from sc_rt.hil.procs import child_kwargs
 
 __all__ = ["LiveChild", "beside_run", "READY"]
 

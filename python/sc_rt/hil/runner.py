@@ -10,55 +10,34 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-
-from sc_rt.wire.auth import load_key, open_bus
+from sc_rt import __version__, _core
 from sc_rt.emulator.process import Emulator, Options
-from sc_rt.hil.external import ExternalController, python_controller_command
-from sc_rt.isolate import exit_how
-from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
-from sc_rt.wire.lcmio import channel, free_port_url, open_lcm
-from sc_rt.wire.startrec import encode_start
-from sc_rt.logs.timing import RealtimeLimits, log_missing, realtime_shortfall, timing_report
 from sc_rt.emulator.sensorpub import SENT_COUNTERS
+from sc_rt.hil.bench_end import bench_timing, death_line, judge_real_time, logger_summary
+from sc_rt.hil.external import ExternalController, python_controller_command
+from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
+from sc_rt.hil.procs import (Stopper, bench_binary, child_kwargs, controller_binary, lift_logger, probe_logger,
+                             stop_child, wait_logged)
+from sc_rt.logs.timing import RealtimeLimits, log_missing, timing_report
+from sc_rt.pylaw import is_python_law
 from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run, mark_invalid, record_law_failures
 from sc_rt.results.present.output import write_run
-from sc_rt.pylaw import is_python_law
 from sc_rt.results.record.run import Run, provenance
-from sc_rt import __version__, _core
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import with_overrides
+from sc_rt.wire.auth import load_key, open_bus
+from sc_rt.wire.lcmio import channel, free_port_url, open_lcm
+from sc_rt.wire.startrec import encode_start
 
-__all__ = ["HilResult", "run_hil", "controller_binary", "Stopper", "child_kwargs"]
-
-
-def bench_binary(name: str) -> str:
-    """One of sc-rt's executables next to this interpreter (the venv's bin), else PATH."""
-    here = Path(sys.executable).parent / name
-    if here.exists():
-        return str(here)
-    found = shutil.which(name)
-    if not found:
-        raise FileNotFoundError(f"{name} not found: install sc-rt (make install)")
-    return found
-
-
-def controller_binary() -> str:
-    """sc-rt-controller next to this interpreter (the venv's bin), else PATH."""
-    return bench_binary("sc-rt-controller")
-
+__all__ = ["HilResult", "run_hil"]
 
 
 @dataclass
@@ -82,144 +61,6 @@ class HilResult:
     @property
     def timing(self) -> dict[str, Any]:
         return self.run.timing or {}
-
-
-def _probe_logger(url: str, path: Path, payload: bytes, timeout: float, name: str) -> bool:
-    lc = open_lcm(url)
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        lc.publish(name, payload)
-        time.sleep(0.02)
-        if path.exists() and path.stat().st_size > 0:
-            return True
-    return False
-
-
-def _pdeathsig():
-    """prctl(PR_SET_PDEATHSIG, SIGTERM) for a child, looked up in the parent
-    (the child, between fork and exec, only calls it); None off Linux."""
-    try:
-        import ctypes
-
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
-        return None
-    return lambda: prctl(1, int(signal.SIGTERM))  # 1: PR_SET_PDEATHSIG
-
-
-def child_kwargs() -> dict[str, Any]:
-    """Popen arguments of the bench's children: their own process group (a
-    Ctrl-C at the terminal reaches sc-rt alone, which stops them in order:
-    controller, then the logger after its last flush) and SIGTERM when sc-rt
-    dies, even by SIGKILL (Linux)."""
-    if sys.platform != "linux":
-        return {}
-    hook = _pdeathsig()
-    return {"process_group": 0, **({"preexec_fn": hook} if hook else {})}
-
-
-class Stopper:
-    """Why a bench run should stop early, asked by the emulator every step:
-    SIGINT or SIGTERM received (handled while the run lasts, main thread
-    only), ``lcm-logger`` gone, or the controller under test gone (polled at
-    most every ``poll_s``: a dead child is noticed within a second and the
-    run stops, partial, rather than go on with a log that no longer grows or
-    with the watchdog's zero commands standing in for a dead law)."""
-
-    def __init__(self, logger: subprocess.Popen | None = None, poll_s: float = 0.25):
-        self.logger, self.poll_s = logger, poll_s
-        self.signum: int | None = None
-        self.logger_rc: int | None = None
-        #: the controller process under test, and its name in messages
-        self.controller: subprocess.Popen | None = None
-        self.controller_name = "the controller"
-        #: how the controller died ("sc-rt-controller died (signal SIGSEGV)"), None while it lives
-        self.died: str | None = None
-        self._next = 0.0
-        self._old: dict[int, Any] = {}
-
-    def __enter__(self) -> Stopper:
-        if threading.current_thread() is threading.main_thread():
-            for s in (signal.SIGINT, signal.SIGTERM):
-                self._old[s] = signal.signal(s, self._on_signal)
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        for s, h in self._old.items():
-            signal.signal(s, h)
-
-    def _on_signal(self, signum: int, _frame: Any) -> None:
-        if self.signum is None:
-            self.signum = signum
-
-    def __call__(self) -> str | None:
-        if self.signum is not None:
-            return f"interrupted by {signal.Signals(self.signum).name}"
-        now = time.monotonic()
-        if now >= self._next:
-            self._next = now + self.poll_s
-            if self.logger is not None:
-                self.logger_rc = self.logger.poll()
-            if self.controller is not None and self.died is None and (rc := self.controller.poll()) is not None:
-                self.died = f"{self.controller_name} died ({exit_how(rc)}) during the run"
-        if self.logger_rc is not None:
-            return f"sc-rt-logger exited (code {self.logger_rc}) during the run: the log ends there"
-        return self.died
-
-
-#: lcm-logger's real-time priority when permitted: above every ordinary
-#: process, below the bench's own real-time processes (controller 80, emulator).
-LOGGER_FIFO_PRIORITY = 10
-
-
-def _lift_logger(pid: int) -> str:
-    """SCHED_FIFO for lcm-logger when this process may set it (root): its LCM
-    subscription queue holds 30 messages, a lockstep run publishes ~20,000
-    a second, and a logger descheduled for a millisecond by other load drops
-    the overflow silently. Returns the policy it runs with."""
-    lifted = 0
-    for task in Path(f"/proc/{pid}/task").glob("*"):  # the policy is per thread on Linux
-        try:
-            os.sched_setscheduler(int(task.name), os.SCHED_FIFO, os.sched_param(LOGGER_FIFO_PRIORITY))
-            lifted += 1
-        except (PermissionError, OSError, AttributeError, ValueError):
-            pass
-    return f"SCHED_FIFO {LOGGER_FIFO_PRIORITY} ({lifted} threads)" if lifted else "SCHED_OTHER"
-
-
-def _wait_logged(url: str, path: Path, logger: subprocess.Popen, channel_name: str, payload: bytes,
-                 timeout_s: float = 10.0) -> bool:
-    """Publish an end marker and wait until lcm-logger has written it: the
-    logger receives in send order, so everything the run published is in the
-    log before it (a loaded machine can leave the logger seconds behind a
-    lockstep run; stopping it at once lost the last states). False when the
-    marker did not appear within ``timeout_s`` (said in timing.json)."""
-    lc = open_lcm(url)
-    needle = channel_name.encode()
-    end = time.monotonic() + timeout_s
-    next_pub = 0.0
-    while time.monotonic() < end and logger.poll() is None:
-        if time.monotonic() >= next_pub:  # again now and then: a datagram can be lost
-            lc.publish(channel_name, payload)
-            next_pub = time.monotonic() + 1.0
-        if path.exists():
-            with open(path, "rb") as f:
-                f.seek(max(0, path.stat().st_size - 4096))
-                if needle in f.read():
-                    return True
-        time.sleep(0.01)
-    return False
-
-
-def _stop(proc: subprocess.Popen, sig: int = signal.SIGTERM, timeout: float = 5.0) -> int:
-    if proc.poll() is None:
-        proc.send_signal(sig)
-        try:
-            proc.wait(timeout)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    return proc.returncode
 
 
 def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None = None,
@@ -431,54 +272,6 @@ def _start_record(b: _Bench) -> bytes:
     return encode_start(rec)
 
 
-def _logger_summary(err: str) -> dict[str, Any] | None:
-    """sc-rt-logger's exit summary (its stderr's last JSON line): events written, deepest queue."""
-    for line in reversed(err.splitlines()):
-        try:
-            d = json.loads(line)
-        except ValueError:
-            continue
-        if isinstance(d, dict) and "events" in d:
-            return d
-    return None
-
-
-def _judge_real_time(res: Run, summary: dict[str, Any], limits: RealtimeLimits) -> None:
-    """One number of SAFE steps everywhere (the controller's, when it says:
-    metrics.json, the console and timing.json agree; the rows that applied a
-    SAFE command are safe_rows), and a real-time run that did not keep real
-    time is invalid, with the reason (RealtimeLimits)."""
-    if summary.get("safe_steps") is not None:
-        res.metrics["safe_rows"] = res.metrics.get("safe_steps")
-        res.metrics["safe_steps"] = int(summary["safe_steps"])
-    why = realtime_shortfall(res.timing, limits)
-    if res.timing.get("mode") == "realtime":
-        res.timing["kept_real_time"] = why is None
-        res.timing["realtime_limits"] = dataclasses.asdict(limits)
-    if why is not None:
-        mark_invalid(res, why)
-        print(f"sc-rt hil: {why}", file=sys.stderr)
-
-
-def _death_line(res: Run, died: str, ext: ExternalController | None) -> str:
-    """One line: which process died, how, and when (the time of the last
-    state it answered, and of the row the bench stopped at)."""
-    # a state answered by a command of its own (latency measured); a held
-    # command (real time) is not an answer
-    last = t_end = None
-    for c in res.chunks():
-        answered = np.flatnonzero(np.isfinite(c["latency_us"]))
-        if answered.size:
-            last = float(c["t"][answered[-1]])
-        if len(c):
-            t_end = float(c["t"][-1])
-    when = f"at t = {last:.3f} s (the last state it answered)" if last is not None else \
-        "before it answered any state"
-    where = f"its stderr: {ext.stderr_name}" if ext else "its stderr: controller_stderr.txt"
-    stop_t = f"; the run stopped at t = {t_end:.3f} s" if t_end is not None else ""
-    return f"{died} {when}{stop_t}; the run is invalid ({where})"
-
-
 def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     scn, out, url, mode, prefix = b.scn, b.out, b.url, b.mode, b.prefix
     realtime_priority, setup, floor, ext, key = b.realtime_priority, b.setup, b.floor, b.ext, b.key
@@ -490,10 +283,10 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     # shows up (SCRT_HIL_START carries the scenario name; readers skip it)
     print(f"sc-rt hil: LCM URL {url}" + (f", channel prefix {prefix!r}" if prefix else ""),
           file=sys.stderr, flush=True)
-    if not _probe_logger(url, log_path, _start_record(b), 5.0, prefix + "SCRT_HIL_START"):
-        _stop(logger, signal.SIGINT)
+    if not probe_logger(url, log_path, _start_record(b), 5.0, prefix + "SCRT_HIL_START"):
+        stop_child(logger, signal.SIGINT)
         raise RuntimeError(f"lcm-logger did not start on {url}: {logger.stderr.read().decode()}")
-    logger_policy = _lift_logger(logger.pid)  # now that it runs: all its threads exist
+    logger_policy = lift_logger(logger.pid)  # now that it runs: all its threads exist
     # the run's controller_config_t goes into the log (sc-rt report takes the law,
     # the rate and the PPC envelope from it); the controller reads its file and
     # listens to SCRT_CONFIG only with --config-channel
@@ -513,7 +306,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
                subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                                 **child_kwargs()))
     except BaseException:
-        _stop(logger, signal.SIGINT)
+        stop_child(logger, signal.SIGINT)
         raise
     stopper.controller = ctl
     stopper.controller_name = "the external controller" if ext else "sc-rt-controller"
@@ -538,13 +331,13 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
             ext.check_started(res)
     finally:
         if ctl is not None:
-            _stop(ctl, signal.SIGTERM)
+            stop_child(ctl, signal.SIGTERM)
         ctl_err = ext.stderr_text() if ext else ctl.stderr.read() if ctl.stderr else ""
-        log_complete = _wait_logged(url, log_path, logger, prefix + "SCRT_HIL_END", scn.name.encode())
-        logger_rc = _stop(logger, signal.SIGINT)
+        log_complete = wait_logged(url, log_path, logger, prefix + "SCRT_HIL_END", scn.name.encode())
+        logger_rc = stop_child(logger, signal.SIGINT)
     logger_err = logger.stderr.read().decode(errors="replace").strip() if logger.stderr else ""
     if stopper.died is not None and res.partial and res.message == stopper.died:
-        res.message = _death_line(res, stopper.died, ext)
+        res.message = death_line(res, stopper.died, ext)
         res.metrics["stopped"] = res.message
         mark_invalid(res, res.message)
     stopped = res.message if res.partial else None
@@ -587,18 +380,18 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     res.timing["logger_scheduler"] = logger_policy
     res.timing["log_missing"] = log_missing(log_path, prefix, len(res),
                                             {c: int(res.counters.get(k, 0)) for c, k in SENT_COUNTERS.items()})
-    res.timing["logger"] = _logger_summary(logger_err)
+    res.timing["logger"] = logger_summary(logger_err)
     if any(res.timing["log_missing"].values()):  # the log is the run's evidence: a lost message fails it
         lost = {c: n for c, n in res.timing["log_missing"].items() if n}
         why = (f"the log lost {sum(lost.values())} messages of this run ({lost}; the logger runs "
                f"{logger_policy}; docs/HIL.md, 'A complete log')")
         mark_invalid(res, why)
         print(f"sc-rt hil: {why}", file=sys.stderr)
-    res.timing.update(_bench_timing(res, summary, emu, setup))
+    res.timing.update(bench_timing(res, summary, emu, setup))
     if floor:
         res.timing["floor"] = floor
         res.timing["over_floor"] = compare_to_floor(res.timing, floor)
-    _judge_real_time(res, summary, b.rt_limits)
+    judge_real_time(res, summary, b.rt_limits)
     try:
         files = write_run(res, out, figures=b.plots and len(res) > 1)  # (no figure of a run stopped at once)
     except OSError as e:  # a full disk: say where, and why the run had stopped
@@ -609,25 +402,3 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     return HilResult(out, res, summary, files, stopped, stopper.signum)
 
 
-def _bench_timing(res: Run, summary: dict[str, Any], emu: Emulator, setup: TimingSetup) -> dict[str, Any]:
-    """How the run was scheduled and how fresh its commands were: the share
-    of rows that applied the answer to the state of the period just ended
-    (real time: the command in hand at the tick answers the previous tick's
-    state; lockstep: every answered state), the share of controller steps
-    that had a new state, and where the emulator's microseconds went."""
-    rows = len(res)
-    if res.meta.mode == "realtime":
-        fresh = emu.fresh_ticks / rows if rows else None
-    else:
-        fresh = 1.0 - res.counters.get("cmd_timeout", 0) / rows if rows else None
-    steps = int(summary.get("steps", 0))
-    return {
-        "trigger": summary.get("trigger", setup.trigger),
-        "null_law": bool(summary.get("null_law", setup.null_law)),
-        "timing_setup": dataclasses.asdict(setup),
-        "emulator_scheduler": emu.scheduler,
-        "fresh_fraction": fresh,
-        "controller_fresh_fraction": 1.0 - int(summary.get("stale_states", 0)) / steps if steps else None,
-        "emulator_breakdown_us": emu.breakdown(),
-        "load_avg": list(os.getloadavg()),
-    }

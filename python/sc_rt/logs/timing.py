@@ -79,7 +79,7 @@ def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, A
         "command_gaps_s": [list(g) for g in res.gaps],
         "faults_applied": res.faults_applied,
         # how the run was scheduled and how fresh it was: filled by sc-rt hil
-        # (_bench_timing); a log does not say (sc-rt report: None)
+        # (hil/bench_end.py bench_timing); a log does not say (sc-rt report: None)
         "trigger": summary.get("trigger"), "null_law": summary.get("null_law"), "timing_setup": None,
         "emulator_scheduler": None, "fresh_fraction": None,
         "controller_fresh_fraction": (1.0 - int(summary.get("stale_states", 0)) / int(summary["steps"])
