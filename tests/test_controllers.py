@@ -339,7 +339,7 @@ def test_a_config_for_another_law_interface_version_is_refused():
     import sc_rt_lcm
 
     m = sc_rt_lcm.controller_config_t.decode(core_config("pd").to_lcm_bytes("x"))
-    assert m.law_api_version == _core.LAW_API_VERSION == 2
+    assert m.law_api_version == _core.LAW_API_VERSION == 3
     m.law_api_version = 1
-    with pytest.raises(ValueError, match="law interface version 1, this controller has 2"):
+    with pytest.raises(ValueError, match="law interface version 1, this controller has 3"):
         _core.ControllerConfig.from_lcm_bytes(m.encode())

@@ -20,6 +20,8 @@ PINS = {
     1: "d593e58814b643bfb78a09388437b6f1915f50926b0eb19928b794b66e245e09",
     # issue #26: the setup without the core config (the built-ins read LawParams), the wheel interface in LawModel
     2: "fed39dccadd317d5bc25d4bbbeefb314669f1c550dc173b6ef1f9ffe2beaf4de",
+    # issue 39: LawModel::wheel_command gives a on acceleration wheels and Jw a on torque wheels (was inverted)
+    3: "c58c5f9427d8a5743fc161b9706d3edff685e3ae1b19a7a2c0b18edcf91d816e",
 }
 
 

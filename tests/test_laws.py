@@ -194,7 +194,7 @@ def _line_of(f: Path, needle: str) -> int:
     ("throws", "", "run.controller", "construction failed: no gains for this spacecraft"),
     ("nan_probe", "", "run.controller", "non-finite command (or throws) at rest (probe step"),
     ("noentry", "", "run.controller", "has no sc_rt_law_api_version(): not an sc-rt law plugin"),
-    ("version99", "", "run.controller", "built against law interface version 99, this sc-rt has 2"),
+    ("version99", "", "run.controller", "built against law interface version 99, this sc-rt has 3"),
     ("fingerprint", "", "run.controller", 'built with "api-1 othercc-3 cxxabi-other", this sc-rt has'),
 ])
 def test_bad_plugin_in_a_scenario_names_file_line_key(plugins, tmp_path, which, params, key, message):

@@ -27,7 +27,7 @@
 
 #include "sc_rt/types.hpp"
 
-#define SC_RT_LAW_API_VERSION 2
+#define SC_RT_LAW_API_VERSION 3
 
 // The compiler / ABI facts that must match between the core and a plugin
 // (the types below cross the boundary by reference). Eigen's static
@@ -95,7 +95,7 @@ struct LawModel {
   Vec4 umax = Vec4::Zero();        //!< upper wheel command limits (the same unit)
   //! What the wheels take (the scenario's [wheels] command): false, a wheel
   //! acceleration [rad/s^2] (what B and wheels_for_torque give); true, a motor
-  //! torque [N m] (wheel_torque_for gives it: Jw times the acceleration)
+  //! torque [N m] (wheel_command gives it: Jw times the acceleration)
   bool wheel_torque_command = false;
   //! [rad/s] the wheels' speed limits (inf: none): momentum a law can still store
   Vec4 wheel_speed_max = Vec4::Constant(std::numeric_limits<double>::infinity());
@@ -106,11 +106,11 @@ struct LawModel {
   //! J0 x2_dot = tau through B, i.e. u = B+ J0^-1 tau.
   Vec4 wheels_for_torque(const Vec3& tau) const { return B_pinv * (J0_inv * tau); }
   //! The wheel command for the wheel accelerations a [rad/s^2], in the unit
-  //! the wheels take: a itself, or the motor torques Jw a [N m].
+  //! the wheels take: a itself on acceleration-commanded wheels, the motor
+  //! torques Jw a [N m] on torque-commanded ones (the inverse of what the
+  //! drive does with a command: types.hpp wheel_torque_command).
   Vec4 wheel_command(const Vec4& a) const {
-    Vec4 u;
-    for (int i = 0; i < 4; ++i) u(i) = sc_rt::wheel_torque_command(a(i), Jw(i), wheel_torque_command);
-    return u;
+    return wheel_torque_command ? Vec4(Jw.cwiseProduct(a)) : a;
   }
 };
 
