@@ -86,6 +86,8 @@ echo "rc=$?"
     assert "STOPPED at t = " in err and f"interrupted by SIG{sig}" in err and "Traceback" not in err, err
     m = metrics(out)
     assert m["partial"] is True and m["stopped"] == f"interrupted by SIG{sig}"
+    # an interrupted run is not a valid run of its scenario (issue 40), and its log's report says so too
+    assert m["valid"] is False and f"interrupted by SIG{sig}" in m["invalid_reason"]
     assert 0 < m["t_reached_s"] < 300 and m["steps"] == round(m["t_reached_s"] * 1000) + 1
     assert m["finite"] is True
     assert "stale states" in (tmp_path / "o.txt").read_text()  # the summary was printed
@@ -93,6 +95,8 @@ echo "rc=$?"
     rep = lcmnet.run_cli(["report", str(log), "--no-plots", "--out", str(tmp_path / "rep")], netns=False)
     assert rep.returncode == 0, rep.stderr
     rm = metrics(tmp_path / "rep")
+    seen = {k: rm.get(k) for k in ("valid", "invalid_reason", "partial", "stopped", "steps")}
+    assert rm["valid"] is False and "stopped before its end" in rm["invalid_reason"], seen
     assert_complete_rows(tmp_path / "rep")
     # (lockstep at full speed can outrun the logger's socket: a log may miss rows, never add them)
     assert 0 < rm["steps"] <= m["steps"]
@@ -119,6 +123,7 @@ echo "rc=$?"
     assert not leftovers(str(out))
     m = metrics(out)
     assert m["partial"] is True and "sc-rt-logger exited" in m["stopped"]
+    assert m["valid"] is False
     assert m["t_reached_s"] < 300  # stopped, not run to its end with a log that no longer grows
 
 
@@ -176,6 +181,7 @@ echo "rc=$?"
     assert f"interrupted by SIG{sig}" in err and "Traceback" not in err, err
     m = metrics(out)
     assert m["partial"] is True and m["t_reached_s"] < 300 and m["steps"] < 300_001
+    assert m["valid"] is False and f"interrupted by SIG{sig}" in m["invalid_reason"]
 
 
 @pytest.mark.slow
@@ -233,6 +239,7 @@ def test_report_on_a_log_cut_mid_step(tmp_path):
     assert "PARTIAL" not in reports["whole"]
     m, whole = metrics(tmp_path / "cut"), metrics(tmp_path / "whole")
     assert m["partial"] is True and m["incomplete_rows_dropped"] >= 1 and "partial" not in whole
+    assert m["valid"] is False and whole["valid"] is True
     assert m["steps"] == whole["steps"] - 1
     assert_complete_rows(tmp_path / "cut")
     assert m["finite"] is whole["finite"]

@@ -36,7 +36,7 @@ CBAR = [
 EXPECTED_MSG = {
     "scenario": "paper_fault_free",
     "law": "dsc-ppc",
-    "law_api_version": 2,
+    "law_api_version": 3,
     # [laws.dsc-ppc] of the file, in its order: the observer's, then the DSC gains (paper s4)
     "n_law_params": 13,
     "law_param_keys": ("neso_k1", "neso_k2", "neso_k3", "neso_k4", "neso_alpha", "neso_substeps",

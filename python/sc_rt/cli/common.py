@@ -159,12 +159,6 @@ def html_report(out: Path, who: str) -> None:
     print(f"sc-rt {who}: report for reading: {write_html_report(out)}")
 
 
-def mark_partial(run, why: str) -> None:
-    """A finished run record that ends before its duration: partial, why, and the time reached."""
-    run.partial = True
-    run.metrics.update(partial=True, stopped=why, t_reached_s=float(run.t[-1]) if len(run) else None)
-
-
 def invalid_exit(metrics: dict, who: str) -> int:
     """A run that went to its end but is not a valid run of its law (the
     law failed: metrics.json ``valid`` false): one line with the reason,

@@ -11,11 +11,12 @@ from pathlib import Path
 from sc_rt.cli.interrupts import flag_signals
 from sc_rt.cli.validate import UsageError, check_run_size, given_options, resolve_url, rounded
 from sc_rt.cli.controller import external_choice
-from sc_rt.cli.common import (checked_out, claim_out, html_report, invalid_exit, mark_partial, mcap_problem,
+from sc_rt.cli.common import (checked_out, claim_out, html_report, invalid_exit, mcap_problem,
                               print_metrics, report_stopped, scenario_arg, write_mcap)
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
+    from sc_rt.results.judge.metrics import mark_partial
     from sc_rt.results.present.output import write_run
 
     from sc_rt.scenario.overrides import with_overrides

@@ -101,6 +101,8 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     if d.records["SCRT_STATE"].size == 0:
         raise ValueError(f"{d.path}: no plant_state_t on {d.prefix}SCRT_STATE: nothing to report")
     name, law, rate, duration, ppc, umin, umax, source = run_params(d, scenario)
+    if duration is None and (d.start or {}).get("duration_s") is not None:
+        duration = float(d.start["duration_s"])  # the run's own duration (its start record): a log cut short is partial
     law = controller_label(d, law)  # the law that answered (its announcement), not only the configured one
     t_build = time.perf_counter()
     r = rebuild(d, mode)
@@ -113,7 +115,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     if dropped:
         r = dataclasses.replace(r, arrays={k: v[keep] for k, v in r.arrays.items()}, has_truth=r.has_truth[keep])
     rows = len(r.arrays["t"])
-    short = duration is not None and rows and float(r.arrays["t"][-1]) < duration - 0.5 / rate
+    short = duration is not None and (not rows or float(r.arrays["t"][-1]) < duration - 0.5 / rate)
     if duration is None:
         duration = (rows - 1) / rate if rows else 0.0
     st = r.arrays["state_log_us"]
@@ -133,7 +135,9 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
                    telemetry_names=tuple((d.start or {}).get("telemetry_names") or ()), **extra)
     run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:
-        run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None}
+        run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None,
+                       "stopped": "the log ends before the run's duration (an interrupted, crashed or "
+                                  "full-disk run, or a logger stopped early)"}
     if dropped:
         run.metrics.update(incomplete_rows_dropped=dropped, incomplete_rows_at_end=at_end)
     run.metrics.update(provenance(_main_session(d.records["SCRT_STATE"]), _main_session(d.records["SCRT_CMD"])))

@@ -16,7 +16,8 @@ from sc_rt.results.judge.requirements import evaluate_requirements
 from sc_rt.results.record.run import CORE_FIELDS, Run, json_safe
 from sc_rt.results.judge.verdict import SAFE_FLAGS, pointing_arcsec, safe_summary
 
-__all__ = ["METRIC_TIMES", "mark_invalid", "record_law_failures", "bound_ok", "compute_metrics", "fill_tracking_errors",
+__all__ = ["METRIC_TIMES", "mark_invalid", "mark_partial", "stopped_reason", "record_law_failures", "bound_ok",
+           "compute_metrics", "fill_tracking_errors",
            "prescribed_chi", "finish_run", "json_safe"]
 
 #: Times [s] at which the error norms are reported (those within the run;
@@ -284,7 +285,26 @@ def finish_run(run: Run) -> Run:
     metrics["law_telemetry"] = tel.summary()  # the law's own values (results/judge/law_telemetry.py)
     metrics.update({k: v for k, v in run.metrics.items() if k not in metrics})
     run.metrics = metrics
+    metrics.setdefault("valid", True)  # every run says whether it is valid (reasons: invalid_reason)
+    if run.partial:  # a run that stopped before its end is not a run of its scenario
+        mark_invalid(run, stopped_reason(run))
     return run
+
+
+def stopped_reason(run: Run) -> str:
+    """Why a partial run is invalid, in one line: what stopped it and when."""
+    why = run.metrics.get("stopped") or run.message or "it ended before its duration"
+    t = run.metrics.get("t_reached_s")
+    at = f" at t = {t:.6g} s" if isinstance(t, (int, float)) else ""
+    return f"the run stopped before its end{at} of {run.meta.duration_s:g} s: {why}"
+
+
+def mark_partial(run: Run, why: str) -> None:
+    """A finished run record that ends before its duration: partial, why,
+    the time reached, and invalid (``stopped_reason``)."""
+    run.partial = True
+    run.metrics.update(partial=True, stopped=why, t_reached_s=float(run.t[-1]) if len(run) else None)
+    mark_invalid(run, stopped_reason(run))
 
 
 def mark_invalid(run: Run, why: str) -> None:
