@@ -43,7 +43,8 @@ from sc_rt.logs.logread import LogData, read_log
 from sc_rt.logs.timing import log_missing, timing_report
 from sc_rt.logs.rebuild import (Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild,
                                run_params, sensor_summary)
-from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run
+from sc_rt.pylaw import FLAG_LAW_INVALID
+from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run, mark_invalid
 from sc_rt.results.present.output import write_run
 from sc_rt.results.record.run import Run, RunMeta, json_safe, provenance
 
@@ -145,6 +146,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     faults = fault_summary(d, r)
     run.faults_applied = faults["commands"]
     finish_run(run)
+    _law_failures_from_flags(run)
     run.timing = _timing(run, r, d, wall)
     build_s = time.perf_counter() - t_build
     # uncompressed: zlib would take longer than reading a million-event log
@@ -164,6 +166,25 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     report["metrics"] = run.metrics
     report["timing"] = run.timing
     return report
+
+
+def _law_failures_from_flags(run: Run) -> None:
+    """The law's failures as the log shows them: the steps the controller
+    flagged FLAG_LAW_INVALID (it commanded SAFE zeros instead). The live run
+    counts them from the controller's summary (its messages are in
+    controller_summary.json, not in the log); the verdict is the same."""
+    n = int(run.metrics.get("law_invalid_steps") or 0)
+    if n == 0:
+        return
+    first = None
+    for c in run.chunks():
+        hit = np.flatnonzero((np.asarray(c["flags"]) & FLAG_LAW_INVALID) != 0)
+        if hit.size:
+            first = float(c["t"][hit[0]])
+            break
+    mark_invalid(run, f"the law failed at {n} step{'s' if n > 1 else ''} (FLAG_LAW_INVALID in the log's "
+                      f"commands; first at t = {first:.4g} s; the messages are in the live run's "
+                      "controller_summary.json)")
 
 
 def replay_command(log: str | Path, url: str, speed: float = 1.0, channels: str | None = None,
