@@ -33,6 +33,9 @@ def add_timing_options(h: argparse.ArgumentParser, *, floor_policy: bool = True)
                        help="real time: the bench floor timing.json and timing.png compare the run with: "
                             "auto (cached when younger than an hour, else a 2 s null-controller run "
                             "first), cached, measure, off (default: %(default)s)")
+        h.add_argument("--controller-memory-limit", type=number(1, 1e7, unit="MB"), default=2048.0, metavar="MB",
+                       help="[MB] the controller process's resident memory beyond which it is killed and the "
+                            "run stops, invalid (default: %(default)g)")
         h.add_argument("--self-test", action="store_true",
                        help="measure the bench floor only (as sc-rt floor) and exit")
 

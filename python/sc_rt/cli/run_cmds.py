@@ -107,7 +107,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
                       external_wait=args.external_wait, start_timeout=args.start_timeout,
                       auth_key=args.auth_key, setup=timing_setup(args),
                       floor=None if args.floor == "off" or args.mode != "realtime" else args.floor,
-                      rt_limits=args.rt_limits)
+                      rt_limits=args.rt_limits, controller_memory_limit_mb=args.controller_memory_limit)
     print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/ ({len(res.files)} files: "
           f"{', '.join(p.name for p in res.files)}, run.lcmlog)")
     print_metrics(res.metrics, res.run.meta.faults)

@@ -8,7 +8,8 @@ its placeholders are replaced: ``{url}``, ``{prefix}``, ``{mode}``,
 process may write its controller_summary.json), ``{python}`` (this
 interpreter). The same values are in its environment: SCRT_LCM_URL,
 SCRT_PREFIX, SCRT_MODE, SCRT_CONFIG, SCRT_SUMMARY. Its stdout and stderr go
-to controller_stdout.txt and controller_stderr.txt in the run's directory.
+to controller_stdout.txt and controller_stderr.txt in the run's directory, read
+as they come and capped (hil/procs.py ``Drain``).
 
 The emulator re-sends the first state until the controller answers it (up
 to the start timeout), so a process that takes a while to start, or one
@@ -26,6 +27,8 @@ import subprocess
 import sys
 from pathlib import Path
 from typing import Any
+
+from sc_rt.hil.procs import Drain
 
 __all__ = ["ExternalController", "python_controller_command", "PLACEHOLDERS", "expand",
            "DEFAULT_START_TIMEOUT_S", "DEFAULT_WAIT_TIMEOUT_S"]
@@ -74,6 +77,7 @@ class ExternalController:
                     "SCRT_CONFIG": str(config), "SCRT_SUMMARY": str(self.out / "controller_summary.json")}
         self.argv = None if wait else expand(command or "", self.env)
         self.proc: subprocess.Popen | None = None
+        self._drains: list[Drain] = []
         self._err_path = self.out / "controller_stderr.txt"
 
     def start(self, popen_kwargs: dict[str, Any]) -> subprocess.Popen | None:
@@ -87,13 +91,21 @@ class ExternalController:
                   f"{self.env['SCRT_LCM_URL']}" + (f" (channel prefix {prefix!r})" if prefix else "")
                   + f"; its configuration: {self.env['SCRT_CONFIG']}", file=sys.stderr, flush=True)
             return None
-        with open(self.out / "controller_stdout.txt", "wb") as o, open(self._err_path, "wb") as e:
-            try:
-                self.proc = subprocess.Popen(self.argv, stdout=o, stderr=e, stdin=subprocess.DEVNULL,
-                                             env={**os.environ, **self.env}, **popen_kwargs)
-            except OSError as err:
-                raise RuntimeError(f"--external: cannot start {self.argv[0]!r}: {err.strerror}") from err
+        try:
+            self.proc = subprocess.Popen(self.argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                         stdin=subprocess.DEVNULL, env={**os.environ, **self.env}, **popen_kwargs)
+        except OSError as err:
+            raise RuntimeError(f"--external: cannot start {self.argv[0]!r}: {err.strerror}") from err
+        # read as they come into capped files: a chatty process neither blocks nor fills the disk
+        self._drains = [Drain(self.proc.stdout, self.out / "controller_stdout.txt"),
+                        Drain(self.proc.stderr, self._err_path)]
         return self.proc
+
+    def close_output(self) -> str:
+        """After the process has exited: its output read to the end; its stderr."""
+        for d in self._drains:
+            d.close()
+        return self.stderr_text()
 
     @property
     def command_line(self) -> str:

@@ -18,8 +18,9 @@ from typing import Any
 from sc_rt.isolate import exit_how
 from sc_rt.wire.lcmio import open_lcm
 
-__all__ = ["LOGGER_FIFO_PRIORITY", "Stopper", "bench_binary", "child_kwargs", "controller_binary", "lift_logger",
-           "probe_logger", "stop_child", "wait_logged"]
+__all__ = ["CONTROLLER_MEMORY_LIMIT_MB", "Drain", "LOGGER_FIFO_PRIORITY", "OUTPUT_CAP_BYTES", "Stopper",
+           "bench_binary", "child_kwargs", "controller_binary", "lift_logger", "probe_logger", "rss_mb",
+           "stop_child", "wait_logged"]
 
 
 def bench_binary(name: str) -> str:
@@ -75,6 +76,85 @@ def child_kwargs() -> dict[str, Any]:
     return {"process_group": 0, **({"preexec_fn": hook} if hook else {})}
 
 
+#: [bytes] what a child's stdout or stderr file keeps; the rest is counted and dropped
+OUTPUT_CAP_BYTES = 1 << 20
+#: [MB] the controller process's resident memory beyond which the run stops, invalid
+CONTROLLER_MEMORY_LIMIT_MB = 2048.0
+
+
+class Drain:
+    """A child's output pipe read continuously, on a thread of its own, into
+    ``path`` (created at once, so a message can name it), which keeps the
+    first ``cap`` bytes and a last line counting the rest: a child that
+    writes without end neither blocks on a full pipe nor fills the disk.
+    ``wait_for`` waits, bounded, until the child has written ``watch`` (a
+    controller says when it has subscribed; a law may have printed before)."""
+
+    def __init__(self, pipe: Any, path: Path, cap: int = OUTPUT_CAP_BYTES, watch: bytes = b""):
+        self.path, self.cap, self.watch = Path(path), int(cap), watch
+        self.total = 0
+        self._kept = 0
+        self._tail = b""  # the last bytes, to find ``watch`` across two reads
+        self.seen = threading.Event()  # ``watch`` written, or the output closed
+        self.found = False
+        self._file = open(self.path, "wb")  # noqa: SIM115 (closed by the thread)
+        self._thread = threading.Thread(target=self._run, args=(pipe,), name=f"drain {self.path.name}",
+                                        daemon=True)
+        self._thread.start()
+
+    def _run(self, pipe: Any) -> None:
+        fd = pipe.fileno()
+        try:
+            while chunk := os.read(fd, 65536):
+                self.total += len(chunk)
+                if self.watch and not self.found:
+                    self._tail = self._tail[-len(self.watch):] + chunk
+                    if self.watch in self._tail:
+                        self.found = True
+                        self.seen.set()
+                room = self.cap - self._kept
+                if room > 0:
+                    self._file.write(chunk[:room])
+                    self._file.flush()
+                    self._kept += min(room, len(chunk))
+        except OSError:
+            pass
+        finally:
+            if self.dropped:
+                self._file.write(f"\n[sc-rt: {self.dropped} more bytes dropped: this file keeps the first "
+                                 f"{self.cap} bytes]\n".encode())
+            self._file.close()
+            pipe.close()
+            self.seen.set()
+
+    @property
+    def dropped(self) -> int:
+        """Bytes the child wrote past the cap."""
+        return max(0, self.total - self.cap)
+
+    def wait_for(self, timeout: float) -> bool:
+        """Whether the child wrote ``watch`` within ``timeout`` s (False: not
+        in time, or its output closed without it)."""
+        self.seen.wait(timeout)
+        return self.found
+
+    def close(self, timeout: float = 5.0) -> str:
+        """Wait for the end of the output (the child has exited): what the file keeps."""
+        self._thread.join(timeout)
+        return self.path.read_text(errors="replace") if self.path.exists() else ""
+
+
+def rss_mb(pid: int) -> float | None:
+    """[MB] a process's resident memory (VmRSS of /proc; None: gone or not Linux)."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
 class Stopper:
     """Why a bench run should stop early, asked by the emulator every step:
     SIGINT or SIGTERM received (handled while the run lasts, main thread
@@ -83,8 +163,11 @@ class Stopper:
     run stops, partial, rather than go on with a log that no longer grows or
     with the watchdog's zero commands standing in for a dead law)."""
 
-    def __init__(self, logger: subprocess.Popen | None = None, poll_s: float = 0.25):
-        self.logger, self.poll_s = logger, poll_s
+    def __init__(self, logger: subprocess.Popen | None = None, poll_s: float = 0.25,
+                 memory_limit_mb: float = CONTROLLER_MEMORY_LIMIT_MB):
+        self.logger, self.poll_s, self.memory_limit_mb = logger, poll_s, memory_limit_mb
+        #: [MB] the controller's largest resident memory seen
+        self.controller_peak_mb: float | None = None
         self.signum: int | None = None
         self.logger_rc: int | None = None
         #: the controller process under test, and its name in messages
@@ -119,9 +202,23 @@ class Stopper:
                 self.logger_rc = self.logger.poll()
             if self.controller is not None and self.died is None and (rc := self.controller.poll()) is not None:
                 self.died = f"{self.controller_name} died ({exit_how(rc)}) during the run"
+            elif self.controller is not None and self.died is None:
+                self._watch_memory()
         if self.logger_rc is not None:
             return f"sc-rt-logger exited (code {self.logger_rc}) during the run: the log ends there"
         return self.died
+
+    def _watch_memory(self) -> None:
+        """The controller's resident memory against the limit: beyond it the
+        controller is killed and the run stops, invalid, naming both numbers."""
+        mb = rss_mb(self.controller.pid)
+        if mb is None:
+            return
+        self.controller_peak_mb = max(self.controller_peak_mb or 0.0, mb)
+        if mb > self.memory_limit_mb:
+            self.controller.kill()
+            self.died = (f"{self.controller_name} used {mb:.0f} MB of memory, over the limit of "
+                         f"{self.memory_limit_mb:g} MB (--controller-memory-limit): killed during the run")
 
 
 #: lcm-logger's real-time priority when permitted: above every ordinary

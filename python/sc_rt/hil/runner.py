@@ -24,8 +24,8 @@ from sc_rt.emulator.sensorpub import SENT_COUNTERS
 from sc_rt.hil.bench_end import bench_timing, death_line, judge_real_time, logger_summary
 from sc_rt.hil.external import ExternalController, python_controller_command
 from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
-from sc_rt.hil.procs import (Stopper, bench_binary, child_kwargs, controller_binary, lift_logger, probe_logger,
-                             stop_child, wait_logged)
+from sc_rt.hil.procs import (CONTROLLER_MEMORY_LIMIT_MB, Drain, Stopper, bench_binary, child_kwargs,
+                             controller_binary, lift_logger, probe_logger, stop_child, wait_logged)
 from sc_rt.logs.timing import RealtimeLimits, log_missing, timing_report
 from sc_rt.pylaw import is_python_law
 from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run, mark_invalid, record_law_failures
@@ -37,7 +37,10 @@ from sc_rt.wire.auth import load_key, open_bus
 from sc_rt.wire.lcmio import channel, free_port_url, open_lcm
 from sc_rt.wire.startrec import encode_start
 
-__all__ = ["HilResult", "run_hil"]
+__all__ = ["HilResult", "run_hil", "CONTROLLER_START_TIMEOUT_S"]
+
+#: [s] sc-rt-controller says it has subscribed within this, or the run does not start
+CONTROLLER_START_TIMEOUT_S = 30.0
 
 
 @dataclass
@@ -70,7 +73,8 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
             plots: bool = True, external: str | None = None, external_wait: bool = False,
             start_timeout: float | None = None, auth_key: str | Path | None = None,
             setup: TimingSetup | None = None, floor: dict | str | None = None,
-            rt_limits: RealtimeLimits | None = None, record_chunk: int | None = None) -> HilResult:
+            rt_limits: RealtimeLimits | None = None, record_chunk: int | None = None,
+            controller_memory_limit_mb: float = CONTROLLER_MEMORY_LIMIT_MB) -> HilResult:
     """A bench run. The controller is sc-rt-controller, or (hil/external.py)
     ``external``: a command line started instead (a Python law ``law`` =
     "module:Class" runs as ``sc-rt controller``), or, with ``external_wait``,
@@ -146,6 +150,10 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
         CHUNK_ROWS). A run longer than two chunks writes its rows to
         ``out``/trajectory.arrow as it runs, and is read back a chunk at a time.
 
+    controller_memory_limit_mb : float
+        [MB] the controller process's resident memory beyond which it is
+        killed and the run stops, invalid (hil/procs.py Stopper).
+
     Returns
     -------
     HilResult
@@ -203,7 +211,7 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
                    ctl_bin=ctl_bin, logger_bin=logger_bin, cfg_path=cfg_path, log_path=log_path, ext=ext,
                    key=key, key_path=auth_key, setup=setup, floor=floor,
                    rt_limits=rt_limits or RealtimeLimits(), record_chunk=record_chunk, telemetry_names=names)
-    with Stopper() as stopper:
+    with Stopper(memory_limit_mb=controller_memory_limit_mb) as stopper:
         return _run_children(bench, stopper)
 
 
@@ -303,20 +311,23 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     cmd += setup.controller_args()  # --trigger, --cpu, --null-law
     try:
         ctl = (ext.start(child_kwargs()) if ext else
-               subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                                **child_kwargs()))
+               subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs()))
     except BaseException:
         stop_child(logger, signal.SIGINT)
         raise
+    # its stderr read as it comes (a law that writes there never blocks its controller), capped
+    drain = Drain(ctl.stderr, out / "controller_stderr.txt", watch=b"mode on") if ext is None else None
     stopper.controller = ctl
     stopper.controller_name = "the external controller" if ext else "sc-rt-controller"
     try:
-        if ext is None:
+        if drain is not None:
             # the controller says on stderr when it has subscribed
-            line = ctl.stderr.readline()
-            if "mode on" not in line:
-                rest = ctl.stderr.read() if ctl.poll() is not None else ""
-                raise RuntimeError(f"sc-rt-controller did not start: {line}{rest}")
+            if not drain.wait_for(CONTROLLER_START_TIMEOUT_S):
+                if ctl.poll() is None:
+                    stop_child(ctl, signal.SIGKILL)
+                raise RuntimeError(f"sc-rt-controller did not start within {CONTROLLER_START_TIMEOUT_S:g} s: "
+                                   + (" | ".join(drain.close().strip().splitlines()[-3:]) or "it said nothing")
+                                   + " (controller_stderr.txt)")
         emu = Emulator(scn, Options(mode=mode, url=url, prefix=prefix, time_scale=b.time_scale,
                                     accept_fault_commands=b.accept_fault_commands,
                                     start_timeout=ext.start_timeout if ext else None, auth_key=key,
@@ -332,7 +343,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     finally:
         if ctl is not None:
             stop_child(ctl, signal.SIGTERM)
-        ctl_err = ext.stderr_text() if ext else ctl.stderr.read() if ctl.stderr else ""
+        ctl_err = ext.close_output() if ext else drain.close()
         log_complete = wait_logged(url, log_path, logger, prefix + "SCRT_HIL_END", scn.name.encode())
         logger_rc = stop_child(logger, signal.SIGINT)
     logger_err = logger.stderr.read().decode(errors="replace").strip() if logger.stderr else ""
@@ -354,8 +365,10 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
         summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     except ValueError:
         summary = {}
-    if ctl_err.strip() and ext is None:
-        (out / "controller_stderr.txt").write_text(ctl_err)
+    if not ctl_err.strip() and ext is None and "controller_stderr.txt" not in (res.message or ""):
+        (out / "controller_stderr.txt").unlink(missing_ok=True)  # nothing said, nothing named it: no file
+    if stopper.controller_peak_mb is not None:
+        res.metrics["controller_peak_rss_mb"] = round(stopper.controller_peak_mb, 1)
     if ext is not None:
         ext.label(res, emu.controller_info)  # the law's name from its controller_info_t
     # a controller that followed another plant than ours (it adopted another
