@@ -9,11 +9,14 @@
 // and keeps the counters and the exit summary; every received message is
 // decoded by hand so that malformed input is counted by kind and never
 // applied (docs/HIL.md, "Bad input").
+#include <dirent.h>
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
 #include <sys/mman.h>
 #include <sys/prctl.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 #include <time.h>
 
 #include <atomic>
@@ -123,16 +126,35 @@ void lower_receive_priority() {
   pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
 }
 
+// Every thread of the process but the calling one (LCM's own receive thread,
+// started by the first subscribe): fn(tid) for each; how many it was true for.
+template <class Fn>
+int for_other_threads(Fn fn) {
+  const pid_t self = pid_t(syscall(SYS_gettid));
+  int n = 0;
+  DIR* d = opendir("/proc/self/task");
+  if (d == nullptr) return 0;
+  while (const dirent* e = readdir(d)) {
+    const pid_t tid = pid_t(std::atoi(e->d_name));
+    if (tid > 0 && tid != self && fn(tid)) ++n;
+  }
+  closedir(d);
+  return n;
+}
+
+// The scheduler of the step thread (the calling one: call it after the
+// subscriptions, so that LCM's receive thread exists and is put below it).
 std::string setup_scheduler(bool want_rt, int cpu) {
   // Timer slack 1 ns: wake-ups as close to the deadline as the kernel can.
   prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
   std::string pin;
-  if (cpu >= 0) {  // before any thread starts: the receive thread inherits it
+  if (cpu >= 0) {  // every thread: LCM's receive thread exists, a later one inherits it
     cpu_set_t set;
     CPU_ZERO(&set);
     CPU_SET(cpu, &set);
     if (sched_setaffinity(0, sizeof set, &set) == 0) {
       pin = ", CPU " + std::to_string(cpu);
+      for_other_threads([&](pid_t tid) { return sched_setaffinity(tid, sizeof set, &set) == 0; });
     } else {
       std::fprintf(stderr, "sc-rt-controller: warning: cannot pin to CPU %d (%s)\n", cpu, std::strerror(errno));
     }
@@ -143,6 +165,11 @@ std::string setup_scheduler(bool want_rt, int cpu) {
   sp.sched_priority = kStepPriority;
   if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {
     s = "SCHED_FIFO " + std::to_string(kStepPriority);
+    sched_param low{};
+    low.sched_priority = kReceivePriority;  // the receive path below the step
+    if (for_other_threads([&](pid_t tid) { return sched_setscheduler(tid, SCHED_FIFO, &low) == 0; }) > 0) {
+      s += " (receive " + std::to_string(kReceivePriority) + ")";
+    }
   } else {
     std::fprintf(stderr, "sc-rt-controller: warning: SCHED_FIFO not permitted (%s): running SCHED_OTHER\n",
                  std::strerror(errno));
@@ -365,8 +392,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "sc-rt-controller: bad configuration: %s\n", e.what());
     return 2;
   }
+  subscribe(lcm, o, shell);  // first: LCM's receive thread exists when the step thread's priority is set
   const std::string sched = setup_scheduler(o.rt_priority, o.cpu);
-  subscribe(lcm, o, shell);
   std::fprintf(stderr, "sc-rt-controller: %s mode on %s, %s%s%s\n", o.realtime ? "realtime" : "lockstep",
                o.url.c_str(), sched.c_str(), o.realtime && o.event_trigger ? ", event-triggered" : "",
                o.null_law ? ", null law" : "");
