@@ -62,8 +62,11 @@ def test_the_file_is_arrow_that_pyarrow_reads_without_sc_rt(tmp_path, rng):
 def test_a_ring_hands_over_every_row_once_in_order():
     got: list[tuple[int, int]] = []
     seen = []
-    ring = RowRing([("k", (), "i8", -1)], 5, lambda cols, base, n: (got.append((base, n)),
-                                                                     seen.extend(cols["k"][:n])))
+    def on_full(cols, base, n):  # None: the ring resets and reuses the chunk
+        got.append((base, n))
+        seen.extend(cols["k"][:n])
+
+    ring = RowRing([("k", (), "i8", -1)], 5, on_full)
     for k in range(23):
         ring.reach(k + 1)
         c, j = ring.slot(k)
@@ -73,6 +76,48 @@ def test_a_ring_hands_over_every_row_once_in_order():
     ring.finish(23)
     assert seen == list(range(23))
     assert got == [(0, 5), (5, 5), (10, 5), (15, 5), (20, 3)]
+
+
+def test_the_record_writer_writes_every_chunk_off_the_loops_thread(tmp_path):
+    """emulator/record.py: the chunks a long run spills are written by the
+    writer's thread, never the loop's, each row once and in order, and the
+    spare chunk the loop gets back is at the fill values (a column the loop
+    leaves unfilled reads as its fill in every row)."""
+    import threading
+
+    from sc_rt.emulator import record as rec
+
+    threads = []
+    write = rec.ChunkFile.write
+
+    def spy(self, cols, rows):  # the real write, with the thread that made it noted
+        threads.append(threading.get_ident())
+        return write(self, cols, rows)
+
+    rec.ChunkFile.write = spy
+    try:
+        r = rec.Record(n_rows=1000, chunk=64, directory=tmp_path)
+        warm = len(threads)  # the writer's warm-up before the run, in the caller's thread
+        for k in range(1000):
+            r.ring.reach(k + 1)
+            c, j = r.ring.slot(k)
+            c["t"][j] = k * 0.01
+            if k % 2 == 0:  # every other row leaves the command unfilled
+                c["u_cmd"][j] = k
+        r.ring.finish(1000)
+        r._writer.close()
+        raw = r._raw.close()
+    finally:
+        rec.ChunkFile.write = write
+    loop = threading.get_ident()
+    assert len(threads) - warm == 16 and loop not in threads[warm:]  # 1000 rows in 64-row chunks
+    back = ChunkReader(raw)
+    t = np.concatenate([back.batch(i)["t"] for i in range(back.n_batches)])
+    u = np.concatenate([back.batch(i)["u_cmd"] for i in range(back.n_batches)])
+    np.testing.assert_array_equal(t, np.arange(1000) * 0.01)
+    fill = dict((n, f) for n, _s, _d, f in rec.RECORD_COLUMNS)["u_cmd"]
+    np.testing.assert_array_equal(u[0::2], np.repeat(np.arange(0, 1000, 2)[:, None], 4, axis=1))
+    assert np.all((u[1::2] == fill) | (np.isnan(u[1::2]) & np.isnan(fill)))
 
 
 @pytest.mark.parametrize("scenario, batch", [("paper_faults", 97), ("ppc_feasible_1khz", 1_000)])

@@ -5,7 +5,10 @@ Every row's run fields, the command and the status of its state as received
 two chunks of rows (results/record/store.py ``RowRing``), allocated and touched
 before the run. When the run reaches the end of the newer chunk, the older
 one goes to ``record.raw.arrow`` in the record's directory, so nothing
-grows with the run (docs/HIL.md, "Long runs"). After the run, ``close``
+grows with the run (docs/HIL.md, "Long runs"), written by a thread of its
+own (``ChunkWriter``): the loop hands the chunk over and takes a third,
+spare chunk in its place, so no compression or disk write happens inside a
+tick (a spill cost the real-time tick 2-22 ms before). After the run, ``close``
 reads the record back a chunk at a time, decodes the statuses and writes
 ``trajectory.arrow``; a run that fits in the two chunks never touches the
 disk and is returned in memory.
@@ -14,8 +17,10 @@ disk and is returned in memory.
 from __future__ import annotations
 
 import json
+import queue
+import threading
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -25,7 +30,7 @@ from sc_rt.results.record.fields import COLUMNS
 from sc_rt.results.record.run import FIELDS, Run, RunMeta
 from sc_rt.results.record.store import CHUNK_ROWS, ChunkFile, ChunkReader, RowRing, load_arrow, remove_with, scratch_dir
 
-__all__ = ["Record", "RECORD_COLUMNS", "BYTES_PER_ROW"]
+__all__ = ["Record", "ChunkWriter", "RECORD_COLUMNS", "BYTES_PER_ROW"]
 
 #: the loop's monotonic stamps per row (``stamps``): [tick or answer, integrated,
 #: state published, truth started, truth done]
@@ -36,6 +41,65 @@ BYTES_PER_ROW = Inbox.BYTES_PER_ROW + _STAMPS * 8
 #: the record's columns: the run's fields, the inbox's, the stamps
 RECORD_COLUMNS = (*COLUMNS, *INBOX_COLUMNS,
                   ("stamps", (_STAMPS,), "i8", 0))
+
+
+class ChunkWriter:
+    """Chunks of rows written to ``file`` by a thread of its own, started
+    before the run (it inherits the scheduler and memory locking of the
+    thread that makes it, not the run's real-time priority).
+
+    ``hand(cols, n)`` queues a chunk (waiting only when the writer is a whole
+    chunk behind: the bound on memory) and returns a spare chunk at the fill
+    values to fill next; the writer writes a chunk, resets it and makes it
+    the next spare. A write that fails (a full disk) is kept and raised by
+    the next ``hand`` or by ``close``."""
+
+    def __init__(self, file: ChunkFile, columns: tuple, spare: dict[str, np.ndarray],
+                 warm: Callable[[], None] | None = None):
+        self.file, self.columns = file, columns
+        self._todo: queue.Queue = queue.Queue(maxsize=1)
+        self._free: queue.Queue = queue.Queue()
+        self._free.put(spare)
+        self.error: BaseException | None = None
+        #: times the loop had to wait for the writer (it fell a chunk behind)
+        self.waits = 0
+        self._warm = warm
+        self._ready = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="sc-rt record writer", daemon=True)
+        self._thread.start()
+        self._ready.wait()  # warmed in its own thread: its allocator's buffers exist before the run
+
+    def _run(self) -> None:
+        try:
+            if self._warm is not None:
+                self._warm()
+        finally:
+            self._ready.set()
+        while (item := self._todo.get()) is not None:
+            cols, n = item
+            try:
+                if self.error is None:
+                    self.file.write(cols, n)
+            except BaseException as e:  # noqa: BLE001 (kept, raised in the loop's thread)
+                self.error = e
+            for name, _s, _d, fill in self.columns:
+                cols[name][...] = fill
+            self._free.put(cols)
+
+    def hand(self, cols: dict[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
+        if self.error is not None:
+            raise self.error
+        if self._free.empty():
+            self.waits += 1
+        self._todo.put((cols, n))
+        return self._free.get()
+
+    def close(self) -> None:
+        """Wait for every chunk handed over to be written; raise a write's error."""
+        self._todo.put(None)
+        self._thread.join()
+        if self.error is not None:
+            raise self.error
 
 
 class Record:
@@ -58,21 +122,25 @@ class Record:
         self.ring = RowRing(RECORD_COLUMNS, self.chunk, self._spill)
         self.directory = directory
         self._raw: ChunkFile | None = None
+        self._writer: ChunkWriter | None = None
         self._tmpdir: Path | None = None
-        if n_rows > 2 * self.chunk:  # the rows will go to disk
-            self._prepare()
+        if n_rows > 2 * self.chunk:  # the rows will go to disk, on the writer's thread
+            load_arrow()
+            self._open()
+            spare = {n: np.full((self.chunk, *sh), f, d) for n, sh, d, f in RECORD_COLUMNS}
+            self._writer = ChunkWriter(self._raw, RECORD_COLUMNS, spare, warm=self._prepare)
 
     def _prepare(self) -> None:
-        """The writer loaded, warmed and its file opened before the run, not
-        in the middle of it: two chunks of data that does not compress (as a
-        run's does not) written to a file dropped at once, so that the
-        allocator's buffers for a batch exist from here on and the run's
-        memory is flat from its first row, even under mlockall (measured:
-        +25 MB at the first batch of a real-time run without this)."""
-        load_arrow()
+        """The writer warmed before the run, in the writer's thread (each
+        thread has its allocator's own buffers), not in the middle of it:
+        two chunks of data that does not compress (as a run's does not)
+        written to a file dropped at once, so that the allocator's buffers
+        for a batch exist from here on and the run's memory is flat from its
+        first row, even under mlockall (measured: +25 MB at the first batch
+        of a real-time run without this; +6 MB over a 2-minute soak when
+        the warm-up ran in another thread than the writes)."""
         rng = np.random.default_rng(0)
         noise = {n: (rng.random((self.chunk, *shape)) * 100).astype(dtype) for n, shape, dtype, _ in RECORD_COLUMNS}
-        self._open()
         warm = ChunkFile(self._raw.path.with_name(".warm.arrow"), RECORD_COLUMNS)  # as the record's own file
         for _ in range(2):
             warm.write(noise, self.chunk)
@@ -84,11 +152,21 @@ class Record:
             d = self._tmpdir = scratch_dir()
         self._raw = ChunkFile(Path(d) / "record.raw.arrow", RECORD_COLUMNS)
 
-    def _spill(self, cols: dict[str, np.ndarray], base: int, n: int) -> None:
-        """A chunk leaves the live rows: to the raw file."""
+    def _spill(self, cols: dict[str, np.ndarray], base: int, n: int) -> dict[str, np.ndarray] | None:
+        """A chunk leaves the live rows: to the raw file, by the writer's
+        thread (it returns the spare chunk to fill next); without a writer
+        (a run that was to fit in memory), here."""
+        if self._writer is not None:
+            return self._writer.hand(cols, n)
         if self._raw is None:
             self._open()
         self._raw.write(cols, n)
+        return None
+
+    @property
+    def writer_waits(self) -> int:
+        """Times the loop waited for the record's writer (0: it never fell behind)."""
+        return self._writer.waits if self._writer is not None else 0
 
     def close(self, rows: int, meta: RunMeta, mode: str) -> tuple[Run, dict[str, Any]]:
         """The run of the first ``rows`` rows and where the loop's
@@ -104,6 +182,8 @@ class Record:
             loop.add(cols["stamps"], cols["cmd_utime"], cols["pub_wall_us"], cols["cmd_rx"], cols["pub_ns"])
             return run, loop.result()
         self.ring.finish(rows)
+        if self._writer is not None:
+            self._writer.close()
         raw_path = self._raw.close()
         out = raw_path.with_name("trajectory.arrow")
         w = ChunkFile(out, COLUMNS,

@@ -90,5 +90,7 @@ def bench_timing(res: Run, summary: dict[str, Any], emu: Emulator, setup: Timing
         "fresh_fraction": fresh,
         "controller_fresh_fraction": 1.0 - int(summary.get("stale_states", 0)) / steps if steps else None,
         "emulator_breakdown_us": emu.breakdown(),
+        # times the tick waited for the record's writer thread (emulator/record.py; 0: never)
+        "record_writer_waits": emu.record.writer_waits,
         "load_avg": list(os.getloadavg()),
     }

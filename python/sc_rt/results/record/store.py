@@ -197,7 +197,7 @@ class RowRing:
     """
 
     def __init__(self, columns: Iterable[Column], chunk: int,
-                 on_full: Callable[[dict[str, np.ndarray], int, int], None]):
+                 on_full: Callable[[dict[str, np.ndarray], int, int], dict[str, np.ndarray] | None]):
         self.columns = tuple(columns)
         self.chunk = int(chunk)
         self.on_full = on_full
@@ -214,13 +214,18 @@ class RowRing:
         return None
 
     def reach(self, k: int) -> None:
-        """Make row k live (rows only move forward)."""
+        """Make row k live (rows only move forward). ``on_full`` may return
+        the chunk to use as the newer one, already at the fill values (a
+        writer that keeps the older chunk to write it later); None: the older
+        chunk is reset and reused here."""
         while k >= self.base + 2 * self.chunk:
             old = self._bufs[0]
-            self.on_full(old, self.base, self.chunk)
-            for n, _s, _d, f in self.columns:
-                old[n][...] = f
-            self._bufs = [self._bufs[1], old]
+            new = self.on_full(old, self.base, self.chunk)
+            if new is None:
+                for n, _s, _d, f in self.columns:
+                    old[n][...] = f
+                new = old
+            self._bufs = [self._bufs[1], new]
             self.base += self.chunk
 
     def finish(self, rows: int) -> None:
