@@ -85,8 +85,10 @@ def _num(v, unit: str) -> str:
     return f"{v:.4g}" if unit == "-" else f"{v:.4g} {unit}"
 
 
-#: What the peak requirements measure.
-PEAKS = {"wheel_speed_margin": "max |Omega|", "momentum_margin": "max |Cbar Jw Omega|", "max_command": "max |u_cmd|"}
+#: What the peak requirements measure (every kind of sc_rt.scenario.requirements.KINDS that is
+#: neither a pointing index, settling nor the envelope: tests/test_requirement_matrix.py).
+PEAKS = {"wheel_speed_margin": "max |Omega|", "momentum_margin": "max |Cbar Jw Omega|", "max_command": "max |u_cmd|",
+         "max_torque": "max |Cbar Jw u_cmd|"}
 
 
 def requirement_table(reqs: list) -> list[str]:
@@ -102,8 +104,10 @@ def requirement_table(reqs: list) -> list[str]:
             what = f"settling {r.get('axis', '')}" + (f" within {r['band']:g} {r['band_unit']}" if "band" in r else "")
         elif kind in PEAKS:
             what = PEAKS[kind]
-        else:
-            what = f"{kind} {r.get('axis', '')} p{r['confidence']:g} {r.get('interpretation', '')}"
+        else:  # a pointing index (a kind added without a PEAKS entry: its name, never a crash)
+            what = " ".join(x for x in (kind, r.get("axis") or "",
+                                        "" if r.get("confidence") is None else f"p{r['confidence']:g}",
+                                        r.get("interpretation") or "") if x)
             if r.get("window_s"):
                 what += f" {r['window_s']:g} s"
             if r.get("separation_s"):
