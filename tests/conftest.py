@@ -112,6 +112,8 @@ SLOW_TESTS = (
     "tests/test_hil.py::test_lockstep_hil_is_bit_identical_to_offline_sim",
     "tests/test_requirement_matrix.py::test_every_kind_through_hil_lockstep_and_its_report",
     "tests/test_requirement_matrix.py::test_every_kind_through_compare_and_a_campaigns_rerun",
+    "tests/test_gate.py::test_hil_strict_exits_1_on_a_failing_run_and_0_on_a_passing_one",
+    "tests/test_gate.py::test_montecarlo_strict_gates_the_campaign_and_a_rerun",
 )
 
 

@@ -25,6 +25,7 @@ def scenario_arg(path: str, args: argparse.Namespace | None = None):
 
 
 def print_metrics(m: dict, faults=()) -> None:
+    from sc_rt.results.judge.gate import expect_line
     from sc_rt.results.judge.verdict import verdict_line
 
     def f(v):
@@ -62,6 +63,8 @@ def print_metrics(m: dict, faults=()) -> None:
     reqs = m.get("requirements")
     if reqs is not None and not reqs:
         rows.append(("requirements", "no requirements stated"))
+    if expect := expect_line(m.get("expect")):  # the file's expect, checked for every file
+        rows.append(("expect", expect))
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         print(f"  {k:<{w}}  {v}")
@@ -171,6 +174,26 @@ def invalid_exit(metrics: dict, who: str) -> int:
         print(f"sc-rt {who}: INVALID: {metrics.get('invalid_reason', 'see metrics.json')}", file=sys.stderr)
         return 1
     return 0
+
+
+#: --strict's help (sim, hil, compare, montecarlo): the gate of docs/REQUIREMENTS.md
+STRICT_HELP = ("a gate for CI: exit 1 when a requirement fails, the file's expect does not match the verdict, "
+               "or the run is invalid (a file with expect = \"violates\" fails only when it holds); "
+               "default: the exit code does not depend on the verdict")
+
+
+def add_strict(parser) -> None:
+    """--strict on a command that judges runs."""
+    parser.add_argument("--strict", action="store_true", help=STRICT_HELP)
+
+
+def strict_exit(problems: list[str], rc: int, who: str, strict: bool) -> int:
+    """The exit code under --strict: ``rc``, or 1 when the gate found
+    ``problems`` (sc_rt.results.judge.gate), said in one line on stderr."""
+    if not strict or not problems:
+        return rc
+    print(f"sc-rt {who}: --strict: exit 1: {'; '.join(problems)}", file=sys.stderr)
+    return rc or 1
 
 
 def report_stopped(run, why: str, signum: int | None, out, who: str) -> int:

@@ -11,6 +11,7 @@ import json
 import sys
 from pathlib import Path
 
+from sc_rt.cli.common import add_strict, strict_exit
 from sc_rt.cli.validate import LAW_HELP, check_run_size, given_options, law_choice, number, out_dir
 
 __all__ = ["add_parser", "cmd_compare"]
@@ -27,6 +28,7 @@ def add_parser(sub) -> None:
     c.add_argument("--settle", type=float, default=0.02, metavar="FRAC",
                    help="settling: the pointing error stays within FRAC of its initial value (default 0.02)")
     c.add_argument("--out", metavar="DIR", type=out_dir, help="also write DIR/compare.json and DIR/compare.md")
+    add_strict(c)  # every law's run through the gate
     c.set_defaults(func=cmd_compare)
 
 
@@ -80,6 +82,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
         if across:
             text += f"\n(judged across runs only, by sc-rt montecarlo: {', '.join(across)})"
         print(text[text.index("\n\nThe laws ranked"):])
+    expects = _expect_lines(rows)
+    if expects:
+        text += "\n\n" + "\n".join(expects)
+        print("\n" + "\n".join(expects))
     if args.out:
         from sc_rt.results.record.run import json_safe
 
@@ -91,4 +97,29 @@ def cmd_compare(args: argparse.Namespace) -> int:
                "overall": [law for law, _ in overall(rows)]}
         (out / "compare.json").write_text(json.dumps(json_safe(doc), indent=2) + "\n")
         (out / "compare.md").write_text(text + "\n")
-    return 1 if failed else 0
+    return strict_exit(_gate(rows), 1 if failed else 0, "compare", args.strict)
+
+
+def _expect_lines(rows: list[dict]) -> list[str]:
+    """The file's expect against each law's run ([] when the file states none)."""
+    from sc_rt.results.judge.gate import expect_line
+
+    lines = [f"{row['law']}: {line}" for row in rows if (line := expect_line(row.get("expect")))]
+    return [f"The file's expect, per law: {lines[0]}", *(f"  {x}" for x in lines[1:])] if lines else []
+
+
+def _gate(rows: list[dict]) -> list[str]:
+    """--strict's problems, law by law: a crashed or invalid run, a failed
+    requirement, an expect not matched (sc_rt.results.judge.gate)."""
+    from sc_rt.results.judge.gate import gate_problems
+
+    out = []
+    for row in rows:
+        if row.get("crashed"):
+            out.append(f"{row['law']}: the run crashed ({row.get('invalid_reason')})")
+            continue
+        metrics = {"valid": row.get("valid"), "invalid_reason": row.get("invalid_reason"),
+                   "diverged": row.get("diverged"), "requirements": row.get("requirements"),
+                   "expect": row.get("expect")}
+        out += [f"{row['law']}: {p}" for p in gate_problems(metrics)]
+    return out

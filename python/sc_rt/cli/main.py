@@ -14,7 +14,7 @@ from sc_rt.cli.validate import (AUTH_KEY_HELP, LAW_HELP, MAX_RATE_HZ, MAX_TIME_S
                                 auth_key_file, core_law_choice, integer, lcm_url, law_choice, number, out_dir, out_file)
 from sc_rt.cli.controller import add_external_options
 from sc_rt.cli.floor_cmd import add_floor_parser, add_timing_options
-from sc_rt.cli.common import LAW_CHOICES
+from sc_rt.cli.common import LAW_CHOICES, add_strict
 from sc_rt.cli.run_cmds import cmd_demo, cmd_emulator, cmd_hil, cmd_sim
 from sc_rt.cli.study_cmds import cmd_check, cmd_config, cmd_design, cmd_reproduce, cmd_scenarios
 from sc_rt.cli.bus_cmds import cmd_export, cmd_fault, cmd_lcm_spy, cmd_replay, cmd_report, cmd_spy
@@ -134,6 +134,7 @@ def _add_sim(sub) -> None:
                    help="plant RK4 step (default: the scenario's, reduced to divide the control period)")
     s.add_argument("--out", default="out/sim", type=out_dir, metavar="DIR", help="default: %(default)s")
     s.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
+    add_strict(s)
     s.set_defaults(func=cmd_sim)
 
 
@@ -166,6 +167,7 @@ def _add_hil(sub) -> None:
 
     add_hil_option(h)  # --live [PORT] (sc_rt/cli/live_cmd.py)
     _lcm_opts(h)
+    add_strict(h)
     h.set_defaults(func=cmd_hil)
 
 

@@ -19,6 +19,7 @@ __all__ = ["add_parser", "cmd_montecarlo", "headline"]
 
 from sc_rt.scenario.model import LAWS  # noqa: E402
 from sc_rt.cli.validate import LAW_HELP, law_choice  # noqa: E402
+from sc_rt.cli.common import add_strict, strict_exit  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 SHORTCUTS = ("inertia", "onset", "effectiveness", "attitude", "rate")
@@ -60,6 +61,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     g.add_argument("--attitude", metavar="RAD", help="[rad] initial attitude spread, in [0, pi] (0.01)")
     g.add_argument("--rate", metavar="RAD/S", help="[rad/s] initial rate spread per axis, >= 0 (0.002)")
     m.add_argument("--out", default="out/montecarlo", metavar="DIR", help="default: %(default)s")
+    add_strict(m)  # the campaign's requirements at --confidence (--rerun: that run's) through the gate
     m.set_defaults(func=cmd_montecarlo)
     return m
 
@@ -252,13 +254,14 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
                    f"no valid draw ({row['message']})" if row["status"] == "invalid" else
                    f"leaves the bound at {row.get('first_bound_violation_s')} s")
         print(f"sc-rt montecarlo: run {o['rerun']} of seed {o['seed']} ({scn.name}) {verdict} -> {where}/")
+        problems = _rerun_gate(row, where) if args.strict else []
         same = _dataset_row(c, out, o["rerun"])
         if same is not None:  # the campaign in --out holds this run: the two must agree
             match = repr(same) == repr({k: row.get(k) for k in same})
             print(f"sc-rt montecarlo: run {o['rerun']} {'matches' if match else 'DIFFERS FROM'} "
                   f"its row in {out}/runs")
-            return 0 if match else 1
-        return 0
+            return strict_exit(problems, 0 if match else 1, "montecarlo", args.strict)
+        return strict_exit(problems, 0, "montecarlo", args.strict)
     try:
         check_out(c, out, args.resume, args.overwrite)
     except CampaignExists as e:
@@ -282,6 +285,9 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     finally:
         backend.close()
     rows = RunStore(out, c.columns()).read().to_pylist()
+    from sc_rt.results.judge.gate import campaign_expect, campaign_gate_problems, expect_line
+
+    res["expect"] = campaign_expect(res, scn.expect)  # the file's expect against the campaign's verdict
     write_summary(res, rows, out)
     print(f"sc-rt montecarlo: {headline(res)}; {res['runs_this_invocation']} runs now"
           + (f" at {res['runs_per_s']:.1f} runs/s on {res['workers']} workers ({res['backend']})"
@@ -292,6 +298,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         for line in requirement_lines(res["requirements"], res["requirements_confidence"],
                                       res["requirements_coverage"]):
             print(f"  {line}")
+    if line := expect_line(res["expect"], "the campaign"):
+        print(f"  expect {line}")
     if res["status"].get("law_failed"):  # counted as not holding; each run's reason in montecarlo.json
         print(f"sc-rt montecarlo: the law failed (threw, non-finite or wrong shape; contained) in "
               f"{res['status']['law_failed']} of {res['runs']} runs: counted as failures "
@@ -300,4 +308,19 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         print(f"sc-rt montecarlo: the law crashed its run's process in {res['status']['crashed']} of "
               f"{res['runs']} runs: counted as failures (montecarlo.json 'failed', status crashed)",
               file=sys.stderr)
-    return 0
+    return strict_exit(campaign_gate_problems(res), 0, "montecarlo", args.strict)
+
+
+def _rerun_gate(row: dict[str, Any], where: Path) -> list[str]:
+    """--strict's problems of a run alone (--rerun): its metrics.json through
+    the gate; a draw that gave no run is one."""
+    import json
+
+    from sc_rt.results.judge.gate import gate_problems
+
+    metrics = where / "metrics.json"
+    if row.get("status") == "crashed":
+        return [f"the law crashed the run's process ({row.get('message')})"]
+    if row.get("status") == "invalid" or not metrics.is_file():
+        return [f"run {row.get('run')} has no valid draw ({row.get('message')})"]
+    return gate_problems(json.loads(metrics.read_text()))

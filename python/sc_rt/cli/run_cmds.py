@@ -12,7 +12,8 @@ from sc_rt.cli.interrupts import flag_signals
 from sc_rt.cli.validate import UsageError, check_run_size, given_options, resolve_url, rounded
 from sc_rt.cli.controller import external_choice
 from sc_rt.cli.common import (checked_out, claim_out, html_report, invalid_exit, mcap_problem,
-                              print_metrics, report_stopped, scenario_arg, write_mcap)
+                              print_metrics, report_stopped, scenario_arg, strict_exit, write_mcap)
+from sc_rt.results.judge.gate import gate_problems
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
@@ -62,7 +63,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         print(f"sc-rt sim: DIVERGED: {res.message}", file=sys.stderr)
     if stopped:
         return report_stopped(res, stopped, signals[0], out, "sim")
-    return invalid_exit(res.metrics, "sim")
+    return strict_exit(gate_problems(res.metrics), invalid_exit(res.metrics, "sim"), "sim", args.strict)
 
 
 def cmd_hil(args: argparse.Namespace) -> int:
@@ -124,7 +125,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
     html_report(Path(res.out), "hil")
     if mcap and (rc := write_mcap(Path(res.out) / "run.lcmlog", mcap, who="hil")):
         return rc
-    return invalid_exit(res.metrics, "hil")
+    return strict_exit(gate_problems(res.metrics), invalid_exit(res.metrics, "hil"), "hil", args.strict)
 
 
 #: The demo's two runs: the paper's law on the paper's fault scenario, and

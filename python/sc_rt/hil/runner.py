@@ -275,7 +275,7 @@ def _start_record(b: _Bench) -> bytes:
            "trigger": b.setup.trigger if b.mode == "realtime" and b.ext is None else None,
            "control_rate_hz": float(b.scn.run.control_rate_hz), "duration_s": float(b.scn.run.duration),
            "time_scale": b.time_scale, "law": law, "run_id": claimed_run_id(b.out), "sc_rt": __version__,
-           "requirements": [dataclasses.asdict(r) for r in b.scn.requirements],
+           "requirements": [dataclasses.asdict(r) for r in b.scn.requirements], "expect": b.scn.expect,
            "telemetry_names": list(b.telemetry_names)}
     return encode_start(rec)
 

@@ -93,6 +93,16 @@ def _requirements(d, scenario: str | None) -> tuple[dict[str, Any], ...]:
     return tuple((d.start or {}).get("requirements") or ())
 
 
+def _expect(d, scenario: str | None) -> str:
+    """The verdict the run's file expects (its ``expect``): ``--scenario``'s
+    when given, else the start record's; "" for none."""
+    if scenario:
+        from sc_rt.scenario.reader import load_scenario
+
+        return load_scenario(scenario).expect
+    return str((d.start or {}).get("expect") or "")
+
+
 def write_report(log: str | Path, out: str | Path, *, scenario: str | None = None,
                  prefix: str | None = None, mode: str | None = None, plots: bool = True) -> dict[str, Any]:
     """Read ``log`` and write metrics.json, timing.json, trajectory.npz,
@@ -133,6 +143,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
                    wall_s=wall, mode=r.mode, law_identity=ident, requirements=_requirements(d, scenario),
+                   expect=_expect(d, scenario),
                    telemetry_names=tuple((d.start or {}).get("telemetry_names") or ()), **extra)
     run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:

@@ -53,6 +53,7 @@ def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
         "invalid_reason": m.get("invalid_reason"),
         "verdict": None if m.get("requirements") is None else requirements_summary(m["requirements"]),
         "requirements": [{k: r.get(k) for k in REQUIREMENT_KEYS} for r in m.get("requirements") or []],
+        "expect": m.get("expect"),  # the file's expect against this law's run (sc_rt.results.judge.gate)
     }
 
 

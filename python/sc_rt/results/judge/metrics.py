@@ -13,6 +13,7 @@ import numpy as np
 from sc_rt.results.judge.estimation import estimation_metrics, fill_estimation_error, fill_true_tracking_error
 from sc_rt.results.judge.law_telemetry import TelemetryAcc
 from sc_rt.results.judge.requirements import evaluate_requirements
+from sc_rt.results.judge.gate import expect_result
 from sc_rt.results.record.run import CORE_FIELDS, Run, json_safe
 from sc_rt.results.judge.verdict import SAFE_FLAGS, pointing_arcsec, safe_summary
 
@@ -282,6 +283,8 @@ def finish_run(run: Run) -> Run:
         metrics["partial"] = True
     # the scenario's [[requirements]], each judged (sc_rt.results.judge.requirements); [] none stated
     metrics["requirements"] = evaluate_requirements(run, sensed)
+    # the file's expect against the run's verdict, stated or not (sc_rt.results.judge.gate)
+    metrics["expect"] = expect_result(metrics["requirements"], getattr(run.meta, "expect", ""))
     metrics["law_telemetry"] = tel.summary()  # the law's own values (results/judge/law_telemetry.py)
     metrics.update({k: v for k, v in run.metrics.items() if k not in metrics})
     run.metrics = metrics

@@ -76,6 +76,10 @@ class RunMeta:
         The scenario's ``[record] every``: the saved rows keep every this
         many control instants and the last (1: every row); the metrics were
         computed on every row.
+    expect : str
+        The scenario's ``expect`` ("holds", "violates"; "" unstated): the
+        verdict the file says its run has, checked against the run's
+        (sc_rt.results.judge.gate, metrics.json ``expect``).
     telemetry_names : tuple of str
         The law's telemetry names (its ``telemetry_names()``): the columns
         of the run's ``telemetry`` field, ``"name [unit]"`` where the law
@@ -115,6 +119,8 @@ class RunMeta:
     #: the law's telemetry names (its telemetry_names(): the columns of the run's telemetry field;
     #: "name [unit]" where the law gives a unit); () for none or unknown
     telemetry_names: tuple[str, ...] = ()
+    #: the scenario's expect: "holds", "violates" or "" (unstated)
+    expect: str = ""
 
     def to_json(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self))
@@ -153,7 +159,8 @@ class RunMeta:
                   Cbar=tuple(tuple(float(x) for x in row) for row in np.asarray(plant.Cbar, float)),
                   Jw=tuple(float(x) for x in np.asarray(plant.Jw, float)),
                   max_wheel_speed=_speed_limits(a),
-                  record_every=int(getattr(getattr(scn, "record", None), "every", 1)))
+                  record_every=int(getattr(getattr(scn, "record", None), "every", 1)),
+                  expect=str(getattr(scn, "expect", "") or ""))
         sensors = getattr(scn, "sensors", None)
         if sensors is not None:
             kw.update(sensors=True, measurement=sensors.measurement)
