@@ -15,13 +15,33 @@ LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 
 
 def scenario_arg(path: str, args: argparse.Namespace | None = None):
-    """The scenario a command names; its deprecation notes on stderr, one line each."""
+    """The scenario a command names; its deprecation notes on stderr, one
+    line each. A ``[laws.NAME]`` table that matches no law (a built-in, the
+    file's, or one the command names: ``args.law``, ``args.laws``) but is
+    near one is an error (ScenarioError: exit 2 with the file, the line and
+    the nearest law name); one near none is a note (another law's table;
+    sc_rt.scenario.laws.stray_tables)."""
+    from sc_rt.scenario.laws import stray_tables
+    from sc_rt.scenario.model import ScenarioError
     from sc_rt.scenario.reader import load_scenario
 
     scn = load_scenario(path)
+    errors, notes = stray_tables(scn, command_laws(args))
+    if errors:
+        raise ScenarioError(scn.path, errors)
+    for note in notes:
+        print(f"sc-rt: note: {note}", file=sys.stderr)
     for note in scn.deprecations:
         print(f"sc-rt: note: {note}", file=sys.stderr)
     return scn
+
+
+def command_laws(args: argparse.Namespace | None) -> tuple[str, ...]:
+    """The laws a command names (--law, once or repeated); () for none."""
+    if args is None:
+        return ()
+    given = [getattr(args, "law", None), *(getattr(args, "laws", None) or ())]
+    return tuple(x for x in given if isinstance(x, str) and x)
 
 
 def print_metrics(m: dict, faults=()) -> None:

@@ -43,7 +43,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if not 0 < args.settle < 1:
         print(f"sc-rt compare: --settle {args.settle:g}: must be in (0, 1)", file=sys.stderr)
         return 2
-    scn = scenario_arg(args.scenario)
+    scn = scenario_arg(args.scenario, args)
     check_run_size(with_overrides(scn, duration=args.duration), given_options(args, duration="--duration"))
     # every law checked (a plugin or a Python law constructed with its table) before any run
     scns = {law: with_overrides(scn, law=law, duration=args.duration) for law in args.laws}

@@ -210,9 +210,9 @@ def _add_check(sub) -> None:
     k.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     k.add_argument("--verbose", "-v", action="store_true", help="also list the checks that pass")
     k.add_argument("--fast", action="store_true", help="estimate r's bound at t = 0 instead of along a run")
-    k.add_argument("--law", "--controller", dest="law", type=core_law_choice, metavar="LAW",
+    k.add_argument("--law", "--controller", dest="law", type=law_choice, metavar="LAW",
                    help="check for this law (default: the scenario's): only its conditions are checked; "
-                        + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME")
+                        + LAW_HELP.removeprefix("control law: "))
     k.add_argument("--strict", action="store_true", help="notes count as warnings (exit 1)")
     k.set_defaults(func=cmd_check)
 

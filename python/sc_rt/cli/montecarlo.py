@@ -231,7 +231,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     from sc_rt.studies.campaign.runner import check_out
     from sc_rt.studies.campaign.store import RunStore
 
-    scn = scenario_arg(args.scenario)  # ScenarioError: exit 2 with file, line, key, value
+    scn = scenario_arg(args.scenario, args)  # ScenarioError: exit 2 with file, line, key, value
     from sc_rt.cli.validate import UsageError, check_run_size
     from sc_rt.scenario.overrides import with_overrides
 

@@ -24,7 +24,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 
     out = checked_out(args.out)
     # any law, a Python one too (sc_rt.pylaw: it runs inside the core's controller, on every engine)
-    scn = with_overrides(scenario_arg(args.scenario), law=args.law,
+    scn = with_overrides(scenario_arg(args.scenario, args), law=args.law,
                          control_rate_hz=args.control_rate, duration=args.duration, plant_step=args.plant_step)
     if args.engine == "unsampled":
         from sc_rt.sim.unsampled import refusal
@@ -80,7 +80,7 @@ def cmd_hil(args: argparse.Namespace) -> int:
 
     out = checked_out(args.out)
     pylaw = external_choice(args)  # a Python law, --external or --external-wait (checked here)
-    scn = with_overrides(scenario_arg(args.scenario), law=None if pylaw else args.law,
+    scn = with_overrides(scenario_arg(args.scenario, args), law=None if pylaw else args.law,
                          control_rate_hz=args.control_rate, duration=args.duration)
     sizes = dict(control_rate="--control-rate", duration="--duration")
     if args.mode == "realtime":

@@ -53,7 +53,7 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
 
 
 def cmd_config(args: argparse.Namespace) -> int:
-    scn = scenario_arg(args.scenario)
+    scn = scenario_arg(args.scenario, args)
     data = scn.controller_config_msg(args.law, args.control_rate).encode()
     Path(args.out).write_bytes(data)
     print(f"sc-rt config: controller_config_t ({len(data)} bytes) -> {args.out}")

@@ -17,15 +17,16 @@ become the built-in laws' tables, with one deprecation note
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sc_rt import _core
 from sc_rt.pylaw import is_python_law, law_label, load_law
-from sc_rt.scenario.schema import Table
+from sc_rt.scenario.schema import ScenarioIssue, Table, key_lines
 
-__all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "resolved", "items_of", "with_items"]
+__all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "resolved", "items_of", "with_items", "stray_tables", "NEAR"]
 
 #: the tables of files written before [laws.NAME]: table -> (the laws it feeds, key prefix)
 LEGACY_TABLES: dict[str, tuple[tuple[str, ...], str]] = {
@@ -125,6 +126,74 @@ def law_table_name(spec: str) -> str:
     if is_python_law(spec):
         return law_label(load_law(spec))
     return spec
+
+
+def _table_line(path: Any, name: str) -> int:
+    """The line of the table [laws.NAME] in the file at ``path`` (0: unknown):
+    its header, else its first key (``[laws]`` with ``NAME.k = ...``)."""
+    try:
+        lines = key_lines(Path(path).read_text(encoding="utf-8"))
+    except (OSError, TypeError, UnicodeDecodeError):
+        return 0
+    key = f"laws.{name}"
+    inside = [n for k, n in lines.items() if k.startswith(key + ".")]
+    return lines.get(key) or min(inside, default=0) or lines.get("laws", 0)
+
+
+#: How alike a table's name and a law's name must be (difflib's ratio, case
+#: aside) for the table to be that law's misspelling rather than another law's.
+NEAR = 0.6
+
+
+def stray_tables(scn: Any, laws: tuple[str, ...] = ()) -> tuple[list[ScenarioIssue], list[str]]:
+    """The ``[laws.NAME]`` tables of ``scn`` that no law of this run reads,
+    as (errors, notes). A table is named by its law: a built-in, the file's
+    law, or one of ``laws`` (the laws a command names with --law; a plugin's
+    declared name, a Python law's ``name``). Any other table is
+
+    - an error when its name is near one of those (difflib ratio >= NEAR,
+      case aside): a misspelling, which would leave that law on its
+      defaults; on the table's line, naming the nearest law;
+    - else a note: the table of a law this run does not run (a file that
+      serves several laws through ``sc-rt compare --law``), read by none here.
+    """
+    import difflib
+
+    builtins = list(_core.law_names())
+    mine: list[str] = []
+    for spec in (scn.run.controller, *laws):
+        try:
+            name = law_table_name(spec)
+        except ValueError:  # a law that does not load: its own check says so
+            name = spec
+        if name not in mine:
+            mine.append(name)
+    known = list(dict.fromkeys(builtins + mine))
+    lower = {k.lower(): k for k in known}
+    errors, notes = [], []
+    why = (f"a table is named by its law: a built-in ({', '.join(builtins)}) or a law of this run "
+           f"({', '.join(mine)}), a plugin's declared name or a Python law's name")
+    for name, _items in scn.controller.laws:
+        if name in known:
+            continue
+        near = difflib.get_close_matches(name.lower(), list(lower), n=1, cutoff=NEAR)
+        if near:
+            errors.append(ScenarioIssue(_table_line(scn.path, name), f"laws.{name}", None,
+                                        f'matches no law: the nearest law name is "{lower[near[0]]}" '
+                                        f"([laws.{lower[near[0]]}]); as written no law reads it ({why})"))
+        else:
+            line = _table_line(scn.path, name)
+            notes.append(f"{scn.path}{f':{line}' if line else ''}: [laws.{name}] is read by no law of this run "
+                         f"({', '.join(mine)}): the table of another law (sc-rt compare --law), or misspelt")
+    return errors, notes
+
+
+def law_table_name_or(spec: str) -> str:
+    """``law_table_name(spec)``, or the spec itself when the law does not load."""
+    try:
+        return law_table_name(spec)
+    except ValueError:
+        return spec
 
 
 def items_of(laws: tuple, name: str) -> tuple:

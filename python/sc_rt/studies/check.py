@@ -29,6 +29,7 @@ from sc_rt import _core
 from sc_rt.studies.lawparams import dsc_gains, neso_core, neso_params
 from sc_rt.scenario.model import Scenario, ScenarioError
 from sc_rt.scenario.reader import load_scenario, with_run
+from sc_rt.scenario.laws import stray_tables
 
 __all__ = ["Finding", "check_scenario", "exit_code", "LEVELS", "PAPER_C"]
 
@@ -69,8 +70,13 @@ def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | No
     except ScenarioError as e:
         return [Finding("error", i.key, "" if i.value is None else str(i.value), i.message)
                 for i in e.errors] or [Finding("error", "", "", str(e))]
+    # a [laws.NAME] table no law reads (a misspelling: the law would run its defaults)
+    stray, notes = stray_tables(scn, () if law is None else (law,))
+    if stray:
+        return [Finding("error", i.key, "", f"{i.message} ({scn.path}:{i.line})" if i.line else i.message)
+                for i in stray]
     law = scn.run.controller
-    out: list[Finding] = []
+    out: list[Finding] = [Finding("note", "laws", "", note) for note in notes]
     out += _check_model(scn)
     if any(f.level == "error" for f in out):
         return out
