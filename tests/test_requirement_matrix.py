@@ -180,71 +180,87 @@ ANGLE = {"arcsec": ARCSEC, "deg": math.pi / 180.0, "urad": 1e-6}
 PEAK_UNITS = {"rpm": 2.0 * math.pi / 60.0, "mN m s": 1e-3, "mN m": 1e-3, "N m": 1.0, "rad/s^2": 1.0}
 
 
-def pointing_value(row: dict, t: np.ndarray, sigma: np.ndarray, idx: np.ndarray) -> float:
-    """APE: the p-quantile of |e| over the span's samples; MPE, RPE: of |window mean| and of
-    max |e - window mean| over non-overlapping windows tiling the span from its first sample;
-    PDE, PRE: of |mean of the window `separation` later - the window's mean|, the later window
+def outside(t0, t1, out) -> tuple[float | None, float | None]:
+    """(first, last) instant of the values outside the bound: the first value's first instant, the last
+    one's last instant (a sample: its time; a window: its first and last sample; a pair: its first window)."""
+    out = np.asarray(out, bool)
+    if not out.any():
+        return (None, None)
+    return (float(np.asarray(t0)[out].min()), float(np.asarray(t1)[out].max()))
+
+
+def pointing_values(row: dict, t: np.ndarray, sigma: np.ndarray, idx: np.ndarray):
+    """(values [rad], first instant, last instant of each): APE: |e| per sample of the span; MPE, RPE:
+    |window mean| and max |e - window mean| over non-overlapping windows tiling the span from its first
+    sample; PDE, PRE: |mean of the window `separation` later - the window's mean|, the later window
     inside the span (PDE) or inside the run (PRE)."""
-    kind, p = AS_PERFORMANCE.get(row["kind"], row["kind"]), row["confidence"]
+    kind = AS_PERFORMANCE.get(row["kind"], row["kind"])
     e = signal(sigma, row)
     if kind == "APE":
-        return q(np.linalg.norm(e[idx], axis=1), p)
+        return np.linalg.norm(e[idx], axis=1), t[idx], t[idx]
     n = int(round(row["window"] * 10.0))
-    starts = range(int(idx[0]), int(idx[-1]) - n + 2, n)
+    starts = list(range(int(idx[0]), int(idx[-1]) - n + 2, n))
     if kind in ("MPE", "RPE"):
         per = [np.linalg.norm(e[k:k + n].mean(axis=0)) if kind == "MPE"
                else np.linalg.norm(e[k:k + n] - e[k:k + n].mean(axis=0), axis=1).max() for k in starts]
-        return q(per, p)
-    shift = int(round(row["separation"] * 10.0))
-    end = int(idx[-1]) if kind == "PDE" else len(t) - 1
-    per = [np.linalg.norm(e[k + shift:k + shift + n].mean(axis=0) - e[k:k + n].mean(axis=0))
-           for k in starts if k + shift + n - 1 <= end]
-    return q(per, p)
+    else:
+        shift = int(round(row["separation"] * 10.0))
+        end = int(idx[-1]) if kind == "PDE" else len(t) - 1
+        starts = [k for k in starts if k + shift + n - 1 <= end]
+        per = [np.linalg.norm(e[k + shift:k + shift + n].mean(axis=0) - e[k:k + n].mean(axis=0)) for k in starts]
+    starts = np.asarray(starts)
+    return np.asarray(per), t[starts], t[starts + n - 1]
 
 
-def reference(traj, scn) -> dict[str, tuple[float | None, bool | None]]:
-    """name -> (value in the row's unit, passed) from the recorded rows."""
+def reference(traj, scn) -> dict[str, tuple]:
+    """name -> (value in the row's unit, passed, (first, last) instant outside its bound) from the rows."""
     t = traj["t"]
     perf = np.array([mrp_sub(s, d) for s, d in zip(traj["sigma_BN"], traj["sigma_DN"])])
     know = np.array([mrp_sub(s, e) for s, e in zip(traj["sigma_BN"], traj["sigma_BN_est"])])
     Cbar, Jw = np.asarray(scn.plant.Cbar, float), np.asarray(scn.plant.Jw, float)
-    out: dict[str, tuple[float | None, bool | None]] = {}
+    out: dict[str, tuple] = {}
     settled: dict[str, float | None] = {}
     for name, row in sorted(ROWS.items(), key=lambda kv: kv[1]["kind"] != "settling"):
         kind = row["kind"]
         if kind == "settling":
             idx = span_rows(t, row, settled)
             mag = np.linalg.norm(signal(perf, row)[idx], axis=1)
-            outside = np.flatnonzero(mag > row["bound"] * ANGLE[row["unit"]])
-            ts = float(t[idx][0]) if outside.size == 0 else (
-                None if outside[-1] == idx.size - 1 else float(t[idx][outside[-1] + 1]))
+            out_of_band = mag > row["bound"] * ANGLE[row["unit"]]
+            last_out = np.flatnonzero(out_of_band)
+            ts = float(t[idx][0]) if last_out.size == 0 else (
+                None if last_out[-1] == idx.size - 1 else float(t[idx][last_out[-1] + 1]))
             settled[name] = ts
-            out[name] = (ts, ts is not None and ts <= row["settle_by"] + EPS)
+            late = out_of_band & (t[idx] >= row["settle_by"] - EPS)  # outside the band once it had to be in
+            out[name] = (ts, ts is not None and ts <= row["settle_by"] + EPS, outside(t[idx], t[idx], late))
         elif kind == "envelope":
             p = scn.controller.ppc
             ppc = {k: np.asarray(getattr(p, k), float) for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")}
             c = np.array([chi(ppc, tt) for tt in t])
             inside = (-ppc["dmin"] * c < perf) & (perf < ppc["dmax"] * c)
             ratio = np.where(perf >= 0, perf / (ppc["dmax"] * c), -perf / (ppc["dmin"] * c))
-            out[name] = (float(ratio.max()), bool(inside.all()))
+            rows_out = ~inside.all(axis=1)
+            out[name] = (float(ratio.max()), bool(inside.all()), outside(t, t, rows_out))
         elif row.get("interpretation") == "ensemble":
-            out[name] = (None, None)  # a campaign's statistic
+            out[name] = (None, None, (None, None))  # a campaign's statistic
         elif kind in ("wheel_speed_margin", "momentum_margin", "max_command", "max_torque"):
             idx = span_rows(t, row, settled)
             if kind == "wheel_speed_margin":
-                v = np.abs(traj["wheel_speed"][idx]).max()
+                per = np.abs(traj["wheel_speed"][idx]).max(axis=1)
             elif kind == "max_command":
-                v = np.abs(traj["u_cmd"][idx]).max()
+                per = np.abs(traj["u_cmd"][idx]).max(axis=1)
             else:
                 col = traj["wheel_speed"] if kind == "momentum_margin" else traj["u_cmd"]
-                v = max(np.linalg.norm(Cbar @ (Jw * r)) for r in col[idx])
-            v /= PEAK_UNITS[row.get("unit", "N m")]
-            out[name] = (float(v), bool(v <= row["bound"]))
+                per = np.array([np.linalg.norm(Cbar @ (Jw * r)) for r in col[idx]])
+            per = per / PEAK_UNITS[row.get("unit", "N m")]
+            v = float(per.max())
+            out[name] = (v, bool(v <= row["bound"]), outside(t[idx], t[idx], per > row["bound"]))
         else:
             idx = span_rows(t, row, settled)
             sigma = know if kind in AS_PERFORMANCE else perf
-            v = pointing_value(row, t, sigma, idx) / ANGLE[row["unit"]]
-            out[name] = (v, bool(v <= row["bound"]))
+            per, t0, t1 = pointing_values(row, t, sigma, idx)
+            per = per / ANGLE[row["unit"]]
+            v = q(per, row["confidence"])
+            out[name] = (v, bool(v <= row["bound"]), outside(t0, t1, per > row["bound"]))
     return out
 
 
@@ -252,17 +268,20 @@ def assert_matches_reference(metrics: dict, traj, scn, who: str) -> None:
     ref = reference(traj, scn)
     got = {r["name"]: r for r in metrics["requirements"]}
     assert list(got) == list(ROWS), who
-    for name, (value, passed) in ref.items():
+    for name, (value, passed, (first, last)) in ref.items():
         r = got[name]
+        # when it was outside its bound (issue 41 item 6): the first and last instant
+        assert (r["first_outside_s"], r["last_outside_s"]) == (first, last), (who, name, r)
         if value is None:
             assert r["value"] is None and r["passed"] is passed, (who, name, r)
             continue
         assert r["value"] == pytest.approx(value, rel=1e-7, abs=1e-12), (who, name, r["value"], value, r["note"])
         assert r["passed"] is passed, (who, name, r)
     # both outcomes are exercised, and the verdict counts them
-    assert {True, False} <= {p for _, p in ref.values()}, ref
-    failed = [n for n, (_, p) in ref.items() if p is False]
-    assert f"{len(failed)} of {sum(p is not None for _, p in ref.values())} requirements failed" in \
+    assert {True, False} <= {p for _, p, _ in ref.values()}, ref
+    assert any(f is not None for _, p, (f, _) in ref.values() if p is False), ref
+    failed = [n for n, (_, p, _) in ref.items() if p is False]
+    assert f"{len(failed)} of {sum(p is not None for _, p, _ in ref.values())} requirements failed" in \
         metrics_verdict(metrics), who
 
 
@@ -273,9 +292,10 @@ def metrics_verdict(metrics: dict) -> str:
 
 
 def assert_console_rows(console: str) -> None:
-    """The console's requirement table names every row with its result."""
+    """The console's requirement table names every row with when it was outside its bound and its result."""
     for name in ROWS:
-        assert re.search(rf"^\s+{name}\s.*\b(PASS|FAIL|across runs)$", console, re.M), (name, console)
+        assert re.search(rf"^\s+{name}\s.*\s(-|at [0-9.]+ s|[0-9.]+-[0-9.]+ s)\s+(PASS|FAIL|across runs)$",
+                         console, re.M), (name, console)
 
 
 # --------------------------------------------------------------------------------------------- #

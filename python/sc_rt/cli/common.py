@@ -116,8 +116,11 @@ PEAKS = {"wheel_speed_margin": "max |Omega|", "momentum_margin": "max |Cbar Jw O
 
 def requirement_table(reqs: list) -> list[str]:
     """The requirements of a run's metrics as text lines: name, what is
-    measured, value, bound, margin and the result, each with its note below."""
-    head = ("requirement", "measure", "value", "bound", "margin", "result")
+    measured, value, bound, margin, when it was outside its bound and the
+    result, each with its note below."""
+    from sc_rt.results.judge.verdict import outside_text
+
+    head = ("requirement", "measure", "value", "bound", "margin", "outside bound", "result")
     rows = []
     for r in reqs:
         kind = r["kind"]
@@ -141,7 +144,7 @@ def requirement_table(reqs: list) -> list[str]:
         if r.get("passed") is None and r.get("interpretation") in ("ensemble", "mixed"):
             status = "across runs"
         rows.append((r["name"], what, _num(r.get("value"), unit), _num(r.get("bound"), unit), margin,
-                     status, r.get("note", "")))
+                     outside_text(r), status, r.get("note", "")))
     widths = [max(len(str(x[i])) for x in [head, *rows]) for i in range(len(head))]
     out = ["requirements:", "  " + "  ".join(f"{h:<{widths[i]}}" for i, h in enumerate(head)).rstrip()]
     for row in rows:

@@ -68,7 +68,8 @@ def _result(req: dict[str, Any], **kw: Any) -> dict[str, Any]:
     out = {"name": req["name"], "kind": req["kind"], "axis": req.get("axis", ""),
            "interpretation": req.get("interpretation", ""), "confidence": req.get("confidence"),
            "value": None, "bound": req.get("bound"), "unit": req.get("unit", "-"), "margin": None,
-           "relative_margin": None, "passed": None, "status": "not evaluated", "note": ""}
+           "relative_margin": None, "passed": None, "status": "not evaluated", "note": "",
+           "first_outside_s": None, "last_outside_s": None, "outside": 0}
     out.update(kw)
     if out["passed"] is not None:
         out["status"] = "pass" if out["passed"] else "fail"
@@ -76,6 +77,17 @@ def _result(req: dict[str, Any], **kw: Any) -> dict[str, Any]:
             out["margin"] = out["bound"] - out["value"]
             out["relative_margin"] = out["margin"] / out["bound"]
     return out
+
+
+def _outside(t0: np.ndarray, t1: np.ndarray, out: np.ndarray) -> dict[str, Any]:
+    """When a requirement was outside its bound: the first instant of the
+    first value outside (a sample, a window, a pair's first window), the last
+    instant of the last one, and how many values were outside."""
+    out = np.asarray(out, bool)
+    if not np.any(out):
+        return {"first_outside_s": None, "last_outside_s": None, "outside": 0}
+    return {"first_outside_s": float(np.min(t0[out])), "last_outside_s": float(np.max(t1[out])),
+            "outside": int(np.count_nonzero(out))}
 
 
 def _rows(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
@@ -110,7 +122,7 @@ def _pointing(req: dict[str, Any], t: np.ndarray, sigma: np.ndarray, idx: np.nda
         return _result(req, note=iv.problem)
     value = nearest_rank(iv.values, p) / unit
     note = _quantile_note(p, iv.values.size, iv.unit, iv, _span_text(t, idx))
-    extra: dict[str, Any] = {}
+    extra: dict[str, Any] = _outside(iv.t0, iv.t1, iv.values / unit > req["bound"])
     if other is not None:
         kind = COUNTERPART[req["kind"]]
         ov = index_values(dict(req, kind=kind), t, other, idx)
@@ -132,8 +144,10 @@ def _peak(req: dict[str, Any], t: np.ndarray, values: np.ndarray, idx: np.ndarra
     k, wheel = np.unravel_index(int(np.nanargmax(v)), v.shape)
     value = float(v[k, wheel]) / _SI[req["unit"]]
     note = f"max over {_span_text(t, idx)}: " + (f"wheel {wheel + 1} " if per_wheel else "") + f"at {t[idx[k]]:g} s"
+    with np.errstate(invalid="ignore"):
+        over = np.any(v / _SI[req["unit"]] > req["bound"], axis=1)
     return _result(req, value=value, passed=value <= req["bound"], note=note,
-                   span_s=[float(t[idx[0]]), float(t[idx[-1]])])
+                   span_s=[float(t[idx[0]]), float(t[idx[-1]])], **_outside(t[idx], t[idx], over))
 
 
 def _ppc_ratio(ppc: dict[str, Any], t: np.ndarray, sigma: np.ndarray) -> np.ndarray:
@@ -149,12 +163,16 @@ def _envelope(req: dict[str, Any], run: Any, perf: str) -> dict[str, Any]:
     """The prescribed envelope, a chunk of the run at a time (a run on disk: any length)."""
     if len(run) == 0:
         return _result(req, note="the run has no rows")
-    first = first_axis = value = None
+    first = first_axis = value = last = None
+    outside = 0
     for c in run.chunks():
         t, bad = c["t"], ~c["bound_ok"]
         if first is None and np.any(bad):
             k = int(np.argmax(np.any(bad, axis=1)))
             first, first_axis = float(t[k]), int(np.argmax(bad[k])) + 1
+        rows = np.flatnonzero(np.any(bad, axis=1))
+        if rows.size:
+            last, outside = float(t[rows[-1]]), outside + int(rows.size)
         ratio = _ppc_ratio(run.meta.ppc, t, c[perf])
         finite = ratio[np.isfinite(ratio)]
         if finite.size:
@@ -162,7 +180,8 @@ def _envelope(req: dict[str, Any], run: Any, perf: str) -> dict[str, Any]:
     note = ("inside the prescribed bound the whole run" if first is None
             else f"left the prescribed bound at {first:.2f} s (axis {'xyz'[first_axis - 1]})")
     r = _result(req, value=value, bound=1.0, unit="-", passed=first is None, note=note,
-                first_violation_s=first, first_violation_axis=first_axis)
+                first_violation_s=first, first_violation_axis=first_axis, first_outside_s=first,
+                last_outside_s=last, outside=outside)
     if value is None:
         r["margin"] = r["relative_margin"] = None
     return r
@@ -305,8 +324,10 @@ def _settling(req: dict[str, Any], t: np.ndarray, perf: np.ndarray, idx: np.ndar
     band = float(req["bound"]) * ANGLE_UNITS[req["unit"]]
     mag = np.linalg.norm(error_signal(perf[idx], req["axis"], req.get("boresight")), axis=1)
     ts = settling_time(t[idx], mag, band)
+    # outside its bound: outside the band from the time it had to be settled by
+    late = ~(np.isfinite(mag) & (mag <= band)) & (t[idx] >= float(req["settle_by"]) - _EPS_T)
     base = dict(bound=float(req["settle_by"]), unit="s", band=req["bound"], band_unit=req["unit"],
-                span_s=[float(t[idx[0]]), float(t[idx[-1]])])
+                span_s=[float(t[idx[0]]), float(t[idx[-1]])], **_outside(t[idx], t[idx], late))
     if ts is None:
         return _result(req, passed=False, **base,
                        note=f"never settled: outside {req['bound']:g} {req['unit']} at {t[idx[-1]]:g} s")

@@ -14,7 +14,7 @@ import numpy as np
 
 from sc_rt.results.judge.requirements import worst
 
-__all__ = ["SAFE_FLAGS", "safe_summary", "verdict_line", "pointing_arcsec", "requirements_summary"]
+__all__ = ["SAFE_FLAGS", "safe_summary", "verdict_line", "pointing_arcsec", "requirements_summary", "outside_text"]
 
 #: Controller flags that put it in SAFE (zero command), from wheel_cmd_t.
 SAFE_FLAGS = {128: "invalid state (non-finite or beyond the safety limits)", 256: "stale state",
@@ -49,6 +49,16 @@ def _s(v: float) -> str:
 
 def _g(v: float) -> str:
     return f"{v:+.3g}"
+
+
+def outside_text(r: dict[str, Any]) -> str:
+    """When a requirement's values were outside its bound (its result's
+    ``first_outside_s``, ``last_outside_s``): "12.3-45.6 s", "at 12.3 s"
+    (one instant), "-" never."""
+    first, last = r.get("first_outside_s"), r.get("last_outside_s")
+    if first is None:
+        return "-"
+    return f"at {first:.6g} s" if last is None or last == first else f"{first:.6g}-{last:.6g} s"
 
 
 def requirements_summary(reqs: list[dict[str, Any]]) -> str:

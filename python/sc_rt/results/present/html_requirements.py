@@ -8,6 +8,8 @@ from __future__ import annotations
 from html import escape
 from typing import Any
 
+from sc_rt.results.judge.verdict import outside_text
+
 __all__ = ["requirements_table"]
 
 
@@ -31,15 +33,18 @@ def requirements_table(reqs: list[dict[str, Any]] | None) -> str:
         shown = status.upper()
         if r.get("passed") is None and r.get("interpretation") in ("ensemble", "mixed"):
             shown = "ACROSS RUNS (sc-rt montecarlo)"
+        outside = outside_text(r)
         cp = r.get("counterpart") or {}
         beside = f"{escape(cp['kind'])} {num(cp.get('value'))}{unit}" if cp else "-"
         rows.append(f'<tr class="{escape(status.replace(" ", "-"))}"><td>{escape(str(r.get("name")))}</td>'
                     f"<td>{escape(measure)}</td><td class=num>{num(r.get('value'))}{unit}</td>"
                     f"<td class=num>{num(r.get('bound'))}{unit}</td><td class=num>{num(r.get('margin'))}{unit}</td>"
-                    f"<td>{escape(shown)}</td><td class=num>{beside}</td>"
+                    f"<td class=num>{escape(outside)}</td><td>{escape(shown)}</td><td class=num>{beside}</td>"
                     f"<td>{escape(str(r.get('note') or ''))}</td></tr>")
     return ('<section id="requirements"><table id="requirements-table"><tr><th>requirement</th><th>measure</th>'
-            "<th>value</th><th>bound</th><th>margin</th><th>result</th>"
+            "<th>value</th><th>bound</th><th>margin</th>"
+            '<th title="the first and last time its values were outside the bound">outside bound</th>'
+            "<th>result</th>"
             '<th title="with sensors: the knowledge index beside a performance one, and back">beside it</th>'
             "<th>how</th></tr>"
             + "".join(rows) + "</table></section>")
