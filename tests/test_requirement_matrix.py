@@ -8,7 +8,7 @@ tests/refmath.py, the rotation vectors with scipy, the quantiles with numpy's
 ``inverted_cdf``), never with sc_rt's own helpers.
 
 On main before this test, ``kind = "max_torque"`` crashed the console table
-(``TypeError: unsupported format string passed to NoneType.__format__``),
+(a TypeError: an unsupported format string passed to None's __format__),
 ``sc-rt sim`` and ``hil`` exited 1 without report.html.
 """
 

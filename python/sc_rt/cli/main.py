@@ -268,7 +268,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog="sc-rt",
         epilog="Exit codes: 0 done; 1 the run or check found a problem (sc-rt check: warnings; "
-               "sc-rt fault: no emulator echoed; sc-rt spy: nothing heard); 2 a bad option, value, "
+               "sc-rt fault: no emulator echoed; sc-rt spy: nothing heard; with --strict: a failed "
+               "requirement, an expect not matched, an invalid run); 2 a bad option, value, "
                "scenario or path (one line, nothing started); 130/143 interrupted by SIGINT/SIGTERM "
                "(partial outputs written and marked). LCM URL: --lcm-url, else $SCRT_LCM_URL.",
         description="Real-time attitude-control emulator: fault-tolerant controllers against a "
