@@ -5,10 +5,15 @@
 // (lcm's own eventlog writer) behind a deep subscription queue, writing from
 // its own thread and flushing every --flush-interval ms; SIGINT/SIGTERM
 // drain what is queued, then close. Its exit summary (stderr, JSON) says how
-// many events it wrote and the deepest its queue got.
-//   sc-rt-logger --lcm-url URL [--flush-interval MS] [--queue N] FILE
+// many events it wrote and the deepest its queue got. With --ack-channel it
+// says how far it has written: a log_ack_t (the messages of --count-channel
+// written so far) after every 8 of them, which a lockstep bench waits for so
+// that it never outruns its logger.
+//   sc-rt-logger --lcm-url URL [--flush-interval MS] [--queue N]
+//                [--ack-channel CH --count-channel CH] FILE
 #include <lcm/eventlog.h>
 #include <lcm/lcm.h>
+#include <sc_rt_lcm/log_ack_t.hpp>
 #include <signal.h>
 #include <time.h>
 
@@ -17,6 +22,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
 
 namespace {
 std::atomic<bool> g_stop{false};
@@ -34,10 +40,26 @@ struct Ctx {
   int64_t events = 0;
   int64_t write_errors = 0;
   int deepest = 0;
+  std::string ack_channel, count_channel;  // empty: no acknowledgements
+  int64_t counted = 0;  // messages on count_channel written
 };
+
+// A log_ack_t on the ack channel: how far the log is written.
+void publish_ack(lcm_t* lcm, const Ctx& c) {
+  sc_rt_lcm::log_ack_t m;
+  timespec ts;
+  clock_gettime(CLOCK_REALTIME, &ts);
+  m.utime = int64_t(ts.tv_sec) * 1000000 + ts.tv_nsec / 1000;
+  m.counted = c.counted;
+  m.events = c.events;
+  std::vector<uint8_t> buf(size_t(m.getEncodedSize()));
+  m.encode(buf.data(), 0, int(buf.size()));
+  lcm_publish(lcm, c.ack_channel.c_str(), buf.data(), static_cast<unsigned int>(buf.size()));
+}
 
 void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
   auto* c = static_cast<Ctx*>(user);
+  if (!c->ack_channel.empty() && c->ack_channel == channel) return;  // its own acknowledgements
   lcm_eventlog_event_t ev{};
   ev.eventnum = c->events;
   ev.timestamp = rbuf->recv_utime;
@@ -47,17 +69,21 @@ void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
   ev.data = rbuf->data;
   if (lcm_eventlog_write_event(c->log, &ev) != 0) ++c->write_errors;
   ++c->events;
+  if (!c->count_channel.empty() && c->count_channel == channel) ++c->counted;
   const int q = lcm_subscription_get_queue_size(c->sub);
   if (q > c->deepest) c->deepest = q;
 }
 
 const char kUsage[] =
-    "usage: sc-rt-logger --lcm-url URL [--flush-interval MS] [--queue N] FILE\n"
-    "Every message on the bus into FILE (lcm-logger's format), with a deep queue.\n";
+    "usage: sc-rt-logger --lcm-url URL [--flush-interval MS] [--queue N]\n"
+    "                    [--ack-channel CH --count-channel CH] FILE\n"
+    "Every message on the bus into FILE (lcm-logger's format), with a deep queue;\n"
+    "with --ack-channel, a log_ack_t there saying how many messages of\n"
+    "--count-channel are written (after every 8).\n";
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string url, path;
+  std::string url, path, ack_channel, count_channel;
   long flush_ms = 20, queue = 1000000;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -78,6 +104,10 @@ int main(int argc, char** argv) {
       flush_ms = std::atol(value("--flush-interval").c_str());
     } else if (a == "--queue" || a.rfind("--queue=", 0) == 0) {
       queue = std::atol(value("--queue").c_str());
+    } else if (a == "--ack-channel" || a.rfind("--ack-channel=", 0) == 0) {
+      ack_channel = value("--ack-channel");
+    } else if (a == "--count-channel" || a.rfind("--count-channel=", 0) == 0) {
+      count_channel = value("--count-channel");
     } else if (!a.empty() && a[0] != '-' && path.empty()) {
       path = a;
     } else {
@@ -85,7 +115,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (path.empty() || flush_ms <= 0 || queue <= 0) {
+  if (path.empty() || flush_ms <= 0 || queue <= 0 || ack_channel.empty() != count_channel.empty()) {
     std::fputs(kUsage, stderr);
     return 2;
   }
@@ -95,6 +125,8 @@ int main(int argc, char** argv) {
     return 3;
   }
   Ctx c;
+  c.ack_channel = ack_channel;
+  c.count_channel = count_channel;
   c.log = lcm_eventlog_create(path.c_str(), "w");
   if (c.log == nullptr) {
     std::fprintf(stderr, "sc-rt-logger: cannot write %s\n", path.c_str());
@@ -107,8 +139,14 @@ int main(int argc, char** argv) {
   c.sub = lcm_subscribe(lcm, ".*", on_message, &c);
   lcm_subscription_set_queue_capacity(c.sub, static_cast<int>(queue));
   int64_t next_flush = mono_ms() + flush_ms;
+  int64_t acked = 0;
+  constexpr int64_t kAckEvery = 8;
   while (!g_stop) {
     lcm_handle_timeout(lcm, static_cast<int>(flush_ms));
+    if (!c.ack_channel.empty() && c.counted - acked >= kAckEvery) {
+      publish_ack(lcm, c);  // written to the log's stream: a crash of the bench loses none of it
+      acked = c.counted;
+    }
     if (mono_ms() >= next_flush) {
       std::fflush(c.log->f);
       next_flush = mono_ms() + flush_ms;

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import select
 import time
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -35,17 +35,27 @@ class Publisher:
         #: the emulator's record (results/record/store.py): the truth's fields of each row go there,
         #: and with [sensors] the gyro's true bias (the truth's gyro_bias, the run's bias_true)
         self.ring = ring
+        #: lockstep with a paced logger (emulator/logpace.py): asked before each state; the emulator
+        #: sets it, with ``should_stop`` (its stop check) and ``shared_stop`` (stop the run, why)
+        self.pace: Any = None
+        self.should_stop: Callable[[], bool] = lambda: False
+        self.shared_stop: Callable[[str], None] = lambda why: None
 
     def state(self, k: int, t: float, x: np.ndarray, guidance: tuple | None = None) -> None:
         """State k (and its guidance first: a controller has it with the state)."""
         if guidance is None:  # computed now, or the values state k went out with (a re-sent state)
             guidance = self._guidance_sent[1] if self._guidance_sent[0] == k else self.guidance.values(t)
+        if self.pace is not None and (why := self.pace.before_state(self.should_stop)) is not None:
+            self.shared_stop(why)  # the logger stalled: the state is not published, the run stops
+            return
         self._guidance_sent = (k, guidance)
         self.guidance.publish(k, t, guidance)
         utime = time.time_ns() // 1000
         data = state_bytes(utime, k, self.session, t, x)
         self.inbox.published(k, utime, time.monotonic_ns())
         self.lc.publish(self._ch_state, data)
+        if self.pace is not None:
+            self.pace.sent += 1
         self.drain()  # our own guidance and state come back (loopback): handled while the controller works
 
     def sense(self, i: int, t: float, x: np.ndarray, row: int) -> None:

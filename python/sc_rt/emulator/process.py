@@ -45,6 +45,7 @@ import numpy as np
 from sc_rt.wire.auth import open_bus
 from sc_rt.emulator.collision import CollisionGuard
 from sc_rt.emulator.inbox import Receiver
+from sc_rt.emulator.logpace import LogPace
 from sc_rt.emulator.record import BYTES_PER_ROW, Record
 from sc_rt.emulator.outbox import Publisher
 from sc_rt.emulator.state import Options, Shared
@@ -139,6 +140,10 @@ class Emulator:
         self.publisher = Publisher(self.lc, opts.prefix, self.session, guidance, self.inbox, self.twin,
                                    self.sensors, self.ring)
         self.guidance = guidance
+        if opts.log_paced and self.mode == "lockstep":  # never ahead of the logger (emulator/logpace.py)
+            self.publisher.pace = LogPace(self.lc, opts.prefix, self.shared.counters)
+            self.publisher.should_stop = self._should_stop
+            self.publisher.shared_stop = self._stop_for
 
     # the shared values, by their old names (the CLI, the HIL runner, tests)
     @property
@@ -184,6 +189,11 @@ class Emulator:
                 wait = min(wait, self._pending_by_ns - time.monotonic_ns())
             if select.select([fd], [], [], wait / 1e9 if wait > 0 else 0)[0]:
                 self.lc.handle()
+
+    def _stop_for(self, why: str) -> None:
+        """Stop the run at the loop's next check, for ``why`` (the first reason kept)."""
+        if self.shared.stopped is None:
+            self.shared.stopped = why
 
     def _should_stop(self) -> bool:
         if self.shared.stopped is None and self.stop is not None:

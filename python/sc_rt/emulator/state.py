@@ -63,6 +63,8 @@ class Options:
     record_dir: Any = None
     #: rows per record chunk (None: results/record/store.py CHUNK_ROWS)
     record_chunk: int | None = None
+    #: lockstep: pace the states by sc-rt-logger's acknowledgements (emulator/logpace.py; sc-rt hil)
+    log_paced: bool = False
 
 
 @dataclass

@@ -284,7 +284,10 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     scn, out, url, mode, prefix = b.scn, b.out, b.url, b.mode, b.prefix
     realtime_priority, setup, floor, ext, key = b.realtime_priority, b.setup, b.floor, b.ext, b.key
     ctl_bin, logger_bin, cfg_path, log_path, key_path = b.ctl_bin, b.logger_bin, b.cfg_path, b.log_path, b.key_path
-    logger = subprocess.Popen([logger_bin, "--flush-interval=20", "--lcm-url", url, str(log_path)],
+    # it says how many of our states it has written: lockstep never runs ahead of it (emulator/logpace.py)
+    logger = subprocess.Popen([logger_bin, "--flush-interval=20", "--lcm-url", url,
+                               "--ack-channel", channel("SCRT_LOG_ACK", prefix),
+                               "--count-channel", channel("SCRT_STATE", prefix), str(log_path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs())
     stopper.logger = logger
     # a non-empty log means the logger is listening: publish a marker until it
@@ -333,7 +336,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
                                     start_timeout=ext.start_timeout if ext else None, auth_key=key,
                                     spin_us=setup.spin_us, cpu=setup.emulator_cpu,
                                     realtime_priority=realtime_priority, record_dir=out,
-                                    record_chunk=b.record_chunk),
+                                    record_chunk=b.record_chunk, log_paced=True),
                        stop=stopper)
         t0 = time.perf_counter()
         res = emu.run()

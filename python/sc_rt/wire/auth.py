@@ -23,7 +23,7 @@ from typing import Any, Callable
 
 from sc_rt.wire.lcmio import open_lcm
 
-__all__ = ["TAG_SIZE", "load_key", "message_tag", "verified_payload", "AuthLCM", "open_bus"]
+__all__ = ["unauthenticated", "TAG_SIZE", "load_key", "message_tag", "verified_payload", "AuthLCM", "open_bus"]
 
 TAG_SIZE = 32
 
@@ -76,6 +76,13 @@ class AuthLCM:
 
     def __getattr__(self, name: str) -> Any:  # fileno, handle, handle_timeout, unsubscribe
         return getattr(self._lc, name)
+
+
+def unauthenticated(bus: Any) -> Any:
+    """The plain LCM under ``bus`` (itself when it has no key): for a channel
+    whose messages carry no tag (sc-rt-logger's SCRT_LOG_ACK, which only paces
+    the bench)."""
+    return bus._lc if isinstance(bus, AuthLCM) else bus
 
 
 def open_bus(url: str, key: bytes | None = None, counters: Counter | None = None) -> Any:

@@ -34,6 +34,8 @@ CHANNELS = {
     "SCRT_STAR": ("star_tracker_t", "emulator",
                   "[sensors.star_tracker] rate_hz, at delivery (exposure + latency)"),
     "SCRT_TACH": ("tachometer_t", "emulator", "[sensors.tachometer] rate_hz"),
+    "SCRT_LOG_ACK": ("log_ack_t", "sc-rt-logger",
+                     "sc-rt hil: after every 8 states written to the log (not logged, not authenticated)"),
 }
 
 
