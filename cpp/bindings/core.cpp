@@ -108,14 +108,37 @@ void bind_math(py::module_& m) {
   m.def("slew_angle", &slew_angle, arg("p"), "[rad] angle of the slew, in [0, pi].");
   m.def("guidance_rk4_step", &guidance_rk4_step, arg("p"), arg("sigma"), arg("t"), arg("h"),
         "One RK4 step of the desired attitude from t to t + h [s].");
+  m.attr("GUIDANCE_MAX_CATCH_UP") = kGuidanceMaxCatchUp;
+  m.attr("GUIDANCE_PERIOD_STEPS_MAX") = kGuidancePeriodStepsMax;
+  py::class_<GuidancePeriodTable>(m, "GuidancePeriodTable",
+                                  "How the paper's reference is evaluated far from its time line")
+      .def_property_readonly("kind", [](const GuidancePeriodTable& t) {
+        return t.kind == GuidancePeriodTable::Periodic ? "periodic"
+               : t.kind == GuidancePeriodTable::Constant ? "constant" : "closed_form";
+      }, "closed_form (hold, slew, table), constant (the paper's kind with a constant rate: closed form)\n"
+         "or periodic (the paper's kind: a table over one period)")
+      .def_readonly("omega", &GuidancePeriodTable::omega, "[rad/s] the constant rate (constant)")
+      .def_readonly("period", &GuidancePeriodTable::period, "[s] 2 pi / |freq| (periodic)")
+      .def_readonly("n_steps", &GuidancePeriodTable::n_steps, "RK4 steps over one period (periodic)")
+      .def_readonly("stride", &GuidancePeriodTable::stride, "RK4 steps between anchors (periodic)")
+      .def_readonly("anchors", &GuidancePeriodTable::anchors, "anchors after t = 0 (periodic)")
+      .def_readonly("h", &GuidancePeriodTable::h, "[s] the table's RK4 step (periodic)");
+  m.def("guidance_period_table", &guidance_period_table, arg("p"));
   py::class_<Guidance>(m, "Guidance", "Desired attitude on the controller's time line.")
       .def(py::init<const GuidanceParams&, double>(), arg("p"), arg("max_step") = 0.1)
       .def("reset", &Guidance::reset, arg("t0"))
-      .def("advance", &Guidance::advance, arg("t"))
+      .def("advance", &Guidance::advance, arg("t"),
+           "Along the time line (at most GUIDANCE_MAX_CATCH_UP RK4 steps), else seek(t).")
+      .def("seek", &Guidance::seek, arg("t"), "sigma_DN(t) from the definition at any t (bounded work).")
+      .def("prepare", &Guidance::prepare, "Build the period table now (else at the first seek).")
       .def_property_readonly("t", &Guidance::t)
       .def_property_readonly("sigma_DN", &Guidance::sigma_DN)
       .def_property_readonly("params", &Guidance::params)
-      .def_property_readonly("rk4_steps", &Guidance::rk4_steps, "RK4 steps taken since construction");
+      .def_property_readonly("period_table", &Guidance::period_table)
+      .def_property_readonly("prepared", &Guidance::prepared, "the period table is built")
+      .def_property_readonly("rk4_steps", &Guidance::rk4_steps,
+                             "RK4 steps taken since construction (the period table's included)")
+      .def_property_readonly("seeks", &Guidance::seeks, "evaluations from the definition (seek) so far");
 
   // --- NESO (22)
   py::class_<NesoParams>(m, "NesoParams", "Observer (22) gains; defaults are the paper's.")

@@ -86,6 +86,19 @@ std::vector<std::string> validate(const GuidanceParams& p) {
       errs.push_back("omega_d amplitudes must be finite");
     if (!std::isfinite(p.omega_freq))
       errs.push_back("omega_d frequency must be finite, got " + format_double(p.omega_freq));
+    if (errs.empty()) {
+      const GuidancePeriodTable tab = guidance_period_table(p);
+      if (tab.kind == GuidancePeriodTable::Periodic && tab.n_steps > kGuidancePeriodStepsMax)
+        errs.push_back(
+            "omega_d frequency " + format_double(p.omega_freq) + " rad/s is too slow for its rates: the " +
+            "period 2 pi/|freq| = " + format_double(tab.period) + " s needs " +
+            std::to_string(tab.n_steps) + " RK4 steps to tabulate, at most " +
+            std::to_string(kGuidancePeriodStepsMax) +
+            " (the bounded evaluation of a late joiner or a re-engagement, docs/CORE.md): use freq = 0 " +
+            "(a constant rate) or a frequency at least " +
+            format_double(std::fabs(p.omega_freq) * double(tab.n_steps) / double(kGuidancePeriodStepsMax)) +
+            " rad/s");
+    }
   }
   if (p.kind == GuidanceKind::Slew) {
     if (!p.slew_target.allFinite() || p.slew_target.norm() > 1.0 + 1e-12)
@@ -215,11 +228,42 @@ Vec3 guidance_rk4_step(const GuidanceParams& p, const Vec3& s, double t, double 
   return mrp_short(s + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4));
 }
 
+GuidancePeriodTable guidance_period_table(const GuidanceParams& p) {
+  GuidancePeriodTable tab;
+  if (!guidance_integrated(p)) return tab;
+  const double f = std::fabs(p.omega_freq);
+  const double amp = p.omega_cos.norm() + p.omega_sin.norm();
+  if (f == 0.0 || amp == 0.0) {  // omega_DN_D(t) = omega_d(p, 0) for all t
+    tab.kind = GuidancePeriodTable::Constant;
+    tab.omega = omega_d(p, 0.0);
+    return tab;
+  }
+  tab.kind = GuidancePeriodTable::Periodic;
+  tab.period = 2.0 * kPi / f;
+  const double rate = std::max(p.omega_bias.norm() + amp, f);
+  const double n = std::ceil(tab.period * rate / kGuidanceTableStepAngle);
+  if (!(n <= double(kGuidancePeriodStepsMax))) {  // over the budget: reported by validate()
+    tab.n_steps = n < 9e18 ? static_cast<long long>(n) : (1LL << 62);
+    return tab;
+  }
+  const long long steps = std::max(1LL, static_cast<long long>(n));
+  tab.stride = static_cast<int>(std::max<long long>(
+      32, (steps + kGuidanceTableAnchorsMax - 1) / kGuidanceTableAnchorsMax));
+  tab.anchors = static_cast<int>((steps + tab.stride - 1) / tab.stride);
+  tab.n_steps = static_cast<long long>(tab.anchors) * tab.stride;
+  tab.h = tab.period / double(tab.n_steps);
+  return tab;
+}
+
 Guidance::Guidance(const GuidanceParams& p, double max_step) : p_(p), max_step_(max_step) {
   throw_if_errors("GuidanceParams", validate(p));
   if (!(max_step > 0.0 && std::isfinite(max_step)))
     throw std::invalid_argument("Guidance max_step must be > 0, got " + format_double(max_step));
   sigma_ = guidance_integrated(p_) ? p_.sigma_d0 : sigma_d(p_, 0.0);
+  table_ = guidance_period_table(p_);
+  // allocated here, filled at the first seek or prepare(): a step never allocates
+  if (table_.kind == GuidancePeriodTable::Periodic)
+    anchors_.assign(static_cast<std::size_t>(table_.anchors) + 1, Vec3::Zero());
 }
 
 void Guidance::reset(double t0) {
@@ -232,7 +276,7 @@ void Guidance::reset(double t0) {
   // after the current time continues from where the reference is (a
   // re-engagement an hour into a run costs the steps since the last call,
   // not an hour of RK4 steps); a reset before it starts the time line again
-  // from t = 0 (a new plant session).
+  // from t = 0 (a new plant session). Either way advance() bounds the work.
   if (!(t0 >= t_)) {
     t_ = 0.0;
     sigma_ = p_.sigma_d0;
@@ -248,11 +292,87 @@ void Guidance::advance(double t) {
     t_ = t;
     return;
   }
-  const double span = t - t_;
-  const int n = static_cast<int>(std::ceil(span / max_step_ - 1e-9));
-  const double h = span / (n < 1 ? 1 : n);
-  for (int i = 0; i < (n < 1 ? 1 : n); ++i) sigma_ = guidance_rk4_step(p_, sigma_, t_ + i * h, h);
-  rk4_steps_ += static_cast<std::uint64_t>(n < 1 ? 1 : n);
+  const double n = std::ceil((t - t_) / max_step_ - 1e-9);
+  if (n > double(kGuidanceMaxCatchUp)) {  // too far for the time line: from the definition at t
+    seek(t);
+    return;
+  }
+  integrate(t, n < 1.0 ? 1 : static_cast<int>(n));
+}
+
+void Guidance::integrate(double t, int n) {
+  const double h = (t - t_) / n;
+  for (int i = 0; i < n; ++i) sigma_ = guidance_rk4_step(p_, sigma_, t_ + i * h, h);
+  rk4_steps_ += static_cast<std::uint64_t>(n);
+  t_ = t;
+}
+
+void Guidance::prepare() {
+  if (built_ || table_.kind != GuidancePeriodTable::Periodic) return;
+  // Psi(t), the rotation of D from t = 0 (sigma_DN(t) = Psi(t) sigma_d0):
+  // the same kinematics from the identity, sampled every stride steps.
+  Vec3 s = Vec3::Zero();
+  anchors_[0] = s;
+  long long i = 0;
+  for (int j = 1; j <= table_.anchors; ++j) {
+    for (int k = 0; k < table_.stride; ++k, ++i)
+      s = guidance_rk4_step(p_, s, double(i) * table_.h, table_.h);
+    anchors_[static_cast<std::size_t>(j)] = s;
+  }
+  rk4_steps_ += static_cast<std::uint64_t>(table_.n_steps);
+  built_ = true;
+}
+
+Vec3 Guidance::periodic_at(double t) {
+  prepare();
+  const GuidancePeriodTable& tb = table_;
+  const double P = tb.period;
+  const double k = std::floor(t / P);
+  const double span_anchor = double(tb.stride) * tb.h;
+  const double tau = t - k * P;
+  double jd = std::floor(tau / span_anchor);
+  if (!(jd >= 0.0)) jd = 0.0;
+  if (jd > double(tb.anchors - 1)) jd = double(tb.anchors - 1);
+  const int j = static_cast<int>(jd);
+  const double t_a = k * P + jd * span_anchor;
+  // M^k: the rotation over one period, k times (about its axis, angle k phi)
+  const Vec3& sM = anchors_[static_cast<std::size_t>(tb.anchors)];
+  const double nM = sM.norm();
+  Vec3 Mk = Vec3::Zero();
+  if (nM > 0.0 && k != 0.0) {
+    const double psi = std::remainder(k * 4.0 * std::atan(nM), 2.0 * kPi);
+    Mk = (std::tan(0.25 * psi) / nM) * sM;
+  }
+  Vec3 s = compose(anchors_[static_cast<std::size_t>(j)], compose(Mk, p_.sigma_d0));
+  // from the anchor to t: at most stride (+1 for rounding) steps of <= h
+  const double span = t - t_a;
+  if (span != 0.0) {
+    double nd = std::ceil(std::fabs(span) / tb.h - 1e-9);
+    if (nd < 1.0) nd = 1.0;
+    if (nd > double(tb.stride + 1)) nd = double(tb.stride + 1);
+    const int n = static_cast<int>(nd);
+    const double h = span / n;
+    for (int i = 0; i < n; ++i) s = guidance_rk4_step(p_, s, t_a + i * h, h);
+    rk4_steps_ += static_cast<std::uint64_t>(n);
+  }
+  return s;
+}
+
+void Guidance::seek(double t) {
+  if (!std::isfinite(t))
+    throw std::invalid_argument("Guidance::seek: t must be finite, got " + format_double(t));
+  ++seeks_;
+  if (!guidance_integrated(p_)) {
+    sigma_ = sigma_d(p_, t);
+  } else if (table_.kind == GuidancePeriodTable::Constant) {
+    // rotation about the fixed axis of omega by |omega| t: Psi(t) = tan(angle / 4) e
+    const double w = table_.omega.norm();
+    const Vec3 rel = w > 0.0 ? Vec3((std::tan(0.25 * std::remainder(w * t, 2.0 * kPi)) / w) * table_.omega)
+                             : Vec3(Vec3::Zero());
+    sigma_ = compose(rel, p_.sigma_d0);
+  } else {
+    sigma_ = periodic_at(t);
+  }
   t_ = t;
 }
 

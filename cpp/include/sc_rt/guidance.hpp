@@ -24,6 +24,17 @@
 //   (rate and acceleration zero).
 // Hold, Slew and Table are closed forms of t (sigma_d); only Paper is
 // integrated.
+//
+// Bounded work whatever the times (docs/CORE.md, "The time contract"): one
+// call of Guidance moves the Paper reference along its time line with at
+// most kGuidanceMaxCatchUp RK4 steps; a longer span (a late joiner, a
+// re-engagement after a gap, a step back) evaluates sigma_DN(t) from the
+// definition instead: with a constant rate (freq = 0, or no cos/sin
+// amplitude) in closed form; else from the monodromy of the periodic rate,
+// sigma_DN(k P + tau) = Psi(tau) M^k sigma_d0 (P = 2 pi / |freq|, M = Psi(P),
+// Psi the rotation from t = 0), with Psi tabulated once over one period
+// (kGuidancePeriodStepsMax RK4 steps at most) and at most
+// guidance_period_table(p).stride RK4 steps from the nearest anchor.
 #pragma once
 #include <string>
 #include <cstdint>
@@ -44,6 +55,21 @@ const char* guidance_kind_name(GuidanceKind k);  //!< "paper", "hold", "slew", "
 constexpr int kGuidanceTableMax = 2000;
 
 using MatX3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
+
+//! Most RK4 steps (of at most max_step) one Guidance call integrates along
+//! its time line; a longer span evaluates the reference at the new time from
+//! its definition (Guidance::seek). Normal steps take one.
+constexpr int kGuidanceMaxCatchUp = 64;
+//! Most RK4 steps of the Paper reference's period table (built once, at the
+//! first seek or prepare()): validate() refuses a periodic rate whose period
+//! needs more (the rate's bound over its frequency beyond ~1,600).
+constexpr long long kGuidancePeriodStepsMax = 1LL << 20;
+//! Most anchors of the period table (preallocated at construction).
+constexpr int kGuidanceTableAnchorsMax = 4096;
+//! The period table's step: at most this many radians of the rate's bound
+//! |bias| + |cos_amp| + |sin_amp| (or of |freq|) per RK4 step (error per
+//! period ~3e-13 for the paper's reference).
+constexpr double kGuidanceTableStepAngle = 0.01;
 
 struct GuidanceParams {
   GuidanceKind kind = GuidanceKind::Paper;
@@ -85,30 +111,65 @@ double slew_angle(const GuidanceParams& p);
 // short-rotation set.
 Vec3 guidance_rk4_step(const GuidanceParams& p, const Vec3& sigma, double t, double h);
 
+//! How the Paper reference is evaluated far from its time line: kind
+//! Constant (omega_DN_D constant: closed form), Periodic (a table over one
+//! period P of n_steps RK4 steps of h = P / n_steps, an anchor every stride
+//! steps) or ClosedForm (hold, slew, table: sigma_d).
+struct GuidancePeriodTable {
+  enum Kind { ClosedForm = 0, Constant = 1, Periodic = 2 } kind = ClosedForm;
+  Vec3 omega = Vec3::Zero();  //!< [rad/s] the constant rate (Constant)
+  double period = 0.0;        //!< [s] P = 2 pi / |freq| (Periodic)
+  long long n_steps = 0;      //!< RK4 steps over one period (Periodic)
+  int stride = 0;             //!< RK4 steps between anchors (Periodic)
+  int anchors = 0;            //!< anchors after t = 0: n_steps / stride (Periodic)
+  double h = 0.0;             //!< [s] the table's RK4 step, P / n_steps (Periodic)
+};
+GuidancePeriodTable guidance_period_table(const GuidanceParams& p);
+
 // The desired attitude propagated along the controller's own time line.
+// Every call costs at most max(kGuidanceMaxCatchUp, table stride + 1) RK4 steps,
+// plus, once, the period table's n_steps (prepare() builds it ahead).
 class Guidance {
  public:
   explicit Guidance(const GuidanceParams& p, double max_step = 0.1);
-  // sigma_DN at time t0: integrated on from the current time when t0 is at
-  // or after it (O(t0 - t()), whatever t0 is), else from t = 0 (a new time
-  // line); a closed-form kind evaluates sigma_d(t0).
+  // sigma_DN at time t0: continued from the current time when t0 is at or
+  // after it, else from sigma_d0 at t = 0 (a new time line); either way by
+  // advance(t0). A closed-form kind evaluates sigma_d(t0).
   void reset(double t0);
-  // Advance to t >= current time with RK4 steps no longer than max_step
-  // (a closed-form kind: sigma_d(t)).
+  // Advance to t >= current time: RK4 steps no longer than max_step when
+  // that takes at most kGuidanceMaxCatchUp of them, else seek(t). A
+  // closed-form kind: sigma_d(t). Earlier t: nothing.
   void advance(double t);
+  // sigma_DN(t) from the reference's definition at any t (the period table
+  // or the closed form), the time line moved to t. Bounded work.
+  void seek(double t);
+  // Build the period table now (else at the first seek): a step then never
+  // pays for it. Idempotent; no allocation (the anchors are preallocated).
+  void prepare();
   double t() const { return t_; }
   const Vec3& sigma_DN() const { return sigma_; }
   const GuidanceParams& params() const { return p_; }
-  //! RK4 steps taken since construction (the work of the integrated kind;
-  //! tests bound a re-engagement's cost with it, not with wall time).
+  const GuidancePeriodTable& period_table() const { return table_; }
+  //! RK4 steps taken since construction, the period table's included (the
+  //! work of the integrated kind; tests bound a step's cost with it, not
+  //! with wall time).
   std::uint64_t rk4_steps() const { return rk4_steps_; }
+  //! seek() calls since construction (advances too long for the time line).
+  std::uint64_t seeks() const { return seeks_; }
+  bool prepared() const { return built_; }
 
  private:
+  void integrate(double t, int n);  // n RK4 steps along the time line to t
+  Vec3 periodic_at(double t);       // Periodic: sigma_DN(t) from the table
+  GuidancePeriodTable table_;
   GuidanceParams p_;
   double max_step_;
   double t_ = 0.0;
   Vec3 sigma_;
+  std::vector<Vec3> anchors_;  //!< Psi(j stride h) as MRPs, j = 0..anchors
+  bool built_ = false;
   std::uint64_t rk4_steps_ = 0;
+  std::uint64_t seeks_ = 0;
 };
 
 }  // namespace sc_rt
