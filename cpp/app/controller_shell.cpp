@@ -37,6 +37,9 @@ Shell::Shell(const Options& o, lcm::LCM& lcm, const std::atomic<bool>& stop)
 
 void Shell::configure(const sc_rt::ControllerConfig& cfg, const sc_rt::NavSetup& nav) {
   ctl_ = sc_rt::Controller::create(cfg);
+  // the guidance's period table now, not in a step: a late joiner's or a
+  // re-engagement's first step costs only its bounded evaluation (docs/CORE.md)
+  ctl_->prepare();
   // [sensors]: the estimator runs here on the emulator's sensor messages (sensor_intake.hpp)
   if (nav.enabled) intake_ = std::make_unique<sc_rt::SensorIntake>(nav.mekf, nav.use_estimate, nav.sigma0);
   period_ns_ = int64_t(std::llround(1e9 / cfg.control_rate_hz));
@@ -323,6 +326,13 @@ std::string Shell::summary_json(const std::string& scheduler) const {
     } else {
       js += "\"last\": null}";
     }
+  }
+  {  // time jumps the core refused (SAFE, FLAG_TIME_JUMP; docs/CORE.md, "The time contract")
+    const sc_rt::ControllerCounts& k = ctl_->counts();
+    char tb[128];
+    std::snprintf(tb, sizeof tb, ", \"time_jumps\": {\"ahead\": %lld, \"back\": %lld}", k.jumps_ahead,
+                  k.steps_back);
+    js += tb;
   }
   if (intake_) {
     std::lock_guard<PiMutex> lock(mu_);

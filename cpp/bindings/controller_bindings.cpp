@@ -128,8 +128,9 @@ void bind_controllers(py::module_& m) {
            {"FLAG_BOUND_Z", FLAG_BOUND_Z}, {"FLAG_SAT_1", FLAG_SAT_1},
            {"FLAG_INVALID_STATE", FLAG_INVALID_STATE}, {"FLAG_STALE_STATE", FLAG_STALE_STATE},
            {"FLAG_TIME_NOT_ADVANCING", FLAG_TIME_NOT_ADVANCING},
-           {"FLAG_LAW_INVALID", FLAG_LAW_INVALID}})
+           {"FLAG_LAW_INVALID", FLAG_LAW_INVALID}, {"FLAG_TIME_JUMP", FLAG_TIME_JUMP}})
     m.attr(name) = v;
+  m.attr("MAX_DT_PERIODS") = kMaxDtPeriods;
   py::class_<SafetyLimits>(m, "SafetyLimits")
       .def(py::init<>())
       .def_readwrite("max_rate", &SafetyLimits::max_rate, "[rad/s]")
@@ -198,6 +199,20 @@ void bind_controllers(py::module_& m) {
         arg("omega_DN_D"), arg("omega_dot_DN_D"), "Errors (8)-(11) and A of (21).");
   m.def("measurement_valid", &measurement_valid, arg("m"), arg("lim"));
 
+  py::class_<ControllerCounts>(m, "ControllerCounts",
+                              "A controller's steps, law calls and refused time jumps since construction.")
+      .def_readonly("steps", &ControllerCounts::steps, "step() calls")
+      .def_readonly("engagements", &ControllerCounts::engagements, "(re-)engagements of the law")
+      .def_readonly("law_resets", &ControllerCounts::law_resets, "calls of the law's reset")
+      .def_readonly("law_steps", &ControllerCounts::law_steps, "calls of the law's step")
+      .def_readonly("law_afters", &ControllerCounts::law_afters, "calls of the law's after")
+      .def_readonly("jumps_ahead", &ControllerCounts::jumps_ahead,
+                    "states stamped more than MAX_DT_PERIODS periods ahead (SAFE, FLAG_TIME_JUMP)")
+      .def_readonly("steps_back", &ControllerCounts::steps_back,
+                    "states stamped before the previous step (SAFE, FLAG_TIME_JUMP)")
+      .def_property_readonly("law_calls", &ControllerCounts::law_calls, "resets + steps + afters")
+      .def_property_readonly("time_jumps", &ControllerCounts::time_jumps, "jumps_ahead + steps_back");
+
   py::class_<Controller>(m, "Controller", "One control law behind reset/step.")
       .def(py::init(&Controller::create), arg("c"))
       .def("reset", &Controller::reset, arg("m"))
@@ -212,7 +227,12 @@ void bind_controllers(py::module_& m) {
       .def_property_readonly("guidance", &Controller::guidance, py::return_value_policy::reference_internal)
       .def_property_readonly(
           "law_failures", [](const Controller& c) { return sc_rt_bind::law_failures_dict(c.law_failures()); },
-          "the law's contained failures: reset, step, after (counts) and last (None or {call, t, what})");
+          "the law's contained failures: reset, step, after (counts) and last (None or {call, t, what})")
+      .def_property_readonly(
+          "counts", [](const Controller& c) { return c.counts(); }, "steps, law calls and time jumps so far (a copy)")
+      .def_property_readonly("max_dt", &Controller::max_dt, "[s] the most dt a law is handed: MAX_DT_PERIODS periods")
+      .def("prepare", &Controller::prepare,
+           "Build the guidance's period table now (else at the first evaluation far from its time line).");
 
   // Packed telemetry of one step, one numpy allocation (the offline
   // simulator's hot path). Layout: PACKED_FIELDS (sc_rt.sim.engines.PACKED).

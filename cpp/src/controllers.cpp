@@ -1,5 +1,6 @@
 #include "sc_rt/controllers.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -91,6 +92,7 @@ Controller::Controller(const ControllerConfig& c)
       law_model_(law_model(model_)),
       guidance_(c.guidance, 1.0 / c.control_rate_hz),
       entry_(resolve_law(c.law)) {
+  max_dt_ = kMaxDtPeriods / cfg_.control_rate_hz;
   const std::string who = "law " + law_label(entry_) + ": ";
   LawParams params(cfg_.law_params);
   const LawSetup setup{law_model_, cfg_.control_rate_hz, params};
@@ -133,8 +135,9 @@ LawInput Controller::input_at(const Measurement& m, double dt) {
   in.ref.omega_DN_D = omega_d(cfg_.guidance, m.t);
   in.ref.omega_dot_DN_D = omega_d_dot(cfg_.guidance, m.t);
   in.e = tracking_errors(model_, m, in.ref.sigma_DN, in.ref.omega_DN_D, in.ref.omega_dot_DN_D);
-  // The prescribed bound is reported for every law.
-  in.ppc = ppc_transform(cfg_.ppc, in.e.sigma_BD, m.t - t0_);
+  // The prescribed bound is reported for every law (a SAFE step stamped
+  // before the engagement, a step back, reports it at the engagement).
+  in.ppc = ppc_transform(cfg_.ppc, in.e.sigma_BD, std::max(0.0, m.t - t0_));
   in.u_sat_prev = u_sat_prev_;
   return in;
 }
@@ -152,7 +155,9 @@ bool Controller::engage(const Measurement& m) {
   t_prev_ = m.t;
   guidance_.reset(m.t);
   u_sat_prev_.setZero();
+  ++counts_.engagements;
   try {
+    ++counts_.law_resets;
     law_->reset(input_at(m, 0.0));
   } catch (const std::exception& e) {
     ++failures_.reset;
@@ -192,6 +197,7 @@ void Controller::observe(const Measurement& m, Command& out, LawInput& in) {
 }
 
 Command Controller::step(const Measurement& m) {
+  ++counts_.steps;
   LawInput in;
   if (!measurement_valid(m, cfg_.safety)) {
     Command out = safe_command(m.t, FLAG_INVALID_STATE);
@@ -200,6 +206,18 @@ Command Controller::step(const Measurement& m) {
     if (std::isfinite(m.t) && m.sigma_BN.allFinite() && m.omega_BN_B.allFinite() &&
         m.wheel_speed.allFinite() && m.t >= guidance_.t())
       observe(m, out, in);
+    return out;
+  }
+  if (engaged_ && (m.t < t_prev_ || m.t - t_prev_ > max_dt_)) {
+    // A time jump (docs/CORE.md, "The time contract"): the law's states
+    // cannot be carried across it. SAFE zeros now; the next valid state
+    // re-engages the law at its own time. The telemetry stays true: the
+    // reference at m.t (bounded work, Guidance::reset).
+    const bool back = m.t < t_prev_;
+    ++(back ? counts_.steps_back : counts_.jumps_ahead);
+    Command out = safe_command(m.t, FLAG_TIME_JUMP | (back ? FLAG_TIME_NOT_ADVANCING : 0));
+    guidance_.reset(m.t);
+    observe(m, out, in);
     return out;
   }
   if (!engaged_ && !engage(m)) {  // (re-)engage from this measurement; a reset that threw: SAFE
@@ -223,6 +241,7 @@ Command Controller::step(const Measurement& m) {
   std::string why;
   bool threw = false;
   try {
+    ++counts_.law_steps;
     law_->step(in, lo);
   } catch (const std::exception& e) {
     threw = true;
@@ -256,6 +275,7 @@ Command Controller::step(const Measurement& m) {
   std::string after_why;
   bool after_threw = false;
   try {
+    ++counts_.law_afters;
     law_->after(out.u_cmd, out.u_sat);
   } catch (const std::exception& e) {
     after_threw = true;

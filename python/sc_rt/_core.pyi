@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -653,12 +653,65 @@ class TrackingErrors:
     @property
     def u_g0(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
+class ControllerCounts:
+    """
+    A controller's steps, law calls and refused time jumps since construction.
+    """
+    @property
+    def engagements(self) -> int:
+        """
+        (re-)engagements of the law
+        """
+    @property
+    def jumps_ahead(self) -> int:
+        """
+        states stamped more than MAX_DT_PERIODS periods ahead (SAFE, FLAG_TIME_JUMP)
+        """
+    @property
+    def law_afters(self) -> int:
+        """
+        calls of the law's after
+        """
+    @property
+    def law_calls(self) -> int:
+        """
+        resets + steps + afters
+        """
+    @property
+    def law_resets(self) -> int:
+        """
+        calls of the law's reset
+        """
+    @property
+    def law_steps(self) -> int:
+        """
+        calls of the law's step
+        """
+    @property
+    def steps(self) -> int:
+        """
+        step() calls
+        """
+    @property
+    def steps_back(self) -> int:
+        """
+        states stamped before the previous step (SAFE, FLAG_TIME_JUMP)
+        """
+    @property
+    def time_jumps(self) -> int:
+        """
+        jumps_ahead + steps_back
+        """
 class Controller:
     """
     One control law behind reset/step.
     """
     def __init__(self, c: ControllerConfig) -> None:
         ...
+    def prepare(self) -> None:
+        """
+        Build the guidance's period table now (else at the first evaluation far from its time line).
+        """
     def reset(self, m: Measurement) -> None:
         ...
     def safe_command(self, t: typing.SupportsFloat | typing.SupportsIndex, flags: typing.SupportsInt | typing.SupportsIndex) -> Command:
@@ -668,6 +721,11 @@ class Controller:
     @property
     def config(self) -> ControllerConfig:
         ...
+    @property
+    def counts(self) -> ControllerCounts:
+        """
+        steps, law calls and time jumps so far (a copy)
+        """
     @property
     def guidance(self) -> Guidance:
         ...
@@ -685,6 +743,11 @@ class Controller:
     def law_name(self) -> str:
         """
         the law's registry name
+        """
+    @property
+    def max_dt(self) -> float:
+        """
+        [s] the most dt a law is handed: MAX_DT_PERIODS periods
         """
     @property
     def model(self) -> SpacecraftModel:
@@ -2191,6 +2254,7 @@ FLAG_LAW_INVALID: int = 1024
 FLAG_NAV_DEGRADED: int = 2048
 FLAG_SAT_1: int = 8
 FLAG_STALE_STATE: int = 256
+FLAG_TIME_JUMP: int = 4096
 FLAG_TIME_NOT_ADVANCING: int = 512
 GUIDANCE_MAX_CATCH_UP: int = 64
 GUIDANCE_PERIOD_STEPS_MAX: int = 1048576
@@ -2200,6 +2264,7 @@ GYRO_RATE: int = 0
 LAW_API_VERSION: int = 3
 LAW_FINGERPRINT: str = 'api-2 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
 LAW_MAX_TELEMETRY: int = 8
+MAX_DT_PERIODS: float = 10.0
 MODE_INIT: int = 0
 MODE_NORMAL: int = 1
 MODE_SAFE: int = 2

@@ -27,6 +27,32 @@ enum Flags : int {
   FLAG_SAT_1 = 8, FLAG_SAT_2 = 16, FLAG_SAT_3 = 32, FLAG_SAT_4 = 64,
   FLAG_INVALID_STATE = 128, FLAG_STALE_STATE = 256, FLAG_TIME_NOT_ADVANCING = 512,
   FLAG_LAW_INVALID = 1024,  //!< the law returned a non-finite command or threw: SAFE
+  //! bit 12 (after mekf.hpp's FLAG_NAV_DEGRADED = 2048): the state's time
+  //! stamp went back, or ahead by more than kMaxDtPeriods periods, of the
+  //! engaged controller's previous step: SAFE, re-engaged at the next valid state
+  FLAG_TIME_JUMP = 4096,
+};
+
+//! The time contract (docs/CORE.md, "The time contract"; law.hpp's LawInput):
+//! an engaged controller hands its law dt <= kMaxDtPeriods / control_rate_hz;
+//! a state stamped further ahead, or before the previous step, is a time jump
+//! (SAFE, FLAG_TIME_JUMP, counted), and the next valid state re-engages the
+//! law at its own time, whatever that time is, with bounded work.
+constexpr double kMaxDtPeriods = 10.0;
+
+//! What a controller did, counted since construction: its steps, the law's
+//! calls (the work a step costs besides the guidance's RK4 steps,
+//! Guidance::rk4_steps) and the time jumps it refused.
+struct ControllerCounts {
+  long long steps = 0;        //!< step() calls
+  long long engagements = 0;  //!< (re-)engagements: reset() and each re-engagement in step()
+  long long law_resets = 0;   //!< ControlLaw::reset calls
+  long long law_steps = 0;    //!< ControlLaw::step calls
+  long long law_afters = 0;   //!< ControlLaw::after calls
+  long long jumps_ahead = 0;  //!< states stamped more than kMaxDtPeriods periods ahead (SAFE)
+  long long steps_back = 0;   //!< states stamped before the previous step (SAFE)
+  long long law_calls() const { return law_resets + law_steps + law_afters; }
+  long long time_jumps() const { return jumps_ahead + steps_back; }
 };
 
 struct SafetyLimits {
@@ -112,9 +138,15 @@ class Controller {
   // the controller stays disengaged (the next step tries again and gives
   // SAFE + FLAG_LAW_INVALID while it fails) and the failure is counted.
   void reset(const Measurement& m);
-  // One control step at m.t >= the previous step's time. An invalid
-  // measurement gives a SAFE zero command and re-engages at the next valid
-  // one; so does a law that returns a non-finite command (FLAG_LAW_INVALID).
+  // One control step. Engaged, at m.t in [t_prev, t_prev + max_dt()]: the
+  // law's step with dt = m.t - t_prev (dt = 0: FLAG_TIME_NOT_ADVANCING).
+  // Engaged, at m.t before t_prev or beyond t_prev + max_dt(): a time jump,
+  // SAFE zeros with FLAG_TIME_JUMP (FLAG_TIME_NOT_ADVANCING too when back),
+  // counted. Not engaged (new, or after any SAFE): engage at m.t, whatever
+  // it is. An invalid measurement gives a SAFE zero command and re-engages
+  // at the next valid one; so does a law that returns a non-finite command
+  // (FLAG_LAW_INVALID). Bounded work whatever the stamps: at most three law
+  // calls and Guidance's bound of RK4 steps (docs/CORE.md).
   Command step(const Measurement& m);
   // Zero command in SAFE mode (for a shell whose input went stale); the next
   // valid step re-engages the law from its measurement.
@@ -130,6 +162,15 @@ class Controller {
   const Guidance& guidance() const { return guidance_; }
   //! Every failure of the law so far (contained: the controller goes on).
   const LawFailures& law_failures() const { return failures_; }
+  //! Steps, law calls and time jumps so far.
+  const ControllerCounts& counts() const { return counts_; }
+  //! [s] the most a law's dt may be: kMaxDtPeriods / control_rate_hz.
+  double max_dt() const { return max_dt_; }
+  //! Build the guidance's period table now (a late joiner's or a
+  //! re-engagement's first step then costs only its bounded evaluation). The
+  //! controller process calls it at start; without it the first far
+  //! evaluation builds it (Guidance::prepare).
+  void prepare() { guidance_.prepare(); }
 
   static std::unique_ptr<Controller> create(const ControllerConfig& c);
 
@@ -139,6 +180,8 @@ class Controller {
   void law_failed(const char* call, double t, const char* what);
   ControllerConfig cfg_;
   LawFailures failures_;
+  ControllerCounts counts_;
+  double max_dt_ = 1.0;
   SpacecraftModel model_;
   LawModel law_model_;
   Guidance guidance_;

@@ -70,6 +70,7 @@ class PyControllerProcess:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"--mode must be lockstep or realtime, got {mode!r}")
         self.ctl = _core.Controller(config)
+        self.ctl.prepare()  # the guidance's period table now, not in a step (docs/CORE.md, the time contract)
         self.config = config
         self.intake = (_core.SensorIntake(nav[2], bool(nav[1]), nav[3]) if nav is not None and nav[0]
                        else None)
@@ -293,6 +294,7 @@ class PyControllerProcess:
 
     def summary(self) -> dict[str, Any]:
         g = self.gate.counts()
+        counts = self.ctl.counts
         return {"mode": self.mode, "control_rate_hz": 1e9 / self.period_ns, "law": self.ctl.law_name,
                 "steps": self.cnt["steps"], "deadline_misses": self.cnt["deadline_misses"],
                 "scheduler": "SCHED_OTHER", "wake_lateness_us": nearest_rank(self.lat),
@@ -301,6 +303,7 @@ class PyControllerProcess:
                 "safe_steps": self.cnt["safe_steps"],
                 "trigger": "timer", "null_law": False,  # as sc-rt-controller's (no --trigger event here)
                 "law_failures": self.ctl.law_failures,
+                "time_jumps": {"ahead": counts.jumps_ahead, "back": counts.steps_back},
                 "auth": self.auth, "auth_failed": self.cnt["auth_failed"],
                 "rejected": {k: g.as_dict()[k] for k in ("malformed", "trailing_bytes", "duplicate",
                                                          "out_of_order", "invalid_state", "foreign_session")},

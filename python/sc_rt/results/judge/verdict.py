@@ -19,7 +19,8 @@ __all__ = ["SAFE_FLAGS", "safe_summary", "verdict_line", "pointing_arcsec", "req
 #: Controller flags that put it in SAFE (zero command), from wheel_cmd_t.
 SAFE_FLAGS = {128: "invalid state (non-finite or beyond the safety limits)", 256: "stale state",
               512: "time not advancing",
-              1024: "the law returned a non-finite command (or threw)"}
+              1024: "the law returned a non-finite command (or threw)",
+              4096: "time stamp jumped (back, or ahead beyond 10 control periods)"}
 MODE_SAFE = 2
 AXES = "xyz"
 
