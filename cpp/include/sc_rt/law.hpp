@@ -9,6 +9,25 @@
 // law a LawInput and takes back a LawOutput: the wheel command before
 // saturation plus telemetry. A law holds only its own states.
 //
+// The time contract (docs/CORE.md, "The time contract"): the controller
+// hands a law the time of each measurement it accepts and
+//   - dt = 0 at reset, and on a step whose time did not advance (a repeat);
+//   - 0 < dt <= kMaxDtPeriods / control_rate_hz (10 nominal periods,
+//     sc_rt/controllers.hpp; LawSetup::control_rate_hz gives the period)
+//     on every other step: never more, whatever the stamps;
+//   - a state stamped further ahead than that, or before the previous step
+//     (a jump), never reaches the law: the controller answers SAFE zeros
+//     (FLAG_TIME_JUMP) and the next valid state reset()s the law at its own
+//     time; so does any state after SAFE (an invalid or stale state, a law
+//     failure), whatever the gap, and the first state of a controller that
+//     joins a run late. A law's states are never carried across a gap longer
+//     than the cap, and in.t may start anywhere (t_engaged starts at 0).
+// The reference (in.ref) is the guidance's at in.t, whatever in.t is, with
+// bounded work (the paper's kind from its definition when in.t is far from
+// the previous step's). Cores of interface version 2 older than this contract
+// handed any dt > 0; the version was kept (a law written for any dt is
+// correct under the cap), so a law that relies on the cap needs a core with it.
+//
 // Bump SC_RT_LAW_API_VERSION whenever any type of this file changes layout
 // or meaning; the loader refuses a plugin built against another version.
 // tests/test_law_abi.py pins this file's declarations per version: a change
@@ -125,7 +144,8 @@ struct Reference {
 struct LawInput {
   double t = 0.0;          //!< [s] time of the measurement
   double t_engaged = 0.0;  //!< [s] time since the engagement (reset): PPC's time
-  //! [s] time since the previous step: 0 at reset and when time did not advance
+  //! [s] time since the previous step: 0 at reset and when time did not
+  //! advance, else in (0, kMaxDtPeriods / control_rate_hz] (the time contract above)
   double dt = 0.0;
   Measurement m;           //!< the measurement (validated: finite, within the safety limits)
   Reference ref;           //!< guidance at t
@@ -257,7 +277,7 @@ class LawParams {
 // plugin (the built-in laws read their gains from params too).
 struct LawSetup {
   const LawModel& model;        //!< the spacecraft as the controller knows it
-  double control_rate_hz;       //!< [Hz] nominal rate (steps may come at other times: use dt)
+  double control_rate_hz;       //!< [Hz] nominal rate (steps may come at other times: use dt, <= 10 periods)
   const LawParams& params;      //!< the law's own table ([laws.NAME] of the scenario)
 };
 
@@ -269,7 +289,8 @@ class ControlLaw {
   //! measurement or to its initial value. A reset mid-run equals a fresh start.
   virtual void reset(const LawInput& in) = 0;
   //! One step; fill out.u_cmd (and any telemetry). in.dt > 0 except at the
-  //! step right after reset and when the time did not advance.
+  //! step right after reset and when the time did not advance; never more
+  //! than kMaxDtPeriods nominal periods (a longer gap resets the law instead).
   virtual void step(const LawInput& in, LawOutput& out) = 0;
   //! After saturation, with the command that goes out (anti-windup).
   virtual void after(const Vec4& u_cmd, const Vec4& u_sat) { (void)u_cmd; (void)u_sat; }
