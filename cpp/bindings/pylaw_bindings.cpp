@@ -38,13 +38,23 @@ namespace {
 // rho_hat 1, then the named telemetry (kLawMaxTelemetry).
 constexpr int kOutSize = 4 + 3 * 5 + 4 + 1 + kLawMaxTelemetry;
 
+// Python is shutting down: _Py_IsFinalizing() until 3.12, removed in 3.13
+// for the public Py_IsFinalizing() (added in 3.13).
+bool py_finalizing() {
+#if PY_VERSION_HEX >= 0x030D0000
+  return Py_IsFinalizing() != 0;
+#else
+  return _Py_IsFinalizing() != 0;
+#endif
+}
+
 // A Python object the C++ side may copy and drop without the GIL (LawEntry
 // and its factory are copied by resolve_law, on any thread): the object is
 // released under the GIL, once, by the last owner.
 using Held = std::shared_ptr<py::object>;
 Held hold(py::object o) {
   return Held(new py::object(std::move(o)), [](py::object* p) {
-    if (!Py_IsInitialized() || _Py_IsFinalizing()) {  // too late to touch Python: left to the OS
+    if (!Py_IsInitialized() || py_finalizing()) {  // too late to touch Python: left to the OS
       p->release();
       delete p;
       return;
