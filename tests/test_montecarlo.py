@@ -205,9 +205,13 @@ def test_cli_writes_the_report_and_the_dataset(tmp_path):
     assert "hold the bound" in r.stdout and r.stderr == ""  # no progress bar without a terminal
     # the same command again refuses to mix campaigns; --resume has nothing left to do
     assert main(["montecarlo", str(FAULTS), "--runs", "4", "--out", str(out)]) == 2
+    written = {p.name: p.read_bytes() for p in (out / "runs").glob("*.parquet")}
+    assert written
     assert main(["montecarlo", str(FAULTS), "--runs", "4", "--controller", "dsc", "--resume",
                  "--out", str(out)]) == 0
-    assert len(list((out / "runs").glob("*.parquet"))) == len(list((out / "runs").glob("*.parquet")))
+    # nothing left to do: the dataset's files are the ones written before, unchanged, and nothing more
+    assert {p.name: p.read_bytes() for p in (out / "runs").glob("*.parquet")} == written
+    assert sorted(pq.read_table(out / "runs").column("run").to_pylist()) == [0, 1, 2, 3]
     assert main(["montecarlo", str(FAULTS), "--runs", "4", "--resume", "--out", str(out)]) == 2  # other law
 
 
