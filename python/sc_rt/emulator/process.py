@@ -95,6 +95,7 @@ class Emulator:
         #: real time: ticks that applied the answer to the state of the period just ended
         self.fresh_ticks = 0
         self.cmd_timeout, self.retries = opts.cmd_timeout, opts.retries
+        self.stop_unanswered = opts.stop_unanswered
         self.stale_periods = (scn.controller.safety.stale_periods if opts.stale_periods is None
                               else opts.stale_periods)
         #: the controllers' announcements and status senders (emulator/peers.py):
@@ -307,6 +308,10 @@ class Emulator:
                 cmd = inbox.cmd(k)
                 if cmd is not None or self.shared.stopped:
                     break
+            if cmd is None and self.stop_unanswered and not self.shared.stopped:
+                wait = self.cmd_timeout * (retries + 1)
+                self._stop_for(f"the controller did not answer state {k} (t = {t:.6g} s) within {wait:g} s "
+                               "(lockstep waits for every answer: a hung or stopped controller fails the run)")
             if self.shared.stopped:  # row k was not applied: the run ends with row k - 1
                 break
             stale = cmd is None

@@ -41,6 +41,9 @@ class Options:
     #: [s] lockstep: wait this long for the answer to a state, ``retries`` times
     cmd_timeout: float = 1.0
     retries: int = 3
+    #: lockstep: a state still unanswered after the retries stops the run (sc-rt hil: a failed run,
+    #: named); False: the watchdog applies zero and the run goes on (sc-rt emulator, a restartable peer)
+    stop_unanswered: bool = False
     #: real time: a command older than this many periods is replaced by zero (None: the scenario's)
     stale_periods: float | None = None
     #: lockstep: wait for the controller's status too (None: when the controller sends them)

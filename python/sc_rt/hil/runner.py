@@ -37,10 +37,13 @@ from sc_rt.wire.auth import load_key, open_bus
 from sc_rt.wire.lcmio import channel, free_port_url, open_lcm
 from sc_rt.wire.startrec import encode_start
 
-__all__ = ["HilResult", "run_hil", "CONTROLLER_START_TIMEOUT_S"]
+__all__ = ["HilResult", "run_hil", "CONTROLLER_START_TIMEOUT_S", "LOCKSTEP_ANSWER_S"]
 
 #: [s] sc-rt-controller says it has subscribed within this, or the run does not start
 CONTROLLER_START_TIMEOUT_S = 30.0
+#: [s] lockstep: how long the bench waits for the answer to a state (re-sent every second)
+#: before the run stops, failed: a controller stopped for less gets its run, bitwise the offline one
+LOCKSTEP_ANSWER_S = 10
 
 
 @dataclass
@@ -336,7 +339,8 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
                                     start_timeout=ext.start_timeout if ext else None, auth_key=key,
                                     spin_us=setup.spin_us, cpu=setup.emulator_cpu,
                                     realtime_priority=realtime_priority, record_dir=out,
-                                    record_chunk=b.record_chunk, log_paced=True),
+                                    record_chunk=b.record_chunk, log_paced=True,
+                                    retries=LOCKSTEP_ANSWER_S - 1, stop_unanswered=True),
                        stop=stopper)
         t0 = time.perf_counter()
         res = emu.run()
