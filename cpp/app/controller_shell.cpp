@@ -288,14 +288,14 @@ std::string Shell::summary_json(const std::string& scheduler) const {
       "\"state_age_us\": {\"p50\": %.3f, \"p99\": %.3f, \"max\": %.3f}, "
       "\"received\": %lld, \"stale_states\": %lld, \"safe_steps\": %lld, "
       "\"rejected\": {\"malformed\": %lld, \"trailing_bytes\": %lld, \"duplicate\": %lld, "
-      "\"out_of_order\": %lld, \"invalid_state\": %lld, \"foreign_session\": %lld}, "
+      "\"out_of_order\": %lld, \"invalid_state\": %lld, \"foreign_session\": %lld, \"seq_jump\": %lld}, "
       "\"sessions_adopted\": %lld}",
       opt_.realtime ? "realtime" : "lockstep", 1e9 / double(period_ns_), ctl_->law_name().c_str(),
       (long long)cnt_.steps, (long long)cnt_.deadline_misses, scheduler.c_str(), l.p50, l.p99,
       l.max, c.p50, c.p99, c.max, a.p50, a.p99, a.max, (long long)g.received,
       (long long)cnt_.stale_steps, (long long)cnt_.safe_steps, (long long)g.malformed,
       (long long)g.trailing_bytes, (long long)g.duplicate, (long long)g.out_of_order,
-      (long long)g.invalid_state, (long long)g.foreign_session,
+      (long long)g.invalid_state, (long long)g.foreign_session, (long long)g.seq_jump,
       (long long)g.sessions_adopted);
   std::string js(buf);
   js.pop_back();  // the closing brace: then the authentication and the plant sessions

@@ -42,6 +42,7 @@ void bind_shell(py::module_& m) {
       .value("Adopt", GateVerdict::Adopt)
       .value("Duplicate", GateVerdict::Duplicate)
       .value("OutOfOrder", GateVerdict::OutOfOrder)
+      .value("SeqJump", GateVerdict::SeqJump)
       .value("ForeignSession", GateVerdict::ForeignSession)
       .value("InvalidCandidate", GateVerdict::InvalidCandidate)
       .value("Malformed", GateVerdict::Malformed)
@@ -56,6 +57,7 @@ void bind_shell(py::module_& m) {
       .def_readonly("invalid_state", &GateCounts::invalid_state)
       .def_readonly("foreign_session", &GateCounts::foreign_session)
       .def_readonly("sessions_adopted", &GateCounts::sessions_adopted)
+      .def_readonly("seq_jump", &GateCounts::seq_jump)
       .def_property_readonly("rejected", &GateCounts::rejected)
       .def("as_dict", [](const GateCounts& c) {
         py::dict d;
@@ -67,6 +69,7 @@ void bind_shell(py::module_& m) {
         d["invalid_state"] = c.invalid_state;
         d["foreign_session"] = c.foreign_session;
         d["sessions_adopted"] = c.sessions_adopted;
+        d["seq_jump"] = c.seq_jump;
         return d;
       });
 

@@ -10,6 +10,7 @@ const char* verdict_name(GateVerdict v) {
     case GateVerdict::Adopt: return "adopt";
     case GateVerdict::Duplicate: return "duplicate";
     case GateVerdict::OutOfOrder: return "out_of_order";
+    case GateVerdict::SeqJump: return "seq_jump";
     case GateVerdict::ForeignSession: return "foreign_session";
     case GateVerdict::InvalidCandidate: return "invalid_candidate";
     case GateVerdict::Malformed: return "malformed";
@@ -63,6 +64,16 @@ GateVerdict InputGate::offer(int64_t now_ns, int64_t session, int64_t seq, bool 
     ++out_of_order_;
     return GateVerdict::OutOfOrder;
   }
+  if (have_ && seq - seq_ > kSeqWindow) {  // (seq > seq_ here: no overflow for seqs the plant can reach)
+    const bool confirmed = jump_pending_ && seq == jump_seq_ + 1;
+    if (!confirmed) {
+      jump_pending_ = true;
+      jump_seq_ = seq;
+      ++seq_jump_;
+      return GateVerdict::SeqJump;
+    }
+  }
+  jump_pending_ = false;
   if (!valid) ++invalid_;
   session_ = session;
   seq_ = seq;
@@ -81,6 +92,7 @@ GateCounts InputGate::counts() const {
   c.invalid_state = invalid_;
   c.foreign_session = foreign_;
   c.sessions_adopted = adopted_;
+  c.seq_jump = seq_jump_;
   return c;
 }
 

@@ -17,6 +17,7 @@ enum class GateVerdict {
   Adopt,             // apply, and a new plant session: re-engage the law
   Duplicate,         // same seq as the newest: re-send the previous answer
   OutOfOrder,        // older seq than the newest: drop
+  SeqJump,           // more than kSeqWindow ahead of the newest, unconfirmed: drop (see offer)
   ForeignSession,    // another session while ours is alive: drop
   InvalidCandidate,  // another session after ours went silent, but invalid: drop
   Malformed,         // did not decode: drop
@@ -35,10 +36,19 @@ struct GateCounts {
   int64_t invalid_state = 0;    // non-finite or out-of-range fields (applied or not)
   int64_t foreign_session = 0;  // a state from another plant while ours is alive
   int64_t sessions_adopted = 0; // a new plant adopted after ours went silent
+  int64_t seq_jump = 0;         // a seq beyond the window, not (yet) confirmed by its successor
   int64_t rejected() const {
-    return malformed + trailing_bytes + duplicate + out_of_order + invalid_state + foreign_session;
+    return malformed + trailing_bytes + duplicate + out_of_order + invalid_state + foreign_session + seq_jump;
   }
 };
+
+// States a followed plant may skip at once (lost, or the plant ran on while
+// the link was down). A seq further ahead is not taken as the new newest on
+// its own word: one forged message would otherwise make every genuine state
+// after it "out of order" for the rest of the run. It is dropped and counted
+// (seq_jump); its successor (seq + 1) confirms the jump (a plant that really
+// moved on), so a genuine jump costs one state.
+constexpr int64_t kSeqWindow = 1000;
 
 class InputGate {
  public:
@@ -68,6 +78,9 @@ class InputGate {
   int64_t timeout_ns_;
   bool have_ = false;
   int64_t session_ = 0, seq_ = 0, rx_ns_ = 0;
+  bool jump_pending_ = false;
+  int64_t jump_seq_ = 0;  // the newest unconfirmed jump's seq
+  C seq_jump_{0};
   C received_{0}, malformed_{0}, trailing_{0}, duplicate_{0}, out_of_order_{0}, invalid_{0},
       foreign_{0}, adopted_{0};
 };

@@ -1752,6 +1752,8 @@ class GateVerdict:
     
       OutOfOrder
     
+      SeqJump
+    
       ForeignSession
     
       InvalidCandidate
@@ -1767,6 +1769,7 @@ class GateVerdict:
     InvalidCandidate: typing.ClassVar[GateVerdict]
     Malformed: typing.ClassVar[GateVerdict]
     OutOfOrder: typing.ClassVar[GateVerdict]
+    SeqJump: typing.ClassVar[GateVerdict]
     TrailingBytes: typing.ClassVar[GateVerdict]
     __members__: typing.ClassVar[dict[str, GateVerdict]]
     @typing.overload
@@ -1829,6 +1832,9 @@ class GateCounts:
         ...
     @property
     def rejected(self) -> int:
+        ...
+    @property
+    def seq_jump(self) -> int:
         ...
     @property
     def sessions_adopted(self) -> int:
@@ -2262,7 +2268,7 @@ GUIDANCE_TABLE_MAX: int = 2000
 GYRO_MEAN_RATE: int = 1
 GYRO_RATE: int = 0
 LAW_API_VERSION: int = 3
-LAW_FINGERPRINT: str = 'api-2 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
+LAW_FINGERPRINT: str = 'api-3 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
 LAW_MAX_TELEMETRY: int = 8
 MAX_DT_PERIODS: float = 10.0
 MODE_INIT: int = 0

@@ -306,7 +306,8 @@ class PyControllerProcess:
                 "time_jumps": {"ahead": counts.jumps_ahead, "back": counts.steps_back},
                 "auth": self.auth, "auth_failed": self.cnt["auth_failed"],
                 "rejected": {k: g.as_dict()[k] for k in ("malformed", "trailing_bytes", "duplicate",
-                                                         "out_of_order", "invalid_state", "foreign_session")},
+                                                         "out_of_order", "invalid_state", "foreign_session",
+                                                         "seq_jump")},
                 "sessions_adopted": g.sessions_adopted, "plant_sessions": list(self.plant_sessions)}
 
 

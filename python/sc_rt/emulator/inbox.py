@@ -39,7 +39,7 @@ from sc_rt.emulator.state import Shared
 from sc_rt.model.actuators import WheelFault
 from sc_rt.results.record.store import RowRing
 
-__all__ = ["Inbox", "Receiver", "Cmd", "INBOX_COLUMNS", "decode_status", "fill_from_inbox"]
+__all__ = ["Inbox", "Receiver", "Cmd", "SEQ_WINDOW", "INBOX_COLUMNS", "decode_status", "fill_from_inbox"]
 
 # controller_status_t's fixed layout: fingerprint, then utime, cmd_seq,
 # session, state_seq (big-endian int64), as generated from the .lcm file
@@ -55,6 +55,12 @@ assert _CMD_LAYOUT.size + 8 == _CMD_SIZE and _STATUS_HEAD.size + 8 < _STATUS_SIZ
 _STATE_SIZE = len(sc_rt_lcm.plant_state_t().encode())
 _STATE_FP = sc_rt_lcm.plant_state_t._get_packed_fingerprint()
 _NONE = int(MISSING)  # a Python int: compared and stored per message
+
+
+#: Commands (and statuses) the controller may skip at once; a seq further ahead
+#: is taken as the newest only when its successor confirms it (docs/PROTOCOL.md,
+#: "Sequence numbers"): one forged message cannot make the genuine ones "old"
+SEQ_WINDOW = 1000
 
 
 class Cmd(NamedTuple):
@@ -255,6 +261,7 @@ class Receiver:
         self.newest_cmd_ns = 0
         self._last_cmd_seq = -1
         self._last_status_seq = -1
+        self._cmd_jump = self._status_jump = -2  # the newest unconfirmed seq jump (-2: none)
         self.ctl_session: int | None = None
         self.ctl_last_ns = 0  # monotonic ns of the adopted controller's newest message
         self.peer_lost = False
@@ -313,8 +320,20 @@ class Receiver:
         if not self._session_ok(msg.session, now, msg.seq, "cmd"):
             return
         if msg.seq <= self._last_cmd_seq:
-            self.counters["duplicate" if msg.seq == self._last_cmd_seq else "out_of_order"] += 1
+            last = self.newest_cmd
+            if (msg.seq == self._last_cmd_seq and last is not None
+                    and (msg.state_seq != last.state_seq or tuple(msg.u_cmd) != tuple(last.u_cmd))):
+                # the controller's session and seq, another command: a forged or racing sender
+                self.counters["cmd_conflict"] += 1
+            else:
+                self.counters["duplicate" if msg.seq == self._last_cmd_seq else "out_of_order"] += 1
             return
+        if self._last_cmd_seq >= 0 and msg.seq - self._last_cmd_seq > SEQ_WINDOW:
+            if msg.seq != self._cmd_jump + 1:  # not confirmed by its successor: not the new newest
+                self._cmd_jump = msg.seq
+                self.counters["cmd_seq_jump"] += 1
+                return
+        self._cmd_jump = -2
         self._last_cmd_seq = msg.seq
         self.newest_cmd, self.newest_cmd_ns = msg, now
         if fixed:
@@ -338,6 +357,12 @@ class Receiver:
         if cmd_seq <= self._last_status_seq:
             self.counters["status_out_of_order"] += 1
             return
+        if self._last_status_seq >= 0 and cmd_seq - self._last_status_seq > SEQ_WINDOW:
+            if cmd_seq != self._status_jump + 1:  # as a command's (on_cmd)
+                self._status_jump = cmd_seq
+                self.counters["status_seq_jump"] += 1
+                return
+        self._status_jump = -2
         self._last_status_seq = cmd_seq
         self.peers.saw_status(session)
         self.inbox.put_status(state_seq, data)

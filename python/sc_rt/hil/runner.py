@@ -401,6 +401,11 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     res.timing["log_missing"] = log_missing(log_path, prefix, len(res),
                                             {c: int(res.counters.get(k, 0)) for c, k in SENT_COUNTERS.items()})
     res.timing["logger"] = logger_summary(logger_err)
+    if (conflicts := int(res.counters.get("cmd_conflict", 0))):  # a command not the controller's reached the bus
+        why = (f"{conflicts} commands carried the controller's session and seq but not its command: a forged or "
+               "racing sender on the bus (docs/PROTOCOL.md, 'Sequence numbers'; --auth-key refuses them)")
+        mark_invalid(res, why)
+        print(f"sc-rt hil: {why}", file=sys.stderr)
     if any(res.timing["log_missing"].values()):  # the log is the run's evidence: a lost message fails it
         lost = {c: n for c, n in res.timing["log_missing"].items() if n}
         why = (f"the log lost {sum(lost.values())} messages of this run ({lost}; the logger runs "
