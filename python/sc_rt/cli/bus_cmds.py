@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from sc_rt.cli.common import bus_url, html_report, mcap_problem, print_metrics, write_mcap
+from sc_rt.cli.common import bus_url, checked_out, claim_out, html_report, mcap_problem, print_metrics, write_mcap
 
 
 def cmd_spy(args: argparse.Namespace) -> int:
@@ -86,6 +86,10 @@ def cmd_report(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(args.log).parent / "report"
     if mcap_problem(args.mcap, "report"):
         return 2
+    if not Path(args.log).is_file():
+        print(f"sc-rt report: error: {args.log}: no such log file", file=sys.stderr)
+        return 2
+    claim_out(checked_out(str(out)))  # outputs belong to their run: a live run's directory is refused
     try:
         rep = write_report(args.log, out, scenario=args.scenario, prefix=args.prefix,
                            mode=args.mode, plots=not args.no_plots)

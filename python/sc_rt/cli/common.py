@@ -164,19 +164,20 @@ def checked_out(value: str, option: str = "--out") -> Path:
     return Path(value)
 
 
-def claim_out(out: Path, option: str = "--out") -> None:
+def claim_out(out: Path, option: str = "--out", keep_previous: bool = False) -> None:
     """Claim the output directory for this run, the last thing before it
     starts (after every check: bad input writes nothing): refused (exit 2)
     while a live run holds it; the previous run's outputs there removed;
     released, its manifest written, when this process ends
-    (sc_rt.results.present.output.OutDir)."""
+    (sc_rt.results.present.output.OutDir). ``keep_previous``: the previous
+    run's outputs stay (a campaign resuming its dataset)."""
     import atexit
 
     from sc_rt.results.present.output import OutDir, OutDirInUse
 
     d = OutDir(Path(out), option)
     try:
-        d.claim()
+        d.claim(keep_previous)
     except OutDirInUse as e:
         raise UsageError(str(e)) from None
     atexit.register(d.release)

@@ -19,7 +19,7 @@ __all__ = ["add_parser", "cmd_montecarlo", "headline"]
 
 from sc_rt.scenario.model import LAWS  # noqa: E402
 from sc_rt.cli.validate import LAW_HELP, law_choice  # noqa: E402
-from sc_rt.cli.common import add_strict, strict_exit  # noqa: E402
+from sc_rt.cli.common import add_strict, claim_out, strict_exit  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 SHORTCUTS = ("inertia", "onset", "effectiveness", "attitude", "rate")
@@ -159,6 +159,18 @@ def _dispersion(o: dict[str, Any], has_table: bool):
     return dataclasses.replace(base, **given)
 
 
+def _clear_reruns(out: Path) -> None:
+    """The previous campaign's --rerun directories (each a finished run's, with
+    its manifest and no live lock): they are not this campaign's runs."""
+    import shutil
+
+    from sc_rt.results.present.output import LOCK, MANIFEST
+
+    for d in out.glob("rerun-*"):
+        if d.is_dir() and (d / MANIFEST).exists() and not (d / LOCK).exists():
+            shutil.rmtree(d)
+
+
 def _dataset_row(c: Any, out: Path, run: int) -> dict[str, Any] | None:
     """Run ``run``'s row in the dataset of ``out``, if that is this campaign's."""
     from sc_rt.studies.campaign.store import RunStore, fingerprint
@@ -247,6 +259,10 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     if o["rerun"] is not None:
         where = out / f"rerun-{o['rerun']}"
         try:
+            claim_out(where)
+        except UsageError as e:
+            return _fail(str(e))
+        try:
             row = rerun(c, o["rerun"], where)
         except OSError as e:
             return _fail(f"--out {args.out}: {e}")
@@ -266,6 +282,12 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         check_out(c, out, args.resume, args.overwrite)
     except CampaignExists as e:
         return _fail(f"--out {args.out}: {e}")
+    try:  # the directory is this campaign's: refused while a live run holds it; the previous one's files go
+        claim_out(out, keep_previous=args.resume)  # (--resume: its own dataset stays)
+    except UsageError as e:
+        return _fail(str(e))
+    if not args.resume:
+        _clear_reruns(out)
     try:
         backend = make_backend(args.backend, o["workers"], args.scheduler, args.scheduler_file)
     except SchedulerUnreachable as e:

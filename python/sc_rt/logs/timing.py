@@ -84,7 +84,7 @@ def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, A
         "emulator_scheduler": None, "fresh_fraction": None,
         "controller_fresh_fraction": (1.0 - int(summary.get("stale_states", 0)) / int(summary["steps"])
                                       if summary.get("steps") else None),
-        "emulator_breakdown_us": None, "load_avg": None,
+        "emulator_breakdown_us": None, "record_writer_waits": None, "load_avg": None,
     }
 
 

@@ -141,7 +141,10 @@ class OutDir:
         self.foreign: set[str] = set()
         self._claimed = False
 
-    def claim(self) -> OutDir:
+    def claim(self, keep_previous: bool = False) -> OutDir:
+        """Take the directory (module docstring). ``keep_previous``: the
+        previous run's outputs stay and become this run's (a campaign that
+        resumes its own dataset)."""
         import json
         import os
 
@@ -175,6 +178,10 @@ class OutDir:
         own = set(previous.get("files", []))
         if previous and not previous.get("done"):  # it died before its release: all it added
             own |= _files(self.path) - set(previous.get("foreign", []))
+        if keep_previous:  # what the previous run wrote is this run's too
+            self.foreign = _files(self.path) - own
+            self._write_manifest(done=False)
+            return self
         for rel in sorted(own):  # the previous run's own outputs, and nothing else
             if ".." not in Path(rel).parts:
                 (self.path / rel).unlink(missing_ok=True)
