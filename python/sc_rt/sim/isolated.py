@@ -27,12 +27,26 @@ def needs_isolation(law: Any) -> bool:
     return isinstance(law, str) and law.startswith("plugin:")
 
 
-def simulate_isolated(scn, **kwargs: Any):
-    """``simulate(scn, **kwargs)`` in a forked child; the Run, or RunCrashed."""
+def _simulate_handed_over(scn, **kwargs: Any):
+    """In the child: the run, and the temporary directory of its rows (a run
+    longer than two chunks is on disk) handed over to the parent, so that
+    the child does not remove it when its copy of the run goes."""
+    from sc_rt.results.record.store import hand_over
     from sc_rt.sim.engines import simulate
 
+    run = simulate(scn, **kwargs)
+    return run, hand_over(run)
+
+
+def simulate_isolated(scn, **kwargs: Any):
+    """``simulate(scn, **kwargs)`` in a forked child; the Run, or RunCrashed."""
+    from sc_rt.results.record.store import remove_with
+
     try:
-        return call_in_child(simulate, scn, **kwargs)
+        run, scratch = call_in_child(_simulate_handed_over, scn, **kwargs)
+        if scratch is not None:  # this process removes it now, with its copy of the run
+            remove_with(run, scratch)
+        return run
     except ChildDied as e:
         law = kwargs.get("law") or scn.run.controller
         raise RunCrashed(f"the law {law} crashed the run's process ({e.how}): a plugin's native code; "

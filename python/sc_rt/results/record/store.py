@@ -31,7 +31,8 @@ from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
 
-__all__ = ["CHUNK_ROWS", "Column", "ChunkFile", "ChunkReader", "RowRing", "scratch_dir", "remove_with", "load_arrow"]
+__all__ = ["CHUNK_ROWS", "Column", "ChunkFile", "ChunkReader", "RowRing", "scratch_dir", "remove_with", "hand_over",
+           "load_arrow"]
 
 #: Rows per batch: ~3.5 MB of a run's fields (867 B/row), a few seconds at 1 kHz.
 CHUNK_ROWS = 4096
@@ -47,12 +48,33 @@ def scratch_dir() -> Path:
     return Path(tempfile.mkdtemp(prefix="sc-rt-record-"))
 
 
+#: id(owner) -> (its finalizer, the directory it removes): what ``hand_over`` detaches
+_SCRATCH: dict[int, tuple[Any, Path]] = {}
+
+
+def _remove(key: int, path: str) -> None:
+    import shutil
+
+    _SCRATCH.pop(key, None)
+    shutil.rmtree(path, True)
+
+
 def remove_with(owner: Any, path: Path) -> None:
     """Remove directory ``path`` when ``owner`` (the run reading from it) is gone."""
-    import shutil
     import weakref
 
-    weakref.finalize(owner, shutil.rmtree, str(path), True)
+    _SCRATCH[id(owner)] = (weakref.finalize(owner, _remove, id(owner), str(path)), Path(path))
+
+
+def hand_over(owner: Any) -> Path | None:
+    """The directory ``remove_with`` tied to ``owner``, no longer removed with
+    it here: a run made in a child process and sent to its parent, which
+    ties the directory to its copy (``remove_with``); None: no such directory."""
+    entry = _SCRATCH.pop(id(owner), None)
+    if entry is None:
+        return None
+    entry[0].detach()
+    return entry[1]
 
 
 def load_arrow() -> None:
