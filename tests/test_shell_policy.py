@@ -147,7 +147,8 @@ def test_every_message_is_counted_once_by_kind():
     d = g.counts().as_dict()
     # the names of the controller's exit summary ("rejected" and beside it)
     assert d == {"received": 8, "malformed": 2, "trailing_bytes": 1, "duplicate": 1,
-                 "out_of_order": 1, "invalid_state": 1, "foreign_session": 1, "sessions_adopted": 0}
+                 "out_of_order": 1, "invalid_state": 1, "foreign_session": 1, "sessions_adopted": 0,
+                 "seq_jump": 0}
     assert g.counts().rejected == 7
 
 

@@ -237,6 +237,10 @@ class Scenario:
         One line per older table the file gave (``[controller.dsc]``, ...),
         read as its new form; the command line prints them
         (sc_rt.scenario.laws).
+    overrides : tuple of (str, value)
+        The overrides applied to the file's values, in order, as (dotted
+        key, value) pairs (``sc_rt.with_overrides``); a run records them
+        (sc_rt.results.record.inputs).
     """
 
     name: str
@@ -262,6 +266,9 @@ class Scenario:
     record: RecordParams = RecordParams()
     # one line per older table the file gave, read as its new form (sc_rt.scenario.laws)
     deprecations: tuple = ()
+    # the overrides applied to the file's values, in order: (dotted key, value) pairs
+    # (sc_rt.scenario.overrides.with_overrides); a run records them (results/record/inputs.py)
+    overrides: tuple = ()
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None

@@ -4,6 +4,7 @@ and by the emulator (one definition, so they all step the same way)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import NamedTuple
 
@@ -61,14 +62,18 @@ def with_overrides(scn: Scenario, *, law: str | None = None, control_rate_hz: fl
         guidance's reference file does not cover a longer duration, or a new
         law fails its load check (a plugin, or a law given ``[controller.params]``).
     """
+    given = tuple((f"run.{k}", v) for k, v in (("controller", law), ("control_rate_hz", control_rate_hz),
+                                                ("duration", duration), ("plant_step", plant_step))
+                  if v is not None)
     if control_rate_hz is not None and plant_step is None:
         try:
             period = 1.0 / float(control_rate_hz)
             plant_step = period / math.ceil(period / scn.run.plant_step - 1e-9)
         except (ValueError, ZeroDivisionError, OverflowError, TypeError):
             plant_step = None  # the rate itself is invalid: with_run names it
-    return with_run(scn, controller=law, control_rate_hz=control_rate_hz, duration=duration,
-                        plant_step=plant_step)
+    new = with_run(scn, controller=law, control_rate_hz=control_rate_hz, duration=duration,
+                   plant_step=plant_step)
+    return dataclasses.replace(new, overrides=scn.overrides + given) if given else new
 
 
 def grid(scn: Scenario) -> Grid:

@@ -404,6 +404,7 @@ def render_html(run_dir: str | Path) -> str:
     parts.append("<h2>Metrics</h2>" + _metrics_table(m))
     if d["timing"]:
         parts.append("<h2>Timing</h2>" + _timing_table(d["timing"]))
+    parts.append(_inputs_table((d["meta"] or {}).get("inputs") or {}))
     rep = d["report"]
     if rep:
         log_rows = []
@@ -414,6 +415,22 @@ def render_html(run_dir: str | Path) -> str:
         parts.append("<h2>Log</h2><table id=log><tr><th>log</th><th>value</th></tr>" + "".join(log_rows) + "</table>")
     parts.append("</body></html>\n")
     return "\n".join(parts)
+
+
+def _inputs_table(inputs: dict) -> str:
+    """What the run was made from (RunMeta.inputs): the scenario file and its
+    SHA-256, the overrides, the law's parameters as run, sc-rt's version and commit."""
+    if not inputs:
+        return "<h2>Inputs</h2><p>Not recorded (a run of an older sc-rt).</p>"
+    rows = []
+    for k in ("scenario_file", "scenario_sha256", "sc_rt_version", "sc_rt_commit"):
+        rows.append(f"<tr><td>{escape(k)}</td><td>{escape(str(inputs.get(k) if inputs.get(k) is not None else '-'))}"
+                    "</td></tr>")
+    for k, v in (inputs.get("overrides") or {}).items():
+        rows.append(f"<tr><td>override {escape(k)}</td><td>{escape(str(v))}</td></tr>")
+    for k, v in (inputs.get("law_params") or {}).items():
+        rows.append(f"<tr><td>law parameter {escape(k)}</td><td class=num>{escape(str(v))}</td></tr>")
+    return "<h2>Inputs</h2><table id=inputs><tr><th>input</th><th>value</th></tr>" + "".join(rows) + "</table>"
 
 
 def write_html_report(run_dir: str | Path, out: str | Path | None = None) -> Path:

@@ -76,6 +76,10 @@ class RunMeta:
         The scenario's ``[record] every``: the saved rows keep every this
         many control instants and the last (1: every row); the metrics were
         computed on every row.
+    inputs : dict
+        What the run was made from (``sc_rt.results.record.inputs``): the
+        scenario file and its SHA-256, the overrides, the law's parameters
+        as run (defaults filled in), sc-rt's version and commit.
     expect : str
         The scenario's ``expect`` ("holds", "violates"; "" unstated): the
         verdict the file says its run has, checked against the run's
@@ -121,6 +125,9 @@ class RunMeta:
     telemetry_names: tuple[str, ...] = ()
     #: the scenario's expect: "holds", "violates" or "" (unstated)
     expect: str = ""
+    #: what the run was made from (results/record/inputs.py): the scenario file and its sha256,
+    #: the overrides, the law's parameters as run, sc-rt's version and commit; {} unknown (older runs)
+    inputs: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self))
@@ -161,6 +168,9 @@ class RunMeta:
                   max_wheel_speed=_speed_limits(a),
                   record_every=int(getattr(getattr(scn, "record", None), "every", 1)),
                   expect=str(getattr(scn, "expect", "") or ""))
+        from sc_rt.results.record.inputs import run_inputs
+
+        kw["inputs"] = run_inputs(scn, ident["name"])
         sensors = getattr(scn, "sensors", None)
         if sensors is not None:
             kw.update(sensors=True, measurement=sensors.measurement)
