@@ -25,7 +25,7 @@ def scenario_arg(path: str, args: argparse.Namespace | None = None):
     from sc_rt.scenario.model import ScenarioError
     from sc_rt.scenario.reader import load_scenario
 
-    scn = load_scenario(path)
+    scn = load_scenario(path, getattr(args, "sets", None) or ())
     errors, notes = stray_tables(scn, command_laws(args))
     if errors:
         raise ScenarioError(scn.path, errors)
@@ -204,6 +204,23 @@ def invalid_exit(metrics: dict, who: str) -> int:
 STRICT_HELP = ("a gate for CI: exit 1 when a requirement fails, the file's expect does not match the verdict, "
                "or the run is invalid (a file with expect = \"violates\" fails only when it holds); "
                "default: the exit code does not depend on the verdict")
+
+
+def set_choice(text: str) -> tuple:
+    """type= of --set KEY=VALUE (sc_rt.scenario.reader.parse_set): a bad pair is one line, exit 2."""
+    from sc_rt.scenario.reader import parse_set
+
+    try:
+        return parse_set(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def add_set(parser) -> None:
+    """--set KEY=VALUE (repeatable) on a command that reads a scenario."""
+    parser.add_argument("--set", dest="sets", action="append", type=set_choice, metavar="KEY=VALUE",
+                        help="set a key of the scenario file (a dotted key, a TOML value: "
+                             "laws.pd.beta1=0.3), validated like the file and recorded in the run; repeatable")
 
 
 def add_strict(parser) -> None:

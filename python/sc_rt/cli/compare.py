@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from sc_rt.cli.common import add_strict, strict_exit
+from sc_rt.cli.common import add_set, add_strict, strict_exit
 from sc_rt.cli.validate import LAW_HELP, check_run_size, given_options, law_choice, number, out_dir
 
 __all__ = ["add_parser", "cmd_compare"]
@@ -29,6 +29,7 @@ def add_parser(sub) -> None:
                    help="settling: the pointing error stays within FRAC of its initial value (default 0.02)")
     c.add_argument("--out", metavar="DIR", type=out_dir, help="also write DIR/compare.json and DIR/compare.md")
     add_strict(c)  # every law's run through the gate
+    add_set(c)
     c.set_defaults(func=cmd_compare)
 
 

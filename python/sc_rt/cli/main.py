@@ -14,7 +14,7 @@ from sc_rt.cli.validate import (AUTH_KEY_HELP, LAW_HELP, MAX_RATE_HZ, MAX_TIME_S
                                 auth_key_file, core_law_choice, integer, lcm_url, law_choice, number, out_dir, out_file)
 from sc_rt.cli.controller import add_external_options
 from sc_rt.cli.floor_cmd import add_floor_parser, add_timing_options
-from sc_rt.cli.common import LAW_CHOICES, add_strict
+from sc_rt.cli.common import LAW_CHOICES, add_set, add_strict
 from sc_rt.cli.run_cmds import cmd_demo, cmd_emulator, cmd_hil, cmd_sim
 from sc_rt.cli.study_cmds import cmd_check, cmd_config, cmd_design, cmd_reproduce, cmd_scenarios
 from sc_rt.cli.bus_cmds import cmd_export, cmd_fault, cmd_lcm_spy, cmd_replay, cmd_report, cmd_spy
@@ -135,6 +135,7 @@ def _add_sim(sub) -> None:
     s.add_argument("--out", default="out/sim", type=out_dir, metavar="DIR", help="default: %(default)s")
     s.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     add_strict(s)
+    add_set(s)
     s.set_defaults(func=cmd_sim)
 
 
@@ -168,6 +169,7 @@ def _add_hil(sub) -> None:
     add_hil_option(h)  # --live [PORT] (sc_rt/cli/live_cmd.py)
     _lcm_opts(h)
     add_strict(h)
+    add_set(h)
     h.set_defaults(func=cmd_hil)
 
 
@@ -214,6 +216,7 @@ def _add_check(sub) -> None:
                    help="check for this law (default: the scenario's): only its conditions are checked; "
                         + LAW_HELP.removeprefix("control law: "))
     k.add_argument("--strict", action="store_true", help="notes count as warnings (exit 1)")
+    add_set(k)
     k.set_defaults(func=cmd_check)
 
     n = sub.add_parser("scenarios", help="the shipped scenarios: any SCENARIO argument may be one of these names")
@@ -230,6 +233,7 @@ def _add_config(sub) -> None:
                    help="control law: " + ", ".join(LAW_CHOICES) + " or plugin:PATH_OR_NAME (default: the scenario's)")
     c.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ",
                    help="default: the scenario's")
+    add_set(c)
     c.set_defaults(func=cmd_config)
 
 

@@ -19,7 +19,7 @@ __all__ = ["add_parser", "cmd_montecarlo", "headline"]
 
 from sc_rt.scenario.model import LAWS  # noqa: E402
 from sc_rt.cli.validate import LAW_HELP, law_choice  # noqa: E402
-from sc_rt.cli.common import add_strict, claim_out, strict_exit  # noqa: E402
+from sc_rt.cli.common import add_set, add_strict, claim_out, strict_exit  # noqa: E402
 
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 SHORTCUTS = ("inertia", "onset", "effectiveness", "attitude", "rate")
@@ -62,6 +62,7 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     g.add_argument("--rate", metavar="RAD/S", help="[rad/s] initial rate spread per axis, >= 0 (0.002)")
     m.add_argument("--out", default="out/montecarlo", metavar="DIR", help="default: %(default)s")
     add_strict(m)  # the campaign's requirements at --confidence (--rerun: that run's) through the gate
+    add_set(m)
     m.set_defaults(func=cmd_montecarlo)
     return m
 

@@ -18,12 +18,12 @@ def cmd_check(args: argparse.Namespace) -> int:
 
     if not args.fast:  # the offline run that bounds ||r|| must fit (file errors: the findings below)
         try:
-            scn = load_scenario(args.scenario)
+            scn = load_scenario(args.scenario, args.sets or ())
         except ScenarioError:
             scn = None
         if scn is not None:
             check_run_size(scn, f"{args.scenario}'s run (--fast checks without it)")
-    findings = check_scenario(args.scenario, run_estimate=not args.fast, law=args.law)
+    findings = check_scenario(args.scenario, run_estimate=not args.fast, law=args.law, sets=args.sets or ())
     for f in findings:
         if f.level != "ok" or args.verbose:
             print(f)

@@ -45,7 +45,7 @@ from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, ControllerParams, Initia
                                   PpcParams, RecordParams, RunParams, SafetyLimits, Scenario,
                                   law_problem, law_spec)
 
-__all__ = ["load_scenario", "scenario_from_data", "read_run", "check_law", "with_run"]
+__all__ = ["load_scenario", "parse_set", "scenario_from_data", "read_run", "check_law", "with_run"]
 
 _FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
 
@@ -409,7 +409,40 @@ def scenario_from_data(data: dict[str, Any], path: str | Path, where: str = "") 
     return scenario
 
 
-def load_scenario(path: str | Path) -> Scenario:
+def parse_set(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE`` of ``--set``: a dotted key of the scenario file and a TOML
+    value (``0.3``, ``[1, 2, 3]``, ``"pd"``; a bare word is a string).
+    ValueError with a one-line reason."""
+    key, sep, value = text.partition("=")
+    key, value = key.strip(), value.strip()
+    if not sep or not key or not value or not all(part.strip() for part in key.split(".")):
+        raise ValueError(f"{text!r}: must be KEY=VALUE with a dotted key of the scenario file "
+                         "(e.g. laws.pd.beta1=0.3, run.duration=20)")
+    try:
+        return key, tomllib.loads(f"v = {value}")["v"]
+    except tomllib.TOMLDecodeError:
+        if re.fullmatch(r"[A-Za-z_][\w.:/+-]*", value):
+            return key, value  # a bare word: a string (a law's name, a file)
+        raise ValueError(f"{text!r}: {value!r} is not a TOML value") from None
+
+
+def _apply_sets(path: Path, data: dict[str, Any], sets: Any) -> None:
+    """``--set`` pairs into the file's data, before it is validated like the file."""
+    for key, value in sets:
+        node = data
+        parts = key.split(".")
+        for i, part in enumerate(parts[:-1]):
+            nxt = node.setdefault(part, {})
+            if not isinstance(nxt, dict):
+                where = ".".join(parts[:i + 1])
+                raise ScenarioError(path, [ScenarioIssue(0, key, value, f"--set {key}: {where} is not a table")])
+            node = nxt
+        if isinstance(node.get(parts[-1]), dict):
+            raise ScenarioError(path, [ScenarioIssue(0, key, value, f"--set {key}: a table, not a value")])
+        node[parts[-1]] = value
+
+
+def load_scenario(path: str | Path, sets: Any = ()) -> Scenario:
     """Read and validate a scenario file, or a shipped scenario by name
     (``paper_faults``: sc_rt.scenario.shipped); raise ScenarioError listing every problem.
 
@@ -419,6 +452,10 @@ def load_scenario(path: str | Path) -> Scenario:
         A TOML scenario file, or the name of a shipped scenario
         (``paper_faults`` or ``paper_faults.toml``, when no file of that name
         exists here; ``sc_rt.shipped_scenarios()`` lists them).
+    sets : iterable of (str, value)
+        ``--set`` overrides: (dotted key, value) pairs put into the file's
+        data before it is validated like the file (``parse_set`` reads
+        ``KEY=VALUE``); recorded in ``Scenario.overrides`` as ``set KEY``.
 
     Returns
     -------
@@ -444,10 +481,14 @@ def load_scenario(path: str | Path) -> Scenario:
         m = re.search(r"at line (\d+)", str(e))
         issue = ScenarioIssue(int(m.group(1)) if m else 0, "", None, f"TOML syntax error: {e}")
         raise ScenarioError(path, [issue]) from None
+    sets = tuple(sets)
+    _apply_sets(path, data, sets)
     doc = Doc(str(path), key_lines(text))
     scenario = _read_scenario(doc, data, path)
     if doc.errors:
         raise ScenarioError(path, doc.errors)
+    if sets:
+        scenario = dataclasses.replace(scenario, overrides=tuple((f"set {k}", v) for k, v in sets))
     return scenario
 
 

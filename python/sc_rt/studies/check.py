@@ -61,10 +61,12 @@ def _fmt(v) -> str:
     return np.array2string(np.asarray(v, float), precision=4, separator=", ") if np.ndim(v) else f"{v:.4g}"
 
 
-def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | None = None) -> list[Finding]:
-    """The findings on the scenario at ``path`` for ``law`` (default: the scenario's)."""
+def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | None = None,
+                   sets: tuple = ()) -> list[Finding]:
+    """The findings on the scenario at ``path`` for ``law`` (default: the
+    scenario's), with the ``--set`` pairs ``sets`` applied."""
     try:
-        scn = load_scenario(path)
+        scn = load_scenario(path, sets)
         if law is not None:
             scn = with_run(scn, controller=law)
     except ScenarioError as e:
