@@ -141,8 +141,10 @@ def test_requirement_figures_draw_each_bound_over_its_span(requirements_run, cap
     measured = next(c for c in ax.collections if c.get_label().startswith("p0.9973 value"))
     assert measured.get_segments()[0][0][1] == pytest.approx(results["pointing"]["value"])
     stab = axs[[q["name"] for q in panels].index("stability")]
-    rpe = next(c for c in stab.collections if c.get_label() == "RPE values")
-    assert len(rpe.get_segments()) == results["stability"]["windows"]
+    rpe = next(ln for ln in stab.get_lines() if ln.get_label() == "RPE values")  # one value per instant
+    assert len(rpe.get_xdata()) == results["stability"]["samples"]
+    wmax = next(c for c in stab.collections if c.get_label().startswith("window-max bound"))
+    assert wmax.get_segments()[0][0][1] == pytest.approx(results["stability"]["window_max_bound"])
     ens = axs[[q["name"] for q in panels].index("pointing_ensemble")]
     assert "ACROSS RUNS" in ens.get_title(loc="left")
     # the wheels: speeds as simulated, the 150 rad/s bound in view, the 600 rad/s actuator limit named off scale

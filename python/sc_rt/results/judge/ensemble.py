@@ -5,8 +5,8 @@ statistics across runs without holding every trajectory.
 Per pointing requirement with ``interpretation = "ensemble"`` or
 ``"mixed"``, a run keeps:
 
-- ``bins``: the index's values (sc_rt.results.judge.indices: samples, windows or
-  pairs) as the largest value in each bin of a time grid common to every
+- ``bins``: the index's values (sc_rt.results.judge.indices: samples, RPE's
+  instants, windows or pairs) as the largest value in each bin of a time grid common to every
   run of the campaign (bins of ``bin_width`` seconds from t = 0, about
   ``MAX_BINS`` over the run), in the bound's unit. A value that stands for
   an interval (a window) counts in every bin it touches. NaN: no value of

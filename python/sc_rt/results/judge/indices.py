@@ -2,8 +2,11 @@
 the time interval it stands for (docs/REQUIREMENTS.md, section 2):
 
 - APE, AKE: one value per sample, the length of the error;
-- MPE, MKE: one per non-overlapping window, |the error's mean over it|;
-- RPE, RKE: one per window, the largest |error - the window's mean| in it;
+- MPE, MKE: one per non-overlapping window, |the error's mean over it|
+  (ECSS-E-ST-60-10C 3.2.7, 3.2.6: a value of the window);
+- RPE, RKE: one per instant of the windows, |error - the mean of the window
+  that contains it| (3.2.12, 3.2.11: a value of the instant), and beside
+  them each window's largest, whose quantile bounds theirs (``window_max``);
 - PDE, KDE (drift, within one observation) and PRE, KRE (reproducibility,
   between observations): one per pair of windows ``separation`` apart,
   |mean over the later window - mean over the first|. The first windows tile
@@ -44,13 +47,18 @@ class IndexValues:
         (m,) [s] the first and last instant each value stands for (a sample:
         its own time; a window: its first and last sample; a pair: its first window).
     unit : str
-        What one value is: "samples", "windows" or "pairs".
+        What one value is: "samples", "instants" (RPE, RKE: a sample's
+        relative error in its window), "windows" or "pairs".
     info : dict
         Result fields: samples or windows / pairs, window_s, separation_s.
     notes : list of str
         What was left out or rounded, for the result's note.
     problem : str
         Non-empty: why there is no value.
+    window_max : numpy.ndarray or None
+        RPE, RKE: (n_windows,) [rad] each window's largest relative error,
+        whose quantile bounds the index's (a fraction p of the windows within
+        it puts at least a fraction p of their instants within it). None otherwise.
     """
 
     values: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -60,6 +68,7 @@ class IndexValues:
     info: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     problem: str = ""
+    window_max: np.ndarray | None = None
 
 
 def _span_text(t: np.ndarray, idx: np.ndarray) -> str:
@@ -100,7 +109,6 @@ def index_values(req: dict[str, Any], t: np.ndarray, sigma: np.ndarray, idx: np.
     good = np.all(np.isfinite(w), axis=(1, 2))
     if not np.any(good):
         return IndexValues(problem=f"no window of the span {span} without a non-finite sample")
-    per = window_means(w[good]) if kind in ("MPE", "MKE") else relative_errors(w[good])
     if not np.all(good):
         notes.append(f"{int((~good).sum())} windows with non-finite samples left out")
     left = len(idx) - len(w) * n_per
@@ -108,7 +116,13 @@ def index_values(req: dict[str, Any], t: np.ndarray, sigma: np.ndarray, idx: np.
         notes.append(f"the last {left} sample{'s' if left > 1 else ''} (less than a window) left out")
     first = np.flatnonzero(good) * n_per
     info["windows"] = int(good.sum())
-    return IndexValues(per, t[idx][first], t[idx][first + n_per - 1], "windows", info, notes)
+    if kind in ("MPE", "MKE"):
+        return IndexValues(window_means(w[good]), t[idx][first], t[idx][first + n_per - 1], "windows", info, notes)
+    # RPE, RKE: every instant of a window against that window's mean (3.2.12)
+    rel = relative_errors(w[good])
+    at = t[idx][(first[:, None] + np.arange(n_per)).ravel()]
+    info["samples"] = int(rel.size)
+    return IndexValues(rel.ravel(), at, at, "instants", info, notes, window_max=rel.max(axis=1))
 
 
 def _pairs(req: dict[str, Any], t: np.ndarray, sigma: np.ndarray, idx: np.ndarray, n_per: int, dt: float,

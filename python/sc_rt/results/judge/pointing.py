@@ -1,8 +1,8 @@
 """The pointing errors and the window statistics the requirements are
 built from (docs/REQUIREMENTS.md, section 2): attitude errors as rotation
 vectors, the error a requirement's ``axis`` selects, the nearest-rank
-quantile, non-overlapping windows with their means (MPE) and relative
-errors (RPE), pairs of windows (PDE, PRE), the settling time and the
+quantile, non-overlapping windows with their means (MPE) and the relative
+error of each instant in them (RPE), pairs of windows (PDE, PRE), the settling time and the
 wheels' momentum. Pure numpy, vectorised over rows; nothing here knows
 about a run or a scenario.
 """
@@ -111,8 +111,11 @@ def window_means(w: np.ndarray) -> np.ndarray:
 
 
 def relative_errors(w: np.ndarray) -> np.ndarray:
-    """RPE per window: the largest |error - its window mean| in the window (n_windows,)."""
-    return np.linalg.norm(w - w.mean(axis=1, keepdims=True), axis=2).max(axis=1)
+    """RPE per instant (ECSS-E-ST-60-10C 3.2.12): |error - the mean of the
+    window that contains it|, (n_windows, n_per) for the windows ``w``
+    (n_windows, n_per, d). Its largest value per window (``.max(axis=1)``)
+    bounds every instant of that window."""
+    return np.linalg.norm(w - w.mean(axis=1, keepdims=True), axis=2)
 
 
 def pair_differences(e: np.ndarray, n_first: int, n_per: int, shift: int) -> tuple[np.ndarray, np.ndarray]:

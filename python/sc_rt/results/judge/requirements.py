@@ -24,7 +24,9 @@ The temporal interpretation is judged here, within the run: the value at
 the stated confidence p is the nearest-rank empirical p-quantile (the
 smallest value that at least a fraction p of the values do not exceed,
 numpy's ``method="inverted_cdf"``) of the index's values over the span
-(sc_rt.results.judge.indices: samples, windows or pairs of windows). The ensemble
+(sc_rt.results.judge.indices: samples, windows or pairs of windows; for RPE
+and RKE every instant of the windows, ECSS-E-ST-60-10C 3.2.12, with the
+window-max statistic beside it as ``window_max_bound``, a bound on it). The ensemble
 and mixed interpretations are statistics across the runs of a campaign
 (``sc-rt montecarlo``, sc_rt.results.judge.ensemble): a single run reports them
 "not evaluated".
@@ -101,6 +103,9 @@ def _span_text(t: np.ndarray, idx: np.ndarray) -> str:
 def _quantile_note(p: float, n: int, what: str, iv: Any, span: str) -> str:
     if what == "samples":
         note = f"nearest-rank p{p:g} of {n} samples, {span}"
+    elif what == "instants":
+        note = (f"nearest-rank p{p:g} of {n} instants, each against the mean of its {iv.info['window_s']:g} s "
+                f"window ({iv.info['windows']} non-overlapping), {span}")
     elif what == "windows":
         note = f"nearest-rank p{p:g} over {n} windows of {iv.info['window_s']:g} s (non-overlapping), {span}"
     else:
@@ -123,6 +128,9 @@ def _pointing(req: dict[str, Any], t: np.ndarray, sigma: np.ndarray, idx: np.nda
     value = nearest_rank(iv.values, p) / unit
     note = _quantile_note(p, iv.values.size, iv.unit, iv, _span_text(t, idx))
     extra: dict[str, Any] = _outside(iv.t0, iv.t1, iv.values / unit > req["bound"])
+    if iv.window_max is not None:  # RPE, RKE: the window-max statistic beside the index, a bound on it
+        extra["window_max_bound"] = nearest_rank(iv.window_max, p) / unit
+        note += f"; window-max bound {extra['window_max_bound']:.4g} {req['unit']} (p{p:g} of the windows' largest)"
     if other is not None:
         kind = COUNTERPART[req["kind"]]
         ov = index_values(dict(req, kind=kind), t, other, idx)

@@ -35,7 +35,10 @@ def requirements_table(reqs: list[dict[str, Any]] | None) -> str:
             shown = "ACROSS RUNS (sc-rt montecarlo)"
         outside = outside_text(r)
         cp = r.get("counterpart") or {}
-        beside = f"{escape(cp['kind'])} {num(cp.get('value'))}{unit}" if cp else "-"
+        beside = [f"{escape(cp['kind'])} {num(cp.get('value'))}{unit}"] if cp else []
+        if r.get("window_max_bound") is not None:  # RPE, RKE: the window-max statistic, a bound on the index
+            beside.append(f"window-max bound {num(r['window_max_bound'])}{unit}")
+        beside = "; ".join(beside) or "-"
         rows.append(f'<tr class="{escape(status.replace(" ", "-"))}"><td>{escape(str(r.get("name")))}</td>'
                     f"<td>{escape(measure)}</td><td class=num>{num(r.get('value'))}{unit}</td>"
                     f"<td class=num>{num(r.get('bound'))}{unit}</td><td class=num>{num(r.get('margin'))}{unit}</td>"
@@ -45,6 +48,7 @@ def requirements_table(reqs: list[dict[str, Any]] | None) -> str:
             "<th>value</th><th>bound</th><th>margin</th>"
             '<th title="the first and last time its values were outside the bound">outside bound</th>'
             "<th>result</th>"
-            '<th title="with sensors: the knowledge index beside a performance one, and back">beside it</th>'
+            '<th title="with sensors: the knowledge index beside a performance one, and back; RPE, RKE: the '
+            'window-max bound">beside it</th>'
             "<th>how</th></tr>"
             + "".join(rows) + "</table></section>")

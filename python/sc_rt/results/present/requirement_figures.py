@@ -1,8 +1,9 @@
 """The figures of a run's requirements (docs/REQUIREMENTS.md, section 5):
 
 - ``requirements.png``: one panel per pointing or settling requirement,
-  the values the requirement is judged on (the error's samples, or the
-  per-window or per-pair values) over the run, its bound drawn over its
+  the values the requirement is judged on (the error's samples, RPE's
+  relative error at each instant, or the per-window or per-pair values)
+  over the run, its bound drawn over its
   span (the span shaded), the value measured at its probability and, with
   sensors, the counterpart index (knowledge beside performance);
 - ``wheel_speeds.png``: the wheel speeds and the wheels' total momentum
@@ -54,7 +55,7 @@ def _draw_values(ax, q: dict[str, Any], run: Run, sigma: np.ndarray, span: tuple
     iv = index_values(q, t, sigma, idx)
     if iv.problem:
         return
-    if iv.unit == "samples":
+    if iv.unit in ("samples", "instants"):  # RPE, RKE: each instant against its window's mean
         ax.plot(iv.t0, iv.values / unit, lw=0.8, color=color, label=label)
     else:
         ax.hlines(iv.values / unit, iv.t0, iv.t1, color=color, lw=1.6, label=label)
@@ -99,6 +100,9 @@ def requirement_figure(run: Run, out: Path, title: str = "") -> Path | None:
             if r.get("value") is not None:
                 ax.hlines(r["value"], span[0], span[1], color="k", ls=":", lw=1.0,
                           label=f"p{q['confidence']:g} value {r['value']:.4g}")
+            if r.get("window_max_bound") is not None:  # RPE, RKE: the window-max statistic, a bound on it
+                ax.hlines(r["window_max_bound"], span[0], span[1], color="0.4", ls="-.", lw=0.9,
+                          label=f"window-max bound {r['window_max_bound']:.4g}")
             ax.set_ylim(bottom=0.0)
         ax.set_ylabel(f"[{unit_name}]")
         status = r.get("status", "")
