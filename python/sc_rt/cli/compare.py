@@ -1,5 +1,6 @@
 """``sc-rt compare SCENARIO --law a --law b ...``: the laws on one scenario,
-side by side (docs/LAWS.md): verdict, bound violations, settling, peak wheel
+side by side (docs/LAWS.md): the prescribed bound (where the scenario asks
+for the envelope) or the requirements met, settling, peak wheel
 acceleration, SAFE and law-invalid steps; then, when the scenario states
 requirements, the laws ranked by margin on each one (docs/REQUIREMENTS.md).
 Markdown tables on stdout, and with --out in ``compare.json`` and a markdown file."""
@@ -72,7 +73,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
             print(f"sc-rt compare: {scn.name}: {label} INVALID: {row['invalid_reason']}", file=sys.stderr, flush=True)
         else:
             print(f"sc-rt compare: {scn.name}: {label} done", file=sys.stderr, flush=True)
-    text = table(rows)
+    from sc_rt.results.judge.verdict import asks_envelope
+
+    text = table(rows, envelope=asks_envelope(scn.requirements))  # the bound's columns where it is asked for
     print(f"{scn.name} ({args.engine} engine, settling within {args.settle:g} of the initial error)\n")
     print(text)
     ranked = rank_requirements(rows)

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_parser", "cmd_montecarlo", "headline"]
+__all__ = ["add_parser", "cmd_montecarlo", "headline", "rerun_verdict"]
 
 from sc_rt.scenario.model import LAWS  # noqa: E402
 from sc_rt.cli.validate import LAW_HELP, law_choice  # noqa: E402
@@ -190,23 +190,50 @@ def _stats(o: dict[str, Any]) -> dict[str, float]:
 
 
 def headline(res: dict[str, Any]) -> str:
-    """The campaign in one line: the runs, what fraction met the scenario's
-    requirements (or, judged by the envelope alone or with none stated, held
-    the prescribed bound), with its interval, and the worst final error."""
+    """The campaign in one line: the runs, and what the scenario is judged
+    by: the fraction that met its per-run requirements, with its interval;
+    where it asks for the prescribed envelope alone, the fraction that held
+    the bound; "no requirements stated" for a scenario that states none;
+    then the worst final error."""
+    from sc_rt.results.judge.verdict import asks_envelope
+
     worst = res["worst_final_sigma_BD"]
     head = f"{res['runs']} runs of {res['scenario']} ({res.get('law_name') or res['law']}), seed {res['seed']}: "
     lo, hi = res["fraction_holding_bound_ci95"]
-    bound = (f"{100 * res['fraction_holding_bound']:.1f} % hold the bound (95 % CI {100 * lo:.1f}-"
-             f"{100 * hi:.1f} %)")
     if res.get("judged_by") == "requirements":
         lo2, hi2 = res["fraction_meeting_requirements_ci"]
         c = 100 * res["requirements_confidence"]
         head += (f"{100 * res['fraction_meeting_requirements']:.1f} % meet every per-run requirement "
-                 f"({c:g} % CI {100 * lo2:.1f}-{100 * hi2:.1f} %; the [controller.ppc] envelope, not a "
-                 f"requirement here: {100 * res['fraction_holding_bound']:.1f} % hold it)")
+                 f"({c:g} % CI {100 * lo2:.1f}-{100 * hi2:.1f} %)")
+    elif asks_envelope(res.get("requirements")):
+        head += (f"{100 * res['fraction_holding_bound']:.1f} % hold the bound (95 % CI {100 * lo:.1f}-"
+                 f"{100 * hi:.1f} %)")
     else:
-        head += bound
+        head += "no requirements stated"
     return head + f"; worst final |sigma_BD| {'-' if worst is None else f'{worst:.3e}'}"
+
+
+def rerun_verdict(row: dict[str, Any], where: Path) -> str:
+    """What a run alone (--rerun) did, in the terms of its scenario's
+    verdict: its requirements (as ``sc-rt sim`` says them: how many met,
+    which failed, the worst margin), or where it asks for the envelope
+    alone, the prescribed bound (held, or when it left it)."""
+    import json
+
+    from sc_rt.results.judge.verdict import asks_envelope, requirements_summary
+
+    if row["status"] == "invalid":
+        return f"has no valid draw ({row['message']})"
+    if row["status"] == "crashed":
+        return f"crashed its process ({row['message']})"
+    metrics = where / "metrics.json"
+    reqs = json.loads(metrics.read_text()).get("requirements") if metrics.is_file() else None
+    if reqs is not None and not (reqs and all(r.get("kind") == "envelope" for r in reqs)):
+        return requirements_summary(reqs)  # "2 of 7 requirements failed (...)", "no requirements stated"
+    if asks_envelope(reqs):
+        return ("holds the bound" if row["holds_bound"] else
+                f"leaves the bound at {row.get('first_bound_violation_s')} s")
+    return "has no metrics"
 
 
 def _fail(message: str) -> int:
@@ -267,10 +294,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
             row = rerun(c, o["rerun"], where)
         except OSError as e:
             return _fail(f"--out {args.out}: {e}")
-        verdict = ("holds the bound" if row["holds_bound"] else
-                   f"no valid draw ({row['message']})" if row["status"] == "invalid" else
-                   f"leaves the bound at {row.get('first_bound_violation_s')} s")
-        print(f"sc-rt montecarlo: run {o['rerun']} of seed {o['seed']} ({scn.name}) {verdict} -> {where}/")
+        verdict = rerun_verdict(row, where)  # its requirements (the envelope where the scenario asks for it)
+        print(f"sc-rt montecarlo: run {o['rerun']} of seed {o['seed']} ({scn.name}): {verdict} -> {where}/")
         problems = _rerun_gate(row, where) if args.strict else []
         same = _dataset_row(c, out, o["rerun"])
         if same is not None:  # the campaign in --out holds this run: the two must agree

@@ -1,6 +1,7 @@
 """Laws compared on one scenario (``sc-rt compare``, docs/LAWS.md): a row of
-each law's run (verdict, bound, settling, peaks, SAFE and law-invalid
-steps, its requirement results), the laws ranked by margin on each
+each law's run (verdict, requirements met, the bound where the scenario asks
+for the envelope, settling, peaks, SAFE and law-invalid steps, its
+requirement results), the laws ranked by margin on each
 requirement, and overall by each law's worst margin. Pure data from finished
 runs; the tables that show them: sc_rt.results.present.tables."""
 
@@ -12,9 +13,10 @@ import numpy as np
 
 from sc_rt.results.judge.pointing import settling_time
 from sc_rt.results.judge.requirements import worst
-from sc_rt.results.judge.verdict import pointing_arcsec, requirements_summary
+from sc_rt.results.judge.verdict import asks_envelope, pointing_arcsec, requirements_summary
 
-__all__ = ["REQUIREMENT_KEYS", "compare_row", "overall", "rank_key", "rank_requirements", "settling_s"]
+__all__ = ["REQUIREMENT_KEYS", "compare_row", "overall", "rank_key", "rank_requirements", "requirements_met",
+           "settling_s"]
 
 
 def settling_s(t: np.ndarray, sigma_BD: np.ndarray, frac: float) -> float | None:
@@ -34,15 +36,18 @@ REQUIREMENT_KEYS = ("name", "kind", "axis", "interpretation", "confidence", "val
 
 
 def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
-    """One law's row: its run's verdict, bound, settling within ``settle_frac``
-    of the initial error, peaks, SAFE and law-invalid steps, requirements."""
+    """One law's row: its run's verdict, settling within ``settle_frac`` of
+    the initial error, peaks, SAFE and law-invalid steps, requirements; and
+    the prescribed bound (held, first violation, rows outside) only where
+    the scenario asks for the envelope (``asks_envelope``)."""
     m = run.metrics
     ok = np.all(run["bound_ok"], axis=1)
+    bound = {"bound_held": bool(np.all(ok)), "first_bound_violation_s": m.get("first_bound_violation_s"),
+             "bound_violation_fraction": float(np.mean(~ok)) if len(ok) else None}
     return {
         "law": label,
-        "bound_held": bool(np.all(ok)),
-        "first_bound_violation_s": m.get("first_bound_violation_s"),
-        "bound_violation_fraction": float(np.mean(~ok)) if len(ok) else None,
+        **(bound if asks_envelope(m.get("requirements")) else {}),
+        "requirements_met": requirements_met(m.get("requirements")),
         "settling_s": settling_s(run["t"], run["sigma_BD"], settle_frac),
         "final_pointing_arcsec": float(pointing_arcsec(run["sigma_BD"][-1:])[0]) if len(ok) else None,
         "max_abs_wheel_accel": m.get("max_abs_wheel_accel"),
@@ -55,6 +60,17 @@ def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
         "requirements": [{k: r.get(k) for k in REQUIREMENT_KEYS} for r in m.get("requirements") or []],
         "expect": m.get("expect"),  # the file's expect against this law's run (sc_rt.results.judge.gate)
     }
+
+
+def requirements_met(reqs: list[dict[str, Any]] | None) -> str | None:
+    """The requirements a run met, in short: "7/7", "4/7" (of those judged
+    within the run), "none stated"; None for metrics without requirements."""
+    if reqs is None:
+        return None
+    if not reqs:
+        return "none stated"
+    judged = [r for r in reqs if r.get("passed") is not None]
+    return f"{sum(bool(r['passed']) for r in judged)}/{len(judged)}" if judged else "none judged"
 
 
 def rank_key(r: dict[str, Any]) -> tuple[int, float]:

@@ -14,7 +14,8 @@ import numpy as np
 
 from sc_rt.results.judge.requirements import worst
 
-__all__ = ["SAFE_FLAGS", "safe_summary", "verdict_line", "pointing_arcsec", "requirements_summary", "outside_text"]
+__all__ = ["SAFE_FLAGS", "asks_envelope", "safe_summary", "verdict_line", "pointing_arcsec", "requirements_summary",
+           "outside_text"]
 
 #: Controller flags that put it in SAFE (zero command), from wheel_cmd_t.
 SAFE_FLAGS = {128: "invalid state (non-finite or beyond the safety limits)", 256: "stale state",
@@ -23,6 +24,22 @@ SAFE_FLAGS = {128: "invalid state (non-finite or beyond the safety limits)", 256
               4096: "time stamp jumped (back, or ahead beyond 10 control periods)"}
 MODE_SAFE = 2
 AXES = "xyz"
+
+
+def asks_envelope(reqs: Any) -> bool:
+    """Whether the prescribed envelope of ``[controller.ppc]`` is part of
+    what a run is judged by, and so shown (its timeline bands, its figure
+    lines, its first violation, its Monte Carlo figure): the scenario asks
+    for it with a ``kind = "envelope"`` requirement (the paper's files), or
+    ``reqs`` is None (metrics older than requirements, whose verdict was the
+    envelope). A scenario that states other requirements, or none, is not
+    judged by it: its metric stays in metrics.json, nothing else shows it
+    (docs/REQUIREMENTS.md, section 5). ``reqs``: a run's
+    ``metrics["requirements"]`` (dicts) or a scenario's rows (dicts or
+    Requirement objects)."""
+    if reqs is None:
+        return True
+    return any((r.get("kind") if isinstance(r, dict) else getattr(r, "kind", None)) == "envelope" for r in reqs)
 
 
 def pointing_arcsec(sigma: np.ndarray) -> np.ndarray:

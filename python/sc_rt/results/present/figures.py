@@ -11,11 +11,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sc_rt.results.judge.metrics import prescribed_chi  # noqa: E402
+from sc_rt.results.judge.metrics import LAWS_WITH_OBSERVER, prescribed_chi  # noqa: E402
+from sc_rt.results.judge.verdict import asks_envelope  # noqa: E402
 from sc_rt.results.record.run import Run  # noqa: E402
 
 __all__ = ["limit_lines", "tracking_figures", "timing_figures", "fault_figure", "estimation_figure", "mark_events",
-           "run_title", "save_figure"]
+           "run_title", "save_figure", "shows_envelope", "has_observer"]
 
 AXES = ("x", "y", "z")
 
@@ -67,9 +68,22 @@ def fault_onsets(run: Run) -> list[tuple[float, int]]:
     return sorted(set(out))
 
 
+def shows_envelope(run: Run) -> bool:
+    """The run's figures show the prescribed envelope (its bounds, its first
+    violation): only when its scenario asks for it (``asks_envelope``)."""
+    return asks_envelope(run.metrics.get("requirements"))
+
+
+def has_observer(run: Run) -> bool:
+    """The run's law has a disturbance observer to draw: a law known to have
+    one, or a z2 that is not all zero or missing."""
+    return run.meta.law in LAWS_WITH_OBSERVER or bool(np.any(np.nan_to_num(run["z2"]) != 0.0))
+
+
 def mark_events(ax, run: Run, *, labels: bool = False, bound: bool = True) -> None:
     """Fault onsets (red dashed), the first bound violation (black; with
-    ``bound``), SAFE spans (grey) and spans without a command (orange) on a time axis."""
+    ``bound``, where the scenario asks for the envelope), SAFE spans (grey)
+    and spans without a command (orange) on a time axis."""
     t = run["t"]
     if len(t) == 0:
         return
@@ -77,7 +91,7 @@ def mark_events(ax, run: Run, *, labels: bool = False, bound: bool = True) -> No
         if onset <= t[-1]:
             ax.axvline(onset, color="r", ls="--", lw=0.7, label="fault onset" if labels and j == 0 else None)
     first = run.metrics.get("first_bound_violation_s")
-    if first is not None and bound:
+    if first is not None and bound and shows_envelope(run):
         ax.axvline(first, color="k", lw=0.9, label="first bound violation" if labels else None)
     for j, (a, b) in enumerate(_spans(t, _safe_mask(run))):
         ax.axvspan(a, b, color="0.5", alpha=0.2, lw=0, label="SAFE" if labels and j == 0 else None)
@@ -120,12 +134,14 @@ def _legend_outside(ax, **kw) -> None:
 
 
 def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
-    """Attitude error with the prescribed bounds (linear and log), pointing
-    error in arcsec, rate error, wheel commands per wheel with the limits,
-    lumped disturbance and the observer's error (the paper's figures 4-15),
-    and the faults when there are any. Every time plot marks fault onsets,
-    the first bound violation and SAFE spans. The envelope and the wheel
-    limits come from ``run.meta``."""
+    """Attitude error (linear and log), pointing error in arcsec, rate
+    error, wheel commands per wheel with the limits, lumped disturbance and
+    the observer's error (the paper's figures 4-15; only for a law with an
+    observer, ``has_observer``), and the faults when there are any. Every
+    time plot marks fault onsets and SAFE spans. Where the scenario asks for
+    the prescribed envelope (``shows_envelope``), its bounds are drawn and
+    its first violation marked. The envelope and the wheel limits come from
+    ``run.meta``."""
     from sc_rt.results.judge.verdict import pointing_arcsec
 
     out.mkdir(parents=True, exist_ok=True)
@@ -135,31 +151,36 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     dmin, dmax = np.asarray(ppc["dmin"]), np.asarray(ppc["dmax"])
     sig = run["sigma_BD"]
     paths = []
+    env = shows_envelope(run)  # the envelope only where the scenario asks for it
 
     fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for i, ax in enumerate(axs):
         ax.plot(t, sig[:, i], label=f"sigma_BD,{AXES[i]}")
-        ax.plot(t, dmax[i] * chi[:, i], "r--", lw=0.8, label="dmax chi(t)")
-        ax.plot(t, -dmin[i] * chi[:, i], "r:", lw=0.8, label="-dmin chi(t)")
+        if env:
+            ax.plot(t, dmax[i] * chi[:, i], "r--", lw=0.8, label="dmax chi(t)")
+            ax.plot(t, -dmin[i] * chi[:, i], "r:", lw=0.8, label="-dmin chi(t)")
         mark_events(ax, run, labels=i == 0)
         ax.set_ylabel(f"sigma_BD,{AXES[i]} [-]")
         ax.grid(alpha=0.3)
     _legend_outside(axs[0])
-    axs[0].set_title(_two_line("Attitude tracking error (MRP) and prescribed bounds", run, title))
+    axs[0].set_title(_two_line("Attitude tracking error (MRP)" + (" and prescribed bounds" if env else ""), run,
+                               title))
     axs[-1].set_xlabel("t [s]")
     paths.append(save_figure(fig, out / "attitude_error.png"))
 
     fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for i, ax in enumerate(axs):
         ax.semilogy(t, np.abs(sig[:, i]) + 1e-300, label=f"|sigma_BD,{AXES[i]}|")
-        ax.semilogy(t, dmax[i] * chi[:, i], "r--", lw=0.8, label="dmax chi(t) (bound for > 0)")
-        if dmin[i] != dmax[i]:
-            ax.semilogy(t, dmin[i] * chi[:, i], "m:", lw=0.9, label="dmin chi(t) (bound for < 0)")
+        if env:
+            ax.semilogy(t, dmax[i] * chi[:, i], "r--", lw=0.8, label="dmax chi(t) (bound for > 0)")
+            if dmin[i] != dmax[i]:
+                ax.semilogy(t, dmin[i] * chi[:, i], "m:", lw=0.9, label="dmin chi(t) (bound for < 0)")
         ax.set_ylabel(f"|sigma_BD,{AXES[i]}| [-]")
-        ax.set_ylim(max(1e-12, np.nanmin(chi) * 1e-3) if chi.size else 1e-12, 1.0)
+        floor = np.nanmin(chi) if env and chi.size else _positive_floor(sig)
+        ax.set_ylim(max(1e-12, floor * 1e-3), 1.0)
         ax.grid(alpha=0.3, which="both")
         viol = ~run["bound_ok"][:, i]
-        if np.any(viol):
+        if env and np.any(viol):
             ax.plot(t[viol], np.abs(sig[viol, i]) + 1e-300, "k.", ms=2, label="outside the bound")
         mark_events(ax, run, labels=i == 0)
         _legend_outside(ax)
@@ -169,13 +190,14 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
 
     fig, ax = plt.subplots(figsize=(9, 4))
     ang = pointing_arcsec(sig)
-    env = pointing_arcsec(dmax * chi)  # the angle of the envelope's corner (all axes at dmax chi)
+    corner = pointing_arcsec(dmax * chi)  # the angle of the envelope's corner (all axes at dmax chi)
     sensed = _sensed(run)
     ax.semilogy(t, ang + 1e-300, lw=0.9,
                 label="pointing error 4 atan|sigma_BD|" + (" (the law's, estimated)" if sensed else ""))
     if sensed:
         ax.semilogy(t, pointing_arcsec(run["sigma_BD_true"]) + 1e-300, lw=0.9, label="true pointing error")
-    ax.semilogy(t, env, "r--", lw=0.8, label="envelope corner 4 atan|dmax chi(t)|")
+    if env:
+        ax.semilogy(t, corner, "r--", lw=0.8, label="envelope corner 4 atan|dmax chi(t)|")
     _pointing_bounds(ax, run)
     mark_events(ax, run, labels=True)
     ax.set_xlabel("t [s]")
@@ -212,6 +234,25 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     axs[-1].set_xlabel("t [s]")
     paths.append(save_figure(fig, out / "wheel_commands.png"))
 
+    if has_observer(run):
+        paths.append(_observer_figure(run, out, title))
+    if fault_onsets(run) or np.any(np.isfinite(run["fault_Y"])):
+        paths.append(fault_figure(run, out, title))
+    if sensed:
+        paths.append(estimation_figure(run, out, title))
+    return paths
+
+
+def _positive_floor(x: np.ndarray) -> float:
+    """The smallest positive finite |x| (1e-9 when there is none): a log axis's floor from the data."""
+    a = np.abs(np.asarray(x, float))
+    a = a[np.isfinite(a) & (a > 0)]
+    return float(a.min()) if a.size else 1e-9
+
+
+def _observer_figure(run: Run, out: Path, title: str) -> Path:
+    """disturbance_observer.png: the lumped disturbance, the observer's estimate z2 and its error."""
+    t = run["t"]
     fig, axs = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
     for i in range(3):
         axs[0].plot(t, run["delta2"][:, i], label=f"delta_2,{AXES[i]} (true)")
@@ -229,12 +270,7 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     axs[1].set_xlabel("t [s]")
     axs[1].grid(alpha=0.3, which="both")
     _legend_outside(axs[1])
-    paths.append(save_figure(fig, out / "disturbance_observer.png"))
-    if fault_onsets(run) or np.any(np.isfinite(run["fault_Y"])):
-        paths.append(fault_figure(run, out, title))
-    if sensed:
-        paths.append(estimation_figure(run, out, title))
-    return paths
+    return save_figure(fig, out / "disturbance_observer.png")
 
 
 def _pointing_bounds(ax, run: Run) -> None:

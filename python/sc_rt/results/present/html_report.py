@@ -4,9 +4,10 @@ Built from the run's output directory alone (``metrics.json``, and when
 present ``timing.json``, ``trajectory.npz``, ``report.json`` and the PNG
 figures), so ``sc-rt sim``, ``sc-rt hil`` and ``sc-rt report`` write the
 same page. The figures are embedded (base64 PNG), the style is inline,
-nothing is fetched. Order: the verdict (the bound, SAFE, faults, timing),
-the timeline of modes, faults and violations (inline SVG), the figures,
-then every metric with its unit.
+nothing is fetched. Order: the verdict (the requirements, or the bound where the scenario asks
+for the envelope; SAFE, faults, timing), the timeline of modes, faults and
+(where asked for) the envelope's violations (inline SVG), the figures, then
+every metric with its unit (the envelope's only where asked for).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from sc_rt.results.present.output import run_files
 from sc_rt.results.present.html_telemetry import telemetry_table
 from sc_rt.results.present.html_requirements import requirements_table
 from sc_rt.results.present.html_timeline import MODE_NAMES, spans, timeline_svg
+from sc_rt.results.judge.verdict import asks_envelope
 
 __all__ = ["write_html_report", "render_html", "verdict_items", "timing_text", "pointing_arcsec_of_mrp_norm"]
 
@@ -47,6 +49,12 @@ FIGURES = {
     "timing.png": "Timing: state-to-command latency, compute and wake lateness [us]",
     "law_telemetry.png": "The law's own telemetry: its named values and the fixed slots it fills (x2d, rho_hat)",
 }
+#: the captions of a run whose scenario does not ask for the envelope (its bounds are not drawn)
+FIGURES_WITHOUT_ENVELOPE = {**FIGURES,
+                            "attitude_error.png": "Attitude tracking error sigma_BD per axis",
+                            "attitude_error_log.png": "The same on a log scale"}
+#: metrics.json keys about the envelope: shown only where the scenario asks for it (asks_envelope)
+ENVELOPE_METRICS = ("first_bound_violation_s", "first_bound_violation_axis", "max_abs_lambda")
 CSS = """tr.pass td { background: #e6f4ea } tr.fail td { background: #fde7e9 }
 tr.not-evaluated td, tr.not-applicable td { color: #666 }
 
@@ -318,7 +326,10 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
 
 def _metrics_table(m: dict[str, Any]) -> str:
     rows = []
+    envelope = asks_envelope(m.get("requirements"))
     for k, v in m.items():
+        if k in ENVELOPE_METRICS and not envelope:  # not what this scenario asks: metrics.json keeps it
+            continue
         if k in ("sigma_e_norm", "omega_e_norm") and isinstance(v, dict):
             for tk, x in v.items():
                 if k == "sigma_e_norm":
@@ -372,6 +383,7 @@ def render_html(run_dir: str | Path) -> str:
              + "".join(f'<li id="{i}">{escape(s)}</li>' for i, s in items) + "</ul></section>",
              "<h2>Requirements</h2>" + requirements_table(m.get("requirements"))]
     traj = d["traj"]
+    envelope = asks_envelope(m.get("requirements"))  # its bands only where the scenario asks for it
     parts.append('<h2>Timeline</h2><section id="timeline">')
     if "t" in traj:
         modes = traj.get("ctrl_mode")
@@ -381,22 +393,26 @@ def render_html(run_dir: str | Path) -> str:
         cmds = [{"wheel": c.get("wheel"), "t": c.get("t_sim_at_receipt", c.get("t")), "action": c.get("action")}
                 for c in ((d["report"] or {}).get("faults", {}).get("commands", [])
                           + list((d["timing"] or {}).get("faults_applied") or []))]
-        parts.append(timeline_svg(traj["t"], modes=modes, bound_ok=traj.get("bound_ok"), scheduled=_scheduled(d),
+        parts.append(timeline_svg(traj["t"], modes=modes, bound_ok=traj.get("bound_ok") if envelope else None,
+                                  scheduled=_scheduled(d),
                                   fault_Y=traj.get("fault_Y"), cmd_stale=traj.get("cmd_stale"), commands=cmds))
         legend = [(c, f"mode {n}") for n, c in (("INIT", "#9ecae1"), ("NORMAL", "#74c476"), ("SAFE", "#de2d26"))]
         legend += [("#9e9ac8", "fault active (Y > 0)"), ("#ffffff;border:2px dashed #6a51a3", "fault scheduled"),
-                   ("#fd8d3c", "no valid command"), ("#cb181d", "outside the prescribed bound")]
+                   ("#fd8d3c", "no valid command")]
+        if envelope:
+            legend.append(("#cb181d", "outside the prescribed bound"))
         parts.append('<p class=legend>' + "".join(f'<span><i style="background:{c}"></i>{escape(n)}</span>'
                                                    for c, n in legend) + "</p>")
         _ = MODE_NAMES
     else:
         parts.append("<p>No trajectory.npz: no timeline.</p>")
     parts.append('</section><h2>Figures</h2><section id="figures">')
+    captions = FIGURES if envelope else FIGURES_WITHOUT_ENVELOPE
     for p in d["figures"]:
         b64 = base64.b64encode(p.read_bytes()).decode()
         parts.append(f'<figure data-file="{escape(p.name)}">'
                      f'<img alt="{escape(p.name)}" src="data:image/png;base64,{b64}">'
-                     f"<figcaption>{escape(p.name)}: {escape(FIGURES.get(p.name, ''))}</figcaption></figure>")
+                     f"<figcaption>{escape(p.name)}: {escape(captions.get(p.name, ''))}</figcaption></figure>")
     if not d["figures"]:
         parts.append("<p>No figures (run with plots to get them).</p>")
     parts.append('</section><h2>Law telemetry</h2><section id="telemetry">'

@@ -1,6 +1,7 @@
 """The timeline of a run as an inline SVG: controller modes, wheel faults
-(scheduled, and active in the plant's truth), command gaps and the spans
-outside the prescribed bound per axis. Pure data in, SVG text out."""
+(scheduled, and active in the plant's truth), command gaps and, when given
+(a scenario that asks for the envelope), the spans outside the prescribed
+bound per axis. Pure data in, SVG text out."""
 
 from __future__ import annotations
 
@@ -45,7 +46,8 @@ def _x(t: float, t0: float, t1: float) -> float:
 
 def _bar(y: float, a: float, b: float, t0: float, t1: float, fill: str, title: str, **kw) -> str:
     x0, x1 = _x(a, t0, t1), _x(b, t0, t1)
-    extra = "".join(f' {k.replace("_", "-")}="{v}"' for k, v in kw.items())
+    # class_ is the attribute class (a keyword in Python); fill_opacity is fill-opacity
+    extra = "".join(f' {k.rstrip("_").replace("_", "-")}="{v}"' for k, v in kw.items())
     return (f'<rect x="{x0:.1f}" y="{y + 3:.1f}" width="{max(x1 - x0, 1.0):.1f}" height="{LANE - 6}" '
             f'fill="{fill}"{extra}><title>{escape(title)}</title></rect>')
 
@@ -53,7 +55,8 @@ def _bar(y: float, a: float, b: float, t0: float, t1: float, fill: str, title: s
 def timeline_svg(t: np.ndarray, *, modes: np.ndarray | None, bound_ok: np.ndarray | None,
                  scheduled: list[dict[str, Any]], fault_Y: np.ndarray | None,
                  cmd_stale: np.ndarray | None, commands: list[dict[str, Any]]) -> str:
-    """The SVG (one lane each: mode, wheels 1..4, command gaps, bound x/y/z)."""
+    """The SVG (one lane each: mode, wheels 1..4, command gaps, and with
+    ``bound_ok`` the prescribed bound x/y/z)."""
     t = np.asarray(t, float)
     t0, t1 = (float(t[0]), float(t[-1])) if t.size else (0.0, 1.0)
     lanes: list[tuple[str, list[str]]] = []
@@ -96,7 +99,8 @@ def timeline_svg(t: np.ndarray, *, modes: np.ndarray | None, bound_ok: np.ndarra
                      class_="violation") for a, b in spans(t, ~ok[:, i])]))
     h = TOP + LANE * len(lanes) + 30
     out = [f'<svg viewBox="0 0 {W} {h}" width="100%" role="img" '
-           f'aria-label="timeline of modes, faults and bound violations" id="timeline-svg">']
+           f'aria-label="timeline of modes, faults{" and bound violations" if bound_ok is not None else ""}" '
+           'id="timeline-svg">']
     for k, (name, bars) in enumerate(lanes):
         y = TOP + k * LANE
         out.append(f'<rect x="{LEFT}" y="{y + 1}" width="{W - LEFT - RIGHT}" height="{LANE - 2}" fill="#f7f7f7"/>')

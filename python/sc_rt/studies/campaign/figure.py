@@ -17,8 +17,9 @@ __all__ = ["figure", "requirements_figure", "write_summary"]
 def write_summary(summary: dict[str, Any], rows: list[dict[str, Any]], out: Path,
                   dpi: int = 90) -> None:
     """montecarlo.json (the summary) and montecarlo.png (the final error of
-    every run; when runs leave the bound, when they do; otherwise it says that
-    no run left it, rather than drawing an empty histogram)."""
+    every run, and what the runs say of the scenario's verdict: the
+    prescribed bound where the scenario asks for the envelope, else its
+    requirements; ``figure``)."""
     from sc_rt.results.present import figures  # noqa: F401  (Agg backend)
     import matplotlib.pyplot as plt
 
@@ -35,38 +36,84 @@ def write_summary(summary: dict[str, Any], rows: list[dict[str, Any]], out: Path
 
 
 def figure(summary: dict[str, Any], rows: list[dict[str, Any]]):
-    """The campaign's figure (a matplotlib Figure)."""
+    """The campaign's figure (a matplotlib Figure): the final error of every
+    run; then, where the scenario asks for the prescribed envelope
+    (``asks_envelope``), when runs leave the bound (or that none did) under
+    "x % hold the bound"; otherwise the runs meeting each of its per-run
+    requirements under "x % meet every per-run requirement" (or "no
+    requirements stated")."""
     from sc_rt.results.present import figures  # noqa: F401  (Agg backend)
     import matplotlib.pyplot as plt
 
+    from sc_rt.results.judge.verdict import asks_envelope
+
     final = summary["final_metric"]
     fin = np.array([r[final] for r in rows if final and r.get(final) is not None], float)
-    viol = np.array([r["first_bound_violation_s"] for r in rows
-                     if r.get("first_bound_violation_s") is not None], float)
-    invalid = summary["status"]["invalid"]
     fig, axs = plt.subplots(1, 2, figsize=(10, 4))
     if fin.size:
         axs[0].hist(np.log10(np.maximum(fin, 1e-16)), bins=30)
     when = final.removeprefix("sigma_e_norm.") + " s" if final else "the end"
     axs[0].set_xlabel(f"log10 |sigma_BD| at {when}")
     axs[0].set_ylabel("runs")
-    n = summary["runs"]
-    if viol.size:
-        axs[1].hist(viol, bins=30, color="C3")
-        axs[1].set_xlabel("first bound violation [s]")
-        axs[1].set_ylabel("runs")
+    head = f"{summary['scenario']}, {summary['law']}, {summary['runs']} runs: "
+    if asks_envelope(summary.get("requirements")):
+        fig.suptitle(head + _envelope_panel(axs[1], summary, rows))
     else:
-        axs[1].set_axis_off()
+        fig.suptitle(head + _requirements_panel(axs[1], summary))
+    fig.tight_layout()
+    return fig
+
+
+def _envelope_panel(ax, summary: dict[str, Any], rows: list[dict[str, Any]]) -> str:
+    """When runs leave the prescribed bound (a histogram), or that none did; the title's words."""
+    viol = np.array([r["first_bound_violation_s"] for r in rows
+                     if r.get("first_bound_violation_s") is not None], float)
+    n, invalid = summary["runs"], summary["status"]["invalid"]
+    if viol.size:
+        ax.hist(viol, bins=30, color="C3")
+        ax.set_xlabel("first bound violation [s]")
+        ax.set_ylabel("runs")
+    else:
+        ax.set_axis_off()
         text = f"no run left the bound\n({summary.get('holds_bound', n)} of {n} runs held it)"
         if invalid:
             text += f"\n{invalid} runs had no valid draw"
-        axs[1].text(0.5, 0.5, text, ha="center", va="center", fontsize=13, transform=axs[1].transAxes)
+        ax.text(0.5, 0.5, text, ha="center", va="center", fontsize=13, transform=ax.transAxes)
     lo, hi = summary["fraction_holding_bound_ci95"] or (float("nan"),) * 2
-    frac = summary["fraction_holding_bound"]
-    fig.suptitle(f"{summary['scenario']}, {summary['law']}, {n} runs: {100 * frac:.1f} % hold the "
-                 f"bound (95 % CI {100 * lo:.1f}-{100 * hi:.1f} %)")
-    fig.tight_layout()
-    return fig
+    return (f"{100 * summary['fraction_holding_bound']:.1f} % hold the bound "
+            f"(95 % CI {100 * lo:.1f}-{100 * hi:.1f} %)")
+
+
+def _requirements_panel(ax, summary: dict[str, Any]) -> str:
+    """The runs meeting each per-run requirement of the scenario (bars, k of
+    n), or that it states none; the title's words."""
+    reqs = [r for r in summary.get("requirements") or [] if r.get("statistic") == "runs"]
+    if not summary.get("requirements"):
+        ax.set_axis_off()
+        ax.text(0.5, 0.5, "no requirements stated\n([[requirements]] in the scenario:\nnothing to judge the runs by)",
+                ha="center", va="center", fontsize=12, transform=ax.transAxes)
+        return "no requirements stated"
+    n = summary["runs"]
+    if reqs:
+        met = [r["runs_met"] for r in reqs]
+        y = np.arange(len(reqs))
+        ax.barh(y, met, color=["C2" if r.get("met_at_confidence") else "C3" for r in reqs])
+        ax.set_yticks(y, [r["name"] for r in reqs], fontsize=8)
+        ax.invert_yaxis()
+        ax.set_xlim(0, max(n, 1))
+        for i, k in enumerate(met):
+            ax.text(min(k, n), i, f" {k}/{n}", va="center", fontsize=8, ha="right" if k > 0.8 * n else "left")
+        ax.set_xlabel("runs meeting it (green: met at the campaign's confidence)")
+    else:
+        ax.set_axis_off()
+        ax.text(0.5, 0.5, "every requirement is judged across runs\n(montecarlo_requirements.png)",
+                ha="center", va="center", fontsize=11, transform=ax.transAxes)
+    if summary.get("fraction_meeting_requirements") is None:
+        return "requirements across runs only"
+    lo, hi = summary["fraction_meeting_requirements_ci"]
+    c = 100 * summary.get("requirements_confidence", 0.95)
+    return (f"{100 * summary['fraction_meeting_requirements']:.1f} % meet every per-run requirement "
+            f"({c:g} % CI {100 * lo:.1f}-{100 * hi:.1f} %)")
 
 
 def requirements_figure(summary: dict[str, Any]):
