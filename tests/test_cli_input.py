@@ -74,6 +74,8 @@ OPTIONS = [
      "--control-rate", POSITIVE),
     (["controller", "--law", str(lcmnet.ROOT / "examples/python_laws/pd.py") + ":PythonPD", "paper_faults"],
      "--max-steps", ("0", "-1", "abc", "1e99")),
+    (["controller", "--law", str(lcmnet.ROOT / "examples/python_laws/pd.py") + ":PythonPD", "paper_faults"],
+     "--cpu", ("-1", "1.5", "abc")),
 ]
 NUMERIC = [(pre, opt, v) for pre, opt, values in OPTIONS for v in values]
 

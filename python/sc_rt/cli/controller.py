@@ -75,8 +75,13 @@ def add_parser(sub) -> None:
                         "default %(default)s)")
     c.add_argument("--max-steps", type=integer(1, 10**12), metavar="N", help="stop after N steps")
     c.add_argument("--summary", metavar="FILE", help="write the exit summary (JSON) there too")
-    c.add_argument("--realtime-priority", action=argparse.BooleanOptionalAction, default=True,
-                   help="accepted for sc-rt hil; a Python process keeps SCHED_OTHER")
+    c.add_argument("--trigger", choices=("event", "timer"), default="event",
+                   help="real time: step on each state's arrival (event), or on its own timer phase-locked to "
+                        "the state arrivals (timer), as sc-rt-controller (default: %(default)s)")
+    c.add_argument("--realtime-priority", action=argparse.BooleanOptionalAction, default=False,
+                   help="the stepping thread asks for SCHED_FIFO 80 and mlockall, and falls back to SCHED_OTHER "
+                        "with a warning where not permitted (the summary's scheduler says which; default: off)")
+    c.add_argument("--cpu", type=integer(0), metavar="N", help="pin the stepping thread to CPU N")
     c.set_defaults(func=cmd_controller)
 
 
@@ -119,7 +124,8 @@ def cmd_controller(args: argparse.Namespace) -> int:
     try:
         proc = PyControllerProcess(cfg, url=resolve_url(args.lcm_url, DEFAULT_URL),
                                    prefix=args.prefix, mode=args.mode, max_steps=args.max_steps,
-                                   phase_offset_us=args.phase_offset, auth_key=load_key(args.auth_key), nav=nav)
+                                   phase_offset_us=args.phase_offset, auth_key=load_key(args.auth_key), nav=nav,
+                                   trigger=args.trigger, realtime_priority=args.realtime_priority, cpu=args.cpu)
     except ValueError as e:
         raise UsageError(str(e)) from e
     write_summary(proc.run(), args.summary)

@@ -18,7 +18,8 @@ def add_timing_options(h: argparse.ArgumentParser, *, floor_policy: bool = True)
     h.add_argument("--trigger", choices=("event", "timer"), default="event",
                    help="real time: the controller steps on each state's arrival (event), or on its own "
                         "timer phase-locked to the state arrivals (timer) (default: %(default)s)")
-    h.add_argument("--controller-cpu", type=integer(0), metavar="N", help="pin sc-rt-controller to CPU N")
+    h.add_argument("--controller-cpu", type=integer(0), metavar="N",
+                   help="pin the controller (sc-rt-controller, or a Python law's sc-rt controller) to CPU N")
     h.add_argument("--emulator-cpu", type=integer(0), metavar="N", help="pin the emulator's thread to CPU N")
     h.add_argument("--spin-us", type=number(0, 1e6, open_lo=False, unit="us"), default=100.0, metavar="US",
                    help="real time: the emulator polls instead of sleeping for the last US before each "

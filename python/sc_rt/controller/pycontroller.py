@@ -10,8 +10,17 @@ the core's estimator). Two modes:
 
 - lockstep: one command per state, on arrival, answering its seq; a re-sent
   state (a duplicate) is answered again with the same command;
-- realtime: wakes on its own deadlines at the control rate, uses the newest
-  state (stale after ``stale_periods`` periods: SAFE zero command), publishes.
+- realtime, with the trigger it is given (``--trigger``, as sc-rt-controller):
+  ``event`` (the default) steps on each state's arrival and publishes at
+  once; ``timer`` wakes on its own deadlines at the control rate
+  (``PhaseLock``), uses the newest state (stale after ``stale_periods``
+  periods: SAFE zero command), publishes.
+
+``--realtime-priority`` asks for SCHED_FIFO 80 for the thread that reads the
+bus and steps (the process's main thread) and ``mlockall``, and falls back
+to SCHED_OTHER with a warning where that is not permitted; ``--cpu N`` pins
+it. The summary says what it got (``scheduler``) and which trigger ran
+(``trigger``), so timing.json never guesses.
 
 It publishes wheel_cmd_t and controller_status_t per step, announces itself
 with controller_info_t (at start and at each new plant session), and writes
@@ -40,13 +49,53 @@ from sc_rt.wire.lcmio import channel
 from sc_rt.results.record.fields import packed_layout
 from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, decode_as
 
-__all__ = ["PyControllerProcess", "nearest_rank", "write_summary"]
+__all__ = ["PyControllerProcess", "STEP_PRIORITY", "nearest_rank", "setup_scheduler", "write_summary"]
+
+#: SCHED_FIFO priority of the stepping thread, as sc-rt-controller's step thread
+STEP_PRIORITY = 80
+_MCL_CURRENT, _MCL_FUTURE = 1, 2
 
 #: the estimator's telemetry (_core.SensorIntake.measure's) by name
 _NAV: dict[str, slice] = packed_layout(_core.NAV_FIELDS, _core.NAV_SIZE)
 
 _STATE_SIZE = len(sc_rt_lcm.plant_state_t().encode())
 _V = _core.GateVerdict
+
+
+def setup_scheduler(want_rt: bool, cpu: int | None) -> str:
+    """The calling thread's scheduling, as sc-rt-controller's
+    ``setup_scheduler``: pinned to ``cpu`` (None: anywhere); with
+    ``want_rt`` SCHED_FIFO ``STEP_PRIORITY`` and ``mlockall``, each falling
+    back with a warning on stderr where it is not permitted. Returns what it
+    got ("SCHED_OTHER", "SCHED_FIFO 80 + mlockall, CPU 1", "SCHED_OTHER
+    (SCHED_FIFO denied)", ...)."""
+    import ctypes
+    import errno
+    import os
+
+    pin = ""
+    if cpu is not None:
+        try:
+            os.sched_setaffinity(0, {cpu})
+            pin = f", CPU {cpu}"
+        except OSError as e:
+            print(f"sc-rt controller: warning: cannot pin to CPU {cpu} ({e.strerror})", file=sys.stderr)
+    if not want_rt:
+        return "SCHED_OTHER" + pin
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(STEP_PRIORITY))
+        got = f"SCHED_FIFO {STEP_PRIORITY}"
+    except OSError as e:
+        print(f"sc-rt controller: warning: SCHED_FIFO not permitted ({e.strerror}): running SCHED_OTHER",
+              file=sys.stderr)
+        got = "SCHED_OTHER (SCHED_FIFO denied)"
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.mlockall(_MCL_CURRENT | _MCL_FUTURE) == 0:
+        got += " + mlockall"
+    else:
+        print(f"sc-rt controller: warning: mlockall not permitted ({os.strerror(ctypes.get_errno() or errno.EPERM)})",
+              file=sys.stderr)
+    return got + pin
 
 
 def nearest_rank(v: list[float]) -> dict[str, float]:
@@ -64,11 +113,19 @@ def nearest_rank(v: list[float]) -> dict[str, float]:
 class PyControllerProcess:
     def __init__(self, config, *, url: str, prefix: str = "", mode: str = "lockstep",
                  max_steps: int | None = None, phase_offset_us: float = 50.0,
-                 auth_key: bytes | None = None, nav: tuple | None = None):
+                 auth_key: bytes | None = None, nav: tuple | None = None, trigger: str = "event",
+                 realtime_priority: bool = False, cpu: int | None = None):
         """``config``: a ControllerConfig whose law is registered (sc_rt.pylaw.register);
-        ``nav``: (enabled, use_estimate, MekfParams, sigma0) of _core.nav_from_config_bytes."""
+        ``nav``: (enabled, use_estimate, MekfParams, sigma0) of _core.nav_from_config_bytes;
+        ``trigger``: real time, "event" (a step on each state's arrival) or
+        "timer" (its own phase-locked deadlines); ``realtime_priority``,
+        ``cpu``: the stepping thread's scheduling (``setup_scheduler``)."""
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"--mode must be lockstep or realtime, got {mode!r}")
+        if trigger not in ("event", "timer"):
+            raise ValueError(f"--trigger must be event or timer, got {trigger!r}")
+        self.trigger, self.realtime_priority, self.cpu = trigger, realtime_priority, cpu
+        self.scheduler = "SCHED_OTHER"
         self.ctl = _core.Controller(config)
         self.ctl.prepare()  # the guidance's period table now, not in a step (docs/CORE.md, the time contract)
         self.config = config
@@ -76,6 +133,8 @@ class PyControllerProcess:
                        else None)
         self._nav_tel = None
         self.realtime = mode == "realtime"
+        # a step per state on its arrival: lockstep, and real time with the event trigger
+        self.on_arrival = not self.realtime or trigger == "event"
         self.mode, self.prefix, self.max_steps = mode, prefix, max_steps
         self.phase_offset_us = phase_offset_us
         self.period_ns = int(round(1e9 / config.control_rate_hz))
@@ -156,7 +215,7 @@ class PyControllerProcess:
             self.intake.use(msg.session, msg.t)  # its sensor samples up to msg.t feed the estimator
         self._state = (msg.seq, msg.t, m)
         self._fresh = True
-        if not self.realtime:
+        if self.on_arrival:  # lockstep, or real time event-triggered: at once
             self.step(now, now)
 
     # --- one step -------------------------------------------------------------
@@ -255,9 +314,11 @@ class PyControllerProcess:
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, self._on_signal)
         self.announce()
-        print(f"sc-rt controller: {self.mode} mode on {self.url}, law {self.ctl.law_name}, SCHED_OTHER",
+        self.scheduler = setup_scheduler(self.realtime_priority, self.cpu)
+        print(f"sc-rt controller: {self.mode} mode on {self.url}, law {self.ctl.law_name}, {self.scheduler}"
+              + (", event-triggered" if self.realtime and self.trigger == "event" else ""),
               file=sys.stderr, flush=True)
-        if not self.realtime:
+        if self.on_arrival:  # one step per state, on its arrival
             while not self.stop:
                 self._handle(100)
         else:
@@ -297,11 +358,11 @@ class PyControllerProcess:
         counts = self.ctl.counts
         return {"mode": self.mode, "control_rate_hz": 1e9 / self.period_ns, "law": self.ctl.law_name,
                 "steps": self.cnt["steps"], "deadline_misses": self.cnt["deadline_misses"],
-                "scheduler": "SCHED_OTHER", "wake_lateness_us": nearest_rank(self.lat),
+                "scheduler": self.scheduler, "wake_lateness_us": nearest_rank(self.lat),
                 "compute_us": nearest_rank(self.comp), "state_age_us": nearest_rank(self.age),
                 "received": g.received, "stale_states": self.cnt["stale_steps"],
                 "safe_steps": self.cnt["safe_steps"],
-                "trigger": "timer", "null_law": False,  # as sc-rt-controller's (no --trigger event here)
+                "trigger": self.trigger, "null_law": False,  # the trigger it was given, and ran
                 "law_failures": self.ctl.law_failures,
                 "time_jumps": {"ahead": counts.jumps_ahead, "back": counts.steps_back},
                 "auth": self.auth, "auth_failed": self.cnt["auth_failed"],

@@ -19,7 +19,7 @@ from sc_rt.logs.timing import RealtimeLimits, realtime_shortfall
 from sc_rt.results.judge.metrics import mark_invalid
 from sc_rt.results.record.run import Run
 
-__all__ = ["bench_timing", "death_line", "judge_real_time", "logger_summary"]
+__all__ = ["bench_timing", "death_line", "judge_real_time", "logger_summary", "run_trigger"]
 
 
 def logger_summary(err: str) -> dict[str, Any] | None:
@@ -70,22 +70,47 @@ def death_line(res: Run, died: str, ext: ExternalController | None) -> str:
     return f"{died} {when}{stop_t}; the run is invalid ({where})"
 
 
-def bench_timing(res: Run, summary: dict[str, Any], emu: Emulator, setup: TimingSetup) -> dict[str, Any]:
+def run_trigger(summary: dict[str, Any], setup: TimingSetup, told: bool) -> tuple[str | None, str | None]:
+    """(the trigger the controller ran, the one it was asked for when it ran
+    another): what its summary says; else the setup's when it was told it
+    (sc-rt-controller, a Python law's sc-rt controller), None (unknown) for
+    an --external process, which is never told. timing.json's ``trigger``
+    and ``timing_setup.trigger`` are both the first, so they never disagree."""
+    ran = summary.get("trigger")
+    if ran is None:
+        return (setup.trigger if told else None), None
+    return ran, (setup.trigger if told and ran != setup.trigger else None)
+
+
+def bench_timing(res: Run, summary: dict[str, Any], emu: Emulator, setup: TimingSetup,
+                 told: bool = True) -> dict[str, Any]:
     """How the run was scheduled and how fresh its commands were: the share
     of rows that applied the answer to the state of the period just ended
     (real time: the command in hand at the tick answers the previous tick's
     state; lockstep: every answered state), the share of controller steps
-    that had a new state, and where the emulator's microseconds went."""
+    that had a new state, and where the emulator's microseconds went. The
+    trigger is the one the controller ran (``run_trigger``; ``told``: the
+    controller was given the setup's); a controller that ran another than
+    it was told makes the run invalid (``trigger_asked`` says which)."""
     rows = len(res)
     if res.meta.mode == "realtime":
         fresh = emu.fresh_ticks / rows if rows else None
     else:
         fresh = 1.0 - res.counters.get("cmd_timeout", 0) / rows if rows else None
     steps = int(summary.get("steps", 0))
+    trigger, asked = run_trigger(summary, setup, told)
+    out: dict[str, Any] = {}
+    if asked is not None and res.meta.mode == "realtime":
+        why = f"the controller ran the {trigger} trigger, asked for {asked} (--trigger)"
+        mark_invalid(res, why)
+        print(f"sc-rt hil: {why}", file=sys.stderr)
+        out["trigger_asked"] = asked
     return {
-        "trigger": summary.get("trigger", setup.trigger),
+        "trigger": trigger,
+        **out,
         "null_law": bool(summary.get("null_law", setup.null_law)),
-        "timing_setup": dataclasses.asdict(setup),
+        # the setup as the run had it: its trigger is the one that ran (never another than `trigger`)
+        "timing_setup": {**dataclasses.asdict(setup), "trigger": trigger},
         "emulator_scheduler": emu.scheduler,
         "fresh_fraction": fresh,
         "controller_fresh_fraction": 1.0 - int(summary.get("stale_states", 0)) / steps if steps else None,

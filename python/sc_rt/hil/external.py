@@ -57,19 +57,25 @@ def expand(command: str, env: dict[str, str]) -> list[str]:
     return argv
 
 
-def python_controller_command(law: str, realtime_priority: bool = False) -> str:
-    """``sc-rt controller`` running the Python law ``law`` (module:Class)."""
+def python_controller_command(law: str, realtime_priority: bool = False, trigger: str = "event",
+                              cpu: int | None = None) -> str:
+    """``sc-rt controller`` running the Python law ``law`` (module:Class),
+    told what sc-rt-controller would be: the trigger, the real-time priority
+    and the CPU to pin to (it honours them; docs/HIL.md)."""
     cmd = ("{python} -m sc_rt.cli controller --law " + shlex.quote(law) + " --config {config} "
-           "--mode {mode} --lcm-url {url} --prefix {prefix} --summary {summary}")
-    return cmd + (" --realtime-priority" if realtime_priority else "")
+           "--mode {mode} --lcm-url {url} --prefix {prefix} --summary {summary} --trigger " + shlex.quote(trigger))
+    return (cmd + (" --realtime-priority" if realtime_priority else "")
+            + (f" --cpu {int(cpu)}" if cpu is not None else ""))
 
 
 class ExternalController:
     """The external controller of one bench run."""
 
     def __init__(self, command: str | None, wait: bool, start_timeout: float | None, *, url: str,
-                 prefix: str, mode: str, out: Path, config: Path):
+                 prefix: str, mode: str, out: Path, config: Path, trigger: str | None = None):
         self.wait = wait
+        #: the trigger the process was told (a Python law's sc-rt controller); None: not told (--external)
+        self.trigger = trigger
         self.out = Path(out)
         self.start_timeout = (start_timeout if start_timeout is not None else
                               DEFAULT_WAIT_TIMEOUT_S if wait else DEFAULT_START_TIMEOUT_S)

@@ -184,10 +184,11 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     python_law = law if is_python_law(law) else None
     if python_law is None and law is None and is_python_law(scn.run.controller):  # the scenario names one
         python_law = scn.run.controller
-    if python_law is not None:  # run by sc-rt controller, with the config of its own table
-        external, law = python_controller_command(python_law, realtime_priority), None
-    scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
     setup = setup or TimingSetup()
+    if python_law is not None:  # run by sc-rt controller, with the config of its own table, told as sc-rt-controller
+        external, law = python_controller_command(python_law, realtime_priority, setup.trigger,
+                                                  setup.controller_cpu), None
+    scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
     if isinstance(floor, str):  # the floor's own short run first, before this run's children
         floor = floor_for(scn, run=run_hil, mode=mode, control_rate_hz=None, realtime_priority=realtime_priority,
                           setup=setup, policy=floor)
@@ -205,7 +206,8 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     if log_path.exists():
         log_path.unlink()
     ext = ExternalController(external, external_wait, start_timeout, url=url, prefix=prefix, mode=mode,
-                             out=out, config=cfg_path) if external or external_wait else None
+                             out=out, config=cfg_path, trigger=setup.trigger if python_law else None
+                             ) if external or external_wait else None
     if ext is not None and auth_key is not None:
         ext.env["SCRT_AUTH_KEY"] = str(Path(auth_key).resolve())  # sc-rt controller reads it
     names = () if (external or external_wait) and python_law is None else _telemetry_names(scn, python_law)
@@ -274,8 +276,9 @@ def _start_record(b: _Bench) -> bytes:
     law = ({"name": "external", "spec": b.ext.command_line, "source": "external"} if b.ext is not None
            else law_identity(b.scn.run.controller))
     rec = {"scenario": b.scn.name, "mode": b.mode,
-           # an external controller (or a Python law's process) has its own trigger, not the setup's
-           "trigger": b.setup.trigger if b.mode == "realtime" and b.ext is None else None,
+           # the setup's trigger, which the controller was told (sc-rt-controller, a Python law's sc-rt
+           # controller); an --external process is not told: its own, unknown here
+           "trigger": b.setup.trigger if b.mode == "realtime" and (b.ext is None or b.ext.trigger) else None,
            "control_rate_hz": float(b.scn.run.control_rate_hz), "duration_s": float(b.scn.run.duration),
            "time_scale": b.time_scale, "law": law, "run_id": claimed_run_id(b.out), "sc_rt": __version__,
            "requirements": [dataclasses.asdict(r) for r in b.scn.requirements], "expect": b.scn.expect,
@@ -412,7 +415,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
                f"{logger_policy}; docs/HIL.md, 'A complete log')")
         mark_invalid(res, why)
         print(f"sc-rt hil: {why}", file=sys.stderr)
-    res.timing.update(bench_timing(res, summary, emu, setup))
+    res.timing.update(bench_timing(res, summary, emu, setup, told=ext is None or ext.trigger is not None))
     if floor:
         res.timing["floor"] = floor
         res.timing["over_floor"] = compare_to_floor(res.timing, floor)
