@@ -566,6 +566,18 @@ def test_missing_table_and_unreadable_file(write, tmp_path):
         load_scenario(tmp_path / "nope.toml")
 
 
+def test_a_scenario_error_pickles_whole(write):
+    """A pool worker's or a child's ScenarioError reaches the parent as it
+    was (it did not unpickle: a worker's broke the process pool)."""
+    import pickle
+
+    with pytest.raises(ScenarioError) as e:
+        load_scenario(write(edit(FAULTS.read_text(), "[initial]", "[initial_state]")))
+    back = pickle.loads(pickle.dumps(e.value))
+    assert type(back) is ScenarioError and str(back) == str(e.value)
+    assert (back.path, back.errors) == (e.value.path, e.value.errors)
+
+
 def test_capture_errors_are_located(write):
     capture = edit(CAPTURE, "mass = 100.0", "mass = -1.0")
     capture = edit(capture, "attitude = [0.0, 0.0, 0.414", "attitude = [0.0, 0.0, 3.0]  # 0.414")

@@ -89,6 +89,9 @@ class ScenarioError(ValueError):
         self.errors = sorted(errors, key=lambda e: e.line)
         super().__init__("\n".join(_format_issue(self.path, e) for e in self.errors))
 
+    def __reduce__(self):  # pickled whole (a pool worker's, a child's): path and errors, not the text
+        return type(self), (self.path, self.errors)
+
 
 def _format_issue(path: str, e: ScenarioIssue) -> str:
     where = f"{path}:{e.line}: " if e.line else f"{path}: "
