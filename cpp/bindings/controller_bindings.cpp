@@ -104,6 +104,10 @@ void bind_controllers(py::module_& m) {
   m.def("load_law_plugin", &load_law_plugin, arg("path_or_name"),
         "Load a law plugin library (a path, or a name searched in SCRT_LAW_PATH); returns its\n"
         "law name. LawError (a ValueError) names the plugin and the problem.");
+  m.def("plugin_file_problem", &plugin_file_problem, arg("path"),
+        "Why the file at path cannot be loaded as a plugin (\"\" when it can), read before dlopen:\n"
+        "a regular ELF shared library of this process's kind whose header tables and mapped\n"
+        "segments lie within the file (a truncated one would die of SIGBUS in dlopen).");
   m.def(
       "law_info",
       [](const std::string& spec) {

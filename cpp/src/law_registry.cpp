@@ -1,10 +1,16 @@
 #include "sc_rt/law_registry.hpp"
 
 #include <dlfcn.h>
+#include <elf.h>
+#include <fcntl.h>
 #include <limits.h>
+#include <link.h>
 #include <stdlib.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
+#include <cerrno>
+#include <cstdint>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -54,6 +60,15 @@ bool is_file(const std::string& p) {
   return ::stat(p.c_str(), &st) == 0 && S_ISREG(st.st_mode);
 }
 
+// Why a plugin path given by the user is no file to load: missing, a
+// symlink loop, a directory, a device or a FIFO.
+std::string not_a_file(const std::string& p) {
+  struct stat st;
+  if (::stat(p.c_str(), &st) != 0)
+    return errno == ELOOP ? "a symlink loop (too many levels of symbolic links): " + p : "no such file " + p;
+  return p + " is not a regular file";
+}
+
 std::string fail_prefix(const std::string& spec) { return std::string("law ") + kPluginPrefix + spec + ": "; }
 
 [[noreturn]] void fail(const std::string& spec, const std::string& detail) {
@@ -66,7 +81,7 @@ std::string locate(const std::string& spec) {
   const bool path = spec.find('/') != std::string::npos ||
                     (spec.size() > 3 && spec.compare(spec.size() - 3, 3, ".so") == 0);
   if (path) {
-    if (!is_file(spec)) fail(spec, "no such file " + spec);
+    if (!is_file(spec)) fail(spec, not_a_file(spec));
     return spec;
   }
   const char* env = std::getenv("SCRT_LAW_PATH");
@@ -85,7 +100,101 @@ std::string locate(const std::string& spec) {
                  (dirs.empty() ? std::string("unset") : dirs) + ")");
 }
 
+// Reads exactly n bytes at offset off (false: a short read or an error).
+bool read_at(int fd, void* buf, std::size_t n, std::uint64_t off) {
+  auto* p = static_cast<char*>(buf);
+  while (n > 0) {
+    const ssize_t got = ::pread(fd, p, n, static_cast<off_t>(off));
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0) return false;
+    p += got;
+    n -= static_cast<std::size_t>(got);
+    off += static_cast<std::uint64_t>(got);
+  }
+  return true;
+}
+
+// Whether the file range [off, off + len) lies within size bytes (overflow-safe).
+bool within(std::uint64_t off, std::uint64_t len, std::uint64_t size) { return off <= size && len <= size - off; }
+
+std::string range(std::uint64_t off, std::uint64_t len) {
+  return "bytes " + std::to_string(off) + ".." + std::to_string(off + len);
+}
+
 }  // namespace
+
+std::string plugin_file_problem(const std::string& path) {
+  using Ehdr = ElfW(Ehdr);
+  using Phdr = ElfW(Phdr);
+  using Shdr = ElfW(Shdr);
+  // O_NONBLOCK: opening a FIFO does not wait for a writer (it is refused below).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) return std::string("cannot open it: ") + std::strerror(errno);
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st;
+  if (::fstat(fd, &st) != 0) return std::string("cannot stat it: ") + std::strerror(errno);
+  if (!S_ISREG(st.st_mode)) return "not a regular file";
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  const std::string of_size = " ends beyond the file's " + std::to_string(size) + " bytes: the file is truncated or damaged";
+  Ehdr eh;
+  if (size < sizeof eh || !read_at(fd, &eh, sizeof eh, 0))
+    return "not a shared library: " + std::to_string(size) + " bytes, shorter than an ELF header";
+  if (std::memcmp(eh.e_ident, ELFMAG, SELFMAG) != 0) return "not a shared library (no ELF header)";
+  const unsigned char cls = sizeof(void*) == 8 ? ELFCLASS64 : ELFCLASS32;
+  if (eh.e_ident[EI_CLASS] != cls)
+    return std::string("an ELF file of the other word size (") +
+           (eh.e_ident[EI_CLASS] == ELFCLASS32 ? "32" : eh.e_ident[EI_CLASS] == ELFCLASS64 ? "64" : "unknown") +
+           "-bit), this process is " + std::to_string(8 * sizeof(void*)) + "-bit";
+#if __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  const unsigned char data = ELFDATA2LSB;
+#else
+  const unsigned char data = ELFDATA2MSB;
+#endif
+  if (eh.e_ident[EI_DATA] != data) return "an ELF file of the other byte order";
+  if (eh.e_type != ET_DYN) return "not a shared library (ELF type " + std::to_string(eh.e_type) + ")";
+  // The section header table (optional for the loader; a linker writes it at the end of the file).
+  std::uint64_t shnum = eh.e_shnum;
+  std::vector<Shdr> sh;
+  if (eh.e_shoff != 0) {
+    if (eh.e_shentsize != sizeof(Shdr)) return "a section header size of " + std::to_string(eh.e_shentsize) + " bytes";
+    Shdr first;
+    if (!within(eh.e_shoff, sizeof first, size) || !read_at(fd, &first, sizeof first, eh.e_shoff))
+      return "its section header table (from byte " + std::to_string(eh.e_shoff) + ")" + of_size;
+    if (shnum == 0) shnum = first.sh_size;  // more than SHN_LORESERVE sections: the count is there
+    if (shnum > size / sizeof(Shdr) || !within(eh.e_shoff, shnum * sizeof(Shdr), size))
+      return "its section header table (" + range(eh.e_shoff, shnum * sizeof(Shdr)) + ")" + of_size;
+    sh.resize(shnum);
+    if (!read_at(fd, sh.data(), shnum * sizeof(Shdr), eh.e_shoff)) return "cannot read its section headers";
+    for (std::uint64_t i = 0; i < shnum; ++i)
+      if (sh[i].sh_type != SHT_NOBITS && sh[i].sh_type != SHT_NULL && !within(sh[i].sh_offset, sh[i].sh_size, size))
+        return "its section " + std::to_string(i) + " (" + range(sh[i].sh_offset, sh[i].sh_size) + ")" + of_size;
+  }
+  // The program header table and every segment the loader maps.
+  std::uint64_t phnum = eh.e_phnum;
+  if (phnum == PN_XNUM && !sh.empty()) phnum = sh[0].sh_info;  // more than 65534 segments
+  if (phnum == 0) return "not a shared library (no program headers)";
+  if (eh.e_phentsize != sizeof(Phdr)) return "a program header size of " + std::to_string(eh.e_phentsize) + " bytes";
+  if (phnum > size / sizeof(Phdr) || !within(eh.e_phoff, phnum * sizeof(Phdr), size))
+    return "its program header table (" + range(eh.e_phoff, phnum * sizeof(Phdr)) + ")" + of_size;
+  std::vector<Phdr> ph(phnum);
+  if (!read_at(fd, ph.data(), phnum * sizeof(Phdr), eh.e_phoff)) return "cannot read its program headers";
+  bool load = false;
+  for (std::uint64_t i = 0; i < phnum; ++i) {
+    if (ph[i].p_type != PT_LOAD && ph[i].p_type != PT_DYNAMIC) continue;
+    load = load || ph[i].p_type == PT_LOAD;
+    const char* kind = ph[i].p_type == PT_LOAD ? "PT_LOAD" : "PT_DYNAMIC";
+    if (!within(ph[i].p_offset, ph[i].p_filesz, size))
+      return "its segment " + std::to_string(i) + " (" + kind + ", " + range(ph[i].p_offset, ph[i].p_filesz) + ")" +
+             of_size;
+    if (ph[i].p_type == PT_LOAD && ph[i].p_filesz > ph[i].p_memsz)
+      return "its segment " + std::to_string(i) + " (PT_LOAD) has more bytes in the file than in memory";
+  }
+  if (!load) return "not a shared library (no loadable segment)";
+  return "";
+}
 
 void register_law(const std::string& name, const std::string& doc, LawFactory create,
                   LawParams::Items defaults) {
@@ -144,6 +253,10 @@ std::string load_law_plugin(const std::string& spec) {
   char buf[PATH_MAX];
   const std::string real = ::realpath(file.c_str(), buf) ? std::string(buf) : file;
   if (auto it = r.loaded.find(real); it != r.loaded.end()) return it->second;
+  // A damaged file is refused here: dlopen maps it, and a segment that ends
+  // beyond a truncated file's end kills the process (SIGBUS) when touched.
+  if (const std::string problem = plugin_file_problem(real); !problem.empty())
+    fail(spec, "cannot load " + real + ": " + problem);
   // RTLD_NOW: an unresolved symbol is reported here, not mid-run.
   void* h = ::dlopen(real.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (!h) {

@@ -69,5 +69,12 @@ LawEntry resolve_law(const std::string& spec);
 // libNAME.so / NAME.so); returns its law name. Loading the same file again
 // returns the same name. Throws LawError naming the plugin and the problem.
 std::string load_law_plugin(const std::string& path_or_name);
+// Why the file at path cannot be a loadable plugin ("" when it can), read
+// before dlopen maps it: a regular file, an ELF shared library of this
+// process's word size and byte order, its program and section header tables
+// and every PT_LOAD/PT_DYNAMIC segment's file range within the file (a
+// truncated library mapped by dlopen dies of SIGBUS when a page past the
+// end is touched). Does not load or run anything.
+std::string plugin_file_problem(const std::string& path);
 
 }  // namespace sc_rt
