@@ -18,7 +18,9 @@
 from __future__ import annotations
 
 import csv
+import errno
 import functools
+import io
 import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -27,6 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.scenario.files import MAX_FILE_BYTES, FileProblem, read_bounded
 from sc_rt.scenario.schema import read_fields, read_only, spec, Spec, Table, vector_spec
 
 __all__ = [
@@ -260,7 +263,8 @@ def read_reference_file(path: str | Path) -> tuple[tuple[np.ndarray, ...] | None
     try:
         st = path.stat()
     except OSError as e:
-        return None, [f"cannot read the reference file: {e.strerror}"]
+        return None, [f"cannot read the reference file: {e.strerror}"
+                      + (" (a symlink loop)" if e.errno == errno.ELOOP else "")]
     return _read_cached(str(path.resolve()), st.st_mtime_ns, st.st_size)
 
 
@@ -282,8 +286,8 @@ def _read_cached(path: str, mtime_ns: int, size: int) -> tuple[Any, list[str]]:
 def _csv_columns(p: Path) -> tuple[dict[str, np.ndarray], list[str], list[str]]:
     """The columns by name, each row's place ("line N") and the problems."""
     try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
+        text = read_bounded(p).decode("utf-8")
+    except (FileProblem, UnicodeDecodeError) as e:
         return {}, [], [f"cannot read the reference file: {e}"]
     header, rows, where, problems = None, [], [], []
     for n, fields_ in enumerate(csv.reader(text.splitlines()), 1):
@@ -323,7 +327,15 @@ def _is_float(s: str) -> bool:
 
 def _npz_columns(p: Path) -> tuple[dict[str, np.ndarray], list[str], list[str]]:
     try:
-        with np.load(p, allow_pickle=False) as z:
+        raw = read_bounded(p)
+    except FileProblem as e:
+        return {}, [], [f"cannot read the reference file: {e}"]
+    try:
+        with np.load(io.BytesIO(raw), allow_pickle=False) as z:
+            unpacked = sum(i.file_size for i in z.zip.infolist())
+            if unpacked > MAX_FILE_BYTES:  # a small archive of large arrays: not unpacked
+                return {}, [], [f"its arrays unpack to {unpacked} bytes, more than the limit of "
+                                f"{MAX_FILE_BYTES} bytes"]
             arrays = {k: np.asarray(z[k]) for k in z.files}
     except Exception as e:  # noqa: BLE001  (zip, format and pickle errors alike)
         return {}, [], [f"cannot read the reference file as NPZ: {e}"]

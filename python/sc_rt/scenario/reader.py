@@ -21,6 +21,7 @@ from sc_rt.scenario.wheels import check_wheel_fault, read_wheels
 from sc_rt.model.combined import RigidBody, combine
 from sc_rt.model.plant import DisturbanceParams, PlantParams
 from sc_rt.scenario.dispersions import read_montecarlo
+from sc_rt.scenario.files import MAX_NESTING, FileProblem, deep_key, nesting_problem, read_bounded
 from sc_rt.scenario.schema import (
     Doc,
     ScenarioError,
@@ -472,9 +473,17 @@ def load_scenario(path: str | Path, sets: Any = ()) -> Scenario:
     """
     path = resolve(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise ScenarioError(path, [ScenarioIssue(0, "", None, f"cannot read the file: {e}")]) from e
+        raw = read_bounded(path)
+    except FileProblem as e:
+        raise ScenarioError(path, [ScenarioIssue(0, "", None, f"cannot read the file: {e}")]) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = raw.count(b"\n", 0, e.start) + 1
+        raise ScenarioError(path, [ScenarioIssue(line, "", None, f"cannot read the file: not UTF-8 text "
+                                                 f"(byte {e.start}: {e.reason})")]) from None
+    if deep := nesting_problem(text):
+        raise ScenarioError(path, [ScenarioIssue(deep[0], "", None, f"TOML too deep: {deep[1]}")])
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -484,12 +493,24 @@ def load_scenario(path: str | Path, sets: Any = ()) -> Scenario:
     sets = tuple(sets)
     _apply_sets(path, data, sets)
     doc = Doc(str(path), key_lines(text))
+    if (deep := deep_key(data)) is not None:
+        raise ScenarioError(path, [_too_deep(doc, deep)])
     scenario = _read_scenario(doc, data, path)
     if doc.errors:
         raise ScenarioError(path, doc.errors)
     if sets:
         scenario = dataclasses.replace(scenario, overrides=tuple((f"set {k}", v) for k, v in sets))
     return scenario
+
+
+def _too_deep(doc: Doc, path: list) -> ScenarioIssue:
+    """The problem of a value nested deeper than MAX_NESTING (dotted keys
+    count), at the first line of a key under its tables."""
+    tables = ".".join(str(k) for k in path[:next((i for i, k in enumerate(path) if isinstance(k, int)), len(path))])
+    line = min((n for k, n in doc.lines.items() if k == tables or k.startswith(tables + ".")),
+               default=doc.line_of(tables))
+    shown = "".join(f"[{k}]" if isinstance(k, int) else f".{k}" for k in path[:3]).lstrip(".")
+    return ScenarioIssue(line, "", None, f"TOML too deep: {shown}... nests more than {MAX_NESTING} levels deep")
 
 
 def with_run(scn: Scenario, **changes: Any) -> Scenario:

@@ -10,6 +10,7 @@ scenarios`` lists them (:func:`shipped`).
 
 from __future__ import annotations
 
+import os
 import tomllib
 from pathlib import Path
 
@@ -38,14 +39,14 @@ def shipped() -> dict[str, tuple[Path, str]]:
 def resolve(scenario: str | Path) -> Path:
     """The file of a scenario given as a path or as a shipped name.
 
-    An existing path, or anything with a folder or another suffix than
+    An existing path (a symlink too, even a broken one), or anything with a folder or another suffix than
     ``.toml``, is returned as given (reading it reports its own errors). A
     bare name (``paper_faults`` or ``paper_faults.toml``) that is no file here
     is the shipped scenario of that name; an unknown one raises ScenarioError
     listing the shipped names.
     """
     path = Path(scenario)
-    if path.exists() or len(path.parts) != 1 or path.suffix not in ("", ".toml"):
+    if os.path.lexists(path) or len(path.parts) != 1 or path.suffix not in ("", ".toml"):
         return path
     name = path.name.removesuffix(".toml")
     library = shipped()

@@ -69,8 +69,9 @@ def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | No
         scn = load_scenario(path, sets)
         if law is not None:
             scn = with_run(scn, controller=law)
-    except ScenarioError as e:
-        return [Finding("error", i.key, "" if i.value is None else str(i.value), i.message)
+    except ScenarioError as e:  # a problem of no key (the file itself): named by file[:line]
+        return [Finding("error", i.key or (f"{e.path}:{i.line}" if i.line else e.path),
+                        "" if i.value is None else str(i.value), i.message)
                 for i in e.errors] or [Finding("error", "", "", str(e))]
     # a [laws.NAME] table no law reads (a misspelling: the law would run its defaults)
     stray, notes = stray_tables(scn, () if law is None else (law,))
