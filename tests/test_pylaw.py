@@ -172,6 +172,78 @@ def test_named_telemetry_bad_commands_and_failures():
         assert f["step"] == 1 and what in f["last"]["what"], f
 
 
+# What a law's step returns, not reshaped or converted: each a contained failure
+# of the law, naming the shape or dtype (issue 40: these were accepted).
+_NOT_A_COMMAND = [
+    (np.zeros((2, 2)), "u_cmd of shape (2, 2), expected (4,)"),
+    (np.zeros((4, 1)), "u_cmd of shape (4, 1), expected (4,)"),
+    (np.zeros((1, 4)), "u_cmd of shape (1, 4), expected (4,)"),
+    ([[0.0, 0.0], [0.0, 0.0]], "u_cmd of shape (2, 2), expected (4,)"),
+    (0.0, "u_cmd of shape (), expected (4,)"),
+    (np.zeros(4, bool), "u_cmd of dtype bool, expected real numbers"),
+    ([True, False, True, False], "u_cmd of dtype bool, expected real numbers"),
+    (np.zeros(4, complex), "u_cmd of dtype complex128, expected real numbers"),
+    (np.array([0.0, 0.0, 0.0, 1j]), "u_cmd of dtype complex128, expected real numbers"),
+    ([0.0, 0.0, None, 0.0], "u_cmd of dtype object, expected real numbers"),
+    ("0000", "u_cmd of dtype <U4, expected real numbers"),
+    ([[0.0], [0.0, 0.0]], "u_cmd is not an array of numbers"),
+    ((np.zeros(4), {"z1": np.ones((3, 1))}), "telemetry 'z1' of shape (3, 1), expected (3,)"),
+    ((np.zeros(4), {"rho_hat": np.ones((1, 1))}), "telemetry 'rho_hat' of shape (1, 1), expected (1,) or a scalar"),
+    ((np.zeros(4), {"rho_hat": True}), "telemetry 'rho_hat' of dtype bool"),
+    ((np.zeros(4), {"vs": np.zeros(4, complex)}), "telemetry 'vs' of dtype complex128"),
+]
+
+
+@pytest.mark.parametrize("returned, what", _NOT_A_COMMAND, ids=[w for _, w in _NOT_A_COMMAND])
+def test_a_step_result_of_another_shape_or_dtype_is_a_law_failure(returned, what):
+    class Returns(_PD):
+        def step(self, inp):
+            return returned
+
+    x = np.zeros(10)
+    ctl = _controller(Returns)
+    ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
+    c = _step(ctl, 0.0, x)
+    assert c.mode == _core.MODE_SAFE and c.flags & _core.FLAG_LAW_INVALID and list(c.u_cmd) == [0.0] * 4
+    f = ctl.law_failures
+    assert f["step"] == 1 and what in f["last"]["what"], f
+
+
+@pytest.mark.parametrize("returned", [
+    [0, 0, 1, 0], (0.0, 0.0, 1.0, 0.0), np.array([0, 0, 1, 0], np.int32), np.array([0, 0, 1, 0], np.float32),
+    (np.array([0, 0, 1, 0], np.uint8), {"rho_hat": 2, "z1": [1, 2, 3]}),
+    (np.array([0.0, 0.0, 1.0, 0.0]), {"rho_hat": np.array([2.0]), "z1": np.arange(1.0, 4.0)}),
+], ids=["ints", "tuple", "int32", "float32", "uint8+telemetry", "float64+telemetry"])
+def test_real_numbers_of_the_right_shape_are_a_command(returned):
+    class Returns(_PD):
+        def step(self, inp):
+            return returned
+
+    x = np.zeros(10)
+    ctl = _controller(Returns)
+    ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
+    c = _step(ctl, 0.0, x)
+    assert c.mode != _core.MODE_SAFE and ctl.law_failures["step"] == 0, ctl.law_failures
+    assert list(c.u_cmd) == [0.0, 0.0, 1.0, 0.0]
+    if isinstance(returned, tuple) and len(returned) == 2:
+        assert c.rho_hat == 2.0 and list(c.z1) == [1.0, 2.0, 3.0]
+
+
+class ColumnCommand(_PD):
+    """A law whose command is a (4, 1) column from t = 0.5 s (its probe at rest passes)."""
+
+    def step(self, inp):
+        return np.zeros((4, 1)) if inp.t >= 0.5 else np.zeros(4)
+
+
+def test_a_run_of_a_law_returning_a_column_counts_its_failures_and_is_invalid():
+    run = simulate(load_scenario("paper_fault_free"), law=ColumnCommand, duration=1.0)
+    f = run.metrics["law_failures"]
+    assert f["step"] == int(np.sum(run["t"] >= 0.5)) > 0, f
+    assert "u_cmd of shape (4, 1), expected (4,)" in f["last"]["what"], f
+    assert run.metrics["valid"] is False
+
+
 def test_telemetry_names_and_parameters_are_checked_at_setup():
     class TooMany(_PD):
         telemetry_names = [f"v{i}" for i in range(_core.LAW_MAX_TELEMETRY + 1)]

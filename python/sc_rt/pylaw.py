@@ -24,7 +24,10 @@ in ``sc-rt controller``. A law is a class:
   (anti-windup), ``name`` (default: the class name; labels the run and names
   its table).
 
-A wrong-shaped command or telemetry, an undeclared telemetry name, an
+A command that is not real numbers of shape exactly (4,) (a list or array of
+ints or floats; (2, 2), (4, 1), (1, 4), bool, complex or objects are not
+reshaped or converted), a telemetry value not of its slot's shape (a named
+value or rho_hat: a scalar or (1,)), an undeclared telemetry name, an
 exception or a non-finite command is a failure of the law, contained by the
 controller as SAFE + FLAG_LAW_INVALID and counted in ``law_failures``.
 
@@ -234,6 +237,22 @@ def _names(law: Any) -> list[str]:
     return names
 
 
+def _real(value: Any, what: str, shape: tuple[int]) -> np.ndarray:
+    """``value`` as float64 if it is real numbers (integer or floating, not
+    bool, complex or objects) of exactly ``shape`` (a one-wide slot: a
+    scalar too); ValueError naming its shape and dtype otherwise (no
+    reshaping: (2, 2) or (4, 1) is not a command of 4 wheels)."""
+    try:
+        a = np.asarray(value)
+    except Exception as e:  # a ragged sequence, a failing __array__
+        raise ValueError(f"{what} is not an array of numbers ({type(e).__name__}: {e})") from None
+    if a.dtype.kind not in "iuf":
+        raise ValueError(f"{what} of dtype {a.dtype}, expected real numbers (integer or floating)")
+    if a.shape != shape and not (shape == (1,) and a.shape == ()):
+        raise ValueError(f"{what} of shape {a.shape}, expected {shape}" + (" or a scalar" if shape == (1,) else ""))
+    return a.astype(float).reshape(shape)
+
+
 class _Adapter:
     """The law as the trampoline calls it: the law's results checked and
     packed into one row (u_cmd, the fixed slots, the named values), its
@@ -261,25 +280,19 @@ class _Adapter:
             raise RuntimeError(f"{type(e).__name__}: {e}") from None
         u_cmd, tel = res if isinstance(res, tuple) and len(res) == 2 else (res, None)
         out = np.zeros(_core.PYTHON_LAW_OUT_SIZE)
-        u = np.asarray(u_cmd, dtype=float).reshape(-1)
-        if u.shape != (4,):
-            raise ValueError(f"u_cmd of shape {u.shape}, expected (4,)")
-        out[0:4] = u
+        out[0:4] = _real(u_cmd, "u_cmd", (4,))
         if tel is None:
             return out
         if not isinstance(tel, dict):
             raise ValueError(f"telemetry of type {type(tel).__name__}, expected a dict")
         for k, v in tel.items():
-            a = np.asarray(v, dtype=float).reshape(-1)
             if k in TELEMETRY:
                 o, w = TELEMETRY[k]
             elif k in self._index:
                 o, w = self._index[k], 1
             else:
                 raise ValueError(f"telemetry {k!r} is not declared (telemetry_names: {self.names})")
-            if a.shape != (w,):
-                raise ValueError(f"telemetry {k!r} of shape {a.shape}, expected ({w},)")
-            out[o:o + w] = a
+            out[o:o + w] = _real(v, f"telemetry {k!r}", (w,))
         return out
 
     def _after(self, u_cmd, u_sat) -> None:
