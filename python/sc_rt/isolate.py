@@ -3,18 +3,50 @@
 
 ``call_in_child(fn, *args)`` returns ``fn(*args)`` computed in a child; an
 exception there comes back as itself; a child that dies (a signal such as
-SIGSEGV, an abort, an exit) raises ``ChildDied`` naming how. Depends on
-nothing else of sc_rt (the bottom layer).
+SIGSEGV, an abort, an exit) raises ``ChildDied`` naming how; with
+``timeout=`` a child that has not answered in time is killed (SIGKILL) and
+``ChildTimedOut`` (a ChildDied) is raised. A law's probe (constructed and
+stepped once at rest, sc_rt.scenario.reader.check_law) gets
+:func:`probe_timeout` seconds. Depends on nothing else of sc_rt (the bottom
+layer).
 """
 
 from __future__ import annotations
 
+import math
 import os
 import pickle
+import select
 import signal
+import time
 from typing import Any, Callable
 
-__all__ = ["ChildDied", "call_in_child", "exit_how"]
+__all__ = ["ChildDied", "ChildTimedOut", "PROBE_TIMEOUT_ENV", "PROBE_TIMEOUT_S", "call_in_child", "exit_how",
+           "probe_timeout"]
+
+#: How long a law may take to be constructed and stepped once at rest in its
+#: probe [s] (docs/LAWS.md): generous for a law that designs its gains or
+#: compiles itself, short enough that a law that never returns does not hang
+#: ``sc-rt check`` or the loading of a scenario.
+PROBE_TIMEOUT_S = 30.0
+#: The environment variable that sets another probe timeout [s].
+PROBE_TIMEOUT_ENV = "SCRT_PROBE_TIMEOUT"
+
+
+def probe_timeout() -> float:
+    """The probe timeout [s]: $SCRT_PROBE_TIMEOUT when set, else
+    PROBE_TIMEOUT_S. ValueError (naming the variable and its value) unless
+    it is a finite number > 0."""
+    raw = os.environ.get(PROBE_TIMEOUT_ENV)
+    if raw is None or raw == "":
+        return PROBE_TIMEOUT_S
+    try:
+        value = float(raw)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{PROBE_TIMEOUT_ENV}={raw}: must be a number of seconds > 0")
+    return value
 
 
 class ChildDied(RuntimeError):
@@ -23,6 +55,14 @@ class ChildDied(RuntimeError):
     def __init__(self, how: str):
         super().__init__(how)
         self.how = how
+
+
+class ChildTimedOut(ChildDied):
+    """The child had not answered within ``timeout`` seconds and was killed."""
+
+    def __init__(self, timeout: float):
+        super().__init__(f"no answer within {timeout:g} s: killed")
+        self.timeout = timeout
 
 
 def exit_how(code: int | None) -> str:
@@ -51,11 +91,14 @@ def _answer(fd: int, fn, args, kwargs) -> None:
         view = view[os.write(fd, view):]
 
 
-def call_in_child(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+def call_in_child(fn: Callable[..., Any], *args: Any, timeout: float | None = None, **kwargs: Any) -> Any:
     """``fn(*args, **kwargs)`` in a forked child: its result, its exception,
     or ChildDied. A plain fork (os.fork), so that it works in any process,
     a pool's daemonic worker included; the child never returns into the
-    caller's code (os._exit)."""
+    caller's code (os._exit). ``timeout`` [s] (not passed to ``fn``; None:
+    none): a child that has not answered by then is killed and
+    ChildTimedOut raised. A child left behind by an exception here (an
+    interrupt while waiting) is killed too, never waited for unbounded."""
     r, w = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child
@@ -68,15 +111,28 @@ def call_in_child(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
         finally:
             os._exit(code)
     os.close(w)
-    chunks = []
+    deadline = None if timeout is None else time.monotonic() + timeout
+    chunks, answered = [], False
     try:
         while True:
+            if deadline is not None:
+                left = deadline - time.monotonic()
+                if left <= 0 or not select.select([r], [], [], left)[0]:
+                    if time.monotonic() >= deadline:
+                        raise ChildTimedOut(timeout)
+                    continue
             b = os.read(r, 1 << 20)
             if not b:
                 break
             chunks.append(b)
+        answered = True
     finally:
         os.close(r)
+        if not answered:  # timed out or interrupted: the child goes, now
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
         _, status = os.waitpid(pid, 0)
     data = b"".join(chunks)
     if not data:

@@ -255,11 +255,11 @@ def _telemetry_names(scn: Scenario, python_law: str | None) -> tuple[str, ...]:
     constructed once with the run's configuration in a child of its own (a
     plugin's native code). () when it cannot be constructed (the controller
     then refuses the configuration itself)."""
-    from sc_rt.isolate import ChildDied, call_in_child
+    from sc_rt.isolate import ChildDied, call_in_child, probe_timeout
 
     cfg = scn.core_config(law=python_law)
     try:
-        return tuple(call_in_child(lambda: list(_core.Controller(cfg).telemetry_names)))
+        return tuple(call_in_child(lambda: list(_core.Controller(cfg).telemetry_names), timeout=probe_timeout()))
     except (ChildDied, ValueError, RuntimeError):
         return ()
 

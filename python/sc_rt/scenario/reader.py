@@ -14,7 +14,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.pylaw import is_python_law, load_law
-from sc_rt.isolate import ChildDied, call_in_child
+from sc_rt.isolate import PROBE_TIMEOUT_ENV, ChildDied, ChildTimedOut, call_in_child, probe_timeout
 from sc_rt._core import mrp_to_dcm
 from sc_rt.model.actuators import ActuatorParams, WheelFault
 from sc_rt.scenario.wheels import check_wheel_fault, read_wheels
@@ -53,7 +53,8 @@ _FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
 
 def check_law(doc: Doc, scn: Scenario, law_key: str, where: dict | None = None) -> None:
     """Load and construct the scenario's law once (a plugin, or any law given
-    a table), probe one step at rest: its problems as scenario errors on
+    a table), probe one step at rest (in a child process, killed after
+    sc_rt.isolate.probe_timeout() seconds): its problems as scenario errors on
     ``law_key`` or on the parameter's own key (``where``: (law, key) -> the
     dotted key it came from; default ``laws.<law>.<key>``). A built-in law on
     torque-commanded wheels that take a torque (they command wheel
@@ -82,9 +83,17 @@ def check_law(doc: Doc, scn: Scenario, law_key: str, where: dict | None = None) 
         return
     table = scn.controller.table(name)
     try:
+        timeout = probe_timeout()
+    except ValueError as e:
+        doc.error(law_key, run_law, f"the law's probe: {e}")
+        return
+    try:
         cfg = scn.core_config(law=run_law)
-        try:  # native code: a crash in the probe is a refusal
-            issues = call_in_child(_core.check_law, cfg)
+        try:  # native code: a crash in the probe is a refusal, and so is a law that does not return
+            issues = call_in_child(_core.check_law, cfg, timeout=timeout)
+        except ChildTimedOut:
+            issues = [("law", f"law {run_law}: did not return within {timeout:g} s when constructed and "
+                              f"probed at rest at t = 0 (killed; {PROBE_TIMEOUT_ENV} sets the limit)")]
         except ChildDied as e:
             issues = [("law", f"law {run_law}: crashed the process when probed at rest at t = 0 ({e.how})")]
     except ValueError as e:  # the config itself (LCM translation)
