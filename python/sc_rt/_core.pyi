@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -257,6 +257,46 @@ class GuidanceParams:
     @table_t.setter
     def table_t(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 1]"]) -> None:
         ...
+class GuidancePeriodTable:
+    """
+    How the paper's reference is evaluated far from its time line
+    """
+    @property
+    def anchors(self) -> int:
+        """
+        anchors after t = 0 (periodic)
+        """
+    @property
+    def h(self) -> float:
+        """
+        [s] the table's RK4 step (periodic)
+        """
+    @property
+    def kind(self) -> str:
+        """
+        closed_form (hold, slew, table), constant (the paper's kind with a constant rate: closed form)
+        or periodic (the paper's kind: a table over one period)
+        """
+    @property
+    def n_steps(self) -> int:
+        """
+        RK4 steps over one period (periodic)
+        """
+    @property
+    def omega(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [rad/s] the constant rate (constant)
+        """
+    @property
+    def period(self) -> float:
+        """
+        [s] 2 pi / |freq| (periodic)
+        """
+    @property
+    def stride(self) -> int:
+        """
+        RK4 steps between anchors (periodic)
+        """
 class Guidance:
     """
     Desired attitude on the controller's time line.
@@ -264,16 +304,39 @@ class Guidance:
     def __init__(self, p: GuidanceParams, max_step: typing.SupportsFloat | typing.SupportsIndex = 0.1) -> None:
         ...
     def advance(self, t: typing.SupportsFloat | typing.SupportsIndex) -> None:
-        ...
+        """
+        Along the time line (at most GUIDANCE_MAX_CATCH_UP RK4 steps), else seek(t).
+        """
+    def prepare(self) -> None:
+        """
+        Build the period table now (else at the first seek).
+        """
     def reset(self, t0: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
+    def seek(self, t: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        """
+        sigma_DN(t) from the definition at any t (bounded work).
+        """
     @property
     def params(self) -> GuidanceParams:
         ...
     @property
+    def period_table(self) -> GuidancePeriodTable:
+        ...
+    @property
+    def prepared(self) -> bool:
+        """
+        the period table is built
+        """
+    @property
     def rk4_steps(self) -> int:
         """
-        RK4 steps taken since construction
+        RK4 steps taken since construction (the period table's included)
+        """
+    @property
+    def seeks(self) -> int:
+        """
+        evaluations from the definition (seek) so far
         """
     @property
     def sigma_DN(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
@@ -590,12 +653,65 @@ class TrackingErrors:
     @property
     def u_g0(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
+class ControllerCounts:
+    """
+    A controller's steps, law calls and refused time jumps since construction.
+    """
+    @property
+    def engagements(self) -> int:
+        """
+        (re-)engagements of the law
+        """
+    @property
+    def jumps_ahead(self) -> int:
+        """
+        states stamped more than MAX_DT_PERIODS periods ahead (SAFE, FLAG_TIME_JUMP)
+        """
+    @property
+    def law_afters(self) -> int:
+        """
+        calls of the law's after
+        """
+    @property
+    def law_calls(self) -> int:
+        """
+        resets + steps + afters
+        """
+    @property
+    def law_resets(self) -> int:
+        """
+        calls of the law's reset
+        """
+    @property
+    def law_steps(self) -> int:
+        """
+        calls of the law's step
+        """
+    @property
+    def steps(self) -> int:
+        """
+        step() calls
+        """
+    @property
+    def steps_back(self) -> int:
+        """
+        states stamped before the previous step (SAFE, FLAG_TIME_JUMP)
+        """
+    @property
+    def time_jumps(self) -> int:
+        """
+        jumps_ahead + steps_back
+        """
 class Controller:
     """
     One control law behind reset/step.
     """
     def __init__(self, c: ControllerConfig) -> None:
         ...
+    def prepare(self) -> None:
+        """
+        Build the guidance's period table now (else at the first evaluation far from its time line).
+        """
     def reset(self, m: Measurement) -> None:
         ...
     def safe_command(self, t: typing.SupportsFloat | typing.SupportsIndex, flags: typing.SupportsInt | typing.SupportsIndex) -> Command:
@@ -605,6 +721,11 @@ class Controller:
     @property
     def config(self) -> ControllerConfig:
         ...
+    @property
+    def counts(self) -> ControllerCounts:
+        """
+        steps, law calls and time jumps so far (a copy)
+        """
     @property
     def guidance(self) -> Guidance:
         ...
@@ -622,6 +743,11 @@ class Controller:
     def law_name(self) -> str:
         """
         the law's registry name
+        """
+    @property
+    def max_dt(self) -> float:
+        """
+        [s] the most dt a law is handed: MAX_DT_PERIODS periods
         """
     @property
     def model(self) -> SpacecraftModel:
@@ -1626,6 +1752,8 @@ class GateVerdict:
     
       OutOfOrder
     
+      SeqJump
+    
       ForeignSession
     
       InvalidCandidate
@@ -1641,6 +1769,7 @@ class GateVerdict:
     InvalidCandidate: typing.ClassVar[GateVerdict]
     Malformed: typing.ClassVar[GateVerdict]
     OutOfOrder: typing.ClassVar[GateVerdict]
+    SeqJump: typing.ClassVar[GateVerdict]
     TrailingBytes: typing.ClassVar[GateVerdict]
     __members__: typing.ClassVar[dict[str, GateVerdict]]
     @typing.overload
@@ -1703,6 +1832,9 @@ class GateCounts:
         ...
     @property
     def rejected(self) -> int:
+        ...
+    @property
+    def seq_jump(self) -> int:
         ...
     @property
     def sessions_adopted(self) -> int:
@@ -1877,6 +2009,8 @@ def guidance_integrated(p: GuidanceParams) -> bool:
     True for the paper's kind (sigma_DN integrated), False for the closed forms.
     """
 def guidance_kind_name(kind: GuidanceKind) -> str:
+    ...
+def guidance_period_table(p: GuidanceParams) -> GuidancePeriodTable:
     ...
 def guidance_rk4_step(p: GuidanceParams, sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], t: typing.SupportsFloat | typing.SupportsIndex, h: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
@@ -2132,13 +2266,17 @@ FLAG_LAW_INVALID: int = 1024
 FLAG_NAV_DEGRADED: int = 2048
 FLAG_SAT_1: int = 8
 FLAG_STALE_STATE: int = 256
+FLAG_TIME_JUMP: int = 4096
 FLAG_TIME_NOT_ADVANCING: int = 512
+GUIDANCE_MAX_CATCH_UP: int = 64
+GUIDANCE_PERIOD_STEPS_MAX: int = 1048576
 GUIDANCE_TABLE_MAX: int = 2000
 GYRO_MEAN_RATE: int = 1
 GYRO_RATE: int = 0
-LAW_API_VERSION: int = 2
-LAW_FINGERPRINT: str = 'api-2 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
+LAW_API_VERSION: int = 3
+LAW_FINGERPRINT: str = 'api-3 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
 LAW_MAX_TELEMETRY: int = 8
+MAX_DT_PERIODS: float = 10.0
 MODE_INIT: int = 0
 MODE_NORMAL: int = 1
 MODE_SAFE: int = 2
