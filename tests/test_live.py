@@ -388,7 +388,7 @@ def test_ros2_twins_carry_the_same_values_in_cdr(server):
         assert (ch["encoding"], ch["schemaEncoding"]) == ("cdr", "ros2msg")
         assert ch["schema"].splitlines() == ["int64 utime", "int64 seq", "int64 session", "float64 t",
                                              "float64[3] sigma_BN", "float64[3] omega_BN_B", "float64[4] wheel_speed"]
-        assert "MSG: sc_rt_live/Sigma_BD_arcsec" in c.channels["/ros2/derived/pointing"]["schema"]
+        assert "MSG: sc_rt_live/True_sigma_BD_arcsec" in c.channels["/ros2/derived/pointing"]["schema"]
         server.lc.publish("SCRT_CONFIG", sc_rt_lcm.controller_config_t().encode())
         assert server.wait_received(1, 10)
         c.subscribe(["/ros2/SCRT_STATE"])

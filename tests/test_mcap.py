@@ -206,21 +206,36 @@ def test_pointing_error_and_bound_in_arcsec(run_dir, exported):
     chi0, chiinf, gamma, dmin, dmax = (np.asarray(getattr(ppc, k), float)
                                        for k in ("chi0", "chiinf", "gamma", "dmin", "dmax"))
     _s, _o, msgs = exported
-    status = [sc_rt_lcm.controller_status_t.decode(e[3]) for e in log_events(run_dir / "run.lcmlog")
-              if e[2] == "SCRT_CTRL_STATUS"]
+    events = log_events(run_dir / "run.lcmlog")
+    status = [sc_rt_lcm.controller_status_t.decode(e[3]) for e in events if e[2] == "SCRT_CTRL_STATUS"]
+    states = {}  # seq -> the plant's attitude (the copies of the first state: the same)
+    for e in events:
+        if e[2] == "SCRT_STATE":
+            st = sc_rt_lcm.plant_state_t.decode(e[3])
+            states[st.seq] = (st.t, np.asarray(st.sigma_BN))
     pts = [json.loads(m[6]) for m in msgs if m[0] == "/derived/pointing"]
     assert len(pts) == len(status) == 301
     first_bad = None
     for p, st in zip(pts, status):
         s = np.asarray(st.sigma_BD)
         assert p["t"] == st.t and p["mode"] == st.mode
-        assert math.isclose(p["pointing_error_arcsec"], math.degrees(4 * math.atan(np.linalg.norm(s))) * 3600,
+        # the law's error: the status's sigma_BD
+        assert math.isclose(p["law_error_arcsec"], math.degrees(4 * math.atan(np.linalg.norm(s))) * 3600,
                             rel_tol=1e-12)
+        assert np.allclose([p["law_sigma_BD_arcsec"][k] for k in "xyz"], 4 * np.arctan(s) * ARCSEC)
+        # the true error: the state it answers against the reference; without sensors the law was fed
+        # the truth, so the two agree (to rounding); no estimator, no knowledge error
+        t_state, s_bn = states[st.state_seq]
+        assert t_state == st.t
+        q = _rotation(s_bn, np.asarray(st.sigma_DN))
+        assert math.isclose(p["true_error_arcsec"], math.degrees(q) * 3600, rel_tol=1e-9, abs_tol=1e-9)
+        assert np.allclose([p["true_sigma_BD_arcsec"][k] for k in "xyz"], 4 * np.arctan(s) * ARCSEC,
+                           rtol=1e-9, atol=1e-9)
+        assert "knowledge_error_arcsec" not in p
         chi = (chi0 - chiinf) * np.exp(-gamma * st.t) + chiinf  # (29), independently of _core.ppc_chi
         assert np.allclose([p["chi"][k] for k in "xyz"], chi, rtol=1e-12, atol=0)
         assert np.allclose([p["bound_upper_arcsec"][k] for k in "xyz"], 4 * np.arctan(dmax * chi) * ARCSEC)
         assert np.allclose([p["bound_lower_arcsec"][k] for k in "xyz"], -4 * np.arctan(dmin * chi) * ARCSEC)
-        assert np.allclose([p["sigma_BD_arcsec"][k] for k in "xyz"], 4 * np.arctan(s) * ARCSEC)
         if not p["bound_ok"] and first_bad is None:
             first_bad = p["t"]
     # the same first violation as the run's own metrics (bound from its scenario)
@@ -232,6 +247,17 @@ def test_pointing_error_and_bound_in_arcsec(run_dir, exported):
     for w, st in zip(wheels, states):
         assert [w["speed_rad_s"][f"w{i}"] for i in range(1, 5)] == list(st.wheel_speed)
         assert np.allclose([w["speed_rpm"][f"w{i}"] for i in range(1, 5)], np.asarray(st.wheel_speed) * 30 / math.pi)
+
+
+def _rotation(sigma_BN, sigma_DN) -> float:
+    """The angle [rad] of the rotation from D to B, from their DCMs (numpy, not the exporter's MRP algebra)."""
+    def dcm(s):
+        s = np.asarray(s, float)
+        x = np.array([[0, -s[2], s[1]], [s[2], 0, -s[0]], [-s[1], s[0], 0]])
+        n2 = s @ s
+        return np.eye(3) + (8 * x @ x - 4 * (1 - n2) * x) / (1 + n2) ** 2
+    c = dcm(sigma_BN) @ dcm(sigma_DN).T
+    return math.atan2(np.linalg.norm([c[2, 1] - c[1, 2], c[0, 2] - c[2, 0], c[1, 0] - c[0, 1]]), np.trace(c) - 1)
 
 
 def _validate(schema: dict, body) -> None:
@@ -570,4 +596,5 @@ def test_without_guidance_the_desired_frame_comes_from_the_status(tmp_path):
         assert min(np.abs(q[k] - ref).max(), np.abs(q[k] + ref).max()) < 1e-12
     pts = [json.loads(m[6]) for m in msgs if m[0] == "/derived/B2/pointing"]
     assert len(pts) == 4 and "chi" not in pts[0] and "bound_ok" not in pts[0]
-    assert math.isclose(pts[0]["pointing_error_arcsec"], 4 * math.atan(math.hypot(1e-3, 2e-3)) * ARCSEC)
+    assert math.isclose(pts[0]["law_error_arcsec"], 4 * math.atan(math.hypot(1e-3, 2e-3)) * ARCSEC)
+    assert "true_error_arcsec" not in pts[0]  # no plant state in the log: no truth

@@ -17,9 +17,12 @@ an MCAP file for Foxglove and PlotJuggler.
 - Derived channels (``mcap_derived``): ``/tf`` (``foxglove.FrameTransform``:
   frames B and D relative to N, from ``plant_state_t.sigma_BN`` and
   ``guidance_t.sigma_DN``, or ``controller_status_t.sigma_DN`` in a log
-  without guidance), ``/derived/pointing`` (pointing error
-  4 atan|sigma_BD| and the PPC bound chi(t) of the logged
-  ``controller_config_t``, in arcsec) and ``/derived/wheels`` (wheel speeds).
+  without guidance), ``/derived/pointing`` (pointing errors
+  4 atan|sigma_BD|, named: the true error from ``plant_state_t.sigma_BN``
+  of the status's state against its ``sigma_DN``, the law's from the
+  status, the knowledge error against its estimate; and the PPC bound
+  chi(t) of the logged ``controller_config_t``, in arcsec) and
+  ``/derived/wheels`` (wheel speeds).
 
 The file is written under a temporary name next to OUT and renamed at the
 end: OUT is either complete or untouched.
@@ -39,7 +42,7 @@ from sc_rt.wire.lcmdefs import load_definitions
 from sc_rt.wire.lcmjson import dumps
 from sc_rt.export.channels import (MAX_UTIME, RAW_SCHEMA, JsonRows, channel_metadata, channel_schema, named_type,
                                    raw_row, typed_by_content)
-from sc_rt.export.mcap_derived import Deriver
+from sc_rt.export.mcap_derived import Deriver, derive_order
 from sc_rt.logs.lcmlog import LogDamaged, LogScan, read_events
 from sc_rt.wire.startrec import start_record
 
@@ -164,9 +167,9 @@ class _Exporter:
         groups: dict[bytes, list[int]] = defaultdict(list)
         for i, e in enumerate(events):
             groups[e[2]].append(i)
-        # configs first: the bound of the statuses of this batch needs it
-        # configs first (the bound of this batch's statuses), then guidance (frame D)
-        order = sorted(groups, key=lambda ch: (not ch.endswith(b"SCRT_CONFIG"), not ch.endswith(b"SCRT_GUIDANCE")))
+        # configs first (the bound of this batch's statuses), then guidance (frame D), then the states
+        # (the statuses' truth): mcap_derived.derive_order
+        order = sorted(groups, key=derive_order)
         for ch in order:
             idx = groups[ch]
             c = self._chan(ch, events[idx[0]][3])

@@ -11,7 +11,11 @@ name. All of it through ``sc_rt.export.channels`` and
 
 Work is done only for what a client listens to: a message whose channel and
 derived channels have no subscriber is counted and dropped undecoded
-(``idle``); one beyond its channel's rate (``ratelimit``) likewise. The
+(``idle``); one beyond its channel's rate (``ratelimit``) likewise. But
+while a bench's ``/derived/pointing`` is listened to, every one of its
+plant states gives its true attitude to the pointing (decoded for that
+alone when it is not sent: the true error of each status sent, whichever
+states the cap keeps). The
 configuration and the controller's identity, sent once at a run's start,
 are kept and sent again to a client that subscribes later (``LATCHED``).
 """
@@ -22,13 +26,14 @@ from collections import Counter
 from typing import Any
 
 import foxglove
+import sc_rt_lcm
 
 from sc_rt.export.channels import (RAW_SCHEMA, JsonRows, channel_metadata, channel_schema, named_type, raw_row,
                                    typed_by_content)
-from sc_rt.export.mcap_derived import Deriver, derived_topics
+from sc_rt.export.mcap_derived import Deriver, derive_order, derived_topics, pointing_topic
 from sc_rt.live.ratelimit import DEFAULT_RATE_HZ, PERIODIC, MessageClock, RateLimiter
 from sc_rt.live.ros2 import Ros2Type, twin_topic
-from sc_rt.wire.codec import TYPES
+from sc_rt.wire.codec import TYPES, decode_array
 from sc_rt.wire.lcmdefs import load_definitions
 from sc_rt.wire.lcmio import CHANNELS
 from sc_rt.wire.lcmjson import dumps
@@ -176,6 +181,7 @@ class Bridge:
         arrival order: each channel's kept messages decoded at once (the
         configurations first, then guidance: frame D; as the export does)."""
         kept: dict[str, list[tuple[bytes, int]]] = {}
+        truth: dict[str, list[bytes]] = {}  # prefix -> its states not sent, for the pointing's truth
         for name, data, log_ns in events:
             self.stats["received"] += 1
             inp = self.inputs.get(name)
@@ -194,8 +200,20 @@ class Bridge:
                 self.stats["ratelimit"] += 1
             else:
                 kept.setdefault(name, []).append((data, log_ns))
-        for name in sorted(kept, key=lambda n: (not n.endswith("SCRT_CONFIG"), not n.endswith("SCRT_GUIDANCE"))):
+                continue
+            if cls is not None and cls.__name__ == "plant_state_t" and self._pointing_listened(inp.prefix):
+                truth.setdefault(inp.prefix, []).append(data)
+        for prefix, datas in truth.items():  # states not sent: their truth only (a kept one gives it in _emit)
+            self.deriver.states(prefix, decode_array(sc_rt_lcm.plant_state_t, datas)[0])
+        for name in sorted(kept, key=derive_order):  # configurations, guidance, states (the truth), the rest
             self._emit(self.inputs[name], kept[name])
+
+    def _pointing_listened(self, prefix: str | None) -> bool:
+        """Whether a client listens to the pointing of the bench of ``prefix``."""
+        if prefix is None:
+            return False
+        ch = self.topics.get(pointing_topic(prefix))
+        return ch is not None and self.listened(ch)
 
     def replay(self, channel_ids: set[int]) -> None:
         """The last message of each latched channel among ``channel_ids``, again (a client just subscribed)."""

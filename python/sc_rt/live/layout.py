@@ -3,8 +3,10 @@ next to this file): one run of a bench without a channel prefix, live
 (``sc-rt live``, ``sc-rt hil --live``) or recorded (``sc-rt export``,
 ``--mcap``), on the same topics.
 
-Tab "Attitude": the attitude error per axis against its prescribed bound
-(``/derived/pointing``), the pointing error, the controller mode
+Tab "Attitude": the true attitude error per axis (the truth against the
+reference) against its prescribed bound (``/derived/pointing``), the true
+pointing error and the knowledge error (the truth against the estimate,
+with sensors), the controller mode
 (``SCRT_CMD.mode``: INIT, NORMAL, SAFE) and the frames B and D relative to
 N in 3D (``/tf``). Tab "Wheels": the wheel speeds against their limit
 (``max_wheel_speed`` of ``SCRT_CONFIG``, through a user script) and the
@@ -65,12 +67,13 @@ def build_layout() -> dict:
 
     axes = []
     for ax in "xyz":
-        axes.append(fl.SplitItem(content=plot(f"attitude error {ax} and bound [arcsec]", [
-            (f"/derived/pointing.sigma_BD_arcsec.{ax}", f"4 atan sigma_BD,{ax}"),
+        axes.append(fl.SplitItem(content=plot(f"true attitude error {ax} and bound [arcsec]", [
+            (f"/derived/pointing.true_sigma_BD_arcsec.{ax}", f"true 4 atan sigma_BD,{ax}"),
             (f"/derived/pointing.bound_upper_arcsec.{ax}", "upper bound"),
             (f"/derived/pointing.bound_lower_arcsec.{ax}", "lower bound")], "arcsec")))
-    pointing = plot("pointing error [arcsec]", [("/derived/pointing.pointing_error_arcsec", "4 atan |sigma_BD|")],
-                    "arcsec")
+    pointing = plot("true pointing error and knowledge error [arcsec]", [
+        ("/derived/pointing.true_error_arcsec", "true 4 atan |sigma_BD|"),
+        ("/derived/pointing.knowledge_error_arcsec", "knowledge (the estimate against the truth)")], "arcsec")
     modes = fl.StateTransitionsPanel(title="controller mode", config=fl.StateTransitionsConfig(paths=[
         fl.StateTransitionsSeries(value='"SCRT_CMD".mode', label="mode", timestamp_method="receiveTime",
                                   custom_states=fl.StateTransitionsDiscreteCustomStates(states=[
