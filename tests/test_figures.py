@@ -46,7 +46,7 @@ def test_tracking_figures_show_the_envelope_events_and_one_axis_per_wheel(faults
     assert len(att) == 3
     for i, ax in enumerate(att):
         labels = _labels(ax)
-        assert {f"sigma_BD,{'xyz'[i]}", "dmax chi(t)", "-dmin chi(t)"} <= set(labels)
+        assert {f"sigma_BD,{'xyz'[i]} (true)", "dmax chi(t)", "-dmin chi(t)"} <= set(labels)
         # the bound line is the scenario's envelope, recomputed here independently
         bound = next(ln for ln in ax.get_lines() if ln.get_label() == "dmax chi(t)")
         p = faults_run.meta.ppc
@@ -70,7 +70,7 @@ def test_tracking_figures_show_the_envelope_events_and_one_axis_per_wheel(faults
     ptg = captured["pointing_error.png"].axes[0]
     assert ptg.get_yscale() == "log" and "arcsec" in ptg.get_ylabel()
     series = {ln.get_label(): ln for ln in ptg.get_lines()}
-    ang = series["pointing error 4 atan|sigma_BD|"].get_ydata()
+    ang = series["true pointing error 4 atan|sigma_BD|"].get_ydata()  # no sensors: the law's own, the truth's
     np.testing.assert_allclose(ang, np.degrees(4 * np.arctan(np.linalg.norm(faults_run["sigma_BD"], axis=1)))
                                * 3600 + 1e-300, rtol=1e-12)
     assert len(captured["faults.png"].axes) == 8  # four wheels, each with its fault-state twin axis

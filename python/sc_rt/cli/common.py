@@ -64,9 +64,10 @@ def print_metrics(m: dict, faults=()) -> None:
             [("first bound violation [s]", f(m["first_bound_violation_s"])),
              ("  axis", "-" if m["first_bound_violation_axis"] is None
               else "xyz"[m["first_bound_violation_axis"] - 1])] if asks_envelope(m.get("requirements")) else []),
-        (f"|sigma_BD| at {'/'.join(marks)} s", " / ".join(f(m["sigma_e_norm"][k]) for k in marks)),
-        ("max pointing error after 30 s [arcsec]", f(m.get("max_pointing_error_arcsec_after_30s"))),
-        ("max |omega_BD_B| after 70 s [rad/s]", f(m["max_abs_omega_e_after_70s"])),
+        *_errors(m, f"|sigma_BD| at {'/'.join(marks)} s", "sigma_e_norm",
+                 lambda v: " / ".join(f(v.get(k)) for k in marks), first=True),
+        *_errors(m, "max pointing error after 30 s [arcsec]", "max_pointing_error_arcsec_after_30s", f),
+        *_errors(m, "max |omega_BD_B| after 70 s [rad/s]", "max_abs_omega_e_after_70s", f),
         ("max observer error after 30 s [rad/s^2]", f(m["max_observer_error_after_30s"])),
         ("max |u_cmd| before saturation [rad/s^2]", f(m["max_abs_u_cmd"])),
         ("max |wheel accel| applied [rad/s^2]", f(m["max_abs_wheel_accel"])),
@@ -93,6 +94,22 @@ def print_metrics(m: dict, faults=()) -> None:
     if reqs:
         for line in requirement_table(reqs):
             print(f"  {line}")
+
+
+#: The line under a true error that gives the law's own (a law fed the estimate).
+LAW_ROW = "  the law's (its estimate)"
+
+
+def _errors(m: dict, label: str, key: str, show, first: bool = False) -> list[tuple[str, str]]:
+    """The console rows of an error metric: the true error (the truth
+    against the reference), named; a law fed the estimate has its own
+    (metrics ``law_<key>``, what it computed from the estimate) on the row
+    below; a law fed the truth has the same numbers, which the ``first``
+    row says, once."""
+    v = m.get(key)
+    if f"law_{key}" in m:
+        return [(f"true {label}", show(v)), (LAW_ROW, show(m[f"law_{key}"]))]
+    return [(f"true {label}", show(v) + ("  (= the law's: fed the truth)" if first else ""))]
 
 
 def _num(v, unit: str) -> str:

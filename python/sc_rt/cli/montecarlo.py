@@ -194,7 +194,8 @@ def headline(res: dict[str, Any]) -> str:
     by: the fraction that met its per-run requirements, with its interval;
     where it asks for the prescribed envelope alone, the fraction that held
     the bound; "no requirements stated" for a scenario that states none;
-    then the worst final error."""
+    then the worst final true error (the truth against the reference: with
+    sensors not the law's estimate)."""
     from sc_rt.results.judge.verdict import asks_envelope
 
     worst = res["worst_final_sigma_BD"]
@@ -210,7 +211,7 @@ def headline(res: dict[str, Any]) -> str:
                  f"{100 * hi:.1f} %)")
     else:
         head += "no requirements stated"
-    return head + f"; worst final |sigma_BD| {'-' if worst is None else f'{worst:.3e}'}"
+    return head + f"; worst final true |sigma_BD| {'-' if worst is None else f'{worst:.3e}'}"
 
 
 def rerun_verdict(row: dict[str, Any], where: Path) -> str:

@@ -196,8 +196,9 @@ def cmd_emulator(args: argparse.Namespace) -> int:
         from sc_rt.results.present.output import write_run
 
         out = Path(args.out)
-        fill_tracking_errors(res, scn.core_config().guidance)  # rows without a status: from the plant side
-        write_run(finish_run(res), out, figures=False)
+        guidance = scn.core_config().guidance
+        fill_tracking_errors(res, guidance)  # rows without a status: from the plant side
+        write_run(finish_run(res, guidance), out, figures=False)
         (out / "emulator.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(json.dumps(rounded(summary)))
     if sig:

@@ -394,8 +394,9 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
         stopped = stopped or why
 
     res.meta = dataclasses.replace(res.meta, wall_s=wall, telemetry_names=b.telemetry_names)
-    fill_tracking_errors(res, scn.core_config().guidance)
-    finish_run(res)
+    guidance = scn.core_config().guidance
+    fill_tracking_errors(res, guidance)
+    finish_run(res, guidance)  # the guidance: with sensors, the true rate error
     record_law_failures(res, summary.get("law_failures"))  # the controller's summary: counted, named, invalid
     res.timing = timing_report(res, summary, wall)
     # the end marker reached the log: every message published before it is there too

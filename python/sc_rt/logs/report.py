@@ -153,10 +153,11 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     if dropped:
         run.metrics.update(incomplete_rows_dropped=dropped, incomplete_rows_at_end=at_end)
     run.metrics.update(provenance(_main_session(d.records["SCRT_STATE"]), _main_session(d.records["SCRT_CMD"])))
-    fill_tracking_errors(run, logged_guidance(d, scenario))
+    guidance = logged_guidance(d, scenario)
+    fill_tracking_errors(run, guidance)
     faults = fault_summary(d, r)
     run.faults_applied = faults["commands"]
-    finish_run(run)
+    finish_run(run, guidance)
     _law_failures_from_flags(run)
     run.timing = _timing(run, r, d, wall)
     build_s = time.perf_counter() - t_build

@@ -242,6 +242,7 @@ def _finished(run: Run, scn: Scenario, rows: int, failures: dict | None, t_end: 
         n_ctrl = grid(scn).n_ctrl
         run.message = (f"the plant state became non-finite after t = {t_end:.6g} s: "
                        f"the run stopped there ({rows} of {n_ctrl + 1} rows)")
-    finish_run(run)
+    # the guidance: with sensors, the reference's rate for the true rate error
+    finish_run(run, scn.core_config().guidance if scn.sensors is not None else None)
     record_law_failures(run, failures)  # a law that failed: counted, named, the run invalid
     return run

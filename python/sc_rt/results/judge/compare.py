@@ -11,8 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from sc_rt.results.judge.estimation import true_error_fields
 from sc_rt.results.judge.pointing import settling_time
-from sc_rt.results.judge.requirements import worst
+from sc_rt.results.judge.requirements import is_sensed, worst
 from sc_rt.results.judge.verdict import asks_envelope, pointing_arcsec, requirements_summary
 
 __all__ = ["REQUIREMENT_KEYS", "compare_row", "overall", "rank_key", "rank_requirements", "requirements_met",
@@ -37,19 +38,22 @@ REQUIREMENT_KEYS = ("name", "kind", "axis", "interpretation", "confidence", "val
 
 def compare_row(run, label: str, settle_frac: float = 0.02) -> dict[str, Any]:
     """One law's row: its run's verdict, settling within ``settle_frac`` of
-    the initial error, peaks, SAFE and law-invalid steps, requirements; and
-    the prescribed bound (held, first violation, rows outside) only where
-    the scenario asks for the envelope (``asks_envelope``)."""
+    the initial error and the final error (the true ones: with sensors
+    ``sigma_BD_true``, not the law's estimate), peaks, SAFE and law-invalid
+    steps, requirements; and the prescribed bound (held, first violation,
+    rows outside) only where the scenario asks for the envelope
+    (``asks_envelope``)."""
     m = run.metrics
     ok = np.all(run["bound_ok"], axis=1)
+    sig = run[true_error_fields(is_sensed(run))[0]]
     bound = {"bound_held": bool(np.all(ok)), "first_bound_violation_s": m.get("first_bound_violation_s"),
              "bound_violation_fraction": float(np.mean(~ok)) if len(ok) else None}
     return {
         "law": label,
         **(bound if asks_envelope(m.get("requirements")) else {}),
         "requirements_met": requirements_met(m.get("requirements")),
-        "settling_s": settling_s(run["t"], run["sigma_BD"], settle_frac),
-        "final_pointing_arcsec": float(pointing_arcsec(run["sigma_BD"][-1:])[0]) if len(ok) else None,
+        "settling_s": settling_s(run["t"], sig, settle_frac),
+        "final_pointing_arcsec": float(pointing_arcsec(sig[-1:])[0]) if len(ok) else None,
         "max_abs_wheel_accel": m.get("max_abs_wheel_accel"),
         "safe_steps": m.get("safe_steps"),
         "law_invalid_steps": m.get("law_invalid_steps"),

@@ -10,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.judge.estimation import estimation_metrics, fill_estimation_error, fill_true_tracking_error
+from sc_rt.results.judge.estimation import (estimation_metrics, fill_estimation_error, fill_true_rate_error,
+                                            fill_true_tracking_error, flies_on_estimate, true_error_fields)
 from sc_rt.results.judge.law_telemetry import TelemetryAcc
 from sc_rt.results.judge.requirements import evaluate_requirements
 from sc_rt.results.judge.gate import expect_result
@@ -130,6 +131,11 @@ class _Metrics:
     def __init__(self, run: Run, sensed: bool):
         m = run.meta
         self.run, self.sensed = run, sensed
+        # the headline errors are the true ones (the truth against the reference); a law fed the
+        # estimate has its own beside them (law_*: what it computed from the estimate)
+        self.sigma, self.omega = true_error_fields(sensed)
+        self.law = sensed and flies_on_estimate(m)
+        self.law_w70 = self.law_point_max = None
         self.observer = m.law in LAWS_WITH_OBSERVER
         self.marks = checkpoints(m.duration_s)
         self.near: dict[tuple[str, float], tuple[float, np.ndarray]] = {}  # (field, mark) -> (|t - mark|, row)
@@ -169,14 +175,16 @@ class _Metrics:
         # reported for any law that reports an observer (decided over the whole run)
         self.observer = self.observer or bool(np.any(np.nan_to_num(z2) != 0.0))
         self.obs = _max(self.obs, _max_abs_present(t, z2 - c["delta2"], 30.0))
-        for name in ("sigma_BD", "omega_BD_B"):
+        for name in {self.sigma, self.omega, *(("sigma_BD", "omega_BD_B") if self.law else ())}:
             v = c[name]
             for mark in self.marks:
                 k = int(np.argmin(np.abs(t - mark)))
                 d = abs(float(t[k]) - mark)
                 if (name, mark) not in self.near or d < self.near[(name, mark)][0]:
                     self.near[(name, mark)] = (d, v[k].copy())
-        self.w70 = _max(self.w70, _max_abs_present(t, c["omega_BD_B"], 70.0))
+        self.w70 = _max(self.w70, _max_abs_present(t, c[self.omega], 70.0))
+        if self.law:
+            self.law_w70 = _max(self.law_w70, _max_abs_present(t, c["omega_BD_B"], 70.0))
         self.u_max = _max(self.u_max, float(np.max(np.abs(u_cmd))))
         self.acc_max = _max(self.acc_max, float(np.max(np.abs(c["wheel_accel"]))))
         self.final_speed = [float(v) for v in c["wheel_speed"][-1]]
@@ -195,7 +203,10 @@ class _Metrics:
             self.lam_max = _max(self.lam_max, float(np.max(np.abs(lam[ok_lam]))))
         after = t >= 30.0 - 1e-9
         if np.any(after):
-            self.point_max = _max(self.point_max, float(np.max(pointing_arcsec(c["sigma_BD"][after]))))
+            self.point_max = _max(self.point_max, float(np.max(pointing_arcsec(c[self.sigma][after]))))
+            if self.law:
+                self.law_point_max = _max(self.law_point_max,
+                                          float(np.max(pointing_arcsec(c["sigma_BD"][after]))))
 
     def metrics(self) -> dict[str, Any]:
         m = self.run.meta
@@ -217,8 +228,11 @@ class _Metrics:
             "finite": self.finite,
             "first_bound_violation_s": self.first_s,
             "first_bound_violation_axis": self.first_axis,
-            "sigma_e_norm": {_key(s): at("sigma_BD", s) for s in self.marks},
-            "omega_e_norm": {_key(s): at("omega_BD_B", s) for s in self.marks},
+            # what the law was fed: "truth" (its errors are the true ones) or "estimate" (law_* below)
+            "measurement": m.measurement,
+            # the true errors: the truth against the reference (with sensors sigma_BD_true, omega_BD_B_true)
+            "sigma_e_norm": {_key(s): at(self.sigma, s) for s in self.marks},
+            "omega_e_norm": {_key(s): at(self.omega, s) for s in self.marks},
             "max_abs_omega_e_after_70s": self.w70,
             "max_observer_error_after_30s": self.obs if self.observer else None,
             "max_abs_u_cmd": self.u_max,
@@ -226,13 +240,18 @@ class _Metrics:
             "saturated_fraction": self.saturated / self.rows if self.rows else 0.0,
             "final_wheel_speed": self.final_speed,
         }
+        if self.law:  # the law's own errors, from the estimate it was fed
+            out["law_sigma_e_norm"] = {_key(s): at("sigma_BD", s) for s in self.marks}
+            out["law_omega_e_norm"] = {_key(s): at("omega_BD_B", s) for s in self.marks}
+            out["law_max_abs_omega_e_after_70s"] = self.law_w70
         return out
 
     def finish_keys(self) -> dict[str, Any]:
         return {"safe_steps": self.safe_steps, "safe_from_s": self.safe_from,
                 "safe_reasons": {k: v for k, v in self.reasons.items() if v},
                 "law_invalid_steps": self.law_invalid, "max_abs_lambda": self.lam_max,
-                "max_pointing_error_arcsec_after_30s": self.point_max}
+                "max_pointing_error_arcsec_after_30s": self.point_max,
+                **({"law_max_pointing_error_arcsec_after_30s": self.law_point_max} if self.law else {})}
 
 
 def compute_metrics(run: Run) -> dict[str, Any]:
@@ -248,11 +267,15 @@ def _any_present(run: Run, name: str) -> bool:
     return any(bool(c.present(name).any()) for c in run.chunks())
 
 
-def finish_run(run: Run) -> Run:
+def finish_run(run: Run, guidance=None) -> Run:
     """The derived fields and the metrics of a run its producer has filled:
     ``bound_ok`` from the envelope in ``run.meta``, then ``run.metrics``,
     with the scenario's requirements judged (``metrics["requirements"]``).
-    A run on disk is rewritten once (the derived fields) and read once."""
+    A run on disk is rewritten once (the derived fields) and read once.
+
+    ``guidance`` (the run's ``_core.GuidanceParams``): with sensors, the
+    reference's rate for the true rate error ``omega_BD_B_true`` (without
+    it that field, and the true rate metrics, stay NaN)."""
     # a producer that ran the sensors filled the estimator's fields (offline, or the bench from
     # controller_status_t)
     sensed = bool(getattr(run.meta, "sensors", False)) and _any_present(run, "sigma_BN_est")
@@ -261,6 +284,8 @@ def finish_run(run: Run) -> Run:
     def derive(c: Run) -> None:
         if sensed:  # with sensors the bound is judged on the true attitude (sc_rt.results.judge.estimation)
             fill_true_tracking_error(c)
+            if guidance is not None:
+                fill_true_rate_error(c, guidance)
             if fill_est:
                 fill_estimation_error(c)
         c["bound_ok"][:] = bound_ok(run.meta.ppc, c["t"], c["sigma_BD_true"] if sensed else c["sigma_BD"])

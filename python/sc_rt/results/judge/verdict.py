@@ -145,8 +145,8 @@ def verdict_line(m: dict[str, Any], label: str | None = None) -> str:
         dur = m.get("duration_s")
         held = f"bound held {dur:g} s" if dur is not None else "bound held"
         lam = m.get("max_abs_lambda")
-        if lam is not None and math.isfinite(lam):
-            held += f", worst |lambda| {lam:.2f}"
+        if lam is not None and math.isfinite(lam):  # the controller's lambda: from its estimate when fed one
+            held += f", worst |lambda| {lam:.2f}" + (" (the law's)" if m.get("measurement") == "estimate" else "")
         parts.append(held)
     if m.get("safe_steps"):
         start = m.get("safe_from_s")

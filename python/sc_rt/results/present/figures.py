@@ -137,11 +137,13 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     """Attitude error (linear and log), pointing error in arcsec, rate
     error, wheel commands per wheel with the limits, lumped disturbance and
     the observer's error (the paper's figures 4-15; only for a law with an
-    observer, ``has_observer``), and the faults when there are any. Every
-    time plot marks fault onsets and SAFE spans. Where the scenario asks for
-    the prescribed envelope (``shows_envelope``), its bounds are drawn and
-    its first violation marked. The envelope and the wheel limits come from
-    ``run.meta``."""
+    observer, ``has_observer``), and the faults when there are any. The
+    errors are the true ones (the truth against the reference), a law fed
+    the estimate its own beside them. Every time plot marks fault onsets and
+    SAFE spans. Where the scenario asks for the prescribed envelope
+    (``shows_envelope``), its bounds are drawn and its first violation
+    marked. The envelope and the wheel limits come from ``run.meta``."""
+    from sc_rt.results.judge.estimation import ARCSEC, flies_on_estimate, true_error_fields
     from sc_rt.results.judge.verdict import pointing_arcsec
 
     out.mkdir(parents=True, exist_ok=True)
@@ -149,13 +151,20 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     ppc = run.meta.ppc
     chi = prescribed_chi(ppc, t)
     dmin, dmax = np.asarray(ppc["dmin"]), np.asarray(ppc["dmax"])
-    sig = run["sigma_BD"]
+    # the true errors (the truth against the reference: with sensors the derived fields), and the
+    # law's own beside them when it was fed the estimate (what it computed from it)
+    sensed = _sensed(run)
+    sig_name, rate_name = true_error_fields(sensed)
+    sig = run[sig_name]
+    law = run["sigma_BD"] if sensed and flies_on_estimate(run.meta) else None
     paths = []
     env = shows_envelope(run)  # the envelope only where the scenario asks for it
 
     fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for i, ax in enumerate(axs):
-        ax.plot(t, sig[:, i], label=f"sigma_BD,{AXES[i]}")
+        ax.plot(t, sig[:, i], label=f"sigma_BD,{AXES[i]} (true)")
+        if law is not None:
+            ax.plot(t, law[:, i], color="0.6", lw=0.7, label=f"sigma_BD,{AXES[i]} (the law's, its estimate)")
         if env:
             ax.plot(t, dmax[i] * chi[:, i], "r--", lw=0.8, label="dmax chi(t)")
             ax.plot(t, -dmin[i] * chi[:, i], "r:", lw=0.8, label="-dmin chi(t)")
@@ -163,14 +172,16 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
         ax.set_ylabel(f"sigma_BD,{AXES[i]} [-]")
         ax.grid(alpha=0.3)
     _legend_outside(axs[0])
-    axs[0].set_title(_two_line("Attitude tracking error (MRP)" + (" and prescribed bounds" if env else ""), run,
-                               title))
+    axs[0].set_title(_two_line("True attitude tracking error (MRP)" + (" and prescribed bounds" if env else ""),
+                               run, title))
     axs[-1].set_xlabel("t [s]")
     paths.append(save_figure(fig, out / "attitude_error.png"))
 
     fig, axs = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for i, ax in enumerate(axs):
-        ax.semilogy(t, np.abs(sig[:, i]) + 1e-300, label=f"|sigma_BD,{AXES[i]}|")
+        ax.semilogy(t, np.abs(sig[:, i]) + 1e-300, label=f"|sigma_BD,{AXES[i]}| (true)")
+        if law is not None:
+            ax.semilogy(t, np.abs(law[:, i]) + 1e-300, color="0.6", lw=0.7, label="the law's (its estimate)")
         if env:
             ax.semilogy(t, dmax[i] * chi[:, i], "r--", lw=0.8, label="dmax chi(t) (bound for > 0)")
             if dmin[i] != dmax[i]:
@@ -184,18 +195,19 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
             ax.plot(t[viol], np.abs(sig[viol, i]) + 1e-300, "k.", ms=2, label="outside the bound")
         mark_events(ax, run, labels=i == 0)
         _legend_outside(ax)
-    axs[0].set_title(_two_line("Attitude tracking error, log scale", run, title))
+    axs[0].set_title(_two_line("True attitude tracking error, log scale", run, title))
     axs[-1].set_xlabel("t [s]")
     paths.append(save_figure(fig, out / "attitude_error_log.png"))
 
     fig, ax = plt.subplots(figsize=(9, 4))
     ang = pointing_arcsec(sig)
     corner = pointing_arcsec(dmax * chi)  # the angle of the envelope's corner (all axes at dmax chi)
-    sensed = _sensed(run)
-    ax.semilogy(t, ang + 1e-300, lw=0.9,
-                label="pointing error 4 atan|sigma_BD|" + (" (the law's, estimated)" if sensed else ""))
-    if sensed:
-        ax.semilogy(t, pointing_arcsec(run["sigma_BD_true"]) + 1e-300, lw=0.9, label="true pointing error")
+    ax.semilogy(t, ang + 1e-300, lw=0.9, label="true pointing error 4 atan|sigma_BD|")
+    if law is not None:
+        ax.semilogy(t, pointing_arcsec(law) + 1e-300, lw=0.9, label="the law's (its estimate)")
+    if sensed:  # the estimate against the truth: the rotation angle of att_est_error
+        ax.semilogy(t, np.linalg.norm(run["att_est_error"], axis=1) / ARCSEC + 1e-300, lw=0.7,
+                    label="knowledge error (the estimate against the truth)")
     if env:
         ax.semilogy(t, corner, "r--", lw=0.8, label="envelope corner 4 atan|dmax chi(t)|")
     _pointing_bounds(ax, run)
@@ -204,16 +216,20 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
     ax.set_ylabel("pointing error [arcsec]")
     ax.grid(alpha=0.3, which="both")
     _legend_outside(ax)
-    ax.set_title(_two_line("Pointing error", run, title))
+    ax.set_title(_two_line("True pointing error", run, title))
     paths.append(save_figure(fig, out / "pointing_error.png"))
 
     fig, ax = plt.subplots(figsize=(9, 4))
     for i in range(3):
-        ax.plot(t, run["omega_BD_B"][:, i], label=f"omega_BD_B,{AXES[i]}")
+        ax.plot(t, run[rate_name][:, i], label=f"omega_BD_B,{AXES[i]} (true)")
+    if law is not None:
+        for i in range(3):
+            ax.plot(t, run["omega_BD_B"][:, i], ls=":", lw=0.8, color=f"C{i}",
+                    label=f"omega_BD_B,{AXES[i]} (the law's, its estimate)")
     mark_events(ax, run, labels=True)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("rate error [rad/s]")
-    ax.set_title(_two_line("Angular-rate tracking error", run, title))
+    ax.set_title(_two_line("True angular-rate tracking error", run, title))
     ax.grid(alpha=0.3)
     _legend_outside(ax)
     paths.append(save_figure(fig, out / "rate_error.png"))

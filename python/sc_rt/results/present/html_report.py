@@ -36,11 +36,13 @@ ARCSEC = 180.0 / math.pi * 3600.0
 FIGURES = {
     "requirements.png": ("Each requirement's values over the run, its bound over its span (shaded) and the value at "
                          "its probability; with sensors the knowledge index beside the performance one"),
-    "attitude_error.png": ("Attitude tracking error sigma_BD per axis and the prescribed bounds "
-                           "dmax chi(t), -dmin chi(t)"),
+    "attitude_error.png": ("True attitude tracking error sigma_BD per axis (the truth against the reference) and "
+                           "the prescribed bounds dmax chi(t), -dmin chi(t); a law fed the estimate: its own "
+                           "beside it"),
     "attitude_error_log.png": "The same on a log scale; dots: outside the bound",
-    "pointing_error.png": "Pointing error 4 atan|sigma_BD| [arcsec]",
-    "rate_error.png": "Angular-rate tracking error omega_BD_B [rad/s]",
+    "pointing_error.png": ("True pointing error 4 atan|sigma_BD| [arcsec]; a law fed the estimate: its own "
+                           "and the knowledge error beside it"),
+    "rate_error.png": "True angular-rate tracking error omega_BD_B [rad/s]; a law fed the estimate: its own beside it",
     "wheel_commands.png": "Wheel acceleration commands after saturation [rad/s^2] and the limits",
     "wheel_speeds.png": ("Wheel speeds [rad/s] and the wheels' total momentum [N m s] against the requirements' "
                          "bounds and the actuator's speed limit"),
@@ -51,7 +53,9 @@ FIGURES = {
 }
 #: the captions of a run whose scenario does not ask for the envelope (its bounds are not drawn)
 FIGURES_WITHOUT_ENVELOPE = {**FIGURES,
-                            "attitude_error.png": "Attitude tracking error sigma_BD per axis",
+                            "attitude_error.png": ("True attitude tracking error sigma_BD per axis (the truth "
+                                                   "against the reference); a law fed the estimate: its own "
+                                                   "beside it"),
                             "attitude_error_log.png": "The same on a log scale"}
 #: metrics.json keys about the envelope: shown only where the scenario asks for it (asks_envelope)
 ENVELOPE_METRICS = ("first_bound_violation_s", "first_bound_violation_axis", "max_abs_lambda")
@@ -81,15 +85,19 @@ METRIC_ROWS = {
     "finite": ("all values finite", "", "bool"),
     "first_bound_violation_s": ("first bound violation", "s", "s"),
     "first_bound_violation_axis": ("axis of the first violation", "", "axis"),
-    "max_pointing_error_arcsec_after_30s": ("max pointing error after 30 s", "arcsec", "arcsec"),
-    "max_abs_omega_e_after_70s": ("max |omega_BD_B| after 70 s", "rad/s", "num"),
+    "measurement": ("what the law was fed (truth: its errors are the true ones)", "", "text"),
+    "max_pointing_error_arcsec_after_30s": ("max true pointing error after 30 s", "arcsec", "arcsec"),
+    "law_max_pointing_error_arcsec_after_30s": ("max pointing error after 30 s, the law's (its estimate)",
+                                                "arcsec", "arcsec"),
+    "max_abs_omega_e_after_70s": ("max true |omega_BD_B| after 70 s", "rad/s", "num"),
+    "law_max_abs_omega_e_after_70s": ("max |omega_BD_B| after 70 s, the law's (its estimate)", "rad/s", "num"),
     "max_observer_error_after_30s": ("max observer error |z2 - delta_2| after 30 s", "rad/s^2", "num"),
     "max_abs_u_cmd": ("max |u_cmd| before saturation", "rad/s^2", "num"),
     "max_abs_wheel_accel": ("max |wheel acceleration| applied", "rad/s^2", "num"),
     "saturated_fraction": ("steps with a saturated command", "%", "pct"),
     "final_wheel_speed": ("final wheel speeds", "rad/s", "list"),
     "safe_steps": ("steps in SAFE", "", "int"), "safe_from_s": ("SAFE from", "s", "s"),
-    "max_abs_lambda": ("max |lambda| (sigma_BD / chi)", "-", "lam"),
+    "max_abs_lambda": ("max |lambda| (sigma_BD / chi, the controller's)", "-", "lam"),
     "diverged_after_s": ("diverged after", "s", "s"),
 }
 
@@ -297,8 +305,9 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
         held = all(r.get("passed") is not False for r in reqs)
     elif first is None and m.get("steps"):
         head = f"Bound held for the whole run ({fmt(m.get('duration_s'))} s, {fmt(m.get('steps'), 'int')} steps)"
-        if m.get("max_abs_lambda") is not None:
+        if m.get("max_abs_lambda") is not None:  # the controller's: from its estimate when fed one
             head += f", worst |lambda| {fmt(m['max_abs_lambda'], 'lam')}"
+            head += " (the law's)" if m.get("measurement") == "estimate" else ""
         held = True
     elif first is None:
         head, held = "No steps: nothing to judge", False
@@ -320,7 +329,9 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
         held = False
     pe = m.get("max_pointing_error_arcsec_after_30s")
     if pe is not None and not by_requirements:  # the envelope's own figure; requirements state theirs
-        items.append(("verdict-pointing", f"Max pointing error after 30 s: {fmt(pe, 'arcsec')} arcsec"))
+        law = m.get("law_max_pointing_error_arcsec_after_30s")
+        items.append(("verdict-pointing", f"Max true pointing error after 30 s: {fmt(pe, 'arcsec')} arcsec"
+                      + ("" if law is None else f" (the law's, from its estimate: {fmt(law, 'arcsec')} arcsec)")))
     return held, head, items
 
 
@@ -330,14 +341,16 @@ def _metrics_table(m: dict[str, Any]) -> str:
     for k, v in m.items():
         if k in ENVELOPE_METRICS and not envelope:  # not what this scenario asks: metrics.json keeps it
             continue
-        if k in ("sigma_e_norm", "omega_e_norm") and isinstance(v, dict):
+        if k in ("sigma_e_norm", "omega_e_norm", "law_sigma_e_norm", "law_omega_e_norm") and isinstance(v, dict):
+            # the true errors (the truth against the reference); law_*: the law's, from its estimate
+            who, whose = ("", ", the law's (its estimate)") if k.startswith("law_") else ("true ", "")
             for tk, x in v.items():
-                if k == "sigma_e_norm":
-                    rows.append((f"pointing error 4 atan|sigma_BD| at {tk} s",
+                if k.endswith("sigma_e_norm"):
+                    rows.append((f"{who}pointing error 4 atan|sigma_BD| at {tk} s{whose}",
                                  fmt(None if x is None else pointing_arcsec_of_mrp_norm(x), "arcsec"), "arcsec"))
-                    rows.append((f"|sigma_BD| at {tk} s", fmt(x), "-"))
+                    rows.append((f"{who}|sigma_BD| at {tk} s{whose}", fmt(x), "-"))
                 else:
-                    rows.append((f"|omega_BD_B| at {tk} s", fmt(x), "rad/s"))
+                    rows.append((f"{who}|omega_BD_B| at {tk} s{whose}", fmt(x), "rad/s"))
             continue
         if k == "law_telemetry":  # its own section
             continue

@@ -18,7 +18,7 @@ COLUMNS = (
     ("bound_violation_fraction", "rows outside bound", "{:.3f}"),
     ("requirements_met", "requirements met", "{}"),
     ("settling_s", "settling [s]", "{:.1f}"),
-    ("final_pointing_arcsec", "final error [arcsec]", "{:.3g}"),
+    ("final_pointing_arcsec", "final true error [arcsec]", "{:.3g}"),
     ("max_abs_wheel_accel", "peak wheel accel [rad/s^2]", "{:.3g}"),
     ("safe_steps", "SAFE steps", "{}"),
     ("law_invalid_steps", "law invalid", "{}"),

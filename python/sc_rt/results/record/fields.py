@@ -114,6 +114,8 @@ FIELDS: tuple[Field, ...] = (
     _f("nis", (), "-", "estimator", "normalised innovation squared z' S^-1 z of that update (NaN: none)"),
     _f("sigma_BD_true", (3,), "-", "derived",
        "true tracking error mrp_subtract(sigma_BN, sigma_DN) (sensor runs: the bound is judged on it)"),
+    _f("omega_BD_B_true", (3,), "rad/s", "derived",
+       "true rate tracking error omega_BN_B - [BD] omega_DN_D(t), [BD] of sigma_BD_true (sensor runs)"),
     _f("latency_us", (), "us", "timing", "state publish to receipt of the command answering it"),
     _f("tick_lateness_us", (), "us", "timing", "real time: the emulator's tick behind its deadline"),
     _f("wake_lateness_us", (), "us", "timing", "the controller's wake behind its schedule"),

@@ -53,7 +53,7 @@ def figure(summary: dict[str, Any], rows: list[dict[str, Any]]):
     if fin.size:
         axs[0].hist(np.log10(np.maximum(fin, 1e-16)), bins=30)
     when = final.removeprefix("sigma_e_norm.") + " s" if final else "the end"
-    axs[0].set_xlabel(f"log10 |sigma_BD| at {when}")
+    axs[0].set_xlabel(f"log10 true |sigma_BD| at {when}")
     axs[0].set_ylabel("runs")
     head = f"{summary['scenario']}, {summary['law']}, {summary['runs']} runs: "
     if asks_envelope(summary.get("requirements")):

@@ -193,7 +193,7 @@ def _bar(on: bool, total: int, initial: int):
 
 
 def _final_column(names: list[str]) -> str | None:
-    """The last reported |sigma_BD| ("sigma_e_norm.<largest time>")."""
+    """The last reported true |sigma_BD| ("sigma_e_norm.<largest time>": the truth against the reference)."""
     ts = [n.removeprefix("sigma_e_norm.") for n in names if n.startswith("sigma_e_norm.")]
     ts = [t for t in ts if t.replace(".", "", 1).isdigit()]
     return f"sigma_e_norm.{max(ts, key=float)}" if ts else None
