@@ -7,8 +7,11 @@ bounded queue in the SDK; when a client reads too slowly its oldest
 messages are dropped (``backlog``), never the bus's.
 
 Nothing is decoded while no client listens: the LCM subscription then
-covers the configuration channels only (the pointing bound needs the
-run's ``controller_config_t``, sent once at its start); the first
+covers the configuration channels and the runs' start records only (sent
+once at a run's start: the pointing bound needs the run's
+``controller_config_t``, the law's telemetry names come from the start
+record on ``SCRT_HIL_START``, which ``sc-rt hil --live`` sends before any
+client can have subscribed); the first
 subscription of a client opens the whole bus, the last unsubscription
 closes it again (the SDK's server listener callbacks, ``on_subscribe`` and
 ``on_unsubscribe``, applied by the loop's thread). The messages LCM holds are taken in batches, each
@@ -38,8 +41,8 @@ __all__ = ["LiveServer", "LiveError", "DEFAULT_PORT", "QUEUE_CAPACITY"]
 DEFAULT_PORT = 8765
 #: messages LCM may hold for the loop (a burst of a lockstep run)
 QUEUE_CAPACITY = 10000
-#: every bench's configuration channel (any prefix): listened to even with no client
-CONFIG_CHANNELS = ".*SCRT_CONFIG"
+#: every bench's configuration and start record channels (any prefix): listened to even with no client
+CONFIG_CHANNELS = ".*SCRT_(CONFIG|HIL_START)"
 
 
 class LiveError(RuntimeError):
@@ -153,7 +156,7 @@ class LiveServer:
         self._pending.append((channel, data, time.time_ns()))
 
     def _on_any(self, channel: str, data: bytes) -> None:
-        if not channel.endswith("SCRT_CONFIG"):  # those come through their own subscription
+        if not channel.endswith(("SCRT_CONFIG", "SCRT_HIL_START")):  # those come through their own subscription
             self._pending.append((channel, data, time.time_ns()))
 
     def wait_received(self, n: int, timeout: float) -> bool:
@@ -174,8 +177,8 @@ class LiveServer:
                 self._handled.notify_all()
 
     def _sync(self) -> None:
-        """The whole bus while a client subscribes to anything, else the configurations only
-        (their subscription stays: a configuration is never lost to the switch)."""
+        """The whole bus while a client subscribes to anything, else the configurations and start
+        records only (their subscription stays: neither is lost to the switch)."""
         with self.listener.lock:
             active = bool(self.listener.subs)
             new, self.listener.new = self.listener.new, set()
