@@ -5,12 +5,15 @@ and a driver that runs ``sc-rt hil ... --live PORT`` and records what a
 client receives (tests/test_live.py, bench/bench_live.py).
 
     python tests/fgclient.py --port P --out RESULT.json [--gate FIFO] [--occupy] [--garbage]
-        [--topics T ...] [--no-client] [--timeout S] -- HIL ARGS...
+        [--after-file FILE] [--topics T ...] [--no-client] [--timeout S] -- HIL ARGS...
 
 Every wait is bounded; nothing synchronises on a sleep: the driver waits
 for the run's "live on" line, for the advertisements, for the first state
 (which proves the subscription active) before it opens the gate (a FIFO
-the run's controller waits on), and reads until the server closes.
+the run's controller waits on), and reads until the server closes. With
+``--after-file`` the client connects only once that file is not empty (the
+run's log: its start record, the log's first message, has been published
+and logged); a bounded poll of the file's size, the one event a file gives.
 """
 
 from __future__ import annotations
@@ -199,6 +202,16 @@ async def _client(port: int, topics, gate: str | None, timeout: float, res: dict
         bad.ws.close()
 
 
+def _not_empty(path: str, timeout: float) -> bool:
+    """Whether ``path`` is a file that is not empty within ``timeout`` seconds (polled every 10 ms)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if os.path.isfile(path) and os.path.getsize(path) > 0:
+            return True
+        time.sleep(0.01)
+    return False
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--port", type=int, required=True)
@@ -207,6 +220,7 @@ def main(argv=None) -> int:
     p.add_argument("--occupy", action="store_true", help="hold the port (listening) during the run")
     p.add_argument("--no-client", action="store_true", help="connect no client (the run beside an idle server)")
     p.add_argument("--garbage", action="store_true", help="clients speaking garbage first (fgclient.garbage)")
+    p.add_argument("--after-file", help="connect the client only once this file is not empty (the run's log)")
     p.add_argument("--topics", nargs="*", default=["*"])
     p.add_argument("--timeout", type=float, default=120.0)
     p.add_argument("hil", nargs=argparse.REMAINDER)
@@ -232,6 +246,8 @@ def main(argv=None) -> int:
     try:
         line = _wait_line(err_lines, cond, ("sc-rt hil: live on", "not serving"), 120)
         res["live_line"] = line
+        if line is not None and a.after_file:
+            res["after_file"] = _not_empty(a.after_file, 60.0)
         if line is not None and "live on" in line and not a.no_client:
             asyncio.run(_client(a.port, a.topics, a.gate, a.timeout, res, a.garbage))
         proc.wait(timeout=a.timeout)
