@@ -21,8 +21,35 @@ import signal
 import time
 from typing import Any, Callable
 
-__all__ = ["ChildDied", "ChildTimedOut", "PROBE_TIMEOUT_ENV", "PROBE_TIMEOUT_S", "call_in_child", "exit_how",
-           "probe_timeout"]
+__all__ = ["ChildDied", "ChildInterrupted", "ChildTimedOut", "INTERRUPT_GRACE_S", "PROBE_TIMEOUT_ENV",
+           "PROBE_TIMEOUT_S", "call_in_child", "exit_how", "forward_signal", "probe_timeout"]
+
+#: [s] a child sent an interrupt (forward_signal) that has not answered by
+#: then is killed: a law that never returns cannot hold the command
+INTERRUPT_GRACE_S = 5.0
+
+#: the child call_in_child waits for now, in this process (pid), and when it is
+#: to be killed after an interrupt (monotonic s; None: not interrupted)
+_WAITING: dict[str, Any] = {"pid": None, "kill_at": None}
+
+
+def forward_signal(signum: int) -> None:
+    """Pass an interrupt (SIGINT, SIGTERM) on to the child call_in_child waits
+    for, if any (safe in a signal handler): it may stop cleanly (its rows
+    so far) within INTERRUPT_GRACE_S, else it is killed."""
+    pid = _WAITING["pid"]
+    if pid is None:
+        return
+    try:
+        os.kill(pid, signum)
+    except ProcessLookupError:
+        return
+    if _WAITING["kill_at"] is None:
+        _WAITING["kill_at"] = time.monotonic() + INTERRUPT_GRACE_S
+
+
+class ChildInterrupted(RuntimeError):
+    """The child did not stop within INTERRUPT_GRACE_S of an interrupt and was killed."""
 
 #: How long a law may take to be constructed and stepped once at rest in its
 #: probe [s] (docs/LAWS.md): generous for a law that designs its gains or
@@ -113,20 +140,27 @@ def call_in_child(fn: Callable[..., Any], *args: Any, timeout: float | None = No
     os.close(w)
     deadline = None if timeout is None else time.monotonic() + timeout
     chunks, answered = [], False
+    outer = _WAITING["pid"], _WAITING["kill_at"]
+    _WAITING["pid"], _WAITING["kill_at"] = pid, None
     try:
         while True:
-            if deadline is not None:
-                left = deadline - time.monotonic()
-                if left <= 0 or not select.select([r], [], [], left)[0]:
-                    if time.monotonic() >= deadline:
-                        raise ChildTimedOut(timeout)
-                    continue
+            now = time.monotonic()
+            kill_at = _WAITING["kill_at"]
+            if kill_at is not None and now >= kill_at:
+                raise ChildInterrupted(f"it did not stop within {INTERRUPT_GRACE_S:g} s of the interrupt: killed")
+            if deadline is not None and now >= deadline:
+                raise ChildTimedOut(timeout)
+            # wake for the deadline, an interrupt's grace, or at least every half second
+            wait = min(x - now for x in (deadline, kill_at, now + 0.5) if x is not None)
+            if not select.select([r], [], [], max(wait, 0.0))[0]:
+                continue
             b = os.read(r, 1 << 20)
             if not b:
                 break
             chunks.append(b)
         answered = True
     finally:
+        _WAITING["pid"], _WAITING["kill_at"] = outer
         os.close(r)
         if not answered:  # timed out or interrupted: the child goes, now
             try:

@@ -44,12 +44,18 @@ def cmd_sim(args: argparse.Namespace) -> int:
           flush=True)
     from sc_rt.sim.isolated import RunCrashed, simulate_contained
 
-    with flag_signals(lambda _s: engines.STOP.set()) as signals:
-        try:  # a plugin's native code runs in a child: its crash is one line, not exit 139
+    from sc_rt.isolate import forward_signal
+
+    def on_signal(signum: int) -> None:  # this process's loop stops at its next step; a law's child too
+        engines.STOP.set()
+        forward_signal(signum)
+
+    with flag_signals(on_signal) as signals:
+        try:  # a plugin's or a Python law's run is in a child: its end is one line, not exit 139 or 0
             res = simulate_contained(scn, engine=args.engine, record_dir=out)
         except RunCrashed as e:
-            print(f"sc-rt sim: FAILED: {e}", file=sys.stderr)
-            return 1
+            print(f"sc-rt sim: {'STOPPED' if signals else 'FAILED'}: {e}", file=sys.stderr)
+            return 128 + signals[0] if signals else 1
     stopped = None
     if signals:  # a signal: the rows done so far (the python engine stops at its next step)
         stopped = f"interrupted by {signal.Signals(signals[0]).name}"

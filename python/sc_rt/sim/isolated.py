@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from sc_rt.isolate import ChildDied, call_in_child
+from sc_rt.isolate import ChildDied, ChildInterrupted, call_in_child
 
 __all__ = ["RunCrashed", "simulate_contained", "simulate_isolated", "needs_isolation"]
 
@@ -23,8 +23,12 @@ class RunCrashed(RuntimeError):
 
 
 def needs_isolation(law: Any) -> bool:
-    """Whether a law runs native code in the bench's process (a plugin spec)."""
-    return isinstance(law, str) and law.startswith("plugin:")
+    """Whether a law is code the bench does not own, run in its process: a
+    plugin (native code), or a Python law (which can call native code,
+    ``os._exit``, or never return). Each then runs in a child of its own."""
+    from sc_rt.pylaw import is_python_law
+
+    return isinstance(law, type) or (isinstance(law, str) and (law.startswith("plugin:") or is_python_law(law)))
 
 
 def _simulate_handed_over(scn, **kwargs: Any):
@@ -47,10 +51,11 @@ def simulate_isolated(scn, **kwargs: Any):
         if scratch is not None:  # this process removes it now, with its copy of the run
             remove_with(run, scratch)
         return run
+    except ChildInterrupted as e:
+        raise RunCrashed(f"interrupted; the law's run {e}; nothing of the run was kept") from None
     except ChildDied as e:
         law = kwargs.get("law") or scn.run.controller
-        raise RunCrashed(f"the law {law} crashed the run's process ({e.how}): a plugin's native code; "
-                         "nothing of the run was kept") from None
+        raise RunCrashed(f"the law {law} ended the run's process ({e.how}): nothing of the run was kept") from None
 
 
 def simulate_contained(scn, **kwargs: Any):
