@@ -67,6 +67,28 @@ def rng() -> np.random.Generator:
 #: cores), left out of the fast loop (`pytest -m "not slow"`, under a minute)
 #: and run by `make test` like every other: whole LCM runs, CLI round trips.
 SLOW_TESTS = (
+    # round 4: the gate's and the log's LCM runs, campaigns, interrupts (tests of 0.7 s or more)
+    "tests/test_log_paced.py::test_a_logger_that_never_comes_back_stops_the_run_invalid",
+    "tests/test_log_paced.py::test_a_stopped_logger_holds_the_lockstep_bench_and_loses_nothing",
+    "tests/test_log_paced.py::test_lockstep_under_a_two_core_cpu_hog_loses_no_log_message",
+    "tests/test_lockstep_answers.py::test_a_law_that_never_returns_fails_the_lockstep_run_named",
+    "tests/test_lockstep_answers.py::test_a_controller_stopped_for_5_s_gets_its_run_bitwise_the_offline_one",
+    "tests/test_out_dir.py::test_a_new_campaign_clears_the_previous_ones_files_and_a_resumed_one_keeps_them",
+    "tests/test_envelope_if_asked.py::test_the_campaign_figure_and_rerun_speak_of_the_requirements",
+    "tests/test_envelope_if_asked.py::test_the_report_and_the_console_show_no_envelope",
+    "tests/test_law_process_end.py::test_an_interrupt_ends_sim_while_its_python_law_never_returns",
+    "tests/test_law_process_end.py::test_a_campaign_survives_a_python_law_that_segfaults",
+    "tests/test_child_output.py::test_a_controller_over_its_memory_limit_fails_the_run",
+    "tests/test_child_output.py::test_a_python_law_printing_without_end_leaves_a_capped_file",
+    "tests/test_truth.py::test_mcap_pointing_is_the_true_error_row_by_row_the_laws_beside_it",
+    "tests/test_truth.py::test_hil_live_carries_a_python_laws_telemetry_names",
+    "tests/test_seq_window.py::test_one_forged_state_far_ahead_does_not_cut_the_controller_off",
+    "tests/test_seq_window.py::test_one_forged_command_far_ahead_does_not_cut_the_plant_off",
+    "tests/test_seq_window.py::test_commands_racing_the_controller_fail_the_run_named",
+    "tests/test_report_verdict.py::test_report_of_a_log_gives_the_live_runs_law_failures",
+    "tests/test_set_option.py::test_a_bad_set_is_refused_in_one_line_naming_the_key",
+    "tests/test_set_option.py::test_set_runs_what_the_edited_file_runs_and_is_recorded",
+    "tests/test_truth.py::test_the_live_view_gives_the_same_true_error",
     "tests/test_record_stream.py::test_lockstep_run_written_as_it_runs_is_bit_identical_to_offline_sim",
     "tests/test_inbox.py::test_two_chunks_live_then_flat_while_25_times_as_many_rows_fill",
     "tests/test_auth_config.py::test_config_channel_takes_only_a_verified_configuration",
