@@ -20,7 +20,7 @@ import pytest
 from sc_rt.hil.runner import LOCKSTEP_ANSWER_S
 
 import lcmnet
-from test_interrupt import CLI, GROW, url
+from test_log_paced import stalled_run
 
 HANGS = '''
 import numpy as np
@@ -51,18 +51,7 @@ def test_a_controller_stopped_for_5_s_gets_its_run_bitwise_the_offline_one(tmp_p
     lcmnet.require()
     assert LOCKSTEP_ANSWER_S > 5
     out = tmp_path / "hil"
-    script = f"""
-{CLI} hil ppc_feasible_1khz --mode lockstep --duration 20 --out {out} --no-plots --lcm-url '{url(7961)}' \
-    > {tmp_path}/o.txt 2> {tmp_path}/e.txt &
-P=$!
-{GROW.format(f=out / "run.lcmlog", n=2_000_000)}
-C=$(pgrep -f "^[^ ]*sc-rt-controller .*{out}")
-kill -STOP $C
-sleep 5   # the stall itself: the stimulus, not a synchronisation
-kill -CONT $C
-wait $P
-echo "rc=$?"
-"""
+    script = stalled_run("sc-rt-controller", out, tmp_path, 7961, 5)
     r = lcmnet.run_script(script, timeout=600)
     err = (tmp_path / "e.txt").read_text()
     assert "rc=0" in r.stdout, r.stdout + r.stderr + err

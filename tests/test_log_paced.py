@@ -31,6 +31,25 @@ PY = sys.executable
 CLI = f"{PY} -m sc_rt.cli"
 
 
+def stalled_run(process: str, out: Path, tmp_path: Path, port: int, seconds: float) -> str:
+    """A script: a 20 s, 1 kHz lockstep run of ppc_feasible_1khz into ``out``
+    whose child ``process`` (sc-rt-logger, sc-rt-controller) is stopped
+    (SIGSTOP) for ``seconds`` once the log holds ~2 MB, then resumed; it
+    echoes the run's exit code (rc=N)."""
+    return f"""
+{CLI} hil ppc_feasible_1khz --mode lockstep --duration 20 --out {out} --no-plots --lcm-url '{url(port)}' \
+    > {tmp_path}/o.txt 2> {tmp_path}/e.txt &
+P=$!
+{GROW.format(f=out / "run.lcmlog", n=2_000_000)}
+C=$(pgrep -f "^[^ ]*{process} .*{out}")
+kill -STOP $C
+sleep {seconds}   # the stall itself: the stimulus, not a synchronisation
+kill -CONT $C
+wait $P
+echo "rc=$?"
+"""
+
+
 def _metrics(out: Path) -> dict:
     return json.loads((out / "metrics.json").read_text())
 
@@ -44,18 +63,7 @@ def test_a_stopped_logger_holds_the_lockstep_bench_and_loses_nothing(tmp_path):
     lcmnet.require()
     out = tmp_path / "hil"
     # 1 kHz, 20 s: ~140,000 messages; the logger stops for 2 s after the first ~2 MB of log
-    script = f"""
-{CLI} hil ppc_feasible_1khz --mode lockstep --duration 20 --out {out} --no-plots --lcm-url '{url(7931)}' \
-    > {tmp_path}/o.txt 2> {tmp_path}/e.txt &
-P=$!
-{GROW.format(f=out / "run.lcmlog", n=2_000_000)}
-L=$(pgrep -f "^[^ ]*sc-rt-logger .*{out}")
-kill -STOP $L
-sleep 2   # the stall itself: the stimulus, not a synchronisation
-kill -CONT $L
-wait $P
-echo "rc=$?"
-"""
+    script = stalled_run("sc-rt-logger", out, tmp_path, 7931, 2)
     r = lcmnet.run_script(script, timeout=600)
     err = (tmp_path / "e.txt").read_text()
     assert "rc=0" in r.stdout, r.stdout + r.stderr + err

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.results.judge.pointing import dcm_rows
 from sc_rt.results.record.run import Run
 
 __all__ = ["ARCSEC", "mrp_subtract_rows", "fill_true_tracking_error", "fill_true_rate_error",
@@ -65,16 +66,6 @@ def fill_true_tracking_error(run: Run) -> None:
     run["sigma_BD_true"][:] = mrp_subtract_rows(run["sigma_BN"], run["sigma_DN"])
 
 
-def _dcm_rows(sigma: np.ndarray) -> np.ndarray:
-    """[BD] (N, 3, 3) of MRPs sigma_BD: I + (8 [s]^2 - 4 (1 - s's) [s]) / (1 + s's)^2."""
-    s = np.asarray(sigma, float).reshape(-1, 3)
-    n2 = np.sum(s * s, axis=1)[:, None, None]
-    x = np.zeros((len(s), 3, 3))
-    x[:, 0, 1], x[:, 0, 2], x[:, 1, 2] = -s[:, 2], s[:, 1], -s[:, 0]
-    x[:, 1, 0], x[:, 2, 0], x[:, 2, 1] = s[:, 2], -s[:, 1], s[:, 0]
-    return np.eye(3) + (8.0 * x @ x - 4.0 * (1.0 - n2) * x) / (1.0 + n2) ** 2
-
-
 def fill_true_rate_error(run: Run, guidance: Any) -> None:
     """omega_BD_B_true = omega_BN_B - [BD] omega_DN_D(t) (8), from the
     plant's rate, ``sigma_BD_true`` (filled first) and the reference's rate
@@ -82,7 +73,7 @@ def fill_true_rate_error(run: Run, guidance: Any) -> None:
     kind); ``guidance``: the run's ``_core.GuidanceParams``."""
     t = run["t"]
     wd = np.array([_core.omega_d(guidance, float(tk)) for tk in t], float).reshape(-1, 3)
-    C = _dcm_rows(run["sigma_BD_true"])
+    C = dcm_rows(run["sigma_BD_true"])
     run["omega_BD_B_true"][:] = run["omega_BN_B"] - np.einsum("nij,nj->ni", C, wd)
 
 

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["cone_vector", "error_signal", "mrp_subtract", "mrp_to_rotvec", "nearest_rank", "pair_differences",
-           "relative_errors", "settling_time", "wheel_momentum", "window_means", "windows"]
+__all__ = ["dcm_rows", "cone_vector", "error_signal", "mrp_subtract", "mrp_to_rotvec", "nearest_rank",
+           "pair_differences", "relative_errors", "settling_time", "wheel_momentum", "window_means", "windows"]
 
 
 # --------------------------------------------------------------------------- #
@@ -43,7 +43,7 @@ def mrp_subtract(s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
     return np.where(n2 > 1.0, -s / np.where(n2 > 0, n2, 1.0), s)
 
 
-def _dcm(sigma: np.ndarray) -> np.ndarray:
+def dcm_rows(sigma: np.ndarray) -> np.ndarray:
     """DCMs (N, 3, 3) of MRPs: C = I + (8 [s]^2 - 4 (1 - s's) [s]) / (1 + s's)^2."""
     s = np.asarray(sigma, float).reshape(-1, 3)
     n2 = np.sum(s * s, axis=1)[:, None, None]
@@ -59,7 +59,7 @@ def cone_vector(sigma: np.ndarray, boresight: Any) -> np.ndarray:
     length the half-cone angle between the two; a rotation about b has none."""
     b = np.asarray(boresight, float)
     b = b / np.linalg.norm(b)
-    d = _dcm(sigma) @ b  # the desired direction in B
+    d = dcm_rows(sigma) @ b  # the desired direction in B
     axis = np.cross(b, d)
     s = np.linalg.norm(axis, axis=1, keepdims=True)
     angle = np.arctan2(s, (d @ b)[:, None])
