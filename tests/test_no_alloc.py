@@ -102,12 +102,15 @@ def test_lockstep_with_sensors_auth_and_a_hostile_publisher_allocates_nothing(tm
     assert _allocations(s)["count"] == 0, s
 
 
-def test_realtime_steps_and_the_receive_thread_allocate_nothing(tmp_path):
-    """Real time, timer trigger: the receive thread fills the mailbox and
-    the intake while the step thread steps on its deadlines."""
-    s = _run(tmp_path, "ppc_feasible_100hz_sensors", 7763, ctl_args="--mode realtime --trigger timer",
+@pytest.mark.parametrize("trigger, port", [("timer", 7763), ("event", 7764)])
+def test_realtime_steps_and_the_receive_thread_allocate_nothing(tmp_path, trigger, port):
+    """Real time, both triggers: with the timer, the receive thread fills the
+    mailbox and the intake while the step thread steps on its deadlines;
+    with the event trigger (the default), each state's arrival steps at once
+    in the receiving thread (issue 42 item 6: it ran under no counter)."""
+    s = _run(tmp_path, "ppc_feasible_100hz_sensors", port, ctl_args=f"--mode realtime --trigger {trigger}",
              emu_args="--mode realtime", duration=4)
-    assert s["mode"] == "realtime" and s["trigger"] == "timer" and s["steps"] > 2 * WARMUP, s
+    assert s["mode"] == "realtime" and s["trigger"] == trigger and s["steps"] > 2 * WARMUP, s
     assert _allocations(s)["count"] == 0, s
 
 

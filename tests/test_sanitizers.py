@@ -210,18 +210,20 @@ wait $CTL
     assert s["nav"]["rejected"]["malformed"] > 0 and s["nav"]["rejected"]["invalid"] > 0, s
 
 
-def test_asan_controller_realtime_and_the_lcm_round_trip_tool(asan, tmp_path):
-    """Real time (the receive thread and the timer loop) at 100 Hz with the
-    sensors, stopped by SIGTERM: the leak check runs at its exit. Then
-    sc-rt-lcm-pingpong, both roles."""
+@pytest.mark.parametrize("trigger, port", [("timer", 7753), ("event", 7755)])
+def test_asan_controller_realtime_and_the_lcm_round_trip_tool(asan, tmp_path, trigger, port):
+    """Real time at 100 Hz with the sensors, both triggers (the timer's
+    receive thread and loop; the event trigger, the default, stepping on
+    each arrival), stopped by SIGTERM: the leak check runs at its exit.
+    Then sc-rt-lcm-pingpong, both roles."""
     ctl = shlex.quote(str(asan / "cpp" / "sc-rt-controller"))
     pp = shlex.quote(str(asan / "cpp" / "sc-rt-lcm-pingpong"))
-    url = "udpm://239.255.76.67:7753?ttl=0&recv_buf_size=4194304"
+    url = f"udpm://239.255.76.67:{port}?ttl=0&recv_buf_size=4194304"
     scn = "ppc_feasible_100hz_sensors"
     cfg = _config(scn, tmp_path / "cfg.bin")
     script = f"""
 set -e
-{ctl} --config {cfg} --mode realtime --trigger timer --lcm-url '{url}' --summary {tmp_path}/sum.json \\
+{ctl} --config {cfg} --mode realtime --trigger {trigger} --lcm-url '{url}' --summary {tmp_path}/sum.json \\
     > /dev/null 2> {tmp_path}/ctl.err &
 CTL=$!
 {_wait_for('mode on', tmp_path / 'ctl.err')}
@@ -237,7 +239,7 @@ wait $PONG
 """
     _bench(script, tmp_path, ASAN_ENV)
     s = json.loads((tmp_path / "sum.json").read_text())
-    assert s["mode"] == "realtime" and s["steps"] >= 200 and s["nav"]["gyro_used"] > 0, s
+    assert s["mode"] == "realtime" and s["trigger"] == trigger and s["steps"] >= 200 and s["nav"]["gyro_used"] > 0, s
     assert json.loads((tmp_path / "ping.json").read_text())["n"] > 0
 
 
@@ -327,20 +329,23 @@ def test_asan_bindings_run_the_core_tests(asan, tmp_path):
 # ------------------------------------------------- the controller under TSan
 
 
-def test_tsan_controller_realtime_threads(tsan, tmp_path):
-    """Real time, timer trigger: the receive thread (states and sensor
+@pytest.mark.parametrize("trigger, port", [("timer", 7754), ("event", 7756)])
+def test_tsan_controller_realtime_threads(tsan, tmp_path, trigger, port):
+    """Real time, both triggers: the receive thread (states and sensor
     messages into the mailbox and the MEKF's intake) against the step thread
-    (the law, the estimator, publishing), at 100 Hz with authentication; then
-    without it, under a hostile publisher on the state and sensor channels."""
+    (the law, the estimator, publishing), or with the event trigger LCM's
+    own thread against the stepping one, at 100 Hz with authentication;
+    then without it, under a hostile publisher on the state and sensor
+    channels."""
     ctl = shlex.quote(str(tsan / "cpp" / "sc-rt-controller"))
-    url = "udpm://239.255.76.67:7754?ttl=0&recv_buf_size=4194304"
+    url = f"udpm://239.255.76.67:{port}?ttl=0&recv_buf_size=4194304"
     scn = "ppc_feasible_100hz_sensors"
     cfg = _config(scn, tmp_path / "cfg.bin")
     key = tmp_path / "key"
     key.write_bytes(b"the sanitizer bench's key")
     script = f"""
 set -e
-{ctl} --config {cfg} --mode realtime --trigger timer --auth-key {key} --lcm-url '{url}' \\
+{ctl} --config {cfg} --mode realtime --trigger {trigger} --auth-key {key} --lcm-url '{url}' \\
     --summary {tmp_path}/sum1.json \\
     > /dev/null 2> {tmp_path}/ctl1.err &
 CTL=$!
@@ -349,7 +354,7 @@ CTL=$!
     > {tmp_path}/emu1.log 2>&1
 kill -TERM $CTL
 wait $CTL
-{ctl} --config {cfg} --mode realtime --trigger timer --lcm-url '{url}' --summary {tmp_path}/sum2.json \\
+{ctl} --config {cfg} --mode realtime --trigger {trigger} --lcm-url '{url}' --summary {tmp_path}/sum2.json \\
     > /dev/null 2> {tmp_path}/ctl2.err &
 CTL=$!
 {_wait_for('mode on', tmp_path / 'ctl2.err')}
