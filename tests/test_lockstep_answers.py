@@ -84,3 +84,7 @@ def test_a_law_that_never_returns_fails_the_lockstep_run_named(tmp_path):
     assert m["partial"] is True and m["steps"] == 20  # rows 0..19, each the law's own answer
     tr = np.load(out / "trajectory.npz")
     assert np.all(np.isfinite(tr["latency_us"])) and np.all(~tr["cmd_stale"])
+    # a stopped run still writes its report, which says INVALID and why in its headline (issue 40 item 9)
+    html = (out / "report.html").read_text()
+    head = html[html.index('<p id="verdict-bound">'):]
+    assert head.startswith('<p id="verdict-bound">INVALID: ') and "did not answer state 20" in head[:400]

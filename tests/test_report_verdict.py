@@ -59,3 +59,24 @@ def test_report_of_a_log_gives_the_live_runs_law_failures(tmp_path):
     assert m["valid"] is False and "law failed" in m["invalid_reason"], m.get("invalid_reason")
     assert m["law_invalid_steps"] == int(failed.sum()) == live["law_invalid_steps"]
     assert f"t = {float(t[failed][0]):.4g} s" in m["invalid_reason"]
+
+
+def test_report_html_of_an_invalid_offline_run_says_invalid_in_its_headline(tmp_path):
+    """issue 40 item 9: the verdict's headline of report.html starts with
+    INVALID and the run's reason (before: an invalid run's page never said
+    so near the top)."""
+    import subprocess
+    import sys
+
+    law = tmp_path / "throws.py"
+    law.write_text(LAW)
+    out = tmp_path / "sim"
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", "paper_fault_free", "--law", f"{law}:Throws",
+                        "--engine", "cpp", "--duration", "3", "--out", str(out), "--no-plots"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 1, r.stderr
+    reason = json.loads((out / "metrics.json").read_text())["invalid_reason"]
+    html = (out / "report.html").read_text()
+    head = html[html.index('<p id="verdict-bound">'):]
+    assert head.startswith('<p id="verdict-bound">INVALID: ')
+    assert reason.split(";")[0].replace("'", "&#x27;") in head[:600]

@@ -126,9 +126,9 @@ def cmd_hil(args: argparse.Namespace) -> int:
           f"scheduler {t['scheduler']}")
     if t.get("over_floor"):
         print(f"  {t['over_floor']['line']}")
+    html_report(Path(res.out), "hil")  # a run stopped early too: its report says so at the top
     if res.stopped:
         return report_stopped(res.run, res.stopped, res.signum, res.out, "hil")
-    html_report(Path(res.out), "hil")
     if mcap and (rc := write_mcap(Path(res.out) / "run.lcmlog", mcap, who="hil")):
         return rc
     return strict_exit(gate_problems(res.metrics), invalid_exit(res.metrics, "hil"), "hil", args.strict)

@@ -327,6 +327,9 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
         items.append(("verdict-diverged",
                       "The run diverged" + since if m.get("diverged") else "Some values are not finite"))
         held = False
+    if m.get("valid") is False:  # not a run of its law: said first, whatever it measured
+        head = f"INVALID: {m.get('invalid_reason') or 'see metrics.json'}. What it measured: {head}"
+        held = False
     pe = m.get("max_pointing_error_arcsec_after_30s")
     if pe is not None and not by_requirements:  # the envelope's own figure; requirements state theirs
         law = m.get("law_max_pointing_error_arcsec_after_30s")
