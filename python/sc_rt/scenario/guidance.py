@@ -40,6 +40,7 @@ __all__ = [
     "HoldGuidance",
     "SlewGuidance",
     "coverage_problem",
+    "guidance_phases",
     "read_guidance",
     "read_reference_file",
 ]
@@ -420,3 +421,21 @@ def _cap(problems: list[str]) -> list[str]:
 
 def _list(v: np.ndarray) -> str:
     return "[" + ", ".join(f"{x:.9g}" for x in v) + "]"
+
+
+def guidance_phases(g: Any) -> dict[str, tuple[float, float | None]]:
+    """The named phases of a guidance, name -> (start, end) [s] (end None:
+    to the run's end), what a requirement's ``phase`` selects: a slew's
+    "before" (from 0 to its start, when it starts later), "slew" and "hold"
+    (after it); an inertial hold's "hold"; none for the paper's reference or
+    a file's (they have no phases)."""
+    if isinstance(g, SlewGuidance):
+        out: dict[str, tuple[float, float | None]] = {}
+        if g.start > 0:
+            out["before"] = (0.0, float(g.start))
+        out["slew"] = (float(g.start), float(g.start + g.duration))
+        out["hold"] = (float(g.start + g.duration), None)
+        return out
+    if isinstance(g, HoldGuidance):
+        return {"hold": (0.0, None)}
+    return {}

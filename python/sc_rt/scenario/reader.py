@@ -36,7 +36,7 @@ from sc_rt.scenario.schema import (
     read_only,
     read_values,
 )
-from sc_rt.scenario.guidance import coverage_problem, read_guidance
+from sc_rt.scenario.guidance import coverage_problem, guidance_phases, read_guidance
 from sc_rt.scenario.requirements import read_requirements
 from sc_rt.scenario.sensors import read_sensors
 from sc_rt.scenario.shipped import resolve
@@ -371,7 +371,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         check_tables(doc, controller.laws, where)
     faults = _read_faults(root, run.plant_step if run else None)
     wheels = read_wheels(root)
-    requirements = read_requirements(root, run.duration if run else None)
+    requirements = read_requirements(root, run.duration if run else None,
+                                     guidance_phases(guidance) if guidance is not None else {})
     record = read_fields(root.sub("record", required=False), RecordParams)
     montecarlo = root.sub("montecarlo", required=False)  # read last: it names the others' keys
     root.finish()

@@ -61,18 +61,18 @@ UNITS: dict[str, dict[str, float]] = {
 #: angle's unit is always stated (arcsec and rad differ by 2e5).
 _DEFAULT_UNIT = ("wheel_speed_margin", "momentum_margin", "max_command", "max_torque")
 
-_POINTING = ("axis", "boresight", "bound", "unit", "confidence", "interpretation", "t_from", "t_to", "settling",
-             "mode")
+_POINTING = ("axis", "boresight", "bound", "unit", "confidence", "interpretation", "t_from", "t_to", "phase",
+             "settling", "mode")
 #: The keys each kind takes (besides name and kind).
 KEYS: dict[str, tuple[str, ...]] = {
     **{k: _POINTING for k in ("APE", "AKE")},
     **{k: _POINTING + ("window",) for k in WINDOWED},
     **{k: _POINTING + ("window", "separation") for k in PAIRED},
-    "settling": ("axis", "boresight", "bound", "unit", "settle_by", "t_from", "t_to"),
-    "wheel_speed_margin": ("bound", "unit", "t_from", "t_to", "settling", "mode"),
-    "momentum_margin": ("bound", "unit", "t_from", "t_to", "settling", "mode"),
-    "max_command": ("bound", "unit", "t_from", "t_to", "settling", "mode"),
-    "max_torque": ("bound", "unit", "t_from", "t_to", "settling", "mode"),
+    "settling": ("axis", "boresight", "bound", "unit", "settle_by", "t_from", "t_to", "phase"),
+    "wheel_speed_margin": ("bound", "unit", "t_from", "t_to", "phase", "settling", "mode"),
+    "momentum_margin": ("bound", "unit", "t_from", "t_to", "phase", "settling", "mode"),
+    "max_command": ("bound", "unit", "t_from", "t_to", "phase", "settling", "mode"),
+    "max_torque": ("bound", "unit", "t_from", "t_to", "phase", "settling", "mode"),
     "envelope": (),
 }
 _ALL_KEYS = ("name", "kind") + tuple(dict.fromkeys(k for keys in KEYS.values() for k in keys))
@@ -118,6 +118,10 @@ class Requirement:
         With t_from = "after_settling": the settling requirement whose time starts the span.
     mode : str
         One of ``MODES``: only the span's rows in that window are judged ("": all).
+    phase : str
+        A phase of the guidance (``sc_rt.scenario.guidance.guidance_phases``:
+        a slew's "before", "slew", "hold"; a hold's "hold") whose interval
+        gave ``t_from`` and ``t_to`` ("": the span as written).
     """
 
     name: str
@@ -135,6 +139,7 @@ class Requirement:
     settle_by: float | None = None
     settling: str = ""
     mode: str = ""
+    phase: str = ""
 
     def data(self) -> dict[str, Any]:
         """The row as the TOML data it reads back from (keys left at their
@@ -146,6 +151,8 @@ class Requirement:
             v = getattr(self, f.name)
             if v is None or v == "" or (f.name == "t_from" and v == 0.0 and not isinstance(v, str)):
                 continue
+            if self.phase and f.name in ("t_from", "t_to"):  # the phase gave them: it reads back as the phase
+                continue
             out[f.name] = list(v) if isinstance(v, tuple) else v
         return out
 
@@ -155,7 +162,8 @@ def requirements_data(reqs: tuple[Requirement, ...]) -> list[dict[str, Any]]:
     return [r.data() for r in reqs]
 
 
-def _read_row(t: Table, duration: float | None) -> Requirement | None:
+def _read_row(t: Table, duration: float | None, phases: dict[str, tuple[float, float | None]]
+              ) -> Requirement | None:  # fmt: skip
     name = t.read("name", Spec("str"))
     kind = t.read("kind", Spec("str", choices=KINDS))
     if name is not None and not name.strip():
@@ -205,7 +213,7 @@ def _read_row(t: Table, duration: float | None) -> Requirement | None:
     if "settle_by" in allowed:
         v["settle_by"] = t.read("settle_by", Spec("number", gt=0))
     if "t_from" in allowed:
-        v.update(_read_span(t, kind, duration))
+        v.update(_read_span(t, kind, duration, phases))
         ok = ok and v.pop("span_ok")
     if "mode" in allowed:
         v["mode"] = t.read("mode", Spec("str", choices=MODES), default="")
@@ -215,8 +223,40 @@ def _read_row(t: Table, duration: float | None) -> Requirement | None:
     return Requirement(name=name, kind=kind, **v)
 
 
-def _read_span(t: Table, kind: str, duration: float | None) -> dict[str, Any]:
-    """t_from (a number or "after_settling"), t_to, and the settling row named."""
+def _read_phase(t: Table, duration: float | None, phases: dict[str, tuple[float, float | None]]
+                ) -> dict[str, Any]:  # fmt: skip
+    """``phase``: the span of a named phase of the guidance (t_from, t_to)."""
+    name = t.read("phase", Spec("str"))
+    out: dict[str, Any] = {"t_from": None, "t_to": None, "settling": "", "phase": name or "", "span_ok": False}
+    for key in ("t_from", "t_to", "settling"):
+        if t.has(key):
+            t.used.add(key)
+            t.fail(key, f"{key} and phase both give the span: give one of them")
+            return out
+    if name is None:
+        return out
+    if name not in phases:
+        have = ", ".join(f'"{p}"' for p in phases) or "none (the paper's or a file's reference has no phases)"
+        t.fail("phase", f"phase {format_value(name)} is not a phase of this scenario's [guidance] (its phases: {have})")
+        return out
+    start, stop = phases[name]
+    if duration is not None and start >= duration:
+        t.fail("phase", f"phase {format_value(name)} starts at {start:g} s, at or after run.duration = {duration:g} s")
+        return out
+    stop = None if stop is None or (duration is not None and stop >= duration) else stop
+    if stop is not None and stop <= start:
+        t.fail("phase", f"phase {format_value(name)} is empty ({start:g} s to {stop:g} s)")
+        return out
+    out.update(t_from=float(start), t_to=None if stop is None else float(stop), span_ok=True)
+    return out
+
+
+def _read_span(t: Table, kind: str, duration: float | None,
+               phases: dict[str, tuple[float, float | None]] | None = None) -> dict[str, Any]:
+    """t_from (a number or "after_settling"), t_to, and the settling row named;
+    or ``phase``, a phase of the guidance (``phases``: name -> [start, end) s)."""
+    if t.has("phase"):
+        return _read_phase(t, duration, phases or {})
     ok = True
     raw_from = t.raw("t_from")
     if isinstance(raw_from, str) and kind != "settling":
@@ -252,10 +292,13 @@ def _read_span(t: Table, kind: str, duration: float | None) -> dict[str, Any]:
     return {"t_from": t_from, "t_to": t_to, "settling": settling, "span_ok": ok}
 
 
-def read_requirements(root: Table, duration: float | None) -> tuple[Requirement, ...] | None:
+def read_requirements(root: Table, duration: float | None,
+                      phases: dict[str, tuple[float, float | None]] | None = None
+                      ) -> tuple[Requirement, ...] | None:  # fmt: skip
     """The ``[[requirements]]`` rows of the file (``()`` without any), or
     None after reporting their problems on ``root.doc``. ``duration``: the
-    run's [s] (None when [run] is broken), the spans must lie within it."""
+    run's [s] (None when [run] is broken), the spans must lie within it;
+    ``phases``: the guidance's named phases (a row's ``phase``)."""
     root.used.add("requirements")
     if not root.has("requirements"):
         return ()
@@ -268,7 +311,7 @@ def read_requirements(root: Table, duration: float | None) -> tuple[Requirement,
     for i, entry in enumerate(raw):
         t = Table(root.doc, f"requirements[{i}]", entry)
         tables.append(t)
-        rows.append(_read_row(t, duration))
+        rows.append(_read_row(t, duration, phases or {}))
     first: dict[str, int] = {}
     for i, (t, r) in enumerate(zip(tables, rows)):
         if r is None:
