@@ -90,6 +90,8 @@ SLOW_TESTS = (
     "tests/test_set_option.py::test_a_bad_set_is_refused_in_one_line_naming_the_key",
     "tests/test_set_option.py::test_set_runs_what_the_edited_file_runs_and_is_recorded",
     "tests/test_truth.py::test_the_live_view_gives_the_same_true_error",
+    "tests/test_compare_seeds.py::test_compare_over_seeds_says_what_lies_within_the_spread",
+    "tests/test_compare_seeds.py::test_a_scenario_without_noise_runs_each_law_once",
     "tests/test_record_stream.py::test_lockstep_run_written_as_it_runs_is_bit_identical_to_offline_sim",
     "tests/test_inbox.py::test_two_chunks_live_then_flat_while_25_times_as_many_rows_fill",
     "tests/test_auth_config.py::test_config_channel_takes_only_a_verified_configuration",

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from sc_rt.cli.common import add_set, add_strict, strict_exit
-from sc_rt.cli.validate import LAW_HELP, check_run_size, given_options, law_choice, number, out_dir
+from sc_rt.cli.validate import LAW_HELP, check_run_size, given_options, integer, law_choice, number, out_dir
 
 __all__ = ["add_parser", "cmd_compare"]
 
@@ -28,6 +28,10 @@ def add_parser(sub) -> None:
     c.add_argument("--duration", type=number(unit="s"), metavar="S", help="[s] default: the scenario's")
     c.add_argument("--settle", type=float, default=0.02, metavar="FRAC",
                    help="settling: the pointing error stays within FRAC of its initial value (default 0.02)")
+    c.add_argument("--seeds", type=integer(1, 1000), metavar="N",
+                   help="run each law N times, sensor-noise seeds seed..seed+N-1, and rank by the mean margin, "
+                        "saying which differences lie within the seeds' spread (default: 5 for a scenario with "
+                        "[sensors], 1 without: its runs have no noise)")
     c.add_argument("--out", metavar="DIR", type=out_dir, help="also write DIR/compare.json and DIR/compare.md")
     add_strict(c)  # every law's run through the gate
     add_set(c)
@@ -49,24 +53,29 @@ def cmd_compare(args: argparse.Namespace) -> int:
     check_run_size(with_overrides(scn, duration=args.duration), given_options(args, duration="--duration"))
     # every law checked (a plugin or a Python law constructed with its table) before any run
     scns = {law: with_overrides(scn, law=law, duration=args.duration) for law in args.laws}
-    from sc_rt.results.judge.compare import compare_row, overall, rank_requirements
+    from sc_rt.results.judge.compare import compare_row, merge_seeds, overall, rank_requirements
     from sc_rt.results.present.tables import overall_line, ranking_table, table
     from sc_rt.sim.isolated import RunCrashed, simulate_contained
 
+    seeds = args.seeds or (5 if scn.sensors is not None else 1)
+    if seeds > 1 and scn.sensors is None:
+        print(f"sc-rt compare: --seeds {seeds}: {scn.name} has no [sensors]: its runs have no noise, one each",
+              file=sys.stderr)
+        seeds = 1
     rows = []
     failed = 0
     for law in args.laws:
         # its label: a plugin's or a Python law's name (which also names its table, [laws.NAME])
         label = law_identity(scns[law].run.controller)["name"]
-        run_scn, kw = scns[law], dict(engine=args.engine)
+        kw = dict(engine=args.engine)
         try:  # a plugin runs in a child of its own: its crash fails its row, not the comparison
-            run = simulate_contained(run_scn, **kw)
+            runs = [simulate_contained(_with_seed(scns[law], k), **kw) for k in range(seeds)]
         except RunCrashed as e:
             rows.append({"law": label, "valid": False, "invalid_reason": str(e), "crashed": True})
             failed += 1
             print(f"sc-rt compare: {scn.name}: {label} FAILED: {e}", file=sys.stderr, flush=True)
             continue
-        row = compare_row(run, label, args.settle)
+        row = merge_seeds([compare_row(run, label, args.settle) for run in runs])
         rows.append(row)
         if not row["valid"]:
             failed += 1
@@ -76,7 +85,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from sc_rt.results.judge.verdict import asks_envelope
 
     text = table(rows, envelope=asks_envelope(scn.requirements))  # the bound's columns where it is asked for
-    print(f"{scn.name} ({args.engine} engine, settling within {args.settle:g} of the initial error)\n")
+    print(f"{scn.name} ({args.engine} engine, settling within {args.settle:g} of the initial error"
+          + (f"; each law over {seeds} sensor-noise seeds, its margins their mean" if seeds > 1 else "") + ")\n")
     print(text)
     ranked = rank_requirements(rows)
     if ranked:
@@ -102,6 +112,15 @@ def cmd_compare(args: argparse.Namespace) -> int:
         (out / "compare.json").write_text(json.dumps(json_safe(doc), indent=2) + "\n")
         (out / "compare.md").write_text(text + "\n")
     return strict_exit(_gate(rows), 1 if failed else 0, "compare", args.strict)
+
+
+def _with_seed(scn, k: int):
+    """``scn`` with its sensors' seed moved on by ``k`` (k = 0: the scenario itself)."""
+    if k == 0 or scn.sensors is None:
+        return scn
+    import dataclasses
+
+    return dataclasses.replace(scn, sensors=dataclasses.replace(scn.sensors, seed=scn.sensors.seed + k))
 
 
 def _expect_lines(rows: list[dict]) -> list[str]:

@@ -86,6 +86,38 @@ def rank_key(r: dict[str, Any]) -> tuple[int, float]:
     return (1, 0.0) if m is None else (0, -float(m))
 
 
+def merge_seeds(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """One law's row from its runs over several sensor-noise seeds (``rows``,
+    one per seed, each a ``compare_row``): the first run's row, each
+    requirement's ``value`` and ``relative_margin`` the mean over the seeds,
+    with every seed's relative margin (``seed_relative_margins``) and their
+    spread (max - min); ``passed`` only when every seed passed. The ranking
+    (``rank_requirements``) then says which differences lie within it."""
+    if len(rows) == 1:
+        return rows[0]
+    out = dict(rows[0])
+    out["seeds"] = len(rows)
+    out["valid"] = all(r.get("valid", True) for r in rows)
+    reqs = []
+    for i, r in enumerate(rows[0].get("requirements") or []):
+        same = [row["requirements"][i] for row in rows if len(row.get("requirements") or []) > i]
+        rel = [x.get("relative_margin") for x in same]
+        val = [x.get("value") for x in same]
+        merged = dict(r)
+        if all(v is not None for v in rel):
+            merged["relative_margin"] = float(np.mean(rel))
+            merged["seed_relative_margins"] = [float(v) for v in rel]
+            merged["seed_spread"] = float(np.max(rel) - np.min(rel))
+        if all(v is not None for v in val):
+            merged["value"] = float(np.mean(val))
+        passed = [x.get("passed") for x in same]
+        merged["passed"] = None if any(v is None for v in passed) else all(passed)
+        merged["status"] = r.get("status") if merged["passed"] is None else ("pass" if merged["passed"] else "fail")
+        reqs.append(merged)
+    out["requirements"] = reqs
+    return out
+
+
 def rank_requirements(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, Any]]]:
     """Per requirement (in the scenario's order), the laws' results ranked by
     their margin relative to the bound, best first (``rank`` 1, 2, ...;
@@ -100,6 +132,10 @@ def rank_requirements(rows: list[dict[str, Any]]) -> dict[str, list[dict[str, An
         entries.sort(key=rank_key)
         for i, e in enumerate(entries):
             e["rank"] = i + 1 if e.get("passed") is not None else None
+            # over several seeds: is the next one's mean within either's spread (a difference of noise)?
+            if i + 1 < len(entries) and "seed_spread" in e and "seed_spread" in entries[i + 1]:
+                gap = abs(e["relative_margin"] - entries[i + 1]["relative_margin"])
+                e["within_seed_spread_of_next"] = bool(gap <= max(e["seed_spread"], entries[i + 1]["seed_spread"]))
     return out
 
 

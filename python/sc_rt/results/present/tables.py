@@ -45,6 +45,10 @@ def ranking_table(ranked: dict[str, list[dict[str, Any]]]) -> str:
                 f"{e['margin']:+.4g}" + ("" if unit in (None, "-") else f" {unit}")
                 + ("" if rel is None or unit == "-" else f" ({100 * rel:+.3g} %)"))
             result = e["status"].upper() if e.get("status") in ("pass", "fail") else (e.get("status") or "-")
+            if "seed_spread" in e:  # several seeds: the margin is their mean; its spread beside it
+                margin += f", spread {100 * e['seed_spread']:.3g} %"
+            if e.get("within_seed_spread_of_next"):
+                result += " (next: within the seed spread)"
             body.append(f"| {name if i == 0 else ''} | {e['rank'] or '-'} | {e['law']} | {_num(e.get('value'), unit)} "
                         f"| {_num(e.get('bound'), unit)} | {margin} | {result} |")
     return "\n".join([head, *body])
