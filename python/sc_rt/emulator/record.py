@@ -166,7 +166,9 @@ class Record:
     @property
     def writer_waits(self) -> int:
         """Times the loop waited for the record's writer (0: it never fell behind)."""
-        return self._writer.waits if self._writer is not None else 0
+        if self._writer is None:
+            return 0
+        return getattr(self, "_waits_in_run", self._writer.waits)
 
     def close(self, rows: int, meta: RunMeta, mode: str) -> tuple[Run, dict[str, Any]]:
         """The run of the first ``rows`` rows and where the loop's
@@ -181,6 +183,8 @@ class Record:
             fill_from_inbox(run, cols)
             loop.add(cols["stamps"], cols["cmd_utime"], cols["pub_wall_us"], cols["cmd_rx"], cols["pub_ns"])
             return run, loop.result()
+        if self._writer is not None:
+            self._waits_in_run = self._writer.waits  # (the hand-over at the end below is not a tick's)
         self.ring.finish(rows)
         if self._writer is not None:
             self._writer.close()
