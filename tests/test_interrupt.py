@@ -158,6 +158,8 @@ def test_hil_on_a_full_disk(tmp_path):
     assert "rc=0" not in r.stdout and "rc=" in r.stdout, r.stdout + r.stderr
     assert "Traceback" not in r.stderr, r.stderr
     assert "No space left on device" in r.stderr, r.stderr
+    # the line names the directory (issue 40 item 5: "cannot write the outputs" before)
+    assert str(out) in r.stderr, r.stderr
     assert not leftovers(str(out))
 
 

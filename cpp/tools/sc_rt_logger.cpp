@@ -18,6 +18,7 @@
 #include <time.h>
 
 #include <atomic>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -67,7 +68,14 @@ void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
   ev.datalen = static_cast<int32_t>(rbuf->data_size);
   ev.channel = const_cast<char*>(channel);
   ev.data = rbuf->data;
-  if (lcm_eventlog_write_event(c->log, &ev) != 0) ++c->write_errors;
+  if (lcm_eventlog_write_event(c->log, &ev) != 0) {
+    // a full disk (or a file gone): the log can no longer be the run's evidence; stop now,
+    // so that the bench (which watches this process) stops the run within its poll
+    if (c->write_errors++ == 0) {
+      std::fprintf(stderr, "sc-rt-logger: cannot write the log (%s): stopping\n", std::strerror(errno));
+    }
+    g_stop = true;
+  }
   ++c->events;
   if (!c->count_channel.empty() && c->count_channel == channel) ++c->counted;
   const int q = lcm_subscription_get_queue_size(c->sub);
@@ -148,7 +156,12 @@ int main(int argc, char** argv) {
       acked = c.counted;
     }
     if (mono_ms() >= next_flush) {
-      std::fflush(c.log->f);
+      if (std::fflush(c.log->f) != 0) {  // a full disk shows here first: stop, as for a failed write
+        if (c.write_errors++ == 0) {
+          std::fprintf(stderr, "sc-rt-logger: cannot write the log (%s): stopping\n", std::strerror(errno));
+        }
+        break;
+      }
       next_flush = mono_ms() + flush_ms;
     }
   }

@@ -345,7 +345,9 @@ def _main(argv: list[str] | None) -> int:
     except OSError as e:
         if e.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO):
             raise
-        print(f"sc-rt {args.command}: error: cannot write {e.filename or 'the outputs'}: {e.strerror}; "
+        out = getattr(args, "out", None)
+        where = e.filename or (f"into --out {out}" if out else "the outputs")
+        print(f"sc-rt {args.command}: error: cannot write {where}: {e.strerror or e}; "
               "the outputs are incomplete", file=sys.stderr)
         return 1
 
