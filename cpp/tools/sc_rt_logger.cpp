@@ -58,6 +58,16 @@ void publish_ack(lcm_t* lcm, const Ctx& c) {
   lcm_publish(lcm, c.ack_channel.c_str(), buf.data(), static_cast<unsigned int>(buf.size()));
 }
 
+// A write or flush of the log failed (a full disk, a file gone): the log can
+// no longer be the run's evidence. Said once, and the logger stops, so that
+// the bench (which watches this process) stops the run within its poll.
+void write_failed(Ctx& c) {
+  if (c.write_errors++ == 0) {
+    std::fprintf(stderr, "sc-rt-logger: cannot write the log (%s): stopping\n", std::strerror(errno));
+  }
+  g_stop = true;
+}
+
 void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
   auto* c = static_cast<Ctx*>(user);
   if (!c->ack_channel.empty() && c->ack_channel == channel) return;  // its own acknowledgements
@@ -69,12 +79,7 @@ void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
   ev.channel = const_cast<char*>(channel);
   ev.data = rbuf->data;
   if (lcm_eventlog_write_event(c->log, &ev) != 0) {
-    // a full disk (or a file gone): the log can no longer be the run's evidence; stop now,
-    // so that the bench (which watches this process) stops the run within its poll
-    if (c->write_errors++ == 0) {
-      std::fprintf(stderr, "sc-rt-logger: cannot write the log (%s): stopping\n", std::strerror(errno));
-    }
-    g_stop = true;
+    write_failed(*c);
   }
   ++c->events;
   if (!c->count_channel.empty() && c->count_channel == channel) ++c->counted;
@@ -156,10 +161,8 @@ int main(int argc, char** argv) {
       acked = c.counted;
     }
     if (mono_ms() >= next_flush) {
-      if (std::fflush(c.log->f) != 0) {  // a full disk shows here first: stop, as for a failed write
-        if (c.write_errors++ == 0) {
-          std::fprintf(stderr, "sc-rt-logger: cannot write the log (%s): stopping\n", std::strerror(errno));
-        }
+      if (std::fflush(c.log->f) != 0) {  // a full disk shows here first: as a failed write
+        write_failed(c);
         break;
       }
       next_flush = mono_ms() + flush_ms;

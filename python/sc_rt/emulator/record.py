@@ -123,6 +123,7 @@ class Record:
         self.directory = directory
         self._raw: ChunkFile | None = None
         self._writer: ChunkWriter | None = None
+        self._waits_in_run: int | None = None  # the writer's waits at the run's end (close)
         self._tmpdir: Path | None = None
         if n_rows > 2 * self.chunk:  # the rows will go to disk, on the writer's thread
             load_arrow()
@@ -168,7 +169,7 @@ class Record:
         """Times the loop waited for the record's writer (0: it never fell behind)."""
         if self._writer is None:
             return 0
-        return getattr(self, "_waits_in_run", self._writer.waits)
+        return self._writer.waits if self._waits_in_run is None else self._waits_in_run
 
     def close(self, rows: int, meta: RunMeta, mode: str) -> tuple[Run, dict[str, Any]]:
         """The run of the first ``rows`` rows and where the loop's
