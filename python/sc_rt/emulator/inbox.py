@@ -261,7 +261,8 @@ class Receiver:
         self.newest_cmd_ns = 0
         self._last_cmd_seq = -1
         self._last_status_seq = -1
-        self._jumps = {"cmd": -2, "status": -2}  # per kind, the newest unconfirmed seq jump (-2: none)
+        # per counter, the newest unconfirmed seq jump (-2: none)
+        self._jumps = {"cmd_seq_jump": -2, "status_seq_jump": -2}
         self.ctl_session: int | None = None
         self.ctl_last_ns = 0  # monotonic ns of the adopted controller's newest message
         self.peer_lost = False
@@ -302,15 +303,15 @@ class Receiver:
                                                             now, kind))
         return False
 
-    def _unconfirmed_jump(self, kind: str, last: int, seq: int) -> bool:
+    def _unconfirmed_jump(self, counter: str, last: int, seq: int) -> bool:
         """Whether ``seq`` is more than SEQ_WINDOW ahead of ``last`` (the newest
         taken) and not confirmed by being the successor of the jump held
-        before: dropped, counted (``<kind>_seq_jump``) and held in its turn."""
-        if last >= 0 and seq - last > SEQ_WINDOW and seq != self._jumps[kind] + 1:
-            self._jumps[kind] = seq
-            self.counters[f"{kind}_seq_jump"] += 1
+        before: dropped, counted under ``counter`` and held in its turn."""
+        if last >= 0 and seq - last > SEQ_WINDOW and seq != self._jumps[counter] + 1:
+            self._jumps[counter] = seq
+            self.counters[counter] += 1
             return True
-        self._jumps[kind] = -2
+        self._jumps[counter] = -2
         return False
 
     def on_cmd(self, _ch: str, data: bytes) -> None:
@@ -339,7 +340,7 @@ class Receiver:
             else:
                 self.counters["duplicate" if msg.seq == self._last_cmd_seq else "out_of_order"] += 1
             return
-        if self._unconfirmed_jump("cmd", self._last_cmd_seq, msg.seq):
+        if self._unconfirmed_jump("cmd_seq_jump", self._last_cmd_seq, msg.seq):
             return
         self._last_cmd_seq = msg.seq
         self.newest_cmd, self.newest_cmd_ns = msg, now
@@ -364,7 +365,7 @@ class Receiver:
         if cmd_seq <= self._last_status_seq:
             self.counters["status_out_of_order"] += 1
             return
-        if self._unconfirmed_jump("status", self._last_status_seq, cmd_seq):
+        if self._unconfirmed_jump("status_seq_jump", self._last_status_seq, cmd_seq):
             return
         self._last_status_seq = cmd_seq
         self.peers.saw_status(session)
