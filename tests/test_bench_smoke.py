@@ -157,6 +157,13 @@ def bench_timing(res: dict, out: str) -> None:
         check_percentiles(row["latency_us"])
         assert isinstance(row["breakdown_us"], dict) and row["breakdown_us"], name
         assert "profile_top" not in row  # a smoke run profiles nothing
+    for name, row in rows.items():  # the spill's effect on the tick: measured on every real-time run
+        if not name.startswith("lockstep"):
+            for r in row["per_run"]:
+                sp = r["spill"]
+                # 1 s runs: fewer rows than the two chunks before the first spill
+                assert sp["chunk_rows"] > 0 and sp["spills"] == 0 and sp["around_spills_us"]["p99"] is None, sp
+                assert fin(sp["elsewhere_us"]["p99"]) and sp["record_writer_waits"] == 0, sp
     lock = rows["lockstep + sc-rt-logger"]
     assert lock["steps"] > 0 and all(pos(x) for x in lock["steps_per_s_runs"]), lock
     assert all(pos(x) for x in lock["latency_p99_over_floor_p99"]), lock
