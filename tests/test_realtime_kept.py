@@ -125,6 +125,17 @@ def test_a_realtime_run_whose_controller_hangs_is_invalid(tmp_path):
     t = json.loads((out / "timing.json").read_text())
     assert m["valid"] is False and m["invalid_reason"].startswith("did not keep real time")
     assert t["kept_real_time"] is False and t["realtime_limits"]["dropped"] == 0.01
+    # the log alone gives the same verdict (issue 40 item 4)
+    rm, rt = _report(out, tmp_path / "rep")
+    assert rm["valid"] is False and "dropped ticks" in rm["invalid_reason"], rm.get("invalid_reason")
+    assert rt["kept_real_time"] is False and rt["realtime_limits_source"] == "the run's start record"
+
+
+def _report(out, rep):
+    """sc-rt report of a run's log: (metrics.json, timing.json)."""
+    r = lcmnet.run_cli(["report", str(out / "run.lcmlog"), "--out", str(rep), "--no-plots"], timeout=120)
+    assert r.returncode == 0, r.stderr + r.stdout
+    return json.loads((rep / "metrics.json").read_text()), json.loads((rep / "timing.json").read_text())
 
 
 STALLS = textwrap.dedent("""
@@ -171,3 +182,8 @@ def test_a_realtime_run_whose_plant_stalls_is_invalid(tmp_path):
     m = json.loads((out / "metrics.json").read_text())
     assert t["worst_tick_lateness_periods"] >= 140, t  # the stop, measured by the plant's own clock
     assert "worst tick" in m["invalid_reason"] and t["kept_real_time"] is False
+    # the log alone: the states' receipt times show the stall, judged by the run's own limits
+    rm, rt = _report(out, tmp_path / "rep")
+    assert rt["realtime_limits"]["dropped"] == 1.0 and rt["realtime_limits_source"] == "the run's start record"
+    assert rt["worst_tick_lateness_periods"] >= 140, rt
+    assert rm["valid"] is False and "worst tick" in rm["invalid_reason"], rm.get("invalid_reason")

@@ -40,8 +40,6 @@ def cmd_sim(args: argparse.Namespace) -> int:
     from sc_rt.scenario.overrides import grid
 
     engines.STOP.clear()
-    print(f"sc-rt sim: {scn.name}: {args.engine} engine, {grid(scn).n_ctrl + 1} rows ...", file=sys.stderr,
-          flush=True)
     from sc_rt.sim.isolated import RunCrashed, simulate_contained
 
     from sc_rt.isolate import forward_signal
@@ -50,7 +48,9 @@ def cmd_sim(args: argparse.Namespace) -> int:
         engines.STOP.set()
         forward_signal(signum)
 
-    with flag_signals(on_signal) as signals:
+    with flag_signals(on_signal) as signals:  # before the start line: a signal after it stops the run, partial
+        print(f"sc-rt sim: {scn.name}: {args.engine} engine, {grid(scn).n_ctrl + 1} rows ...", file=sys.stderr,
+              flush=True)
         try:  # a plugin's or a Python law's run is in a child: its end is one line, not exit 139 or 0
             res = simulate_contained(scn, engine=args.engine, record_dir=out)
         except RunCrashed as e:

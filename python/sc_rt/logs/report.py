@@ -40,7 +40,7 @@ import numpy as np
 
 from sc_rt.wire.lcmio import lcm_binary
 from sc_rt.logs.logread import LogData, read_log
-from sc_rt.logs.timing import log_missing, timing_report
+from sc_rt.logs.timing import RealtimeLimits, log_missing, realtime_shortfall, timing_report
 from sc_rt.logs.rebuild import (Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild,
                                run_params, sensor_summary)
 from sc_rt.pylaw import FLAG_LAW_INVALID
@@ -70,7 +70,25 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     out["log_missing"] = log_missing(d.path, d.prefix, len(run))
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"
+    if out.get("mode") == "realtime":
+        _judge_real_time(run, out, (d.start or {}).get("rt_limits"))
     return out
+
+
+def _judge_real_time(run: Run, timing: dict[str, Any], logged: dict[str, Any] | None) -> None:
+    """The live run's "kept real time" from the log: the same limits (the
+    run's own, from its start record; the defaults for a log without them)
+    on what the log holds: the controller's last status (steps, deadline
+    misses, stale states), the rows whose command was stale, and the
+    state-to-command latency as the logger received them."""
+    names = {f.name for f in dataclasses.fields(RealtimeLimits)}
+    limits = RealtimeLimits(**{k: v for k, v in (logged or {}).items() if k in names})
+    why = realtime_shortfall(timing, limits)
+    timing["kept_real_time"] = why is None
+    timing["realtime_limits"] = dataclasses.asdict(limits)
+    timing["realtime_limits_source"] = "the run's start record" if logged else "the defaults (not in the log)"
+    if why is not None:
+        mark_invalid(run, f"{why} (judged from the log)")
 
 
 def _main_session(records: np.ndarray) -> int | None:
