@@ -140,6 +140,7 @@ SLOW_TESTS = (
     "tests/test_gate.py::test_hil_strict_exits_1_on_a_failing_run_and_0_on_a_passing_one",
     "tests/test_gate.py::test_montecarlo_strict_gates_the_campaign_and_a_rerun",
     "tests/test_realtime_kept.py::test_a_realtime_run_whose_plant_stalls_is_invalid",
+    "tests/test_report_verdict.py::test_report_of_a_log_with_another_plants_states_is_invalid",
 )
 
 
