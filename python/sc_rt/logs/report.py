@@ -192,7 +192,6 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
         run.metrics.update(incomplete_rows_dropped=dropped, incomplete_rows_at_end=at_end)
     run.metrics.update(provenance(_main_session(d.records["SCRT_STATE"]), _main_session(d.records["SCRT_CMD"])))
     plants = plant_sessions(d.records["SCRT_STATE"])
-    run.metrics["plant_sessions"] = len(plants)
     if len(plants) > 1 and d.start is not None:  # a sc-rt hil run has one plant: the live run says collision
         mark_invalid(run, f"the log holds the states of {len(plants)} plants (sessions "
                           + ", ".join(f"{p['session']:#x}" for p in plants)
