@@ -141,6 +141,9 @@ SLOW_TESTS = (
     "tests/test_gate.py::test_montecarlo_strict_gates_the_campaign_and_a_rerun",
     "tests/test_realtime_kept.py::test_a_realtime_run_whose_plant_stalls_is_invalid",
     "tests/test_report_verdict.py::test_report_of_a_log_with_another_plants_states_is_invalid",
+    "tests/test_stall_timeout.py::test_progress_and_the_work_after_the_steps_are_never_stopped",
+    "tests/test_stall_timeout.py::test_a_child_that_stops_beating_is_killed_naming_its_last_time",
+    "tests/test_stall_timeout.py::test_sim_of_a_python_law_that_never_returns_fails_naming_it",
 )
 
 

@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.isolate import beat
 
 __all__ = ["PYTHON_PREFIX", "TELEMETRY", "LawParamError", "LawSetup", "is_python_law", "load_law",
            "law_label", "law_spec", "register", "split_unit", "FLAG_LAW_INVALID"]
@@ -291,6 +292,7 @@ class _Adapter:
             res = self.law.step(inp)
         except (Exception, SystemExit, KeyboardInterrupt) as e:
             raise RuntimeError(_failure(e)) from None
+        beat(inp.t)  # the law's step returned: for a parent watching a contained run (sc_rt.isolate)
         u_cmd, tel = res if isinstance(res, tuple) and len(res) == 2 else (res, None)
         out = np.zeros(_core.PYTHON_LAW_OUT_SIZE)
         out[0:4] = _real(u_cmd, "u_cmd", (4,))
