@@ -17,9 +17,9 @@ Cbar Jw Omega_w):
     M omega_dot = -omega^ H - Cbar u + u_g + d,   M = J - Cbar diag(Jw) Cbar'
     Omega_dot_i = u_i / Jw_i - g_i' omega_dot
 
-M is the inertia without the wheels' spin inertia about their axes (the
-"hub" of Basilisk's balanced-wheel model, whose hub inertia, too, is the
-spacecraft's without the wheels' spin). u is the net torque on each wheel:
+M is the inertia without the wheels' spin inertia about their axes: what
+Basilisk's balanced-wheel model solves with, its hub inertia (the total,
+as J here) less Js g g' per wheel. u is the net torque on each wheel:
 the motor torque after its limits (sc_rt.model.wheels.applied_torque: torque
 limit, deadband, power and speed limits), taken once per step at the step's
 start speed and held over it, plus the friction
