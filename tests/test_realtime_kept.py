@@ -112,14 +112,7 @@ HANGS = textwrap.dedent("""
 
 @pytest.mark.lcm
 def test_a_realtime_run_whose_controller_hangs_is_invalid(tmp_path):
-    lcmnet.require()
-    script = tmp_path / "hangs.py"
-    script.write_text(HANGS)
-    out = tmp_path / "rt"
-    r = lcmnet.run_cli(["hil", "paper_fault_free", "--mode", "realtime", "--control-rate", "20", "--duration", "2",
-                        "--external", f"{sys.executable} {script}", "--out", str(out), "--no-plots",
-                        "--floor", "off"], timeout=120)
-    assert r.returncode == 1, r.stderr + r.stdout
+    r, out = _realtime_external(tmp_path, HANGS, "20", "2")
     assert "did not keep real time" in r.stderr and "dropped ticks" in r.stderr
     m = json.loads((out / "metrics.json").read_text())
     t = json.loads((out / "timing.json").read_text())
@@ -129,6 +122,20 @@ def test_a_realtime_run_whose_controller_hangs_is_invalid(tmp_path):
     rm, rt = _report(out, tmp_path / "rep")
     assert rm["valid"] is False and "dropped ticks" in rm["invalid_reason"], rm.get("invalid_reason")
     assert rt["kept_real_time"] is False and rt["realtime_limits_source"] == "the run's start record"
+
+
+def _realtime_external(tmp_path, script_text, rate, duration, *extra):
+    """A real-time hil run of paper_fault_free with the --external controller
+    ``script_text``, which must fail (exit 1): (the process, its --out)."""
+    lcmnet.require()
+    script = tmp_path / "controller.py"
+    script.write_text(script_text)
+    out = tmp_path / "rt"
+    r = lcmnet.run_cli(["hil", "paper_fault_free", "--mode", "realtime", "--control-rate", rate, "--duration",
+                        duration, "--external", f"{sys.executable} {script}", "--out", str(out), "--no-plots",
+                        "--floor", "off", *extra], timeout=120)
+    assert r.returncode == 1, r.stderr + r.stdout
+    return r, out
 
 
 def _report(out, rep):
@@ -170,14 +177,7 @@ def test_a_realtime_run_whose_plant_stalls_is_invalid(tmp_path):
     catches up on the watchdog's zero are dropped ticks (38 % of this short
     run, 0.5 % of the issue's 300 s one): the dropped limit is set aside
     here, so the stall alone has to fail the run."""
-    lcmnet.require()
-    script = tmp_path / "stalls.py"
-    script.write_text(STALLS)
-    out = tmp_path / "rt"
-    r = lcmnet.run_cli(["hil", "paper_fault_free", "--mode", "realtime", "--control-rate", "100", "--duration", "4",
-                        "--external", f"{sys.executable} {script}", "--out", str(out), "--no-plots",
-                        "--floor", "off", "--rt-limits", "dropped=1"], timeout=120)
-    assert r.returncode == 1, r.stderr + r.stdout
+    _r, out = _realtime_external(tmp_path, STALLS, "100", "4", "--rt-limits", "dropped=1")
     t = json.loads((out / "timing.json").read_text())
     m = json.loads((out / "metrics.json").read_text())
     assert t["worst_tick_lateness_periods"] >= 140, t  # the stop, measured by the plant's own clock
