@@ -154,3 +154,18 @@ def test_bad_orbit_key_in_a_file_exits_2_with_its_line(tmp_path):
     with pytest.raises(ScenarioError) as err:
         load_scenario(f)
     assert "orbit.e = 2.0" in str(err.value) and "bad_orbit.toml:" in str(err.value)
+
+
+def test_environment_field_key_reads_and_needs_an_orbit():
+    from sc_rt.model.field import field_for
+
+    scn = scenario_from_data(_scenario_data('[orbit]\n[environment]\nfield = "igrf"\n'), "f.toml")
+    assert scn.field_model == "igrf"
+    f = field_for(scn.field_model, scn.plant.orbit.jd_epoch)
+    r, _ = orbit_state(scn.plant.orbit, 0.0)
+    assert 15e3 < np.linalg.norm(f.B_eci(r, scn.plant.orbit.jd_epoch, 0.0)) < 65e3  # [nT] at 400 km
+    assert scenario_from_data(_scenario_data(""), "f.toml").field_model == "none"
+    with pytest.raises(ScenarioError, match='environment.field = "wmm"'):
+        scenario_from_data(_scenario_data('[orbit]\n[environment]\nfield = "wmm"\n'), "f.toml")
+    with pytest.raises(ScenarioError, match=r"give an \[orbit\] table too"):
+        scenario_from_data(_scenario_data('[environment]\nfield = "dipole"\n'), "f.toml")

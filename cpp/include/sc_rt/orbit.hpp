@@ -1,4 +1,4 @@
-// The orbit and its environment (docs/MODEL.md section 9): a Keplerian orbit
+// The orbit and its environment (docs/MODEL.md section 11): a Keplerian orbit
 // with optional J2 secular drift, Earth rotation (GMST, IAU-1982), the Sun
 // direction (the Astronomical Almanac's low-precision formulae) and a
 // cylindrical Earth shadow; the gravity-gradient torque of the orbit's actual

@@ -1,4 +1,4 @@
-"""The orbit and its environment (docs/MODEL.md section 9), the Python twin
+"""The orbit and its environment (docs/MODEL.md section 11), the Python twin
 of cpp/src/orbit.cpp.
 
 A Keplerian orbit from elements and an epoch, with optional J2 secular

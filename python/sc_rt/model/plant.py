@@ -92,7 +92,7 @@ class PlantParams:
     Jw: np.ndarray  # [kg m^2] (4,) wheel spin inertias
     w0: float  # [rad/s] orbit rate for gravity gradient (5)
     disturbance: DisturbanceParams = field(default_factory=DisturbanceParams)
-    # an orbit: u_g of its actual radius and nadir replaces the w0 form (docs/MODEL.md section 9)
+    # an orbit: u_g of its actual radius and nadir replaces the w0 form (docs/MODEL.md section 11)
     orbit: OrbitParams | None = None
 
     def __post_init__(self) -> None:

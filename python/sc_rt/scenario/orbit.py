@@ -1,7 +1,11 @@
 """The scenario's ``[orbit]`` table: a Keplerian orbit and its epoch
-(sc_rt.model.orbit.OrbitParams; docs/SCENARIOS.md, docs/MODEL.md section 9).
+(sc_rt.model.orbit.OrbitParams; docs/SCENARIOS.md, docs/MODEL.md section 11).
 Without the table the plant keeps the constant-rate gravity gradient of
 ``spacecraft.w0``, exactly as before.
+
+The ``[environment]`` table names the geomagnetic field model evaluated
+along the orbit (``field = "igrf" | "dipole" | "none"``, sc_rt.model.field);
+it drives no torque yet (magnetorquers come next).
 
 Angles are given in degrees, lengths in metres; the epoch as a TOML
 date-time (``epoch = 2026-01-01T00:00:00Z``), an ISO string, or a Julian
@@ -13,10 +17,11 @@ from __future__ import annotations
 import datetime as dt
 import math
 
+from sc_rt.model.field import FIELD_MODELS
 from sc_rt.model.orbit import R_EARTH, OrbitParams, mean_anomaly_from_true
 from sc_rt.scenario.schema import Spec, Table
 
-__all__ = ["DEFAULT_EPOCH", "julian_date", "read_orbit"]
+__all__ = ["DEFAULT_EPOCH", "julian_date", "read_orbit", "read_environment"]
 
 DEFAULT_EPOCH = "2026-01-01T00:00:00Z"  # the default epoch (UTC)
 _JD_UNIX = 2440587.5  # [day] Julian date of 1970-01-01 00:00 UTC
@@ -104,3 +109,17 @@ def read_orbit(root: Table) -> OrbitParams | None | bool:
         key = "altitude" if t.has("altitude") else "a"
         t.fail(key, str(err).replace("invalid OrbitParams: OrbitParams", "the orbit"))
         return False
+
+
+def read_environment(root: Table, has_orbit: bool) -> str | None:
+    """The ``[environment]`` table's field model ("none" without the table);
+    None after reporting a problem. A field other than "none" needs ``[orbit]``."""
+    t = root.sub("environment", required=False)
+    if t.data is None:
+        return None
+    model = t.read("field", Spec("str", choices=tuple(FIELD_MODELS)), default="none")
+    t.finish()
+    if model is not None and model != "none" and not has_orbit:
+        t.fail("field", f'field = "{model}" is evaluated along the orbit: give an [orbit] table too')
+        return None
+    return model
