@@ -7,10 +7,13 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <chrono>
 #include <utility>
+#include <vector>
 
 #include "sc_rt/geomag.hpp"
 #include "sc_rt/orbit.hpp"
+#include "sc_rt/plant.hpp"
 #include "sc_rt/util.hpp"
 
 namespace py = pybind11;
@@ -106,4 +109,71 @@ void bind_orbit(py::module_& m) {
         return std::make_pair(d.B0, d.m_E);
       },
       arg("c"), "(B0 [nT], unit dipole axis in ECEF) of the coefficients' degree 1.");
+
+  m.def(
+      "time_environment",
+      [](const OrbitParams& o, int n, int reps) {
+        // What one evaluation costs in C++ (bench/bench_env.py): n evaluations along the
+        // orbit, t = 10 s apart, timed reps times each, with the GIL released. The plant
+        // steps: the paper's plant with the orbit's gravity gradient and with the w0 form.
+        if (n < 1 || reps < 1) throw std::invalid_argument("time_environment: need n >= 1 and reps >= 1");
+        throw_if_errors("time_environment: orbit", validate(o));
+        const OrbitRates k = orbit_rates(o);
+        const GeomagField igrf(igrf14_coefficients(decimal_year(o.jd_epoch)));
+        const GeomagField dipole(igrf14_coefficients(decimal_year(o.jd_epoch), 1));
+        PlantParams p_orbit, p_w0;
+        p_orbit.orbit = o;
+        p_orbit.orbit.enabled = true;
+        const ActuatorParams a;
+        const Vec4 u(0.1, -0.2, 0.3, 0.0);
+        std::vector<std::vector<double>> secs(6);
+        double sink = 0.0;
+        {
+          py::gil_scoped_release release;
+          for (int r = 0; r < reps; ++r) {
+            auto timed = [&](std::size_t slot, auto&& body) {
+              const auto t0 = std::chrono::steady_clock::now();
+              for (int i = 0; i < n; ++i) sink += body(10.0 * i);
+              secs[slot].push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+            };
+            timed(0, [&](double t) {
+              double g[4];
+              detail::orbit_gg_terms(o, k, t, g);
+              return g[0];
+            });
+            timed(1, [&](double t) { return sun_direction_N(o.jd_epoch, t)(0); });
+            timed(2, [&](double t) {
+              double r[3];
+              orbit_position(o, k, t, r);
+              return igrf.B_eci(Vec3(r[0], r[1], r[2]), o.jd_epoch, t)(0);
+            });
+            timed(3, [&](double t) {
+              double r[3];
+              orbit_position(o, k, t, r);
+              return dipole.B_eci(Vec3(r[0], r[1], r[2]), o.jd_epoch, t)(0);
+            });
+            PlantState x;
+            x.omega_BN_B = Vec3(0.01, -0.02, 0.03);
+            timed(4, [&](double t) {
+              x = plant_rk4_step(p_orbit, a, t, x, 0.1, u);
+              return x.omega_BN_B(0);
+            });
+            x = PlantState{};
+            x.omega_BN_B = Vec3(0.01, -0.02, 0.03);
+            timed(5, [&](double t) {
+              x = plant_rk4_step(p_w0, a, t, x, 0.1, u);
+              return x.omega_BN_B(0);
+            });
+          }
+        }
+        py::dict d;
+        const char* names[] = {"orbit_gg", "sun", "igrf_eci", "dipole_eci", "plant_step_orbit", "plant_step_w0"};
+        for (std::size_t i = 0; i < 6; ++i) d[names[i]] = secs[i];
+        d["n"] = n;
+        d["sink"] = sink;
+        return d;
+      },
+      arg("orbit"), arg("n"), arg("reps"),
+      "Seconds of n evaluations (reps times) of the orbit's gravity-gradient terms, the Sun, the IGRF-14 and "
+      "dipole fields in ECI along the orbit, and a plant RK4 step with the orbit and with w0.");
 }
