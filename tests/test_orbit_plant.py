@@ -169,3 +169,25 @@ def test_environment_field_key_reads_and_needs_an_orbit():
         scenario_from_data(_scenario_data('[orbit]\n[environment]\nfield = "wmm"\n'), "f.toml")
     with pytest.raises(ScenarioError, match=r"give an \[orbit\] table too"):
         scenario_from_data(_scenario_data('[environment]\nfield = "dipole"\n'), "f.toml")
+
+
+@pytest.mark.lcm
+def test_lockstep_hil_with_an_orbit_is_bitwise_sim(tmp_path):
+    # the emulator process integrates the same orbit plant as the offline engines
+    import lcmnet
+    from trajcmp import compared_fields
+
+    from sc_rt.sim.engines import simulate
+
+    lcmnet.require()
+    path, duration = tmp_path / "orbit.toml", 20.0
+    path.write_text(Path(resolve("paper_faults")).read_text()
+                    + "\n[orbit]\naltitude = 500e3\ne = 0.01\ninclination = 51.6\nj2 = true\n")
+    out = tmp_path / "hil"
+    r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration), "--out", str(out),
+                        "--no-plots"])
+    assert r.returncode == 0, r.stderr + r.stdout
+    hil = np.load(out / "trajectory.npz")
+    sim = simulate(load_scenario(path), engine="cpp", duration=duration)
+    assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
+    compared_fields(hil, sim)
