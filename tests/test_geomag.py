@@ -1,8 +1,9 @@
 """The geomagnetic field (sc_rt.model.field, cpp/src/geomag.cpp): the
 coefficient tables against the file the ppigrf package ships and against
 IAGA's published IGRF-14 values, the field against ppigrf's own evaluator
-along an orbit and on a grid (<= 1 nT), the dipole against its closed form,
-and the C++ twin bit for bit."""
+along an orbit and on a grid (<= 1 nT), the evaluator fed WMM2020's
+coefficients against NOAA's published WMM2020 test values (0.06 nT), the
+dipole against its closed form, and the C++ twin bit for bit."""
 
 from __future__ import annotations
 
@@ -176,3 +177,50 @@ def test_bad_dates_and_degrees_are_refused_naming_the_value():
     with pytest.raises(ValueError, match="field must be one of"):
         field_for("wmm", 2461041.5)
     assert field_for("none", 2461041.5) is None
+
+
+# WMM2020's official test values (NOAA NCEI, README of WMM2020COF: "a set of test
+# values ... Here are a few"): (decimal year, height above WGS-84 [km], geodetic
+# lat, lon [deg], X, Y, Z [nT], rounded to 0.1 nT)
+WMM2020_TEST_VALUES = [
+    (2020.0, 66.0, 14.0, 143.0, 34916.8, 70.2, 8114.9),
+    (2020.0, 18.0, 0.0, 21.0, 29311.2, 536.0, -14589.0),
+    (2020.5, 6.0, -36.0, -137.0, 23948.6, 8791.9, -32897.6),
+    (2020.5, 63.0, 26.0, 81.0, 34737.7, 259.2, 30023.4),
+]
+
+
+def _wmm_coefficients(year: float, path: Path) -> fld.GeomagCoeffs:
+    """A WMM .COF file's coefficients at ``year``: g + gdot (year - epoch) (the WMM report's eq. (9))."""
+    lines = path.read_text().splitlines()
+    epoch = float(lines[0].split()[0])
+    g = [[0.0] * 14 for _ in range(14)]
+    h = [[0.0] * 14 for _ in range(14)]
+    for ln in lines[1:]:
+        f = ln.split()
+        if len(f) != 6:
+            break  # the closing line of 9s
+        n, m = int(f[0]), int(f[1])
+        gv, hv, gd, hd = (float(v) for v in f[2:])
+        g[n][m] = gv + gd * (year - epoch)
+        h[n][m] = hv + hd * (year - epoch)
+    return fld.GeomagCoeffs(tuple(map(tuple, g)), tuple(map(tuple, h)), 12)
+
+
+@pytest.mark.parametrize(("year", "hae_km", "lat", "lon", "X", "Y", "Z"), WMM2020_TEST_VALUES)
+def test_the_evaluator_reproduces_wmm2020s_official_test_values(year, hae_km, lat, lon, X, Y, Z):
+    # the evaluator is the model's: fed WMM2020's coefficients (as pygeomag ships
+    # WMM.COF) it must give NOAA's published values, in the geodetic frame
+    pygeomag = pytest.importorskip("pygeomag")
+    cof = Path(pygeomag.__file__).parent / "wmm" / "WMM_2020.COF"
+    f = GeomagField(_wmm_coefficients(year, cof))
+    a, e2 = 6378137.0, 6.69437999014e-3  # WGS-84
+    la, lo, hgt = math.radians(lat), math.radians(lon), hae_km * 1e3
+    Nr = a / math.sqrt(1.0 - e2 * math.sin(la) ** 2)
+    r_E = np.array([(Nr + hgt) * math.cos(la) * math.cos(lo), (Nr + hgt) * math.cos(la) * math.sin(lo),
+                    (Nr * (1.0 - e2) + hgt) * math.sin(la)])
+    B = f.B_ecef(r_E)
+    north = np.array([-math.sin(la) * math.cos(lo), -math.sin(la) * math.sin(lo), math.cos(la)])
+    east = np.array([-math.sin(lo), math.cos(lo), 0.0])
+    down = -np.array([math.cos(la) * math.cos(lo), math.cos(la) * math.sin(lo), math.sin(la)])
+    np.testing.assert_allclose([B @ north, B @ east, B @ down], [X, Y, Z], rtol=0, atol=0.06)
