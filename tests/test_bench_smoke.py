@@ -239,6 +239,14 @@ def bench_live(res: dict, out: str) -> None:
     check_pos(res, "live_no_client_p99_over_no_live", "live_client_p99_over_no_live")
 
 
+def bench_env(res: dict, out: str) -> None:
+    for k in ("orbit_gg", "sun", "igrf_eci", "dipole_eci", "plant_step_orbit", "plant_step_w0"):
+        check_summary(res[f"{k}_us"])
+    assert res["evaluations_per_run"] == 1000
+    assert fin(res["orbit_gg_added_to_plant_step_us"]) and pos(res["day_at_10hz_igrf_s"])
+    assert res["target_igrf_us"] == SMOKE
+
+
 def bench_netem(res: dict, out: str) -> None:
     if "skipped" in res:
         pytest.skip(f"bench_netem --smoke: {res['skipped']}")
@@ -289,6 +297,7 @@ SPECS = {
     "bench_mcap.py": dict(check=bench_mcap),
     "bench_sensors.py": dict(check=bench_sensors),
     "bench_live.py": dict(check=bench_live, marks=LCM, timeout=180),
+    "bench_env.py": dict(check=bench_env, marks=(pytest.mark.slow,)),  # ~1.2 s: the module import and its runs
     # root: network namespaces and nftables / tc netem (skips, saying why, elsewhere)
     "bench_netem.py": dict(check=bench_netem, marks=LCM, timeout=240, out=["--out", "{dir}/netem.json"]),
     "soak.py": dict(check=soak, marks=LCM, timeout=120,

@@ -241,6 +241,10 @@ class Scenario:
         The overrides applied to the file's values, in order, as (dotted
         key, value) pairs (``sc_rt.with_overrides``); a run records them
         (sc_rt.results.record.inputs).
+    field_model : str
+        ``[environment] field``: "igrf", "dipole" or "none" (the default),
+        the geomagnetic field along the orbit (``plant.orbit``);
+        ``sc_rt.model.field.field_for(model, jd)`` builds it.
     """
 
     name: str
@@ -269,6 +273,9 @@ class Scenario:
     # the overrides applied to the file's values, in order: (dotted key, value) pairs
     # (sc_rt.scenario.overrides.with_overrides); a run records them (results/record/inputs.py)
     overrides: tuple = ()
+    # [environment] field: the geomagnetic field model along the orbit, "igrf", "dipole" or
+    # "none" (sc_rt.model.field.field_for); evaluated, no torque yet
+    field_model: str = "none"
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None

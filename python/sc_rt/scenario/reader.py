@@ -18,6 +18,7 @@ from sc_rt.isolate import PROBE_TIMEOUT_ENV, ChildDied, ChildTimedOut, call_in_c
 from sc_rt._core import mrp_to_dcm
 from sc_rt.model.actuators import ActuatorParams, WheelFault
 from sc_rt.scenario.wheels import check_wheel_fault, read_wheels
+from sc_rt.scenario.orbit import read_environment, read_orbit
 from sc_rt.model.combined import RigidBody, combine
 from sc_rt.model.plant import DisturbanceParams, PlantParams
 from sc_rt.scenario.dispersions import read_montecarlo
@@ -371,6 +372,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         check_tables(doc, controller.laws, where)
     faults = _read_faults(root, run.plant_step if run else None)
     wheels = read_wheels(root)
+    orbit = read_orbit(root)  # [orbit]: the plant's gravity gradient of the orbit
+    field_model = read_environment(root, orbit is not None)  # [environment] field
     requirements = read_requirements(root, run.duration if run else None,
                                      guidance_phases(guidance) if guidance is not None else {})
     record = read_fields(root.sub("record", required=False), RecordParams)
@@ -378,6 +381,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     root.finish()
     if wheels is False:
         actuators = None  # (reported)
+    if plant is not None and orbit is not False:
+        plant = dataclasses.replace(plant, orbit=orbit)
     if initial is not None and actuators is not None:
         if np.any(np.abs(initial.wheel_speed) > actuators.max_wheel_speed):
             initial_table.fail(
@@ -403,6 +408,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         requirements=requirements,
         record=record,
         deprecations=tuple(deprecations),
+        field_model=field_model,
     )
     check_law(doc, scenario, "controller.law" if "law" in ctl_data else "run.controller", where)
     if doc.errors:
