@@ -28,6 +28,7 @@ void bind_controllers(pybind11::module_& m);
 void bind_plant(pybind11::module_& m);
 void bind_shell(pybind11::module_& m);
 void bind_pylaw(pybind11::module_& m);
+void bind_magnetics(pybind11::module_& m);  // magnetic_bindings.cpp
 
 namespace {
 
@@ -215,4 +216,5 @@ PYBIND11_MODULE(_core, m) {
   bind_pylaw(m);
   bind_plant(m);
   bind_shell(m);
+  bind_magnetics(m);
 }
