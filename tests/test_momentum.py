@@ -215,7 +215,7 @@ def _basilisk_manager():
     w.Jw = np.full(4, 0.002)
     w.wheel_torque_command = True  # Basilisk's output is motor torque
     p = _core.MomentumParams()
-    p.law = _core.UnloadLaw.Continuous
+    p.kind = _core.UnloadKind.Continuous
     p.gain = 0.005
     return w, _core.MomentumManager(p, w, _rods(dmax=10.0))
 
@@ -262,7 +262,7 @@ def test_basilisk_continuous_with_random_rods_and_clipping():
     """Five skewed rods, fields strong enough to clip: still the re-implementation's numbers."""
     w, _ = _basilisk_manager()
     p = _core.MomentumParams()
-    p.law = _core.UnloadLaw.Continuous
+    p.kind = _core.UnloadKind.Continuous
     p.gain = 0.05
     G = rng.normal(size=(3, 5))
     G /= np.linalg.norm(G, axis=0)

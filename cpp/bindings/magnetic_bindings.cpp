@@ -90,13 +90,13 @@ void bind_magnetics(py::module_& m) {
         "(B x tau) / |B|^2 [A m^2]: the dipole whose torque is tau's part perpendicular to B (torque2Dipole).");
   m.def("cross_product_dipole", &cross_product_dipole, arg("h_err_B"), arg("B_B"), arg("k"),
         "k (h_err x B) / |B|^2 [A m^2]: its torque is -k (I - b b') h_err.");
-  py::enum_<UnloadLaw>(m, "UnloadLaw")
-      .value("CrossProduct", UnloadLaw::CrossProduct)
-      .value("Continuous", UnloadLaw::Continuous);
-  m.def("unload_law_name", &unload_law_name, arg("law"));
+  py::enum_<UnloadKind>(m, "UnloadKind")
+      .value("CrossProduct", UnloadKind::CrossProduct)
+      .value("Continuous", UnloadKind::Continuous);
+  m.def("unload_kind_name", &unload_kind_name, arg("kind"));
   py::class_<MomentumParams>(m, "MomentumParams", "Momentum management (momentum.hpp).")
       .def(py::init<>())
-      .def_readwrite("law", &MomentumParams::law)
+      .def_readwrite("kind", &MomentumParams::kind)
       .def_readwrite("gain", &MomentumParams::gain, "[1/s]")
       .def_readwrite("hysteresis", &MomentumParams::hysteresis)
       .def_readwrite("on_fraction", &MomentumParams::on_fraction, "[-]")

@@ -25,10 +25,10 @@ Vec3 cross_product_dipole(const Vec3& h_err_B, const Vec3& B_B, double k) {
   return (k / b2) * h_err_B.cross(B_B);  // m = k (h_err x B) / |B|^2
 }
 
-const char* unload_law_name(UnloadLaw law) {
-  switch (law) {
-    case UnloadLaw::CrossProduct: return "cross_product";
-    case UnloadLaw::Continuous: return "continuous";
+const char* unload_kind_name(UnloadKind kind) {
+  switch (kind) {
+    case UnloadKind::CrossProduct: return "cross_product";
+    case UnloadKind::Continuous: return "continuous";
   }
   return "unknown";
 }
@@ -48,9 +48,9 @@ std::vector<std::string> validate(const MomentumParams& p, const SpacecraftParam
   if (!(std::isfinite(p.null_gain) && p.null_gain >= 0.0))
     errs.push_back("null_gain must be finite and >= 0, got " + format_double(p.null_gain));
   if (!std::isfinite(p.null_bias)) errs.push_back("null_bias must be finite, got " + format_double(p.null_bias));
-  if (p.law != UnloadLaw::CrossProduct && p.law != UnloadLaw::Continuous)
-    errs.push_back("law must be CrossProduct (0) or Continuous (1), got " + std::to_string(static_cast<int>(p.law)));
-  if (p.law == UnloadLaw::CrossProduct && p.hysteresis) {
+  if (p.kind != UnloadKind::CrossProduct && p.kind != UnloadKind::Continuous)
+    errs.push_back("kind must be CrossProduct (0) or Continuous (1), got " + std::to_string(static_cast<int>(p.kind)));
+  if (p.kind == UnloadKind::CrossProduct && p.hysteresis) {
     if (!(p.off_fraction >= 0.0 && p.off_fraction < p.on_fraction && p.on_fraction <= 1.0))
       errs.push_back("need 0 <= off_fraction < on_fraction <= 1, got off_fraction " +
                      format_double(p.off_fraction) + ", on_fraction " + format_double(p.on_fraction));
@@ -106,7 +106,7 @@ MomentumOutput MomentumManager::update(const Vec4& wheel_speed, const Vec3& B_B,
   o.fill = o.h_err_B.norm() / capacity_;
   const int n = static_cast<int>(alloc_.params().G_B.cols());
   o.dipole = RodVec::Zero(n);
-  if (p_.law == UnloadLaw::Continuous) {
+  if (p_.kind == UnloadKind::Continuous) {
     // Basilisk's mtbMomentumManagement: tau_ideal_W = -c Jw (Omega - Omega_t).
     o.unloading = true;
     const Vec4 tau_ideal_W = -p_.gain * dh_W;

@@ -49,14 +49,14 @@ Vec3 torque_to_dipole(const Vec3& tau_B, const Vec3& B_B);
 // h_err_B [N m s], B_B [T], k [1/s]; zero when B = 0.
 Vec3 cross_product_dipole(const Vec3& h_err_B, const Vec3& B_B, double k);
 
-enum class UnloadLaw : int {
+enum class UnloadKind : int {
   CrossProduct = 0,  //!< m = k (h_err x B)/|B|^2, direction-keeping saturation, hysteresis
   Continuous = 1,    //!< Basilisk's mtbMomentumManagement (always on, per-rod clipping)
 };
-const char* unload_law_name(UnloadLaw law);
+const char* unload_kind_name(UnloadKind kind);
 
 struct MomentumParams {
-  UnloadLaw law = UnloadLaw::CrossProduct;
+  UnloadKind kind = UnloadKind::CrossProduct;  //!< which unloading law
   double gain = 0.005;          //!< [1/s] k (c of the continuous form), > 0
   bool hysteresis = true;       //!< CrossProduct only: on above on_fraction, off below off_fraction
   double on_fraction = 0.5;     //!< [-] unloading turns on when |h_err| > on_fraction * capacity
