@@ -293,3 +293,26 @@ def test_validation_names_the_values():
     p.gain = -1.0
     with pytest.raises(ValueError, match="gain must be finite and > 0, got -1"):
         _core.MomentumManager(p, _wheels(), _rods())
+
+
+@pytest.mark.parametrize(("inclination", "expected"), [
+    (0.0, (0.0, 1.0, 1.0)), (45.0, (0.62, 0.66, 0.72)), (90.0, (0.5, 0.5, 1.0))])
+def test_orbit_averaged_unloading_rate(inclination, expected):
+    """The issue's check of the orbit-averaged rate: with the body held inertially and h_err fixed,
+    the cross-product law's torque averaged over a circular orbit in an aligned dipole field
+    (B ~ 3 (z.r) r - z, written here) is -k (I - <b b'>) h_err; the eigenvalues of that operator,
+    built column by column from the C++ law, are issue #43's (0, 1, 1) / (0.62, 0.66, 0.72) /
+    (0.5, 0.5, 1) at inclination 0 / 45 / 90 deg (to their two digits)."""
+    k = 0.01
+    i = np.radians(inclination)
+    u = np.linspace(0.0, 2.0 * np.pi, 721)[:-1]
+    r = np.stack([np.cos(u), np.sin(u) * np.cos(i), np.sin(u) * np.sin(i)], axis=1)
+    z = np.array([0.0, 0.0, 1.0])
+    fields = 3e-5 * (3.0 * (r @ z)[:, None] * r - z)
+    A = np.zeros((3, 3))
+    for j in range(3):
+        h = np.eye(3)[j] * 20.0  # [N m s]
+        tau = np.mean([np.cross(_core.cross_product_dipole(h, B, k), B) for B in fields], axis=0)
+        A[:, j] = -tau / (k * 20.0)
+    np.testing.assert_allclose(A, A.T, atol=1e-13)
+    np.testing.assert_allclose(np.linalg.eigvalsh(A), expected, atol=0.005)
