@@ -47,7 +47,7 @@ double bdot_gain(double orbit_rate, double magnetic_inclination, double J_min);
 struct BdotParams {
   double gain = 0.0;           //!< k: [N m s] normalized, [A m^2 s / T] otherwise; > 0
   bool normalized = true;      //!< divide by |B|^2 (the gain rule's form)
-  BdotDerivative derivative = BdotDerivative::Difference;
+  BdotDerivative derivative = BdotDerivative::Difference;  //!< how dB_B/dt is formed
   double filter_tau = 0.0;     //!< [s] low-pass time constant of the difference (0: none)
   double rate_on = 0.035;      //!< [rad/s] detumble above (2 deg/s)
   double rate_off = 0.0087;    //!< [rad/s] attitude law below (0.5 deg/s), < rate_on

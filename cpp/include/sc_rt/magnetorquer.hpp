@@ -72,8 +72,8 @@ class Magnetorquers {
 
  private:
   MagnetorquerParams p_;
-  std::array<RodFault, kMaxRods> fault_{};
-  std::array<double, kMaxRods> stuck_{};
+  std::array<RodFault, kMaxRods> fault_{};  // per rod
+  std::array<double, kMaxRods> stuck_{};    // [A m^2] a stuck rod's dipole
 };
 
 // The controller's side: a body dipole onto the rods, d = G+ m_B (G+ the
@@ -95,7 +95,7 @@ class DipoleAllocator {
 
  private:
   MagnetorquerParams p_;
-  RodPinv G_pinv_;
+  RodPinv G_pinv_;  // [-] Moore-Penrose pseudo-inverse of G_B (N x 3)
 };
 
 }  // namespace sc_rt

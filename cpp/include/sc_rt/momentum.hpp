@@ -102,15 +102,15 @@ class MomentumManager {
 
  private:
   MomentumParams p_;
-  Mat34 Cbar_;
-  Vec4 Jw_;
-  bool torque_command_;
-  DipoleAllocator alloc_;
-  double capacity_ = 0.0;
-  Mat43 Cbar_pinv_;
-  Eigen::Matrix4d null_proj_;  // I - Cbar+ Cbar
-  Vec4 null_ = Vec4::Zero();
-  Vec4 omega_t_ = Vec4::Zero();
+  Mat34 Cbar_;                  // [-] wheel axes in B
+  Vec4 Jw_;                     // [kg m^2] wheel spin inertias
+  bool torque_command_;         // the wheels take motor torques [N m], else accelerations [rad/s^2]
+  DipoleAllocator alloc_;       // the rods as the controller knows them
+  double capacity_ = 0.0;       // [N m s]
+  Mat43 Cbar_pinv_;             // [-] Cbar' (Cbar Cbar')^-1
+  Eigen::Matrix4d null_proj_;   // [-] I - Cbar+ Cbar, onto the null space of Cbar
+  Vec4 null_ = Vec4::Zero();    // [-] unit null vector of Cbar
+  Vec4 omega_t_ = Vec4::Zero(); // [rad/s] target speeds
 };
 
 }  // namespace sc_rt

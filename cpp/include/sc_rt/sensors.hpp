@@ -133,8 +133,8 @@ struct TachometerParams {
 // per-axis range. Seeded like the others: its own stream (id 5) of the seed.
 // Not yet ticked by SensorSuite (the field comes with the orbit; issue #43).
 struct MagnetometerParams {
-  bool enabled = false;
-  int period_ticks = 1;               //!< plant steps per sample
+  bool enabled = false;               //!< for SensorSuite, once it ticks the magnetometer
+  int period_ticks = 1;               //!< plant steps per sample (the same)
   double noise = 0.0;                 //!< [T] 1 sigma white noise per axis
   Vec3 bias = Vec3::Zero();           //!< [T] constant bias, sensor frame
   Mat3 M = Mat3::Identity();          //!< [-] scale factor and misalignment (sensor frame)
