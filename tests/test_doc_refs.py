@@ -74,6 +74,8 @@ ALLOWED_PATH_PREFIXES = {
     "DIR/": "placeholder output directory in usage text",
     "sc_rt/lcmtypes": "the .lcm files cmake installs into the package (lcmtypes/CMakeLists.txt)",
     "sc_rt_lcm/": "headers generated from lcmtypes/*.lcm at build time",
+    "src/fswAlgorithms/": "AVSLab/basilisk's paths: tests of issue #43 port its test cases and cite them",
+    "src/simulation/": "AVSLab/basilisk's paths: tests of issue #43 port its test cases and cite them",
 }
 ALLOWED_PYREFS = {
     "sc_rt.pointing": "an MCAP schema name the export writes (docs/LOGS.md), not a Python name",

@@ -29,6 +29,7 @@ void bind_plant(pybind11::module_& m);
 void bind_orbit(pybind11::module_& m);
 void bind_shell(pybind11::module_& m);
 void bind_pylaw(pybind11::module_& m);
+void bind_magnetics(pybind11::module_& m);  // magnetic_bindings.cpp
 
 namespace {
 
@@ -217,4 +218,5 @@ PYBIND11_MODULE(_core, m) {
   bind_orbit(m);  // before bind_plant: PlantParams' orbit
   bind_plant(m);
   bind_shell(m);
+  bind_magnetics(m);
 }

@@ -1,8 +1,11 @@
 #include "sc_rt/sensors.hpp"
 
+#include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 
 #include "sc_rt/mrp.hpp"
+#include "sc_rt/util.hpp"
 
 namespace sc_rt {
 
@@ -11,6 +14,7 @@ constexpr double kTwoPi = 6.283185307179586476925286766559;
 // Stream ids: one per sensor and purpose, so that enabling one sensor does
 // not change another's numbers.
 enum Stream : std::uint64_t { S_GYRO = 1, S_BIAS = 2, S_STAR = 3, S_LOSS = 4 };
+static_assert(Magnetometer::kStream == 5, "the magnetometer's stream is the next id");
 
 // i % period == 0, with next the cached next multiple of period (any multiple: a tick strictly
 // between next - period and next is not one, and i == next is); next moves to the multiple after i.
@@ -213,6 +217,38 @@ std::int64_t SensorSuite::next_tick(std::int64_t i) const {
   }
   if (p_.tachometer.enabled) best = std::min(best, next_multiple(i, p_.tachometer.period_ticks, next_tach_));
   return best;
+}
+
+std::vector<std::string> validate(const MagnetometerParams& p) {
+  std::vector<std::string> errs;
+  if (p.period_ticks < 1) errs.push_back("period_ticks must be >= 1, got " + std::to_string(p.period_ticks));
+  if (!(std::isfinite(p.noise) && p.noise >= 0.0))
+    errs.push_back("noise must be finite and >= 0, got " + format_double(p.noise));
+  if (!(std::isfinite(p.lsb) && p.lsb >= 0.0)) errs.push_back("lsb must be finite and >= 0, got " + format_double(p.lsb));
+  if (!(p.range > 0.0)) errs.push_back("range must be > 0, got " + format_double(p.range));
+  if (!p.bias.allFinite()) errs.push_back("bias is not finite: " + format_matrix(p.bias));
+  if (!p.M.allFinite()) errs.push_back("M is not finite: " + format_matrix(p.M));
+  if (!p.R_SB.allFinite() || (p.R_SB * p.R_SB.transpose() - Mat3::Identity()).cwiseAbs().maxCoeff() > 1e-9 ||
+      p.R_SB.determinant() < 0.0)
+    errs.push_back("R_SB is not a rotation matrix: " + format_matrix(p.R_SB));
+  return errs;
+}
+
+Magnetometer::Magnetometer(const MagnetometerParams& p, std::uint64_t seed)
+    : p_(p), seed_(seed), MR_(p.M * p.R_SB), rng_(seed, kStream) {
+  throw_if_errors("MagnetometerParams", validate(p));
+}
+
+void Magnetometer::reset() { rng_ = Rng(seed_, kStream); }
+
+Vec3 Magnetometer::sample(const Vec3& B_B) {
+  Vec3 b = MR_ * B_B + p_.bias;  // M R_SB B + bias, sensor frame
+  for (int k = 0; k < 3; ++k) {
+    if (p_.noise > 0.0) b(k) += p_.noise * rng_.normal();  // white, drawn x, y, z
+    b(k) = std::min(std::max(b(k), -p_.range), p_.range);
+    if (p_.lsb > 0.0) b(k) = p_.lsb * std::nearbyint(b(k) / p_.lsb);
+  }
+  return b;
 }
 
 }  // namespace sc_rt

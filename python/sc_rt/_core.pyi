@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'decimal_year', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -2132,11 +2132,603 @@ class SensorIntake:
     @property
     def use_estimate(self) -> bool:
         ...
+class RodFault:
+    """
+    A magnetorquer rod's fault (magnetorquer.hpp)
+    
+    Members:
+    
+      Healthy
+    
+      Dead
+    
+      Stuck
+    
+      Reversed
+    """
+    Dead: typing.ClassVar[RodFault]
+    Healthy: typing.ClassVar[RodFault]
+    Reversed: typing.ClassVar[RodFault]
+    Stuck: typing.ClassVar[RodFault]
+    __members__: typing.ClassVar[dict[str, RodFault]]
+    @typing.overload
+    def __eq__(self, other: RodFault) -> bool:
+        ...
+    @typing.overload
+    def __eq__(self, other: typing.Any) -> bool:
+        ...
+    def __getstate__(self) -> int:
+        ...
+    def __hash__(self) -> int:
+        ...
+    def __index__(self) -> int:
+        ...
+    def __init__(self, value: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __int__(self) -> int:
+        ...
+    @typing.overload
+    def __ne__(self, other: RodFault) -> bool:
+        ...
+    @typing.overload
+    def __ne__(self, other: typing.Any) -> bool:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, state: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __str__(self) -> str:
+        ...
+    @property
+    def name(self) -> str:
+        ...
+    @property
+    def value(self) -> int:
+        ...
+class MagnetorquerParams:
+    """
+    Rod axes and dipole limits (magnetorquer.hpp).
+    """
+    def __init__(self) -> None:
+        ...
+    @property
+    def G_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, n]"]:
+        """
+        [-] unit rod axes in B (3 x N)
+        """
+    @G_B.setter
+    def G_B(self, arg1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, n]"]) -> None:
+        ...
+    @property
+    def dipole_max(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 1]"]:
+        """
+        [A m^2] per rod (N,)
+        """
+    @dipole_max.setter
+    def dipole_max(self, arg1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 1]"]) -> None:
+        ...
+class MagnetorquerOutput:
+    @property
+    def clipped(self) -> int:
+        """
+        bit i: rod i's command beyond its limit
+        """
+    @property
+    def dipole(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 1]"]:
+        """
+        [A m^2] applied rod dipoles
+        """
+    @property
+    def m_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [A m^2] G_B dipole
+        """
+    @property
+    def torque_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [N m] m_B x B_B
+        """
+class Magnetorquers:
+    """
+    The plant's rods: limits, faults, torque (magnetorquer.hpp).
+    """
+    def __init__(self, p: MagnetorquerParams) -> None:
+        ...
+    def fault(self, rod: typing.SupportsInt | typing.SupportsIndex) -> RodFault:
+        ...
+    def set_fault(self, rod: typing.SupportsInt | typing.SupportsIndex, fault: RodFault, stuck_dipole: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> None:
+        """
+        Rod `rod`'s fault from now on (stuck_dipole [A m^2] for RodFault.Stuck).
+        """
+    def update(self, d_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 1]"], B_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> MagnetorquerOutput:
+        """
+        Rod commands [A m^2] (N,) in the field B_B [T].
+        """
+    @property
+    def n_rods(self) -> int:
+        ...
+    @property
+    def params(self) -> MagnetorquerParams:
+        ...
+class DipoleAllocation:
+    @property
+    def dipole(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 1]"]:
+        """
+        [A m^2]
+        """
+    @property
+    def m_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [A m^2]
+        """
+    @property
+    def scale(self) -> float:
+        """
+        [-] 1: not saturated
+        """
+class DipoleAllocator:
+    """
+    A body dipole onto the rods: G+ m, scaled into the limits (magnetorquer.hpp).
+    """
+    def __init__(self, p: MagnetorquerParams) -> None:
+        ...
+    def allocate(self, m_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> DipoleAllocation:
+        ...
+    @property
+    def G_pinv(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, n]"]:
+        ...
+class UnloadKind:
+    """
+    Members:
+    
+      CrossProduct
+    
+      Continuous
+    """
+    Continuous: typing.ClassVar[UnloadKind]
+    CrossProduct: typing.ClassVar[UnloadKind]
+    __members__: typing.ClassVar[dict[str, UnloadKind]]
+    @typing.overload
+    def __eq__(self, other: UnloadKind) -> bool:
+        ...
+    @typing.overload
+    def __eq__(self, other: typing.Any) -> bool:
+        ...
+    def __getstate__(self) -> int:
+        ...
+    def __hash__(self) -> int:
+        ...
+    def __index__(self) -> int:
+        ...
+    def __init__(self, value: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __int__(self) -> int:
+        ...
+    @typing.overload
+    def __ne__(self, other: UnloadKind) -> bool:
+        ...
+    @typing.overload
+    def __ne__(self, other: typing.Any) -> bool:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, state: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __str__(self) -> str:
+        ...
+    @property
+    def name(self) -> str:
+        ...
+    @property
+    def value(self) -> int:
+        ...
+class MomentumParams:
+    """
+    Momentum management (momentum.hpp).
+    """
+    hysteresis: bool
+    kind: UnloadKind
+    def __init__(self) -> None:
+        ...
+    @property
+    def capacity(self) -> float:
+        """
+        [N m s] (<= 0: min_i Jw_i wheel_speed_max_i)
+        """
+    @capacity.setter
+    def capacity(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def gain(self) -> float:
+        """
+        [1/s]
+        """
+    @gain.setter
+    def gain(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def null_bias(self) -> float:
+        """
+        [rad/s]
+        """
+    @null_bias.setter
+    def null_bias(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def null_gain(self) -> float:
+        """
+        [1/s]
+        """
+    @null_gain.setter
+    def null_gain(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def off_fraction(self) -> float:
+        """
+        [-]
+        """
+    @off_fraction.setter
+    def off_fraction(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def on_fraction(self) -> float:
+        """
+        [-]
+        """
+    @on_fraction.setter
+    def on_fraction(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+class MomentumOutput:
+    @property
+    def dipole(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 1]"]:
+        """
+        [A m^2]
+        """
+    @property
+    def fill(self) -> float:
+        """
+        [-] |h_err_B| / capacity
+        """
+    @property
+    def h_err_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [N m s]
+        """
+    @property
+    def h_wheels_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [N m s]
+        """
+    @property
+    def m_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [A m^2]
+        """
+    @property
+    def scale(self) -> float:
+        """
+        [-]
+        """
+    @property
+    def torque_ff(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        [N m] motor torques
+        """
+    @property
+    def torque_mag_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [N m]
+        """
+    @property
+    def torque_null(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        [N m] motor torques
+        """
+    @property
+    def unloading(self) -> bool:
+        ...
+    @property
+    def wheel_cmd(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        in the wheels' command unit
+        """
+class MomentumManager:
+    """
+    Unloading, feed-forward, null space (momentum.hpp).
+    """
+    def __init__(self, p: MomentumParams, wheels: SpacecraftParams, rods: MagnetorquerParams) -> None:
+        ...
+    def update(self, wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], B_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], unloading: bool) -> MomentumOutput:
+        ...
+    def wheel_command(self, T: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        ...
+    @property
+    def Cbar_pinv(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 3]"]:
+        ...
+    @property
+    def capacity(self) -> float:
+        ...
+    @property
+    def null_vector(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        ...
+    @property
+    def omega_target(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        ...
+    @property
+    def params(self) -> MomentumParams:
+        ...
+class BdotDerivative:
+    """
+    Members:
+    
+      Difference
+    
+      Analytic
+    """
+    Analytic: typing.ClassVar[BdotDerivative]
+    Difference: typing.ClassVar[BdotDerivative]
+    __members__: typing.ClassVar[dict[str, BdotDerivative]]
+    @typing.overload
+    def __eq__(self, other: BdotDerivative) -> bool:
+        ...
+    @typing.overload
+    def __eq__(self, other: typing.Any) -> bool:
+        ...
+    def __getstate__(self) -> int:
+        ...
+    def __hash__(self) -> int:
+        ...
+    def __index__(self) -> int:
+        ...
+    def __init__(self, value: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __int__(self) -> int:
+        ...
+    @typing.overload
+    def __ne__(self, other: BdotDerivative) -> bool:
+        ...
+    @typing.overload
+    def __ne__(self, other: typing.Any) -> bool:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, state: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __str__(self) -> str:
+        ...
+    @property
+    def name(self) -> str:
+        ...
+    @property
+    def value(self) -> int:
+        ...
+class DetumbleMode:
+    """
+    Members:
+    
+      Detumble
+    
+      Attitude
+    """
+    Attitude: typing.ClassVar[DetumbleMode]
+    Detumble: typing.ClassVar[DetumbleMode]
+    __members__: typing.ClassVar[dict[str, DetumbleMode]]
+    @typing.overload
+    def __eq__(self, other: DetumbleMode) -> bool:
+        ...
+    @typing.overload
+    def __eq__(self, other: typing.Any) -> bool:
+        ...
+    def __getstate__(self) -> int:
+        ...
+    def __hash__(self) -> int:
+        ...
+    def __index__(self) -> int:
+        ...
+    def __init__(self, value: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __int__(self) -> int:
+        ...
+    @typing.overload
+    def __ne__(self, other: DetumbleMode) -> bool:
+        ...
+    @typing.overload
+    def __ne__(self, other: typing.Any) -> bool:
+        ...
+    def __repr__(self) -> str:
+        ...
+    def __setstate__(self, state: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def __str__(self) -> str:
+        ...
+    @property
+    def name(self) -> str:
+        ...
+    @property
+    def value(self) -> int:
+        ...
+class BdotParams:
+    """
+    B-dot detumbling (bdot.hpp).
+    """
+    derivative: BdotDerivative
+    normalized: bool
+    def __init__(self) -> None:
+        ...
+    @property
+    def filter_tau(self) -> float:
+        """
+        [s]
+        """
+    @filter_tau.setter
+    def filter_tau(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def gain(self) -> float:
+        """
+        [N m s] normalized, [A m^2 s/T] otherwise
+        """
+    @gain.setter
+    def gain(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def rate_off(self) -> float:
+        """
+        [rad/s]
+        """
+    @rate_off.setter
+    def rate_off(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def rate_on(self) -> float:
+        """
+        [rad/s]
+        """
+    @rate_on.setter
+    def rate_on(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+class BdotState:
+    primed: bool
+    def __init__(self) -> None:
+        ...
+    @property
+    def B_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [T]
+        """
+    @B_B.setter
+    def B_B(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def Bdot_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [T/s]
+        """
+    @Bdot_B.setter
+    def Bdot_B(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def t(self) -> float:
+        """
+        [s]
+        """
+    @t.setter
+    def t(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+class BdotOutput:
+    @property
+    def Bdot_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [T/s]
+        """
+    @property
+    def dipole(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 1]"]:
+        """
+        [A m^2]
+        """
+    @property
+    def m_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [A m^2]
+        """
+    @property
+    def scale(self) -> float:
+        """
+        [-]
+        """
+    @property
+    def state(self) -> BdotState:
+        ...
+class Bdot:
+    def __init__(self, p: BdotParams, rods: MagnetorquerParams) -> None:
+        ...
+    def update(self, s: BdotState, t: typing.SupportsFloat | typing.SupportsIndex, B_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], omega_BN_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> BdotOutput:
+        ...
+    @property
+    def params(self) -> BdotParams:
+        ...
+class MagnetometerParams:
+    """
+    Three-axis magnetometer (SI units; sensors.hpp).
+    """
+    enabled: bool
+    def __init__(self) -> None:
+        ...
+    @property
+    def M(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
+        """
+        [-] scale factor and misalignment
+        """
+    @M.setter
+    def M(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"]) -> None:
+        ...
+    @property
+    def R_SB(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
+        """
+        [-] body to sensor
+        """
+    @R_SB.setter
+    def R_SB(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"]) -> None:
+        ...
+    @property
+    def bias(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [T] sensor frame
+        """
+    @bias.setter
+    def bias(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def lsb(self) -> float:
+        """
+        [T]
+        """
+    @lsb.setter
+    def lsb(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def noise(self) -> float:
+        """
+        [T] 1 sigma per axis
+        """
+    @noise.setter
+    def noise(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def period_ticks(self) -> int:
+        ...
+    @period_ticks.setter
+    def period_ticks(self, arg0: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def range(self) -> float:
+        """
+        [T]
+        """
+    @range.setter
+    def range(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+class Magnetometer:
+    def __init__(self, p: MagnetometerParams, seed: typing.SupportsInt | typing.SupportsIndex) -> None:
+        ...
+    def reset(self) -> None:
+        ...
+    def sample(self, B_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        One sample [T], sensor frame, of B_B [T].
+        """
+    @property
+    def params(self) -> MagnetometerParams:
+        ...
 def bare_closed_loop(c: ControllerConfig, plant: ..., act: ..., x0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], n_ctrl: typing.SupportsInt | typing.SupportsIndex, n_sub: typing.SupportsInt | typing.SupportsIndex, rate: typing.SupportsFloat | typing.SupportsIndex) -> tuple[int, bool, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[10, 1]"]]:
     """
     simulate_closed_loop's loop without recording (bench/bench_sim.py's bare loop: the law,
     the wheels and the plant, nothing written): (rows, diverged, the plant state of the
     last row, (10,)).
+    """
+def bdot_gain(orbit_rate: typing.SupportsFloat | typing.SupportsIndex, magnetic_inclination: typing.SupportsFloat | typing.SupportsIndex, J_min: typing.SupportsFloat | typing.SupportsIndex) -> float:
+    """
+    Markley & Crassidis: k = 2 n (1 + sin xi_m) J_min [N m s].
     """
 def boresight_frame(boresight: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
     ...
@@ -2150,10 +2742,20 @@ def clear_python_laws() -> None:
     Forget every Python law of the registry (sc_rt.pylaw calls it at exit, before the
     interpreter goes away).
     """
+def cross_product_dipole(h_err_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], B_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], k: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    k (h_err x B) / |B|^2 [A m^2]: its torque is -k (I - b b') h_err.
+    """
 def decimal_year(jd: typing.SupportsFloat | typing.SupportsIndex) -> float:
     """
     Decimal year of a Julian date: 2000 + (jd - 2451544.5) / 365.25.
     """
+def detumble_mode(previous: DetumbleMode, rate: typing.SupportsFloat | typing.SupportsIndex, rate_on: typing.SupportsFloat | typing.SupportsIndex, rate_off: typing.SupportsFloat | typing.SupportsIndex) -> DetumbleMode:
+    """
+    The mode after a sample of |omega| = rate [rad/s] (hysteresis between rate_off and rate_on).
+    """
+def detumble_mode_name(mode: DetumbleMode) -> str:
+    ...
 def disturbance(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     d(t) [N m] in B.
@@ -2232,6 +2834,10 @@ def load_law_plugin(path_or_name: str) -> str:
 def lumped_disturbance(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, u_sat: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], accel: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     The true delta_2 of (20),(21) [rad/s^2].
+    """
+def magnetic_torque(m_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], B_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    Torque [N m] of the dipole m_B [A m^2] in the field B_B [T]: m x B (Basilisk's MtbEffector).
     """
 def mean_anomaly_from_true(nu: typing.SupportsFloat | typing.SupportsIndex, e: typing.SupportsFloat | typing.SupportsIndex) -> float:
     """
@@ -2339,6 +2945,8 @@ def register_python_law(spec: str, name: str, doc: str, factory: typing.Any) -> 
     Put a Python law in the registry under spec ("python:..."; again: replaced). factory(model,
     rate, items) returns sc_rt.pylaw's adapter (sc_rt.pylaw.register calls this).
     """
+def rod_fault_name(f: RodFault) -> str:
+    ...
 def run_sensors(p: SensorParams, n_ticks: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> dict:
     """
     Every sensor sample of n_ticks plant steps (t = i p.dt) from the constant state x (10,).
@@ -2412,10 +3020,16 @@ def time_steps(controller: Controller, t: typing.Annotated[numpy.typing.ArrayLik
     """
     Benchmark helper: per-step wall time [ns] of N steps inside C++ (bindings-side clock).
     """
+def torque_to_dipole(tau_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], B_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    (B x tau) / |B|^2 [A m^2]: the dipole whose torque is tau's part perpendicular to B (torque2Dipole).
+    """
 def tracking_errors(sc: SpacecraftModel, m: Measurement, sigma_DN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], omega_DN_D: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], omega_dot_DN_D: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> TrackingErrors:
     """
     Errors (8)-(11) and A of (21).
     """
+def unload_kind_name(kind: UnloadKind) -> str:
+    ...
 @typing.overload
 def validate(p: SpacecraftParams) -> list[str]:
     """
@@ -2453,6 +3067,18 @@ def validate(a: ActuatorParams) -> list[str]:
     """
     Every problem with the actuator parameters (empty list: valid).
     """
+@typing.overload
+def validate(p: MagnetorquerParams) -> list[str]:
+    ...
+@typing.overload
+def validate(p: MomentumParams, wheels: SpacecraftParams) -> list[str]:
+    ...
+@typing.overload
+def validate(p: BdotParams) -> list[str]:
+    ...
+@typing.overload
+def validate(p: MagnetometerParams) -> list[str]:
+    ...
 def wheel_accel(a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> WheelOutput:
     """
     Saturation and faults (15),(16), stuck wheels and the speed limit.
@@ -2493,6 +3119,7 @@ LAW_API_VERSION: int = 3
 LAW_FINGERPRINT: str = 'api-3 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
 LAW_MAX_TELEMETRY: int = 8
 MAX_DT_PERIODS: float = 10.0
+MAX_RODS: int = 6
 MODE_INIT: int = 0
 MODE_NORMAL: int = 1
 MODE_SAFE: int = 2

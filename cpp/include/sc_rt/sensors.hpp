@@ -20,6 +20,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -122,6 +123,42 @@ struct TachometerParams {
   int period_ticks = 1;
   double counts_per_rev = 0.0;  //!< [-] 0: no quantisation
   double period = 0.1;          //!< [s] sample period T (sets the quantum)
+};
+
+// Three-axis magnetometer (SI units: tesla; the scenario reader will convert
+// from nT). Output in the sensor frame S:
+//   B_m = q(sat(M R_SB B_B + bias + n)),  n ~ N(0, noise^2) per axis, white
+// R_SB the body-to-sensor rotation, M the scale factor and misalignment
+// (I: none), q(x) = lsb nearbyint(x / lsb) per axis (lsb 0: none), sat the
+// per-axis range. Seeded like the others: its own stream (id 5) of the seed.
+// Not yet ticked by SensorSuite (the field comes with the orbit; issue #43).
+struct MagnetometerParams {
+  bool enabled = false;               //!< for SensorSuite, once it ticks the magnetometer
+  int period_ticks = 1;               //!< plant steps per sample (the same)
+  double noise = 0.0;                 //!< [T] 1 sigma white noise per axis
+  Vec3 bias = Vec3::Zero();           //!< [T] constant bias, sensor frame
+  Mat3 M = Mat3::Identity();          //!< [-] scale factor and misalignment (sensor frame)
+  Mat3 R_SB = Mat3::Identity();       //!< [-] body-to-sensor rotation (orthonormal)
+  double lsb = 0.0;                   //!< [T] quantum, 0: none
+  double range = std::numeric_limits<double>::infinity();  //!< [T] per-axis saturation
+};
+
+std::vector<std::string> validate(const MagnetometerParams& p);
+
+class Magnetometer {
+ public:
+  static constexpr std::uint64_t kStream = 5;  //!< its Rng stream id (sensors.cpp's S_* ids are 1..4)
+  Magnetometer(const MagnetometerParams& p, std::uint64_t seed);  // throws std::invalid_argument
+  void reset();  //!< back to the seed's first draw
+  // One sample [T] (sensor frame) of the field B_B [T] (body frame).
+  Vec3 sample(const Vec3& B_B);
+  const MagnetometerParams& params() const { return p_; }
+
+ private:
+  MagnetometerParams p_;
+  std::uint64_t seed_;
+  Mat3 MR_;  // M R_SB
+  Rng rng_;
 };
 
 struct SensorParams {
