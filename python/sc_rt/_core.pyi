@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -577,6 +577,11 @@ class Command:
     @property
     def chi(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
+    @property
+    def ctrl_mode(self) -> int:
+        """
+        mode under its field-table name (FIELD_TABLE: ctrl_mode)
+        """
     @property
     def e1(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
@@ -1454,6 +1459,14 @@ class MekfParams:
     def initial_bias_sigma(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
         ...
     @property
+    def initial_calibration(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[9, 1]"]:
+        """
+        [-, rad] initial [s1 s2 s3, ku1 ku2 ku3, kl1 kl2 kl3] estimate (calibrate)
+        """
+    @initial_calibration.setter
+    def initial_calibration(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[9, 1]"]) -> None:
+        ...
+    @property
     def initial_misalignment_sigma(self) -> float:
         """
         [rad]
@@ -1670,7 +1683,7 @@ class Navigation:
     """
     def __init__(self, c: NavConfig) -> None:
         ...
-    def measure(self, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[23, 1]"]]:
+    def measure(self, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[41, 1]"]]:
         """
         (Measurement, telemetry (NAV_SIZE,)) at t from the plant state x (10,).
         """
@@ -1698,7 +1711,7 @@ class Estimator:
         ...
     def gyro(self, t: typing.SupportsFloat | typing.SupportsIndex, omega: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], output: typing.SupportsInt | typing.SupportsIndex = 0) -> bool:
         ...
-    def measure(self, truth: Measurement) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[23, 1]"]]:
+    def measure(self, truth: Measurement) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[41, 1]"]]:
         """
         (Measurement, telemetry (NAV_SIZE,); bias_true and att_est_error NaN: they need the truth).
         """
@@ -1947,7 +1960,7 @@ class SensorIntake:
         ...
     def malformed(self) -> None:
         ...
-    def measure(self, truth: Measurement) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[23, 1]"]]:
+    def measure(self, truth: Measurement) -> tuple[Measurement, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[41, 1]"]]:
         """
         (Measurement, telemetry (NAV_SIZE,)) as the controller uses them.
         """
@@ -2187,9 +2200,7 @@ def slew_axis(p: GuidanceParams) -> typing.Annotated[numpy.typing.NDArray[numpy.
 def step_packed(controller: Controller, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> numpy.typing.NDArray[numpy.float64]:
     """
     One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];
-    returns the packed telemetry (53,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,
-    omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, telemetry 8,
-    mode, flags
+    returns the packed telemetry (53,): the field table's packed fields in table order
     (PACKED_FIELDS: (name, width) in this order).
     """
 def time_estimator(c: NavConfig, rate: typing.SupportsFloat | typing.SupportsIndex, n_ctrl: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], reps: typing.SupportsInt | typing.SupportsIndex) -> dict:
@@ -2255,9 +2266,10 @@ def wheel_torque_command(u: typing.SupportsFloat | typing.SupportsIndex, Jw: typ
     """
     The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).
     """
-CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('wheel_speed', 4), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1)]
+CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('wheel_speed', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1)]
 DEFAULT_LAW: str = 'dsc-ppc'
 DEFAULT_LCM_URL: str = 'udpm://239.255.76.67:7667?ttl=0'
+FIELD_TABLE: list = [{'name': 't', 'width': 1, 'dtype': 'f8', 'unit': 's', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'control instant t_k = k / rate'}, {'name': 'sigma_BN', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'MRP attitude of the body B relative to N at t_k'}, {'name': 'omega_BN_B', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'body rate relative to N, body frame'}, {'name': 'wheel_speed', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'wheel speeds relative to the body'}, {'name': 'sigma_DN', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'desired attitude (guidance) at t_k'}, {'name': 'sigma_BD', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'attitude tracking error, MRP of B relative to D (8)'}, {'name': 'omega_BD_B', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'rate tracking error, body frame (8)'}, {'name': 'u_cmd', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': 'command', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': True, 'doc': 'wheel command before saturation (what the law asked for)'}, {'name': 'u_sat', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': 'command', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': True, 'doc': "the command after the controller's saturation (15)"}, {'name': 'wheel_accel', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'truth', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'actual wheel acceleration, faults applied (15)'}, {'name': 'z1', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'NESO estimate of the rate error state'}, {'name': 'z2', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'NESO estimate of the lumped disturbance'}, {'name': 'delta2', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'truth', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'true lumped disturbance (20),(21)'}, {'name': 'chi', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'prescribed envelope chi(t) the controller used (29)'}, {'name': 'lam', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'normalised error lambda = sigma_BD / chi (30)'}, {'name': 'e1', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': 'transformed error of the PPC (34)'}, {'name': 'e2', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': 'second DSC surface error (27)'}, {'name': 'vs', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': 'command', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': 'anti-windup auxiliary state (42)'}, {'name': 'x2d', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': "the law's filtered virtual control, DSC's filter output (LawOutput.x2d; 0 unused)"}, {'name': 'rho_hat', 'width': 1, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': "the law's adaptive gain (LawOutput.rho_hat: RFT's; 0 unused)"}, {'name': 'telemetry', 'width': 8, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': "the law's named telemetry (LawOutput.telemetry): column i is the run's telemetry_names[i], unit as its name gives it ('name [unit]'); 0 unused"}, {'name': 'flags', 'width': 1, 'dtype': 'i8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'controller flags bit set (safety, bound, invalid input)'}, {'name': 'ctrl_mode', 'width': 1, 'dtype': 'i8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'controller mode: 0 INIT, 1 NORMAL, 2 SAFE; -1 unknown'}, {'name': 'sigma_BN_est', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'MEKF attitude estimate at t_k (what the law gets with measurement = estimate)'}, {'name': 'bias_est', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'MEKF gyro bias estimate'}, {'name': 'bias_true', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'truth', 'group': 'nav', 'packed': False, 'bus': False, 'core': False, 'doc': "the gyro's true bias (bias0 + Gauss-Markov + random walk)"}, {'name': 'P_diag', 'width': 6, 'dtype': 'f8', 'unit': 'rad^2, (rad/s)^2', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'MEKF covariance diagonal: attitude error (3, body) then bias error (3)'}, {'name': 'att_est_error', 'width': 3, 'dtype': 'f8', 'unit': 'rad', 'unit_rule': '', 'source': 'truth', 'group': 'nav', 'packed': False, 'bus': False, 'core': False, 'doc': 'estimation error: rotation vector of the true attitude relative to the estimate, body frame'}, {'name': 'innovation', 'width': 3, 'dtype': 'f8', 'unit': 'rad', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'star tracker residual of the last update since the previous row (NaN: none)'}, {'name': 'nis', 'width': 1, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': "normalised innovation squared z' S^-1 z of that update (NaN: none)"}, {'name': 'gyro_cal_est', 'width': 9, 'dtype': 'f8', 'unit': '-, rad', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': "calibrating filter's gyro scale factors s1 s2 s3 [-], then misalignments ku1 ku2 ku3, kl1 kl2 kl3 [rad] of S = [[s1 ku1 ku2], [kl1 s2 ku3], [kl2 kl3 s3]] (NaN: the 6-state filter)"}, {'name': 'gyro_cal_3sigma', 'width': 9, 'dtype': 'f8', 'unit': '-, rad', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': "3 sigma of each gyro_cal_est value, 3 sqrt of the filter's covariance diagonal (NaN: the 6-state filter)"}]
 FLAG_BOUND_X: int = 1
 FLAG_BOUND_Y: int = 2
 FLAG_BOUND_Z: int = 4
@@ -2280,9 +2292,9 @@ MAX_DT_PERIODS: float = 10.0
 MODE_INIT: int = 0
 MODE_NORMAL: int = 1
 MODE_SAFE: int = 2
-NAV_FIELDS: list = [('sigma_BN_est', 3), ('bias_est', 3), ('bias_true', 3), ('P_diag', 6), ('att_est_error', 3), ('innovation', 3), ('nis', 1), ('nav_flags', 1)]
-NAV_SIZE: int = 23
-PACKED_FIELDS: list = [('u_cmd', 4), ('u_sat', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('e1', 3), ('e2', 3), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('x2d', 3), ('vs', 4), ('rho_hat', 1), ('telemetry', 8), ('mode', 1), ('flags', 1)]
+NAV_FIELDS: list = [('sigma_BN_est', 3), ('bias_est', 3), ('bias_true', 3), ('P_diag', 6), ('att_est_error', 3), ('innovation', 3), ('nis', 1), ('gyro_cal_est', 9), ('gyro_cal_3sigma', 9), ('nav_flags', 1)]
+NAV_SIZE: int = 41
+PACKED_FIELDS: list = [('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('u_cmd', 4), ('u_sat', 4), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1)]
 PACKED_SIZE: int = 53
 PYTHON_LAW_OUT_SIZE: int = 32
 __version__: str = '0.1.0'
