@@ -9,7 +9,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
-#include <iterator>
 #include <vector>
 
 #include "sc_rt/closed_loop.hpp"
