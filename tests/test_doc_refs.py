@@ -252,7 +252,9 @@ def cpp_defines(name: str, files: tuple[Path, ...] | None = None) -> bool:
 
 @functools.cache
 def lcm_structs() -> frozenset[str]:
-    return frozenset(re.findall(r"\bstruct\s+(\w+)", "".join(read(p) for p in (ROOT / "lcmtypes").glob("*.lcm"))))
+    # *.lcm.in: a type generated at build time from its template (controller_status_t)
+    files = list((ROOT / "lcmtypes").glob("*.lcm")) + list((ROOT / "lcmtypes").glob("*.lcm.in"))
+    return frozenset(re.findall(r"\bstruct\s+(\w+)", "".join(read(p) for p in files)))
 
 
 class PyModule:

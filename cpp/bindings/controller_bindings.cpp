@@ -22,38 +22,10 @@ using py::arg;
 
 namespace {
 
-// The packed row of step_packed, in the order it is written: f(name, value)
-// for each field (an Eigen vector, or one scalar). PACKED_FIELDS is built
-// from the same list, so the names and the writes cannot drift apart.
-template <typename F>
-void for_each_packed(const Command& c, F&& f) {
-  f("u_cmd", c.u_cmd);
-  f("u_sat", c.u_sat);
-  f("sigma_DN", c.sigma_DN);
-  f("sigma_BD", c.sigma_BD);
-  f("omega_BD_B", c.omega_BD_B);
-  f("e1", c.e1);
-  f("e2", c.e2);
-  f("z1", c.z1);
-  f("z2", c.z2);
-  f("chi", c.chi);
-  f("lam", c.lam);
-  f("x2d", c.x2d);
-  f("vs", c.vs);
-  f("rho_hat", c.rho_hat);
-  f("telemetry", Eigen::Map<const Eigen::Matrix<double, kLawMaxTelemetry, 1>>(c.telemetry.data()));
-  f("mode", c.mode);
-  f("flags", c.flags);
-}
-template <typename T>
-int packed_width(const T& v) {
-  if constexpr (std::is_arithmetic_v<T>)
-    return 1;
-  else
-    return static_cast<int>(v.size());
-}
-constexpr int kPackedSize = 45 + kLawMaxTelemetry;
-
+// step_packed's row: the table's packed fields (fields.hpp) in table order,
+// written by the core's producer (closed_loop.hpp for_each_command_field).
+constexpr int kPackedSize = packed_size();
+static_assert(kPackedSize == 45 + kLawMaxTelemetry, "step_packed's row changed size: update its docstring");
 
 template <typename T>
 py::bytes encode_lcm(const T& msg) {
@@ -178,6 +150,8 @@ void bind_controllers(py::module_& m) {
       .def_readonly("u_cmd", &Command::u_cmd, "[rad/s^2] before saturation")
       .def_readonly("u_sat", &Command::u_sat, "[rad/s^2] after saturation")
       .def_readonly("mode", &Command::mode)
+      .def_property_readonly("ctrl_mode", [](const Command& c) { return c.mode; },
+                             "mode under its field-table name (FIELD_TABLE: ctrl_mode)")
       .def_readonly("flags", &Command::flags)
       .def_readonly("sigma_DN", &Command::sigma_DN)
       .def_readonly("sigma_BD", &Command::sigma_BD)
@@ -242,14 +216,11 @@ void bind_controllers(py::module_& m) {
   // simulator's hot path). Layout: PACKED_FIELDS (sc_rt.sim.engines.PACKED).
   {
     py::list fields;
-    int size = 0;
-    for_each_packed(Command{}, [&](const char* name, const auto& v) {
-      fields.append(py::make_tuple(name, packed_width(v)));
-      size += packed_width(v);
-    });
-    if (size != kPackedSize) throw std::logic_error("step_packed: PACKED_FIELDS do not add up to PACKED_SIZE");
+    for (const FieldSpec& f : kFields)
+      if (f.packed) fields.append(py::make_tuple(std::string(f.name), f.width));
     m.attr("PACKED_SIZE") = kPackedSize;
     m.attr("PACKED_FIELDS") = fields;
+    m.attr("FIELD_TABLE") = sc_rt_bind::field_table();
   }
   m.def(
       "step_packed",
@@ -258,29 +229,21 @@ void bind_controllers(py::module_& m) {
         const Command cmd = c.step(m);
         py::array_t<double> out(kPackedSize);
         double* o = out.mutable_data();
-        for_each_packed(cmd, [&o](const char*, const auto& v) {
+        for_each_command_field(cmd, [o](FieldId f, const auto& v) {
+          double* d = o + packed_offset(f);
           if constexpr (std::is_arithmetic_v<std::decay_t<decltype(v)>>)
-            *o++ = v;
+            *d = v;
           else
-            for (int i = 0; i < v.size(); ++i) *o++ = v(i);
+            for (int i = 0; i < v.size(); ++i) d[i] = v(i);
         });
         return out;
       },
       arg("controller"), arg("t"), arg("x"),
       "One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];\n"
-      "returns the packed telemetry (53,): u_cmd 4, u_sat 4, sigma_DN 3, sigma_BD 3,\n"
-      "omega_BD_B 3, e1 3, e2 3, z1 3, z2 3, chi 3, lam 3, x2d 3, vs 4, rho_hat, telemetry 8,\n"
-      "mode, flags\n"
+      "returns the packed telemetry (53,): the field table's packed fields in table order\n"
       "(PACKED_FIELDS: (name, width) in this order).");
 
-  {
-    py::list cols;
-    for (std::size_t i = 0; i < sc_rt_bind::kPlainLoopColumns; ++i)
-      cols.append(py::make_tuple(sc_rt_bind::kLoopColumns[i].name, sc_rt_bind::kLoopColumns[i].width));
-    cols.append(py::make_tuple("flags", 1));
-    cols.append(py::make_tuple("ctrl_mode", 1));
-    m.attr("CLOSED_LOOP_FIELDS") = cols;
-  }
+  m.attr("CLOSED_LOOP_FIELDS") = sc_rt_bind::loop_columns(kLoop);
 
   m.def(
       "simulate_closed_loop",
@@ -292,7 +255,7 @@ void bind_controllers(py::module_& m) {
           py::gil_scoped_release release;
           r = simulate_closed_loop(cfg, plant, act, x, n_ctrl, n_sub, rate);
         }
-        return sc_rt_bind::closed_loop_dict(r, sc_rt_bind::kPlainLoopColumns);
+        return sc_rt_bind::closed_loop_dict(r);
       },
       arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),
       "The whole offline closed loop in C++ (sc-rt sim --engine cpp): n_ctrl periods at rate [Hz],\n"
@@ -332,7 +295,7 @@ void bind_controllers(py::module_& m) {
             }
             c.buf.diverged = c.loop->diverged();
             c.buf.law_failures = c.loop->law_failures();
-            return sc_rt_bind::closed_loop_dict(c.buf, sc_rt_bind::kPlainLoopColumns);
+            return sc_rt_bind::closed_loop_dict(c.buf);
           },
           arg("rows"),
           "Up to rows more control instants (fewer at the end or where the plant diverged): a dict\n"

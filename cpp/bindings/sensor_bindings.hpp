@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -30,24 +31,22 @@ inline PlantState state_of(const Vec10& v) {
   return PlantState{v.segment<3>(0), v.segment<3>(3), v.segment<4>(6)};
 }
 
-// The navigation telemetry of a row, in this order (NAV_FIELDS).
-struct NavColumn {
-  const char* name;
-  int width;
-};
-inline const NavColumn kNavColumns[] = {
-    {"sigma_BN_est", 3}, {"bias_est", 3}, {"bias_true", 3}, {"P_diag", 6},
-    {"att_est_error", 3}, {"innovation", 3}, {"nis", 1}, {"nav_flags", 1},
-};
-constexpr int kNavSize = 23;
+// The navigation telemetry of a row (NAV_FIELDS): the table's kNav fields in
+// table order (fields.hpp nav_offset), then nav_flags; written by the core's
+// producer (closed_loop.hpp for_each_nav_field).
+constexpr int kNavSize = nav_size();
 
 inline Eigen::Matrix<double, kNavSize, 1> pack(const NavTelemetry& t) {
   Eigen::Matrix<double, kNavSize, 1> v;
-  v << t.sigma_est, t.bias_est, t.bias_true, t.P_diag, t.att_error, t.innovation, t.nis,
-      static_cast<double>(t.flags);
+  for_each_nav_field(t, [&v](FieldId f, const auto& x) {
+    if constexpr (std::is_arithmetic_v<std::decay_t<decltype(x)>>)
+      v(nav_offset(f)) = x;
+    else
+      v.segment(nav_offset(f), x.size()) = x;
+  });
+  v(kNavSize - 1) = static_cast<double>(t.flags);
   return v;
 }
-
 
 // Mekf (N = 6) and MekfCal (N = 15), and their states.
 template <int N>
@@ -133,6 +132,8 @@ inline void bind_sensors(py::module_& m) {
       .def_readwrite("calibrate", &MekfParams::calibrate, "the 15-state calibrating filter")
       .def_readwrite("initial_scale_factor_sigma", &MekfParams::initial_scale_factor_sigma, "[-]")
       .def_readwrite("initial_misalignment_sigma", &MekfParams::initial_misalignment_sigma, "[rad]")
+      .def_readwrite("initial_calibration", &MekfParams::initial_calibration,
+                     "[-, rad] initial [s1 s2 s3, ku1 ku2 ku3, kl1 kl2 kl3] estimate (calibrate)")
       .def_readwrite("history", &MekfParams::history);
   py::class_<NavConfig>(m, "NavConfig")
       .def(py::init<>())
@@ -319,7 +320,9 @@ inline void bind_sensors(py::module_& m) {
 
   {
     py::list cols;
-    for (const NavColumn& c : kNavColumns) cols.append(py::make_tuple(c.name, c.width));
+    for (const FieldSpec& f : kFields)
+      if (f.group == kNav) cols.append(py::make_tuple(std::string(f.name), f.width));
+    cols.append(py::make_tuple("nav_flags", 1));
     m.attr("NAV_FIELDS") = cols;
     m.attr("NAV_SIZE") = kNavSize;
     m.attr("FLAG_NAV_DEGRADED") = FLAG_NAV_DEGRADED;
@@ -379,7 +382,7 @@ inline void bind_sensors(py::module_& m) {
           py::gil_scoped_release release;
           r = simulate_closed_loop(cfg, plant, act, state_of(x0), n_ctrl, n_sub, rate, &nav);
         }
-        return closed_loop_dict(r, kAllLoopColumns);
+        return closed_loop_dict(r);
       },
       arg("c"), arg("plant"), arg("act"), arg("x0"), arg("n_ctrl"), arg("n_sub"), arg("rate"),
       arg("nav"),

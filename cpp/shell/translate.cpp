@@ -3,6 +3,11 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
+
+#include <sc_rt_lcm/controller_status_fields.hpp>
+
+#include "sc_rt/closed_loop.hpp"
 
 namespace sc_rt {
 
@@ -16,6 +21,17 @@ Eigen::Matrix<double, N, 1> vec(const double (&a)[N]) {
 template <int N, typename V>
 void put(double (&a)[N], const V& v) {
   for (int i = 0; i < N; ++i) a[i] = v(i);
+}
+// A field's value into its slot of the status's generated table block
+// (sc_rt_lcm/controller_status_fields.hpp); a field not on the bus has none.
+template <typename V>
+void put_slot(sc_rt_lcm::controller_status_t& m, FieldId f, const V& v) {
+  double* d = status_slot(m, f);
+  if (!d) return;
+  if constexpr (std::is_arithmetic_v<V>)
+    *d = static_cast<double>(v);
+  else
+    for (int i = 0; i < v.size(); ++i) d[i] = v(i);
 }
 }  // namespace
 
@@ -179,22 +195,10 @@ void fill_status(const Command& c, int law, int n_telemetry, sc_rt_lcm::controll
   msg.law = static_cast<int8_t>(law);
   msg.mode = static_cast<int8_t>(c.mode);
   msg.flags = c.flags;
-  put(msg.sigma_DN, c.sigma_DN);
-  put(msg.sigma_BD, c.sigma_BD);
-  put(msg.omega_BD_B, c.omega_BD_B);
-  put(msg.e1, c.e1);
-  put(msg.e2, c.e2);
-  put(msg.z1, c.z1);
-  put(msg.z2, c.z2);
-  put(msg.chi, c.chi);
-  put(msg.lam, c.lam);
   put(msg.u_cmd, c.u_cmd);
   put(msg.u_sat, c.u_sat);
-  put(msg.vs, c.vs);
-  put(msg.x2d, c.x2d);
-  msg.rho_hat = c.rho_hat;
   msg.n_telemetry = static_cast<int8_t>(n_telemetry);
-  for (int i = 0; i < kLawMaxTelemetry; ++i) msg.telemetry[i] = c.telemetry[static_cast<std::size_t>(i)];
+  for_each_command_field(c, [&msg](FieldId f, const auto& v) { put_slot(msg, f, v); });
 }
 
 NavSetup nav_from_lcm(const sc_rt_lcm::controller_config_t& m) {
@@ -252,11 +256,7 @@ TachSample tach_from_lcm(const sc_rt_lcm::tachometer_t& msg) {
 
 void fill_nav_status(const NavTelemetry& t, sc_rt_lcm::controller_status_t& msg) {
   msg.nav = true;
-  put(msg.sigma_BN_est, t.sigma_est);
-  put(msg.bias_est, t.bias_est);
-  put(msg.P_diag, t.P_diag);
-  put(msg.innovation, t.innovation);
-  msg.nis = t.nis;
+  for_each_nav_field(t, [&msg](FieldId f, const auto& v) { put_slot(msg, f, v); });
   msg.nav_flags = t.flags;
 }
 

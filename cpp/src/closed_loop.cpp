@@ -8,30 +8,15 @@
 namespace sc_rt {
 
 namespace {
-template <typename V>
-void put(std::vector<double>& dst, int row, const V& v) {
-  for (int i = 0; i < v.size(); ++i) dst[static_cast<std::size_t>(row * v.size() + i)] = v(i);
-}
 bool finite(const PlantState& x) {
   return x.sigma_BN.allFinite() && x.omega_BN_B.allFinite() && x.wheel_speed.allFinite();
 }
 }  // namespace
 
-void ClosedLoopResult::reserve_rows(std::size_t n, bool nav) {
-  t.resize(n);
-  for (auto* v : {&sigma_BN, &omega_BN_B, &sigma_DN, &sigma_BD, &omega_BD_B, &z1, &z2, &delta2, &chi, &lam, &e1, &e2,
-                  &x2d})
-    v->resize(3 * n);
-  rho_hat.resize(n);
-  telemetry.resize(static_cast<std::size_t>(kLawMaxTelemetry) * n);
-  for (auto* v : {&wheel_speed, &u_cmd, &u_sat, &wheel_accel, &vs}) v->resize(4 * n);
-  flags.resize(n);
-  ctrl_mode.resize(n);
-  if (nav) {
-    for (auto* v : {&sigma_BN_est, &bias_est, &bias_true, &att_est_error, &innovation}) v->resize(3 * n);
-    P_diag.resize(6 * n);
-    nis.resize(n);
-  }
+void ClosedLoopResult::reserve_rows(std::size_t n, bool with_nav) {
+  capacity = n;
+  nav = with_nav;
+  data.assign(n * static_cast<std::size_t>(row_width(with_nav ? kNav : kLoop)), 0.0);
 }
 
 ClosedLoop::ClosedLoop(const ControllerConfig& cfg, const PlantParams& plant, const ActuatorParams& act,
@@ -59,7 +44,7 @@ const std::vector<std::string>& ClosedLoop::telemetry_names() const { return ctl
 
 int ClosedLoop::run(int rows, ClosedLoopResult* out) {
   if (out && rows > 0 &&
-      (out->t.size() < static_cast<std::size_t>(rows) || (nv_ && out->nis.size() < static_cast<std::size_t>(rows))))
+      (out->capacity < static_cast<std::size_t>(rows) || (nv_ && !out->nav)))
     throw std::invalid_argument("ClosedLoop::run: the result has room for fewer rows than asked "
                                 "(reserve_rows, with the navigation's columns when it runs sensors)");
   Navigation* nv = nv_.get();
@@ -77,39 +62,17 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
                                     : Measurement{t, x_.sigma_BN, x_.omega_BN_B, x_.wheel_speed});
     const WheelOutput w = plant_row(plant_, act_, t, x_, c.u_cmd, &motor_);
     if (out) {
-      out->t[static_cast<std::size_t>(i)] = t;
-      put(out->sigma_BN, i, x_.sigma_BN);
-      put(out->omega_BN_B, i, x_.omega_BN_B);
-      put(out->wheel_speed, i, x_.wheel_speed);
-      put(out->u_cmd, i, c.u_cmd);
-      put(out->u_sat, i, c.u_sat);
-      put(out->wheel_accel, i, w.accel);
-      put(out->delta2, i, delta2_(t, x_, w.u_sat, w.accel));
-      put(out->sigma_DN, i, c.sigma_DN);
-      put(out->sigma_BD, i, c.sigma_BD);
-      put(out->omega_BD_B, i, c.omega_BD_B);
-      put(out->z1, i, c.z1);
-      put(out->z2, i, c.z2);
-      put(out->chi, i, c.chi);
-      put(out->lam, i, c.lam);
-      put(out->e1, i, c.e1);
-      put(out->e2, i, c.e2);
-      put(out->vs, i, c.vs);
-      put(out->x2d, i, c.x2d);
-      out->rho_hat[static_cast<std::size_t>(i)] = c.rho_hat;
-      std::copy(c.telemetry.begin(), c.telemetry.end(),
-                out->telemetry.begin() + static_cast<std::ptrdiff_t>(i) * kLawMaxTelemetry);
-      out->flags[static_cast<std::size_t>(i)] = nv ? (c.flags | tel_.flags) : c.flags;
+      out->put(FieldId::t, i, t);
+      out->put(FieldId::sigma_BN, i, x_.sigma_BN);
+      out->put(FieldId::omega_BN_B, i, x_.omega_BN_B);
+      out->put(FieldId::wheel_speed, i, x_.wheel_speed);
+      out->put(FieldId::wheel_accel, i, w.accel);
+      out->put(FieldId::delta2, i, delta2_(t, x_, w.u_sat, w.accel));
+      for_each_command_field(c, [out, i](FieldId f, const auto& v) { out->put(f, i, v); });
       if (nv) {
-        put(out->sigma_BN_est, i, tel_.sigma_est);
-        put(out->bias_est, i, tel_.bias_est);
-        put(out->bias_true, i, tel_.bias_true);
-        put(out->att_est_error, i, tel_.att_error);
-        put(out->innovation, i, tel_.innovation);
-        put(out->P_diag, i, tel_.P_diag);
-        out->nis[static_cast<std::size_t>(i)] = tel_.nis;
+        out->put(FieldId::flags, i, c.flags | tel_.flags);
+        for_each_nav_field(tel_, [out, i](FieldId f, const auto& v) { out->put(f, i, v); });
       }
-      out->ctrl_mode[static_cast<std::size_t>(i)] = c.mode;
     }
     ++written;
     ++k_;

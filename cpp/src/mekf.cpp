@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 #include "mekf_covariance.hpp"
 #include "sc_rt/mrp.hpp"
@@ -75,6 +76,7 @@ void MekfT<N>::reset(double t, const Vec3& sigma, const Vec3& bias) {
     const double ps = p_.initial_scale_factor_sigma * p_.initial_scale_factor_sigma;
     const double pk = p_.initial_misalignment_sigma * p_.initial_misalignment_sigma;
     ahead_.P.diagonal().template tail<9>() << ps, ps, ps, pk, pk, pk, pk, pk, pk;
+    ahead_.cal = p_.initial_calibration;  // the scenario's initial estimate (0: none)
   }
   omega_m_.setZero();
   have_gyro_ = false;
@@ -344,6 +346,10 @@ Measurement Estimator::measure(const Measurement& truth, NavTelemetry* tel) {
       tel->innovation = updated_ ? f.innovation() : Vec3::Constant(nan);
       tel->nis = updated_ ? f.nis() : nan;
       tel->flags = degraded ? FLAG_NAV_DEGRADED : 0;
+      if constexpr (std::decay_t<decltype(s.P)>::RowsAtCompileTime == 15) {  // the calibrating filter
+        tel->cal_est = s.cal;
+        tel->cal_3sigma = 3.0 * s.P.diagonal().template tail<9>().cwiseSqrt();
+      }
       updated_ = false;  // the next row reports the next update
     }
     if (!use_estimate_) return truth;

@@ -4,36 +4,87 @@
 #pragma once
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "sc_rt/controllers.hpp"
+#include "sc_rt/fields.hpp"
 #include "sc_rt/mekf.hpp"
 #include "sc_rt/plant.hpp"
 
 namespace sc_rt {
 
+static_assert(field_width(FieldId::telemetry) == kLawMaxTelemetry, "fields.hpp: telemetry's width");
+
+// The producers of the table's rows from the core's structs (fields.hpp):
+// f(FieldId, value) for every packed field of a Command and every kNav field
+// of the navigation's telemetry, a value an Eigen vector or one number.
+// These are the one place a Command or NavTelemetry member becomes a field;
+// tests/test_fields.py checks that every field is produced exactly once.
+template <class F>
+void for_each_command_field(const Command& c, F&& f) {
+  f(FieldId::sigma_DN, c.sigma_DN);
+  f(FieldId::sigma_BD, c.sigma_BD);
+  f(FieldId::omega_BD_B, c.omega_BD_B);
+  f(FieldId::u_cmd, c.u_cmd);
+  f(FieldId::u_sat, c.u_sat);
+  f(FieldId::z1, c.z1);
+  f(FieldId::z2, c.z2);
+  f(FieldId::chi, c.chi);
+  f(FieldId::lam, c.lam);
+  f(FieldId::e1, c.e1);
+  f(FieldId::e2, c.e2);
+  f(FieldId::vs, c.vs);
+  f(FieldId::x2d, c.x2d);
+  f(FieldId::rho_hat, c.rho_hat);
+  f(FieldId::telemetry, Eigen::Map<const Eigen::Matrix<double, kLawMaxTelemetry, 1>>(c.telemetry.data()));
+  f(FieldId::flags, static_cast<double>(c.flags));
+  f(FieldId::ctrl_mode, static_cast<double>(c.mode));
+}
+template <class F>
+void for_each_nav_field(const NavTelemetry& t, F&& f) {
+  f(FieldId::sigma_BN_est, t.sigma_est);
+  f(FieldId::bias_est, t.bias_est);
+  f(FieldId::bias_true, t.bias_true);
+  f(FieldId::P_diag, t.P_diag);
+  f(FieldId::att_est_error, t.att_error);
+  f(FieldId::innovation, t.innovation);
+  f(FieldId::nis, t.nis);
+  f(FieldId::gyro_cal_est, t.cal_est);
+  f(FieldId::gyro_cal_3sigma, t.cal_3sigma);
+}
+
+// The closed loop's rows: one buffer, column-major by field (fields.hpp):
+// field f's values are the block [field_offset(f) capacity,
+// (field_offset(f) + width) capacity), row after row inside it (a row's
+// values contiguous, as the Python dict's (rows, width) arrays).
 struct ClosedLoopResult {
   int rows = 0;           //!< rows written (n_ctrl + 1 unless diverged)
   bool diverged = false;  //!< the plant state became non-finite
   LawFailures law_failures;  //!< the law's contained failures (Controller::law_failures)
   std::vector<std::string> telemetry_names;  //!< the law's (Controller::telemetry_names): the telemetry columns
-  // One row per control instant, row-major, widths as named.
-  std::vector<double> t;                                           // 1
-  std::vector<double> sigma_BN, omega_BN_B, sigma_DN, sigma_BD;    // 3
-  std::vector<double> omega_BD_B, z1, z2, delta2, chi, lam, e1, e2, x2d;  // 3
-  std::vector<double> wheel_speed, u_cmd, u_sat, wheel_accel, vs;  // 4
-  std::vector<double> rho_hat;                                     // 1
-  std::vector<double> telemetry;                                   // kLawMaxTelemetry: the law's named values
-  std::vector<int> flags;                                          // 1
-  std::vector<int> ctrl_mode;                                      // 1 (MODE_*)
-  // With sensors (nav given; empty otherwise): NavTelemetry per row.
-  std::vector<double> sigma_BN_est, bias_est, bias_true, att_est_error, innovation;  // 3
-  std::vector<double> P_diag;                                      // 6
-  std::vector<double> nis;                                         // 1
+  std::size_t capacity = 0;  //!< rows of room (reserve_rows)
+  bool nav = false;          //!< the kNav fields have room (a run with sensors)
+  std::vector<double> data;  //!< capacity x row_width(nav ? kNav : kLoop) values, field blocks
 
-  //! Room for n rows (the navigation's columns too when nav): sized once,
-  //! then overwritten chunk after chunk (ClosedLoop::run).
+  //! Room for n rows (the kNav fields too when nav): sized once, then
+  //! overwritten chunk after chunk (ClosedLoop::run).
   void reserve_rows(std::size_t n, bool nav);
+  //! Field f's block: row i's values at col(f) + i width(f).
+  double* col(FieldId f) { return data.data() + static_cast<std::size_t>(field_offset(f)) * capacity; }
+  const double* col(FieldId f) const {
+    return data.data() + static_cast<std::size_t>(field_offset(f)) * capacity;
+  }
+  //! Write row i of field f (an Eigen vector of its width, or one number).
+  template <class V>
+  void put(FieldId f, int i, const V& v) {
+    double* d = col(f) + static_cast<std::size_t>(i) * static_cast<std::size_t>(field_width(f));
+    if constexpr (std::is_arithmetic_v<V>) {
+      *d = static_cast<double>(v);
+    } else {
+      for (int j = 0; j < v.size(); ++j) d[j] = v(j);
+    }
+  }
 };
 
 // The offline closed loop as a resumable object: run() advances it by a
@@ -57,7 +108,7 @@ class ClosedLoop {
   int next_row() const { return k_; }  //!< the index of the next control instant
   const PlantState& state() const { return x_; }  //!< the plant state at next_row()'s instant
   const LawFailures& law_failures() const;
-  //! the law's telemetry names (the columns of ClosedLoopResult::telemetry)
+  //! the law's telemetry names (the columns of the result's telemetry field)
   const std::vector<std::string>& telemetry_names() const;
 
  private:

@@ -60,6 +60,9 @@ struct MekfParams {
   bool calibrate = false;
   double initial_scale_factor_sigma = 0.0;   //!< [-] per axis, its P0 (calibrate)
   double initial_misalignment_sigma = 0.0;   //!< [rad] per element, its P0 (calibrate)
+  //! [-, rad] the initial calibration estimate [s1 s2 s3, ku1 ku2 ku3, kl1 kl2 kl3]
+  //! (MekfStateT::cal; calibrate; default 0: none)
+  Eigen::Matrix<double, 9, 1> initial_calibration = Eigen::Matrix<double, 9, 1>::Zero();
 };
 
 // The filter's state: the attitude and bias estimates, for the calibrating
@@ -173,6 +176,11 @@ struct NavTelemetry {
   Vec3 att_error = Vec3::Zero();   //!< [rad] rotation vector of truth relative to the estimate
   Vec3 innovation = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  //!< [rad] NaN: no update since the last row
   double nis = std::numeric_limits<double>::quiet_NaN();
+  //! [-, rad] the calibrating filter's gyro calibration [s1 s2 s3, ku1 ku2 ku3,
+  //! kl1 kl2 kl3] (MekfStateT::cal); NaN with the 6-state filter
+  Eigen::Matrix<double, 9, 1> cal_est = Eigen::Matrix<double, 9, 1>::Constant(std::numeric_limits<double>::quiet_NaN());
+  //! [-, rad] 3 sigma of each, 3 sqrt of its covariance diagonal; NaN likewise
+  Eigen::Matrix<double, 9, 1> cal_3sigma = Eigen::Matrix<double, 9, 1>::Constant(std::numeric_limits<double>::quiet_NaN());
   int flags = 0;
 };
 

@@ -278,11 +278,15 @@ class Scenario:
     field_model: str = "none"
 
     def controller_config_msg(
-        self, law: str | None = None, control_rate_hz: float | None = None
+        self, law: str | None = None, control_rate_hz: float | None = None, *, nav: bool = True
     ) -> controller_config_t:
         """The controller's part of the scenario as an LCM message, every field filled.
 
-        ``law`` and ``control_rate_hz`` override the run's values.
+        ``law`` and ``control_rate_hz`` override the run's values; ``nav``
+        False leaves the estimator's part out (the offline engines build it
+        from the scenario). ValueError for what the message cannot carry: an
+        initial gyro calibration estimate (``[controller.estimator]
+        initial_scale_factor``, ``initial_misalignment``; offline engines only).
         """
         law = self.run.controller if law is None else law
         rate = self.run.control_rate_hz if control_rate_hz is None else control_rate_hz
@@ -323,7 +327,8 @@ class Scenario:
                 wire = value.tolist() if isinstance(value, np.ndarray) else value
                 setattr(m, prefix + f.name, wire)
         m.pinv_damping = float(c.pinv_damping)
-        self._fill_nav(m)
+        if nav:
+            self._fill_nav(m)
         return m
 
     def _fill_nav(self, m: controller_config_t) -> None:
@@ -333,6 +338,10 @@ class Scenario:
         offline loop does (``_core.initial_estimate``)."""
         if self.sensors is None:
             return
+        e = self.sensors.estimator
+        if np.any(np.asarray(e.initial_scale_factor) != 0.0) or np.any(np.asarray(e.initial_misalignment) != 0.0):
+            raise ValueError("[controller.estimator] initial_scale_factor / initial_misalignment: controller_config_t "
+                             "does not carry an initial calibration estimate; run it with sc-rt sim")
         from sc_rt.scenario.sensors import nav_config  # builds on these types
 
         nav = nav_config(self.sensors, self.run.plant_step, f"{self.path}")
@@ -356,7 +365,7 @@ class Scenario:
         """The C++ config, decoded from the LCM bytes as the real-time process
         does. A Python law is put in the core's registry first (sc_rt.pylaw),
         so that a controller built from the config in this process runs it."""
-        msg = self.controller_config_msg(law, control_rate_hz)
+        msg = self.controller_config_msg(law, control_rate_hz, nav=False)  # the core reads no nav_* field
         if is_python_law(msg.law):
             msg.law = register(msg.law)  # its registry spec, "python:..." (file.py:Class given without it too)
         return _core.ControllerConfig.from_lcm_bytes(msg.encode())

@@ -39,6 +39,10 @@ def _zeros3() -> np.ndarray:
     return read_only(np.zeros(3))
 
 
+def _zeros6() -> np.ndarray:
+    return read_only(np.zeros(6))
+
+
 #: [sensors.gyro] output -> sc_rt._core's GYRO_RATE / GYRO_MEAN_RATE
 GYRO_OUTPUTS = ("rate", "increment")
 
@@ -95,6 +99,10 @@ class EstimatorSpec:
     calibrate: bool = field(default=False, metadata=spec("bool"))
     initial_scale_factor_sigma: float = field(default=1000.0, metadata=spec("number", ge=0))  # [ppm]
     initial_misalignment_sigma: float = field(default=200.0, metadata=spec("number", ge=0))  # [arcsec]
+    #: the calibrating filter's initial estimate (calibrate): scale factors s1 s2 s3 [ppm]
+    initial_scale_factor: np.ndarray = field(default_factory=_zeros3, metadata=vector_spec(3, scalar_ok=True))
+    #: and misalignments ku1 ku2 ku3, kl1 kl2 kl3 [arcsec] of S = [[s1 ku1 ku2], [kl1 s2 ku3], [kl2 kl3 s3]]
+    initial_misalignment: np.ndarray = field(default_factory=_zeros6, metadata=vector_spec(6, scalar_ok=True))
 
 
 @dataclass(frozen=True)
@@ -171,6 +179,11 @@ def read_sensors(root: Table, controller: Table, run: Any) -> Sensors | None:
     measurement = controller.read("measurement", Spec("str", choices=MEASUREMENTS), default="truth")
     est_t = controller.sub("estimator", required=False)
     est_v = _read_values_except(est_t, EstimatorSpec, ())
+    for key in ("initial_scale_factor", "initial_misalignment"):  # an initial calibration: the calibrating filter's
+        v = est_v.get(key)
+        if v is not None and np.any(np.asarray(v) != 0.0) and not est_v.get("calibrate"):
+            est_t.fail(key, "an initial calibration estimate needs calibrate = true")
+            est_v[key] = None
     est_t.finish()
     if not root.has("sensors"):
         root.used.add("sensors")
@@ -292,6 +305,8 @@ def nav_config(sensors: Sensors, plant_step: float, where: str = "scenario") -> 
     m.calibrate = bool(e.calibrate)
     m.initial_scale_factor_sigma = e.initial_scale_factor_sigma * 1e-6
     m.initial_misalignment_sigma = e.initial_misalignment_sigma * ARCSEC
+    m.initial_calibration = np.concatenate([np.asarray(e.initial_scale_factor, float) * 1e-6,
+                                            np.asarray(e.initial_misalignment, float) * ARCSEC])
     g_ticks = p.gyro.period_ticks if p.gyro.enabled else 1
     m.history = int(p.star_tracker.latency_ticks // g_ticks + 3) if p.star_tracker.enabled else 3
     c.use_estimate = sensors.measurement == "estimate"

@@ -18,7 +18,7 @@ def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[st
         col = OUT[:, packed[p]]
         cols[name] = col[:, 0] if col.shape[1] == 1 else col  # a scalar field: one column
     cols["flags"] = np.nan_to_num(OUT[:, packed["flags"]][:, 0]).astype(np.int64)
-    cols["ctrl_mode"] = np.nan_to_num(OUT[:, packed["mode"]][:, 0], nan=-1).astype(np.int64)
+    cols["ctrl_mode"] = np.nan_to_num(OUT[:, packed["ctrl_mode"]][:, 0], nan=-1).astype(np.int64)
     return cols
 
 

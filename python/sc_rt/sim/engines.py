@@ -51,10 +51,10 @@ ENGINES = ("python", "cpp", "unsampled")
 #: _core.PACKED_FIELDS ((name, width) in the order the C++ writes them).
 PACKED: dict[str, slice] = packed_layout(_core.PACKED_FIELDS, _core.PACKED_SIZE)
 
-#: Packed telemetry recorded in the run: run field -> packed name.
-RECORDED = {"u_cmd": "u_cmd", "u_sat": "u_sat", "sigma_DN": "sigma_DN", "sigma_BD": "sigma_BD",
-            "omega_BD_B": "omega_BD_B", "z1": "z1", "z2": "z2", "chi": "chi", "lam": "lam",
-            "e1": "e1", "e2": "e2", "vs": "vs", "x2d": "x2d", "rho_hat": "rho_hat", "telemetry": "telemetry"}
+#: Packed telemetry recorded in the run: run field -> packed name (every
+#: packed field of the table but flags and ctrl_mode, which loop_columns
+#: converts to integers).
+RECORDED = {n: n for n, _ in _core.PACKED_FIELDS if n not in ("flags", "ctrl_mode")}
 for _k, _p in RECORDED.items():  # the run declares each with the packed width (a scalar: width 1)
     assert FIELD[_k].shape in ((PACKED[_p].stop - PACKED[_p].start,), ()), _k
 

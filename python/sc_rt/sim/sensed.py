@@ -40,8 +40,9 @@ __all__ = ["run_sensed", "NAV", "NAV_RECORDED"]
 #: Layout of Navigation.measure's telemetry (name -> slice), from _core.NAV_FIELDS.
 NAV: dict[str, slice] = packed_layout(_core.NAV_FIELDS, _core.NAV_SIZE)
 
-#: The navigation telemetry the run records (run field = telemetry name).
-NAV_RECORDED = ("sigma_BN_est", "bias_est", "bias_true", "P_diag", "att_est_error", "innovation", "nis")
+#: The navigation telemetry the run records (run field = telemetry name):
+#: every field of NAV_FIELDS but nav_flags (OR-ed into the row's flags).
+NAV_RECORDED = tuple(n for n, _ in _core.NAV_FIELDS if n != "nav_flags")
 for _k in NAV_RECORDED:
     assert FIELD[_k].shape == ((NAV[_k].stop - NAV[_k].start,) if NAV[_k].stop - NAV[_k].start > 1 else ()), _k
 

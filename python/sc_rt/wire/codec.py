@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import sc_rt_lcm
 
+from sc_rt import _core
+
 __all__ = ["TYPES", "BY_FINGERPRINT", "identify", "decode_any", "numpy_dtype", "decode_array",
            "lcm_sources", "to_plain", "decode_as", "DECODE_ERRORS", "STATUS_RUN_FIELDS", "STATUS_TIMING_FIELDS",
            "STATUS_NAV_FIELDS"]
@@ -42,16 +44,17 @@ _NP = {"int8_t": "i1", "int16_t": ">i2", "int32_t": ">i4", "int64_t": ">i8", "by
 
 _DTYPES: dict[type, np.dtype | None] = {}
 
-# The status-to-run mapping, written out (not matched by name): a field
-# renamed on either side fails tests/test_status_map.py instead of vanishing.
+# The status-to-run mapping, read from the core's field table
+# (_core.FIELD_TABLE, cpp/include/sc_rt/fields.hpp): a field with bus = true
+# is in controller_status_t under its own name, because the status type's
+# telemetry block is generated from the same table at build time.
 #: Run fields a controller_status_t carries for the state it used, same name
 #: on both sides (the command's own fields, u_cmd, u_sat, flags and mode,
 #: come from wheel_cmd_t).
-STATUS_RUN_FIELDS: tuple[str, ...] = ("sigma_DN", "sigma_BD", "omega_BD_B", "z1", "z2", "chi", "lam", "e1", "e2", "vs",
-                                      "x2d", "rho_hat", "telemetry")
+STATUS_RUN_FIELDS: tuple[str, ...] = tuple(r["name"] for r in _core.FIELD_TABLE if r["bus"] and r["group"] == "loop")
 #: The estimator's run fields in controller_status_t (a [sensors] run; its
 #: nav_flags are OR-ed into the row's flags, as the offline loop does).
-STATUS_NAV_FIELDS: tuple[str, ...] = ("sigma_BN_est", "bias_est", "P_diag", "innovation", "nis")
+STATUS_NAV_FIELDS: tuple[str, ...] = tuple(r["name"] for r in _core.FIELD_TABLE if r["bus"] and r["group"] == "nav")
 #: The controller's own timing measurements in controller_status_t.
 STATUS_TIMING_FIELDS: tuple[str, ...] = ("wake_lateness_us", "compute_us", "state_age_us")
 #: Controller-sourced run fields a status does NOT carry, and where they come

@@ -11,6 +11,10 @@ so that a log written before a layout changed still reads (docs/LOGS.md).
   issue #26): no ``x2d``, ``rho_hat``, ``n_telemetry``, ``telemetry``.
   ``decode_current`` reads such messages with the current ones, those
   fields NaN (``n_telemetry`` 0): not recorded, not zero.
+- ``controller_status_v2_t`` (before its telemetry block was generated from
+  the core's field table, issue 39): the same fields in another order and
+  none of the fields added to the table since (the gyro calibration's);
+  ``decode_current`` reads it the same way, the missing fields NaN.
 """
 
 from __future__ import annotations
@@ -26,9 +30,13 @@ __all__ = ["LEGACY", "upgrade", "decode_current"]
 
 #: the old layout's class -> the current one it becomes
 LEGACY = {sc_rt_lcm.controller_config_v1_t: sc_rt_lcm.controller_config_t,
-          sc_rt_lcm.controller_status_v1_t: sc_rt_lcm.controller_status_t}
-#: a fixed-size current type -> its old layout (read by decode_current; the others: upgrade)
-_FIXED_OLD = {new: old for old, new in LEGACY.items() if numpy_dtype(new) is not None}
+          sc_rt_lcm.controller_status_v1_t: sc_rt_lcm.controller_status_t,
+          sc_rt_lcm.controller_status_v2_t: sc_rt_lcm.controller_status_t}
+#: a fixed-size current type -> its old layouts (read by decode_current; the others: upgrade)
+_FIXED_OLD: dict[type, tuple[type, ...]] = {}
+for _old, _new in LEGACY.items():
+    if numpy_dtype(_new) is not None:
+        _FIXED_OLD[_new] = _FIXED_OLD.get(_new, ()) + (_old,)
 
 
 def decode_current(cls, datas: list[bytes], counts: Counter | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -37,26 +45,33 @@ def decode_current(cls, datas: list[bytes], counts: Counter | None = None) -> tu
     copied, the others NaN, or 0 for an integer). Returns (records, index)
     in log order."""
     counts = Counter() if counts is None else counts
-    old = _FIXED_OLD.get(cls)
-    if old is None:
+    olds = [o for o in _FIXED_OLD.get(cls, ())]
+    fps = [o._get_packed_fingerprint() for o in olds]
+    heads = [bytes(d[:8]) for d in datas]
+    which = [fps.index(h) if h in fps else -1 for h in heads]
+    if not any(w >= 0 for w in which):
         return decode_array(cls, datas, counts)
-    fp = old._get_packed_fingerprint()
-    is_old = np.fromiter((bytes(d[:8]) == fp for d in datas), bool, len(datas))
-    if not is_old.any():
-        return decode_array(cls, datas, counts)
-    at_new, at_old = np.flatnonzero(~is_old), np.flatnonzero(is_old)
+    at_new = np.flatnonzero(np.asarray(which) < 0)
     rec_new, i_new = decode_array(cls, [datas[i] for i in at_new], counts)
-    rec_old, i_old = decode_array(old, [datas[i] for i in at_old], counts)
-    up = np.zeros(len(rec_old), rec_new.dtype)
-    for name in up.dtype.names:
-        if name in rec_old.dtype.names:
-            up[name] = rec_old[name]
-        elif up.dtype[name].base.kind == "f":
-            up[name] = np.nan
-    up["_fp"] = int.from_bytes(cls._get_packed_fingerprint(), "big")
-    pos = np.concatenate([at_new[i_new], at_old[i_old]])
-    order = np.argsort(pos, kind="stable")
-    return np.concatenate([rec_new, up])[order], pos[order].astype(np.int64)
+    parts, pos = [rec_new], [at_new[i_new]]
+    for j, old in enumerate(olds):
+        at_old = np.flatnonzero(np.asarray(which) == j)
+        if not len(at_old):
+            continue
+        rec_old, i_old = decode_array(old, [datas[i] for i in at_old], counts)
+        up = np.zeros(len(rec_old), rec_new.dtype)
+        for name in up.dtype.names:
+            if name in rec_old.dtype.names:
+                up[name] = rec_old[name]
+            elif up.dtype[name].base.kind == "f":
+                up[name] = np.nan
+        up["_fp"] = int.from_bytes(cls._get_packed_fingerprint(), "big")
+        parts.append(up)
+        pos.append(at_old[i_old])
+    allpos = np.concatenate(pos)
+    order = np.argsort(allpos, kind="stable")
+    return np.concatenate(parts)[order], allpos[order].astype(np.int64)
+
 
 _DSC = ("k1", "k2", "k3", "k4", "k6", "tau")
 _NESO = ("k1", "k2", "k3", "k4")

@@ -50,6 +50,8 @@ FIGURES = {
     "faults.png": "Wheel faults as the plant reported them",
     "timing.png": "Timing: state-to-command latency, compute and wake lateness [us]",
     "law_telemetry.png": "The law's own telemetry: its named values and the fixed slots it fills (x2d, rho_hat)",
+    "gyro_calibration.png": ("The calibrating filter's gyro scale factors [ppm] and misalignments [arcsec] "
+                             "with their 3 sigma (gyro_cal_est, gyro_cal_3sigma)"),
 }
 #: the captions of a run whose scenario does not ask for the envelope (its bounds are not drawn)
 FIGURES_WITHOUT_ENVELOPE = {**FIGURES,

@@ -81,6 +81,7 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
 def _figures(run: Run, out: Path, title: str) -> list[Path]:
     """The tracking, wheel speed, requirements and (bench runs) timing figures."""
     from sc_rt.results.present import figures as fig
+    from sc_rt.results.present.calibration_figure import calibration_figure
     from sc_rt.results.present.telemetry_figure import telemetry_figure
     from sc_rt.results.present.requirement_figures import requirement_figures
 
@@ -88,6 +89,8 @@ def _figures(run: Run, out: Path, title: str) -> list[Path]:
     paths = fig.tracking_figures(drawn, out, title=title)
     paths += requirement_figures(drawn, out, title=title)  # wheel_speeds.png, requirements.png
     if (p := telemetry_figure(drawn, out, title)) is not None:  # the law's own telemetry, when it has any
+        paths.append(p)
+    if (p := calibration_figure(drawn, out, title)) is not None:  # a calibrating filter's estimates
         paths.append(p)
     if run.timing is not None:
         paths += fig.timing_figures(drawn, out)

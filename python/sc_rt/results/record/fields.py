@@ -1,6 +1,10 @@
 """The declared per-row fields of a run (``FIELDS``): name, shape of one
 row, unit, where the value comes from, and what it means; the table every
-producer fills and every reader reads (results/record/run.py ``Run``)."""
+producer fills and every reader reads (results/record/run.py ``Run``).
+
+The core's fields are not written here: they are read at import from
+``_core.FIELD_TABLE`` (cpp/include/sc_rt/fields.hpp, the one table); only
+the fields Python alone produces are declared below."""
 
 from __future__ import annotations
 
@@ -10,7 +14,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "COLUMNS", "SOURCES", "empty_arrays", "packed_layout"]
+from sc_rt import _core
+
+__all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "COLUMNS", "SOURCES", "empty_arrays", "packed_layout",
+           "core_fields", "merge_fields"]
 
 SOURCES = ("plant", "controller", "truth", "timing", "derived", "estimator")
 
@@ -53,76 +60,92 @@ class Field:
     fill: Any = math.nan
     #: part of the trajectory every producer fills (checked for finiteness by the metrics)
     core: bool = False
+    #: "" (the unit is fixed) or "command": the wheel command's unit, resolved
+    #: per run from the wheels' interface (``resolved_unit``)
+    unit_rule: str = ""
+
+    def resolved_unit(self, torque_command: bool) -> str:
+        """The unit on a run whose wheels take torque (``torque_command``) or
+        acceleration commands: "N m" or "rad/s^2" under the "command" rule,
+        else ``unit``."""
+        if self.unit_rule == "command":
+            return "N m" if torque_command else "rad/s^2"
+        return self.unit
 
 
 def _f(name, shape, unit, source, doc, core=False, dtype="f8", fill=math.nan) -> Field:
     return Field(name, shape, unit, source, doc, dtype, fill, core)
 
 
-#: Every per-row array of a run, in the order trajectory.npz lists them.
-FIELDS: tuple[Field, ...] = (
-    _f("t", (), "s", "plant", "control instant t_k = k / rate", True),
-    _f("sigma_BN", (3,), "-", "plant", "MRP attitude of the body B relative to N at t_k", True),
-    _f("omega_BN_B", (3,), "rad/s", "plant", "body rate relative to N, body frame", True),
-    _f("wheel_speed", (4,), "rad/s", "plant", "wheel speeds relative to the body", True),
-    _f("sigma_DN", (3,), "-", "controller", "desired attitude (guidance) at t_k", True),
-    _f("sigma_BD", (3,), "-", "controller", "attitude tracking error, MRP of B relative to D (8)", True),
-    _f("omega_BD_B", (3,), "rad/s", "controller", "rate tracking error, body frame (8)", True),
-    _f("u_cmd", (4,), "rad/s^2", "controller",
-       "wheel acceleration command before saturation (what the law asked for)", True),
-    _f("u_sat", (4,), "rad/s^2", "controller", "the command after the controller's saturation (15)", True),
-    _f("wheel_accel", (4,), "rad/s^2", "truth", "actual wheel acceleration, faults applied (15)", True),
-    _f("z1", (3,), "rad/s", "controller", "NESO estimate of the rate error state", True),
-    _f("z2", (3,), "rad/s^2", "controller", "NESO estimate of the lumped disturbance", True),
-    _f("delta2", (3,), "rad/s^2", "truth", "true lumped disturbance (20),(21)", True),
-    _f("chi", (3,), "-", "controller", "prescribed envelope chi(t) the controller used (29)", True),
-    _f("lam", (3,), "-", "controller", "normalised error lambda = sigma_BD / chi (30)", True),
-    _f("bound_ok", (3,), "-", "derived",
-       "-dmin chi(t) < sigma_BD < dmax chi(t) per axis, from the scenario's envelope", True, "?", False),
-    _f("e1", (3,), "-", "controller", "transformed error of the PPC (34)"),
-    _f("e2", (3,), "rad/s", "controller", "second DSC surface error (27)"),
-    _f("vs", (4,), "rad/s^2", "controller", "anti-windup auxiliary state (42)"),
-    _f("x2d", (3,), "rad/s", "controller",
-       "the law's filtered virtual control, DSC's filter output (LawOutput.x2d; 0 unused)"),
-    _f("rho_hat", (), "rad/s^2", "controller", "the law's adaptive gain (LawOutput.rho_hat: RFT's; 0 unused)"),
-    _f("telemetry", (8,), "-", "controller",
-       "the law's named telemetry (LawOutput.telemetry): column i is the run's telemetry_names[i], "
-       "unit as its name gives it ('name [unit]'); 0 unused"),
-    _f("flags", (), "-", "controller", "controller flags bit set (safety, bound, invalid input)",
-       dtype="i8", fill=0),
-    _f("ctrl_mode", (), "-", "controller", "controller mode: 0 INIT, 1 NORMAL, 2 SAFE; -1 unknown",
-       dtype="i8", fill=-1),
-    _f("cmd_seq_applied", (), "-", "truth", "seq of the wheel_cmd_t the plant applied (-1: none)",
-       dtype="i8", fill=-1),
-    _f("cmd_stale", (), "-", "truth", "1 when the watchdog applied zero (no valid command)",
-       dtype="i8", fill=0),
-    _f("fault_Y", (4,), "-", "truth", "fault evolution Y_i(t) (16)"),
-    _f("fault_effectiveness", (4,), "-", "truth", "wheel effectiveness L_i of the active fault"),
-    _f("fault_bias", (4,), "rad/s^2", "truth", "wheel bias of the active fault"),
-    _f("fault_stuck", (4,), "-", "truth", "1 when the wheel is stuck", dtype="i8", fill=0),
-    # With [sensors] (sc_rt.sim.sensed; the MEKF of cpp/include/sc_rt/mekf.hpp), NaN otherwise:
-    _f("sigma_BN_est", (3,), "-", "estimator",
-       "MEKF attitude estimate at t_k (what the law gets with measurement = estimate)"),
-    _f("bias_est", (3,), "rad/s", "estimator", "MEKF gyro bias estimate"),
-    _f("bias_true", (3,), "rad/s", "truth", "the gyro's true bias (bias0 + Gauss-Markov + random walk)"),
-    _f("P_diag", (6,), "rad^2, (rad/s)^2", "estimator",
-       "MEKF covariance diagonal: attitude error (3, body) then bias error (3)"),
-    _f("att_est_error", (3,), "rad", "truth",
-       "estimation error: rotation vector of the true attitude relative to the estimate, body frame"),
-    _f("innovation", (3,), "rad", "estimator",
-       "star tracker residual of the last update since the previous row (NaN: none)"),
-    _f("nis", (), "-", "estimator", "normalised innovation squared z' S^-1 z of that update (NaN: none)"),
-    _f("sigma_BD_true", (3,), "-", "derived",
-       "true tracking error mrp_subtract(sigma_BN, sigma_DN) (sensor runs: the bound is judged on it)"),
-    _f("omega_BD_B_true", (3,), "rad/s", "derived",
-       "true rate tracking error omega_BN_B - [BD] omega_DN_D(t), [BD] of sigma_BD_true (sensor runs)"),
-    _f("latency_us", (), "us", "timing", "state publish to receipt of the command answering it"),
-    _f("tick_lateness_us", (), "us", "timing", "real time: the emulator's tick behind its deadline"),
-    _f("wake_lateness_us", (), "us", "timing", "the controller's wake behind its schedule"),
-    _f("compute_us", (), "us", "timing", "the controller's compute time for this state"),
-    _f("state_age_us", (), "us", "timing", "age of the state when the controller used it"),
-    _f("state_log_us", (), "us", "timing", "logger receive time of the state (log rebuilds)"),
-)
+def _fill(dtype: str, name: str) -> Any:
+    """A core field's fill value: NaN for floats; -1 for ``ctrl_mode`` (no
+    step ran), 0 for the other integers."""
+    if dtype != "i8":
+        return math.nan
+    return -1 if name == "ctrl_mode" else 0
+
+
+def core_fields(table=None) -> tuple[Field, ...]:
+    """The fields the C++ core declares (``_core.FIELD_TABLE``, built from
+    cpp/include/sc_rt/fields.hpp), as ``Field`` rows in table order.
+
+    Parameters
+    ----------
+    table : list of dict, optional
+        The table to read (default: ``_core.FIELD_TABLE``); a test hands a
+        copy to see that an edit shows.
+    """
+    rows = _core.FIELD_TABLE if table is None else table
+    return tuple(Field(r["name"], () if r["width"] == 1 else (r["width"],), r["unit"], r["source"], r["doc"],
+                       r["dtype"], _fill(r["dtype"], r["name"]), r["core"], r["unit_rule"]) for r in rows)
+
+
+#: The fields only Python produces (the emulator, the sensed engine's
+#: derivations, the bench's timing), each after the core field it follows in
+#: a run's file (None: at the end).
+_PYTHON_FIELDS: dict[str | None, tuple[Field, ...]] = {
+    "lam": (
+        _f("bound_ok", (3,), "-", "derived",
+           "-dmin chi(t) < sigma_BD < dmax chi(t) per axis, from the scenario's envelope", True, "?", False),
+    ),
+    "ctrl_mode": (
+        _f("cmd_seq_applied", (), "-", "truth", "seq of the wheel_cmd_t the plant applied (-1: none)",
+           dtype="i8", fill=-1),
+        _f("cmd_stale", (), "-", "truth", "1 when the watchdog applied zero (no valid command)",
+           dtype="i8", fill=0),
+        _f("fault_Y", (4,), "-", "truth", "fault evolution Y_i(t) (16)"),
+        _f("fault_effectiveness", (4,), "-", "truth", "wheel effectiveness L_i of the active fault"),
+        _f("fault_bias", (4,), "rad/s^2", "truth", "wheel bias of the active fault"),
+        _f("fault_stuck", (4,), "-", "truth", "1 when the wheel is stuck", dtype="i8", fill=0),
+    ),
+    None: (
+        _f("sigma_BD_true", (3,), "-", "derived",
+           "true tracking error mrp_subtract(sigma_BN, sigma_DN) (sensor runs: the bound is judged on it)"),
+        _f("omega_BD_B_true", (3,), "rad/s", "derived",
+           "true rate tracking error omega_BN_B - [BD] omega_DN_D(t), [BD] of sigma_BD_true (sensor runs)"),
+        _f("latency_us", (), "us", "timing", "state publish to receipt of the command answering it"),
+        _f("tick_lateness_us", (), "us", "timing", "real time: the emulator's tick behind its deadline"),
+        _f("wake_lateness_us", (), "us", "timing", "the controller's wake behind its schedule"),
+        _f("compute_us", (), "us", "timing", "the controller's compute time for this state"),
+        _f("state_age_us", (), "us", "timing", "age of the state when the controller used it"),
+        _f("state_log_us", (), "us", "timing", "logger receive time of the state (log rebuilds)"),
+    ),
+}
+
+
+def merge_fields(core: tuple[Field, ...]) -> tuple[Field, ...]:
+    """The core's fields with the Python-only ones at their places."""
+    out: list[Field] = []
+    for f in core:
+        out.append(f)
+        out.extend(_PYTHON_FIELDS.get(f.name, ()))
+    out.extend(_PYTHON_FIELDS[None])
+    return tuple(out)
+
+
+#: Every per-row array of a run, in the order trajectory.npz lists them: the
+#: core's table (``_core.FIELD_TABLE``) with the Python-only fields merged in.
+FIELDS: tuple[Field, ...] = merge_fields(core_fields())
 FIELD: dict[str, Field] = {f.name: f for f in FIELDS}
 #: The fields as the columns of a run's file (results/record/store.py ``Column``: name, row shape, dtype, fill).
 COLUMNS: tuple[tuple[str, tuple[int, ...], str, Any], ...] = tuple((f.name, f.shape, f.dtype, f.fill) for f in FIELDS)
