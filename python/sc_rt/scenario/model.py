@@ -241,6 +241,9 @@ class Scenario:
         The overrides applied to the file's values, in order, as (dotted
         key, value) pairs (``sc_rt.with_overrides``); a run records them
         (sc_rt.results.record.inputs).
+    law_key, law_keys : str, tuple
+        Where the file names its law and each law parameter (dotted keys),
+        for the errors of the law's probe (sc_rt.plan.law).
     """
 
     name: str
@@ -269,6 +272,11 @@ class Scenario:
     # the overrides applied to the file's values, in order: (dotted key, value) pairs
     # (sc_rt.scenario.overrides.with_overrides); a run records them (results/record/inputs.py)
     overrides: tuple = ()
+    # the dotted key the file names its law by ("controller.law" or "run.controller"), and the
+    # dotted key of each law parameter ((law, key), dotted key) pairs: where a law's probe
+    # reports a problem (sc_rt.plan.law)
+    law_key: str = "run.controller"
+    law_keys: tuple = ()
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None
@@ -291,7 +299,9 @@ class Scenario:
         m.scenario = self.name
         m.law = law
         m.law_api_version = _core.LAW_API_VERSION
-        table = c.table(law_table_name(law))
+        # its table by the law's name; [controller.params] of a plugin or Python law the file
+        # runs is kept under the spec (the reader loads no law to learn its name)
+        table = c.table(law_table_name(law)) or c.table(law)
         m.n_law_params = len(table)
         m.law_param_keys = [k for k, _ in table]
         m.law_param_len = [len(v) for _, v in table]
