@@ -134,12 +134,15 @@ def _doc(scn: Scenario, overridden: bool) -> Doc:
         return Doc(str(scn.path), {})
 
 
-def probe_law(scn: Scenario, overridden: bool = False) -> LawRef:
+def probe_law(scn: Scenario, overridden: bool = False, probe_python: bool = True) -> LawRef:
     """The scenario's law (``scn.run.controller``) loaded and constructed once
     with its table, probed one step at rest at t = 0 in a child process
     (killed after sc_rt.isolate.probe_timeout() s). ``overridden``: the law
-    came from the command line (its errors name ``<file> (override)``).
-    Raises ScenarioError naming the law's key or the parameter's own key."""
+    came from the command line (its errors name ``<file> (override)``);
+    ``probe_python`` False: a Python law is loaded, not probed (the bench
+    runs a Python law it is given in ``sc-rt controller``, which constructs
+    and checks it itself: its reset may wait for the run to start). Raises
+    ScenarioError naming the law's key or the parameter's own key."""
     doc = _doc(scn, overridden)
     spec = scn.run.controller
     law_key = "run.controller" if overridden else scn.law_key
@@ -150,8 +153,8 @@ def probe_law(scn: Scenario, overridden: bool = False) -> LawRef:
     except ValueError as e:
         doc.error(law_key, spec, str(e) if overridden else str(e).replace("--law ", "law ", 1))
         raise ScenarioError(doc.path, doc.errors) from None
-    if isinstance(ref, BuiltinLaw):  # a name of a loaded plugin's registry: as the file gave it
-        return ref
+    if isinstance(ref, BuiltinLaw) or (isinstance(ref, PythonLaw) and not probe_python):
+        return ref  # (a BuiltinLaw here: a name of a loaded plugin's registry, as the file gave it)
     table = scn.controller.table(ref.name) or scn.controller.table(spec)
     try:
         timeout = probe_timeout()
@@ -176,10 +179,29 @@ def probe_law(scn: Scenario, overridden: bool = False) -> LawRef:
     return ref
 
 
-def resolve_law(scn: Scenario, overridden: bool = False) -> tuple[Scenario, LawRef]:
+def resolve_law(scn: Scenario, overridden: bool = False, probe_python: bool = True) -> tuple[Scenario, LawRef]:
     """(the scenario with its law's spec as resolved, the law's reference):
     :func:`probe_law`, once per run, where the run is planned."""
-    ref = probe_law(scn, overridden)
+    ref = probe_law(scn, overridden, probe_python)
     if isinstance(ref, PythonLaw) and ref.spec != scn.run.controller:
         scn = dataclasses.replace(scn, run=dataclasses.replace(scn.run, controller=ref.spec))
-    return scn, ref
+    return _named_table(scn, scn.run.controller, ref), ref
+
+
+def _named_table(scn: Scenario, spec: str, ref: LawRef) -> Scenario:
+    """``[controller.params]`` of a plugin or Python law, kept under its spec
+    by the reader (which loads no law), named by the law's own name now that
+    it is known (``scn.controller.table(ref.name)``). ScenarioError when the
+    file gives that law's table twice ([laws.NAME] and [controller.params])."""
+    name = getattr(ref, "name", spec)
+    laws = scn.controller.laws
+    if name == spec or not any(law == spec for law, _ in laws):
+        return scn
+    if any(law == name and items for law, items in laws):
+        doc = _doc(scn, False)
+        doc.error("controller.params", None, f"give the parameters of {name} once: [laws.{name}] or "
+                                             "[controller.params], not both")
+        raise ScenarioError(doc.path, doc.errors)
+    tables = tuple((name if law == spec else law, items) for law, items in laws if not (law == name and not items))
+    keys = tuple(((name if law == spec else law, k), v) for (law, k), v in scn.law_keys)
+    return dataclasses.replace(scn, controller=dataclasses.replace(scn.controller, laws=tables), law_keys=keys)

@@ -195,7 +195,8 @@ def plan_run(scenario: str | Path | Scenario, *, sets: Any = (), law: str | None
     timing = timing or (Timing(mode="lockstep") if engine == "bench" else Timing())
     scn = scenario if isinstance(scenario, Scenario) else load_scenario(scenario, sets)
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration, plant_step=plant_step)
-    scn, ref = resolve_law(scn, overridden=law is not None)
+    # a Python law given to the bench runs in sc-rt controller, which checks it itself (as before the plan)
+    scn, ref = resolve_law(scn, overridden=law is not None, probe_python=not (engine == "bench" and law is not None))
     table_name = ref.name  # the table the run reads (an external controller is given the scenario's law's)
     if external is not None or external_wait:
         if law is not None and isinstance(ref, PythonLaw):

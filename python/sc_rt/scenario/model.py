@@ -415,12 +415,12 @@ def law_spec(spec: str, base: Path) -> str:
 def law_problem(spec: Any) -> str:
     """Why ``spec`` cannot name a law ("" if it can: a name of LAWS or of a
     loaded plugin, or "plugin:PATH_OR_NAME"; the plugin itself is checked by
-    :func:`check_law`)."""
+    sc_rt.plan.law.probe_law, where a run is planned)."""
     if not isinstance(spec, str):
         return "must be a string"
     if spec.startswith(PLUGIN_PREFIX):
         return "" if spec[len(PLUGIN_PREFIX):] else "plugin: needs a library path or name"
-    if spec.startswith(PYTHON_PREFIX):  # the class itself is checked by check_law
+    if spec.startswith(PYTHON_PREFIX):  # the class itself is checked by sc_rt.plan.law.probe_law
         return "" if ":" in spec[len(PYTHON_PREFIX):] else "python: needs module:Class or file.py:Class"
     if spec in LAWS or spec in _core.law_names():
         return ""
