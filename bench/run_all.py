@@ -27,7 +27,8 @@ from common import RESULTS_ENV, results_dir  # noqa: E402
 
 #: the benchmarks ``make bench`` runs, in order
 BENCHES = ["bench_core.py", "bench_sim.py", "bench_montecarlo.py", "bench_hil.py", "bench_timing.py",
-           "bench_external.py", "bench_report.py", "bench_mcap.py", "bench_sensors.py", "bench_live.py"]
+           "bench_external.py", "bench_report.py", "bench_mcap.py", "bench_sensors.py", "bench_live.py",
+           "bench_env.py"]
 #: benchmarks run on their own, not by ``make bench`` (each has --smoke, and tests/test_bench_smoke.py runs it)
 OTHER_BENCHES = {
     "bench_netem.py": "needs root (network namespaces, nftables or tc netem); 12 cases of 30 s",

@@ -134,11 +134,17 @@ SLOW_TESTS = (
     "tests/test_law_tables.py::test_a_log_written_before_the_change_still_reports",
     "tests/test_record_stream.py::test_metrics_of_a_run_on_disk_equal_those_of_the_run_held_whole",
     "tests/test_flight_wheels.py::test_lockstep_hil_is_bitwise_sim_with_flight_wheels_and_their_faults",
+    "tests/test_orbit_plant.py::test_lockstep_hil_with_an_orbit_is_bitwise_sim",
     "tests/test_hil.py::test_lockstep_hil_is_bit_identical_to_offline_sim",
     "tests/test_requirement_matrix.py::test_every_kind_through_hil_lockstep_and_its_report",
     "tests/test_requirement_matrix.py::test_every_kind_through_compare_and_a_campaigns_rerun",
     "tests/test_gate.py::test_hil_strict_exits_1_on_a_failing_run_and_0_on_a_passing_one",
     "tests/test_gate.py::test_montecarlo_strict_gates_the_campaign_and_a_rerun",
+    "tests/test_realtime_kept.py::test_a_realtime_run_whose_plant_stalls_is_invalid",
+    "tests/test_report_verdict.py::test_report_of_a_log_with_another_plants_states_is_invalid",
+    "tests/test_stall_timeout.py::test_progress_and_the_work_after_the_steps_are_never_stopped",
+    "tests/test_stall_timeout.py::test_a_child_that_stops_beating_is_killed_naming_its_last_time",
+    "tests/test_stall_timeout.py::test_sim_of_a_python_law_that_never_returns_fails_naming_it",
 )
 
 

@@ -178,3 +178,17 @@ def test_a_reference_npz_that_unpacks_beyond_the_limit_is_not_unpacked(tmp_path)
     assert (tmp_path / "ref.npz").stat().st_size < MAX_FILE_BYTES
     ref, problems = read_reference_file(tmp_path / "ref.npz")
     assert ref is None and "unpack to" in problems[0] and "more than the limit" in problems[0], problems
+
+
+@pytest.mark.parametrize("name", ["dev-zero", "fifo", "missing"])
+def test_report_refuses_a_log_that_is_not_a_regular_file(tmp_path, name):
+    """sc-rt report LOG: /dev/zero and a FIFO are refused at once (exit 2,
+    one line naming LOG and why; a FIFO would block a reader), nothing
+    written; a missing log is named as missing."""
+    log = {"dev-zero": Path("/dev/zero"), "fifo": tmp_path / "run.lcmlog", "missing": tmp_path / "none.lcmlog"}[name]
+    if name == "fifo":
+        os.mkfifo(log)
+    rc, lines, _ = sc_rt(["report", str(log), "--out", "out"], tmp_path)
+    why = "no such log file" if name == "missing" else "not a regular file (a log is one)"
+    assert rc == 2 and lines == [f"sc-rt report: error: LOG {log}: {why}"], lines
+    assert not (tmp_path / "out").exists()

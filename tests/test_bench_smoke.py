@@ -157,6 +157,13 @@ def bench_timing(res: dict, out: str) -> None:
         check_percentiles(row["latency_us"])
         assert isinstance(row["breakdown_us"], dict) and row["breakdown_us"], name
         assert "profile_top" not in row  # a smoke run profiles nothing
+    for name, row in rows.items():  # the spill's effect on the tick: measured on every real-time run
+        if not name.startswith("lockstep"):
+            for r in row["per_run"]:
+                sp = r["spill"]
+                # 1 s runs: fewer rows than the two chunks before the first spill
+                assert sp["chunk_rows"] > 0 and sp["spills"] == 0 and sp["around_spills_us"]["p99"] is None, sp
+                assert fin(sp["elsewhere_us"]["p99"]) and sp["record_writer_waits"] == 0, sp
     lock = rows["lockstep + sc-rt-logger"]
     assert lock["steps"] > 0 and all(pos(x) for x in lock["steps_per_s_runs"]), lock
     assert all(pos(x) for x in lock["latency_p99_over_floor_p99"]), lock
@@ -232,6 +239,14 @@ def bench_live(res: dict, out: str) -> None:
     check_pos(res, "live_no_client_p99_over_no_live", "live_client_p99_over_no_live")
 
 
+def bench_env(res: dict, out: str) -> None:
+    for k in ("orbit_gg", "sun", "igrf_eci", "dipole_eci", "plant_step_orbit", "plant_step_w0"):
+        check_summary(res[f"{k}_us"])
+    assert res["evaluations_per_run"] == 1000
+    assert fin(res["orbit_gg_added_to_plant_step_us"]) and pos(res["day_at_10hz_igrf_s"])
+    assert res["target_igrf_us"] == SMOKE
+
+
 def bench_netem(res: dict, out: str) -> None:
     if "skipped" in res:
         pytest.skip(f"bench_netem --smoke: {res['skipped']}")
@@ -282,6 +297,7 @@ SPECS = {
     "bench_mcap.py": dict(check=bench_mcap),
     "bench_sensors.py": dict(check=bench_sensors),
     "bench_live.py": dict(check=bench_live, marks=LCM, timeout=180),
+    "bench_env.py": dict(check=bench_env, marks=(pytest.mark.slow,)),  # ~1.2 s: the module import and its runs
     # root: network namespaces and nftables / tc netem (skips, saying why, elsewhere)
     "bench_netem.py": dict(check=bench_netem, marks=LCM, timeout=240, out=["--out", "{dir}/netem.json"]),
     "soak.py": dict(check=soak, marks=LCM, timeout=120,

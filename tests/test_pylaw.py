@@ -244,6 +244,37 @@ def test_a_run_of_a_law_returning_a_column_counts_its_failures_and_is_invalid():
     assert run.metrics["valid"] is False
 
 
+class Exits(_PD):
+    """A law that calls sys.exit(3) from t = 0.5 s."""
+
+    def step(self, inp):
+        if inp.t >= 0.5:
+            sys.exit(3)
+        return super().step(inp)
+
+
+class Interrupts(_PD):
+    """A law that raises KeyboardInterrupt itself from t = 0.5 s."""
+
+    def step(self, inp):
+        if inp.t >= 0.5:
+            raise KeyboardInterrupt
+        return super().step(inp)
+
+
+@pytest.mark.parametrize("law, says", [(Exits, "SystemExit(3) raised by the law"),
+                                       (Interrupts, "KeyboardInterrupt raised by the law")])
+def test_a_law_that_exits_or_interrupts_itself_is_a_named_failure(law, says):
+    """Issue 40 item 7: a law's own sys.exit(3) or KeyboardInterrupt is its
+    failure, contained and named (it read "step at t = 0.5 s: 3" and an
+    empty message), not the bench's end; the run goes on, invalid."""
+    run = simulate(load_scenario("paper_fault_free"), law=law, duration=1.0)
+    f = run.metrics["law_failures"]
+    assert f["step"] == int(np.sum(run["t"] >= 0.5)) > 0, f
+    assert says in f["last"]["what"], f
+    assert run.metrics["valid"] is False and run["t"][-1] == 1.0
+
+
 def test_telemetry_names_and_parameters_are_checked_at_setup():
     class TooMany(_PD):
         telemetry_names = [f"v{i}" for i in range(_core.LAW_MAX_TELEMETRY + 1)]

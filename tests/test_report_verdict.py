@@ -80,3 +80,43 @@ def test_report_html_of_an_invalid_offline_run_says_invalid_in_its_headline(tmp_
     head = html[html.index('<p id="verdict-bound">'):]
     assert head.startswith('<p id="verdict-bound">INVALID: ')
     assert reason.split(";")[0].replace("'", "&#x27;") in head[:600]
+
+
+def test_report_of_a_log_with_another_plants_states_is_invalid(tmp_path):
+    """Issue 40 item 4: every plant session of a log. A hil run's log lists
+    its one plant; the same log with the states of a second plant (a copy
+    of each state under another session, as another bench on the same URL
+    would publish them, after the run's own) reports two plants and is
+    invalid, as the live run is for a bench collision."""
+    import lcm
+    from sc_rt_lcm import plant_state_t
+
+    out = tmp_path / "hil"
+    r = lcmnet.run_cli(["hil", "paper_fault_free", "--duration", "5", "--out", str(out), "--no-plots"],
+                       timeout=180)
+    assert r.returncode == 0, r.stderr
+    events = [(e.timestamp, e.channel, e.data) for e in lcm.EventLog(str(out / "run.lcmlog"), "r")]
+    ours = {plant_state_t.decode(d).session for _ts, ch, d in events if ch == "SCRT_STATE"}
+    assert len(ours) == 1
+    other = ours.pop() ^ 0x5A5A5A5A
+    forged = []
+    for ts, ch, data in events:
+        if ch == "SCRT_STATE":
+            m = plant_state_t.decode(data)
+            m.session = other
+            forged.append((ts + 1, ch, m.encode()))
+    log = lcm.EventLog(str(tmp_path / "two.lcmlog"), "w", overwrite=True)
+    for ts, ch, data in events + forged[:30]:
+        log.write_event(ts, ch, data)
+    log.close()
+    reports = {}
+    for name, path in (("one", out / "run.lcmlog"), ("two", tmp_path / "two.lcmlog")):
+        rr = lcmnet.run_cli(["report", str(path), "--out", str(tmp_path / name), "--no-plots"], timeout=120)
+        assert rr.returncode == 0, rr.stderr
+        reports[name] = (json.loads((tmp_path / name / "report.json").read_text()),
+                         json.loads((tmp_path / name / "metrics.json").read_text()))
+    rep, m = reports["one"]
+    assert [p["states"] for p in rep["plant_sessions"]] == [51] and m["valid"] is True
+    rep, m = reports["two"]
+    assert [p["session"] for p in rep["plant_sessions"]][1] == other and rep["plant_sessions"][1]["states"] == 30
+    assert m["valid"] is False and "states of 2 plants" in m["invalid_reason"], m.get("invalid_reason")

@@ -26,6 +26,7 @@ using py::arg;
 // plant twin (plant_bindings.cpp), the shell's policy (shell_bindings.cpp).
 void bind_controllers(pybind11::module_& m);
 void bind_plant(pybind11::module_& m);
+void bind_orbit(pybind11::module_& m);
 void bind_shell(pybind11::module_& m);
 void bind_pylaw(pybind11::module_& m);
 
@@ -213,6 +214,7 @@ PYBIND11_MODULE(_core, m) {
   bind_math(m);
   bind_controllers(m);
   bind_pylaw(m);
+  bind_orbit(m);  // before bind_plant: PlantParams' orbit
   bind_plant(m);
   bind_shell(m);
 }

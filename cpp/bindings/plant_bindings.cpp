@@ -78,8 +78,9 @@ void bind_plant(py::module_& m) {
                           "The keyword constructor validates.")
       .def(py::init([](const Mat3& J0, const Mat3& dJ, const Mat34& Cbar, const Vec4& Jw,
                        double w0, const Vec3& dist_amp, const Vec3& dist_freq,
-                       const Vec3& dist_bias) {
+                       const Vec3& dist_bias, const OrbitParams& orbit) {
              PlantParams p;
+             p.orbit = orbit;
              p.J0 = J0;
              p.dJ = dJ;
              p.Cbar = Cbar;
@@ -93,7 +94,7 @@ void bind_plant(py::module_& m) {
            }),
            arg("J0") = P.J0, arg("dJ") = P.dJ, arg("Cbar") = P.Cbar, arg("Jw") = P.Jw,
            arg("w0") = P.w0, arg("dist_amp") = P.dist_amp, arg("dist_freq") = P.dist_freq,
-           arg("dist_bias") = P.dist_bias)
+           arg("dist_bias") = P.dist_bias, arg("orbit") = P.orbit)
       .def_readwrite("J0", &PlantParams::J0, "[kg m^2] nominal inertia (3x3)")
       .def_readwrite("dJ", &PlantParams::dJ, "[kg m^2] inertia error; J = J0 + dJ (3x3)")
       .def_readwrite("Cbar", &PlantParams::Cbar, "[-] wheel axes in B (3x4)")
@@ -101,7 +102,9 @@ void bind_plant(py::module_& m) {
       .def_readwrite("w0", &PlantParams::w0, "[rad/s] orbit rate of (5)")
       .def_readwrite("dist_amp", &PlantParams::dist_amp, "[N m] d(t) = bias + amp cos(freq t)")
       .def_readwrite("dist_freq", &PlantParams::dist_freq, "[rad/s]")
-      .def_readwrite("dist_bias", &PlantParams::dist_bias, "[N m]");
+      .def_readwrite("dist_bias", &PlantParams::dist_bias, "[N m]")
+      .def_readwrite("orbit", &PlantParams::orbit,
+                     "the orbit (enabled: its gravity gradient replaces the w0 form of (5))");
   m.def("validate", py::overload_cast<const PlantParams&>(&validate), arg("p"),
         "Every problem with the plant parameters (empty list: valid).");
 

@@ -11,6 +11,7 @@ namespace sc_rt {
 
 using detail::dist3;
 using detail::inv3;
+using detail::OrbitGG;
 using detail::Rhs;
 using detail::WheelMap;
 
@@ -136,6 +137,8 @@ std::vector<std::string> validate(const PlantParams& p) {
     errs.push_back("dist_freq is not finite: " + format_matrix(p.dist_freq));
   if (!p.dist_bias.allFinite())
     errs.push_back("dist_bias is not finite: " + format_matrix(p.dist_bias));
+  if (p.orbit.enabled)
+    for (const std::string& e : validate(p.orbit)) errs.push_back("orbit." + e);
   return errs;
 }
 
@@ -209,13 +212,14 @@ PlantState plant_derivative(const PlantParams& p, double t, const PlantState& x,
                             const Vec4& wheel_accel) {
   const Rhs f(p.J0 + p.dJ, p.w0);
   const WheelMap wheel(p);
-  double s[3], w[3], O[4], acc[4], hw[3], tw[3], d[3], k[6];
+  const OrbitGG gg(p);
+  double s[3], w[3], O[4], acc[4], hw[3], tw[3], d[3], k[6], g[4];
   unpack(x, s, w, O);
   for (int i = 0; i < 4; ++i) acc[i] = wheel_accel(i);
   wheel(O, hw);
   wheel(acc, tw);
   dist3(p, t, d);
-  f(s, w, hw, tw, d, k);
+  f(s, w, hw, tw, d, k, gg(t, g));
   PlantState dx;
   dx.sigma_BN = Vec3(k[0], k[1], k[2]);
   dx.omega_BN_B = Vec3(k[3], k[4], k[5]);
@@ -242,6 +246,12 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
   dist3(p, t, d1);
   dist3(p, tm, dm);
   dist3(p, te, de);
+  // the orbit's gravity-gradient terms at the three stage times (null: none)
+  const OrbitGG gg(p);
+  double gb1[4], gbm[4], gbe[4];
+  const double* g1 = gg(t, gb1);
+  const double* gm = gg(tm, gbm);
+  const double* ge = gg(te, gbe);
   const bool limit = any_limit(a);
   const bool timed = any_fault(a) || limit;
   double hw[3];
@@ -255,7 +265,7 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
   else
     for (int i = 0; i < 4; ++i) A[i] = sat[i];
   wheel(A, ta);
-  f(s, w, hw, ta, d1, k1);
+  f(s, w, hw, ta, d1, k1, g1);
   // stage 2 at (t + h/2, x0 + h/2 k1)
   if (timed) {
     for (int i = 0; i < 4; ++i) xO[i] = O[i] + hh * A[i];
@@ -270,7 +280,7 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
     xw[i] = w[i] + hh * k1[3 + i];
     xh[i] = hw[i] + hh * ta[i];
   }
-  f(xs, xw, xh, tb, dm, k2);
+  f(xs, xw, xh, tb, dm, k2, gm);
   // stage 3 at (t + h/2, x0 + h/2 k2): without a speed limit, the same
   // time and acceleration as stage 2
   if (limit) {
@@ -286,7 +296,7 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
     xw[i] = w[i] + hh * k2[3 + i];
     xh[i] = hw[i] + hh * tb[i];
   }
-  f(xs, xw, xh, tc, dm, k3);
+  f(xs, xw, xh, tc, dm, k3, gm);
   // stage 4 at (t + h, x0 + h k3)
   if (timed) {
     for (int i = 0; i < 4; ++i) xO[i] = O[i] + h * C[i];
@@ -301,7 +311,7 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
     xw[i] = w[i] + h * k3[3 + i];
     xh[i] = hw[i] + h * tc[i];
   }
-  f(xs, xw, xh, tE, de, k4);
+  f(xs, xw, xh, tE, de, k4, ge);
   // x(t + h) = x0 + h/6 (k1 + 2 k2 + 2 k3 + k4)
   const double h6 = h / 6.0;
   double sn[3];
@@ -326,9 +336,11 @@ struct LumpedDisturbance::Impl {
   const PlantParams& p;
   const Rhs f, f0;
   const WheelMap wheel;
-  explicit Impl(const PlantParams& pp) : p(pp), f(pp.J0 + pp.dJ, pp.w0), f0(pp.J0, pp.w0), wheel(pp) {}
+  const OrbitGG gg;  // the true plant's u_g; the model's u_g0 keeps the w0 form of (21)
+  explicit Impl(const PlantParams& pp)
+      : p(pp), f(pp.J0 + pp.dJ, pp.w0), f0(pp.J0, pp.w0), wheel(pp), gg(pp) {}
   Vec3 operator()(double t, const PlantState& x, const Vec4& u_sat, const Vec4& accel) const {
-    double s[3], w[3], O[4], v[4], hw[3], ta[3], tu[3], d[3], a3[6], m3[6];
+    double s[3], w[3], O[4], v[4], hw[3], ta[3], tu[3], d[3], a3[6], m3[6], g[4];
     const double zero[3] = {0.0, 0.0, 0.0};
     unpack(x, s, w, O);
     wheel(O, hw);
@@ -337,7 +349,7 @@ struct LumpedDisturbance::Impl {
     for (int i = 0; i < 4; ++i) v[i] = u_sat(i);
     wheel(v, tu);
     dist3(p, t, d);
-    f(s, w, hw, ta, d, a3);
+    f(s, w, hw, ta, d, a3, gg(t, g));
     f0(s, w, hw, tu, zero, m3);
     return Vec3(a3[3] - m3[3], a3[4] - m3[4], a3[5] - m3[5]);
   }

@@ -4,6 +4,7 @@
 #pragma once
 #include <cmath>
 
+#include "sc_rt/orbit.hpp"
 #include "sc_rt/plant.hpp"
 
 namespace sc_rt::detail {
@@ -54,9 +55,11 @@ struct Rhs {
     inv3(Mm, I);
   }
   // out = (sigma_dot (3), omega_dot (3)) of sigma s, rate w, wheel momentum
-  // hw = Cbar Jw Omega_w, wheel torque tw = Cbar Jw Omega_w_dot, disturbance d.
+  // hw = Cbar Jw Omega_w, wheel torque tw = Cbar Jw Omega_w_dot, disturbance d;
+  // g: the orbit's gravity-gradient terms at the stage's time (orbit_gg_terms),
+  // null: the constant-rate form of (5) with k.
   void operator()(const double s[3], const double w[3], const double hw[3], const double tw[3],
-                  const double d[3], double out[6]) const {
+                  const double d[3], double out[6], const double* g = nullptr) const {
     const double s1 = s[0], s2 = s[1], s3 = s[2], w1 = w[0], w2 = w[1], w3 = w[2];
     const double ss = s1 * s1 + s2 * s2 + s3 * s3;
     const double c = 0.25 * (1.0 - ss);
@@ -67,7 +70,14 @@ struct Rhs {
     double T1 = (w3 * H2 - w2 * H3) - tw[0] + d[0];
     double T2 = (w1 * H3 - w3 * H1) - tw[1] + d[1];
     double T3 = (w2 * H1 - w1 * H2) - tw[2] + d[2];
-    if (k != 0.0) {
+    if (g != nullptr) {
+      // the orbit's u_g = 3 mu / r^3 (n_B x J n_B), n_B = C_BN(sigma) r_N / r (orbit.hpp)
+      double u[3];
+      gg_orbit_torque(J, s1, s2, s3, g, u);
+      T1 += u[0];
+      T2 += u[1];
+      T3 += u[2];
+    } else if (k != 0.0) {
       // (5),(6),(10): u_g = 3 w0^2 R3^ J R3, R3 = R(sigma) e3
       const double q = 1.0 / ((1.0 + ss) * (1.0 + ss));
       const double m4 = 4.0 * (1.0 - ss);
@@ -113,5 +123,17 @@ inline void dist3(const PlantParams& p, double t, double out[3]) {
   for (int i = 0; i < 3; ++i)
     out[i] = p.dist_bias(i) + p.dist_amp(i) * std::cos(p.dist_freq(i) * t);
 }
+
+// The orbit's gravity-gradient terms at t into g, or null without an orbit.
+struct OrbitGG {
+  const OrbitParams* o;
+  OrbitRates k;
+  explicit OrbitGG(const PlantParams& p) : o(p.orbit.enabled ? &p.orbit : nullptr), k(orbit_rates(p.orbit)) {}
+  const double* operator()(double t, double g[4]) const {
+    if (o == nullptr) return nullptr;
+    orbit_gg_terms(*o, k, t, g);
+    return g;
+  }
+};
 
 }  // namespace sc_rt::detail

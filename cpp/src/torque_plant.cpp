@@ -31,7 +31,8 @@ void torque_derivative(const PlantParams& p, const TorqueWheels& w, const detail
     tw[r] = C[r][0] * u[0] + C[r][1] * u[1] + C[r][2] * u[2] + C[r][3] * u[3];
   }
   detail::dist3(p, t, d);
-  rhs(x, x + 3, hw, tw, d, sw);
+  double gb[4];
+  rhs(x, x + 3, hw, tw, d, sw, detail::OrbitGG(p)(t, gb));
   for (int i = 0; i < 6; ++i) out[i] = sw[i];
   for (int i = 0; i < 4; ++i) out[6 + i] = u[i] / Jw[i] - (C[0][i] * sw[3] + C[1][i] * sw[4] + C[2][i] * sw[5]);
 }

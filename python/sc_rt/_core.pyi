@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'disturbance', 'fault_Y', 'gravity_gradient', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'Estimator', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'boresight_frame', 'check_law', 'clear_python_laws', 'decimal_year', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'tracking_errors', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -909,11 +909,161 @@ class LawInput:
         """
         the saturated command of the period that just ended
         """
+class OrbitParams:
+    """
+    A Keplerian orbit (+J2 secular drift) and its epoch; disabled by default. The keyword constructor validates and enables it.
+    """
+    @typing.overload
+    def __init__(self) -> None:
+        ...
+    @typing.overload
+    def __init__(self, a: typing.SupportsFloat | typing.SupportsIndex = 6778137.0, e: typing.SupportsFloat | typing.SupportsIndex = 0.0, i: typing.SupportsFloat | typing.SupportsIndex = 0.0, raan: typing.SupportsFloat | typing.SupportsIndex = 0.0, argp: typing.SupportsFloat | typing.SupportsIndex = 0.0, M0: typing.SupportsFloat | typing.SupportsIndex = 0.0, jd_epoch: typing.SupportsFloat | typing.SupportsIndex = 2461041.5, j2: bool = False) -> None:
+        ...
+    @property
+    def J2(self) -> float:
+        """
+        [-] J2
+        """
+    @J2.setter
+    def J2(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def M0(self) -> float:
+        """
+        [rad] mean anomaly at epoch
+        """
+    @M0.setter
+    def M0(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def R_eq(self) -> float:
+        """
+        [m] equatorial radius
+        """
+    @R_eq.setter
+    def R_eq(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def a(self) -> float:
+        """
+        [m] semi-major axis
+        """
+    @a.setter
+    def a(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def argp(self) -> float:
+        """
+        [rad] argument of perigee at epoch
+        """
+    @argp.setter
+    def argp(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def e(self) -> float:
+        """
+        [-] eccentricity
+        """
+    @e.setter
+    def e(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def enabled(self) -> bool:
+        """
+        false: no orbit (the plant's w0 form of (5))
+        """
+    @enabled.setter
+    def enabled(self, arg0: bool) -> None:
+        ...
+    @property
+    def i(self) -> float:
+        """
+        [rad] inclination
+        """
+    @i.setter
+    def i(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def j2(self) -> bool:
+        """
+        J2 secular drift
+        """
+    @j2.setter
+    def j2(self, arg0: bool) -> None:
+        ...
+    @property
+    def jd_epoch(self) -> float:
+        """
+        [day] UTC Julian date at t = 0
+        """
+    @jd_epoch.setter
+    def jd_epoch(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def mu(self) -> float:
+        """
+        [m^3/s^2] gravitational parameter
+        """
+    @mu.setter
+    def mu(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+    @property
+    def raan(self) -> float:
+        """
+        [rad] right ascension of the ascending node at epoch
+        """
+    @raan.setter
+    def raan(self, arg0: typing.SupportsFloat | typing.SupportsIndex) -> None:
+        ...
+class GeomagCoeffs:
+    """
+    Gauss coefficients [nT] of one date, g[n][m], h[n][m].
+    """
+    @property
+    def g(self) -> typing.Annotated[list[typing.Annotated[list[float], "FixedSize(14)"]], "FixedSize(14)"]:
+        """
+        [nT] g[n][m] (14 x 14)
+        """
+    @property
+    def h(self) -> typing.Annotated[list[typing.Annotated[list[float], "FixedSize(14)"]], "FixedSize(14)"]:
+        """
+        [nT] h[n][m] (14 x 14)
+        """
+    @property
+    def nmax(self) -> int:
+        """
+        highest degree
+        """
+class GeomagField:
+    """
+    The field of one set of Gauss coefficients [nT].
+    """
+    def B_ecef(self, r_E: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        B in ECEF [nT] at an ECEF position [m].
+        """
+    def B_eci(self, r_N: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], jd_day: typing.SupportsFloat | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        B in ECI [nT] at an ECI position [m] at jd_day + t/86400.
+        """
+    def B_ned(self, r_E: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        B in the local geocentric NED [nT].
+        """
+    def __init__(self, c: GeomagCoeffs) -> None:
+        ...
+    def spherical(self, r: typing.SupportsFloat | typing.SupportsIndex, ct: typing.SupportsFloat | typing.SupportsIndex, st: typing.SupportsFloat | typing.SupportsIndex, cp: typing.SupportsFloat | typing.SupportsIndex, sp: typing.SupportsFloat | typing.SupportsIndex) -> tuple[float, float, float]:
+        """
+        (B_r, B_theta, B_phi) [nT] at radius r [m], cos/sin colatitude, cos/sin longitude.
+        """
+    @property
+    def coefficients(self) -> GeomagCoeffs:
+        ...
 class PlantParams:
     """
     True plant parameters (C++ engine); defaults are the paper's. The keyword constructor validates.
     """
-    def __init__(self, J0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., dJ: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., Cbar: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 4]"] = ..., Jw: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., w0: typing.SupportsFloat | typing.SupportsIndex = 0.0011, dist_amp: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_freq: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ...) -> None:
+    def __init__(self, J0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., dJ: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., Cbar: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 4]"] = ..., Jw: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., w0: typing.SupportsFloat | typing.SupportsIndex = 0.0011, dist_amp: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_freq: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit: OrbitParams = ...) -> None:
         ...
     @property
     def Cbar(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 4]"]:
@@ -970,6 +1120,14 @@ class PlantParams:
         """
     @dist_freq.setter
     def dist_freq(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def orbit(self) -> OrbitParams:
+        """
+        the orbit (enabled: its gravity gradient replaces the w0 form of (5))
+        """
+    @orbit.setter
+    def orbit(self, arg0: OrbitParams) -> None:
         ...
     @property
     def w0(self) -> float:
@@ -1992,17 +2150,37 @@ def clear_python_laws() -> None:
     Forget every Python law of the registry (sc_rt.pylaw calls it at exit, before the
     interpreter goes away).
     """
+def decimal_year(jd: typing.SupportsFloat | typing.SupportsIndex) -> float:
+    """
+    Decimal year of a Julian date: 2000 + (jd - 2451544.5) / 365.25.
+    """
 def disturbance(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     d(t) [N m] in B.
+    """
+def eci_to_ecef(jd_day: typing.SupportsFloat | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 3]"]:
+    """
+    C_EN: ECI (mean of date) -> ECEF.
     """
 def fault_Y(f: WheelFault, t: typing.SupportsFloat | typing.SupportsIndex) -> float:
     """
     Y_i(t) of (16) [-].
     """
+def geomag_dipole(c: GeomagCoeffs) -> tuple[float, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]]:
+    """
+    (B0 [nT], unit dipole axis in ECEF) of the coefficients' degree 1.
+    """
+def gmst(jd_day: typing.SupportsFloat | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> float:
+    """
+    Greenwich mean sidereal time [rad] at jd_day + t/86400 (IAU-1982, Meeus (12.4)).
+    """
 def gravity_gradient(J: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"], sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], w0: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     Gravity-gradient torque (5),(6) [N m].
+    """
+def gravity_gradient_orbit(J: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"], sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], r_N: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], mu: typing.SupportsFloat | typing.SupportsIndex = 398600441800000.0) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    Gravity-gradient torque [N m] 3 mu / r^5 (r_B x J r_B), r_B = C_BN r_N.
     """
 def guidance_integrated(p: GuidanceParams) -> bool:
     """
@@ -2025,6 +2203,14 @@ def hmac_sha256(key: bytes, data: bytes) -> bytes:
     """
     HMAC-SHA256(key, data) (the controller's own, cpp/shell/hmac.hpp).
     """
+def igrf14_coefficients(year: typing.SupportsFloat | typing.SupportsIndex, nmax: typing.SupportsInt | typing.SupportsIndex = 13) -> GeomagCoeffs:
+    """
+    IGRF-14 at a decimal year in [1900, 2030] to degree nmax (1: the tilted dipole).
+    """
+def in_eclipse(r_N: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], s_N: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], R_eq: typing.SupportsFloat | typing.SupportsIndex = 6378137.0) -> bool:
+    """
+    In the cylindrical Earth shadow: r.s < 0 and |r - (r.s) s| < R_eq.
+    """
 def initial_estimate(seed: typing.SupportsInt | typing.SupportsIndex, sigma: typing.SupportsFloat | typing.SupportsIndex, sigma_true0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     The run's initial attitude estimate: sigma_true0 rotated by a draw of N(0, sigma^2 I) [rad].
@@ -2046,6 +2232,10 @@ def load_law_plugin(path_or_name: str) -> str:
 def lumped_disturbance(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, u_sat: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], accel: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     The true delta_2 of (20),(21) [rad/s^2].
+    """
+def mean_anomaly_from_true(nu: typing.SupportsFloat | typing.SupportsIndex, e: typing.SupportsFloat | typing.SupportsIndex) -> float:
+    """
+    Mean anomaly [rad] of the true anomaly nu [rad].
     """
 def measurement_valid(m: Measurement, lim: SafetyLimits) -> bool:
     ...
@@ -2104,6 +2294,14 @@ def omega_d(p: GuidanceParams, t: typing.SupportsFloat | typing.SupportsIndex) -
 def omega_d_dot(p: GuidanceParams, t: typing.SupportsFloat | typing.SupportsIndex) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """
     d omega_DN_D / dt [rad/s^2].
+    """
+def orbit_rates(p: OrbitParams) -> tuple[float, float, float, float, float]:
+    """
+    (n, raan_dot, argp_dot, M_dot [rad/s], b [m]): mean motion, J2 rates, semi-minor axis.
+    """
+def orbit_state(p: OrbitParams, t: typing.SupportsFloat | typing.SupportsIndex) -> tuple[typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"], typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]]:
+    """
+    (r_N [m], v_N [m/s]) in ECI at t [s] after the epoch.
     """
 def plant_derivative(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, wheel_accel: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> PlantState:
     """
@@ -2192,6 +2390,18 @@ def step_packed(controller: Controller, t: typing.SupportsFloat | typing.Support
     mode, flags
     (PACKED_FIELDS: (name, width) in this order).
     """
+def sun_direction_N(jd_day: typing.SupportsFloat | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    Unit vector Earth -> Sun in ECI (Astronomical Almanac, low precision).
+    """
+def sun_distance_au(jd_day: typing.SupportsFloat | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> float:
+    """
+    Earth-Sun distance [AU].
+    """
+def time_environment(orbit: OrbitParams, n: typing.SupportsInt | typing.SupportsIndex, reps: typing.SupportsInt | typing.SupportsIndex) -> dict:
+    """
+    Seconds of n evaluations (reps times) of the orbit's gravity-gradient terms, the Sun, the IGRF-14 and dipole fields in ECI along the orbit, and a plant RK4 step with the orbit and with w0.
+    """
 def time_estimator(c: NavConfig, rate: typing.SupportsFloat | typing.SupportsIndex, n_ctrl: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], reps: typing.SupportsInt | typing.SupportsIndex) -> dict:
     """
     Benchmark helper: wall time [s] of each of reps replays of n_ctrl + 1 control steps of the
@@ -2223,6 +2433,11 @@ def validate(p: PpcParams) -> list[str]:
 @typing.overload
 def validate(c: ControllerConfig) -> list[str]:
     ...
+@typing.overload
+def validate(p: OrbitParams) -> list[str]:
+    """
+    Every problem with the orbit parameters (empty list: valid).
+    """
 @typing.overload
 def validate(p: PlantParams) -> list[str]:
     """
@@ -2268,6 +2483,7 @@ FLAG_SAT_1: int = 8
 FLAG_STALE_STATE: int = 256
 FLAG_TIME_JUMP: int = 4096
 FLAG_TIME_NOT_ADVANCING: int = 512
+GEOMAG_RADIUS: float = 6371200.0
 GUIDANCE_MAX_CATCH_UP: int = 64
 GUIDANCE_PERIOD_STEPS_MAX: int = 1048576
 GUIDANCE_TABLE_MAX: int = 2000

@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.isolate import beat
 
 __all__ = ["PYTHON_PREFIX", "TELEMETRY", "LawParamError", "LawSetup", "is_python_law", "load_law",
            "law_label", "law_spec", "register", "split_unit", "FLAG_LAW_INVALID"]
@@ -253,6 +254,19 @@ def _real(value: Any, what: str, shape: tuple[int]) -> np.ndarray:
     return a.astype(float).reshape(shape)
 
 
+def _failure(e: BaseException) -> str:
+    """A law's exception as its failure's message. ``sys.exit`` and
+    KeyboardInterrupt raised by the law's own code are its failures too,
+    contained and named like any other (the bench owns the process; a
+    signal to the bench never surfaces in the law: it sets a stop flag,
+    controller/pycontroller.py, isolate.py)."""
+    if isinstance(e, SystemExit):
+        return f"SystemExit({e.code!r}) raised by the law (sys.exit does not end the bench)"
+    if isinstance(e, KeyboardInterrupt):
+        return "KeyboardInterrupt raised by the law (not a signal: the bench's signals stop it by a flag)"
+    return f"{type(e).__name__}: {e}"
+
+
 class _Adapter:
     """The law as the trampoline calls it: the law's results checked and
     packed into one row (u_cmd, the fixed slots, the named values), its
@@ -270,14 +284,15 @@ class _Adapter:
     def reset(self, inp) -> None:
         try:
             self.law.reset(inp)
-        except Exception as e:
-            raise RuntimeError(f"{type(e).__name__}: {e}") from None
+        except (Exception, SystemExit, KeyboardInterrupt) as e:
+            raise RuntimeError(_failure(e)) from None
 
     def step(self, inp) -> np.ndarray:
         try:
             res = self.law.step(inp)
-        except Exception as e:
-            raise RuntimeError(f"{type(e).__name__}: {e}") from None
+        except (Exception, SystemExit, KeyboardInterrupt) as e:
+            raise RuntimeError(_failure(e)) from None
+        beat(inp.t)  # the law's step returned: for a parent watching a contained run (sc_rt.isolate)
         u_cmd, tel = res if isinstance(res, tuple) and len(res) == 2 else (res, None)
         out = np.zeros(_core.PYTHON_LAW_OUT_SIZE)
         out[0:4] = _real(u_cmd, "u_cmd", (4,))
@@ -298,8 +313,8 @@ class _Adapter:
     def _after(self, u_cmd, u_sat) -> None:
         try:
             self.law.after(u_cmd, u_sat)
-        except Exception as e:
-            raise RuntimeError(f"{type(e).__name__}: {e}") from None
+        except (Exception, SystemExit, KeyboardInterrupt) as e:
+            raise RuntimeError(_failure(e)) from None
 
 
 def _factory(cls: type):

@@ -12,7 +12,9 @@
 //   Kinematics (1),(2): sigma_dot = G(sigma) omega.
 //   Dynamics (7), TRUE inertia J = J0 + dJ:
 //     J omega_dot = -omega^ (J omega + Cbar Jw Omega_w) - Cbar Jw Omega_w_dot + u_g + d(t)
-//   Gravity gradient (5),(6): u_g = 3 w0^2 R3^ J R3, R3 = R(sigma) e3 (10).
+//   Gravity gradient (5),(6): u_g = 3 w0^2 R3^ J R3, R3 = R(sigma) e3 (10);
+//   with an orbit (PlantParams::orbit.enabled) u_g = 3 mu / r^3 n_B^ J n_B,
+//   n_B = R(sigma) r_N / r at each RK4 stage's time (orbit.hpp).
 //   Wheels: Omega_w_dot = the actual acceleration of (15),(16) (wheel_accel).
 //
 // Fault conventions (shared with sc_rt.model.actuators): a fault is active on
@@ -30,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "sc_rt/orbit.hpp"
 #include "sc_rt/types.hpp"
 #include "sc_rt/wheels.hpp"
 
@@ -47,6 +50,8 @@ struct PlantParams {
   Vec3 dist_amp = Vec3(5e-3, -5e-3, 6e-3);       //!< [N m] d(t) = bias + amp cos(freq t)
   Vec3 dist_freq = Vec3(0.02, 0.025, 0.04);      //!< [rad/s]
   Vec3 dist_bias = Vec3::Zero();                 //!< [N m]
+  //! enabled: u_g of the orbit's actual radius and nadir (orbit.hpp) replaces the w0 form of (5)
+  OrbitParams orbit{};
 };
 
 // One fault of one wheel, (16).

@@ -87,7 +87,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     if mcap_problem(args.mcap, "report"):
         return 2
     if not Path(args.log).is_file():
-        print(f"sc-rt report: error: {args.log}: no such log file", file=sys.stderr)
+        what = "not a regular file (a log is one)" if Path(args.log).exists() else "no such log file"
+        print(f"sc-rt report: error: LOG {args.log}: {what}", file=sys.stderr)
         return 2
     claim_out(checked_out(str(out)))  # outputs belong to their run: a live run's directory is refused
     try:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 from sc_rt.cli.validate import MAX_RATE_HZ, integer, number
@@ -28,8 +29,11 @@ def add_timing_options(h: argparse.ArgumentParser, *, floor_policy: bool = True)
         h.add_argument("--rt-limits", type=rt_limits, metavar="K=F,...",
                        help="real time: what 'kept real time' means, as fractions: misses (deadline misses "
                             "per step), skipped (periods without a controller step), dropped (watchdog zeros "
-                            "per row), stale (stale states per step); a run beyond one is invalid (default: "
-                            "misses=0.01,skipped=0.01,dropped=0.01,stale=0.5)")
+                            "per row), stale (stale states per step), late (answers later than a control "
+                            "period per answer, after the timer's 2 s acquisition), late_ticks (plant ticks "
+                            "later than a period per row); and stall, the worst plant tick's lateness in "
+                            "periods; a run beyond one is invalid (default: misses=0.01,skipped=0.01,"
+                            "dropped=0.01,stale=0.5,late=0.01,late_ticks=0.01,stall=25)")
         h.add_argument("--floor", choices=("auto", "cached", "measure", "off"), default="auto",
                        help="real time: the bench floor timing.json and timing.png compare the run with: "
                             "auto (cached when younger than an hour, else a 2 s null-controller run "
@@ -42,7 +46,7 @@ def add_timing_options(h: argparse.ArgumentParser, *, floor_policy: bool = True)
 
 
 def rt_limits(text: str):
-    """--rt-limits misses=F,skipped=F,dropped=F,stale=F (any subset; fractions in [0, 1])."""
+    """--rt-limits misses=F,...,stall=N (any subset; fractions in [0, 1], stall in periods >= 1)."""
     import dataclasses
 
     from sc_rt.logs.timing import RealtimeLimits
@@ -58,7 +62,10 @@ def rt_limits(text: str):
             v = float(val)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{part!r}: {val!r} is not a number") from None
-        if not 0.0 <= v <= 1.0:
+        if key == "stall":
+            if not (math.isfinite(v) and v >= 1.0):
+                raise argparse.ArgumentTypeError(f"{part!r}: a number of control periods >= 1")
+        elif not 0.0 <= v <= 1.0:
             raise argparse.ArgumentTypeError(f"{part!r}: a fraction in [0, 1]")
         values[key] = v
     return dataclasses.replace(RealtimeLimits(), **values)

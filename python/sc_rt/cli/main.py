@@ -337,8 +337,15 @@ def _main(argv: list[str] | None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
+    from sc_rt.isolate import probe_timeout, stall_timeout
     from sc_rt.scenario.model import ScenarioError
 
+    for limit in (probe_timeout, stall_timeout):  # the environment's limits, before anything starts
+        try:
+            limit()
+        except ValueError as e:
+            print(f"sc-rt {args.command}: {e}", file=sys.stderr)
+            return 2
     try:
         return args.func(args)
     except ScenarioError as e:

@@ -52,8 +52,6 @@ def run_sim(plan, given: str, strict: bool) -> int:
     from sc_rt.scenario.overrides import grid
 
     engines.STOP.clear()
-    print(f"sc-rt sim: {scn.name}: {plan.engine} engine, {grid(scn).n_ctrl + 1} rows ...", file=sys.stderr,
-          flush=True)
     from sc_rt.sim.isolated import RunCrashed, simulate_plan
 
     from sc_rt.isolate import forward_signal
@@ -62,7 +60,9 @@ def run_sim(plan, given: str, strict: bool) -> int:
         engines.STOP.set()
         forward_signal(signum)
 
-    with flag_signals(on_signal) as signals:
+    with flag_signals(on_signal) as signals:  # before the start line: a signal after it stops the run, partial
+        print(f"sc-rt sim: {scn.name}: {plan.engine} engine, {grid(scn).n_ctrl + 1} rows ...", file=sys.stderr,
+              flush=True)
         try:  # a plugin's or a Python law's run is in a child: its end is one line, not exit 139 or 0
             res = simulate_plan(plan)
         except RunCrashed as e:

@@ -229,7 +229,9 @@ def _start_record(b: _Bench) -> bytes:
            "control_rate_hz": float(b.scn.run.control_rate_hz), "duration_s": float(b.scn.run.duration),
            "time_scale": b.time_scale, "law": law, "run_id": claimed_run_id(b.out), "sc_rt": __version__,
            "requirements": [dataclasses.asdict(r) for r in b.scn.requirements], "expect": b.scn.expect,
-           "telemetry_names": list(b.telemetry_names)}
+           "telemetry_names": list(b.telemetry_names),
+           # what "kept real time" meant for this run: sc-rt report LOG judges the log by it
+           "rt_limits": dataclasses.asdict(b.rt_limits)}
     return encode_start(rec)
 
 

@@ -170,6 +170,14 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
         # the lockstep controller steps on arrival: its lateness is exactly 0
         mode = "lockstep" if wl.size and np.all(wl == 0) else "realtime"
 
+    if mode == "realtime" and n:
+        # the plant's tick lateness as the logger received its states: each
+        # state's receipt against the schedule t / time_scale, from the most
+        # punctual one (an estimate: the live run's is the emulator's own clock)
+        scale = float((d.start or {}).get("time_scale") or 1.0)
+        ahead = s_stamp.astype(float) - (traj["t"] - traj["t"][0]) * 1e6 / scale
+        traj["tick_lateness_us"] = ahead - ahead.min()
+
     # spans without a command (the emulator's watchdog applied zero), as it records them
     h = has_truth
     th = traj["t"][h]

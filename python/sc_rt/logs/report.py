@@ -40,7 +40,7 @@ import numpy as np
 
 from sc_rt.wire.lcmio import lcm_binary
 from sc_rt.logs.logread import LogData, read_log
-from sc_rt.logs.timing import log_missing, timing_report
+from sc_rt.logs.timing import RealtimeLimits, log_missing, realtime_shortfall, timing_report
 from sc_rt.logs.rebuild import (Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild,
                                run_params, sensor_summary)
 from sc_rt.pylaw import FLAG_LAW_INVALID
@@ -48,7 +48,7 @@ from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run, mark_i
 from sc_rt.results.present.output import write_run
 from sc_rt.results.record.run import Run, RunMeta, json_safe, provenance
 
-__all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command"]
+__all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command", "plant_sessions"]
 
 
 def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
@@ -70,7 +70,25 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     out["log_missing"] = log_missing(d.path, d.prefix, len(run))
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"
+    if out.get("mode") == "realtime":
+        _judge_real_time(run, out, (d.start or {}).get("rt_limits"))
     return out
+
+
+def _judge_real_time(run: Run, timing: dict[str, Any], logged: dict[str, Any] | None) -> None:
+    """The live run's "kept real time" from the log: the same limits (the
+    run's own, from its start record; the defaults for a log without them)
+    on what the log holds: the controller's last status (steps, deadline
+    misses, stale states), the rows whose command was stale, and the
+    state-to-command latency as the logger received them."""
+    names = {f.name for f in dataclasses.fields(RealtimeLimits)}
+    limits = RealtimeLimits(**{k: v for k, v in (logged or {}).items() if k in names})
+    why = realtime_shortfall(timing, limits)
+    timing["kept_real_time"] = why is None
+    timing["realtime_limits"] = dataclasses.asdict(limits)
+    timing["realtime_limits_source"] = "the run's start record" if logged else "the defaults (not in the log)"
+    if why is not None:
+        mark_invalid(run, f"{why} (judged from the log)")
 
 
 def _main_session(records: np.ndarray) -> int | None:
@@ -80,6 +98,26 @@ def _main_session(records: np.ndarray) -> int | None:
         return None
     v, n = np.unique(records["session"][-1000:], return_counts=True)
     return int(v[np.argmax(n)])
+
+
+#: states of one session below which it is not a plant but stray or forged
+#: messages (the emulator's own bench-collision rule: 20 well-formed states)
+PLANT_MIN_STATES = 20
+
+
+def plant_sessions(records: np.ndarray) -> list[dict[str, Any]]:
+    """The plants whose states the log holds, in order of their first state:
+    session, states, first and last t (sessions of fewer than
+    PLANT_MIN_STATES states are not plants: stray or forged messages)."""
+    if records.size == 0 or "session" not in (records.dtype.names or ()):
+        return []
+    v, first, n = np.unique(records["session"], return_index=True, return_counts=True)
+    out = []
+    for i in np.argsort(first):
+        if n[i] >= PLANT_MIN_STATES:
+            t = records["t"][records["session"] == v[i]]
+            out.append({"session": int(v[i]), "states": int(n[i]), "first_t": float(t[0]), "last_t": float(t[-1])})
+    return out
 
 
 def _requirements(d, scenario: str | None) -> tuple[dict[str, Any], ...]:
@@ -153,6 +191,12 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     if dropped:
         run.metrics.update(incomplete_rows_dropped=dropped, incomplete_rows_at_end=at_end)
     run.metrics.update(provenance(_main_session(d.records["SCRT_STATE"]), _main_session(d.records["SCRT_CMD"])))
+    plants = plant_sessions(d.records["SCRT_STATE"])
+    if len(plants) > 1 and d.start is not None:  # a sc-rt hil run has one plant: the live run says collision
+        mark_invalid(run, f"the log holds the states of {len(plants)} plants (sessions "
+                          + ", ".join(f"{p['session']:#x}" for p in plants)
+                          + "); a sc-rt hil run has one: another bench on the same URL and prefix (judged "
+                            "from the log)")
     guidance = logged_guidance(d, scenario)
     fill_tracking_errors(run, guidance)
     faults = fault_summary(d, r)
@@ -171,7 +215,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
               "start": d.start,
               "incomplete_rows_dropped": dropped, "incomplete_rows_at_end": at_end, "partial": run.partial,
               "parameters_from": source, "undecodable": d.undecodable, "channels": d.channels,
-              "skipped": d.skipped, "faults": faults, "sensors": sensor_summary(d)}
+              "skipped": d.skipped, "faults": faults, "sensors": sensor_summary(d), "plant_sessions": plants}
     if cfg is not None:
         report["config"] = {"scenario": cfg.scenario, "law": law, "control_rate_hz": rate}
     (out / "report.json").write_text(json.dumps(json_safe(report), indent=2) + "\n")

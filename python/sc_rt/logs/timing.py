@@ -13,7 +13,13 @@ from sc_rt.logs.lcmlog import LogDamaged, read_events
 from sc_rt.plan.timing import RealtimeLimits
 from sc_rt.results.record.run import Run
 
-__all__ = ["percentiles", "timing_report", "log_missing", "RealtimeLimits", "realtime_shortfall"]
+__all__ = ["percentiles", "timing_report", "log_missing", "RealtimeLimits", "realtime_shortfall",
+           "ACQUIRE_S", "lateness_counts"]
+
+#: [s] the timer trigger's phase-lock acquisition: answers in it may take up
+#: to a period and more (the lock is not yet on the state arrivals), so the
+#: latency limit judges the answers after it (the event trigger: from t = 0)
+ACQUIRE_S = 2.0
 
 
 def percentiles(v: np.ndarray) -> dict[str, float | None]:
@@ -47,6 +53,30 @@ def log_missing(path: Path, prefix: str, rows: int, sent: dict[str, int] | None 
     return {c: want[c] - n if n or c != "SCRT_GUIDANCE" else 0 for c, n in got.items()}
 
 
+def lateness_counts(res: Run, trigger: str | None) -> dict[str, Any]:
+    """A real-time run's lateness against its control period: answers
+    (state-to-command latency, the answered rows) later than one period,
+    counted after the timer trigger's acquisition (``ACQUIRE_S``; an unknown
+    trigger, an --external process, is judged as the timer), the emulator's
+    ticks later than one period, and its worst tick's lateness in periods."""
+    period_us = 1e6 / res.meta.control_rate_hz
+    judged = answers = late = ticks_late = 0
+    worst = 0.0
+    since = 0.0 if trigger == "event" else ACQUIRE_S
+    for c in res.chunks():
+        lat, tick = np.asarray(c["latency_us"], float), np.asarray(c["tick_lateness_us"], float)
+        ok = np.isfinite(lat) & (np.asarray(c["t"], float) >= since)
+        answers += int(np.count_nonzero(np.isfinite(lat)))
+        judged += int(np.count_nonzero(ok))
+        late += int(np.count_nonzero(lat[ok] > period_us))
+        tick = tick[np.isfinite(tick)]
+        ticks_late += int(np.count_nonzero(tick > period_us))
+        if tick.size:
+            worst = max(worst, float(tick.max()) / period_us)
+    return {"answers": answers, "answers_judged": judged, "answers_over_period": late, "latency_judged_from_s": since,
+            "ticks_over_period": ticks_late, "worst_tick_lateness_periods": worst}
+
+
 def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, Any]:
     """timing.json: the controller's own measurements (from its status
     messages and exit summary) and the emulator's (state-to-command latency)."""
@@ -73,6 +103,7 @@ def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, A
         "steps_per_s": rows / wall if wall > 0 else None,
         "emulator_tick_lateness_us": percentiles(res["tick_lateness_us"]) if mode == "realtime"
         else {"p50": None, "p99": None, "max": None},
+        **(lateness_counts(res, summary.get("trigger")) if mode == "realtime" else {}),
         "controller_rejected": ctl_rej,
         "controller_safe_steps": int(summary.get("safe_steps", 0)),
         "emulator_counters": dict(c),
@@ -104,6 +135,16 @@ def realtime_shortfall(timing: dict[str, Any], limits: RealtimeLimits) -> str | 
         count = int(count or 0)
         if count > max(limits.allowance, limit * n):
             over.append(f"{name} {count} of {n} ({100 * count / n:.2g} % > {100 * limit:g} %)")
+    if "answers_judged" in timing:  # judged against the control period (lateness_counts)
+        for name, count, n, limit in (("answers later than a period", timing["answers_over_period"],
+                                       max(1, int(timing["answers_judged"])), limits.late),
+                                      ("ticks later than a period", timing["ticks_over_period"], rows,
+                                       limits.late_ticks)):
+            if count > max(limits.allowance, limit * n):
+                over.append(f"{name} {count} of {n} ({100 * count / n:.2g} % > {100 * limit:g} %)")
+        worst = float(timing["worst_tick_lateness_periods"])
+        if worst > limits.stall:
+            over.append(f"the plant's worst tick {worst:.0f} periods late (> {limits.stall:g})")
     if not over:
         return None
     rate = timing.get("steps_per_s")

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sc_rt.model.actuators import ActuatorParams, accel4, floats, frozen, sat4
+from sc_rt.model.orbit import OrbitParams, gg_terms, gg_torque, orbit_params_to_cpp, orbit_position, orbit_rates
 
 __all__ = [
     "DisturbanceParams",
@@ -91,6 +92,8 @@ class PlantParams:
     Jw: np.ndarray  # [kg m^2] (4,) wheel spin inertias
     w0: float  # [rad/s] orbit rate for gravity gradient (5)
     disturbance: DisturbanceParams = field(default_factory=DisturbanceParams)
+    # an orbit: u_g of its actual radius and nadir replaces the w0 form (docs/MODEL.md section 11)
+    orbit: OrbitParams | None = None
 
     def __post_init__(self) -> None:
         errs: list[str] = []
@@ -126,6 +129,8 @@ class PlantParams:
             errs.append(
                 f"PlantParams.disturbance must be a DisturbanceParams, got {self.disturbance!r}"
             )
+        if self.orbit is not None and not isinstance(self.orbit, OrbitParams):
+            errs.append(f"PlantParams.orbit must be an OrbitParams or None, got {self.orbit!r}")
         if errs:
             raise ValueError("invalid PlantParams: " + "; ".join(errs))
         object.__setattr__(self, "J0", J0)
@@ -169,7 +174,7 @@ def _check_spd(M: np.ndarray, name: str, errs: list[str], symmetric: bool = True
 class _PlantFast:
     """Closures over plain-float copies of PlantParams for the hot path."""
 
-    __slots__ = ("f", "f0", "wheel", "dist")
+    __slots__ = ("f", "f0", "wheel", "dist", "gg")
 
     def __init__(self, p: PlantParams):
         CJ = p.Cbar * p.Jw
@@ -178,6 +183,21 @@ class _PlantFast:
         self.f0 = _make_rhs(p.J0, _inv3(p.J0), k)  # the controller's model (21)
         self.wheel = _make_wheel_map(CJ)
         self.dist = _make_disturbance(p.disturbance)
+        self.gg = make_orbit_gg(p.orbit)
+
+
+def make_orbit_gg(o: OrbitParams | None):
+    """gg(t) -> the orbit's gravity-gradient terms ``(3 mu / r^3, r_N / r)`` at
+    ``t`` [s], or None without an orbit (cpp/src/plant_kernels.hpp OrbitGG)."""
+    if o is None:
+        return lambda t: None
+    k = orbit_rates(o)
+    mu = o.mu
+
+    def gg(t: float):
+        return gg_terms(mu, *orbit_position(o, k, t))
+
+    return gg
 
 
 def _inv3(M: np.ndarray) -> np.ndarray:
@@ -251,8 +271,9 @@ def _make_rhs(J: np.ndarray, Jinv: np.ndarray, k: float):
     (J11, J12, J13), (J21, J22, J23), (J31, J32, J33) = J.tolist()
     (I11, I12, I13), (I21, I22, I23), (I31, I32, I33) = Jinv.tolist()
     k = float(k)
+    Jl = J.tolist()
 
-    def f(s1, s2, s3, w1, w2, w3, hw1, hw2, hw3, tw1, tw2, tw3, d1, d2, d3):
+    def f(s1, s2, s3, w1, w2, w3, hw1, hw2, hw3, tw1, tw2, tw3, d1, d2, d3, g=None):
         ss = s1 * s1 + s2 * s2 + s3 * s3
         # (1),(2): sigma_dot = 1/4 [(1 - s's) w + 2 s^ w + 2 s (s'w)]
         c = 0.25 * (1.0 - ss)
@@ -265,7 +286,13 @@ def _make_rhs(J: np.ndarray, Jinv: np.ndarray, k: float):
         T1 = (w3 * H2 - w2 * H3) - tw1 + d1
         T2 = (w1 * H3 - w3 * H1) - tw2 + d2
         T3 = (w2 * H1 - w1 * H2) - tw3 + d3
-        if k:
+        if g is not None:
+            # the orbit's u_g = 3 mu / r^3 (n_B x J n_B), n_B = C_BN(sigma) r_N / r (orbit.py)
+            u1, u2, u3 = gg_torque(Jl, s1, s2, s3, g)
+            T1 += u1
+            T2 += u2
+            T3 += u3
+        elif k:
             # (5),(6),(10): u_g = 3 w0^2 R3^ J R3, R3 = R(sigma) e3, i.e.
             # R3 = e3 + [8 (s s3 - s's e3) - 4 (1 - s's) (s^ e3)] / (1 + s's)^2
             q = 1.0 / ((1.0 + ss) * (1.0 + ss))
@@ -330,7 +357,8 @@ def derivative(t: float, x, wheel_accel, p: PlantParams) -> np.ndarray:
     s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = floats(x, _NX, "x")
     acc = floats(wheel_accel, 4, "wheel_accel")
     out = fp.f(
-        s1, s2, s3, w1, w2, w3, *fp.wheel(O1, O2, O3, O4), *fp.wheel(*acc), *fp.dist(float(t))
+        s1, s2, s3, w1, w2, w3, *fp.wheel(O1, O2, O3, O4), *fp.wheel(*acc), *fp.dist(float(t)),
+        fp.gg(float(t)),
     )
     return np.array(out + tuple(acc))
 
@@ -391,6 +419,8 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
     tm = t + hh
     te = t + h
     dm1, dm2, dm3 = dist(tm)
+    gg = fp.gg  # the orbit's gravity-gradient terms at the three stage times (None: none)
+    g1, gm, ge = gg(t), gg(tm), gg(te)
     limit = fa.any_limit
     timed = fa.any_fault or limit
     hw1, hw2, hw3 = wheel(O1, O2, O3, O4)
@@ -399,7 +429,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
     # stage 1 at (t, x0)
     a1, a2, a3, a4 = accel4(fa, t, sat, (O1, O2, O3, O4)) if timed else sat
     ta1, ta2, ta3 = wheel(a1, a2, a3, a4)
-    p1, p2, p3, q1, q2, q3 = f(s1, s2, s3, w1, w2, w3, hw1, hw2, hw3, ta1, ta2, ta3, *dist(t))
+    p1, p2, p3, q1, q2, q3 = f(s1, s2, s3, w1, w2, w3, hw1, hw2, hw3, ta1, ta2, ta3, *dist(t), g1)
     # stage 2 at (t + h/2, x0 + h/2 k1)
     if limit:
         b1, b2, b3, b4 = accel4(
@@ -413,7 +443,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
         b1, b2, b3, b4, tb1, tb2, tb3 = a1, a2, a3, a4, ta1, ta2, ta3
     P1, P2, P3, Q1, Q2, Q3 = f(
         s1 + hh * p1, s2 + hh * p2, s3 + hh * p3, w1 + hh * q1, w2 + hh * q2, w3 + hh * q3,
-        hw1 + hh * ta1, hw2 + hh * ta2, hw3 + hh * ta3, tb1, tb2, tb3, dm1, dm2, dm3,
+        hw1 + hh * ta1, hw2 + hh * ta2, hw3 + hh * ta3, tb1, tb2, tb3, dm1, dm2, dm3, gm,
     )  # fmt: skip
     # stage 3 at (t + h/2, x0 + h/2 k2)
     if limit:
@@ -425,7 +455,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
         c1, c2, c3, c4, tc1, tc2, tc3 = b1, b2, b3, b4, tb1, tb2, tb3
     u1, u2, u3, v1, v2, v3 = f(
         s1 + hh * P1, s2 + hh * P2, s3 + hh * P3, w1 + hh * Q1, w2 + hh * Q2, w3 + hh * Q3,
-        hw1 + hh * tb1, hw2 + hh * tb2, hw3 + hh * tb3, tc1, tc2, tc3, dm1, dm2, dm3,
+        hw1 + hh * tb1, hw2 + hh * tb2, hw3 + hh * tb3, tc1, tc2, tc3, dm1, dm2, dm3, gm,
     )  # fmt: skip
     # stage 4 at (t + h, x0 + h k3)
     if timed:
@@ -435,7 +465,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
         e1, e2, e3, e4, te1, te2, te3 = a1, a2, a3, a4, ta1, ta2, ta3
     U1, U2, U3, V1, V2, V3 = f(
         s1 + h * u1, s2 + h * u2, s3 + h * u3, w1 + h * v1, w2 + h * v2, w3 + h * v3,
-        hw1 + h * tc1, hw2 + h * tc2, hw3 + h * tc3, te1, te2, te3, *dist(te),
+        hw1 + h * tc1, hw2 + h * tc2, hw3 + h * tc3, te1, te2, te3, *dist(te), ge,
     )  # fmt: skip
     # x(t + h) = x0 + h/6 (k1 + 2 k2 + 2 k3 + k4)
     h6 = h / 6.0
@@ -496,7 +526,8 @@ def lumped_disturbance(p: PlantParams, t: float, x, u_sat, accel) -> np.ndarray:
     hw = fp.wheel(O1, O2, O3, O4)
     # omega_dot of (7) with the true J, the actual accelerations and d(t) ...
     _, _, _, a1, a2, a3 = fp.f(
-        s1, s2, s3, w1, w2, w3, *hw, *fp.wheel(*floats(accel, 4, "accel")), *fp.dist(float(t))
+        s1, s2, s3, w1, w2, w3, *hw, *fp.wheel(*floats(accel, 4, "accel")), *fp.dist(float(t)),
+        fp.gg(float(t)),
     )
     # ... minus the model of (21): the same right-hand side with J0 (u_g0 too),
     # the saturated commands and no d: J0^-1 [-W^ (J0 W + hw) + u_g0 - Cbar Jw u_sat]
@@ -535,4 +566,5 @@ def plant_params_to_cpp(p: PlantParams):
         dist_amp=np.array(d.amp),
         dist_freq=np.array(d.freq),
         dist_bias=np.array(d.bias),
+        orbit=orbit_params_to_cpp(p.orbit),
     )

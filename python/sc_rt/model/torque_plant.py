@@ -17,9 +17,9 @@ Cbar Jw Omega_w):
     M omega_dot = -omega^ H - Cbar u + u_g + d,   M = J - Cbar diag(Jw) Cbar'
     Omega_dot_i = u_i / Jw_i - g_i' omega_dot
 
-M is the inertia without the wheels' spin inertia about their axes (the
-"hub" of Basilisk's balanced-wheel model, whose hub inertia, too, is the
-spacecraft's without the wheels' spin). u is the net torque on each wheel:
+M is the inertia without the wheels' spin inertia about their axes: what
+Basilisk's balanced-wheel model solves with, its hub inertia (the total,
+as J here) less Js g g' per wheel. u is the net torque on each wheel:
 the motor torque after its limits (sc_rt.model.wheels.applied_torque: torque
 limit, deadband, power and speed limits), taken once per step at the step's
 start speed and held over it, plus the friction
@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from sc_rt.model.actuators import ActuatorParams
-from sc_rt.model.plant import PlantParams, _inv3, _make_disturbance, _make_rhs, _mrp_to_dcm
+from sc_rt.model.plant import PlantParams, _inv3, _make_disturbance, _make_rhs, _mrp_to_dcm, make_orbit_gg
 from sc_rt.model.wheels import TorqueWheels, applied_torque, friction_torque, wheel_torque_command
 
 __all__ = ["TorqueWheels", "TorquePlant", "torque_plant_to_cpp", "step_inputs"]
@@ -81,6 +81,7 @@ class TorquePlant:
         self._C, self._Jw = C, Jw
         self._CJ = [[C[r][i] * Jw[i] for i in range(4)] for r in range(3)]
         self._dist = _make_disturbance(p.disturbance)
+        self._gg = make_orbit_gg(p.orbit)  # the orbit's gravity gradient (None: the w0 form)
 
     def motor_torques(self, u_cmd, omega_w) -> list[float]:
         """[N m] the motor torques the wheels apply for the commands ``u_cmd``
@@ -104,7 +105,8 @@ class TorquePlant:
         C, CJ, Jw = self._C, self._CJ, self._Jw
         hw = [CJ[r][0] * O1 + CJ[r][1] * O2 + CJ[r][2] * O3 + CJ[r][3] * O4 for r in range(3)]
         tw = [C[r][0] * u1 + C[r][1] * u2 + C[r][2] * u3 + C[r][3] * u4 for r in range(3)]
-        sd1, sd2, sd3, a1, a2, a3 = self._f(s1, s2, s3, w1, w2, w3, *hw, *tw, *self._dist(float(t)))
+        sd1, sd2, sd3, a1, a2, a3 = self._f(s1, s2, s3, w1, w2, w3, *hw, *tw, *self._dist(float(t)),
+                                            self._gg(float(t)))
         return [sd1, sd2, sd3, a1, a2, a3,
                 *(u / Jw[i] - (C[0][i] * a1 + C[1][i] * a2 + C[2][i] * a3)
                   for i, u in enumerate((u1, u2, u3, u4)))]

@@ -58,13 +58,21 @@ class RealtimeLimits:
     up, e.g. 886 steps/s at 1 kHz), rows run on the watchdog's zero
     (``dropped``) and stale states per step (``stale``: loose by default,
     because the timer trigger's phase lock takes about two seconds to
-    acquire). ``allowance`` events of each kind are always tolerated, so a
-    short run is not judged by one event. ``sc-rt hil --rt-limits``."""
+    acquire). Against the control period: answers later than one period
+    per answer judged (``late``: after the timer's acquisition,
+    sc_rt.logs.timing.ACQUIRE_S), the emulator's ticks later than one
+    period per row (``late_ticks``), and
+    the worst tick's lateness (``stall``, in periods: a plant that stalled).
+    ``allowance`` events of each kind are always tolerated, so a short run
+    is not judged by one event. ``sc-rt hil --rt-limits``."""
 
     misses: float = 0.01
     skipped: float = 0.01
     dropped: float = 0.01
     stale: float = 0.5
+    late: float = 0.01
+    late_ticks: float = 0.01
+    stall: float = 25.0  # [periods], not a fraction
     allowance: int = 2
 
 

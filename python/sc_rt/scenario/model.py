@@ -241,6 +241,10 @@ class Scenario:
         The overrides applied to the file's values, in order, as (dotted
         key, value) pairs (``sc_rt.with_overrides``); a run records them
         (sc_rt.results.record.inputs).
+    field_model : str
+        ``[environment] field``: "igrf", "dipole" or "none" (the default),
+        the geomagnetic field along the orbit (``plant.orbit``);
+        ``sc_rt.model.field.field_for(model, jd)`` builds it.
     law_key, law_keys : str, tuple
         Where the file names its law and each law parameter (dotted keys),
         for the errors of the law's probe (sc_rt.plan.law).
@@ -272,6 +276,9 @@ class Scenario:
     # the overrides applied to the file's values, in order: (dotted key, value) pairs
     # (sc_rt.scenario.overrides.with_overrides); a run records them (results/record/inputs.py)
     overrides: tuple = ()
+    # [environment] field: the geomagnetic field model along the orbit, "igrf", "dipole" or
+    # "none" (sc_rt.model.field.field_for); evaluated, no torque yet
+    field_model: str = "none"
     # the dotted key the file names its law by ("controller.law" or "run.controller"), and the
     # dotted key of each law parameter ((law, key), dotted key) pairs: where a law's probe
     # reports a problem (sc_rt.plan.law)

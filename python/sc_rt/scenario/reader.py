@@ -14,6 +14,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.scenario.wheels import read_wheels
+from sc_rt.scenario.orbit import read_environment, read_orbit
 from sc_rt.scenario.dispersions import read_montecarlo
 from sc_rt.scenario.files import MAX_NESTING, FileProblem, deep_key, nesting_problem, read_bounded
 from sc_rt.scenario.schema import (
@@ -151,6 +152,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         check_tables(doc, controller.laws, where)
     faults = read_faults(root, run.plant_step if run else None)
     wheels = read_wheels(root)
+    orbit = read_orbit(root)  # [orbit]: the plant's gravity gradient of the orbit
+    field_model = read_environment(root, orbit is not None)  # [environment] field
     requirements = read_requirements(root, run.duration if run else None,
                                      guidance_phases(guidance) if guidance is not None else {})
     record = read_fields(root.sub("record", required=False), RecordParams)
@@ -158,6 +161,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     root.finish()
     if wheels is False:
         actuators = None  # (reported)
+    if plant is not None and orbit is not False:
+        plant = dataclasses.replace(plant, orbit=orbit)
     if initial is not None and actuators is not None:
         if np.any(np.abs(initial.wheel_speed) > actuators.max_wheel_speed):
             initial_table.fail(
@@ -183,6 +188,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         requirements=requirements,
         record=record,
         deprecations=tuple(deprecations),
+        field_model=field_model,
         law_key="controller.law" if "law" in ctl_data else "run.controller",
         law_keys=tuple(where.items()),
     )

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.isolate import beat, beat_done, beating
 from sc_rt.model import actuators, plant, truth
 from sc_rt.pylaw import is_python_law, register
 from sc_rt.results.judge.metrics import finish_run, record_law_failures
@@ -89,6 +90,7 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
         ACC[k] = accel
         D2[k] = delta2
         rows = k + 1
+        beat(t)  # a step done: for a parent watching a contained run (sc_rt.isolate)
         if k == n_ctrl or STOP.is_set():
             break
         for j in range(n_sub):
@@ -139,12 +141,39 @@ def _run_cpp_chunked(scn: Scenario, path: Path, meta: RunMeta) -> tuple[int, boo
         w.write(cols.trajectory, n)
         rows += n
         t_end = float(cols.t[-1])
+        beat(t_end)
     w.close()
     return rows, diverged, failures, t_end, meta
 
 
+#: Rows per call of the C++ loop in a contained run (a parent watches its
+#: beats, sc_rt.isolate): a plugin law's steps return to Python this often
+BEAT_ROWS = 4096
+
+
+def _cpp_in_parts(scn: Scenario) -> dict:
+    """The C++ loop BEAT_ROWS rows at a time, in memory, beating after each
+    part: the result of ``_core.simulate_closed_loop`` (the same loop)."""
+    loop = _core.ClosedLoop(*cpp_loop_args(scn))
+    parts, rows, last = [], 0, {}
+    while not loop.done:
+        last = loop.run(BEAT_ROWS)
+        n = int(last["rows"])
+        if n == 0:
+            break
+        parts.append({k: np.asarray(v)[:n] for k, v in last.items() if isinstance(v, np.ndarray)})
+        rows += n
+        beat(float(parts[-1]["t"][-1]))
+        if last["diverged"]:
+            break
+    res = {k: np.concatenate([p[k] for p in parts]) if parts else last[k] for k in (parts[0] if parts else {})}
+    res.update(rows=rows, diverged=bool(last.get("diverged", False)), law_failures=last.get("law_failures"),
+               telemetry_names=last.get("telemetry_names", ()))
+    return res
+
+
 def _run_cpp(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
-    res = _core.simulate_closed_loop(*cpp_loop_args(scn))
+    res = _cpp_in_parts(scn) if beating() else _core.simulate_closed_loop(*cpp_loop_args(scn))
     rows = int(res.pop("rows"))
     diverged = bool(res.pop("diverged"))
     failures, names = res.pop("law_failures"), res.pop("telemetry_names")
@@ -212,6 +241,7 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         Path(record_dir).mkdir(parents=True, exist_ok=True)
         path = Path(record_dir) / "trajectory.arrow"
         rows, diverged, failures, t_end, meta = _run_cpp_chunked(scn, path, RunMeta.of_scenario(scn, engine))
+        beat_done()
         run = Run.stored(dataclasses.replace(meta, wall_s=time.perf_counter() - t0), path, diverged=diverged)
         if tmp is not None:
             remove_with(run, tmp)  # a temporary directory lasts as long as the run
@@ -228,6 +258,7 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
         from sc_rt.sim.unsampled import run_unsampled
 
         cols, rows, diverged = run_unsampled(scn)
+    beat_done()  # the law's steps are over: what follows is the bench's own work
     wall = time.perf_counter() - t0
     failures = cols.pop(LAW_FAILURES, None)
     names = tuple(cols.pop(TELEMETRY_NAMES, ()))  # the law's, as its controller gave them (none: unsampled)

@@ -6,14 +6,16 @@ can crash the process (a law plugin: native code the bench does not own).
 SIGSEGV, an abort, an exit) raises ``RunCrashed`` with one line naming the
 law and how it died, and the caller goes on: ``sc-rt sim`` reports it in
 one line (exit 1), a Monte Carlo campaign records that run as crashed and
-runs the rest (docs/HIL.md, "When a run is valid").
+runs the rest (docs/HIL.md, "When a run is valid"). A law that never
+returns (no step for sc_rt.isolate.stall_timeout() seconds) is killed and
+reported the same way.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from sc_rt.isolate import ChildDied, ChildInterrupted, call_in_child
+from sc_rt.isolate import ChildDied, ChildInterrupted, ChildStalled, call_in_child, stall_timeout
 
 __all__ = ["RunCrashed", "simulate_contained", "simulate_isolated", "simulate_plan", "needs_isolation"]
 
@@ -47,12 +49,15 @@ def simulate_isolated(scn, **kwargs: Any):
     from sc_rt.results.record.store import remove_with
 
     try:
-        run, scratch = call_in_child(_simulate_handed_over, scn, **kwargs)
+        run, scratch = call_in_child(_simulate_handed_over, scn, stall=stall_timeout(), **kwargs)
         if scratch is not None:  # this process removes it now, with its copy of the run
             remove_with(run, scratch)
         return run
     except ChildInterrupted as e:
         raise RunCrashed(f"interrupted; the law's run {e}; nothing of the run was kept") from None
+    except ChildStalled as e:  # a law that never returns
+        law = kwargs.get("law") or scn.run.controller
+        raise RunCrashed(f"the law {law} hung: {e.how}; nothing of the run was kept") from None
     except ChildDied as e:
         law = kwargs.get("law") or scn.run.controller
         raise RunCrashed(f"the law {law} ended the run's process ({e.how}): nothing of the run was kept") from None

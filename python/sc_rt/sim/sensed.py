@@ -27,6 +27,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
+from sc_rt.isolate import beat, beat_done
 from sc_rt.results.record.fields import packed_layout
 from sc_rt.results.record.run import FIELD
 from sc_rt.scenario.overrides import grid, initial_state
@@ -90,6 +91,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
         ACC[k] = accel
         D2[k] = delta2
         rows = k + 1
+        beat(t)  # a step done: for a parent watching a contained run (sc_rt.isolate)
         if k == n_ctrl:
             break
         for j in range(n_sub):
@@ -111,6 +113,9 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
 
 def _run_cpp(scn):
     n_ctrl, n_sub, _, rate = grid(scn)
+    # one call for the whole run: unwatched, except a Python law's steps,
+    # which beat themselves (sc_rt.pylaw); a plugin's are not (docs/LAWS.md)
+    beat_done()
     res = _core.simulate_closed_loop_sensed(
         scn.core_config(), plant.plant_params_to_cpp(scn.plant),
         actuators.actuator_params_to_cpp(scn.actuators), initial_state(scn), n_ctrl, n_sub, rate,

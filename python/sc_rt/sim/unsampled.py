@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from sc_rt import _core
+from sc_rt.isolate import beat
 from sc_rt.model import actuators, plant
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state
@@ -159,6 +160,7 @@ def run_unsampled(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
         for name, v in tel.items():
             traj[name][k] = v
         rows = k + 1
+        beat(t)  # a step done: for a parent watching a contained run (sc_rt.isolate)
         if k == n_ctrl:
             break
         for j in range(n_sub):
