@@ -333,14 +333,17 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     # a controller that followed another plant than ours (it adopted another
     # bench's states before ours, docs/HIL.md "Bench isolation"): invalid
     others = [s for s in summary.get("plant_sessions", []) if s != emu.session]
-    if others and emu.invalid is None:
+    if others:
         why = (
             f"bench collision on {url}" + (f" (prefix {prefix!r})" if prefix else "")
             + f": the controller (session {res.metrics.get('controller_session') or 0:#x}) also followed "
             f"another plant (session {others[0]:#x}) besides this bench's ({emu.session:#x}): another bench "
             "runs on the same URL and prefix. The run is invalid")
-        res.metrics.update(provenance(emu.session, res.metrics.get("controller_session"), why))
-        stopped = stopped or why
+        if emu.invalid is None:  # the emulator heard no collision itself: this is the run's reason
+            if stopped:  # and what stopped it early (a state the busy controller left unanswered) follows
+                why = f"{why}; this bench stopped: {stopped}"
+            res.metrics.update(provenance(emu.session, res.metrics.get("controller_session"), why))
+            stopped = why
 
     res.meta = dataclasses.replace(res.meta, wall_s=wall, telemetry_names=b.telemetry_names,
                                    **({"inputs": b.inputs} if b.inputs is not None else {}))
