@@ -1063,7 +1063,7 @@ class PlantParams:
     """
     True plant parameters (C++ engine); defaults are the paper's. The keyword constructor validates.
     """
-    def __init__(self, J0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., dJ: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., Cbar: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 4]"] = ..., Jw: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., w0: typing.SupportsFloat | typing.SupportsIndex = 0.0011, dist_amp: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_freq: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit: OrbitParams = ...) -> None:
+    def __init__(self, J0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., dJ: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., Cbar: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 4]"] = ..., Jw: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., w0: typing.SupportsFloat | typing.SupportsIndex = 0.0011, dist_amp: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_freq: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit: OrbitParams = ..., field_nmax: typing.SupportsInt | typing.SupportsIndex = 0, residual_dipole: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit_gravity_gradient: bool = True) -> None:
         ...
     @property
     def Cbar(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 4]"]:
@@ -1122,12 +1122,33 @@ class PlantParams:
     def dist_freq(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
         ...
     @property
+    def field_nmax(self) -> int:
+        """
+        [-] the field's degree along the orbit (0: none, 1: tilted dipole, 13: IGRF-14)
+        """
+    @property
     def orbit(self) -> OrbitParams:
         """
         the orbit (enabled: its gravity gradient replaces the w0 form of (5))
         """
     @orbit.setter
     def orbit(self, arg0: OrbitParams) -> None:
+        ...
+    @property
+    def orbit_gravity_gradient(self) -> bool:
+        """
+        test-only: false drops the orbit's gravity gradient
+        """
+    @orbit_gravity_gradient.setter
+    def orbit_gravity_gradient(self, arg0: bool) -> None:
+        ...
+    @property
+    def residual_dipole(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [A m^2] the spacecraft's residual dipole in B (torque m x B)
+        """
+    @residual_dipole.setter
+    def residual_dipole(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
         ...
     @property
     def w0(self) -> float:
@@ -2909,15 +2930,17 @@ def orbit_state(p: OrbitParams, t: typing.SupportsFloat | typing.SupportsIndex) 
     """
     (r_N [m], v_N [m/s]) in ECI at t [s] after the epoch.
     """
-def plant_derivative(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, wheel_accel: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> PlantState:
+def plant_derivative(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, wheel_accel: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], dipole_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> PlantState:
     """
-    State derivative (1),(2),(7) for the actual wheel accelerations [rad/s^2].
+    State derivative (1),(2),(7) for the actual wheel accelerations [rad/s^2]
+    (dipole_B: the magnetorquers' body dipole [A m^2]).
     """
-def plant_rk4_step(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> PlantState:
+def plant_rk4_step(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], dipole_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> PlantState:
     """
-    One RK4 step from t to t + h [s], u_cmd held; then the MRP short set.
+    One RK4 step from t to t + h [s], u_cmd and the magnetorquers' body dipole dipole_B [A m^2]
+    held; then the MRP short set.
     """
-def plant_rk4_step_motor(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> tuple[PlantState, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]]:
+def plant_rk4_step_motor(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], dipole_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> tuple[PlantState, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]]:
     """
     plant_rk4_step carrying the motor torques of torque-commanded wheels: (state, motor at t + h).
     """

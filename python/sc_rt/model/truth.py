@@ -44,14 +44,16 @@ def torque_plant(p: PlantParams, act: ActuatorParams) -> TorquePlant:
     return cached[1]
 
 
-def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd, motor=None):
+def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd, motor=None,
+             dipole_B=None):
     """One RK4 step of the true plant from t to t + h [s], the wheel command
     ``u_cmd`` held (sc_rt.model.plant.rk4_step for the paper's wheels; for
     torque-commanded ones, the torques of ``step_inputs`` at t held, through
     the motor lag when there is one: ``motor``, from ``new_motor``, is then
-    advanced to t + h in place)."""
+    advanced to t + h in place). ``dipole_B``: the magnetorquers' body dipole
+    [A m^2] held over the step (None or zeros: none; sc_rt.model.magnetic)."""
     if act.wheels is None:
-        return plant.rk4_step(p, act, t, x, h, u_cmd)
+        return plant.rk4_step(p, act, t, x, h, u_cmd, dipole_B)
     tp = torque_plant(p, act)
     x0 = [float(v) for v in x]
     h = float(h)
@@ -61,7 +63,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd, 
             u[i], motor[i] = motor_lag(u[i], motor[i], tau, h)
     elif motor is not None:
         motor[:] = u
-    return tp.step_held(float(t), x0, h, u, scale, brake)
+    return tp.step_held(float(t), x0, h, u, scale, brake, dipole_B)
 
 
 def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> tuple:

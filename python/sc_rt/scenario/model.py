@@ -274,7 +274,8 @@ class Scenario:
     # (sc_rt.scenario.overrides.with_overrides); a run records them (results/record/inputs.py)
     overrides: tuple = ()
     # [environment] field: the geomagnetic field model along the orbit, "igrf", "dipole" or
-    # "none" (sc_rt.model.field.field_for); evaluated, no torque yet
+    # "none" (sc_rt.model.field.field_for); the plant's too (plant.field_model), where the
+    # residual dipole and the magnetorquers' dipole act
     field_model: str = "none"
 
     def controller_config_msg(
