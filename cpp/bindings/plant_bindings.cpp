@@ -79,7 +79,8 @@ void bind_plant(py::module_& m) {
       .def(py::init([](const Mat3& J0, const Mat3& dJ, const Mat34& Cbar, const Vec4& Jw,
                        double w0, const Vec3& dist_amp, const Vec3& dist_freq,
                        const Vec3& dist_bias, const OrbitParams& orbit, int field_nmax,
-                       const Vec3& residual_dipole, bool orbit_gravity_gradient) {
+                       const Vec3& residual_dipole, bool orbit_gravity_gradient,
+                       const std::optional<PlantRods>& rods) {
              PlantParams p;
              p.orbit = orbit;
              if (!(field_nmax == 0 || field_nmax == 1 || field_nmax == kGeomagMaxDegree))
@@ -91,6 +92,7 @@ void bind_plant(py::module_& m) {
              p.field = plant_field(orbit, field_nmax);
              p.residual_dipole = residual_dipole;
              p.orbit_gravity_gradient = orbit_gravity_gradient;
+             if (rods) p.rods = *rods;
              p.J0 = J0;
              p.dJ = dJ;
              p.Cbar = Cbar;
@@ -105,7 +107,8 @@ void bind_plant(py::module_& m) {
            arg("J0") = P.J0, arg("dJ") = P.dJ, arg("Cbar") = P.Cbar, arg("Jw") = P.Jw,
            arg("w0") = P.w0, arg("dist_amp") = P.dist_amp, arg("dist_freq") = P.dist_freq,
            arg("dist_bias") = P.dist_bias, arg("orbit") = P.orbit, arg("field_nmax") = 0,
-           arg("residual_dipole") = P.residual_dipole, arg("orbit_gravity_gradient") = true)
+           arg("residual_dipole") = P.residual_dipole, arg("orbit_gravity_gradient") = true,
+           arg("rods") = py::none())
       .def_readwrite("J0", &PlantParams::J0, "[kg m^2] nominal inertia (3x3)")
       .def_readwrite("dJ", &PlantParams::dJ, "[kg m^2] inertia error; J = J0 + dJ (3x3)")
       .def_readwrite("Cbar", &PlantParams::Cbar, "[-] wheel axes in B (3x4)")
@@ -122,7 +125,9 @@ void bind_plant(py::module_& m) {
       .def_readwrite("residual_dipole", &PlantParams::residual_dipole,
                      "[A m^2] the spacecraft's residual dipole in B (torque m x B)")
       .def_readwrite("orbit_gravity_gradient", &PlantParams::orbit_gravity_gradient,
-                     "test-only: false drops the orbit's gravity gradient");
+                     "test-only: false drops the orbit's gravity gradient")
+      .def_readwrite("rods", &PlantParams::rods, "the magnetorquer rods (enabled: a step without a dipole "
+                     "input holds their dipole for a zero command)");
   m.def("validate", py::overload_cast<const PlantParams&>(&validate), arg("p"),
         "Every problem with the plant parameters (empty list: valid).");
 

@@ -144,7 +144,38 @@ std::vector<std::string> validate(const PlantParams& p) {
   if (!p.residual_dipole.allFinite())
     errs.push_back("residual_dipole is not finite: " + format_matrix(p.residual_dipole));
   if (p.field && !p.orbit.enabled) errs.push_back("field needs an orbit (orbit.enabled)");
+  if (p.rods.enabled) {
+    for (const std::string& e : validate(p.rods.params)) errs.push_back("rods." + e);
+    for (std::size_t i = 0; i < p.rods.fault.size(); ++i)
+      if (p.rods.fault[i] != RodFault::Healthy &&
+          !(std::isfinite(p.rods.stuck[i]) && std::isfinite(p.rods.onset[i]) && p.rods.end[i] > p.rods.onset[i]))
+        errs.push_back("rods: rod " + std::to_string(i + 1) + "'s fault needs a finite dipole and onset, end > onset");
+  }
   return errs;
+}
+
+Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd) {
+  const int n = static_cast<int>(r.params.G_B.cols());
+  double d[kMaxRods];
+  for (int i = 0; i < n; ++i) {
+    const double lim = r.params.dipole_max(i);
+    const double c = d_cmd != nullptr ? (*d_cmd)(i) : 0.0;
+    d[i] = std::min(std::max(c, -lim), lim);  // per-rod clip, as MtbEffector
+  }
+  for (int i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    if (r.fault[k] == RodFault::Healthy || !(r.onset[k] <= t && t < r.end[k])) continue;
+    if (r.fault[k] == RodFault::Dead) d[i] = 0.0;
+    else if (r.fault[k] == RodFault::Stuck) d[i] = r.stuck[k];
+    else d[i] = -d[i];
+  }
+  Vec3 m;
+  for (int row = 0; row < 3; ++row) {
+    double s = r.params.G_B(row, 0) * d[0];
+    for (int i = 1; i < n; ++i) s = s + r.params.G_B(row, i) * d[i];
+    m(row) = s;
+  }
+  return m;
 }
 
 std::shared_ptr<const GeomagField> plant_field(const OrbitParams& orbit, int nmax) {
@@ -242,6 +273,11 @@ PlantState plant_derivative(const PlantParams& p, double t, const PlantState& x,
 PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t,
                           const PlantState& x, double h, const Vec4& u_cmd, const Vec3* dipole_B) {
   if (a.wheels.enabled) return torque_rk4_step(p, a, t, x, h, u_cmd, nullptr, dipole_B);
+  Vec3 rod_m;  // no dipole input: the rods' for a zero command (plant.py rk4_step)
+  if (dipole_B == nullptr && p.rods.enabled) {
+    rod_m = rods_dipole_B(p.rods, t);
+    dipole_B = &rod_m;
+  }
   // The mirror of plant.py rk4_step, operation for operation. The wheel
   // states enter (7) only through hw = Cbar Jw Omega_w and tw = Cbar Jw
   // Omega_w_dot: a stage's hw is hw0 + c tw_prev (linearity), not Cbar Jw

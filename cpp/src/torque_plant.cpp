@@ -144,6 +144,11 @@ bool lagged(const ActuatorParams& a, const void* motor) {
 PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
                            double h, const Vec4& u_cmd, Vec4* motor, const Vec3* dipole_B) {
   const StackKernel k(p);
+  Vec3 rod_m;  // no dipole input: the rods' for a zero command (truth.py rk4_step)
+  if (dipole_B == nullptr && p.rods.enabled) {
+    rod_m = rods_dipole_B(p.rods, t);
+    dipole_B = &rod_m;
+  }
   double m[3];  // the body dipole held over the step (TorquePlant.step_held's)
   const detail::MagField mag(p, detail::held_dipole(p, dipole_B, m) ? m : nullptr);
   double u[4], scale[4], brake[4];
@@ -181,8 +186,10 @@ WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, c
       if (a.wheels.lag[static_cast<std::size_t>(i)] > 0.0) u[i] = (*motor)(i);
   for (int i = 0; i < 3; ++i) x0[i] = x.sigma_BN(i), x0[3 + i] = x.omega_BN_B(i);
   for (int i = 0; i < 4; ++i) x0[6 + i] = x.wheel_speed(i);
-  double m[3];  // the residual dipole (TorquePlant.derivative's)
-  const detail::MagField mag(p, detail::held_dipole(p, nullptr, m) ? m : nullptr);
+  double m[3];  // the residual dipole and the rods' for a zero command (truth.py row)
+  Vec3 rod_m;
+  if (p.rods.enabled) rod_m = rods_dipole_B(p.rods, t);
+  const detail::MagField mag(p, detail::held_dipole(p, p.rods.enabled ? &rod_m : nullptr, m) ? m : nullptr);
   torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, t, x0, u, scale, brake, d, mag);
   WheelOutput out;
   for (int i = 0; i < 4; ++i) {

@@ -37,11 +37,28 @@
 #include <vector>
 
 #include "sc_rt/geomag.hpp"
+#include "sc_rt/magnetorquer.hpp"
 #include "sc_rt/orbit.hpp"
 #include "sc_rt/types.hpp"
 #include "sc_rt/wheels.hpp"
 
 namespace sc_rt {
+
+// The plant's magnetorquer rods (sc_rt.model.rods; docs/MODEL.md section 16):
+// axes and limits, and at most one timed fault per rod (active on onset <= t < end).
+struct PlantRods {
+  bool enabled = false;                    //!< false: no rods
+  MagnetorquerParams params{};             //!< G_B (3 x N) unit axes, dipole_max [A m^2]
+  std::array<RodFault, kMaxRods> fault{};  //!< per rod, Healthy by default
+  std::array<double, kMaxRods> stuck{};    //!< [A m^2] a stuck rod's dipole
+  std::array<double, kMaxRods> onset{};    //!< [s] the fault's onset
+  std::array<double, kMaxRods> end{};      //!< [s] the fault's end (inf: never)
+};
+
+// The body dipole m_B = G d [A m^2] of rod commands d_cmd [A m^2] (null: all 0)
+// at t [s]: each clipped to +-dipole_max, then its active fault (dead 0, stuck
+// its dipole, reversed -d), as Magnetorquers::update; the sums in rod order.
+Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd = nullptr);
 
 // The true plant. Defaults are the paper's (Section 4): J0, dJ, Cbar, Jw and d(t).
 struct PlantParams {
@@ -63,6 +80,9 @@ struct PlantParams {
   Vec3 residual_dipole = Vec3::Zero();  //!< [A m^2] the spacecraft's residual dipole in B (m x B)
   //! test-only: false drops the orbit's gravity gradient (u_g then has the w0 form; w0 = 0: none)
   bool orbit_gravity_gradient = true;
+  //! enabled: magnetorquer rods; with no dipole input a step holds their dipole for a
+  //! zero command (a stuck rod's; none when healthy), rods_dipole_B
+  PlantRods rods{};
 };
 
 // The field of degree nmax (0: none, 1: the tilted dipole, 13: IGRF-14) at the

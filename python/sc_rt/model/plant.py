@@ -37,6 +37,7 @@ import numpy as np
 from sc_rt.model.actuators import ActuatorParams, accel4, floats, frozen, sat4
 from sc_rt.model.field import FIELD_MODELS
 from sc_rt.model.magnetic import held_dipole, mag_torque, make_field_N
+from sc_rt.model.rods import Magnetorquers, rods_dipole_B, rods_to_cpp
 from sc_rt.model.orbit import OrbitParams, gg_terms, gg_torque, orbit_params_to_cpp, orbit_position, orbit_rates
 
 __all__ = [
@@ -103,6 +104,9 @@ class PlantParams:
     residual_dipole: np.ndarray = field(default_factory=lambda: np.zeros(3))
     # test-only: False drops the orbit's gravity gradient (u_g then has the w0 form; w0 = 0: none)
     orbit_gravity_gradient: bool = True
+    # the magnetorquer rods (sc_rt.model.rods): a step without a dipole input holds
+    # their dipole for a zero command (a stuck rod's; none when healthy)
+    magnetorquers: Magnetorquers | None = None
 
     def __post_init__(self) -> None:
         errs: list[str] = []
@@ -145,6 +149,8 @@ class PlantParams:
             errs.append(f"PlantParams.field_model must be one of {sorted(FIELD_MODELS)}, got {self.field_model!r}")
         elif self.field_model != "none" and self.orbit is None:
             errs.append(f"PlantParams.field_model = {self.field_model!r} needs an orbit")
+        if self.magnetorquers is not None and not isinstance(self.magnetorquers, Magnetorquers):
+            errs.append(f"PlantParams.magnetorquers must be a Magnetorquers or None, got {self.magnetorquers!r}")
         if errs:
             raise ValueError("invalid PlantParams: " + "; ".join(errs))
         object.__setattr__(self, "J0", J0)
@@ -433,6 +439,8 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd,
         The magnetorquers' body dipole ``m_B = G d`` [A m^2], held over the
         step; with the residual dipole it acts through the field
         (``PlantParams.field_model``) at every stage's time and attitude.
+        None: the rods' dipole for a zero command (``PlantParams.magnetorquers``,
+        sc_rt.model.rods.rods_dipole_B at t), none without rods.
 
     Returns
     -------
@@ -462,6 +470,8 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd,
     dm1, dm2, dm3 = dist(tm)
     gg = fp.gg  # the orbit's gravity-gradient terms at the three stage times (None: none)
     g1, gm, ge = gg(t), gg(tm), gg(te)
+    if dipole_B is None and p.magnetorquers is not None:
+        dipole_B = rods_dipole_B(p.magnetorquers, t)  # the rods' own dipole (a stuck rod's)
     m = held_dipole(fp.res, dipole_B)  # the body dipole over the step (None: none)
     mb1, mbm, mbe = _stage_mb(fp, m, t), _stage_mb(fp, m, tm), _stage_mb(fp, m, te)
     limit = fa.any_limit
@@ -614,4 +624,5 @@ def plant_params_to_cpp(p: PlantParams):
         field_nmax=FIELD_MODELS[p.field_model],
         residual_dipole=np.array(p.residual_dipole),
         orbit_gravity_gradient=p.orbit_gravity_gradient,
+        rods=rods_to_cpp(p.magnetorquers),
     )

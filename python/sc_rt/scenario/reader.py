@@ -18,6 +18,7 @@ from sc_rt.isolate import PROBE_TIMEOUT_ENV, ChildDied, ChildTimedOut, call_in_c
 from sc_rt._core import mrp_to_dcm
 from sc_rt.model.actuators import ActuatorParams, WheelFault
 from sc_rt.scenario.wheels import check_wheel_fault, read_wheels
+from sc_rt.scenario.magnetorquers import read_magnetorquers
 from sc_rt.scenario.orbit import read_environment, read_orbit
 from sc_rt.model.combined import RigidBody, combine
 from sc_rt.model.plant import DisturbanceParams, PlantParams
@@ -374,6 +375,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     wheels = read_wheels(root)
     orbit = read_orbit(root)  # [orbit]: the plant's gravity gradient of the orbit
     environment = read_environment(root, orbit is not None)  # [environment] field, residual_dipole
+    rods = read_magnetorquers(root, environment[0] if environment else None)  # [magnetorquers]
     requirements = read_requirements(root, run.duration if run else None,
                                      guidance_phases(guidance) if guidance is not None else {})
     record = read_fields(root.sub("record", required=False), RecordParams)
@@ -383,7 +385,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         actuators = None  # (reported)
     field_model, residual = environment or ("none", (0.0, 0.0, 0.0))
     if plant is not None and orbit is not False:
-        plant = dataclasses.replace(plant, orbit=orbit, field_model=field_model, residual_dipole=residual)
+        plant = dataclasses.replace(plant, orbit=orbit, field_model=field_model, residual_dipole=residual,
+                                    magnetorquers=rods or None)
     if initial is not None and actuators is not None:
         if np.any(np.abs(initial.wheel_speed) > actuators.max_wheel_speed):
             initial_table.fail(
