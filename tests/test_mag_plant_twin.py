@@ -3,8 +3,9 @@ its C++ twin bit for bit with a residual dipole and a held magnetorquer
 dipole, for the paper's wheels and torque-commanded ones, and the two
 engines bit for bit with a scenario's ``[environment] residual_dipole``;
 a zero dipole leaves the plant bitwise as it was; the scenario keys read and
-refused as docs/SCENARIOS.md says. (All but the zero-dipole test fail on the
-old main: no ``residual_dipole``, ``field_model`` nor ``dipole_B``.)"""
+refused as docs/SCENARIOS.md says; lockstep HIL bitwise sim with a residual
+dipole and a stuck rod. (All fail on the old main: no ``residual_dipole``,
+``field_model`` nor ``dipole_B``.)"""
 
 from __future__ import annotations
 
@@ -155,3 +156,34 @@ def test_residual_dipole_key_defaults_and_refusals():
                            "f.toml")
     with pytest.raises(ScenarioError, match="acts through the field"):
         scenario_from_data(_scenario_data('[orbit]\n[environment]\nresidual_dipole = [1, 2, 3]\n'), "f.toml")
+
+
+@pytest.mark.lcm
+def test_lockstep_hil_with_a_residual_dipole_and_a_stuck_rod_is_bitwise_sim(tmp_path):
+    # the emulator process integrates the same magnetic torques as the offline engines
+    import lcmnet
+    from trajcmp import compared_fields
+
+    from sc_rt.scenario.reader import load_scenario
+    from sc_rt.sim.engines import simulate
+
+    lcmnet.require()
+    path, duration = tmp_path / "mag.toml", 20.0
+    path.write_text(Path(resolve("paper_faults")).read_text()
+                    + '\n[orbit]\naltitude = 500e3\ninclination = 51.6\n'
+                    + '[environment]\nfield = "igrf"\nresidual_dipole = [3.0, -2.0, 1.0]\n'
+                    + "[magnetorquers]\naxes = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\nmax_dipole = 30\n"
+                    + '[[magnetorquers.faults]]\nrod = 3\nkind = "stuck"\ndipole = 20.0\nonset = 4.0\n')
+    out = tmp_path / "hil"
+    r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration), "--out", str(out),
+                        "--no-plots"])
+    assert r.returncode == 0, r.stderr + r.stdout
+    hil = np.load(out / "trajectory.npz")
+    scn = load_scenario(path)
+    sim = simulate(scn, engine="cpp", duration=duration)
+    assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
+    compared_fields(hil, sim)
+    # and the dipoles are in it: the run without them differs
+    plain = dataclasses.replace(scn.plant, residual_dipole=np.zeros(3), magnetorquers=None)
+    other = simulate(dataclasses.replace(scn, plant=plain), engine="cpp", duration=duration)
+    assert not np.array_equal(np.asarray(other["omega_BN_B"]), np.asarray(sim["omega_BN_B"]))
