@@ -161,3 +161,29 @@ def test_torque_wheel_plant_with_a_stuck_rod_is_bit_identical_in_python_and_cpp(
     # the stuck rod's torque is in the row's wheel accelerations (through omega_dot)
     _, acc0, _ = row(dataclasses.replace(p, magnetorquers=None), act, 5.0, x_py, u, np.zeros(4))
     assert not np.array_equal(np.asarray(acc), np.asarray(acc0))
+
+
+def test_a_scenario_with_orbit_field_and_rods_round_trips_through_its_data():
+    # what Monte Carlo draws into and a campaign's workers rebuild from (sc_rt.scenario.keys):
+    # the orbit, the field, the residual dipole and the rods with their faults come back bit for bit
+    from sc_rt.scenario.keys import get_key, scenario_data, set_key
+
+    scn = scenario_from_data(_scenario_data(
+        "[orbit]\naltitude = 550e3\ne = 0.001\ninclination = 97.6\nraan = 33.3\nargp = 12.0\n"
+        "true_anomaly = 41.0\nepoch = 2026-03-20T12:00:00Z\nj2 = true\n"
+        '[environment]\nfield = "dipole"\nresidual_dipole = [0.1, -0.2, 0.3]\n'
+        "[magnetorquers]\naxes = [[0.6, 0.8, 0], [0, 0, 1], [0.70710678, 0.70710678, 0]]\nmax_dipole = [5, 6, 7]\n"
+        '[[magnetorquers.faults]]\nrod = 1\nkind = "stuck"\ndipole = -2.5\nonset = 3.0\nend = 9.0\n'
+        '[[magnetorquers.faults]]\nrod = 3\nkind = "reversed"\n'), "rt.toml")
+    data = scenario_data(scn)
+    back = scenario_from_data(data, "rt.toml")
+    p, q = scn.plant, back.plant
+    assert q.orbit == p.orbit and q.field_model == p.field_model == "dipole"
+    assert np.array_equal(q.residual_dipole, p.residual_dipole)
+    assert np.array_equal(q.magnetorquers.axes, p.magnetorquers.axes)
+    assert np.array_equal(q.magnetorquers.max_dipole, p.magnetorquers.max_dipole)
+    assert q.magnetorquers.faults == p.magnetorquers.faults
+    # and a Monte Carlo key can disperse the residual dipole
+    set_key(data, "environment.residual_dipole", [1.0, 2.0, 3.0])
+    assert get_key(data, "environment.residual_dipole") == [1.0, 2.0, 3.0]
+    assert scenario_from_data(data, "rt.toml").plant.residual_dipole.tolist() == [1.0, 2.0, 3.0]

@@ -5,10 +5,11 @@ exactly as before.
 
 The rod axes are given once: ``axes``, one unit vector in B per rod, or
 ``G_B``, the 3xN matrix (3 rows of N numbers, one column per rod). An axis
-within 1e-2 of unit length is normalised; ``max_dipole`` is one number for
-every rod or a list of N. ``[[magnetorquers.faults]]``: ``rod`` (1-based),
-``kind`` ("dead", "stuck", "reversed"), ``dipole`` (a stuck rod's, A m^2),
-``onset`` and ``end`` (s), one fault per rod.
+within 1e-2 of unit length is normalised (one unit to 1e-12 is kept as
+given); ``max_dipole`` is one number for every rod or a list of N.
+``[[magnetorquers.faults]]``: ``rod`` (1-based), ``kind`` ("dead", "stuck",
+"reversed"), ``dipole`` (a stuck rod's, A m^2), ``onset`` and ``end`` (s),
+one fault per rod.
 """
 
 from __future__ import annotations
@@ -53,7 +54,8 @@ def _read_axes(t: Table) -> np.ndarray | None:
     if bad:
         t.fail(key, f"the axis of rod {bad[0]} is not a unit vector (norm {norms[bad[0] - 1]:.6g})")
         return None
-    return G / norms
+    # normalised where it is not unit already: a file written from a scenario reads back to the same bits
+    return np.where(np.abs(norms - 1.0) > 1e-12, G / norms, G)
 
 
 def _read_faults(t: Table, n: int | None) -> tuple[RodFault, ...] | None:
