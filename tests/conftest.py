@@ -139,6 +139,7 @@ SLOW_TESTS = (
     "tests/test_record_stream.py::test_metrics_of_a_run_on_disk_equal_those_of_the_run_held_whole",
     "tests/test_flight_wheels.py::test_lockstep_hil_is_bitwise_sim_with_flight_wheels_and_their_faults",
     "tests/test_orbit_plant.py::test_lockstep_hil_with_an_orbit_is_bitwise_sim",
+    "tests/test_mag_plant_twin.py::test_lockstep_hil_with_a_residual_dipole_and_a_stuck_rod_is_bitwise_sim",
     "tests/test_hil.py::test_lockstep_hil_is_bit_identical_to_offline_sim",
     "tests/test_requirement_matrix.py::test_every_kind_through_hil_lockstep_and_its_report",
     "tests/test_requirement_matrix.py::test_every_kind_through_compare_and_a_campaigns_rerun",

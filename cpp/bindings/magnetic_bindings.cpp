@@ -7,12 +7,15 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "sc_rt/bdot.hpp"
 #include "sc_rt/magnetorquer.hpp"
 #include "sc_rt/momentum.hpp"
+#include "sc_rt/plant.hpp"
 #include "sc_rt/sensors.hpp"
 
 namespace py = pybind11;
@@ -58,6 +61,37 @@ void bind_magnetics(py::module_& m) {
       .def_property(
           "dipole_max", [](const MagnetorquerParams& p) { return from_rods(p.dipole_max); },
           [](MagnetorquerParams& p, const VecX& v) { p.dipole_max = to_rods(v); }, "[A m^2] per rod (N,)");
+  py::class_<PlantRods>(m, "PlantRods", "The plant's magnetorquer rods and their timed faults (plant.hpp).")
+      .def(py::init<>())
+      .def_readwrite("enabled", &PlantRods::enabled, "false: no rods")
+      .def_readwrite("params", &PlantRods::params, "axes G_B and dipole_max")
+      .def(
+          "set_fault",
+          [](PlantRods& r, int rod, RodFault f, double stuck_dipole, double onset, double end) {
+            if (rod < 0 || rod >= kMaxRods)
+              throw std::invalid_argument("PlantRods.set_fault: rod must be in [0, " + std::to_string(kMaxRods) +
+                                          "), got " + std::to_string(rod));
+            const auto k = static_cast<std::size_t>(rod);
+            r.fault[k] = f;
+            r.stuck[k] = stuck_dipole;
+            r.onset[k] = onset;
+            r.end[k] = end;
+          },
+          arg("rod"), arg("fault"), arg("stuck_dipole") = 0.0, arg("onset") = 0.0,
+          arg("end") = std::numeric_limits<double>::infinity(),
+          "Rod `rod`'s (0-based) fault on onset <= t < end [s] (stuck_dipole [A m^2]: RodFault.Stuck's).");
+  m.def(
+      "rods_dipole_B",
+      [](const PlantRods& r, double t, const std::optional<VecX>& d_cmd) {
+        if (d_cmd && d_cmd->size() != r.params.G_B.cols())
+          throw std::invalid_argument("rods_dipole_B: " + std::to_string(d_cmd->size()) + " dipole commands for " +
+                                      std::to_string(r.params.G_B.cols()) + " rods");
+        if (!d_cmd) return rods_dipole_B(r, t, nullptr);
+        const RodVec d = to_rods(*d_cmd);
+        return rods_dipole_B(r, t, &d);
+      },
+      arg("r"), arg("t"), arg("d_cmd") = py::none(),
+      "The body dipole m_B = G d [A m^2] of rod commands d_cmd (None: 0) at t [s]: clipped, faults applied.");
   m.def("validate", py::overload_cast<const MagnetorquerParams&>(&validate), arg("p"));
   py::class_<MagnetorquerOutput>(m, "MagnetorquerOutput")
       .def_property_readonly("dipole", [](const MagnetorquerOutput& o) { return from_rods(o.dipole); },

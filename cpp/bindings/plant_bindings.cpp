@@ -78,9 +78,21 @@ void bind_plant(py::module_& m) {
                           "The keyword constructor validates.")
       .def(py::init([](const Mat3& J0, const Mat3& dJ, const Mat34& Cbar, const Vec4& Jw,
                        double w0, const Vec3& dist_amp, const Vec3& dist_freq,
-                       const Vec3& dist_bias, const OrbitParams& orbit) {
+                       const Vec3& dist_bias, const OrbitParams& orbit, int field_nmax,
+                       const Vec3& residual_dipole, bool orbit_gravity_gradient,
+                       const std::optional<PlantRods>& rods) {
              PlantParams p;
              p.orbit = orbit;
+             if (!(field_nmax == 0 || field_nmax == 1 || field_nmax == kGeomagMaxDegree))
+               throw py::value_error("PlantParams: field_nmax must be 0, 1 or 13, got " +
+                                     std::to_string(field_nmax));
+             if (field_nmax != 0 && !orbit.enabled)
+               throw py::value_error("PlantParams: field_nmax = " + std::to_string(field_nmax) +
+                                     " needs an orbit (orbit.enabled)");
+             p.field = plant_field(orbit, field_nmax);
+             p.residual_dipole = residual_dipole;
+             p.orbit_gravity_gradient = orbit_gravity_gradient;
+             if (rods) p.rods = *rods;
              p.J0 = J0;
              p.dJ = dJ;
              p.Cbar = Cbar;
@@ -94,7 +106,9 @@ void bind_plant(py::module_& m) {
            }),
            arg("J0") = P.J0, arg("dJ") = P.dJ, arg("Cbar") = P.Cbar, arg("Jw") = P.Jw,
            arg("w0") = P.w0, arg("dist_amp") = P.dist_amp, arg("dist_freq") = P.dist_freq,
-           arg("dist_bias") = P.dist_bias, arg("orbit") = P.orbit)
+           arg("dist_bias") = P.dist_bias, arg("orbit") = P.orbit, arg("field_nmax") = 0,
+           arg("residual_dipole") = P.residual_dipole, arg("orbit_gravity_gradient") = true,
+           arg("rods") = py::none())
       .def_readwrite("J0", &PlantParams::J0, "[kg m^2] nominal inertia (3x3)")
       .def_readwrite("dJ", &PlantParams::dJ, "[kg m^2] inertia error; J = J0 + dJ (3x3)")
       .def_readwrite("Cbar", &PlantParams::Cbar, "[-] wheel axes in B (3x4)")
@@ -104,7 +118,16 @@ void bind_plant(py::module_& m) {
       .def_readwrite("dist_freq", &PlantParams::dist_freq, "[rad/s]")
       .def_readwrite("dist_bias", &PlantParams::dist_bias, "[N m]")
       .def_readwrite("orbit", &PlantParams::orbit,
-                     "the orbit (enabled: its gravity gradient replaces the w0 form of (5))");
+                     "the orbit (enabled: its gravity gradient replaces the w0 form of (5))")
+      .def_property_readonly(
+          "field_nmax", [](const PlantParams& p) { return p.field ? p.field->coefficients().nmax : 0; },
+          "[-] the field's degree along the orbit (0: none, 1: tilted dipole, 13: IGRF-14)")
+      .def_readwrite("residual_dipole", &PlantParams::residual_dipole,
+                     "[A m^2] the spacecraft's residual dipole in B (torque m x B)")
+      .def_readwrite("orbit_gravity_gradient", &PlantParams::orbit_gravity_gradient,
+                     "test-only: false drops the orbit's gravity gradient")
+      .def_readwrite("rods", &PlantParams::rods, "the magnetorquer rods (enabled: a step without a dipole "
+                     "input holds their dipole for a zero command)");
   m.def("validate", py::overload_cast<const PlantParams&>(&validate), arg("p"),
         "Every problem with the plant parameters (empty list: valid).");
 
@@ -207,14 +230,24 @@ void bind_plant(py::module_& m) {
   m.def("wheel_accel", &wheel_accel, arg("a"), arg("t"), arg("u_cmd"), arg("wheel_speed"),
         "Saturation and faults (15),(16), stuck wheels and the speed limit.");
   m.def("disturbance", &disturbance, arg("p"), arg("t"), "d(t) [N m] in B.");
-  m.def("plant_derivative", &plant_derivative, arg("p"), arg("t"), arg("x"),
-        arg("wheel_accel"),
-        "State derivative (1),(2),(7) for the actual wheel accelerations [rad/s^2].");
-  m.def("plant_rk4_step",
-        py::overload_cast<const PlantParams&, const ActuatorParams&, double, const PlantState&, double,
-                          const Vec4&>(&plant_rk4_step),
-        arg("p"), arg("a"), arg("t"), arg("x"), arg("h"),
-        arg("u_cmd"), "One RK4 step from t to t + h [s], u_cmd held; then the MRP short set.");
+  m.def(
+      "plant_derivative",
+      [](const PlantParams& p, double t, const PlantState& x, const Vec4& wheel_accel,
+         const std::optional<Vec3>& dipole_B) {
+        return plant_derivative(p, t, x, wheel_accel, dipole_B ? &*dipole_B : nullptr);
+      },
+      arg("p"), arg("t"), arg("x"), arg("wheel_accel"), arg("dipole_B") = py::none(),
+      "State derivative (1),(2),(7) for the actual wheel accelerations [rad/s^2]\n"
+      "(dipole_B: the magnetorquers' body dipole [A m^2]).");
+  m.def(
+      "plant_rk4_step",
+      [](const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x, double h, const Vec4& u_cmd,
+         const std::optional<Vec3>& dipole_B) {
+        return plant_rk4_step(p, a, t, x, h, u_cmd, dipole_B ? &*dipole_B : nullptr);
+      },
+      arg("p"), arg("a"), arg("t"), arg("x"), arg("h"), arg("u_cmd"), arg("dipole_B") = py::none(),
+      "One RK4 step from t to t + h [s], u_cmd and the magnetorquers' body dipole dipole_B [A m^2]\n"
+      "held; then the MRP short set.");
   m.def("lumped_disturbance", &lumped_disturbance, arg("p"), arg("t"), arg("x"), arg("u_sat"),
         arg("accel"), "The true delta_2 of (20),(21) [rad/s^2].");
   // flight-like wheels (issue #28; python/sc_rt/model/wheels.py is the reference)
@@ -244,11 +277,11 @@ void bind_plant(py::module_& m) {
   m.def(
       "plant_rk4_step_motor",
       [](const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x, double h, const Vec4& u_cmd,
-         Vec4 motor) {
-        const PlantState r = plant_rk4_step(p, a, t, x, h, u_cmd, motor);
+         Vec4 motor, const std::optional<Vec3>& dipole_B) {
+        const PlantState r = plant_rk4_step(p, a, t, x, h, u_cmd, motor, dipole_B ? &*dipole_B : nullptr);
         return py::make_tuple(r, motor);
       },
-      arg("p"), arg("a"), arg("t"), arg("x"), arg("h"), arg("u_cmd"), arg("motor"),
+      arg("p"), arg("a"), arg("t"), arg("x"), arg("h"), arg("u_cmd"), arg("motor"), arg("dipole_B") = py::none(),
       "plant_rk4_step carrying the motor torques of torque-commanded wheels: (state, motor at t + h).");
   m.def("wheel_torque_command", &wheel_torque_command, arg("u"), arg("Jw"), arg("torque_command"),
         "The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).");

@@ -10,7 +10,9 @@
 namespace sc_rt {
 
 using detail::dist3;
+using detail::held_dipole;
 using detail::inv3;
+using detail::MagField;
 using detail::OrbitGG;
 using detail::Rhs;
 using detail::WheelMap;
@@ -139,7 +141,46 @@ std::vector<std::string> validate(const PlantParams& p) {
     errs.push_back("dist_bias is not finite: " + format_matrix(p.dist_bias));
   if (p.orbit.enabled)
     for (const std::string& e : validate(p.orbit)) errs.push_back("orbit." + e);
+  if (!p.residual_dipole.allFinite())
+    errs.push_back("residual_dipole is not finite: " + format_matrix(p.residual_dipole));
+  if (p.field && !p.orbit.enabled) errs.push_back("field needs an orbit (orbit.enabled)");
+  if (p.rods.enabled) {
+    for (const std::string& e : validate(p.rods.params)) errs.push_back("rods." + e);
+    for (std::size_t i = 0; i < p.rods.fault.size(); ++i)
+      if (p.rods.fault[i] != RodFault::Healthy &&
+          !(std::isfinite(p.rods.stuck[i]) && std::isfinite(p.rods.onset[i]) && p.rods.end[i] > p.rods.onset[i]))
+        errs.push_back("rods: rod " + std::to_string(i + 1) + "'s fault needs a finite dipole and onset, end > onset");
+  }
   return errs;
+}
+
+Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd) {
+  const int n = static_cast<int>(r.params.G_B.cols());
+  double d[kMaxRods];
+  for (int i = 0; i < n; ++i) {
+    const double lim = r.params.dipole_max(i);
+    const double c = d_cmd != nullptr ? (*d_cmd)(i) : 0.0;
+    d[i] = std::min(std::max(c, -lim), lim);  // per-rod clip, as MtbEffector
+  }
+  for (int i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    if (r.fault[k] == RodFault::Healthy || !(r.onset[k] <= t && t < r.end[k])) continue;
+    if (r.fault[k] == RodFault::Dead) d[i] = 0.0;
+    else if (r.fault[k] == RodFault::Stuck) d[i] = r.stuck[k];
+    else d[i] = -d[i];
+  }
+  Vec3 m;
+  for (int row = 0; row < 3; ++row) {
+    double s = r.params.G_B(row, 0) * d[0];
+    for (int i = 1; i < n; ++i) s = s + r.params.G_B(row, i) * d[i];
+    m(row) = s;
+  }
+  return m;
+}
+
+std::shared_ptr<const GeomagField> plant_field(const OrbitParams& orbit, int nmax) {
+  if (nmax == 0) return nullptr;
+  return std::make_shared<const GeomagField>(igrf14_coefficients(decimal_year(orbit.jd_epoch), nmax));
 }
 
 std::vector<std::string> validate(const WheelFault& f) {
@@ -209,17 +250,19 @@ Vec3 disturbance(const PlantParams& p, double t) {
 }
 
 PlantState plant_derivative(const PlantParams& p, double t, const PlantState& x,
-                            const Vec4& wheel_accel) {
+                            const Vec4& wheel_accel, const Vec3* dipole_B) {
   const Rhs f(p.J0 + p.dJ, p.w0);
   const WheelMap wheel(p);
   const OrbitGG gg(p);
+  double m[3], mb[6];
+  const MagField mag(p, held_dipole(p, dipole_B, m) ? m : nullptr);
   double s[3], w[3], O[4], acc[4], hw[3], tw[3], d[3], k[6], g[4];
   unpack(x, s, w, O);
   for (int i = 0; i < 4; ++i) acc[i] = wheel_accel(i);
   wheel(O, hw);
   wheel(acc, tw);
   dist3(p, t, d);
-  f(s, w, hw, tw, d, k, gg(t, g));
+  f(s, w, hw, tw, d, k, gg(t, g), mag(t, mb));
   PlantState dx;
   dx.sigma_BN = Vec3(k[0], k[1], k[2]);
   dx.omega_BN_B = Vec3(k[3], k[4], k[5]);
@@ -228,8 +271,13 @@ PlantState plant_derivative(const PlantParams& p, double t, const PlantState& x,
 }
 
 PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t,
-                          const PlantState& x, double h, const Vec4& u_cmd) {
-  if (a.wheels.enabled) return torque_rk4_step(p, a, t, x, h, u_cmd);
+                          const PlantState& x, double h, const Vec4& u_cmd, const Vec3* dipole_B) {
+  if (a.wheels.enabled) return torque_rk4_step(p, a, t, x, h, u_cmd, nullptr, dipole_B);
+  Vec3 rod_m;  // no dipole input: the rods' for a zero command (plant.py rk4_step)
+  if (dipole_B == nullptr && p.rods.enabled) {
+    rod_m = rods_dipole_B(p.rods, t);
+    dipole_B = &rod_m;
+  }
   // The mirror of plant.py rk4_step, operation for operation. The wheel
   // states enter (7) only through hw = Cbar Jw Omega_w and tw = Cbar Jw
   // Omega_w_dot: a stage's hw is hw0 + c tw_prev (linearity), not Cbar Jw
@@ -252,6 +300,12 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
   const double* g1 = gg(t, gb1);
   const double* gm = gg(tm, gbm);
   const double* ge = gg(te, gbe);
+  // the body dipole over the step and the field at the three stage times (null: none)
+  double m[3], mb1b[6], mbmb[6], mbeb[6];
+  const MagField mag(p, held_dipole(p, dipole_B, m) ? m : nullptr);
+  const double* mb1 = mag(t, mb1b);
+  const double* mbm = mag(tm, mbmb);
+  const double* mbe = mag(te, mbeb);
   const bool limit = any_limit(a);
   const bool timed = any_fault(a) || limit;
   double hw[3];
@@ -265,7 +319,7 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
   else
     for (int i = 0; i < 4; ++i) A[i] = sat[i];
   wheel(A, ta);
-  f(s, w, hw, ta, d1, k1, g1);
+  f(s, w, hw, ta, d1, k1, g1, mb1);
   // stage 2 at (t + h/2, x0 + h/2 k1)
   if (timed) {
     for (int i = 0; i < 4; ++i) xO[i] = O[i] + hh * A[i];
@@ -280,7 +334,7 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
     xw[i] = w[i] + hh * k1[3 + i];
     xh[i] = hw[i] + hh * ta[i];
   }
-  f(xs, xw, xh, tb, dm, k2, gm);
+  f(xs, xw, xh, tb, dm, k2, gm, mbm);
   // stage 3 at (t + h/2, x0 + h/2 k2): without a speed limit, the same
   // time and acceleration as stage 2
   if (limit) {
@@ -296,7 +350,7 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
     xw[i] = w[i] + hh * k2[3 + i];
     xh[i] = hw[i] + hh * tb[i];
   }
-  f(xs, xw, xh, tc, dm, k3, gm);
+  f(xs, xw, xh, tc, dm, k3, gm, mbm);
   // stage 4 at (t + h, x0 + h k3)
   if (timed) {
     for (int i = 0; i < 4; ++i) xO[i] = O[i] + h * C[i];
@@ -311,7 +365,7 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
     xw[i] = w[i] + h * k3[3 + i];
     xh[i] = hw[i] + h * tc[i];
   }
-  f(xs, xw, xh, tE, de, k4, ge);
+  f(xs, xw, xh, tE, de, k4, ge, mbe);
   // x(t + h) = x0 + h/6 (k1 + 2 k2 + 2 k3 + k4)
   const double h6 = h / 6.0;
   double sn[3];
@@ -337,10 +391,13 @@ struct LumpedDisturbance::Impl {
   const Rhs f, f0;
   const WheelMap wheel;
   const OrbitGG gg;  // the true plant's u_g; the model's u_g0 keeps the w0 form of (21)
+  double m[3];         // [A m^2] the residual dipole (its torque is part of delta_2)
+  const MagField mag;  // the residual dipole in the field (not the magnetorquers')
   explicit Impl(const PlantParams& pp)
-      : p(pp), f(pp.J0 + pp.dJ, pp.w0), f0(pp.J0, pp.w0), wheel(pp), gg(pp) {}
+      : p(pp), f(pp.J0 + pp.dJ, pp.w0), f0(pp.J0, pp.w0), wheel(pp), gg(pp),
+        mag(pp, held_dipole(pp, nullptr, m) ? m : nullptr) {}
   Vec3 operator()(double t, const PlantState& x, const Vec4& u_sat, const Vec4& accel) const {
-    double s[3], w[3], O[4], v[4], hw[3], ta[3], tu[3], d[3], a3[6], m3[6], g[4];
+    double s[3], w[3], O[4], v[4], hw[3], ta[3], tu[3], d[3], a3[6], m3[6], g[4], mb[6];
     const double zero[3] = {0.0, 0.0, 0.0};
     unpack(x, s, w, O);
     wheel(O, hw);
@@ -349,7 +406,7 @@ struct LumpedDisturbance::Impl {
     for (int i = 0; i < 4; ++i) v[i] = u_sat(i);
     wheel(v, tu);
     dist3(p, t, d);
-    f(s, w, hw, ta, d, a3, gg(t, g));
+    f(s, w, hw, ta, d, a3, gg(t, g), mag(t, mb));
     f0(s, w, hw, tu, zero, m3);
     return Vec3(a3[3] - m3[3], a3[4] - m3[4], a3[5] - m3[5]);
   }

@@ -4,6 +4,7 @@
 #pragma once
 #include <cmath>
 
+#include "sc_rt/geomag.hpp"
 #include "sc_rt/orbit.hpp"
 #include "sc_rt/plant.hpp"
 
@@ -40,6 +41,28 @@ inline void inv3(const Mat3& M, double I[3][3]) {
   I[2][2] = (a * e - b * d) / det;
 }
 
+// tau_B = m_B x (C_BN(sigma) B_N) [N m] of mb = (m_B [A m^2], B_N [T])
+// (sc_rt/model/magnetic.py mag_torque): magnetic_torque(m_B, B_B) of
+// magnetorquer.hpp written out on scalars (Eigen's cross may vectorise),
+// C_BN(sigma) n = n + [8 (s (s.n) - |s|^2 n) - 4 (1 - |s|^2) (s x n)] / (1 + |s|^2)^2
+// (Schaub & Junkins (3.153), as gg_orbit_torque).
+inline void mag_torque(const double mb[6], double s1, double s2, double s3, double out[3]) {
+  const double m1 = mb[0], m2 = mb[1], m3 = mb[2], n1 = mb[3], n2 = mb[4], n3 = mb[5];
+  const double ss = s1 * s1 + s2 * s2 + s3 * s3;
+  const double q = 1.0 / ((1.0 + ss) * (1.0 + ss));
+  const double m4 = 4.0 * (1.0 - ss);
+  const double sn = s1 * n1 + s2 * n2 + s3 * n3;
+  const double c1 = s2 * n3 - s3 * n2;
+  const double c2 = s3 * n1 - s1 * n3;
+  const double c3 = s1 * n2 - s2 * n1;
+  const double b1 = n1 + (8.0 * (s1 * sn - ss * n1) - m4 * c1) * q;
+  const double b2 = n2 + (8.0 * (s2 * sn - ss * n2) - m4 * c2) * q;
+  const double b3 = n3 + (8.0 * (s3 * sn - ss * n3) - m4 * c3) * q;
+  out[0] = m2 * b3 - m3 * b2;
+  out[1] = m3 * b1 - m1 * b3;
+  out[2] = m1 * b2 - m2 * b1;
+}
+
 // One right-hand side of (1),(2),(7) (plant.py _make_rhs): J, its inverse and
 // k = 3 w0^2 as plain doubles.
 struct Rhs {
@@ -58,8 +81,11 @@ struct Rhs {
   // hw = Cbar Jw Omega_w, wheel torque tw = Cbar Jw Omega_w_dot, disturbance d;
   // g: the orbit's gravity-gradient terms at the stage's time (orbit_gg_terms),
   // null: the constant-rate form of (5) with k.
+  // mb: the body dipole m_B [A m^2] and the field B_N [T] at the stage's time
+  // (MagField), null: no magnetic torque.
   void operator()(const double s[3], const double w[3], const double hw[3], const double tw[3],
-                  const double d[3], double out[6], const double* g = nullptr) const {
+                  const double d[3], double out[6], const double* g = nullptr,
+                  const double* mb = nullptr) const {
     const double s1 = s[0], s2 = s[1], s3 = s[2], w1 = w[0], w2 = w[1], w3 = w[2];
     const double ss = s1 * s1 + s2 * s2 + s3 * s3;
     const double c = 0.25 * (1.0 - ss);
@@ -90,6 +116,14 @@ struct Rhs {
       T1 += k * (r2 * g3 - r3 * g2);
       T2 += k * (r3 * g1 - r1 * g3);
       T3 += k * (r1 * g2 - r2 * g1);
+    }
+    if (mb != nullptr) {
+      // the magnetic torque m_B x C_BN(sigma) B_N (magnetic.py mag_torque)
+      double u[3];
+      mag_torque(mb, s1, s2, s3, u);
+      T1 += u[0];
+      T2 += u[1];
+      T3 += u[2];
     }
     out[0] = c * w1 + 0.5 * (s2 * w3 - s3 * w2) + e * s1;
     out[1] = c * w2 + 0.5 * (s3 * w1 - s1 * w3) + e * s2;
@@ -128,11 +162,41 @@ inline void dist3(const PlantParams& p, double t, double out[3]) {
 struct OrbitGG {
   const OrbitParams* o;
   OrbitRates k;
-  explicit OrbitGG(const PlantParams& p) : o(p.orbit.enabled ? &p.orbit : nullptr), k(orbit_rates(p.orbit)) {}
+  explicit OrbitGG(const PlantParams& p)
+      : o(p.orbit.enabled && p.orbit_gravity_gradient ? &p.orbit : nullptr), k(orbit_rates(p.orbit)) {}
   const double* operator()(double t, double g[4]) const {
     if (o == nullptr) return nullptr;
     orbit_gg_terms(*o, k, t, g);
     return g;
+  }
+};
+
+// The body dipole over a step (magnetic.py held_dipole): the residual dipole
+// plus the magnetorquers' dipole_B (null: none) into m; false when it is
+// exactly zero (no magnetic term at all: bitwise the plant without one).
+inline bool held_dipole(const PlantParams& p, const Vec3* dipole_B, double m[3]) {
+  for (int i = 0; i < 3; ++i) m[i] = p.residual_dipole(i);
+  if (dipole_B != nullptr)
+    for (int i = 0; i < 3; ++i) m[i] = m[i] + (*dipole_B)(i);
+  return !(m[0] == 0.0 && m[1] == 0.0 && m[2] == 0.0);
+}
+
+// (m_B, B_N(t) [T]) for Rhs (magnetic.py make_field_N, _stage_mb): the field
+// at the orbit's position and GMST, nT to T; null without a dipole or a field.
+struct MagField {
+  const PlantParams& p;
+  OrbitRates k;
+  const double* m;  // the held dipole, null: none
+  MagField(const PlantParams& pp, const double* held)
+      : p(pp), k(orbit_rates(pp.orbit)), m(pp.field && held != nullptr ? held : nullptr) {}
+  const double* operator()(double t, double mb[6]) const {
+    if (m == nullptr) return nullptr;
+    double r[3];
+    orbit_position(p.orbit, k, t, r);
+    const Vec3 B = p.field->B_eci(Vec3(r[0], r[1], r[2]), p.orbit.jd_epoch, t);  // [nT]
+    for (int i = 0; i < 3; ++i) mb[i] = m[i];
+    for (int i = 0; i < 3; ++i) mb[3 + i] = B(i) * 1e-9;
+    return mb;
   }
 };
 

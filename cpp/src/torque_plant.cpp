@@ -20,7 +20,8 @@ constexpr double kZeros[4] = {0.0, 0.0, 0.0, 0.0};
 // x_dot of the torque-commanded plant (TorquePlant.derivative in Python).
 void torque_derivative(const PlantParams& p, const TorqueWheels& w, const detail::Rhs& rhs, const double C[3][4],
                        const double CJ[3][4], const double Jw[4], double t, const double x[10],
-                       const double u_motor[4], const double scale[4], const double brake[4], double out[10]) {
+                       const double u_motor[4], const double scale[4], const double brake[4], double out[10],
+                       const detail::MagField& mag) {
   double u[4];
   for (int i = 0; i < 4; ++i)
     u[i] = u_motor[i] + scale[i] * wheel_friction_torque(x[6 + i], w.friction[static_cast<std::size_t>(i)], w.stribeck) -
@@ -31,8 +32,8 @@ void torque_derivative(const PlantParams& p, const TorqueWheels& w, const detail
     tw[r] = C[r][0] * u[0] + C[r][1] * u[1] + C[r][2] * u[2] + C[r][3] * u[3];
   }
   detail::dist3(p, t, d);
-  double gb[4];
-  rhs(x, x + 3, hw, tw, d, sw, detail::OrbitGG(p)(t, gb));
+  double gb[4], mb[6];
+  rhs(x, x + 3, hw, tw, d, sw, detail::OrbitGG(p)(t, gb), mag(t, mb));
   for (int i = 0; i < 6; ++i) out[i] = sw[i];
   for (int i = 0; i < 4; ++i) out[6 + i] = u[i] / Jw[i] - (C[0][i] * sw[3] + C[1][i] * sw[4] + C[2][i] * sw[5]);
 }
@@ -141,8 +142,15 @@ bool lagged(const ActuatorParams& a, const void* motor) {
 }  // namespace
 
 PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                           double h, const Vec4& u_cmd, Vec4* motor) {
+                           double h, const Vec4& u_cmd, Vec4* motor, const Vec3* dipole_B) {
   const StackKernel k(p);
+  Vec3 rod_m;  // no dipole input: the rods' for a zero command (truth.py rk4_step)
+  if (dipole_B == nullptr && p.rods.enabled) {
+    rod_m = rods_dipole_B(p.rods, t);
+    dipole_B = &rod_m;
+  }
+  double m[3];  // the body dipole held over the step (TorquePlant.step_held's)
+  const detail::MagField mag(p, detail::held_dipole(p, dipole_B, m) ? m : nullptr);
   double u[4], scale[4], brake[4];
   torque_step_inputs(p, a, t, u_cmd, x.wheel_speed, u, scale, brake);
   if (lagged(a, motor)) {
@@ -156,15 +164,15 @@ PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double
     for (int i = 0; i < 4; ++i) (*motor)(i) = u[i];
   }
   auto f = [&](double ts, const double* xs, double* out) {
-    torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, ts, xs, u, scale, brake, out);
+    torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, ts, xs, u, scale, brake, out, mag);
   };
   return rk4_held(f, t, x, h);
 }
 
 PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                          double h, const Vec4& u_cmd, Vec4& motor) {
-  if (a.wheels.enabled) return torque_rk4_step(p, a, t, x, h, u_cmd, &motor);
-  return plant_rk4_step(p, a, t, x, h, u_cmd);
+                          double h, const Vec4& u_cmd, Vec4& motor, const Vec3* dipole_B) {
+  if (a.wheels.enabled) return torque_rk4_step(p, a, t, x, h, u_cmd, &motor, dipole_B);
+  return plant_rk4_step(p, a, t, x, h, u_cmd, dipole_B);
 }
 
 WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
@@ -178,7 +186,11 @@ WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, c
       if (a.wheels.lag[static_cast<std::size_t>(i)] > 0.0) u[i] = (*motor)(i);
   for (int i = 0; i < 3; ++i) x0[i] = x.sigma_BN(i), x0[3 + i] = x.omega_BN_B(i);
   for (int i = 0; i < 4; ++i) x0[6 + i] = x.wheel_speed(i);
-  torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, t, x0, u, scale, brake, d);
+  double m[3];  // the residual dipole and the rods' for a zero command (truth.py row)
+  Vec3 rod_m;
+  if (p.rods.enabled) rod_m = rods_dipole_B(p.rods, t);
+  const detail::MagField mag(p, detail::held_dipole(p, p.rods.enabled ? &rod_m : nullptr, m) ? m : nullptr);
+  torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, t, x0, u, scale, brake, d, mag);
   WheelOutput out;
   for (int i = 0; i < 4; ++i) {
     out.u_sat(i) = u[i] / p.Jw(i);
@@ -195,7 +207,9 @@ void TorquePlant::derivative(double t, const double x[10], const double u_motor[
 void TorquePlant::derivative(double t, const double x[10], const double u_motor[4], const double scale[4],
                              const double brake[4], double out[10]) const {
   const Kernel& k = *k_;
-  torque_derivative(p_, w_, k.rhs, k.C, k.CJ, k.Jw, t, x, u_motor, scale, brake, out);
+  double m[3];  // the residual dipole (TorquePlant.derivative's, no magnetorquers)
+  const detail::MagField mag(p_, detail::held_dipole(p_, nullptr, m) ? m : nullptr);
+  torque_derivative(p_, w_, k.rhs, k.C, k.CJ, k.Jw, t, x, u_motor, scale, brake, out, mag);
 }
 
 PlantState TorquePlant::step_held(double t, const PlantState& x, double h, const double u[4],

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantRods', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'rods_dipole_B', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -1068,7 +1068,7 @@ class PlantParams:
     """
     True plant parameters (C++ engine); defaults are the paper's. The keyword constructor validates.
     """
-    def __init__(self, J0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., dJ: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., Cbar: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 4]"] = ..., Jw: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., w0: typing.SupportsFloat | typing.SupportsIndex = 0.0011, dist_amp: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_freq: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit: OrbitParams = ...) -> None:
+    def __init__(self, J0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., dJ: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., Cbar: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 4]"] = ..., Jw: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., w0: typing.SupportsFloat | typing.SupportsIndex = 0.0011, dist_amp: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_freq: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit: OrbitParams = ..., field_nmax: typing.SupportsInt | typing.SupportsIndex = 0, residual_dipole: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit_gravity_gradient: bool = True, rods: ... | None = None) -> None:
         ...
     @property
     def Cbar(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 4]"]:
@@ -1127,12 +1127,41 @@ class PlantParams:
     def dist_freq(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
         ...
     @property
+    def field_nmax(self) -> int:
+        """
+        [-] the field's degree along the orbit (0: none, 1: tilted dipole, 13: IGRF-14)
+        """
+    @property
     def orbit(self) -> OrbitParams:
         """
         the orbit (enabled: its gravity gradient replaces the w0 form of (5))
         """
     @orbit.setter
     def orbit(self, arg0: OrbitParams) -> None:
+        ...
+    @property
+    def orbit_gravity_gradient(self) -> bool:
+        """
+        test-only: false drops the orbit's gravity gradient
+        """
+    @orbit_gravity_gradient.setter
+    def orbit_gravity_gradient(self, arg0: bool) -> None:
+        ...
+    @property
+    def residual_dipole(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [A m^2] the spacecraft's residual dipole in B (torque m x B)
+        """
+    @residual_dipole.setter
+    def residual_dipole(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        ...
+    @property
+    def rods(self) -> ...:
+        """
+        the magnetorquer rods (enabled: a step without a dipole input holds their dipole for a zero command)
+        """
+    @rods.setter
+    def rods(self, arg0: ...) -> None:
         ...
     @property
     def w0(self) -> float:
@@ -2220,6 +2249,32 @@ class MagnetorquerParams:
     @dipole_max.setter
     def dipole_max(self, arg1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 1]"]) -> None:
         ...
+class PlantRods:
+    """
+    The plant's magnetorquer rods and their timed faults (plant.hpp).
+    """
+    def __init__(self) -> None:
+        ...
+    def set_fault(self, rod: typing.SupportsInt | typing.SupportsIndex, fault: RodFault, stuck_dipole: typing.SupportsFloat | typing.SupportsIndex = 0.0, onset: typing.SupportsFloat | typing.SupportsIndex = 0.0, end: typing.SupportsFloat | typing.SupportsIndex = ...) -> None:
+        """
+        Rod `rod`'s (0-based) fault on onset <= t < end [s] (stuck_dipole [A m^2]: RodFault.Stuck's).
+        """
+    @property
+    def enabled(self) -> bool:
+        """
+        false: no rods
+        """
+    @enabled.setter
+    def enabled(self, arg0: bool) -> None:
+        ...
+    @property
+    def params(self) -> MagnetorquerParams:
+        """
+        axes G_B and dipole_max
+        """
+    @params.setter
+    def params(self, arg0: MagnetorquerParams) -> None:
+        ...
 class MagnetorquerOutput:
     @property
     def clipped(self) -> int:
@@ -2922,15 +2977,17 @@ def orbit_state(p: OrbitParams, t: typing.SupportsFloat | typing.SupportsIndex) 
     """
     (r_N [m], v_N [m/s]) in ECI at t [s] after the epoch.
     """
-def plant_derivative(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, wheel_accel: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> PlantState:
+def plant_derivative(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, wheel_accel: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], dipole_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> PlantState:
     """
-    State derivative (1),(2),(7) for the actual wheel accelerations [rad/s^2].
+    State derivative (1),(2),(7) for the actual wheel accelerations [rad/s^2]
+    (dipole_B: the magnetorquers' body dipole [A m^2]).
     """
-def plant_rk4_step(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> PlantState:
+def plant_rk4_step(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], dipole_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> PlantState:
     """
-    One RK4 step from t to t + h [s], u_cmd held; then the MRP short set.
+    One RK4 step from t to t + h [s], u_cmd and the magnetorquers' body dipole dipole_B [A m^2]
+    held; then the MRP short set.
     """
-def plant_rk4_step_motor(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> tuple[PlantState, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]]:
+def plant_rk4_step_motor(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], dipole_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> tuple[PlantState, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]]:
     """
     plant_rk4_step carrying the motor torques of torque-commanded wheels: (state, motor at t + h).
     """
@@ -2960,6 +3017,10 @@ def register_python_law(spec: str, name: str, doc: str, factory: typing.Any) -> 
     """
 def rod_fault_name(f: RodFault) -> str:
     ...
+def rods_dipole_B(r: PlantRods, t: typing.SupportsFloat | typing.SupportsIndex, d_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 1]"] | None = None) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+    """
+    The body dipole m_B = G d [A m^2] of rod commands d_cmd (None: 0) at t [s]: clipped, faults applied.
+    """
 def run_sensors(p: SensorParams, n_ticks: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> dict:
     """
     Every sensor sample of n_ticks plant steps (t = i p.dt) from the constant state x (10,).

@@ -15,6 +15,10 @@
 //   Gravity gradient (5),(6): u_g = 3 w0^2 R3^ J R3, R3 = R(sigma) e3 (10);
 //   with an orbit (PlantParams::orbit.enabled) u_g = 3 mu / r^3 n_B^ J n_B,
 //   n_B = R(sigma) r_N / r at each RK4 stage's time (orbit.hpp).
+//   Magnetic torque (docs/MODEL.md section 16): with a field (PlantParams::field,
+//   along the orbit) tau = m_B x C_BN(sigma) B_N(t) at each RK4 stage, m_B the
+//   residual dipole plus the magnetorquers' body dipole held over the step
+//   (plant_rk4_step's dipole_B); no term at all when m_B is exactly zero.
 //   Wheels: Omega_w_dot = the actual acceleration of (15),(16) (wheel_accel).
 //
 // Fault conventions (shared with sc_rt.model.actuators): a fault is active on
@@ -32,11 +36,29 @@
 #include <string>
 #include <vector>
 
+#include "sc_rt/geomag.hpp"
+#include "sc_rt/magnetorquer.hpp"
 #include "sc_rt/orbit.hpp"
 #include "sc_rt/types.hpp"
 #include "sc_rt/wheels.hpp"
 
 namespace sc_rt {
+
+// The plant's magnetorquer rods (sc_rt.model.rods; docs/MODEL.md section 16):
+// axes and limits, and at most one timed fault per rod (active on onset <= t < end).
+struct PlantRods {
+  bool enabled = false;                    //!< false: no rods
+  MagnetorquerParams params{};             //!< G_B (3 x N) unit axes, dipole_max [A m^2]
+  std::array<RodFault, kMaxRods> fault{};  //!< per rod, Healthy by default
+  std::array<double, kMaxRods> stuck{};    //!< [A m^2] a stuck rod's dipole
+  std::array<double, kMaxRods> onset{};    //!< [s] the fault's onset
+  std::array<double, kMaxRods> end{};      //!< [s] the fault's end (inf: never)
+};
+
+// The body dipole m_B = G d [A m^2] of rod commands d_cmd [A m^2] (null: all 0)
+// at t [s]: each clipped to +-dipole_max, then its active fault (dead 0, stuck
+// its dipole, reversed -d), as Magnetorquers::update; the sums in rod order.
+Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd = nullptr);
 
 // The true plant. Defaults are the paper's (Section 4): J0, dJ, Cbar, Jw and d(t).
 struct PlantParams {
@@ -52,7 +74,20 @@ struct PlantParams {
   Vec3 dist_bias = Vec3::Zero();                 //!< [N m]
   //! enabled: u_g of the orbit's actual radius and nadir (orbit.hpp) replaces the w0 form of (5)
   OrbitParams orbit{};
+  //! the geomagnetic field along the orbit (IGRF-14 or the dipole at the orbit's epoch,
+  //! plant_field); null: none. Shared: built once, read by every step.
+  std::shared_ptr<const GeomagField> field{};
+  Vec3 residual_dipole = Vec3::Zero();  //!< [A m^2] the spacecraft's residual dipole in B (m x B)
+  //! test-only: false drops the orbit's gravity gradient (u_g then has the w0 form; w0 = 0: none)
+  bool orbit_gravity_gradient = true;
+  //! enabled: magnetorquer rods; with no dipole input a step holds their dipole for a
+  //! zero command (a stuck rod's; none when healthy), rods_dipole_B
+  PlantRods rods{};
 };
+
+// The field of degree nmax (0: none, 1: the tilted dipole, 13: IGRF-14) at the
+// orbit's epoch, for PlantParams::field (sc_rt.model.field.field_for's).
+std::shared_ptr<const GeomagField> plant_field(const OrbitParams& orbit, int nmax);
 
 // One fault of one wheel, (16).
 struct WheelFault {
@@ -119,13 +154,14 @@ void torque_step_inputs(const PlantParams& p, const ActuatorParams& a, double t,
 // motor: the motor torques [N m] carried from step to step (zero at the
 // start), advanced to t + h; null: wheels without a lag (std::invalid_argument
 // otherwise).
+// dipole_B: the magnetorquers' body dipole [A m^2] held over the step (null: none).
 PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                           double h, const Vec4& u_cmd, Vec4* motor = nullptr);
+                           double h, const Vec4& u_cmd, Vec4* motor = nullptr, const Vec3* dipole_B = nullptr);
 
 // plant_rk4_step with the motor state of torque-commanded wheels (unused for
 // the paper's wheels): what a loop that carries it calls.
 PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                          double h, const Vec4& u_cmd, Vec4& motor);
+                          double h, const Vec4& u_cmd, Vec4& motor, const Vec3* dipole_B = nullptr);
 
 // d(t) = bias + amp cos(freq t) [N m], in B.
 Vec3 disturbance(const PlantParams& p, double t);
@@ -133,13 +169,15 @@ Vec3 disturbance(const PlantParams& p, double t);
 // The state derivative for the given actual wheel accelerations [rad/s^2]
 // (the wheel_speed field of the result is Omega_w_dot = wheel_accel).
 PlantState plant_derivative(const PlantParams& p, double t, const PlantState& x,
-                            const Vec4& wheel_accel);
+                            const Vec4& wheel_accel, const Vec3* dipole_B = nullptr);
 
 // One classical RK4 step from t to t + h [s]; u_cmd [rad/s^2] held (ZOH), the
 // actual acceleration re-evaluated by wheel_accel at each stage's time and
 // wheel speeds; then the MRP short set (|sigma| > 1 -> -sigma/|sigma|^2).
+// dipole_B: the magnetorquers' body dipole m_B = G d [A m^2] held over the
+// step (null: none); with the residual dipole it acts through p.field.
 PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t,
-                          const PlantState& x, double h, const Vec4& u_cmd);
+                          const PlantState& x, double h, const Vec4& u_cmd, const Vec3* dipole_B = nullptr);
 
 // The true lumped disturbance delta_2 of (20),(21) [rad/s^2] (docs/MODEL.md section 4):
 // omega_dot_true - J0^-1 [-W^ (J0 W + Cbar Jw Omega_w) + u_g0] - B u_sat, with

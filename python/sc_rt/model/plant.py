@@ -35,6 +35,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sc_rt.model.actuators import ActuatorParams, accel4, floats, frozen, sat4
+from sc_rt.model.field import FIELD_MODELS
+from sc_rt.model.magnetic import held_dipole, mag_torque, make_field_N
+from sc_rt.model.rods import Magnetorquers, rods_dipole_B, rods_to_cpp
 from sc_rt.model.orbit import OrbitParams, gg_terms, gg_torque, orbit_params_to_cpp, orbit_position, orbit_rates
 
 __all__ = [
@@ -94,6 +97,16 @@ class PlantParams:
     disturbance: DisturbanceParams = field(default_factory=DisturbanceParams)
     # an orbit: u_g of its actual radius and nadir replaces the w0 form (docs/MODEL.md section 11)
     orbit: OrbitParams | None = None
+    # the geomagnetic field along the orbit ([environment] field: "igrf", "dipole", "none"),
+    # through which the residual dipole and the magnetorquers' dipole act (docs/MODEL.md section 16)
+    field_model: str = "none"
+    # [A m^2] the spacecraft's residual dipole in B, a disturbance m x B
+    residual_dipole: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    # test-only: False drops the orbit's gravity gradient (u_g then has the w0 form; w0 = 0: none)
+    orbit_gravity_gradient: bool = True
+    # the magnetorquer rods (sc_rt.model.rods): a step without a dipole input holds
+    # their dipole for a zero command (a stuck rod's; none when healthy)
+    magnetorquers: Magnetorquers | None = None
 
     def __post_init__(self) -> None:
         errs: list[str] = []
@@ -131,6 +144,13 @@ class PlantParams:
             )
         if self.orbit is not None and not isinstance(self.orbit, OrbitParams):
             errs.append(f"PlantParams.orbit must be an OrbitParams or None, got {self.orbit!r}")
+        res = frozen(self.residual_dipole, (3,), "PlantParams.residual_dipole", errs)
+        if self.field_model not in FIELD_MODELS:
+            errs.append(f"PlantParams.field_model must be one of {sorted(FIELD_MODELS)}, got {self.field_model!r}")
+        elif self.field_model != "none" and self.orbit is None:
+            errs.append(f"PlantParams.field_model = {self.field_model!r} needs an orbit")
+        if self.magnetorquers is not None and not isinstance(self.magnetorquers, Magnetorquers):
+            errs.append(f"PlantParams.magnetorquers must be a Magnetorquers or None, got {self.magnetorquers!r}")
         if errs:
             raise ValueError("invalid PlantParams: " + "; ".join(errs))
         object.__setattr__(self, "J0", J0)
@@ -138,6 +158,8 @@ class PlantParams:
         object.__setattr__(self, "Cbar", Cbar)
         object.__setattr__(self, "Jw", Jw)
         object.__setattr__(self, "w0", w0)
+        object.__setattr__(self, "residual_dipole", res)
+        object.__setattr__(self, "orbit_gravity_gradient", bool(self.orbit_gravity_gradient))
         # the closure cache (_PlantFast) is built on first use (__getattr__) and
         # left out of pickles: closures do not pickle, and a Scenario must
         # travel to Monte Carlo workers
@@ -174,7 +196,7 @@ def _check_spd(M: np.ndarray, name: str, errs: list[str], symmetric: bool = True
 class _PlantFast:
     """Closures over plain-float copies of PlantParams for the hot path."""
 
-    __slots__ = ("f", "f0", "wheel", "dist", "gg")
+    __slots__ = ("f", "f0", "wheel", "dist", "gg", "field", "res")
 
     def __init__(self, p: PlantParams):
         CJ = p.Cbar * p.Jw
@@ -183,7 +205,9 @@ class _PlantFast:
         self.f0 = _make_rhs(p.J0, _inv3(p.J0), k)  # the controller's model (21)
         self.wheel = _make_wheel_map(CJ)
         self.dist = _make_disturbance(p.disturbance)
-        self.gg = make_orbit_gg(p.orbit)
+        self.gg = make_orbit_gg(p.orbit if p.orbit_gravity_gradient else None)
+        self.field = make_field_N(p.orbit, p.field_model)  # B_N(t) [T], None: no field
+        self.res = tuple(p.residual_dipole.tolist())  # [A m^2]
 
 
 def make_orbit_gg(o: OrbitParams | None):
@@ -266,14 +290,17 @@ def _make_rhs(J: np.ndarray, Jinv: np.ndarray, k: float):
     Omega_w_dot`` [N m] and the disturbance ``d`` [N m]. The wheel terms enter
     (7) only through hw and tw, which are linear in the wheel states: an RK4
     stage gets them without a 3x4 product. ``J`` is the true inertia, ``Jinv``
-    its inverse, ``k = 3 w0^2``; all are closed over as plain floats.
+    its inverse, ``k = 3 w0^2``; all are closed over as plain floats. ``g``:
+    the orbit's gravity-gradient terms at the stage's time (None: the w0 form);
+    ``mb``: the body dipole [A m^2] and the field in N [T] at the stage's time
+    (None: no magnetic torque).
     """
     (J11, J12, J13), (J21, J22, J23), (J31, J32, J33) = J.tolist()
     (I11, I12, I13), (I21, I22, I23), (I31, I32, I33) = Jinv.tolist()
     k = float(k)
     Jl = J.tolist()
 
-    def f(s1, s2, s3, w1, w2, w3, hw1, hw2, hw3, tw1, tw2, tw3, d1, d2, d3, g=None):
+    def f(s1, s2, s3, w1, w2, w3, hw1, hw2, hw3, tw1, tw2, tw3, d1, d2, d3, g=None, mb=None):
         ss = s1 * s1 + s2 * s2 + s3 * s3
         # (1),(2): sigma_dot = 1/4 [(1 - s's) w + 2 s^ w + 2 s (s'w)]
         c = 0.25 * (1.0 - ss)
@@ -306,6 +333,12 @@ def _make_rhs(J: np.ndarray, Jinv: np.ndarray, k: float):
             T1 += k * (r2 * g3 - r3 * g2)
             T2 += k * (r3 * g1 - r1 * g3)
             T3 += k * (r1 * g2 - r2 * g1)
+        if mb is not None:
+            # the magnetic torque m_B x C_BN(sigma) B_N of mb = (m_B, B_N) (magnetic.py)
+            u1, u2, u3 = mag_torque(mb, s1, s2, s3)
+            T1 += u1
+            T2 += u2
+            T3 += u3
         return (
             c * w1 + 0.5 * (s2 * w3 - s3 * w2) + e * s1,
             c * w2 + 0.5 * (s3 * w1 - s1 * w3) + e * s2,
@@ -334,7 +367,14 @@ def disturbance(p: PlantParams, t: float) -> np.ndarray:
     return np.array(p._fast.dist(float(t)))
 
 
-def derivative(t: float, x, wheel_accel, p: PlantParams) -> np.ndarray:
+def _stage_mb(fp, m, t: float):
+    """(m_B, B_N(t)) for the right-hand side, or None without a dipole or a field."""
+    if m is None or fp.field is None:
+        return None
+    return m + fp.field(t)
+
+
+def derivative(t: float, x, wheel_accel, p: PlantParams, dipole_B=None) -> np.ndarray:
     """State derivative of the plant, python-control style ``f(t, x, u, params)``.
 
     Parameters
@@ -347,6 +387,8 @@ def derivative(t: float, x, wheel_accel, p: PlantParams) -> np.ndarray:
         ACTUAL wheel accelerations Omega_w_dot [rad/s^2] (after saturation and
         faults, see ``sc_rt.model.actuators.wheel_accel``).
     p : PlantParams
+    dipole_B : array_like, shape (3,), optional
+        The magnetorquers' body dipole [A m^2] (added to the residual dipole).
 
     Returns
     -------
@@ -358,7 +400,7 @@ def derivative(t: float, x, wheel_accel, p: PlantParams) -> np.ndarray:
     acc = floats(wheel_accel, 4, "wheel_accel")
     out = fp.f(
         s1, s2, s3, w1, w2, w3, *fp.wheel(O1, O2, O3, O4), *fp.wheel(*acc), *fp.dist(float(t)),
-        fp.gg(float(t)),
+        fp.gg(float(t)), _stage_mb(fp, held_dipole(fp.res, dipole_B), float(t)),
     )
     return np.array(out + tuple(acc))
 
@@ -371,7 +413,8 @@ def omega_dot(t: float, x, wheel_accel, p: PlantParams) -> np.ndarray:
     return derivative(t, x, wheel_accel, p)[3:6]
 
 
-def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) -> np.ndarray:
+def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd,
+             dipole_B=None) -> np.ndarray:
     """One classical RK4 step of the plant from t to t + h.
 
     The command is held over the step (zero-order hold); the actual wheel
@@ -392,6 +435,12 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
         Step [s].
     u_cmd : array_like, shape (4,)
         Wheel commands before saturation [rad/s^2], held over the step.
+    dipole_B : array_like, shape (3,), optional
+        The magnetorquers' body dipole ``m_B = G d`` [A m^2], held over the
+        step; with the residual dipole it acts through the field
+        (``PlantParams.field_model``) at every stage's time and attitude.
+        None: the rods' dipole for a zero command (``PlantParams.magnetorquers``,
+        sc_rt.model.rods.rods_dipole_B at t), none without rods.
 
     Returns
     -------
@@ -421,6 +470,10 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
     dm1, dm2, dm3 = dist(tm)
     gg = fp.gg  # the orbit's gravity-gradient terms at the three stage times (None: none)
     g1, gm, ge = gg(t), gg(tm), gg(te)
+    if dipole_B is None and p.magnetorquers is not None:
+        dipole_B = rods_dipole_B(p.magnetorquers, t)  # the rods' own dipole (a stuck rod's)
+    m = held_dipole(fp.res, dipole_B)  # the body dipole over the step (None: none)
+    mb1, mbm, mbe = _stage_mb(fp, m, t), _stage_mb(fp, m, tm), _stage_mb(fp, m, te)
     limit = fa.any_limit
     timed = fa.any_fault or limit
     hw1, hw2, hw3 = wheel(O1, O2, O3, O4)
@@ -429,7 +482,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
     # stage 1 at (t, x0)
     a1, a2, a3, a4 = accel4(fa, t, sat, (O1, O2, O3, O4)) if timed else sat
     ta1, ta2, ta3 = wheel(a1, a2, a3, a4)
-    p1, p2, p3, q1, q2, q3 = f(s1, s2, s3, w1, w2, w3, hw1, hw2, hw3, ta1, ta2, ta3, *dist(t), g1)
+    p1, p2, p3, q1, q2, q3 = f(s1, s2, s3, w1, w2, w3, hw1, hw2, hw3, ta1, ta2, ta3, *dist(t), g1, mb1)
     # stage 2 at (t + h/2, x0 + h/2 k1)
     if limit:
         b1, b2, b3, b4 = accel4(
@@ -443,7 +496,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
         b1, b2, b3, b4, tb1, tb2, tb3 = a1, a2, a3, a4, ta1, ta2, ta3
     P1, P2, P3, Q1, Q2, Q3 = f(
         s1 + hh * p1, s2 + hh * p2, s3 + hh * p3, w1 + hh * q1, w2 + hh * q2, w3 + hh * q3,
-        hw1 + hh * ta1, hw2 + hh * ta2, hw3 + hh * ta3, tb1, tb2, tb3, dm1, dm2, dm3, gm,
+        hw1 + hh * ta1, hw2 + hh * ta2, hw3 + hh * ta3, tb1, tb2, tb3, dm1, dm2, dm3, gm, mbm,
     )  # fmt: skip
     # stage 3 at (t + h/2, x0 + h/2 k2)
     if limit:
@@ -455,7 +508,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
         c1, c2, c3, c4, tc1, tc2, tc3 = b1, b2, b3, b4, tb1, tb2, tb3
     u1, u2, u3, v1, v2, v3 = f(
         s1 + hh * P1, s2 + hh * P2, s3 + hh * P3, w1 + hh * Q1, w2 + hh * Q2, w3 + hh * Q3,
-        hw1 + hh * tb1, hw2 + hh * tb2, hw3 + hh * tb3, tc1, tc2, tc3, dm1, dm2, dm3, gm,
+        hw1 + hh * tb1, hw2 + hh * tb2, hw3 + hh * tb3, tc1, tc2, tc3, dm1, dm2, dm3, gm, mbm,
     )  # fmt: skip
     # stage 4 at (t + h, x0 + h k3)
     if timed:
@@ -465,7 +518,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd) 
         e1, e2, e3, e4, te1, te2, te3 = a1, a2, a3, a4, ta1, ta2, ta3
     U1, U2, U3, V1, V2, V3 = f(
         s1 + h * u1, s2 + h * u2, s3 + h * u3, w1 + h * v1, w2 + h * v2, w3 + h * v3,
-        hw1 + h * tc1, hw2 + h * tc2, hw3 + h * tc3, te1, te2, te3, *dist(te), ge,
+        hw1 + h * tc1, hw2 + h * tc2, hw3 + h * tc3, te1, te2, te3, *dist(te), ge, mbe,
     )  # fmt: skip
     # x(t + h) = x0 + h/6 (k1 + 2 k2 + 2 k3 + k4)
     h6 = h / 6.0
@@ -503,7 +556,8 @@ def lumped_disturbance(p: PlantParams, t: float, x, u_sat, accel) -> np.ndarray:
     ``B = -J0^-1 Cbar Jw`` (docs/MODEL.md section 4). The terms of A that involve
     omega_d cancel against d/dt (R omega_d), so delta_2 does not depend on the
     desired trajectory. It collects the inertia error dJ, the faults
-    (``accel - u_sat``) and d(t).
+    (``accel - u_sat``), d(t) and the residual dipole's torque (not the
+    magnetorquers').
 
     Parameters
     ----------
@@ -527,7 +581,7 @@ def lumped_disturbance(p: PlantParams, t: float, x, u_sat, accel) -> np.ndarray:
     # omega_dot of (7) with the true J, the actual accelerations and d(t) ...
     _, _, _, a1, a2, a3 = fp.f(
         s1, s2, s3, w1, w2, w3, *hw, *fp.wheel(*floats(accel, 4, "accel")), *fp.dist(float(t)),
-        fp.gg(float(t)),
+        fp.gg(float(t)), _stage_mb(fp, held_dipole(fp.res, None), float(t)),
     )
     # ... minus the model of (21): the same right-hand side with J0 (u_g0 too),
     # the saturated commands and no d: J0^-1 [-W^ (J0 W + hw) + u_g0 - Cbar Jw u_sat]
@@ -567,4 +621,8 @@ def plant_params_to_cpp(p: PlantParams):
         dist_freq=np.array(d.freq),
         dist_bias=np.array(d.bias),
         orbit=orbit_params_to_cpp(p.orbit),
+        field_nmax=FIELD_MODELS[p.field_model],
+        residual_dipole=np.array(p.residual_dipole),
+        orbit_gravity_gradient=p.orbit_gravity_gradient,
+        rods=rods_to_cpp(p.magnetorquers),
     )

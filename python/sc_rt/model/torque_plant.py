@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from sc_rt.model.actuators import ActuatorParams
+from sc_rt.model.magnetic import held_dipole, make_field_N
 from sc_rt.model.plant import PlantParams, _inv3, _make_disturbance, _make_rhs, _mrp_to_dcm, make_orbit_gg
 from sc_rt.model.wheels import TorqueWheels, applied_torque, friction_torque, wheel_torque_command
 
@@ -81,7 +82,10 @@ class TorquePlant:
         self._C, self._Jw = C, Jw
         self._CJ = [[C[r][i] * Jw[i] for i in range(4)] for r in range(3)]
         self._dist = _make_disturbance(p.disturbance)
-        self._gg = make_orbit_gg(p.orbit)  # the orbit's gravity gradient (None: the w0 form)
+        # the orbit's gravity gradient (None: the w0 form)
+        self._gg = make_orbit_gg(p.orbit if p.orbit_gravity_gradient else None)
+        self._field = make_field_N(p.orbit, p.field_model)  # B_N(t) [T] (None: no field)
+        self._res = tuple(p.residual_dipole.tolist())  # [A m^2] the residual dipole
 
     def motor_torques(self, u_cmd, omega_w) -> list[float]:
         """[N m] the motor torques the wheels apply for the commands ``u_cmd``
@@ -96,17 +100,21 @@ class TorquePlant:
         return [u_motor[i] + scale[i] * friction_torque(float(omega_w[i]), w.friction[i], w.stribeck)
                 - brake[i] * float(omega_w[i]) for i in range(4)]
 
-    def derivative(self, t: float, x, u_motor, scale=_ONES, brake=_ZEROS) -> list[float]:
+    def derivative(self, t: float, x, u_motor, scale=_ONES, brake=_ZEROS, dipole_B=None) -> list[float]:
         """x_dot (10) at time ``t`` [s] and state ``x`` with the motor torques
         ``u_motor`` [N m] (after their limits; the friction, times
-        ``scale``, and the seizure brake are added here)."""
+        ``scale``, and the seizure brake are added here) and the
+        magnetorquers' body dipole ``dipole_B`` [A m^2] (None: none; the
+        residual dipole acts either way, sc_rt.model.magnetic)."""
         s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = (float(v) for v in x)
         u1, u2, u3, u4 = self.net_torques(u_motor, (O1, O2, O3, O4), scale, brake)
         C, CJ, Jw = self._C, self._CJ, self._Jw
         hw = [CJ[r][0] * O1 + CJ[r][1] * O2 + CJ[r][2] * O3 + CJ[r][3] * O4 for r in range(3)]
         tw = [C[r][0] * u1 + C[r][1] * u2 + C[r][2] * u3 + C[r][3] * u4 for r in range(3)]
+        m = held_dipole(self._res, dipole_B)
+        mb = None if m is None or self._field is None else m + self._field(float(t))
         sd1, sd2, sd3, a1, a2, a3 = self._f(s1, s2, s3, w1, w2, w3, *hw, *tw, *self._dist(float(t)),
-                                            self._gg(float(t)))
+                                            self._gg(float(t)), mb)
         return [sd1, sd2, sd3, a1, a2, a3,
                 *(u / Jw[i] - (C[0][i] * a1 + C[1][i] * a2 + C[2][i] * a3)
                   for i, u in enumerate((u1, u2, u3, u4)))]
@@ -118,15 +126,17 @@ class TorquePlant:
         x0 = [float(v) for v in x]
         return self.step_held(t, x0, h, self.motor_torques(u_cmd, x0[6:10]))
 
-    def step_held(self, t: float, x, h: float, u, scale=_ONES, brake=_ZEROS) -> np.ndarray:
+    def step_held(self, t: float, x, h: float, u, scale=_ONES, brake=_ZEROS, dipole_B=None) -> np.ndarray:
         """One RK4 step with the motor torques ``u`` [N m] (after limits and
-        faults), the friction scale and the seizure brake held over it."""
+        faults), the friction scale, the seizure brake and the magnetorquers'
+        body dipole ``dipole_B`` [A m^2] (None: none) held over it."""
         x0 = [float(v) for v in x]
         hh = 0.5 * h
-        k1 = self.derivative(t, x0, u, scale, brake)
-        k2 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k1)], u, scale, brake)
-        k3 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k2)], u, scale, brake)
-        k4 = self.derivative(t + h, [a + h * b for a, b in zip(x0, k3)], u, scale, brake)
+        m = dipole_B
+        k1 = self.derivative(t, x0, u, scale, brake, m)
+        k2 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k1)], u, scale, brake, m)
+        k3 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k2)], u, scale, brake, m)
+        k4 = self.derivative(t + h, [a + h * b for a, b in zip(x0, k3)], u, scale, brake, m)
         h6 = h / 6.0
         out = [a + h6 * (b + 2.0 * (c + d) + e) for a, b, c, d, e in zip(x0, k1, k2, k3, k4)]
         ss = out[0] * out[0] + out[1] * out[1] + out[2] * out[2]

@@ -14,6 +14,7 @@ from __future__ import annotations
 from sc_rt.model import actuators, plant
 from sc_rt.model.actuators import ActuatorParams
 from sc_rt.model.plant import PlantParams
+from sc_rt.model.rods import rods_dipole_B
 from sc_rt.model.torque_plant import TorquePlant, step_inputs
 from sc_rt.model.wheels import motor_lag
 
@@ -44,24 +45,28 @@ def torque_plant(p: PlantParams, act: ActuatorParams) -> TorquePlant:
     return cached[1]
 
 
-def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd, motor=None):
+def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd, motor=None,
+             dipole_B=None):
     """One RK4 step of the true plant from t to t + h [s], the wheel command
     ``u_cmd`` held (sc_rt.model.plant.rk4_step for the paper's wheels; for
     torque-commanded ones, the torques of ``step_inputs`` at t held, through
     the motor lag when there is one: ``motor``, from ``new_motor``, is then
-    advanced to t + h in place)."""
+    advanced to t + h in place). ``dipole_B``: the magnetorquers' body dipole
+    [A m^2] held over the step (None or zeros: none; sc_rt.model.magnetic)."""
     if act.wheels is None:
-        return plant.rk4_step(p, act, t, x, h, u_cmd)
+        return plant.rk4_step(p, act, t, x, h, u_cmd, dipole_B)
     tp = torque_plant(p, act)
     x0 = [float(v) for v in x]
     h = float(h)
+    if dipole_B is None and p.magnetorquers is not None:
+        dipole_B = rods_dipole_B(p.magnetorquers, float(t))  # the rods' own dipole (a stuck rod's)
     u, scale, brake = step_inputs(act, p.Jw, float(t), u_cmd, x0[6:10])
     if _lagged(act, motor):
         for i, tau in enumerate(act.wheels.lag):
             u[i], motor[i] = motor_lag(u[i], motor[i], tau, h)
     elif motor is not None:
         motor[:] = u
-    return tp.step_held(float(t), x0, h, u, scale, brake)
+    return tp.step_held(float(t), x0, h, u, scale, brake, dipole_B)
 
 
 def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> tuple:
@@ -83,6 +88,7 @@ def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> 
         u, scale, brake = step_inputs(act, p.Jw, float(t), u_cmd, x0[6:10])
         if _lagged(act, motor):
             u = [m if tau > 0.0 else c for m, c, tau in zip(motor, u, act.wheels.lag)]
-        accel = tp.derivative(float(t), x0, u, scale, brake)[6:10]
+        rods = None if p.magnetorquers is None else rods_dipole_B(p.magnetorquers, float(t))
+        accel = tp.derivative(float(t), x0, u, scale, brake, rods)[6:10]
         u_sat = [u[i] / float(p.Jw[i]) for i in range(4)]
     return u_sat, accel, plant.lumped_disturbance(p, t, x, u_sat, accel)

@@ -6,6 +6,7 @@ own checks (sc_rt.scenario.reader.scenario_from_data)."""
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from typing import Any
 
@@ -67,7 +68,45 @@ def scenario_data(scn: Any) -> dict[str, Any]:
         **_sensors(scn, controller),
         **_requirements(scn),
         **_wheels(a.wheels),
+        **_orbit(p),
+        **_magnetorquers(p.magnetorquers),
     }
+
+
+def _degrees(x: float) -> float:
+    """x [rad] in degrees, chosen so that the reader's ``deg * pi / 180`` gives x back."""
+    deg = x / (math.pi / 180.0)
+    for d in (deg, math.nextafter(deg, math.inf), math.nextafter(deg, -math.inf)):
+        if d * (math.pi / 180.0) == x:
+            return d
+    return deg
+
+
+def _orbit(p: Any) -> dict[str, Any]:
+    """The [orbit] and [environment] tables (the field and the residual dipole), if any."""
+    o = getattr(p, "orbit", None)
+    if o is None:
+        return {}
+    orbit = {"a": float(o.a), "e": float(o.e), "inclination": _degrees(o.i), "raan": _degrees(o.raan),
+             "argp": _degrees(o.argp), "mean_anomaly": _degrees(o.M0), "jd_epoch": float(o.jd_epoch),
+             "j2": bool(o.j2)}
+    env = {"field": p.field_model, "residual_dipole": [float(v) for v in p.residual_dipole]}
+    return {"orbit": orbit, "environment": env}
+
+
+def _magnetorquers(r: Any) -> dict[str, Any]:
+    """The [magnetorquers] table and its faults, if any."""
+    if r is None:
+        return {}
+    faults = []
+    for f in r.faults:
+        entry: dict[str, Any] = {"rod": int(f.rod) + 1, "kind": f.kind, "onset": float(f.onset)}
+        if f.kind == "stuck":
+            entry["dipole"] = float(f.dipole)
+        if math.isfinite(f.end):
+            entry["end"] = float(f.end)
+        faults.append(entry)
+    return {"magnetorquers": {"G_B": r.axes.tolist(), "max_dipole": r.max_dipole.tolist(), "faults": faults}}
 
 
 def _wheels(w: Any) -> dict[str, Any]:

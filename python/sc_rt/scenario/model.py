@@ -277,7 +277,8 @@ class Scenario:
     # (sc_rt.scenario.overrides.with_overrides); a run records them (results/record/inputs.py)
     overrides: tuple = ()
     # [environment] field: the geomagnetic field model along the orbit, "igrf", "dipole" or
-    # "none" (sc_rt.model.field.field_for); evaluated, no torque yet
+    # "none" (sc_rt.model.field.field_for); the plant's too (plant.field_model), where the
+    # residual dipole and the magnetorquers' dipole act
     field_model: str = "none"
     # the dotted key the file names its law by ("controller.law" or "run.controller"), and the
     # dotted key of each law parameter ((law, key), dotted key) pairs: where a law's probe

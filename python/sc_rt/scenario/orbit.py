@@ -4,8 +4,10 @@ Without the table the plant keeps the constant-rate gravity gradient of
 ``spacecraft.w0``, exactly as before.
 
 The ``[environment]`` table names the geomagnetic field model evaluated
-along the orbit (``field = "igrf" | "dipole" | "none"``, sc_rt.model.field);
-it drives no torque yet (magnetorquers come next).
+along the orbit (``field = "igrf" | "dipole" | "none"``, sc_rt.model.field)
+and the spacecraft's residual dipole (``residual_dipole = [x, y, z]`` in
+A m^2, body frame), whose torque m x B the plant adds
+(sc_rt.model.magnetic; docs/MODEL.md section 16).
 
 Angles are given in degrees, lengths in metres; the epoch as a TOML
 date-time (``epoch = 2026-01-01T00:00:00Z``), an ISO string, or a Julian
@@ -111,15 +113,24 @@ def read_orbit(root: Table) -> OrbitParams | None | bool:
         return False
 
 
-def read_environment(root: Table, has_orbit: bool) -> str | None:
-    """The ``[environment]`` table's field model ("none" without the table);
-    None after reporting a problem. A field other than "none" needs ``[orbit]``."""
+def read_environment(root: Table, has_orbit: bool) -> tuple[str, tuple] | None:
+    """The ``[environment]`` table's field model and residual dipole [A m^2]
+    (``("none", (0, 0, 0))`` without the table); None after reporting a
+    problem. A field other than "none" needs ``[orbit]``; a nonzero residual
+    dipole needs a field."""
     t = root.sub("environment", required=False)
     if t.data is None:
         return None
     model = t.read("field", Spec("str", choices=tuple(FIELD_MODELS)), default="none")
+    res = t.read("residual_dipole", Spec("vector", shape=(3,)), default=[0.0, 0.0, 0.0])
     t.finish()
-    if model is not None and model != "none" and not has_orbit:
+    if model is None or res is None:
+        return None
+    if model != "none" and not has_orbit:
         t.fail("field", f'field = "{model}" is evaluated along the orbit: give an [orbit] table too')
         return None
-    return model
+    res = tuple(float(v) for v in res)
+    if model == "none" and any(res):
+        t.fail("residual_dipole", 'a residual dipole acts through the field: give field = "igrf" or "dipole"')
+        return None
+    return model, res

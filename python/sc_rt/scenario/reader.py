@@ -14,6 +14,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.scenario.wheels import read_wheels
+from sc_rt.scenario.magnetorquers import read_magnetorquers
 from sc_rt.scenario.orbit import read_environment, read_orbit
 from sc_rt.scenario.dispersions import read_montecarlo
 from sc_rt.scenario.files import MAX_NESTING, FileProblem, deep_key, nesting_problem, read_bounded
@@ -153,7 +154,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     faults = read_faults(root, run.plant_step if run else None)
     wheels = read_wheels(root)
     orbit = read_orbit(root)  # [orbit]: the plant's gravity gradient of the orbit
-    field_model = read_environment(root, orbit is not None)  # [environment] field
+    environment = read_environment(root, orbit is not None)  # [environment] field, residual_dipole
+    rods = read_magnetorquers(root, environment[0] if environment else None)  # [magnetorquers]
     requirements = read_requirements(root, run.duration if run else None,
                                      guidance_phases(guidance) if guidance is not None else {})
     record = read_fields(root.sub("record", required=False), RecordParams)
@@ -161,8 +163,10 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     root.finish()
     if wheels is False:
         actuators = None  # (reported)
+    field_model, residual = environment or ("none", (0.0, 0.0, 0.0))
     if plant is not None and orbit is not False:
-        plant = dataclasses.replace(plant, orbit=orbit)
+        plant = dataclasses.replace(plant, orbit=orbit, field_model=field_model, residual_dipole=residual,
+                                    magnetorquers=rods or None)
     if initial is not None and actuators is not None:
         if np.any(np.abs(initial.wheel_speed) > actuators.max_wheel_speed):
             initial_table.fail(
