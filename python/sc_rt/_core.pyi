@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_REVISION', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -724,6 +724,11 @@ class Controller:
     def step(self, m: Measurement) -> Command:
         ...
     @property
+    def command_converted(self) -> bool:
+        """
+        whether the law's u_cmd is converted to the wheels' unit (Jw a or tau / Jw)
+        """
+    @property
     def config(self) -> ControllerConfig:
         ...
     @property
@@ -738,6 +743,11 @@ class Controller:
     def law_code(self) -> int:
         """
         its registry code
+        """
+    @property
+    def law_command(self) -> str:
+        """
+        what the law's u_cmd is: "acceleration" [rad/s^2] or "torque" [N m]
         """
     @property
     def law_failures(self) -> dict:
@@ -2832,8 +2842,9 @@ def initial_estimate(seed: typing.SupportsInt | typing.SupportsIndex, sigma: typ
     """
 def law_info(spec: str) -> dict:
     """
-    name, doc, source ("built-in" or the library), code and defaults (its parameters'
-    values when its table omits them: [(key, [numbers])], empty for a plugin) of a law spec.
+    name, doc, source ("built-in" or the library), code, defaults (its parameters'
+    values when its table omits them: [(key, [numbers])], empty for a plugin) and command
+    (what its u_cmd is: "acceleration" [rad/s^2] or "torque" [N m]) of a law spec.
     """
 def law_names() -> list[str]:
     """
@@ -2953,10 +2964,11 @@ def ppc_inverse(p: PpcParams, e1: typing.Annotated[numpy.typing.ArrayLike, numpy
     ...
 def ppc_transform(p: PpcParams, x1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], t: typing.SupportsFloat | typing.SupportsIndex) -> PpcResult:
     ...
-def register_python_law(spec: str, name: str, doc: str, factory: typing.Any) -> None:
+def register_python_law(spec: str, name: str, doc: str, factory: typing.Any, command: str = 'acceleration') -> None:
     """
     Put a Python law in the registry under spec ("python:..."; again: replaced). factory(model,
-    rate, items) returns sc_rt.pylaw's adapter (sc_rt.pylaw.register calls this).
+    rate, items) returns sc_rt.pylaw's adapter (sc_rt.pylaw.register calls this); command: what
+    its u_cmd is, "acceleration" [rad/s^2] or "torque" [N m].
     """
 def rod_fault_name(f: RodFault) -> str:
     ...
@@ -3127,6 +3139,7 @@ GUIDANCE_PERIOD_STEPS_MAX: int = 1048576
 GUIDANCE_TABLE_MAX: int = 2000
 GYRO_MEAN_RATE: int = 1
 GYRO_RATE: int = 0
+LAW_API_REVISION: int = 1
 LAW_API_VERSION: int = 3
 LAW_FINGERPRINT: str = 'api-3 gcc-12 cxx11abi-1 eigen-3.4 align-16 ptr-8'
 LAW_MAX_TELEMETRY: int = 8

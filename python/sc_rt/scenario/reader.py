@@ -57,18 +57,12 @@ def check_law(doc: Doc, scn: Scenario, law_key: str, where: dict | None = None) 
     a table), probe one step at rest (in a child process, killed after
     sc_rt.isolate.probe_timeout() seconds): its problems as scenario errors on
     ``law_key`` or on the parameter's own key (``where``: (law, key) -> the
-    dotted key it came from; default ``laws.<law>.<key>``). A built-in law on
-    torque-commanded wheels that take a torque (they command wheel
-    accelerations) is refused too. The built-in laws' tables are checked as
-    the file is read (``check_tables``)."""
+    dotted key it came from; default ``laws.<law>.<key>``). The built-in laws' tables are checked as
+    the file is read (``check_tables``). A law that commands the other unit
+    than the wheels take is converted by the controller (docs/LAWS.md, "What a
+    law commands"), not refused."""
     where = where or {}
-    w = scn.actuators.wheels
     run_law = scn.run.controller
-    if w is not None and w.command == "torque" and run_law in LAWS:
-        doc.error(law_key, run_law,
-                  f"law {run_law} commands wheel accelerations [rad/s^2] but [wheels] command = "
-                  '"torque" takes motor torques [N m]: use command = "acceleration" (the drive applies Jw a) '
-                  "or a law that commands torque")
     if run_law in LAWS:
         return
     if is_python_law(run_law):  # a Python law: its class loads, then it is checked as a plugin is

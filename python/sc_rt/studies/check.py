@@ -29,7 +29,7 @@ from sc_rt import _core
 from sc_rt.studies.lawparams import dsc_gains, neso_core, neso_params
 from sc_rt.scenario.model import Scenario, ScenarioError
 from sc_rt.scenario.reader import load_scenario, with_run
-from sc_rt.scenario.laws import stray_tables
+from sc_rt.scenario.laws import command_of, stray_tables, wheels_command
 
 __all__ = ["Finding", "check_scenario", "exit_code", "LEVELS", "PAPER_C"]
 
@@ -83,6 +83,7 @@ def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | No
     out += _check_model(scn)
     if any(f.level == "error" for f in out):
         return out
+    out += _check_command(scn, law)
     out += _check_initial_bound(scn, law)
     if law in OBSERVER_LAWS:
         out += _check_observer(scn)
@@ -92,6 +93,26 @@ def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | No
     out += _check_fault_times(scn)
     out += _check_noise_floor(scn, law)
     return out
+
+
+#: what each command kind is, for a finding
+_KINDS = {"acceleration": "wheel accelerations [rad/s^2]", "torque": "motor torques [N m]"}
+
+
+def _check_command(scn: Scenario, law: str) -> list[Finding]:
+    """What the law commands, what the wheels take, and whether the controller
+    converts (a note) or passes the command through (ok)."""
+    try:
+        law_kind = command_of(law)
+    except ValueError:  # a law that does not load: the scenario's own check said so
+        return []
+    wheels = wheels_command(scn)
+    text = f"law {law} commands {_KINDS[law_kind]}; the wheels take {_KINDS[wheels]}"
+    if law_kind == wheels:
+        return [Finding("ok", "wheels.command", wheels, text + ": no conversion")]
+    rule = "torque = Jw a" if law_kind == "acceleration" else "a = torque / Jw"
+    return [Finding("note", "wheels.command", wheels, text + f": converted by the controller ({rule}, per wheel, "
+                    "before saturation)")]
 
 
 def _check_noise_floor(scn: Scenario, law: str) -> list[Finding]:
