@@ -11,6 +11,7 @@ scenario's Jw independently of the controller.
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -32,10 +33,12 @@ JW = 0.0796  # [kg m^2] flight_wheels' HR16 (its [spacecraft] Jw)
 U_MAX = 0.2  # [N m] the HR16's torque limit: the torque copy's umax
 
 
-def torque_flight(tmp_path: Path) -> Path:
-    """flight_wheels on wheels that take motor torques, its command limits in N m."""
+def torque_flight(tmp_path: Path, law: str = "dsc") -> Path:
+    """flight_wheels on wheels that take motor torques, its command limits in N m,
+    run by ``law`` (the file's own law, a built-in, by default)."""
     text = FLIGHT.read_text()
-    for old, new in (('command = "acceleration"', 'command = "torque"'),
+    for old, new in (('controller = "dsc"', f"controller = {json.dumps(law)}"),
+                     ('command = "acceleration"', 'command = "torque"'),
                      ("umin = -2.51  # [rad/s^2]", f"umin = -{U_MAX}  # [N m]"),
                      ("umax = 2.51   # [rad/s^2]", f"umax = {U_MAX}   # [N m]")):
         assert old in text, old
@@ -92,16 +95,16 @@ def _assert_converted(run, to_wheels) -> None:
 
 @pytest.mark.parametrize("engine", ["python", "cpp"])
 def test_a_python_law_of_accelerations_on_torque_wheels_is_converted(tmp_path, engine):
-    scn = load_scenario(torque_flight(tmp_path))
+    scn = load_scenario(torque_flight(tmp_path, f"python:{Path(__file__).resolve()}:AccelPD"))
     assert scn.plant.Jw[0] == JW and scn.actuators.wheels.command == "torque"
-    run = simulate(scn, law=register(AccelPD), engine=engine, duration=60.0)
+    run = simulate(scn, engine=engine, duration=60.0)
     _assert_converted(run, lambda a: JW * a)  # torque = Jw a [N m]
 
 
 @pytest.mark.parametrize("engine", ["python", "cpp"])
 def test_a_plugin_of_accelerations_on_torque_wheels_is_converted(plugins, tmp_path, engine):
-    scn = load_scenario(torque_flight(tmp_path))
-    run = simulate(scn, law=f"plugin:{plugins['accel_pd']}", engine=engine, duration=60.0)
+    scn = load_scenario(torque_flight(tmp_path, f"plugin:{plugins['accel_pd']}"))
+    run = simulate(scn, engine=engine, duration=60.0)
     _assert_converted(run, lambda a: JW * a)
 
 
@@ -167,8 +170,8 @@ def test_check_names_what_the_law_commands_and_the_conversion(plugins, tmp_path)
 @pytest.mark.lcm
 def test_lockstep_converts_as_sim_does_bitwise(plugins, tmp_path):
     lcmnet.require()
-    path, duration = torque_flight(tmp_path), 20.0
     law = f"plugin:{plugins['accel_pd']}"
+    path, duration = torque_flight(tmp_path, law), 20.0
     out = tmp_path / "hil"
     r = lcmnet.run_cli(["hil", str(path), "--law", law, "--mode", "lockstep", "--duration", str(duration),
                         "--out", str(out), "--no-plots"])

@@ -20,13 +20,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sc_rt.pylaw import register
 from sc_rt.results.record.fields import FIELDS
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 from figcheck import record_figures
-from test_law_command import FLIGHT, AccelPD, torque_flight
+from test_law_command import FLIGHT, torque_flight
 
 ROOT = Path(__file__).resolve().parent.parent
 TORQUE_REQS = """
@@ -67,11 +66,12 @@ def _result(run, name: str) -> dict:
 
 @pytest.mark.parametrize("wheels", ["torque", "acceleration"])
 def test_max_torque_is_the_body_torque_asked_for_and_applied_on_both_wheel_kinds(tmp_path, wheels):
-    path = torque_flight(tmp_path) if wheels == "torque" else tmp_path / "flight.toml"
+    law = f"python:{(Path(__file__).parent / 'test_law_command.py').resolve()}:AccelPD"
+    path = torque_flight(tmp_path, law) if wheels == "torque" else tmp_path / "flight.toml"
     if wheels == "acceleration":
-        path.write_text(FLIGHT.read_text())
+        path.write_text(FLIGHT.read_text().replace('controller = "dsc"', f'controller = "{law}"', 1))
     scn = load_scenario(_with_reqs(path))
-    run = simulate(scn, law=register(AccelPD), engine="cpp", duration=60.0)
+    run = simulate(scn, engine="cpp", duration=60.0)
     Cbar, Jw = _file_wheels(path)
     u_cmd, u_sat = np.asarray(run["u_cmd"], float), np.asarray(run["u_sat"], float)
     # the motor torques [N m] from the record: the command itself on torque wheels, Jw times it otherwise
@@ -95,7 +95,7 @@ def test_max_torque_is_the_body_torque_asked_for_and_applied_on_both_wheel_kinds
 
 
 def test_a_torque_wheel_run_labels_its_commands_in_newton_metres(plugins, tmp_path, monkeypatch):
-    path = _with_reqs(torque_flight(tmp_path))
+    path = _with_reqs(torque_flight(tmp_path, f"plugin:{plugins['accel_pd']}"))
     out = tmp_path / "out"
     r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "sim", str(path), "--law",
                         f"plugin:{plugins['accel_pd']}", "--engine", "cpp", "--duration", "30", "--out", str(out)],
