@@ -13,7 +13,9 @@ the Theorem 1 gain conditions with r's bound estimated along a run,
 saturation limits that cannot produce the feed-forward the desired
 trajectory needs, a fault scheduled at or after the run's end); notes 0
 (Cbar not a proper rotation of the paper's wheel layout, used as given; a
-non-PPC run that starts outside the bound), warnings with ``strict``.
+non-PPC run that starts outside the bound; a law whose command the
+controller converts to the wheels' unit, ``wheels.command``), warnings with
+``strict``.
 """
 
 from __future__ import annotations
