@@ -181,3 +181,20 @@ def test_lockstep_converts_as_sim_does_bitwise(plugins, tmp_path):
     assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
     compared_fields(hil, sim)
     assert np.array_equal(hil["u_cmd"], JW * hil["telemetry"][:, :4])
+
+
+def _feedforward_use(path: Path) -> float:
+    """The percentage of the wheel limits the desired trajectory's feed-forward uses (sc-rt check)."""
+    from sc_rt.studies.check import check_scenario
+
+    found = [f for f in check_scenario(path, run_estimate=False) if f.key == "spacecraft.umax"]
+    assert len(found) == 1 and found[0].level == "ok", found
+    return float(found[0].message.split("uses at most ")[1].split(" %")[0])
+
+
+def test_check_compares_the_feed_forward_with_the_limits_in_the_wheels_unit(tmp_path):
+    # the same trajectory on the same wheels: limits 2.51 rad/s^2 against 0.2 N m = Jw x 2.5126 rad/s^2,
+    # so the torque copy uses 2.51 Jw / 0.2 of what the acceleration file uses (not 1/Jw = 12.6 x that)
+    accel = _feedforward_use(FLIGHT)
+    torque = _feedforward_use(torque_flight(tmp_path))
+    assert accel > 0 and torque == pytest.approx(accel * 2.51 * JW / U_MAX, rel=5e-3)  # the message has 3 digits

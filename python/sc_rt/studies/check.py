@@ -251,7 +251,8 @@ def _check_theorem1(scn: Scenario, run_estimate: bool) -> list[Finding]:
 
 def _check_feedforward(scn: Scenario) -> list[Finding]:
     """The wheel accelerations that hold the desired trajectory at zero error
-    (u = B+ (-A)), sampled every second, against the limits."""
+    (u = B+ (-A); on torque wheels the motor torques Jw u), sampled every
+    second, against the limits (in the wheels' unit)."""
     cfg = scn.core_config()
     model = _core.SpacecraftModel(cfg.spacecraft)
     g = _core.Guidance(cfg.guidance, 0.1)
@@ -259,6 +260,9 @@ def _check_feedforward(scn: Scenario) -> list[Finding]:
     wheel = np.asarray(scn.initial.wheel_speed, float)
     Bp = np.asarray(model.B_pinv)
     umin, umax = np.asarray(scn.actuators.umin), np.asarray(scn.actuators.umax)
+    # the limits are in the wheels' unit: on torque wheels the feed-forward as motor torques, Jw u [N m]
+    torque = wheels_command(scn) == "torque"
+    to_wheels = np.asarray(scn.plant.Jw, float) if torque else np.ones(4)
     worst, worst_t, worst_u = -np.inf, 0.0, None
     for t in np.arange(0.0, scn.run.duration + 1e-9, 1.0):
         g.advance(t)
@@ -266,7 +270,7 @@ def _check_feedforward(scn: Scenario) -> list[Finding]:
         wd = _core.omega_d(cfg.guidance, t)
         m = _core.Measurement(t, sd, wd, wheel)
         e = _core.tracking_errors(model, m, sd, wd, _core.omega_d_dot(cfg.guidance, t))
-        u = Bp @ (-np.asarray(e.A))
+        u = to_wheels * (Bp @ (-np.asarray(e.A)))
         use = np.max(np.maximum(u / umax, u / umin))  # fraction of the limit on its side
         if use > worst:
             worst, worst_t, worst_u = use, t, u
@@ -275,7 +279,8 @@ def _check_feedforward(scn: Scenario) -> list[Finding]:
                         f"the feed-forward of the desired trajectory uses at most {100 * worst:.3g} % of the "
                         f"wheel limits (at t = {worst_t:g} s, initial wheel speeds)")]
     return [Finding("warning", "spacecraft.umax", _fmt(umax),
-                    f"the feed-forward of the desired trajectory needs {_fmt(worst_u)} rad/s^2 at t = {worst_t:g} s: "
+                    f"the feed-forward of the desired trajectory needs {_fmt(worst_u)} "
+                    f"{'N m' if torque else 'rad/s^2'} at t = {worst_t:g} s: "
                     "beyond the wheel limits, no law can track it exactly")]
 
 
