@@ -88,7 +88,8 @@ def test_max_torque_is_the_body_torque_asked_for_and_applied_on_both_wheel_kinds
     # the record says what the wheels take and each field's unit
     assert run.meta.wheel_command == wheels and run.meta.law_command == "acceleration"
     cmd_unit = "N m" if wheels == "torque" else "rad/s^2"
-    assert run.meta.units["u_cmd"] == run.meta.units["u_sat"] == run.meta.units["vs"] == cmd_unit
+    assert run.meta.units["u_cmd"] == run.meta.units["u_sat"] == cmd_unit
+    assert run.meta.units["vs"] == "rad/s^2"  # the law's own state, in the unit the law commands
     assert run.meta.units["wheel_accel"] == "rad/s^2" and run.meta.units["t"] == "s"
     assert set(run.meta.units) == {f.name for f in FIELDS}
     assert run.metrics["units"]["max_abs_u_cmd"] == cmd_unit and run.metrics["wheel_command"] == wheels
@@ -146,3 +147,14 @@ def test_the_mcap_and_live_schemas_of_a_torque_bench_say_newton_metres(tmp_path)
     assert "[rad/s^2]" in plain["properties"]["u_cmd"]["description"]
     d.config("P/", load_scenario(FLIGHT).controller_config_msg().encode())
     assert d.torque["P/"] is False
+
+
+def test_the_law_rule_resolves_a_law_state_in_the_unit_the_law_commands():
+    from sc_rt.results.record.fields import FIELD
+
+    vs, u = FIELD["vs"], FIELD["u_cmd"]
+    assert (vs.unit_rule, u.unit_rule) == ("law", "command")
+    # (wheels take torque, law commands torque) -> the unit of a law state and of the command
+    assert [vs.resolved_unit(w, law) for w, law in ((True, False), (False, True), (True, None), (False, None))] == \
+        ["rad/s^2", "N m", "N m", "rad/s^2"]
+    assert [u.resolved_unit(w, law) for w, law in ((True, False), (False, True))] == ["N m", "rad/s^2"]

@@ -63,8 +63,9 @@ def channel_schema(cls: type, defs: dict[str, LcmStruct], torque_command: bool =
     """(schema name, JSON schema) of the channel of type ``cls``. With
     ``torque_command`` (the bench's wheels take motor torques: its
     controller_config_t's ``wheel_torque_command``) the wheel-command fields
-    (the "command" unit rule of sc_rt.results.record.fields: u_cmd, u_sat,
-    vs) say [N m], not the .lcm comment's [rad/s^2]."""
+    (the "command" unit rule of sc_rt.results.record.fields: u_cmd, u_sat;
+    not the "law" rule's, the law's own states in the law's unit) say
+    [N m], not the .lcm comment's [rad/s^2]."""
     s = defs[cls.__name__]
     schema = json_schema(s, defs)
     if torque_command:

@@ -89,7 +89,7 @@ class RunMeta:
         What the wheels take, the run's command interface (the scenario's
         ``[wheels] command``): "acceleration" (wheel accelerations [rad/s^2],
         the default and every record older than this key) or "torque" (motor
-        torques [N m]); the unit of u_cmd, u_sat, umin, umax and vs.
+        torques [N m]); the unit of u_cmd, u_sat, umin and umax.
     law_command : str
         What the law commanded (its declaration, sc_rt.pylaw.LAW_COMMANDS):
         "acceleration" or "torque"; the controller converted it to
@@ -161,7 +161,7 @@ class RunMeta:
             return self.units[name]
         from sc_rt.results.record.fields import FIELD
 
-        return FIELD[name].resolved_unit(self.torque_wheels)
+        return FIELD[name].resolved_unit(self.torque_wheels, self.law_command == "torque" if self.law_command else None)
 
     def wheel_torque(self, u: Any) -> np.ndarray:
         """Wheel commands ``u`` (N, 4) of this run as motor torques [N m]:
@@ -232,7 +232,8 @@ def command_meta(scn) -> dict[str, Any]:
 def command_fields(wheel_command: str, law_spec: str | None) -> dict[str, Any]:
     """``wheel_command`` (what the wheels take: "acceleration" or "torque"),
     ``law_command`` (what the law ``law_spec`` commands; "" when it is not
-    known or does not load here) and every field's resolved ``units``."""
+    known or does not load here) and every field's resolved ``units`` (the
+    "command" rule: the wheels' unit; the "law" rule: the law's)."""
     from sc_rt.results.record.fields import FIELDS
     from sc_rt.scenario.laws import command_of
 
@@ -242,8 +243,8 @@ def command_fields(wheel_command: str, law_spec: str | None) -> dict[str, Any]:
             law = command_of(law_spec)
         except ValueError:
             law = ""
-    return {"wheel_command": wheel_command, "law_command": law,
-            "units": {f.name: f.resolved_unit(wheel_command == "torque") for f in FIELDS}}
+    units = {f.name: f.resolved_unit(wheel_command == "torque", law == "torque" if law else None) for f in FIELDS}
+    return {"wheel_command": wheel_command, "law_command": law, "units": units}
 
 
 def _speed_limits(a) -> tuple[float, ...]:
