@@ -181,6 +181,18 @@ def test_lockstep_converts_as_sim_does_bitwise(plugins, tmp_path):
     assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
     compared_fields(hil, sim)
     assert np.array_equal(hil["u_cmd"], JW * hil["telemetry"][:, :4])
+    # the run's log exported: the wheel command's schema says N m, its values are the record's
+    from mcap.reader import make_reader
+
+    from sc_rt.export.mcap_export import export_mcap
+
+    export_mcap(out / "run.lcmlog", tmp_path / "run.mcap")
+    with open(tmp_path / "run.mcap", "rb") as f:
+        cmds = [(schema, json.loads(m.data)) for schema, ch, m in make_reader(f).iter_messages()
+                if ch.topic == "SCRT_CMD"]
+    props = json.loads(cmds[0][0].data)["properties"]
+    assert "[N m]" in props["u_cmd"]["description"] and "rad/s^2" not in props["u_sat"]["description"]
+    assert np.array_equal(np.array([c["u_cmd"] for _, c in cmds])[:len(hil["t"])], hil["u_cmd"])
 
 
 def _feedforward_use(path: Path) -> float:
