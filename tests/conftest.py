@@ -69,6 +69,8 @@ def rng() -> np.random.Generator:
 SLOW_TESTS = (
     # issue #43: B-dot detumbling integrated by solve_ivp (a binding call per RHS evaluation)
     "tests/test_bdot.py::test_lyapunov_function_decreases_monotonically",
+    # issue 38: a lockstep run over LCM and its rerun (~1.6 s)
+    "tests/test_run_plan.py::test_rerun_replays_the_plan_a_lockstep_hil_run_recorded",
     # round 4: the gate's and the log's LCM runs, campaigns, interrupts (tests of 0.7 s or more)
     "tests/test_log_paced.py::test_a_logger_that_never_comes_back_stops_the_run_invalid",
     "tests/test_log_paced.py::test_a_stopped_logger_holds_the_lockstep_bench_and_loses_nothing",

@@ -108,10 +108,10 @@ def test_a_realtime_run_carries_its_cached_floor_and_the_null_law_answers_zero(t
     assert (out / "timing.png").stat().st_size > 0
     # the floor's own controller: zero commands, the same messages
     null = tmp_path / "null"
-    code = (f"from pathlib import Path; from sc_rt.hil.runner import run_hil; from sc_rt.hil.floor import TimingSetup; "
-            f"from sc_rt.scenario.reader import load_scenario; "
-            f"run_hil(load_scenario('paper_faults'), out=Path({str(null)!r}), mode='lockstep', duration=2.0, "
-            f"plots=False, setup=TimingSetup(null_law=True))")
+    code = (f"from pathlib import Path; from sc_rt.hil.runner import run_hil; "
+            f"from sc_rt.plan import Outputs, Timing, TimingSetup, plan_run; "
+            f"run_hil(plan_run('paper_faults', engine='bench', duration=2.0, outputs=Outputs(out=Path({str(null)!r}), "
+            f"plots=False), timing=Timing(mode='lockstep', setup=TimingSetup(null_law=True))))")
     r = lcmnet.run([sys.executable, "-c", code], timeout=300)
     assert r.returncode == 0, r.stderr + r.stdout
     z = np.load(null / "trajectory.npz")

@@ -210,3 +210,20 @@ def test_check_compares_the_feed_forward_with_the_limits_in_the_wheels_unit(tmp_
     accel = _feedforward_use(FLIGHT)
     torque = _feedforward_use(torque_flight(tmp_path))
     assert accel > 0 and torque == pytest.approx(accel * 2.51 * JW / U_MAX, rel=5e-3)  # the message has 3 digits
+
+
+class HeldPD(AccelPD):
+    """AccelPD that reports the held command it is handed (u_sat_prev) as its telemetry."""
+
+    def step(self, inp):
+        return self.accel(inp), dict(zip(self.telemetry_names, np.asarray(inp.u_sat_prev)))
+
+
+def test_a_converted_law_gets_its_held_command_back_in_its_own_unit(tmp_path):
+    scn = load_scenario(torque_flight(tmp_path, f"python:{Path(__file__).resolve()}:HeldPD"))
+    run = simulate(scn, engine="cpp", duration=30.0)
+    held = _law_output(run)[1:]  # step k's u_sat_prev: the saturated command of step k - 1
+    u_sat = np.asarray(run["u_sat"], float)[:-1]  # the wheels' [N m]
+    normal = (np.asarray(run["ctrl_mode"]) == _core.MODE_NORMAL)[1:]
+    assert np.abs(u_sat[normal]).max() > 0.01
+    assert np.array_equal(held[normal], u_sat[normal] / JW)  # a = torque / Jw [rad/s^2]

@@ -20,6 +20,7 @@ import pytest
 from sc_rt import _core
 from sc_rt.logs.logread import read_log
 from sc_rt.scenario.overrides import with_overrides
+from sc_rt.plan.run import plan_run
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.schema import ScenarioError
 from sc_rt.sim.engines import simulate
@@ -182,8 +183,8 @@ def test_a_scenario_names_a_python_law_which_gets_its_table(tmp_path):
         assert np.array_equal(run[k], cpp[k]), k
     bad = tmp_path / "bad.toml"
     bad.write_text((tmp_path / "pylaw.toml").read_text().replace("pd.py:PythonPD", "pd.py:NoSuchLaw"))
-    with pytest.raises(ScenarioError) as e:
-        load_scenario(bad)
+    with pytest.raises(ScenarioError) as e:  # the law is loaded where the run is planned (issue 38 item 2)
+        plan_run(bad)
     [x] = e.value.errors
     assert x.key == "controller.law" and "has no class NoSuchLaw" in x.message
 

@@ -1,7 +1,7 @@
 """A law that never returns in its probe (constructed and stepped once at
-rest, in a child process: sc_rt.scenario.reader.check_law) is killed after
-the probe timeout and refused, named (issue 40, item 7; docs/LAWS.md):
-``sc-rt check`` and the loading of a scenario no longer hang. The timeout
+rest, in a child process: sc_rt.plan.law.probe_law, where a run is planned)
+is killed after the probe timeout and refused, named (issue 40, item 7;
+docs/LAWS.md): ``sc-rt check`` and the planning of a run no longer hang. The timeout
 is set small by SCRT_PROBE_TIMEOUT; the laws loop for ever, so the outcome
 does not depend on the machine's speed. Bounded runs: tests/bounded.py."""
 
@@ -15,7 +15,7 @@ import psutil
 import pytest
 
 from sc_rt.isolate import ChildDied, call_in_child
-from sc_rt.scenario.reader import load_scenario
+from sc_rt.plan.run import plan_run
 from sc_rt.scenario.schema import ScenarioError
 
 from bounded import forked, sc_rt
@@ -90,7 +90,7 @@ def test_the_probe_timeout_is_documented_and_set_by_the_environment(monkeypatch)
 
 
 @pytest.mark.parametrize("cls", ["HangsInInit", "HangsInStep"])
-def test_loading_a_scenario_whose_law_never_returns_is_an_error_naming_the_law(tmp_path, monkeypatch, cls):
+def test_planning_a_run_whose_law_never_returns_is_an_error_naming_the_law(tmp_path, monkeypatch, cls):
     (tmp_path / "hung.py").write_text(HUNG)
     scn = tmp_path / "s.toml"
     scn.write_text(PAPER.read_text().replace('controller = "dsc-ppc"', f'controller = "python:hung.py:{cls}"', 1))
@@ -98,7 +98,7 @@ def test_loading_a_scenario_whose_law_never_returns_is_an_error_naming_the_law(t
 
     def load():  # in a child of its own (see _forked): the issues, and whether the probe left a process
         try:
-            load_scenario(scn)
+            plan_run(scn)
         except ScenarioError as e:
             return [(i.key, i.message) for i in e.errors], psutil.Process().children(recursive=True) == []
         return "loaded", None

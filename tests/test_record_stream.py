@@ -164,9 +164,9 @@ def test_lockstep_run_written_as_it_runs_is_bit_identical_to_offline_sim(tmp_pat
     lcmnet.require()
     out = tmp_path / "hil"
     code = (f"from pathlib import Path; from sc_rt.hil.runner import run_hil; "
-            f"from sc_rt.scenario.reader import load_scenario; "
-            f"r = run_hil(load_scenario('paper_faults'), out=Path({str(out)!r}), mode='lockstep', duration=30.0, "
-            f"record_chunk=64); print(r.run.is_stored, len(r.run))")
+            f"from sc_rt.plan import Outputs, plan_run; "
+            f"r = run_hil(plan_run('paper_faults', engine='bench', duration=30.0, "
+            f"outputs=Outputs(out=Path({str(out)!r}))), record_chunk=64); print(r.run.is_stored, len(r.run))")
     r = lcmnet.run([sys.executable, "-c", code], timeout=300)
     assert r.returncode == 0, r.stderr + r.stdout
     assert r.stdout.split()[-2:] == ["True", "301"]

@@ -624,4 +624,5 @@ def test_scenario_type_has_the_documented_fields():
         "name", "description", "path", "run", "plant", "actuators", "initial", "guidance",
         "controller", "montecarlo", "sensors", "expect", "requirements", "record", "deprecations", "overrides",
         "field_model",
+        "law_key", "law_keys",
     ]  # fmt: skip

@@ -10,11 +10,15 @@ the command line (``sc-rt``). The Python API (docs/API.md)::
     run = sc_rt.simulate(scn, law="pd", engine="cpp")
     print(sc_rt.verdict_line(run.metrics))
     run["sigma_BD"]                                 # (rows, 3) array, see sc_rt.FIELDS
+    plan = sc_rt.plan_run("paper_faults", law="pd", engine="bench",   # a run's plan: law resolved
+                          outputs=sc_rt.Outputs(out=pathlib.Path("out/pd")))  # and probed once
+    res = sc_rt.run_hil(plan)                                          # the bench runs the plan
 
 Layers (imports run one way, checked by tests/test_layers.py): ``model``
 (plant, wheels) | ``wire`` (LCM transport and codecs) | ``pylaw`` (Python
 laws into the core's registry) -> ``scenario`` -> ``results`` (the Run
-record, metrics, figures) -> ``sim``
+record, metrics, figures) -> ``plan`` (a run's plan: the law resolved and
+probed, the timing, outputs and bus) -> ``sim``
 (offline engines) | ``emulator`` (the plant process) | ``controller`` (the
 Python controller process) | ``logs`` (log reading, report) | ``tools``
 (spy, lcm-spy, fault) -> ``export`` (MCAP) -> ``hil`` (orchestration) ->
@@ -50,6 +54,11 @@ _API = {
     "write_run": ("sc_rt.results.present.output", "write_run"),
     "verdict_line": ("sc_rt.results.judge.verdict", "verdict_line"),
     "run_hil": ("sc_rt.hil.runner", "run_hil"),
+    "plan_run": ("sc_rt.plan.run", "plan_run"),
+    "RunPlan": ("sc_rt.plan.run", "RunPlan"),
+    "Outputs": ("sc_rt.plan.run", "Outputs"),
+    "Bus": ("sc_rt.plan.run", "Bus"),
+    "Timing": ("sc_rt.plan.timing", "Timing"),
     "design": ("sc_rt.studies.design", "design_report"),
     "montecarlo": ("sc_rt.studies.montecarlo", "run_montecarlo"),
 }

@@ -6,7 +6,7 @@ exception there comes back as itself; a child that dies (a signal such as
 SIGSEGV, an abort, an exit) raises ``ChildDied`` naming how; with
 ``timeout=`` a child that has not answered in time is killed (SIGKILL) and
 ``ChildTimedOut`` (a ChildDied) is raised. A law's probe (constructed and
-stepped once at rest, sc_rt.scenario.reader.check_law) gets
+stepped once at rest, sc_rt.plan.law.probe_law) gets
 :func:`probe_timeout` seconds. With ``stall=`` the child beats
 (:func:`beat`: a step done, and its time) into memory shared with the
 parent; a child that has not beaten for ``stall`` seconds (a law that
@@ -61,7 +61,7 @@ class ChildInterrupted(RuntimeError):
 #: How long a law may take to be constructed and stepped once at rest in its
 #: probe [s] (docs/LAWS.md): generous for a law that designs its gains or
 #: compiles itself, short enough that a law that never returns does not hang
-#: ``sc-rt check`` or the loading of a scenario.
+#: ``sc-rt check`` or the planning of a run.
 PROBE_TIMEOUT_S = 30.0
 #: The environment variable that sets another probe timeout [s].
 PROBE_TIMEOUT_ENV = "SCRT_PROBE_TIMEOUT"

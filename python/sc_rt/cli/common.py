@@ -14,19 +14,27 @@ from sc_rt.scenario.model import LAWS  # noqa: E402
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 
 
-def scenario_arg(path: str, args: argparse.Namespace | None = None):
+def scenario_arg(path: str, args: argparse.Namespace | None = None, strays: bool = True, probe: bool = True):
     """The scenario a command names; its deprecation notes on stderr, one
     line each. A ``[laws.NAME]`` table that matches no law (a built-in, the
     file's, or one the command names: ``args.law``, ``args.laws``) but is
     near one is an error (ScenarioError: exit 2 with the file, the line and
     the nearest law name); one near none is a note (another law's table;
-    sc_rt.scenario.laws.stray_tables)."""
+    sc_rt.scenario.laws.stray_tables). The file's law (a plugin, a Python
+    law) is loaded and probed at rest (sc_rt.plan.law.probe_law: reading the
+    file does not), so that a command refuses a file naming a broken law
+    before anything starts. ``strays`` and ``probe`` False: a command that
+    plans its run (sc_rt.plan.run.plan_run does both, with the law it runs)."""
     from sc_rt.scenario.laws import stray_tables
     from sc_rt.scenario.model import ScenarioError
     from sc_rt.scenario.reader import load_scenario
 
     scn = load_scenario(path, getattr(args, "sets", None) or ())
-    errors, notes = stray_tables(scn, command_laws(args))
+    if probe:
+        from sc_rt.plan.law import resolve_law
+
+        scn, _ = resolve_law(scn)
+    errors, notes = stray_tables(scn, command_laws(args)) if strays else ([], [])
     if errors:
         raise ScenarioError(scn.path, errors)
     for note in notes:

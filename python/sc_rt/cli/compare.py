@@ -8,6 +8,7 @@ Markdown tables on stdout, and with --out in ``compare.json`` and a markdown fil
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -40,7 +41,7 @@ def add_parser(sub) -> None:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from sc_rt.cli.common import scenario_arg
-    from sc_rt.scenario.model import law_identity
+    from sc_rt.plan.run import plan_run
     from sc_rt.scenario.overrides import with_overrides
 
     if args.duration is not None and not args.duration > 0:
@@ -52,10 +53,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
     scn = scenario_arg(args.scenario, args)
     check_run_size(with_overrides(scn, duration=args.duration), given_options(args, duration="--duration"))
     # every law checked (a plugin or a Python law constructed with its table) before any run
-    scns = {law: with_overrides(scn, law=law, duration=args.duration) for law in args.laws}
+    plans = {law: plan_run(scn, law=law, engine=args.engine, duration=args.duration, strays=False)
+             for law in args.laws}
     from sc_rt.results.judge.compare import compare_row, merge_seeds, overall, rank_requirements
     from sc_rt.results.present.tables import overall_line, ranking_table, table
-    from sc_rt.sim.isolated import RunCrashed, simulate_contained
+    from sc_rt.sim.isolated import RunCrashed, simulate_plan
 
     seeds = args.seeds or (5 if scn.sensors is not None else 1)
     if seeds > 1 and scn.sensors is None:
@@ -66,10 +68,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
     failed = 0
     for law in args.laws:
         # its label: a plugin's or a Python law's name (which also names its table, [laws.NAME])
-        label = law_identity(scns[law].run.controller)["name"]
-        kw = dict(engine=args.engine)
+        plan = plans[law]
+        label = plan.law.name
         try:  # a plugin runs in a child of its own: its crash fails its row, not the comparison
-            runs = [simulate_contained(_with_seed(scns[law], k), **kw) for k in range(seeds)]
+            runs = [simulate_plan(dataclasses.replace(plan, scenario=_with_seed(plan.scenario, k)))
+                    for k in range(seeds)]
         except RunCrashed as e:
             rows.append({"law": label, "valid": False, "invalid_reason": str(e), "crashed": True})
             failed += 1

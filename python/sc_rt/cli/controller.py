@@ -32,15 +32,11 @@ def add_external_options(h: argparse.ArgumentParser) -> None:
                         "(default 30 s, --external-wait 300 s)")
 
 
-def external_choice(args: argparse.Namespace) -> str | None:
-    """The Python law of ``sc-rt hil --law`` (run as ``sc-rt controller``), or
-    None; a Python law with --external/--external-wait is refused."""
-    pylaw = args.law if is_python_law(args.law) else None
-    if pylaw and (args.external or args.external_wait):
-        raise UsageError(f"--law {pylaw}: a Python law runs in sc-rt controller; it cannot be combined "
-                         f"with {'--external' if args.external else '--external-wait'}")
-    if args.start_timeout is not None and not (pylaw or args.external or args.external_wait):
-        raise UsageError("--start-timeout applies to --external, --external-wait or a Python --law only")
+def external_choice(args: argparse.Namespace) -> None:
+    """``sc-rt hil --external``'s command, checked: it splits and its program
+    exists. (A Python --law with --external/--external-wait and a
+    --start-timeout without either are refused where the run is planned,
+    sc_rt.cli.planning.)"""
     if args.external is not None:
         try:
             argv = shlex.split(args.external)
@@ -51,7 +47,6 @@ def external_choice(args: argparse.Namespace) -> str | None:
         prog = argv[0]
         if "{" not in prog and shutil.which(prog) is None:
             raise UsageError(f"--external {args.external!r}: cannot start {prog!r}: not found or not executable")
-    return pylaw
 
 
 def add_parser(sub) -> None:

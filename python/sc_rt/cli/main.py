@@ -11,11 +11,12 @@ import sys
 from sc_rt import __version__
 from sc_rt.cli.interrupts import Interrupted, raise_on_signals
 from sc_rt.cli.validate import (AUTH_KEY_HELP, LAW_HELP, MAX_RATE_HZ, MAX_TIME_SCALE, OneLineParser, UsageError,
-                                auth_key_file, core_law_choice, integer, lcm_url, law_choice, number, out_dir, out_file)
+                                auth_key_file, core_law_choice, integer, lcm_url, law_arg, law_choice, number, out_dir,
+                                out_file)
 from sc_rt.cli.controller import add_external_options
 from sc_rt.cli.floor_cmd import add_floor_parser, add_timing_options
 from sc_rt.cli.common import LAW_CHOICES, add_set, add_strict
-from sc_rt.cli.run_cmds import cmd_demo, cmd_emulator, cmd_hil, cmd_sim
+from sc_rt.cli.run_cmds import cmd_demo, cmd_emulator, cmd_hil, cmd_rerun, cmd_sim
 from sc_rt.cli.study_cmds import cmd_check, cmd_config, cmd_design, cmd_reproduce, cmd_scenarios
 from sc_rt.cli.bus_cmds import cmd_export, cmd_fault, cmd_lcm_spy, cmd_replay, cmd_report, cmd_spy
 
@@ -122,7 +123,7 @@ def _add_sim(sub) -> None:
     """sc-rt sim."""
     s = sub.add_parser("sim", help="offline closed loop (plant + C++ controller core)")
     s.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
-    s.add_argument("--law", "--controller", dest="law", type=law_choice, metavar="LAW",
+    s.add_argument("--law", "--controller", dest="law", type=law_arg, metavar="LAW",
                    help=LAW_HELP + "; --controller is the old name")
     s.add_argument("--engine", choices=("python", "cpp", "unsampled"), default="python",
                    help="unsampled: reference mode, the law inside every RK4 stage (no hold) "
@@ -139,13 +140,23 @@ def _add_sim(sub) -> None:
     s.set_defaults(func=cmd_sim)
 
 
+def _add_rerun(sub) -> None:
+    """sc-rt rerun."""
+    r = sub.add_parser("rerun", help="run again the plan a sim or hil run recorded (its scenario file, overrides, "
+                                     "law, engine or mode and set-up)")
+    r.add_argument("run_dir", metavar="DIR", help="the recorded run's directory (its trajectory.npz or .arrow)")
+    r.add_argument("--out", required=True, type=out_dir, metavar="DIR", help="where the new run writes")
+    add_strict(r)
+    r.set_defaults(func=cmd_rerun)
+
+
 def _add_hil(sub) -> None:
     """sc-rt hil."""
     h = sub.add_parser("hil", help="controller process + plant emulator + lcm-logger over LCM")
     h.add_argument("scenario", help="a scenario file, or a shipped name (sc-rt scenarios)")
     h.add_argument("--mode", choices=("lockstep", "realtime"),
                    help="default: lockstep (--self-test: realtime)")
-    h.add_argument("--law", "--controller", dest="law", type=law_choice, metavar="LAW",
+    h.add_argument("--law", "--controller", dest="law", type=law_arg, metavar="LAW",
                    help=LAW_HELP + "; a Python law runs in `sc-rt controller`")
     h.add_argument("--control-rate", type=number(0, MAX_RATE_HZ, unit='Hz'), metavar="HZ",
                    help="default: the scenario's")
@@ -286,7 +297,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="print the directory of the installed sc_rtConfig.cmake (law plugins, docs/LAWS.md) and exit")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
-    for add in (_add_sim, _add_hil, add_floor_parser, _add_demo, _add_emulator, _add_check):
+    for add in (_add_sim, _add_hil, _add_rerun, add_floor_parser, _add_demo, _add_emulator, _add_check):
         add(sub)
     from sc_rt.cli.montecarlo import add_parser as add_montecarlo
 

@@ -272,7 +272,12 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     from sc_rt.studies.campaign.runner import check_out
     from sc_rt.studies.campaign.store import RunStore
 
-    scn = scenario_arg(args.scenario, args)  # ScenarioError: exit 2 with file, line, key, value
+    # ScenarioError: exit 2 with file, line, key, value (the file's law probed when --law replaces it)
+    scn = scenario_arg(args.scenario, args, probe=args.law is not None)
+    from sc_rt.plan.run import plan_run
+
+    # the campaign's law loaded and probed at rest once, before any run (ScenarioError: exit 2)
+    plan_run(scn, law=args.law, engine="cpp", control_rate_hz=o["control_rate"], strays=False)
     from sc_rt.cli.validate import UsageError, check_run_size
     from sc_rt.scenario.overrides import with_overrides
 

@@ -10,37 +10,49 @@ from pathlib import Path
 
 from sc_rt.cli.interrupts import flag_signals
 from sc_rt.cli.validate import UsageError, check_run_size, given_options, resolve_url, rounded
-from sc_rt.cli.controller import external_choice
+from sc_rt.cli.planning import hil_plan, rerun_plan, sim_plan
 from sc_rt.cli.common import (checked_out, claim_out, html_report, invalid_exit, mcap_problem,
                               print_metrics, report_stopped, scenario_arg, strict_exit, write_mcap)
 from sc_rt.results.judge.gate import gate_problems
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
+    # any law, a Python one too (sc_rt.pylaw: it runs inside the core's controller, on every engine)
+    plan = sim_plan(args)
+    return run_sim(plan, given_options(args, control_rate="--control-rate", duration="--duration",
+                                       plant_step="--plant-step"), args.strict)
+
+
+def cmd_rerun(args: argparse.Namespace) -> int:
+    """``sc-rt rerun DIR``: the plan a run recorded, run again (sim or hil)."""
+    plan = rerun_plan(args)
+    print(f"sc-rt rerun: {args.run_dir}: {plan.scenario.name}, law {plan.law.name}, "
+          f"{plan.engine if plan.engine != 'bench' else plan.mode} -> {plan.outputs.out}/", file=sys.stderr)
+    if plan.engine == "bench":
+        return run_bench(plan, "the recorded run", args.strict)
+    return run_sim(plan, "the recorded run", args.strict)
+
+
+def run_sim(plan, given: str, strict: bool) -> int:
+    """An offline run of ``plan``, written to its directory, its summary
+    printed; the exit code (``strict``: the gate's)."""
     from sc_rt.results.judge.metrics import mark_partial
     from sc_rt.results.present.output import write_run
 
-    from sc_rt.scenario.overrides import with_overrides
-
-    out = checked_out(args.out)
-    # any law, a Python one too (sc_rt.pylaw: it runs inside the core's controller, on every engine)
-    scn = with_overrides(scenario_arg(args.scenario, args), law=args.law,
-                         control_rate_hz=args.control_rate, duration=args.duration, plant_step=args.plant_step)
-    if args.engine == "unsampled":
+    scn, out = plan.scenario, plan.outputs.out
+    if plan.engine == "unsampled":
         from sc_rt.sim.unsampled import refusal
 
-        if (why := refusal(scn.run.controller)) is not None:
+        if (why := refusal(plan.law.spec)) is not None:
             raise UsageError(f"--engine unsampled: {why}")
-    check_run_size(scn, given_options(args, control_rate="--control-rate", duration="--duration",
-                                      plant_step="--plant-step"), on_disk=args.engine == "cpp" and scn.sensors is None,
-                   out=out)
+    check_run_size(scn, given, on_disk=plan.engine == "cpp" and scn.sensors is None, out=out)
     claim_out(out)
     from sc_rt.sim import engines
 
     from sc_rt.scenario.overrides import grid
 
     engines.STOP.clear()
-    from sc_rt.sim.isolated import RunCrashed, simulate_contained
+    from sc_rt.sim.isolated import RunCrashed, simulate_plan
 
     from sc_rt.isolate import forward_signal
 
@@ -49,10 +61,10 @@ def cmd_sim(args: argparse.Namespace) -> int:
         forward_signal(signum)
 
     with flag_signals(on_signal) as signals:  # before the start line: a signal after it stops the run, partial
-        print(f"sc-rt sim: {scn.name}: {args.engine} engine, {grid(scn).n_ctrl + 1} rows ...", file=sys.stderr,
+        print(f"sc-rt sim: {scn.name}: {plan.engine} engine, {grid(scn).n_ctrl + 1} rows ...", file=sys.stderr,
               flush=True)
         try:  # a plugin's or a Python law's run is in a child: its end is one line, not exit 139 or 0
-            res = simulate_contained(scn, engine=args.engine, record_dir=out)
+            res = simulate_plan(plan)
         except RunCrashed as e:
             print(f"sc-rt sim: {'STOPPED' if signals else 'FAILED'}: {e}", file=sys.stderr)
             return 128 + signals[0] if signals else 1
@@ -61,7 +73,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         stopped = f"interrupted by {signal.Signals(signals[0]).name}"
         if len(res) < grid(scn).n_ctrl + 1:
             mark_partial(res, stopped)
-    files = write_run(res, out, figures=not args.no_plots)
+    files = write_run(res, out, figures=plan.outputs.plots)
     print(f"sc-rt sim: {scn.name} -> {out}/ ({len(files)} files: {', '.join(p.name for p in files)})")
     print_metrics(res.metrics, res.meta.faults)
     html_report(out, "sim")
@@ -69,12 +81,11 @@ def cmd_sim(args: argparse.Namespace) -> int:
         print(f"sc-rt sim: DIVERGED: {res.message}", file=sys.stderr)
     if stopped:
         return report_stopped(res, stopped, signals[0], out, "sim")
-    return strict_exit(gate_problems(res.metrics), invalid_exit(res.metrics, "sim"), "sim", args.strict)
+    return strict_exit(gate_problems(res.metrics), invalid_exit(res.metrics, "sim"), "sim", strict)
 
 
 def cmd_hil(args: argparse.Namespace) -> int:
-    from sc_rt.hil.runner import run_hil
-    from sc_rt.cli.floor_cmd import cmd_floor, timing_setup
+    from sc_rt.cli.floor_cmd import cmd_floor
 
     if args.mode is None:
         args.mode = "realtime" if args.self_test else "lockstep"
@@ -82,40 +93,29 @@ def cmd_hil(args: argparse.Namespace) -> int:
         args.duration, args.rtt_count, args.json, args.no_cache = args.duration or 2.0, 2000, False, False
         return cmd_floor(args)
 
-    from sc_rt.scenario.overrides import with_overrides
-
-    out = checked_out(args.out)
-    pylaw = external_choice(args)  # a Python law, --external or --external-wait (checked here)
-    scn = with_overrides(scenario_arg(args.scenario, args), law=None if pylaw else args.law,
-                         control_rate_hz=args.control_rate, duration=args.duration)
+    plan = hil_plan(args)
     sizes = dict(control_rate="--control-rate", duration="--duration")
-    if args.mode == "realtime":
+    if plan.mode == "realtime":
         sizes["time_scale"] = "--time-scale"
-    check_run_size(scn, given_options(args, **sizes), bus=True, realtime=args.mode == "realtime",
-                   time_scale=args.time_scale, out=out)
-    url = resolve_url(args.lcm_url, None)
-    live = getattr(args, "live", None)  # --live [PORT]: sc-rt live beside the run (sc_rt/hil/livechild.py)
-    if live is not None and url is None:
-        from sc_rt.wire.lcmio import free_port_url
+    return run_bench(plan, given_options(args, **sizes), args.strict)
 
-        url = free_port_url(ttl=0)  # the run's URL, known to the live server before the run starts
-    mcap = getattr(args, "mcap", None)
-    mcap = str(Path(args.out) / "run.mcap") if mcap == "" else mcap
-    if mcap_problem(mcap, "hil"):
+
+def run_bench(plan, given: str, strict: bool) -> int:
+    """A bench run of ``plan`` (sc_rt.hil.runner.run_hil), with the live view
+    beside it when planned, its summary printed; the exit code."""
+    from sc_rt.hil.runner import run_hil
+
+    scn, out = plan.scenario, plan.outputs.out
+    check_run_size(scn, given, bus=True, realtime=plan.mode == "realtime", time_scale=plan.timing.time_scale, out=out)
+    mcap = plan.outputs.mcap
+    if mcap_problem(None if mcap is None else str(mcap), "hil"):
         return 2
     claim_out(out)
     from sc_rt.hil.livechild import beside_run
 
-    with beside_run(live, url, args.prefix, args.auth_key):
-        res = run_hil(scn, out=out, mode=args.mode, lcm_url=url,
-                      prefix=args.prefix, realtime_priority=args.realtime_priority,
-                      time_scale=args.time_scale, accept_fault_commands=args.accept_fault_commands,
-                      plots=not args.no_plots, law=pylaw, external=args.external,
-                      external_wait=args.external_wait, start_timeout=args.start_timeout,
-                      auth_key=args.auth_key, setup=timing_setup(args),
-                      floor=None if args.floor == "off" or args.mode != "realtime" else args.floor,
-                      rt_limits=args.rt_limits, controller_memory_limit_mb=args.controller_memory_limit)
-    print(f"sc-rt hil: {scn.name} ({args.mode}) -> {res.out}/ ({len(res.files)} files: "
+    with beside_run(plan.bus.live, plan.bus.lcm_url, plan.bus.prefix, plan.bus.auth_key):
+        res = run_hil(plan)
+    print(f"sc-rt hil: {scn.name} ({plan.mode}) -> {res.out}/ ({len(res.files)} files: "
           f"{', '.join(p.name for p in res.files)}, run.lcmlog)")
     print_metrics(res.metrics, res.run.meta.faults)
     t = rounded(res.timing)
@@ -129,9 +129,9 @@ def cmd_hil(args: argparse.Namespace) -> int:
     html_report(Path(res.out), "hil")  # a run stopped early too: its report says so at the top
     if res.stopped:
         return report_stopped(res.run, res.stopped, res.signum, res.out, "hil")
-    if mcap and (rc := write_mcap(Path(res.out) / "run.lcmlog", mcap, who="hil")):
+    if mcap and (rc := write_mcap(Path(res.out) / "run.lcmlog", str(mcap), who="hil")):
         return rc
-    return strict_exit(gate_problems(res.metrics), invalid_exit(res.metrics, "hil"), "hil", args.strict)
+    return strict_exit(gate_problems(res.metrics), invalid_exit(res.metrics, "hil"), "hil", strict)
 
 
 #: The demo's two runs: the paper's law on the paper's fault scenario, and
@@ -144,15 +144,17 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """The main job: the paper's law and the feasible design, each through
     the real LCM loop (controller process, emulator, lcm-logger)."""
     from sc_rt.hil.runner import run_hil
+    from sc_rt.plan import Bus, Outputs, Timing, plan_run
     from sc_rt.results.judge.verdict import verdict_line
 
     out = checked_out(args.out)
     claim_out(out)
     results = []
     for label, name, sub in DEMO_RUNS:
-        scn = scenario_arg(name)
-        print(f"sc-rt demo: {label} ({scn.name}) through LCM, lockstep ...", file=sys.stderr, flush=True)
-        res = run_hil(scn, out=out / sub, mode="lockstep", lcm_url=resolve_url(args.lcm_url, None))
+        plan = plan_run(scenario_arg(name, strays=False, probe=False), engine="bench", timing=Timing(mode="lockstep"),
+                        outputs=Outputs(out=out / sub), bus=Bus(lcm_url=resolve_url(args.lcm_url, None)))
+        print(f"sc-rt demo: {label} ({plan.scenario.name}) through LCM, lockstep ...", file=sys.stderr, flush=True)
+        res = run_hil(plan)
         if res.stopped:  # interrupted (or the logger died): no further run
             return report_stopped(res.run, res.stopped, res.signum, res.out, "demo")
         results.append((label, res))

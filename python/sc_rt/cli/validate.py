@@ -361,6 +361,16 @@ def law_choice(value: str) -> str:
                                      "nor a Python law module:Class")
 
 
+def law_arg(value: str) -> str:
+    """``--law`` of a command that plans its run (``sim``, ``hil``): the spec
+    as given, not parsed nor loaded here (the plan resolves and probes it
+    once, sc_rt.plan.law); a ``module:Class`` imports from the working
+    directory, as ``python -m`` does."""
+    if os.getcwd() not in sys.path and "" not in sys.path:
+        sys.path.insert(0, os.getcwd())
+    return value
+
+
 def core_law_choice(value: str) -> str:
     """Only a law of the core (commands that run the C++ controller)."""
     if value in LAWS:

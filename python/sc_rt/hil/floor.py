@@ -21,11 +21,13 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any, Callable
 
 from sc_rt.wire.lcmio import free_port_url
+from sc_rt.plan.run import Bus, Outputs, plan_run
+from sc_rt.plan.timing import Timing, TimingSetup
 from sc_rt.scenario.model import Scenario
 
 __all__ = ["TimingSetup", "measure_floor", "floor_for", "lcm_round_trip", "compare_to_floor",
@@ -40,39 +42,6 @@ FLOOR_SERIES = ("latency_us", "tick_lateness_us", "wake_lateness_us", "state_age
 _TIMING_KEYS = {"latency_us": "state_to_cmd_latency_us", "tick_lateness_us": "emulator_tick_lateness_us",
                 "wake_lateness_us": "wake_lateness_us", "state_age_us": "state_age_us",
                 "compute_us": "compute_us"}
-
-
-@dataclass(frozen=True)
-class TimingSetup:
-    """How a bench run is scheduled, besides the mode and rate.
-
-    trigger: the controller's, ``event`` (a step on each state's arrival,
-    the default) or ``timer`` (its own clock, phase-locked to the state
-    arrivals);
-    controller_cpu / emulator_cpu: pin each to one CPU (None: the kernel
-    places them); spin_us: the emulator polls instead of sleeping for the
-    last spin_us before each tick; null_law: the floor's zero controller."""
-
-    trigger: str = "event"
-    controller_cpu: int | None = None
-    emulator_cpu: int | None = None
-    spin_us: float = 100.0
-    null_law: bool = False
-
-    def __post_init__(self) -> None:
-        if self.trigger not in ("timer", "event"):
-            raise ValueError(f"trigger must be timer or event, got {self.trigger!r}")
-
-    def controller_args(self) -> list[str]:
-        args = ["--trigger", self.trigger]
-        if self.controller_cpu is not None:
-            args += ["--cpu", str(self.controller_cpu)]
-        return args + (["--null-law"] if self.null_law else [])
-
-    def key(self) -> str:
-        cpus = ("" if self.controller_cpu is None and self.emulator_cpu is None
-                else f"-cpu{self.controller_cpu}.{self.emulator_cpu}")
-        return f"{self.trigger}{cpus}-spin{self.spin_us:g}"
 
 
 def floor_cache_dir() -> Path:
@@ -125,8 +94,10 @@ def measure_floor(scn: Scenario, *, run: Callable[..., Any], mode: str = "realti
     rtt = lcm_round_trip(rtt_count, fifo=realtime_priority)
     with tempfile.TemporaryDirectory(prefix="sc-rt-floor-") as d:
         t0 = time.time()
-        res = run(scn, out=Path(d), mode=mode, control_rate_hz=rate, duration=duration,
-                      realtime_priority=realtime_priority, plots=False, setup=null, lcm_url=lcm_url)
+        plan = plan_run(scn, engine="bench", control_rate_hz=rate, duration=duration,
+                        timing=Timing(mode=mode, realtime_priority=realtime_priority, setup=null),
+                        outputs=Outputs(out=Path(d), plots=False), bus=Bus(lcm_url=lcm_url))
+        res = run(plan)
         t = res.timing
     if res.stopped:  # interrupted (or the logger died): no floor, and no run after it
         print(f"sc-rt: the bench floor's run stopped: {res.stopped}", file=sys.stderr)

@@ -15,6 +15,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from sc_rt.plan.timing import CONTROLLER_MEMORY_LIMIT_MB  # [MB] (its home: the run's plan)
+
 from sc_rt.isolate import exit_how
 from sc_rt.wire.lcmio import open_lcm
 
@@ -78,8 +80,6 @@ def child_kwargs() -> dict[str, Any]:
 
 #: [bytes] what a child's stdout or stderr file keeps; the rest is counted and dropped
 OUTPUT_CAP_BYTES = 1 << 20
-#: [MB] the controller process's resident memory beyond which the run stops, invalid
-CONTROLLER_MEMORY_LIMIT_MB = 2048.0
 
 
 class Drain:

@@ -24,15 +24,15 @@ from sc_rt.emulator.sensorpub import SENT_COUNTERS
 from sc_rt.hil.bench_end import bench_timing, death_line, judge_real_time, logger_summary
 from sc_rt.hil.external import ExternalController, python_controller_command
 from sc_rt.hil.floor import TimingSetup, compare_to_floor, floor_for
-from sc_rt.hil.procs import (CONTROLLER_MEMORY_LIMIT_MB, Drain, Stopper, bench_binary, child_kwargs,
+from sc_rt.hil.procs import (Drain, Stopper, bench_binary, child_kwargs,
                              controller_binary, lift_logger, probe_logger, stop_child, wait_logged)
 from sc_rt.logs.timing import RealtimeLimits, log_missing, timing_report
-from sc_rt.pylaw import is_python_law
+from sc_rt.plan.law import ExternalLaw, PythonLaw
+from sc_rt.plan.run import RunPlan
 from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run, mark_invalid, record_law_failures
 from sc_rt.results.present.output import write_run
 from sc_rt.results.record.run import Run, provenance
 from sc_rt.scenario.model import Scenario
-from sc_rt.scenario.overrides import with_overrides
 from sc_rt.wire.auth import load_key, open_bus
 from sc_rt.wire.lcmio import channel, free_port_url, open_lcm
 from sc_rt.wire.startrec import encode_start
@@ -69,131 +69,75 @@ class HilResult:
         return self.run.timing or {}
 
 
-def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None = None,
-            control_rate_hz: float | None = None, duration: float | None = None,
-            lcm_url: str | None = None, prefix: str = "", realtime_priority: bool | None = None,
-            time_scale: float = 1.0, accept_fault_commands: bool = False,
-            plots: bool = True, external: str | None = None, external_wait: bool = False,
-            start_timeout: float | None = None, auth_key: str | Path | None = None,
-            setup: TimingSetup | None = None, floor: dict | str | None = None,
-            rt_limits: RealtimeLimits | None = None, record_chunk: int | None = None,
-            controller_memory_limit_mb: float = CONTROLLER_MEMORY_LIMIT_MB) -> HilResult:
-    """A bench run. The controller is sc-rt-controller, or (hil/external.py)
-    ``external``: a command line started instead (a Python law ``law`` =
-    "module:Class" runs as ``sc-rt controller``), or, with ``external_wait``,
-    a controller started by hand that speaks the protocol (docs/PROTOCOL.md).
-    ``setup``: trigger, CPUs, the emulator's spin (hil/floor.py); ``floor``:
-    the bench floor timing.json compares the run with (a dict, or "auto",
-    "cached", "measure": hil/floor.py ``floor_for``; None: none).
+def run_hil(plan: RunPlan, *, floor: dict | None = None, record_chunk: int | None = None) -> HilResult:
+    """A bench run of ``plan`` (sc_rt.plan: ``plan_run(..., engine="bench")``).
+    The controller is sc-rt-controller running the plan's law, a Python law
+    run as ``sc-rt controller``, or an external controller (hil/external.py):
+    a command line started instead, or one started by hand that speaks the
+    protocol (docs/PROTOCOL.md).
 
-    The emulator runs in this process; the controller and ``lcm-logger`` are
-    child processes, stopped at the end (SIGINT/SIGTERM stop the run early:
-    it is kept, partial).
+    The emulator runs in this process; the controller and ``sc-rt-logger``
+    are child processes, stopped at the end (SIGINT/SIGTERM stop the run
+    early: it is kept, partial).
 
     Parameters
     ----------
-    scn : Scenario
-        The scenario (``sc_rt.load_scenario``).
-    out : Path
-        The run's directory (created): run.lcmlog, controller_config.bin,
-        controller_summary.json, the controller's stderr and what
-        ``sc_rt.write_run`` writes.
-    mode : {"lockstep", "realtime"}
-        "lockstep": the emulator steps when the controller has answered each
-        state (bitwise the offline run); "realtime": one tick per control
-        period on the wall clock.
-    law : str, optional
-        The law (as ``sc_rt.with_overrides``; default: the scenario's), or a
-        Python law "module:Class" / "file.py:Class", run as ``sc-rt
-        controller`` in place of sc-rt-controller.
-    control_rate_hz : float, optional
-        [Hz] override of the scenario's control rate.
-    duration : float, optional
-        [s] override of the scenario's duration.
-    lcm_url : str, optional
-        The LCM URL. None: a udpm URL on a free port, ttl=0 (parallel runs
-        never cross).
-    prefix : str
-        Channel-name prefix ("": none), for two benches on one URL.
-    realtime_priority : bool, optional
-        The controller and the emulator's thread ask for SCHED_FIFO and
-        mlockall, each falling back to SCHED_OTHER with a warning where that
-        is not permitted; the run's timing says which. None (the default):
-        in real time yes, in lockstep no.
-    time_scale : float
-        Real time: simulated seconds per wall-clock second (2.0: twice as fast).
-    accept_fault_commands : bool
-        The emulator applies fault_cmd_t messages (``sc-rt fault``).
-    plots : bool
-        Write the figures (a run of more than one row).
-    external : str, optional
-        A command line started as the controller instead of sc-rt-controller,
-        with placeholders ``{url}``, ``{prefix}``, ``{mode}``, ``{config}``,
-        ``{summary}``, ``{python}`` (hil/external.py).
-    external_wait : bool
-        Start no controller: wait for one started by hand.
-    start_timeout : float, optional
-        [s] with ``external`` / ``external_wait``: how long to wait for the
-        controller's first answer. None: 30 s (``external_wait``: 300 s).
-    auth_key : str or Path, optional
-        A key file: the bus is authenticated with HMAC-SHA256 (wire/auth.py),
-        and the controller is given the key. None: no authentication.
-    setup : TimingSetup, optional
-        The controller's trigger, the CPUs, the emulator's spin. None:
-        ``TimingSetup()``.
-    floor : dict or str, optional
-        The bench floor: a dict, or a policy of ``floor_for`` ("auto",
-        "cached", "measure"; a short run of its own first when it measures).
-        None: no comparison.
-    rt_limits : RealtimeLimits, optional
-        What "kept real time" means for a real-time run (sc_rt.logs.timing);
-        a run beyond them is invalid. None: the defaults.
+    plan : RunPlan
+        The run, resolved (sc_rt.plan.run): the scenario with its overrides,
+        the law, ``timing`` (mode "lockstep": the emulator steps when the
+        controller has answered each state, bitwise the offline run;
+        "realtime": one tick per control period on the wall clock; the
+        priority, the trigger, CPUs and spin, the floor policy, the real-time
+        limits, the start timeout, the controller's memory limit),
+        ``outputs`` (the run's directory, created: run.lcmlog,
+        controller_config.bin, controller_summary.json, the controller's
+        stderr and what ``sc_rt.write_run`` writes; the figures) and ``bus``
+        (the LCM URL, None: a free port with ttl=0; the channel prefix;
+        fault commands; the key file authenticating the bus).
+    floor : dict, optional
+        A bench floor measured already (hil/floor.py); None: the plan's policy
+        (``plan.timing.floor``; None there: no comparison).
     record_chunk : int, optional
         Rows per chunk of the run's record (results/record/store.py; None: its
-        CHUNK_ROWS). A run longer than two chunks writes its rows to
-        ``out``/trajectory.arrow as it runs, and is read back a chunk at a time.
-
-    controller_memory_limit_mb : float
-        [MB] the controller process's resident memory beyond which it is
-        killed and the run stops, invalid (hil/procs.py Stopper).
+        CHUNK_ROWS).
 
     Returns
     -------
     HilResult
-        ``.run`` (the record, with ``metrics`` and ``timing``), ``.out``,
-        ``.files`` (every file written), ``.controller_summary``, and
-        ``.stopped`` / ``.signum`` when it stopped before its end.
+        ``.run`` (the record, with ``metrics`` and ``timing``; its meta's
+        ``inputs`` are ``plan.inputs()``), ``.out``, ``.files``,
+        ``.controller_summary``, and ``.stopped`` / ``.signum`` when it
+        stopped before its end.
 
     Raises
     ------
-    ScenarioError
-        An override is invalid.
     ValueError
-        An unreadable or empty key file, an ``external`` command that does not
-        split, an unknown ``mode`` or ``floor`` policy.
+        An unreadable or empty key file, an external command that does not
+        split, a plan that is not the bench's.
     FileNotFoundError
-        sc-rt-controller or lcm-logger is not installed.
+        sc-rt-controller or sc-rt-logger is not installed.
     RuntimeError
-        LCM cannot start on ``lcm_url``, or lcm-logger, sc-rt-controller or
-        the external controller did not start or never answered.
+        LCM cannot start on the URL, or the logger, sc-rt-controller or the
+        external controller did not start or never answered.
     OSError
         The run's files cannot be written.
     """
-    if realtime_priority is None:  # the default: real-time priority for real time
-        realtime_priority = mode == "realtime"
-    python_law = law if is_python_law(law) else None
-    if python_law is None and law is None and is_python_law(scn.run.controller):  # the scenario names one
-        python_law = scn.run.controller
-    setup = setup or TimingSetup()
+    if plan.engine != "bench" or plan.outputs.out is None:
+        raise ValueError(f"run_hil runs a bench plan with an output directory (engine {plan.engine!r}, "
+                         f"out {plan.outputs.out})")
+    scn, timing, bus, out = plan.scenario, plan.timing, plan.bus, Path(plan.outputs.out)
+    mode, setup, realtime_priority = timing.mode, timing.setup, timing.priority
+    python_law = plan.law.spec if isinstance(plan.law, PythonLaw) else None
+    external = plan.law.command if isinstance(plan.law, ExternalLaw) else None
+    external_wait = isinstance(plan.law, ExternalLaw) and plan.law.command is None
     if python_law is not None:  # run by sc-rt controller, with the config of its own table, told as sc-rt-controller
-        external, law = python_controller_command(python_law, realtime_priority, setup.trigger,
-                                                  setup.controller_cpu), None
-    scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz, duration=duration)
-    if isinstance(floor, str):  # the floor's own short run first, before this run's children
+        external = python_controller_command(python_law, realtime_priority, setup.trigger, setup.controller_cpu)
+    if floor is None and timing.floor is not None:  # the floor's own short run first, before this run's children
         floor = floor_for(scn, run=run_hil, mode=mode, control_rate_hz=None, realtime_priority=realtime_priority,
-                          setup=setup, policy=floor)
+                          setup=setup, policy=timing.floor)
 
-    url = lcm_url or free_port_url(ttl=0)
+    url = bus.lcm_url or free_port_url(ttl=0)
+    auth_key = bus.auth_key
     key = load_key(auth_key)  # --auth-key: read (and refused when empty) before anything starts
     # everything that can fail before a child starts: the URL, both binaries, the directory
     open_lcm(url)
@@ -201,22 +145,23 @@ def run_hil(scn: Scenario, *, out: Path, mode: str = "lockstep", law: str | None
     logger_bin = bench_binary("sc-rt-logger")  # lcm-logger's format, a deep queue (cpp/tools/sc_rt_logger.cpp)
     out.mkdir(parents=True, exist_ok=True)
     cfg_path = out / "controller_config.bin"
-    cfg_path.write_bytes(scn.controller_config_msg(law=python_law).encode())
+    cfg_path.write_bytes(scn.controller_config_msg().encode())
     log_path = out / "run.lcmlog"
     if log_path.exists():
         log_path.unlink()
-    ext = ExternalController(external, external_wait, start_timeout, url=url, prefix=prefix, mode=mode,
-                             out=out, config=cfg_path, trigger=setup.trigger if python_law else None
+    ext = ExternalController(external, external_wait, timing.start_timeout, url=url, prefix=bus.prefix,
+                             mode=mode, out=out, config=cfg_path, trigger=setup.trigger if python_law else None
                              ) if external or external_wait else None
     if ext is not None and auth_key is not None:
         ext.env["SCRT_AUTH_KEY"] = str(Path(auth_key).resolve())  # sc-rt controller reads it
-    names = () if (external or external_wait) and python_law is None else _telemetry_names(scn, python_law)
-    bench = _Bench(scn=scn, out=out, url=url, mode=mode, prefix=prefix, realtime_priority=realtime_priority,
-                   time_scale=time_scale, accept_fault_commands=accept_fault_commands, plots=plots,
-                   ctl_bin=ctl_bin, logger_bin=logger_bin, cfg_path=cfg_path, log_path=log_path, ext=ext,
-                   key=key, key_path=auth_key, setup=setup, floor=floor,
-                   rt_limits=rt_limits or RealtimeLimits(), record_chunk=record_chunk, telemetry_names=names)
-    with Stopper(memory_limit_mb=controller_memory_limit_mb) as stopper:
+    names = () if (external or external_wait) and python_law is None else _telemetry_names(scn)
+    bench = _Bench(scn=scn, out=out, url=url, mode=mode, prefix=bus.prefix, realtime_priority=realtime_priority,
+                   time_scale=timing.time_scale, accept_fault_commands=bus.accept_fault_commands,
+                   plots=plan.outputs.plots, ctl_bin=ctl_bin, logger_bin=logger_bin, cfg_path=cfg_path,
+                   log_path=log_path, ext=ext, key=key, key_path=auth_key, setup=setup, floor=floor,
+                   rt_limits=timing.rt_limits, record_chunk=record_chunk, telemetry_names=names,
+                   inputs=plan.inputs())
+    with Stopper(memory_limit_mb=timing.controller_memory_limit_mb) as stopper:
         return _run_children(bench, stopper)
 
 
@@ -248,16 +193,18 @@ class _Bench:
     record_chunk: int | None = None
     #: the law's telemetry names (the run's telemetry columns), () when the bench does not know the law
     telemetry_names: tuple[str, ...] = ()
+    #: the plan as the run records it (RunPlan.inputs)
+    inputs: dict | None = None
 
 
-def _telemetry_names(scn: Scenario, python_law: str | None) -> tuple[str, ...]:
+def _telemetry_names(scn: Scenario) -> tuple[str, ...]:
     """The telemetry names of the law the controller runs, from the law
     constructed once with the run's configuration in a child of its own (a
     plugin's native code). () when it cannot be constructed (the controller
     then refuses the configuration itself)."""
     from sc_rt.isolate import ChildDied, call_in_child, probe_timeout
 
-    cfg = scn.core_config(law=python_law)
+    cfg = scn.core_config()
     try:
         return tuple(call_in_child(lambda: list(_core.Controller(cfg).telemetry_names), timeout=probe_timeout()))
     except (ChildDied, ValueError, RuntimeError):
@@ -386,16 +333,20 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     # a controller that followed another plant than ours (it adopted another
     # bench's states before ours, docs/HIL.md "Bench isolation"): invalid
     others = [s for s in summary.get("plant_sessions", []) if s != emu.session]
-    if others and emu.invalid is None:
+    if others:
         why = (
             f"bench collision on {url}" + (f" (prefix {prefix!r})" if prefix else "")
             + f": the controller (session {res.metrics.get('controller_session') or 0:#x}) also followed "
             f"another plant (session {others[0]:#x}) besides this bench's ({emu.session:#x}): another bench "
             "runs on the same URL and prefix. The run is invalid")
-        res.metrics.update(provenance(emu.session, res.metrics.get("controller_session"), why))
-        stopped = stopped or why
+        if emu.invalid is None:  # the emulator heard no collision itself: this is the run's reason
+            if stopped:  # and what stopped it early (a state the busy controller left unanswered) follows
+                why = f"{why}; this bench stopped: {stopped}"
+            res.metrics.update(provenance(emu.session, res.metrics.get("controller_session"), why))
+            stopped = why
 
-    res.meta = dataclasses.replace(res.meta, wall_s=wall, telemetry_names=b.telemetry_names)
+    res.meta = dataclasses.replace(res.meta, wall_s=wall, telemetry_names=b.telemetry_names,
+                                   **({"inputs": b.inputs} if b.inputs is not None else {}))
     guidance = scn.core_config().guidance
     fill_tracking_errors(res, guidance)
     finish_run(res, guidance)  # the guidance: with sensors, the true rate error

@@ -4,13 +4,13 @@ the log alone), and how many of the run's messages its log lacks."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sc_rt.logs.lcmlog import LogDamaged, read_events
+from sc_rt.plan.timing import RealtimeLimits
 from sc_rt.results.record.run import Run
 
 __all__ = ["percentiles", "timing_report", "log_missing", "RealtimeLimits", "realtime_shortfall",
@@ -117,32 +117,6 @@ def timing_report(res: Run, summary: dict[str, Any], wall: float) -> dict[str, A
                                       if summary.get("steps") else None),
         "emulator_breakdown_us": None, "record_writer_waits": None, "load_avg": None,
     }
-
-
-@dataclass(frozen=True)
-class RealtimeLimits:
-    """What "kept real time" means for a real-time bench run (docs/HIL.md,
-    "When a run is valid"), as fractions: deadline misses per controller
-    step (``misses``), periods the controller did not step at all
-    (``skipped``: the rows it had no step for; a controller that cannot keep
-    up, e.g. 886 steps/s at 1 kHz), rows run on the watchdog's zero
-    (``dropped``) and stale states per step (``stale``: loose by default,
-    because the timer trigger's phase lock takes about two seconds to
-    acquire). Against the control period: answers later than one period
-    per answer judged (``late``: after the timer's acquisition, ACQUIRE_S),
-    the emulator's ticks later than one period per row (``late_ticks``), and
-    the worst tick's lateness (``stall``, in periods: a plant that stalled).
-    ``allowance`` events of each kind are always tolerated, so a short run
-    is not judged by one event. ``sc-rt hil --rt-limits``."""
-
-    misses: float = 0.01
-    skipped: float = 0.01
-    dropped: float = 0.01
-    stale: float = 0.5
-    late: float = 0.01
-    late_ticks: float = 0.01
-    stall: float = 25.0  # [periods], not a fraction
-    allowance: int = 2
 
 
 def realtime_shortfall(timing: dict[str, Any], limits: RealtimeLimits) -> str | None:

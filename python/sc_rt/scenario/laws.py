@@ -26,8 +26,8 @@ from sc_rt import _core
 from sc_rt.pylaw import is_python_law, law_command, law_label, load_law
 from sc_rt.scenario.schema import ScenarioIssue, Table, key_lines
 
-__all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "command_of", "wheels_command",
-           "resolved", "items_of", "with_items", "stray_tables", "NEAR"]
+__all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "command_of", "wheels_command", "resolved", "items_of",
+           "with_items", "stray_tables", "NEAR", "report_issues"]
 
 #: the tables of files written before [laws.NAME]: table -> (the laws it feeds, key prefix)
 LEGACY_TABLES: dict[str, tuple[tuple[str, ...], str]] = {
@@ -118,6 +118,26 @@ def read_laws(root: Table, controller: Table, run_law: str | None) -> tuple[tupl
     return tuple((name, tuple(table.items())) for name, table in tables.items()), where, notes
 
 
+def report_issues(doc: Any, issues, spec: str, name: str, table: tuple, law_key: str, where: dict,
+                  seen: set) -> None:
+    """A law's check's ``issues`` ((key, message), ...) as errors of ``doc``:
+    a parameter's (``params.KEY``) on its own dotted key (``where``: (law,
+    key) -> dotted key; default ``laws.NAME.KEY``), the others on ``law_key``."""
+    values = dict(table)
+    for key, message in issues:
+        if key.startswith("params."):
+            param = key[len("params."):]
+            value = values.get(param)
+            message = message.replace(f"laws.{name}.{param}: ", "")
+            dotted = where.get((name, param), f"laws.{name}.{param}")
+            if (dotted, message) in seen:  # an older table feeds two laws: said once
+                continue
+            seen.add((dotted, message))
+            doc.error(dotted, None if value is None else (value[0] if len(value) == 1 else list(value)), message)
+        else:
+            doc.error(law_key, spec, message)
+
+
 def law_table_name(spec: str) -> str:
     """The table name of a law spec: its registry name (a plugin's declared
     name: the library is loaded), or the spec itself (a Python law's is its
@@ -163,11 +183,13 @@ def _table_line(path: Any, name: str) -> int:
 NEAR = 0.6
 
 
-def stray_tables(scn: Any, laws: tuple[str, ...] = ()) -> tuple[list[ScenarioIssue], list[str]]:
+def stray_tables(scn: Any, laws: tuple[str, ...] = (), names: tuple[str, ...] = ()) -> tuple[list[ScenarioIssue],
+                                                                                             list[str]]:
     """The ``[laws.NAME]`` tables of ``scn`` that no law of this run reads,
     as (errors, notes). A table is named by its law: a built-in, the file's
     law, or one of ``laws`` (the laws a command names with --law; a plugin's
-    declared name, a Python law's ``name``). Any other table is
+    declared name, a Python law's ``name``); ``names``: those laws' table
+    names known already (a run's plan: no law is loaded again). Any other table is
 
     - an error when its name is near one of those (difflib ratio >= NEAR,
       case aside): a misspelling, which would leave that law on its
@@ -178,15 +200,16 @@ def stray_tables(scn: Any, laws: tuple[str, ...] = ()) -> tuple[list[ScenarioIss
     import difflib
 
     builtins = list(_core.law_names())
-    mine: list[str] = []
-    for spec in (scn.run.controller, *laws):
+    mine: list[str] = list(dict.fromkeys(names))
+    for spec in () if names else (scn.run.controller, *laws):
         try:
             name = law_table_name(spec)
         except ValueError:  # a law that does not load: its own check says so
             name = spec
         if name not in mine:
             mine.append(name)
-    known = list(dict.fromkeys(builtins + mine))
+    # [controller.params] of a plugin or Python law: kept under its spec (file_law_name)
+    known = list(dict.fromkeys(builtins + mine + [scn.run.controller, *laws]))
     lower = {k.lower(): k for k in known}
     errors, notes = [], []
     why = (f"a table is named by its law: a built-in ({', '.join(builtins)}) or a law of this run "

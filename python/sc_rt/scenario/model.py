@@ -245,6 +245,9 @@ class Scenario:
         ``[environment] field``: "igrf", "dipole" or "none" (the default),
         the geomagnetic field along the orbit (``plant.orbit``);
         ``sc_rt.model.field.field_for(model, jd)`` builds it.
+    law_key, law_keys : str, tuple
+        Where the file names its law and each law parameter (dotted keys),
+        for the errors of the law's probe (sc_rt.plan.law).
     """
 
     name: str
@@ -276,6 +279,11 @@ class Scenario:
     # [environment] field: the geomagnetic field model along the orbit, "igrf", "dipole" or
     # "none" (sc_rt.model.field.field_for); evaluated, no torque yet
     field_model: str = "none"
+    # the dotted key the file names its law by ("controller.law" or "run.controller"), and the
+    # dotted key of each law parameter ((law, key), dotted key) pairs: where a law's probe
+    # reports a problem (sc_rt.plan.law)
+    law_key: str = "run.controller"
+    law_keys: tuple = ()
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None, *, nav: bool = True
@@ -302,7 +310,9 @@ class Scenario:
         m.scenario = self.name
         m.law = law
         m.law_api_version = _core.LAW_API_VERSION
-        table = c.table(law_table_name(law))
+        # its table by the law's name; [controller.params] of a plugin or Python law the file
+        # runs is kept under the spec (the reader loads no law to learn its name)
+        table = c.table(law_table_name(law)) or c.table(law)
         m.n_law_params = len(table)
         m.law_param_keys = [k for k, _ in table]
         m.law_param_len = [len(v) for _, v in table]
@@ -421,12 +431,12 @@ def law_spec(spec: str, base: Path) -> str:
 def law_problem(spec: Any) -> str:
     """Why ``spec`` cannot name a law ("" if it can: a name of LAWS or of a
     loaded plugin, or "plugin:PATH_OR_NAME"; the plugin itself is checked by
-    :func:`check_law`)."""
+    sc_rt.plan.law.probe_law, where a run is planned)."""
     if not isinstance(spec, str):
         return "must be a string"
     if spec.startswith(PLUGIN_PREFIX):
         return "" if spec[len(PLUGIN_PREFIX):] else "plugin: needs a library path or name"
-    if spec.startswith(PYTHON_PREFIX):  # the class itself is checked by check_law
+    if spec.startswith(PYTHON_PREFIX):  # the class itself is checked by sc_rt.plan.law.probe_law
         return "" if ":" in spec[len(PYTHON_PREFIX):] else "python: needs module:Class or file.py:Class"
     if spec in LAWS or spec in _core.law_names():
         return ""

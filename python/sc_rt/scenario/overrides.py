@@ -60,7 +60,9 @@ def with_overrides(scn: Scenario, *, law: str | None = None, control_rate_hz: fl
     ScenarioError
         An override is invalid (the message names it as ``run.<key>``), the
         guidance's reference file does not cover a longer duration, or a new
-        law fails its load check (a plugin, or a law given ``[controller.params]``).
+        law is a built-in one on torque-commanded wheels. A plugin's or a
+        Python law's load and probe happen where the run is planned
+        (sc_rt.plan.law.probe_law), not here.
     """
     given = tuple((f"run.{k}", v) for k, v in (("controller", law), ("control_rate_hz", control_rate_hz),
                                                 ("duration", duration), ("plant_step", plant_step))
@@ -73,6 +75,8 @@ def with_overrides(scn: Scenario, *, law: str | None = None, control_rate_hz: fl
             plant_step = None  # the rate itself is invalid: with_run names it
     new = with_run(scn, controller=law, control_rate_hz=control_rate_hz, duration=duration,
                    plant_step=plant_step)
+    # the law as resolved (a file's path made absolute): what a replay of the record runs
+    given = tuple((k, new.run.controller if k == "run.controller" else v) for k, v in given)
     return dataclasses.replace(new, overrides=scn.overrides + given) if given else new
 
 

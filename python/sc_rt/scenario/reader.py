@@ -13,14 +13,8 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.pylaw import is_python_law, load_law
-from sc_rt.isolate import PROBE_TIMEOUT_ENV, ChildDied, ChildTimedOut, call_in_child, probe_timeout
-from sc_rt._core import mrp_to_dcm
-from sc_rt.model.actuators import ActuatorParams, WheelFault
-from sc_rt.scenario.wheels import check_wheel_fault, read_wheels
+from sc_rt.scenario.wheels import read_wheels
 from sc_rt.scenario.orbit import read_environment, read_orbit
-from sc_rt.model.combined import RigidBody, combine
-from sc_rt.model.plant import DisturbanceParams, PlantParams
 from sc_rt.scenario.dispersions import read_montecarlo
 from sc_rt.scenario.files import MAX_NESTING, FileProblem, deep_key, nesting_problem, read_bounded
 from sc_rt.scenario.schema import (
@@ -29,77 +23,33 @@ from sc_rt.scenario.schema import (
     ScenarioIssue,
     Spec,
     Table,
-    build,
     field_spec,
     format_value,
     key_lines,
     read_fields,
-    read_only,
     read_values,
 )
 from sc_rt.scenario.guidance import coverage_problem, guidance_phases, read_guidance
 from sc_rt.scenario.requirements import read_requirements
 from sc_rt.scenario.sensors import read_sensors
 from sc_rt.scenario.shipped import resolve
+from sc_rt.scenario.spacecraft import read_faults, read_spacecraft
 
-from sc_rt.scenario.laws import law_table_name, read_laws
+from sc_rt.scenario.laws import read_laws, report_issues
 from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, ControllerParams, InitialState,
                                   PpcParams, RecordParams, RunParams, SafetyLimits, Scenario,
                                   law_problem, law_spec)
 
-__all__ = ["load_scenario", "parse_set", "scenario_from_data", "read_run", "check_law", "with_run"]
-
-_FAULT = WheelFault(wheel=0)  # defaults of a fault's optional keys
+__all__ = ["load_scenario", "parse_set", "scenario_from_data", "read_run", "with_run"]
 
 
-def check_law(doc: Doc, scn: Scenario, law_key: str, where: dict | None = None) -> None:
-    """Load and construct the scenario's law once (a plugin, or any law given
-    a table), probe one step at rest (in a child process, killed after
-    sc_rt.isolate.probe_timeout() seconds): its problems as scenario errors on
-    ``law_key`` or on the parameter's own key (``where``: (law, key) -> the
-    dotted key it came from; default ``laws.<law>.<key>``). The built-in laws' tables are checked as
-    the file is read (``check_tables``). A law that commands the other unit
-    than the wheels take is converted by the controller (docs/LAWS.md, "What a
-    law commands"), not refused."""
-    where = where or {}
-    run_law = scn.run.controller
-    if run_law in LAWS:
-        return
-    if is_python_law(run_law):  # a Python law: its class loads, then it is checked as a plugin is
-        try:
-            load_law(run_law)
-        except ValueError as e:
-            doc.error(law_key, run_law, str(e).replace("--law ", "law ", 1))
-            return
-    try:
-        name = law_table_name(run_law)
-    except ValueError as e:  # a plugin that does not load
-        doc.error(law_key, run_law, str(e))
-        return
-    table = scn.controller.table(name)
-    try:
-        timeout = probe_timeout()
-    except ValueError as e:
-        doc.error(law_key, run_law, f"the law's probe: {e}")
-        return
-    try:
-        cfg = scn.core_config(law=run_law)
-        try:  # native code: a crash in the probe is a refusal, and so is a law that does not return
-            issues = call_in_child(_core.check_law, cfg, timeout=timeout)
-        except ChildTimedOut:
-            issues = [("law", f"law {run_law}: did not return within {timeout:g} s when constructed and "
-                              f"probed at rest at t = 0 (killed; {PROBE_TIMEOUT_ENV} sets the limit)")]
-        except ChildDied as e:
-            issues = [("law", f"law {run_law}: crashed the process when probed at rest at t = 0 ({e.how})")]
-    except ValueError as e:  # the config itself (LCM translation)
-        issues = [("law", str(e))]
-    _report(doc, issues, run_law, name, table, law_key, where, set())
 
-
-def check_tables(doc: Doc, laws: tuple, where: dict) -> None:
+def check_tables(doc: Any, laws: tuple, where: dict) -> None:
     """Each built-in law's table, checked by that law (constructed once with
     the paper's spacecraft: its parameters do not depend on the rest of the
-    file, so their problems are reported with the file's others)."""
+    file, so their problems are reported with the file's others). Only the
+    core's own laws: a plugin's or Python law's table is checked by its probe
+    where the run is planned (sc_rt.plan.law)."""
     seen: set[tuple[str, str]] = set()
     for name, table in laws:
         if name not in LAWS:
@@ -107,29 +57,7 @@ def check_tables(doc: Doc, laws: tuple, where: dict) -> None:
         cfg = _core.ControllerConfig()
         cfg.law = name
         cfg.law_params = [(k, list(v)) for k, v in table]
-        _report(doc, _core.check_law(cfg), name, name, table, f"laws.{name}", where, seen)
-
-
-def _report(doc: Doc, issues, spec: str, name: str, table: tuple, law_key: str, where: dict,
-            seen: set) -> None:
-    """The probe's ``issues`` as errors: a parameter's on its own key."""
-    values = dict(table)
-    for key, message in issues:
-        if key.startswith("params."):
-            param = key[len("params."):]
-            value = values.get(param)
-            message = message.replace(f"laws.{name}.{param}: ", "")
-            dotted = where.get((name, param), f"laws.{name}.{param}")
-            if (dotted, message) in seen:  # an older table feeds two laws: said once
-                continue
-            seen.add((dotted, message))
-            doc.error(dotted, None if value is None else _param_value(value), message)
-        else:
-            doc.error(law_key, spec, message)
-
-
-def _param_value(v: tuple) -> Any:
-    return v[0] if len(v) == 1 else list(v)
+        report_issues(doc, _core.check_law(cfg), name, name, table, f"laws.{name}", where, seen)
 
 
 def read_run(t: Table) -> RunParams | None:
@@ -148,157 +76,6 @@ def read_run(t: Table) -> RunParams | None:
             )
             return None
     return None if any(x is None for x in v.values()) else RunParams(**v)
-
-
-_MAT33 = Spec("matrix", shape=(3, 3))
-_MAT34 = Spec("matrix", shape=(3, 4))
-_WHEELS = Spec("vector", shape=(4,), scalar_ok=True)
-_V3 = Spec("vector", shape=(3,))
-
-
-def _inertia_problem(J: np.ndarray) -> str:
-    """Why J is not a rigid body's inertia matrix ("" if it is one)."""
-    if np.abs(J - J.T).max() > 1e-9 * np.abs(J).max():
-        return "must be symmetric"
-    moments = np.linalg.eigvalsh(J)
-    if moments[0] <= 0:
-        return f"must be positive definite (eigenvalues {format_value(np.round(moments, 6))})"
-    if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
-        return (
-            f"is not a rigid body's inertia: principal moments {format_value(np.round(moments, 6))} "
-            "break the triangle inequality I1 + I2 >= I3"
-        )
-    return ""
-
-
-def _wheel_axes_problem(C: np.ndarray) -> str:
-    """Why C cannot be a wheel matrix ("" if it can); the checks of C++ validate()."""
-    norms = np.linalg.norm(C, axis=0)
-    if np.any(np.abs(norms - 1.0) > 1e-2):
-        return f"columns must be unit spin axes (norms {format_value(np.round(norms, 4))})"
-    sv = np.linalg.svd(C, compute_uv=False)
-    if sv[2] < 1e-6 * sv[0]:
-        return "is rank-deficient: the wheels cannot produce torque about every axis"
-    return ""
-
-
-def _read_checked(t: Table, name: str, spec: Spec, problem_of: Any, missing: str = "") -> Any:
-    """A required value that must also pass ``problem_of`` (returns "" when fine)."""
-    value = t.read(name, spec, missing=missing)
-    if value is not None and (problem := problem_of(value)):
-        t.fail(name, f"{name} {problem}")
-        return None
-    return value
-
-
-def _read_capture(t: Table) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """(J0, Cbar) of the combined spacecraft from [spacecraft.capture]."""
-    frame = t.read("frame", Spec("str", choices=("service", "principal")), default="service")
-    s, g = t.sub("service"), t.sub("target")
-    mass = Spec("number", gt=0)
-    service = (
-        s.read("mass", mass),
-        _read_checked(s, "inertia", _MAT33, _inertia_problem),
-        _read_checked(s, "C", _MAT34, _wheel_axes_problem),
-    )
-    target = (
-        g.read("mass", mass),
-        _read_checked(g, "inertia", _MAT33, _inertia_problem),
-        g.read("position", Spec("vector", shape=(3,))),
-        g.read("attitude", Spec("vector", shape=(3,), mrp=True)),
-    )
-    for sub in (s, g, t):
-        sub.finish()
-    if any(v is None for v in (frame, *service, *target)):
-        return None, None
-    c = combine(
-        RigidBody(service[0], service[1]), service[2],
-        RigidBody(target[0], target[1]), target[2], mrp_to_dcm(target[3]), frame,
-    )  # fmt: skip
-    return read_only(c.J_C), read_only(c.Cbar)
-
-
-def _read_spacecraft(t: Table, dist: Table) -> tuple[PlantParams | None, ActuatorParams | None]:
-    if t.has("capture"):
-        for name in ("J0", "Cbar"):
-            if t.has(name):
-                t.fail(name, f"give either {name} or [{t.key}.capture], not both")
-            t.used.add(name)
-        J0, Cbar = _read_capture(t.sub("capture"))
-    else:
-        either = f"required key is missing (or give a [{t.key}.capture] table)"
-        J0 = _read_checked(t, "J0", _MAT33, _inertia_problem, either)
-        Cbar = _read_checked(t, "Cbar", _MAT34, _wheel_axes_problem, either)
-    dJ = t.read("dJ", _MAT33)
-    if dJ is not None and np.abs(dJ - dJ.T).max() > 1e-9 * max(np.abs(dJ).max(), 1.0):
-        t.fail("dJ", "dJ must be symmetric")
-        dJ = None
-    if J0 is not None and dJ is not None and (problem := _inertia_problem(J0 + dJ)):
-        t.fail("dJ", f"the true inertia J0 + dJ = {format_value(J0 + dJ)} {problem}")
-        dJ = None
-    Jw = t.read("Jw", dataclasses.replace(_WHEELS, gt=0))
-    umin, umax = t.read("umin", _WHEELS), t.read("umax", _WHEELS)
-    if umin is not None and umax is not None and np.any(umin >= umax):
-        bad = ", ".join(str(i + 1) for i in np.flatnonzero(umin >= umax))
-        t.fail("umin", f"umin must be < umax = {format_value(t.raw('umax'))} for every wheel "
-                       f"(not for wheel {bad})")  # fmt: skip
-        umin = None
-    w0 = t.read("w0", Spec("number", ge=0))
-    max_speed = t.read(
-        "max_wheel_speed",
-        dataclasses.replace(_WHEELS, gt=0, allow_inf=True),
-        default=read_only(np.full(4, np.inf)),
-    )
-    t.finish()
-    amp, freq = dist.read("amp", _V3), dist.read("freq", dataclasses.replace(_V3, ge=0))
-    bias = dist.read("bias", _V3, default=read_only(np.zeros(3)))
-    dist.finish()
-    disturbance = build(dist, DisturbanceParams, amp=amp, freq=freq, bias=bias)
-    plant = build(t, PlantParams, J0=J0, dJ=dJ, Cbar=Cbar, Jw=Jw, w0=w0, disturbance=disturbance)
-    actuators = build(t, ActuatorParams, umin=umin, umax=umax, max_wheel_speed=max_speed)
-    return plant, actuators
-
-
-def _read_faults(root: Table, plant_step: float | None) -> tuple[WheelFault, ...] | None:
-    root.used.add("faults")
-    raw = root.raw("faults") if root.has("faults") else []
-    if not (isinstance(raw, list) and all(isinstance(f, dict) for f in raw)):
-        root.fail("faults", "faults must be an array of tables ([[faults]])")
-        return None
-    faults, first_of_wheel = [], {}
-    for i, entry in enumerate(raw):
-        t = Table(root.doc, f"faults[{i}]", entry)
-        wheel = t.read("wheel", Spec("int", ge=1, le=4))
-        eff = t.read("effectiveness", Spec("number", ge=0, le=1), default=_FAULT.effectiveness)
-        bias = t.read("bias", Spec("number"), default=_FAULT.bias)
-        onset = t.read("onset", Spec("number", ge=0))
-        end = t.read("end", Spec("number"), default=_FAULT.end)
-        rate = t.read("rate", Spec("number", gt=0), default=_FAULT.rate)
-        stuck = t.read("stuck", Spec("bool"), default=_FAULT.stuck)
-        friction = t.read("friction", Spec("number", ge=0), default=_FAULT.friction)
-        t.finish()
-        check_wheel_fault(t, bool(stuck), rate, root.has("wheels"), plant_step)
-        if wheel is not None and wheel in first_of_wheel:
-            t.fail("wheel", f"wheel {wheel} already has a fault (faults[{first_of_wheel[wheel]}]): "
-                   "one fault per wheel")  # fmt: skip
-            wheel = None
-        elif wheel is not None:
-            first_of_wheel[wheel] = i
-        if end is not None and onset is not None and end <= onset:
-            t.fail("end", f"end must be > onset ({onset:g} s)")
-            onset = None
-        if stuck and (t.has("effectiveness") or t.has("bias") or t.has("friction")):
-            t.fail("stuck", "a stuck wheel ignores effectiveness, bias and friction: give stuck or those")
-            stuck = None
-        if t.has("end") and end is None:  # end was given but is bad (reported)
-            continue
-        fault = build(
-            t, WheelFault, ("end",), wheel=None if wheel is None else wheel - 1,
-            effectiveness=eff, bias=bias, onset=onset, end=end, rate=rate, stuck=stuck, friction=friction,
-        )  # fmt: skip
-        if fault is not None:
-            faults.append(fault)
-    return tuple(faults) if len(faults) == len(raw) else None
 
 
 def _read_controller(root: Table, t: Table, run_law: str | None) -> tuple[ControllerParams | None, dict, list]:
@@ -351,20 +128,18 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         run = None  # the bad [controller] law (reported)
     elif run is not None:
         run = dataclasses.replace(run, controller=law_spec(run.controller, path.parent))
-    plant, actuators = _read_spacecraft(root.sub("spacecraft"), root.sub("disturbance"))
+    plant, actuators = read_spacecraft(root.sub("spacecraft"), root.sub("disturbance"))
     initial_table = root.sub("initial")
     initial = read_fields(initial_table, InitialState)
     guidance = read_guidance(root.sub("guidance"), run.duration if run else None, path.parent)
     controller_table = root.sub("controller", required=False)
     sensors = read_sensors(root, controller_table, run)  # [sensors], [controller] measurement, estimator
-    try:
-        run_law = law_table_name(run.controller) if run is not None else None
-    except ValueError:  # a plugin that does not load: check_law reports it
-        run_law = None
+    # [controller.params]: the table of the file's law, under its spec (no law is loaded here)
+    run_law = run.controller if run is not None else None
     controller, where, deprecations = _read_controller(root, controller_table, run_law)
     if controller is not None:
         check_tables(doc, controller.laws, where)
-    faults = _read_faults(root, run.plant_step if run else None)
+    faults = read_faults(root, run.plant_step if run else None)
     wheels = read_wheels(root)
     orbit = read_orbit(root)  # [orbit]: the plant's gravity gradient of the orbit
     field_model = read_environment(root, orbit is not None)  # [environment] field
@@ -403,10 +178,11 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         record=record,
         deprecations=tuple(deprecations),
         field_model=field_model,
+        law_key="controller.law" if "law" in ctl_data else "run.controller",
+        law_keys=tuple(where.items()),
     )
-    check_law(doc, scenario, "controller.law" if "law" in ctl_data else "run.controller", where)
-    if doc.errors:
-        return None
+    # a law of the other unit than the wheels take is converted by the controller (docs/LAWS.md,
+    # "What a law commands"), not refused
     return dataclasses.replace(scenario, montecarlo=read_montecarlo(montecarlo, scenario))
 
 
@@ -539,9 +315,4 @@ def with_run(scn: Scenario, **changes: Any) -> Scenario:
         doc.error("run.duration", run.duration, problem)  # a reference file too short
     if doc.errors:
         raise ScenarioError(doc.path, doc.errors)
-    new = dataclasses.replace(scn, run=run)
-    if run.controller != scn.run.controller:
-        check_law(doc, new, "run.controller")
-        if doc.errors:
-            raise ScenarioError(doc.path, doc.errors)
-    return new
+    return dataclasses.replace(scn, run=run)  # the law itself is probed where the run is planned

@@ -17,7 +17,7 @@ from typing import Any
 
 from sc_rt.isolate import ChildDied, ChildInterrupted, ChildStalled, call_in_child, stall_timeout
 
-__all__ = ["RunCrashed", "simulate_contained", "simulate_isolated", "needs_isolation"]
+__all__ = ["RunCrashed", "simulate_contained", "simulate_isolated", "simulate_plan", "needs_isolation"]
 
 
 class RunCrashed(RuntimeError):
@@ -72,3 +72,23 @@ def simulate_contained(scn, **kwargs: Any):
     from sc_rt.sim.engines import simulate
 
     return simulate(scn, **kwargs)
+
+
+def simulate_plan(plan: Any):
+    """The offline run of ``plan`` (sc_rt.plan.run.RunPlan, an offline
+    engine): its scenario (overrides applied, law resolved) on its engine,
+    in a child of its own when its law is a plugin or a Python law
+    (RunCrashed when the child dies); rows beyond two chunks of a "cpp" run
+    go to ``plan.outputs.out``. The run's meta records the plan
+    (``RunMeta.inputs`` = ``plan.inputs()``)."""
+    import dataclasses
+
+    kwargs = dict(engine=plan.engine, record_dir=plan.outputs.out)
+    if plan.law.kind in ("plugin", "python"):
+        run = simulate_isolated(plan.scenario, **kwargs)
+    else:
+        from sc_rt.sim.engines import simulate
+
+        run = simulate(plan.scenario, **kwargs)
+    run.meta = dataclasses.replace(run.meta, inputs=plan.inputs())
+    return run

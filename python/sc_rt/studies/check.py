@@ -32,6 +32,7 @@ from sc_rt.studies.lawparams import dsc_gains, neso_core, neso_params
 from sc_rt.scenario.model import Scenario, ScenarioError
 from sc_rt.scenario.reader import load_scenario, with_run
 from sc_rt.scenario.laws import command_of, stray_tables, wheels_command
+from sc_rt.plan.law import resolve_law
 
 __all__ = ["Finding", "check_scenario", "exit_code", "LEVELS", "PAPER_C"]
 
@@ -71,12 +72,13 @@ def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | No
         scn = load_scenario(path, sets)
         if law is not None:
             scn = with_run(scn, controller=law)
+        scn, ref = resolve_law(scn, overridden=law is not None)  # the law loaded and probed at rest
     except ScenarioError as e:  # a problem of no key (the file itself): named by file[:line]
         return [Finding("error", i.key or (f"{e.path}:{i.line}" if i.line else e.path),
                         "" if i.value is None else str(i.value), i.message)
                 for i in e.errors] or [Finding("error", "", "", str(e))]
     # a [laws.NAME] table no law reads (a misspelling: the law would run its defaults)
-    stray, notes = stray_tables(scn, () if law is None else (law,))
+    stray, notes = stray_tables(scn, names=(ref.name,))
     if stray:
         return [Finding("error", i.key, "", f"{i.message} ({scn.path}:{i.line})" if i.line else i.message)
                 for i in stray]
