@@ -124,7 +124,7 @@ def test_table_is_well_formed():
     for r in TABLE:
         assert set(r) == set(KEYS), r
         assert r["width"] >= 1 and r["dtype"] in ("f8", "i8") and r["group"] in ("loop", "nav")
-        assert r["unit_rule"] in ("", "command") and r["doc"], r["name"]
+        assert r["unit_rule"] in ("", "command", "law") and r["doc"], r["name"]
         assert r["source"] in fields.SOURCES, r["name"]
     groups = [r["group"] for r in TABLE]
     assert groups == sorted(groups, key=("loop", "nav").index)  # every loop field before the nav ones

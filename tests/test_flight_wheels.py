@@ -14,7 +14,6 @@ u = -Jw rate Omega_1 makes it decay as exp(-rate (1 + Jw/M) t).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import subprocess
 import sys
@@ -246,20 +245,18 @@ def test_bad_wheel_values_exit_2_naming_key_and_line(tmp_path, edit, key, messag
         assert not (tmp_path / "o").exists()
 
 
-def test_a_built_in_law_cannot_command_torque(tmp_path):
-    # the built-in laws command accelerations: on wheels taking a torque they would be off by Jw
+def test_a_built_in_law_on_torque_wheels_is_converted_not_refused(tmp_path):
+    # the built-in laws command accelerations: on wheels taking a torque the controller converts
+    # (torque = Jw a; tests/test_law_command.py checks it row by row), where it used to refuse them
     path = tmp_path / "torque.toml"
     path.write_text(_flight_text().replace('command = "acceleration"', 'command = "torque"', 1))
-    with pytest.raises(ScenarioError) as e:
-        load_scenario(path)
-    assert any(x.key == "run.controller" and "commands wheel accelerations" in x.message for x in e.value.errors)
+    scn = load_scenario(path)
+    assert scn.actuators.wheels.command == "torque"
     from sc_rt.scenario.overrides import with_overrides
 
-    scn = load_scenario(FLIGHT)
-    wheels = dataclasses.replace(scn.actuators.wheels, command="torque")
-    torque = dataclasses.replace(scn, actuators=dataclasses.replace(scn.actuators, wheels=wheels))
-    with pytest.raises(ScenarioError, match="commands wheel accelerations"):  # sim --law pd
-        with_overrides(torque, law="pd")
+    assert with_overrides(scn, law="pd").run.controller == "pd"  # sim --law pd
+    ctl = _core.Controller(scn.core_config())
+    assert ctl.law_command == "acceleration" and ctl.command_converted
 
 
 def test_a_friction_rise_needs_flight_wheels(tmp_path):

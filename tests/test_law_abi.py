@@ -22,6 +22,8 @@ PINS = {
     2: "fed39dccadd317d5bc25d4bbbeefb314669f1c550dc173b6ef1f9ffe2beaf4de",
     # issue 39: LawModel::wheel_command gives a on acceleration wheels and Jw a on torque wheels (was inverted)
     3: "c58c5f9427d8a5743fc161b9706d3edff685e3ae1b19a7a2c0b18edcf91d816e",
+    # issue 39 item 3, revision 1 (additive: plugins of 3 still load): LawCommand, SC_RT_LAW_COMMAND
+    (3, 1): "56a6d9cea1ace4eec4d80dd2372d5c0233bb675c82c687253053678af525026b",
 }
 
 
@@ -35,10 +37,13 @@ def declarations(texts: list[str]) -> str:
     return "\n".join(out)
 
 
-def version_and_hash(texts: list[str]) -> tuple[int, str]:
+def version_and_hash(texts: list[str]) -> tuple[int | tuple[int, int], str]:
+    """(the interface's version, or (version, revision) from revision 1 on, sha256 of its declarations)."""
     m = re.search(r"#define SC_RT_LAW_API_VERSION (\d+)", texts[0])
     assert m, "no SC_RT_LAW_API_VERSION"
-    return int(m.group(1)), hashlib.sha256(declarations(texts).encode()).hexdigest()
+    r = re.search(r"#define SC_RT_LAW_API_REVISION (\d+)", texts[0])
+    version = int(m.group(1)) if r is None or int(r.group(1)) == 0 else (int(m.group(1)), int(r.group(1)))
+    return version, hashlib.sha256(declarations(texts).encode()).hexdigest()
 
 
 def problem(texts: list[str]) -> str | None:

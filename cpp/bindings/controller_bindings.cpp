@@ -90,11 +90,14 @@ void bind_controllers(py::module_& m) {
         d["source"] = e.source;
         d["code"] = e.code;
         d["defaults"] = e.defaults;
+        d["command"] = law_command_name(e.command);
         return d;
       },
       arg("spec"),
-      "name, doc, source (\"built-in\" or the library), code and defaults (its parameters'\n"
-      "values when its table omits them: [(key, [numbers])], empty for a plugin) of a law spec.");
+      "name, doc, source (\"built-in\" or the library), code, defaults (its parameters'\n"
+      "values when its table omits them: [(key, [numbers])], empty for a plugin) and command\n"
+      "(what its u_cmd is: \"acceleration\" [rad/s^2] or \"torque\" [N m]) of a law spec.");
+  m.attr("LAW_API_REVISION") = SC_RT_LAW_API_REVISION;
   m.def("check_law", &check_law, arg("c"),
         "Construct the configured law once and probe one step at rest, without running:\n"
         "[(key, message)] per problem; key \"law\" or \"params.<key>\" (empty: fine).");
@@ -197,6 +200,11 @@ void bind_controllers(py::module_& m) {
       .def("step", &Controller::step, arg("m"))
       .def("safe_command", &Controller::safe_command, arg("t"), arg("flags"))
       .def_property_readonly("law_name", &Controller::law_name, "the law's registry name")
+      .def_property_readonly(
+          "law_command", [](const Controller& c) { return std::string(law_command_name(c.law_command())); },
+          "what the law's u_cmd is: \"acceleration\" [rad/s^2] or \"torque\" [N m]")
+      .def_property_readonly("command_converted", &Controller::command_converted,
+                             "whether the law's u_cmd is converted to the wheels' unit (Jw a or tau / Jw)")
       .def_property_readonly("law_code", &Controller::law_code, "its registry code")
       .def_property_readonly("telemetry_names", &Controller::telemetry_names)
       .def_property_readonly("config", &Controller::config)

@@ -187,10 +187,16 @@ void bind_pylaw(py::module_& m) {
         "interpreter goes away).");
   m.def(
       "register_python_law",
-      [](const std::string& spec, const std::string& name, const std::string& doc, py::object factory) {
-        register_python_law(spec, name, doc, python_factory(hold(std::move(factory))));
+      [](const std::string& spec, const std::string& name, const std::string& doc, py::object factory,
+         const std::string& command) {
+        if (command != "acceleration" && command != "torque")
+          throw std::invalid_argument("law " + spec + ": command must be \"acceleration\" or \"torque\", got \"" +
+                                      command + "\"");
+        register_python_law(spec, name, doc, python_factory(hold(std::move(factory))),
+                            command == "torque" ? LawCommand::Torque : LawCommand::Acceleration);
       },
-      arg("spec"), arg("name"), arg("doc"), arg("factory"),
+      arg("spec"), arg("name"), arg("doc"), arg("factory"), arg("command") = "acceleration",
       "Put a Python law in the registry under spec (\"python:...\"; again: replaced). factory(model,\n"
-      "rate, items) returns sc_rt.pylaw's adapter (sc_rt.pylaw.register calls this).");
+      "rate, items) returns sc_rt.pylaw's adapter (sc_rt.pylaw.register calls this); command: what\n"
+      "its u_cmd is, \"acceleration\" [rad/s^2] or \"torque\" [N m].");
 }

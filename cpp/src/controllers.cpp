@@ -113,12 +113,31 @@ Controller::Controller(const ControllerConfig& c)
     const std::string d = "unknown parameter of law " + entry_.name;
     throw LawError("params." + k, who + "laws." + entry_.name + "." + k + ": " + d, d);
   }
+  // What the law commands against what the wheels take (docs/LAWS.md,
+  // "What a law commands"): Jw > 0 is validated with the spacecraft, so the
+  // conversion always exists.
+  const bool law_torque = entry_.command == LawCommand::Torque;
+  if (law_torque != law_model_.wheel_torque_command) convert_ = law_torque ? -1 : +1;
   telemetry_names_ = law_->telemetry_names();
   if (telemetry_names_.size() > static_cast<std::size_t>(kLawMaxTelemetry)) {
     const std::string d = "declares " + std::to_string(telemetry_names_.size()) +
                           " telemetry names, at most " + std::to_string(kLawMaxTelemetry);
     throw LawError("law", who + d, d);
   }
+}
+
+Vec4 Controller::to_wheels(const Vec4& u) const {
+  // The drive's arithmetic (types.hpp wheel_torque_command): torque = Jw a,
+  // a = torque / Jw, per wheel.
+  if (convert_ > 0) return law_model_.Jw.cwiseProduct(u);
+  if (convert_ < 0) return u.cwiseQuotient(law_model_.Jw);
+  return u;
+}
+
+Vec4 Controller::to_law(const Vec4& u) const {
+  if (convert_ > 0) return u.cwiseQuotient(law_model_.Jw);
+  if (convert_ < 0) return law_model_.Jw.cwiseProduct(u);
+  return u;
 }
 
 std::unique_ptr<Controller> Controller::create(const ControllerConfig& c) {
@@ -258,7 +277,9 @@ Command Controller::step(const Measurement& m) {
     out.flags |= FLAG_LAW_INVALID;
     return out;
   }
-  out.u_cmd = lo.u_cmd;
+  // The one place every law's output passes: in the wheels' unit before
+  // saturation (the limits umin/umax are the wheels').
+  out.u_cmd = to_wheels(lo.u_cmd);
   out.e1 = lo.e1;
   out.e2 = lo.e2;
   out.z1 = lo.z1;
@@ -271,12 +292,13 @@ Command Controller::step(const Measurement& m) {
   out.u_sat = model_.saturate(out.u_cmd);
   for (int i = 0; i < 4; ++i)
     if (out.u_sat(i) != out.u_cmd(i)) out.flags |= (FLAG_SAT_1 << i);
-  u_sat_prev_ = out.u_sat;
+  // The law sees its own unit back (the held command, anti-windup).
+  u_sat_prev_ = to_law(out.u_sat);
   std::string after_why;
   bool after_threw = false;
   try {
     ++counts_.law_afters;
-    law_->after(out.u_cmd, out.u_sat);
+    law_->after(lo.u_cmd, u_sat_prev_);
   } catch (const std::exception& e) {
     after_threw = true;
     after_why = e.what();

@@ -215,8 +215,12 @@ void register_law(const std::string& name, const std::string& doc, LawFactory cr
   reg.entries.push_back(std::move(e));
 }
 
+const char* law_command_name(LawCommand c) {
+  return c == LawCommand::Torque ? "torque" : "acceleration";
+}
+
 void register_python_law(const std::string& spec, const std::string& name, const std::string& doc,
-                         LawFactory create) {
+                         LawFactory create, LawCommand command) {
   Registry& reg = registry();
   std::lock_guard<std::recursive_mutex> lock(reg.mu);
   const std::size_t n = std::strlen(kPythonPrefix);
@@ -229,6 +233,7 @@ void register_python_law(const std::string& spec, const std::string& name, const
   e.source = spec;
   e.code = -1;
   e.create = std::move(create);
+  e.command = command;
   reg.python[spec] = std::move(e);
 }
 
@@ -290,6 +295,18 @@ std::string load_law_plugin(const std::string& spec) {
     fail(spec, "built with \"" + fp + "\", this sc-rt has \"" SC_RT_LAW_FINGERPRINT
                    "\": rebuild it with the same compiler and flags");
   }
+  // Revision 1: what the law commands (optional; none: wheel accelerations).
+  using CommandFn = int (*)();
+  LawCommand command = LawCommand::Acceleration;
+  if (auto command_fn = reinterpret_cast<CommandFn>(::dlsym(h, SC_RT_LAW_ENTRY_COMMAND))) {
+    const int c = command_fn();
+    if (c != static_cast<int>(LawCommand::Acceleration) && c != static_cast<int>(LawCommand::Torque)) {
+      ::dlclose(h);
+      fail(spec, real + ": " SC_RT_LAW_ENTRY_COMMAND "() returned " + std::to_string(c) +
+                     ", not a LawCommand (0 acceleration, 1 torque)");
+    }
+    command = static_cast<LawCommand>(c);
+  }
   const std::string name = info->name;
   if (const LawEntry* e = find(r, name)) {
     ::dlclose(h);
@@ -301,6 +318,7 @@ std::string load_law_plugin(const std::string& spec) {
     return std::unique_ptr<ControlLaw>(create(s));
   });
   r.entries.back().source = real;
+  r.entries.back().command = command;
   r.loaded[real] = name;
   return name;
 }

@@ -36,6 +36,7 @@ void write(const char* path, const std::string& text) {
 
 std::string unit_of(const sc_rt::FieldSpec& f) {
   if (f.unit_rule == "command") return "rad/s^2 or N m: the wheels' command";
+  if (f.unit_rule == "law") return "rad/s^2 or N m: the unit the law commands";
   return std::string(f.unit);
 }
 

@@ -15,14 +15,18 @@ in ``sc-rt controller``. A law is a class:
   value: raise ``LawParamError(key, why)``;
 - ``reset(inp)`` and ``step(inp)`` with ``inp`` a ``_core.LawInput`` (t,
   t_engaged, dt, m, ref, e, ppc, u_sat_prev: the C++ LawInput, read-only);
-- ``step`` returns u_cmd (4,) [rad/s^2], or ``(u_cmd, telemetry)`` with a dict
+- ``step`` returns u_cmd (4,) in the unit the law declares (``command``
+  below: [rad/s^2] by default), or ``(u_cmd, telemetry)`` with a dict
   holding any of the fixed slots ``TELEMETRY`` (e1, e2, z1, z2, x2d, vs,
   rho_hat) and the law's named values;
 - optional: ``telemetry_names`` (at most ``_core.LAW_MAX_TELEMETRY`` names,
   a sequence or a method, read once at setup: the names ``step`` may give,
   recorded in the run, the status and the log), ``after(u_cmd, u_sat)``
-  (anti-windup), ``name`` (default: the class name; labels the run and names
-  its table).
+  (anti-windup, in the law's unit), ``name`` (default: the class name; labels
+  the run and names its table), ``command``: what u_cmd is, ``"acceleration"``
+  (wheel accelerations [rad/s^2], the default) or ``"torque"`` (motor torques
+  [N m]); on wheels that take the other the controller converts it exactly
+  (``law_command``; docs/LAWS.md, "What a law commands").
 
 A command that is not real numbers of shape exactly (4,) (a list or array of
 ints or floats; (2, 2), (4, 1), (1, 4), bool, complex or objects are not
@@ -53,8 +57,11 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.isolate import beat
 
-__all__ = ["PYTHON_PREFIX", "TELEMETRY", "LawParamError", "LawSetup", "is_python_law", "load_law",
-           "law_label", "law_spec", "register", "split_unit", "FLAG_LAW_INVALID"]
+__all__ = ["PYTHON_PREFIX", "TELEMETRY", "LAW_COMMANDS", "LawParamError", "LawSetup", "is_python_law",
+           "load_law", "law_command", "law_label", "law_spec", "register", "split_unit", "FLAG_LAW_INVALID"]
+
+#: what a law's u_cmd may be, and its unit
+LAW_COMMANDS: dict[str, str] = {"acceleration": "rad/s^2", "torque": "N m"}
 
 #: the prefix of a Python law's spec: ``law = "python:file.py:Class"``
 PYTHON_PREFIX = "python:"
@@ -153,6 +160,17 @@ def law_label(cls: type) -> str:
     return name if isinstance(name, str) and name else cls.__name__
 
 
+def law_command(cls: type) -> str:
+    """What a Python law's u_cmd is: its ``command`` attribute, one of
+    ``LAW_COMMANDS`` (default ``"acceleration"``). Raises ValueError (one
+    line, naming the law and the attribute) for anything else."""
+    command = getattr(cls, "command", "acceleration")
+    if command not in LAW_COMMANDS:
+        raise ValueError(f"law {law_label(cls)}: command = {command!r}: must be one of "
+                         f"{', '.join(repr(c) for c in LAW_COMMANDS)} (what u_cmd is)")
+    return command
+
+
 def law_spec(law: str | type) -> str:
     """The registry spec (``python:...``) of a Python law given as a spec or a
     class. A class that its module does not expose by name (defined in a
@@ -177,7 +195,7 @@ def register(law: str | type) -> str:
     spec = law_spec(law)
     cls = law if isinstance(law, type) else load_law(spec)
     doc = (cls.__doc__ or "").strip().splitlines()
-    _core.register_python_law(spec, law_label(cls), doc[0] if doc else "", _factory(cls))
+    _core.register_python_law(spec, law_label(cls), doc[0] if doc else "", _factory(cls), law_command(cls))
     return spec
 
 

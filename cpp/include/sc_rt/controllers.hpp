@@ -156,6 +156,11 @@ class Controller {
   const std::string& law_name() const { return entry_.name; }
   int law_code() const { return entry_.code; }
   const std::vector<std::string>& telemetry_names() const { return telemetry_names_; }
+  //! What the law's u_cmd is (its declaration, LawEntry::command).
+  LawCommand law_command() const { return entry_.command; }
+  //! Whether the law's u_cmd is converted to the wheels' unit: the law
+  //! commands accelerations and the wheels take torques, or the reverse.
+  bool command_converted() const { return convert_ != 0; }
   const ControllerConfig& config() const { return cfg_; }
   const SpacecraftModel& model() const { return model_; }
   double t0() const { return t0_; }
@@ -192,7 +197,14 @@ class Controller {
   double t_prev_ = 0.0;
   bool engaged_ = false;
   bool first_ = true;
-  Vec4 u_sat_prev_ = Vec4::Zero();  //!< held over the current period (ZOH)
+  Vec4 u_sat_prev_ = Vec4::Zero();  //!< held over the current period (ZOH), in the law's unit
+  //! The law's unit -> the wheels': +1 accelerations to torques (Jw a), -1
+  //! torques to accelerations (tau / Jw), 0 the same unit (no arithmetic).
+  int convert_ = 0;
+  //! A command in the law's unit in the wheels' unit, and back (exact: the
+  //! drive's own arithmetic, types.hpp wheel_torque_command).
+  Vec4 to_wheels(const Vec4& u) const;
+  Vec4 to_law(const Vec4& u) const;
 
   LawInput input_at(const Measurement& m, double dt);
   // Guidance to m.t, errors, the PPC transform, and their telemetry in out.

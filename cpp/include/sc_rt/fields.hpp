@@ -22,9 +22,11 @@ namespace sc_rt {
 //  dtype     the record's numpy dtype: "f8" or "i8" (stored as double here:
 //            the integers are small and exact)
 //  unit      its unit on acceleration-commanded wheels ("-": none)
-//  unit_rule "" (fixed) or "command": the unit of the wheel command, resolved
+//  unit_rule "" (fixed), "command": the unit of the wheel command, resolved
 //            per run from the wheels' interface (rad/s^2 acceleration, N m
-//            torque; SpacecraftParams::wheel_torque_command)
+//            torque; SpacecraftParams::wheel_torque_command), or "law": the
+//            unit the law commands (LawCommand; a law's own state: the
+//            controller converts only its command to the wheels' unit)
 //  source    where the value comes from: plant (the integrated state),
 //            controller (the Command), truth (the plant's true value),
 //            estimator (the navigation filter)
@@ -58,7 +60,7 @@ namespace sc_rt {
   X(lam, 3, "f8", "-", "", "controller", kLoop, true, true, true, "normalised error lambda = sigma_BD / chi (30)") \
   X(e1, 3, "f8", "-", "", "controller", kLoop, true, true, false, "transformed error of the PPC (34)")            \
   X(e2, 3, "f8", "rad/s", "", "controller", kLoop, true, true, false, "second DSC surface error (27)")           \
-  X(vs, 4, "f8", "rad/s^2", "command", "controller", kLoop, true, true, false, "anti-windup auxiliary state (42)") \
+  X(vs, 4, "f8", "rad/s^2", "law", "controller", kLoop, true, true, false, "anti-windup auxiliary state (42)")     \
   X(x2d, 3, "f8", "rad/s", "", "controller", kLoop, true, true, false,                                          \
     "the law's filtered virtual control, DSC's filter output (LawOutput.x2d; 0 unused)")                         \
   X(rho_hat, 1, "f8", "rad/s^2", "", "controller", kLoop, true, true, false,                                    \

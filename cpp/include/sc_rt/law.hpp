@@ -32,6 +32,13 @@
 // or meaning; the loader refuses a plugin built against another version.
 // tests/test_law_abi.py pins this file's declarations per version: a change
 // without a bump fails it.
+//
+// SC_RT_LAW_API_REVISION counts additive changes within a version: optional
+// entry points a plugin may export and the core looks up by name (dlsym), no
+// type changed. A plugin of an older revision of the same version still loads
+// and means what the revision's defaults say (revision 0: no
+// sc_rt_law_command(), so it commands wheel accelerations). The ABI test pins
+// each (version, revision).
 #pragma once
 #include <array>
 #include <cmath>
@@ -47,6 +54,7 @@
 #include "sc_rt/types.hpp"
 
 #define SC_RT_LAW_API_VERSION 3
+#define SC_RT_LAW_API_REVISION 1  // 1: SC_RT_LAW_COMMAND (what a law commands)
 
 // The compiler / ABI facts that must match between the core and a plugin
 // (the types below cross the boundary by reference). Eigen's static
@@ -151,8 +159,8 @@ struct LawInput {
   Reference ref;           //!< guidance at t
   TrackingErrors e;        //!< errors at t
   PpcResult ppc;           //!< PPC transform of e.sigma_BD at t_engaged
-  //! [rad/s^2] the saturated command held over the period that just ended
-  //! (zero at reset)
+  //! the saturated command held over the period that just ended (zero at
+  //! reset), in the unit the law commands (LawCommand: [rad/s^2] or [N m])
   Vec4 u_sat_prev = Vec4::Zero();
 };
 
@@ -162,7 +170,11 @@ constexpr int kLawMaxTelemetry = 8;
 // What a law returns at each step. The fixed slots are recorded in every run
 // (sc-rt sim, the LCM status); leave the ones your law has no use for at zero.
 struct LawOutput {
-  Vec4 u_cmd = Vec4::Zero();  //!< [rad/s^2] wheel acceleration command, before saturation
+  //! the wheel command before saturation, in the unit the law declares
+  //! (LawCommand): [rad/s^2] wheel accelerations by default, [N m] motor
+  //! torques for a law that declares LawCommand::Torque. The controller
+  //! converts it to the unit the wheels take (Controller::step).
+  Vec4 u_cmd = Vec4::Zero();
   Vec3 e1 = Vec3::Zero();     //!< first error the law works on (default slot: x1)
   Vec3 e2 = Vec3::Zero();     //!< second error (a rate error, a sliding variable)
   Vec3 z1 = Vec3::Zero();     //!< [rad/s] observer state 1, if any
@@ -292,10 +304,20 @@ class ControlLaw {
   //! step right after reset and when the time did not advance; never more
   //! than kMaxDtPeriods nominal periods (a longer gap resets the law instead).
   virtual void step(const LawInput& in, LawOutput& out) = 0;
-  //! After saturation, with the command that goes out (anti-windup).
+  //! After saturation, with the command that goes out (anti-windup), both in
+  //! the unit the law commands (u_sat converted back when the wheels take the other).
   virtual void after(const Vec4& u_cmd, const Vec4& u_sat) { (void)u_cmd; (void)u_sat; }
   //! Names of LawOutput::telemetry[0..n), n <= kLawMaxTelemetry.
   virtual std::vector<std::string> telemetry_names() const { return {}; }
+};
+
+// What a law's u_cmd is (docs/LAWS.md section 1, "What a law commands"). The
+// wheels take one or the other (LawModel::wheel_torque_command, the scenario's
+// [wheels] command); when they differ the controller converts exactly as the
+// drive does (types.hpp wheel_torque_command): torque = Jw a, a = torque / Jw.
+enum class LawCommand : int {
+  Acceleration = 0,  //!< wheel accelerations [rad/s^2] (the default: every built-in law)
+  Torque = 1,        //!< motor torques [N m]
 };
 
 // What a plugin library exports (SC_RT_LAW_PLUGIN defines it).
@@ -313,6 +335,9 @@ struct LawPluginInfo {
 // version can call it), then sc_rt_law_plugin() gives the rest.
 #define SC_RT_LAW_ENTRY_VERSION "sc_rt_law_api_version"
 #define SC_RT_LAW_ENTRY_INFO "sc_rt_law_plugin"
+// Optional (revision 1): int sc_rt_law_command(void), a LawCommand value; a
+// plugin without it commands wheel accelerations.
+#define SC_RT_LAW_ENTRY_COMMAND "sc_rt_law_command"
 
 // In exactly one source file of a plugin:
 //   SC_RT_LAW_PLUGIN("my-law", MyLaw, "what it is")
@@ -328,4 +353,12 @@ struct LawPluginInfo {
         SC_RT_LAW_API_VERSION, SC_RT_LAW_FINGERPRINT, NAME, DOC,                             \
         [](const ::sc_rt::LawSetup& s) -> ::sc_rt::ControlLaw* { return new CLASS(s); }};    \
     return &info;                                                                            \
+  }
+
+// Optionally, in the same source file, what the law's u_cmd is (without it:
+// wheel accelerations):
+//   SC_RT_LAW_COMMAND(sc_rt::LawCommand::Torque)
+#define SC_RT_LAW_COMMAND(KIND)                                                              \
+  extern "C" __attribute__((visibility("default"))) int sc_rt_law_command(void) {           \
+    return static_cast<int>(KIND);                                                           \
   }

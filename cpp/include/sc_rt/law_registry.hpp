@@ -33,7 +33,15 @@ struct LawEntry {
   //! Its parameters and their defaults (a built-in law declares them: the
   //! values it uses for a key its table does not give; empty for a plugin)
   LawParams::Items defaults;
+  //! What its u_cmd is: a plugin's sc_rt_law_command() (acceleration when it
+  //! exports none), a Python law's class attribute command; the built-ins
+  //! command wheel accelerations
+  LawCommand command = LawCommand::Acceleration;
 };
+
+//! "acceleration" or "torque" (what a scenario's [wheels] command and a
+//! Python law's command attribute say).
+const char* law_command_name(LawCommand c);
 
 // A bad law spec, plugin or parameter. key(): "law" or "params.<key>";
 // detail(): the problem without the law's name (what() has both).
@@ -57,7 +65,7 @@ void register_law(const std::string& name, const std::string& doc, LawFactory cr
 // entry: name (the law's label, its table's name), source = spec, code -1
 // (not a registry code: controller_info_t carries the name).
 void register_python_law(const std::string& spec, const std::string& name, const std::string& doc,
-                         LawFactory create);
+                         LawFactory create, LawCommand command = LawCommand::Acceleration);
 // Forget every Python law (the interpreter that hosts them is going away).
 void clear_python_laws();
 // Every registered name, registry order (the built-ins first).

@@ -77,7 +77,8 @@ def print_metrics(m: dict, faults=()) -> None:
         *_errors(m, "max pointing error after 30 s [arcsec]", "max_pointing_error_arcsec_after_30s", f),
         *_errors(m, "max |omega_BD_B| after 70 s [rad/s]", "max_abs_omega_e_after_70s", f),
         ("max observer error after 30 s [rad/s^2]", f(m["max_observer_error_after_30s"])),
-        ("max |u_cmd| before saturation [rad/s^2]", f(m["max_abs_u_cmd"])),
+        (f"max |u_cmd| before saturation [{(m.get('units') or {}).get('max_abs_u_cmd', 'rad/s^2')}]",
+         f(m["max_abs_u_cmd"])),
         ("max |wheel accel| applied [rad/s^2]", f(m["max_abs_wheel_accel"])),
         ("saturated fraction", f(m["saturated_fraction"])),
         ("SAFE steps", f"{safe}" + (f" from {m['safe_from_s']:.1f} s ({why})" if safe and m.get("safe_from_s")
@@ -129,7 +130,7 @@ def _num(v, unit: str) -> str:
 #: What the peak requirements measure (every kind of sc_rt.scenario.requirements.KINDS that is
 #: neither a pointing index, settling nor the envelope: tests/test_requirement_matrix.py).
 PEAKS = {"wheel_speed_margin": "max |Omega|", "momentum_margin": "max |Cbar Jw Omega|", "max_command": "max |u_cmd|",
-         "max_torque": "max |Cbar Jw u_cmd|"}
+         "max_torque": "max |Cbar tau_cmd|"}
 
 
 def requirement_table(reqs: list) -> list[str]:

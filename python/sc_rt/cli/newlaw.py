@@ -132,6 +132,10 @@ class @CLASS@ final : public sc_rt::ControlLaw {
 }  // namespace
 
 SC_RT_LAW_PLUGIN("@NAME@", @CLASS@, "@NAME@: PD on sigma_BD and omega_BD_B (sc-rt new-law)")
+// What u_cmd is: wheel accelerations [rad/s^2] (the default, so this line may
+// go). A law of motor torques [N m] says sc_rt::LawCommand::Torque; on wheels
+// that take the other, sc-rt converts exactly (torque = Jw a; docs/LAWS.md).
+SC_RT_LAW_COMMAND(sc_rt::LawCommand::Acceleration)
 """,
     "test_@IDENT@.py": """\
 \"\"\"Builds the plugin and runs it in `sc-rt sim`: pytest test_@IDENT@.py
@@ -220,6 +224,9 @@ import numpy as np
 
 class @CLASS@:
     name = "@NAME@"
+    # what u_cmd is: wheel accelerations [rad/s^2] (the default) or "torque",
+    # motor torques [N m]; on wheels that take the other, sc-rt converts exactly
+    command = "acceleration"
 
     def __init__(self, setup):
         self.B_pinv = np.asarray(setup.model.B_pinv)

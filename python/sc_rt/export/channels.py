@@ -59,10 +59,25 @@ def typed_by_content(data: bytes) -> type | None:
     return cls if cls is not None and decode_any(data)[0] is cls else None
 
 
-def channel_schema(cls: type, defs: dict[str, LcmStruct]) -> tuple[str, dict]:
-    """(schema name, JSON schema) of the channel of type ``cls``."""
+def channel_schema(cls: type, defs: dict[str, LcmStruct], torque_command: bool = False) -> tuple[str, dict]:
+    """(schema name, JSON schema) of the channel of type ``cls``. With
+    ``torque_command`` (the bench's wheels take motor torques: its
+    controller_config_t's ``wheel_torque_command``) the wheel-command fields
+    (the "command" unit rule of sc_rt.results.record.fields: u_cmd, u_sat;
+    not the "law" rule's, the law's own states in the law's unit) say
+    [N m], not the .lcm comment's [rad/s^2]."""
     s = defs[cls.__name__]
-    return s.full_name, json_schema(s, defs)
+    schema = json_schema(s, defs)
+    if torque_command:
+        from sc_rt.results.record.fields import FIELD
+
+        for name, prop in schema.get("properties", {}).items():
+            f = FIELD.get(name)
+            if f is not None and f.unit_rule == "command" and "description" in prop:
+                prop["description"] = (prop["description"].replace("[rad/s^2]", "[N m]")
+                                       .replace("wheel acceleration", "motor torque")
+                                       + " (this bench's wheels take motor torques)")
+    return s.full_name, schema
 
 
 def channel_metadata(name: str, schema_name: str) -> dict[str, str]:

@@ -325,6 +325,8 @@ class Deriver:
         self.truth: dict[str, Truth] = {}  # prefix -> the plant's attitudes by state
         self.guidance: set[str] = set()
         self.rejected_configs = 0
+        #: prefix -> its wheels take motor torques [N m] (controller_config_t's wheel_torque_command)
+        self.torque: dict[str, bool] = {}
 
     def states(self, prefix: str, rec) -> None:
         """The true attitudes of a bench's plant_state_t records (every one,
@@ -351,14 +353,17 @@ class Deriver:
         return true, know
 
     def config(self, prefix: str, data: bytes, latest: bool = False) -> None:
-        """The bound of a bench from its controller_config_t: the first one
-        (a log), or with ``latest`` the newest (a live bus, run after run)."""
+        """The bound and the wheels' command unit of a bench from its
+        controller_config_t: the first one (a log), or with ``latest`` the
+        newest (a live bus, run after run)."""
         if prefix in self.ppc and not latest:
             return
         from sc_rt import _core
 
         try:
-            self.ppc[prefix] = _core.ControllerConfig.from_lcm_bytes(bytes(data)).ppc
+            cfg = _core.ControllerConfig.from_lcm_bytes(bytes(data))
+            self.ppc[prefix] = cfg.ppc
+            self.torque[prefix] = bool(cfg.spacecraft.wheel_torque_command)
         except (ValueError, RuntimeError, TypeError):
             self.rejected_configs += 1
 

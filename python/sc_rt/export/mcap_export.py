@@ -147,7 +147,8 @@ class _Exporter:
         if c.cls is None and c.utf8 and not c.raw_id:
             c.cls = typed_by_content(data)  # an unnamed channel: typed by its first message of ours
         if c.cls is not None and not c.json_id:
-            schema_name, schema = channel_schema(c.cls, self.defs)
+            # the bench's wheel-command unit: its config comes first in a batch (derive_order)
+            schema_name, schema = channel_schema(c.cls, self.defs, self.deriver.torque.get(c.prefix, False))
             c.json_id = self._channel(c.name, schema_name, schema, channel_metadata(c.name, schema_name))
         return c
 

@@ -153,7 +153,8 @@ class Bridge:
         inp = self.inputs[name] = _Input(name, cls, prefix)
         if cls is None:
             return inp
-        schema_name, schema = channel_schema(cls, self.defs)
+        # the wheel command's unit: the bench's config seen so far (its config comes before its commands)
+        schema_name, schema = channel_schema(cls, self.defs, self.deriver.torque.get(prefix, False))
         inp.json = self.topic(name, schema, channel_metadata(name, schema_name), schema_name)
         if prefix is not None:
             inp.derived = [self.topic(t, s, {"derived": "sc-rt live"}) for t, s in derived_topics(cls.__name__, prefix)]

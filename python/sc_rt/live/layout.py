@@ -10,7 +10,8 @@ with sensors), the controller mode
 (``SCRT_CMD.mode``: INIT, NORMAL, SAFE) and the frames B and D relative to
 N in 3D (``/tf``). Tab "Wheels": the wheel speeds against their limit
 (``max_wheel_speed`` of ``SCRT_CONFIG``, through a user script) and the
-commands before and after saturation.
+commands before and after saturation, in the wheels' unit (rad/s^2, or N m
+on torque wheels: the ``SCRT_CMD`` schema of the bench says which).
 
 ``build_layout`` writes the file with the SDK's layout classes
 (``foxglove.layouts``); tests/test_live.py checks that the shipped file is
@@ -84,9 +85,10 @@ def build_layout() -> dict:
     wheels = plot("wheel speeds and limit [rpm]", [
         *[(f"/derived/wheels.speed_rpm.w{i}", f"wheel {i}") for i in range(1, 5)],
         (f"{SCRIPT_TOPIC}.limit_rpm", "+limit"), (f"{SCRIPT_TOPIC}.minus_limit_rpm", "-limit")], "rpm")
-    cmds = plot("commands [rad/s^2]", [
+    # one layout for every run: the unit is the wheels' (the SCRT_CMD schema of a torque bench says N m)
+    cmds = plot("wheel commands [rad/s^2; N m on torque wheels]", [
         *[(f'"SCRT_CMD".u_cmd[{i}]', f"u_cmd {i + 1}") for i in range(4)],
-        *[(f'"SCRT_CMD".u_sat[{i}]', f"u_sat {i + 1}") for i in range(4)]], "rad/s^2")
+        *[(f'"SCRT_CMD".u_sat[{i}]', f"u_sat {i + 1}") for i in range(4)]], "rad/s^2 or N m (the wheels')")
     attitude = fl.SplitContainer(direction="row", items=[
         fl.SplitItem(proportion=2, content=fl.SplitContainer(direction="column", items=axes)),
         fl.SplitItem(proportion=2, content=fl.SplitContainer(direction="column", items=[

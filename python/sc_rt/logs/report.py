@@ -46,6 +46,7 @@ from sc_rt.logs.rebuild import (Rebuilt, controller_label, fault_summary, logged
 from sc_rt.pylaw import FLAG_LAW_INVALID
 from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run, mark_invalid
 from sc_rt.results.present.output import write_run
+from sc_rt.results.record.meta import command_fields
 from sc_rt.results.record.run import Run, RunMeta, json_safe, provenance
 
 __all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command", "plant_sessions"]
@@ -178,6 +179,9 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     ident = (d.start or {}).get("law")
     if ident and ident.get("name") and ident.get("source") != "external":
         law = ident["name"]  # an external controller: the name it announced (controller_label)
+    if cfg is not None:  # the wheels' command interface the controller was configured with, and the law's
+        extra.update(command_fields("torque" if cfg.wheel_torque_command else "acceleration",
+                                    (ident or {}).get("spec") if (ident or {}).get("source") != "external" else None))
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
                    wall_s=wall, mode=r.mode, law_identity=ident, requirements=_requirements(d, scenario),

@@ -23,11 +23,11 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.pylaw import is_python_law, law_label, load_law
+from sc_rt.pylaw import is_python_law, law_command, law_label, load_law
 from sc_rt.scenario.schema import ScenarioIssue, Table, key_lines
 
-__all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "resolved", "items_of", "with_items", "stray_tables",
-           "NEAR", "report_issues"]
+__all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "command_of", "wheels_command", "resolved", "items_of",
+           "with_items", "stray_tables", "NEAR", "report_issues"]
 
 #: the tables of files written before [laws.NAME]: table -> (the laws it feeds, key prefix)
 LEGACY_TABLES: dict[str, tuple[tuple[str, ...], str]] = {
@@ -147,6 +147,23 @@ def law_table_name(spec: str) -> str:
     if is_python_law(spec):
         return law_label(load_law(spec))
     return spec
+
+
+def command_of(spec: str) -> str:
+    """What a law spec's u_cmd is, ``"acceleration"`` or ``"torque"``
+    (``sc_rt.pylaw.LAW_COMMANDS``): a plugin's declaration (the library is
+    loaded), a Python law's ``command`` attribute; the built-ins command
+    accelerations. ValueError when the law does not load."""
+    if is_python_law(spec):
+        return law_command(load_law(spec))
+    return _core.law_info(spec)["command"]
+
+
+def wheels_command(scn: Any) -> str:
+    """What a scenario's wheels take: its ``[wheels] command``, else
+    ``"acceleration"`` (the paper's acceleration-commanded wheels)."""
+    w = scn.actuators.wheels
+    return "acceleration" if w is None else w.command
 
 
 def _table_line(path: Any, name: str) -> int:

@@ -41,19 +41,8 @@ from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, ControllerParams, Initia
                                   PpcParams, RecordParams, RunParams, SafetyLimits, Scenario,
                                   law_problem, law_spec)
 
-__all__ = ["load_scenario", "parse_set", "scenario_from_data", "read_run", "check_torque_wheels", "with_run"]
+__all__ = ["load_scenario", "parse_set", "scenario_from_data", "read_run", "with_run"]
 
-def check_torque_wheels(doc: Doc, scn: Scenario, law_key: str) -> None:
-    """A built-in law on torque-commanded wheels is refused (the built-in laws
-    command wheel accelerations). Data only: a plugin's or a Python law's own
-    checks run where the run is planned (sc_rt.plan.law.probe_law), never here."""
-    w = scn.actuators.wheels
-    run_law = scn.run.controller
-    if w is not None and w.command == "torque" and run_law in LAWS:
-        doc.error(law_key, run_law,
-                  f"law {run_law} commands wheel accelerations [rad/s^2] but [wheels] command = "
-                  '"torque" takes motor torques [N m]: use command = "acceleration" (the drive applies Jw a) '
-                  "or a law that commands torque")
 
 
 def check_tables(doc: Any, laws: tuple, where: dict) -> None:
@@ -196,9 +185,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         law_key="controller.law" if "law" in ctl_data else "run.controller",
         law_keys=tuple(where.items()),
     )
-    check_torque_wheels(doc, scenario, scenario.law_key)
-    if doc.errors:
-        return None
+    # a law of the other unit than the wheels take is converted by the controller (docs/LAWS.md,
+    # "What a law commands"), not refused
     return dataclasses.replace(scenario, montecarlo=read_montecarlo(montecarlo, scenario))
 
 
@@ -331,9 +319,4 @@ def with_run(scn: Scenario, **changes: Any) -> Scenario:
         doc.error("run.duration", run.duration, problem)  # a reference file too short
     if doc.errors:
         raise ScenarioError(doc.path, doc.errors)
-    new = dataclasses.replace(scn, run=run)
-    if run.controller != scn.run.controller:  # the law itself is probed where the run is planned
-        check_torque_wheels(doc, new, "run.controller")
-        if doc.errors:
-            raise ScenarioError(doc.path, doc.errors)
-    return new
+    return dataclasses.replace(scn, run=run)  # the law itself is probed where the run is planned

@@ -53,7 +53,8 @@ UNITS: dict[str, dict[str, float]] = {
     **{k: ANGLE_UNITS for k in PERFORMANCE + KNOWLEDGE + ("settling",)},
     "wheel_speed_margin": {"rad/s": 1.0, "rpm": 2.0 * math.pi / 60.0},
     "momentum_margin": {"N m s": 1.0, "mN m s": 1e-3},
-    "max_command": {"rad/s^2": 1.0},
+    # either dimension on either wheel kind: the judge converts with Jw (exact, the drive's arithmetic)
+    "max_command": {"rad/s^2": 1.0, "N m": 1.0, "mN m": 1e-3},
     "max_torque": {"N m": 1.0, "mN m": 1e-3},
     "envelope": {},
 }

@@ -13,7 +13,9 @@ the Theorem 1 gain conditions with r's bound estimated along a run,
 saturation limits that cannot produce the feed-forward the desired
 trajectory needs, a fault scheduled at or after the run's end); notes 0
 (Cbar not a proper rotation of the paper's wheel layout, used as given; a
-non-PPC run that starts outside the bound), warnings with ``strict``.
+non-PPC run that starts outside the bound; a law whose command the
+controller converts to the wheels' unit, ``wheels.command``), warnings with
+``strict``.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from sc_rt import _core
 from sc_rt.studies.lawparams import dsc_gains, neso_core, neso_params
 from sc_rt.scenario.model import Scenario, ScenarioError
 from sc_rt.scenario.reader import load_scenario, with_run
-from sc_rt.scenario.laws import stray_tables
+from sc_rt.scenario.laws import command_of, stray_tables, wheels_command
 from sc_rt.plan.law import resolve_law
 
 __all__ = ["Finding", "check_scenario", "exit_code", "LEVELS", "PAPER_C"]
@@ -85,6 +87,7 @@ def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | No
     out += _check_model(scn)
     if any(f.level == "error" for f in out):
         return out
+    out += _check_command(scn, law)
     out += _check_initial_bound(scn, law)
     if law in OBSERVER_LAWS:
         out += _check_observer(scn)
@@ -94,6 +97,26 @@ def check_scenario(path: str | Path, *, run_estimate: bool = True, law: str | No
     out += _check_fault_times(scn)
     out += _check_noise_floor(scn, law)
     return out
+
+
+#: what each command kind is, for a finding
+_KINDS = {"acceleration": "wheel accelerations [rad/s^2]", "torque": "motor torques [N m]"}
+
+
+def _check_command(scn: Scenario, law: str) -> list[Finding]:
+    """What the law commands, what the wheels take, and whether the controller
+    converts (a note) or passes the command through (ok)."""
+    try:
+        law_kind = command_of(law)
+    except ValueError:  # a law that does not load: the scenario's own check said so
+        return []
+    wheels = wheels_command(scn)
+    text = f"law {law} commands {_KINDS[law_kind]}; the wheels take {_KINDS[wheels]}"
+    if law_kind == wheels:
+        return [Finding("ok", "wheels.command", wheels, text + ": no conversion")]
+    rule = "torque = Jw a" if law_kind == "acceleration" else "a = torque / Jw"
+    return [Finding("note", "wheels.command", wheels, text + f": converted by the controller ({rule}, per wheel, "
+                    "before saturation)")]
 
 
 def _check_noise_floor(scn: Scenario, law: str) -> list[Finding]:
@@ -230,7 +253,8 @@ def _check_theorem1(scn: Scenario, run_estimate: bool) -> list[Finding]:
 
 def _check_feedforward(scn: Scenario) -> list[Finding]:
     """The wheel accelerations that hold the desired trajectory at zero error
-    (u = B+ (-A)), sampled every second, against the limits."""
+    (u = B+ (-A); on torque wheels the motor torques Jw u), sampled every
+    second, against the limits (in the wheels' unit)."""
     cfg = scn.core_config()
     model = _core.SpacecraftModel(cfg.spacecraft)
     g = _core.Guidance(cfg.guidance, 0.1)
@@ -238,6 +262,9 @@ def _check_feedforward(scn: Scenario) -> list[Finding]:
     wheel = np.asarray(scn.initial.wheel_speed, float)
     Bp = np.asarray(model.B_pinv)
     umin, umax = np.asarray(scn.actuators.umin), np.asarray(scn.actuators.umax)
+    # the limits are in the wheels' unit: on torque wheels the feed-forward as motor torques, Jw u [N m]
+    torque = wheels_command(scn) == "torque"
+    to_wheels = np.asarray(scn.plant.Jw, float) if torque else np.ones(4)
     worst, worst_t, worst_u = -np.inf, 0.0, None
     for t in np.arange(0.0, scn.run.duration + 1e-9, 1.0):
         g.advance(t)
@@ -245,7 +272,7 @@ def _check_feedforward(scn: Scenario) -> list[Finding]:
         wd = _core.omega_d(cfg.guidance, t)
         m = _core.Measurement(t, sd, wd, wheel)
         e = _core.tracking_errors(model, m, sd, wd, _core.omega_d_dot(cfg.guidance, t))
-        u = Bp @ (-np.asarray(e.A))
+        u = to_wheels * (Bp @ (-np.asarray(e.A)))
         use = np.max(np.maximum(u / umax, u / umin))  # fraction of the limit on its side
         if use > worst:
             worst, worst_t, worst_u = use, t, u
@@ -254,7 +281,8 @@ def _check_feedforward(scn: Scenario) -> list[Finding]:
                         f"the feed-forward of the desired trajectory uses at most {100 * worst:.3g} % of the "
                         f"wheel limits (at t = {worst_t:g} s, initial wheel speeds)")]
     return [Finding("warning", "spacecraft.umax", _fmt(umax),
-                    f"the feed-forward of the desired trajectory needs {_fmt(worst_u)} rad/s^2 at t = {worst_t:g} s: "
+                    f"the feed-forward of the desired trajectory needs {_fmt(worst_u)} "
+                    f"{'N m' if torque else 'rad/s^2'} at t = {worst_t:g} s: "
                     "beyond the wheel limits, no law can track it exactly")]
 
 

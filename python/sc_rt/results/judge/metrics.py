@@ -230,6 +230,11 @@ class _Metrics:
             "first_bound_violation_axis": self.first_axis,
             # what the law was fed: "truth" (its errors are the true ones) or "estimate" (law_* below)
             "measurement": m.measurement,
+            # what the wheels take and what the law commanded (converted when they differ), and the
+            # unit of each metric whose unit is the run's (the wheel command's: rad/s^2 or N m)
+            "wheel_command": m.wheel_command,
+            "law_command": m.law_command,
+            "units": {"max_abs_u_cmd": m.unit("u_cmd")},
             # the true errors: the truth against the reference (with sensors sigma_BD_true, omega_BD_B_true)
             "sigma_e_norm": {_key(s): at(self.sigma, s) for s in self.marks},
             "omega_e_norm": {_key(s): at(self.omega, s) for s in self.marks},

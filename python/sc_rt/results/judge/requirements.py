@@ -16,7 +16,13 @@ the run's fields:
   probability, span and windows (``counterpart``);
 - settling: the time the chosen error enters its band for good;
 - wheel_speed_margin, momentum_margin, max_command: max |wheel_speed|, max
-  |Cbar Jw wheel_speed| (the wheels' total momentum), max |u_cmd|;
+  |Cbar Jw wheel_speed| (the wheels' total momentum), max |u_cmd| per wheel
+  (in the requirement's unit: a wheel acceleration or a motor torque,
+  converted with Jw from what the run's wheels take, ``RunMeta.wheel_command``);
+- max_torque: max |Cbar tau_cmd|, the body torque the wheel command asks for,
+  tau_cmd the command as motor torques [N m] (u_cmd on torque wheels, Jw u_cmd
+  on acceleration wheels), with the applied one beside it (``applied``: the
+  same of the saturated command u_sat);
 - envelope: the prescribed-performance bound (29) of ``[controller.ppc]``,
   judged exactly as the metrics' ``first_bound_violation_s``.
 
@@ -44,7 +50,7 @@ from sc_rt.results.judge.pointing import (error_signal, mode_mask, mrp_subtract,
                                    settling_time, wheel_momentum)
 from sc_rt.scenario.requirements import ANGLE_UNITS, COUNTERPART, KNOWLEDGE, PERFORMANCE, UNITS
 
-__all__ = ["evaluate_requirements", "is_sensed", "knowledge_error", "requirement_span", "worst"]
+__all__ = ["body_torque", "evaluate_requirements", "is_sensed", "knowledge_error", "requirement_span", "worst"]
 
 #: Unit -> its value in SI (rad, rad/s, N m s, rad/s^2), the scenario's units (sc_rt.scenario.requirements.UNITS).
 _SI = {u: f for units in UNITS.values() for u, f in units.items()}
@@ -317,15 +323,37 @@ def _judge(req: dict[str, Any], run: Any, t: np.ndarray, idx: np.ndarray, perf: 
             return _result(req, note="the run's record has no wheel axes and inertias (Cbar, Jw)")
         h = np.linalg.norm(wheel_momentum(run["wheel_speed"], Cbar, Jw), axis=1)
         return _peak(req, t, h[:, None], idx, "wheel momentum", per_wheel=False)
-    if kind == "max_command":
-        return _peak(req, t, run["u_cmd"], idx, "command")
-    if kind == "max_torque":  # the body torque the wheel command asks for, |Cbar Jw u_cmd|
-        Cbar, Jw = getattr(run.meta, "Cbar", ()), getattr(run.meta, "Jw", ())
-        if len(Cbar) == 0 or len(Jw) == 0:
+    if kind == "max_command":  # per wheel, in the requirement's dimension
+        u = np.asarray(run["u_cmd"], float)
+        want_torque = req["unit"] in _TORQUE_UNITS
+        if want_torque != run.meta.torque_wheels:  # the drive's arithmetic: torque = Jw a
+            if len(getattr(run.meta, "Jw", ())) == 0:
+                return _result(req, note="the run's record has no wheel inertias (Jw) to convert its command")
+            Jw = np.asarray(run.meta.Jw, float)
+            u = u * Jw if want_torque else u / Jw
+        return _peak(req, t, u, idx, "command")
+    if kind == "max_torque":
+        if len(getattr(run.meta, "Cbar", ())) == 0 or len(getattr(run.meta, "Jw", ())) == 0:
             return _result(req, note="the run's record has no wheel axes and inertias (Cbar, Jw)")
-        tau = np.linalg.norm(wheel_momentum(run["u_cmd"], Cbar, Jw), axis=1)
-        return _peak(req, t, tau[:, None], idx, "commanded body torque", per_wheel=False)
+        asked, applied = (body_torque(run.meta, run[k]) for k in ("u_cmd", "u_sat"))
+        r = _peak(req, t, asked[:, None], idx, "commanded body torque", per_wheel=False)
+        peak = applied[idx][np.isfinite(applied[idx])]
+        if r["value"] is not None and peak.size:
+            r["applied"] = float(peak.max()) / _SI[req["unit"]]
+            r["note"] += f"; applied (after saturation) {r['applied']:.4g} {req['unit']}"
+        return r
     raise ValueError(f"unknown requirement kind {kind!r}")
+
+
+#: the units of a motor torque (the rest of max_command's are accelerations)
+_TORQUE_UNITS = ("N m", "mN m")
+
+
+def body_torque(meta: Any, u: Any) -> np.ndarray:
+    """|Cbar tau| [N m] per row: the body torque of wheel commands ``u`` (N, 4)
+    of the run ``meta`` (its wheels' unit), tau the motor torques
+    (``RunMeta.wheel_torque``)."""
+    return np.linalg.norm(meta.wheel_torque(u) @ np.asarray(meta.Cbar, float).T, axis=1)
 
 
 def _settling(req: dict[str, Any], t: np.ndarray, perf: np.ndarray, idx: np.ndarray) -> dict[str, Any]:

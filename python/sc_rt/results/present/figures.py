@@ -236,17 +236,25 @@ def tracking_figures(run: Run, out: Path, title: str = "") -> list[Path]:
 
     fig, axs = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
     umin, umax = np.asarray(run.meta.umin), np.asarray(run.meta.umax)
+    unit, torque = run.meta.unit("u_sat"), run.meta.torque_wheels  # what the wheels take
     for w, ax in enumerate(axs):
         ax.plot(t, run["u_sat"][:, w], lw=0.9, label="command after saturation")
+        data = run["u_sat"][:, w]
         if np.any(np.isfinite(run["wheel_accel"][:, w])):
-            ax.plot(t, run["wheel_accel"][:, w], lw=0.7, ls="--", label="actual (faults applied)")
-        data = np.concatenate([run["u_sat"][:, w], run["wheel_accel"][:, w]])
+            if torque:  # the actual acceleration on its own axis: another unit than the command's
+                twin = ax.twinx()
+                twin.plot(t, run["wheel_accel"][:, w], lw=0.7, ls="--", color="C1")
+                twin.set_ylabel(f"actual accel\n[{run.meta.unit('wheel_accel')}]", fontsize=8)
+            else:
+                ax.plot(t, run["wheel_accel"][:, w], lw=0.7, ls="--", label="actual (faults applied)")
+                data = np.concatenate([data, run["wheel_accel"][:, w]])
         limit_lines(ax, data, [(umax[w], "limits"), (umin[w], "limits")])  # the data's scale, not the limits'
         mark_events(ax, run, labels=w == 0)
-        ax.set_ylabel(f"wheel {w + 1}\n[rad/s^2]")
+        ax.set_ylabel(f"wheel {w + 1}\n[{unit}]")
         ax.grid(alpha=0.3)
     _legend_outside(axs[0])
-    axs[0].set_title(_two_line("Wheel acceleration commands, one axis per wheel", run, title))
+    kind = "torque" if torque else "acceleration"
+    axs[0].set_title(_two_line(f"Wheel {kind} commands, one axis per wheel", run, title))
     axs[-1].set_xlabel("t [s]")
     paths.append(save_figure(fig, out / "wheel_commands.png"))
 
@@ -358,7 +366,11 @@ def fault_figure(run: Run, out: Path, title: str = "") -> Path:
     fs = scheduled_fault_state(run)
     fig, axs = plt.subplots(4, 1, figsize=(9, 10), sharex=True)
     for w, ax in enumerate(axs):
-        ax.plot(t, run["u_sat"][:, w], color="0.6", ls=":", lw=1.0, label="command (saturated)")
+        if run.meta.torque_wheels:  # the command as a free wheel's acceleration, a = torque / Jw
+            ax.plot(t, run["u_sat"][:, w] / run.meta.Jw[w], color="0.6", ls=":", lw=1.0,
+                    label="command (saturated) / Jw")
+        else:
+            ax.plot(t, run["u_sat"][:, w], color="0.6", ls=":", lw=1.0, label="command (saturated)")
         ax.plot(t, run["wheel_accel"][:, w], color="C0", lw=0.9, label="actual")
         ax.set_ylabel("[rad/s^2]")
         ax2 = ax.twinx()

@@ -362,8 +362,15 @@ def _metrics_table(m: dict[str, Any]) -> str:
         if k == "safe_reasons":
             rows.append(("SAFE reasons", escape("; ".join(f"{a}: {b}" for a, b in v.items())) or "–", "steps"))
             continue
+        if k in ("units", "wheel_command", "law_command"):  # the units column; the command line below
+            continue
         label, unit, kind = METRIC_ROWS.get(k, (k, "", "num"))
+        unit = (m.get("units") or {}).get(k, unit)  # the run's own (a wheel command: rad/s^2 or N m)
         rows.append((label, escape(fmt(v, kind)) if kind == "text" else fmt(v, kind), unit))
+    if m.get("wheel_command"):
+        rows.append(("wheel command (what the wheels take; the law's, converted when it differs)",
+                     escape(f"{m['wheel_command']}" + (f", law: {m['law_command']}" if m.get("law_command") else "")),
+                     (m.get("units") or {}).get("max_abs_u_cmd", "")))
     body = "".join(f"<tr><td>{escape(a)}</td><td class=num>{b}</td><td>{escape(c)}</td></tr>" for a, b, c in rows)
     return f'<table id="metrics"><tr><th>metric</th><th>value</th><th>unit</th></tr>{body}</table>'
 
@@ -425,7 +432,10 @@ def render_html(run_dir: str | Path) -> str:
     else:
         parts.append("<p>No trajectory.npz: no timeline.</p>")
     parts.append('</section><h2>Figures</h2><section id="figures">')
-    captions = FIGURES if envelope else FIGURES_WITHOUT_ENVELOPE
+    captions = dict(FIGURES if envelope else FIGURES_WITHOUT_ENVELOPE)
+    if m.get("wheel_command") == "torque":  # the wheels take motor torques: the commands' unit is N m
+        captions["wheel_commands.png"] = ("Wheel torque commands after saturation [N m] and the limits; the actual "
+                                          "wheel accelerations [rad/s^2] on the right axis")
     for p in d["figures"]:
         b64 = base64.b64encode(p.read_bytes()).decode()
         parts.append(f'<figure data-file="{escape(p.name)}">'

@@ -60,15 +60,20 @@ class Field:
     fill: Any = math.nan
     #: part of the trajectory every producer fills (checked for finiteness by the metrics)
     core: bool = False
-    #: "" (the unit is fixed) or "command": the wheel command's unit, resolved
-    #: per run from the wheels' interface (``resolved_unit``)
+    #: "" (the unit is fixed), "command": the wheel command's unit, resolved
+    #: per run from the wheels' interface, or "law": the unit the law
+    #: commands (its own states; ``resolved_unit``)
     unit_rule: str = ""
 
-    def resolved_unit(self, torque_command: bool) -> str:
+    def resolved_unit(self, torque_command: bool, law_torque: bool | None = None) -> str:
         """The unit on a run whose wheels take torque (``torque_command``) or
-        acceleration commands: "N m" or "rad/s^2" under the "command" rule,
-        else ``unit``."""
-        if self.unit_rule == "command":
+        acceleration commands, its law commanding torques (``law_torque``;
+        None: unknown, taken as the wheels'): "N m" or "rad/s^2" under the
+        "command" rule (the wheels') and the "law" rule (the law's), else
+        ``unit``."""
+        if self.unit_rule == "law":
+            torque_command = torque_command if law_torque is None else law_torque
+        if self.unit_rule in ("command", "law"):
             return "N m" if torque_command else "rad/s^2"
         return self.unit
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from sc_rt.results.record.jsonsafe import json_safe
 
-__all__ = ["RunMeta"]
+__all__ = ["RunMeta", "command_fields", "command_meta"]
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,8 @@ class RunMeta:
         The prescribed envelope (29): "chi0" [-], "chiinf" [-], "gamma"
         [1/s], "dmin" [-], "dmax" [-], 3 values each.
     umin, umax : tuple of float
-        [rad/s^2] the wheel acceleration limits, one per wheel.
+        The wheel command limits, one per wheel, in the unit the wheels take
+        (``wheel_command``: [rad/s^2] or [N m]).
     faults : tuple of dict
         The scenario's scheduled faults: "wheel" (1-based), "onset" [s],
         "end" [s] (None: never), "effectiveness" [-], "bias" [rad/s^2],
@@ -84,6 +85,19 @@ class RunMeta:
         The scenario's ``expect`` ("holds", "violates"; "" unstated): the
         verdict the file says its run has, checked against the run's
         (sc_rt.results.judge.gate, metrics.json ``expect``).
+    wheel_command : str
+        What the wheels take, the run's command interface (the scenario's
+        ``[wheels] command``): "acceleration" (wheel accelerations [rad/s^2],
+        the default and every record older than this key) or "torque" (motor
+        torques [N m]); the unit of u_cmd, u_sat, umin and umax.
+    law_command : str
+        What the law commanded (its declaration, sc_rt.pylaw.LAW_COMMANDS):
+        "acceleration" or "torque"; the controller converted it to
+        ``wheel_command`` when they differ; "" unknown (an external controller).
+    units : dict of str to str
+        Every field's unit on this run (``Field.resolved_unit`` of
+        sc_rt.results.record.fields: a "command" field's is the wheels'):
+        what outputs label the run's numbers with (``unit``).
     telemetry_names : tuple of str
         The law's telemetry names (its ``telemetry_names()``): the columns
         of the run's ``telemetry`` field, ``"name [unit]"`` where the law
@@ -123,11 +137,38 @@ class RunMeta:
     #: the law's telemetry names (its telemetry_names(): the columns of the run's telemetry field;
     #: "name [unit]" where the law gives a unit); () for none or unknown
     telemetry_names: tuple[str, ...] = ()
+    #: what the wheels take: "acceleration" [rad/s^2] or "torque" [N m] (u_cmd's unit)
+    wheel_command: str = "acceleration"
+    #: what the law commanded ("acceleration" or "torque"; "" unknown), converted when it differs
+    law_command: str = ""
+    #: every field's unit on this run (name -> unit, the "command" rule resolved); {}: the fields' own
+    units: dict[str, str] = dataclasses.field(default_factory=dict)
     #: the scenario's expect: "holds", "violates" or "" (unstated)
     expect: str = ""
     #: what the run was made from (results/record/inputs.py): the scenario file and its sha256,
     #: the overrides, the law's parameters as run, sc-rt's version and commit; {} unknown (older runs)
     inputs: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+    @property
+    def torque_wheels(self) -> bool:
+        """The wheels take motor torques [N m] (else wheel accelerations [rad/s^2])."""
+        return self.wheel_command == "torque"
+
+    def unit(self, name: str) -> str:
+        """The unit of the field ``name`` on this run: ``units``, else the
+        field's rule resolved by ``wheel_command`` (an older record)."""
+        if name in self.units:
+            return self.units[name]
+        from sc_rt.results.record.fields import FIELD
+
+        return FIELD[name].resolved_unit(self.torque_wheels, self.law_command == "torque" if self.law_command else None)
+
+    def wheel_torque(self, u: Any) -> np.ndarray:
+        """Wheel commands ``u`` (N, 4) of this run as motor torques [N m]:
+        ``u`` itself on torque wheels, ``Jw u`` on acceleration wheels (the
+        drive's arithmetic, types.hpp wheel_torque_command)."""
+        u = np.asarray(u, float)
+        return u if self.torque_wheels else u * np.asarray(self.Jw, float)
 
     def to_json(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self))
@@ -140,6 +181,7 @@ class RunMeta:
         d["faults"] = tuple(d.get("faults", ()))
         d["requirements"] = tuple(d.get("requirements", ()))
         d["telemetry_names"] = tuple(d.get("telemetry_names", ()))
+        d["units"] = dict(d.get("units", {}))
         d["Cbar"] = tuple(tuple(float(x) for x in row) for row in d.get("Cbar", ()))
         for k in ("Jw", "max_wheel_speed"):
             d[k] = tuple(math.inf if x is None else float(x) for x in d.get(k, ()))
@@ -171,11 +213,38 @@ class RunMeta:
         from sc_rt.results.record.inputs import run_inputs
 
         kw["inputs"] = run_inputs(scn, ident["name"])
+        kw.update(command_meta(scn))
         sensors = getattr(scn, "sensors", None)
         if sensors is not None:
             kw.update(sensors=True, measurement=sensors.measurement)
         kw.update(over)
         return cls(**kw)
+
+
+def command_meta(scn) -> dict[str, Any]:
+    """The run's command interface of the scenario ``scn``: ``command_fields``
+    of what its wheels take and of its law."""
+    from sc_rt.scenario.laws import wheels_command
+
+    return command_fields(wheels_command(scn), scn.run.controller)
+
+
+def command_fields(wheel_command: str, law_spec: str | None) -> dict[str, Any]:
+    """``wheel_command`` (what the wheels take: "acceleration" or "torque"),
+    ``law_command`` (what the law ``law_spec`` commands; "" when it is not
+    known or does not load here) and every field's resolved ``units`` (the
+    "command" rule: the wheels' unit; the "law" rule: the law's)."""
+    from sc_rt.results.record.fields import FIELDS
+    from sc_rt.scenario.laws import command_of
+
+    law = ""
+    if law_spec:
+        try:
+            law = command_of(law_spec)
+        except ValueError:
+            law = ""
+    units = {f.name: f.resolved_unit(wheel_command == "torque", law == "torque" if law else None) for f in FIELDS}
+    return {"wheel_command": wheel_command, "law_command": law, "units": units}
 
 
 def _speed_limits(a) -> tuple[float, ...]:

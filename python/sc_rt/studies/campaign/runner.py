@@ -32,7 +32,9 @@ SKIP_METRICS = ("scenario", "controller", "engine", "control_rate_hz", "duration
                 # a failed law is the row's status and message (law_failed), not columns
                 "law_failures", "valid", "invalid_reason",
                 # the scenario's requirements: their own columns, req.NAME.* (studies/campaign/requirements.py)
-                "requirements")
+                "requirements",
+                # the command interface and the metrics' units: the scenario's and the law's, every run's
+                "wheel_command", "law_command", "units")
 #: Metrics whose worst case (largest value) gets a Wilks tolerance bound (those present).
 WORST_CASE = ("max_abs_omega_e_after_70s", "max_observer_error_after_30s",
               "max_pointing_error_arcsec_after_30s", "max_abs_u_cmd", "saturated_fraction")  # fmt: skip

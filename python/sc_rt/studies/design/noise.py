@@ -76,7 +76,7 @@ class NoiseFloor:
     bound_mrp: np.ndarray  # min(dmin, dmax) chiinf
     spectral_radius: float
     u_rms: np.ndarray = None  # [rad/s^2] RMS of the wheel command from noise alone (4 wheels)
-    u_limit: np.ndarray = None  # [rad/s^2] min(|umin|, umax) per wheel
+    u_limit: np.ndarray = None  # [rad/s^2] min(|umin|, umax) per wheel (torque wheels' limits / Jw)
 
     @property
     def u_margin(self) -> np.ndarray:
@@ -232,8 +232,11 @@ def noise_floor(scn: Scenario, sensors: Sensors | None = None, *, law: str | Non
     est = np.sqrt(np.mean(th_var, axis=0))
     del bi
     act = scn.actuators
+    limit = np.minimum(np.abs(act.umin), np.abs(act.umax))
+    if act.wheels is not None and act.wheels.command == "torque":  # limits in N m: as accelerations, torque / Jw
+        limit = limit / np.asarray(scn.plant.Jw, float)
     return NoiseFloor(law, loop.rate, t, 4.0 * rms_mrp / ARCSEC, rms_mrp, est / ARCSEC, K, sigma_w, bound, rad,
-                      np.sqrt(np.mean(u_var, axis=0)), np.minimum(np.abs(act.umin), np.abs(act.umax)))
+                      np.sqrt(np.mean(u_var, axis=0)), limit)
 
 
 def format_noise_floor(nf: NoiseFloor | None, scn: Scenario) -> str:
