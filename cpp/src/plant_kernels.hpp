@@ -44,20 +44,12 @@ inline void inv3(const Mat3& M, double I[3][3]) {
 // tau_B = m_B x (C_BN(sigma) B_N) [N m] of mb = (m_B [A m^2], B_N [T])
 // (sc_rt/model/magnetic.py mag_torque): magnetic_torque(m_B, B_B) of
 // magnetorquer.hpp written out on scalars (Eigen's cross may vectorise),
-// C_BN(sigma) n = n + [8 (s (s.n) - |s|^2 n) - 4 (1 - |s|^2) (s x n)] / (1 + |s|^2)^2
-// (Schaub & Junkins (3.153), as gg_orbit_torque).
+// B_B = C_BN(sigma) B_N by rotate_to_B (orbit.hpp), as gg_orbit_torque.
 inline void mag_torque(const double mb[6], double s1, double s2, double s3, double out[3]) {
-  const double m1 = mb[0], m2 = mb[1], m3 = mb[2], n1 = mb[3], n2 = mb[4], n3 = mb[5];
-  const double ss = s1 * s1 + s2 * s2 + s3 * s3;
-  const double q = 1.0 / ((1.0 + ss) * (1.0 + ss));
-  const double m4 = 4.0 * (1.0 - ss);
-  const double sn = s1 * n1 + s2 * n2 + s3 * n3;
-  const double c1 = s2 * n3 - s3 * n2;
-  const double c2 = s3 * n1 - s1 * n3;
-  const double c3 = s1 * n2 - s2 * n1;
-  const double b1 = n1 + (8.0 * (s1 * sn - ss * n1) - m4 * c1) * q;
-  const double b2 = n2 + (8.0 * (s2 * sn - ss * n2) - m4 * c2) * q;
-  const double b3 = n3 + (8.0 * (s3 * sn - ss * n3) - m4 * c3) * q;
+  const double m1 = mb[0], m2 = mb[1], m3 = mb[2];
+  double b[3];
+  rotate_to_B(s1, s2, s3, mb[3], mb[4], mb[5], b);
+  const double b1 = b[0], b2 = b[1], b3 = b[2];
   out[0] = m2 * b3 - m3 * b2;
   out[1] = m3 * b1 - m1 * b3;
   out[2] = m1 * b2 - m2 * b1;

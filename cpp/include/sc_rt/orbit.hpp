@@ -106,12 +106,9 @@ void orbit_gg_terms(const OrbitParams& p, const OrbitRates& k, double t, double 
 }  // namespace sc_rt
 
 namespace sc_rt::detail {
-// u_g = g0 (r x J r), r = C_BN(sigma) n, of the kernel's g = (g0, n) [N m]
-// (the plant's Rhs and gravity_gradient_orbit; sc_rt.model.orbit.gg_torque).
+// r = C_BN(sigma) n, on scalars (sc_rt.model.orbit.rotate_to_B, the same operations):
 // C_BN(sigma) n = n + [8 (s (s.n) - |s|^2 n) - 4 (1 - |s|^2) (s x n)] / (1 + |s|^2)^2 (Schaub & Junkins (3.153)).
-inline void gg_orbit_torque(const double J[3][3], double s1, double s2, double s3, const double g[4],
-                            double out[3]) {
-  const double n1 = g[1], n2 = g[2], n3 = g[3];
+inline void rotate_to_B(double s1, double s2, double s3, double n1, double n2, double n3, double r[3]) {
   const double ss = s1 * s1 + s2 * s2 + s3 * s3;
   const double q = 1.0 / ((1.0 + ss) * (1.0 + ss));
   const double m4 = 4.0 * (1.0 - ss);
@@ -119,9 +116,18 @@ inline void gg_orbit_torque(const double J[3][3], double s1, double s2, double s
   const double c1 = s2 * n3 - s3 * n2;
   const double c2 = s3 * n1 - s1 * n3;
   const double c3 = s1 * n2 - s2 * n1;
-  const double r1 = n1 + (8.0 * (s1 * sn - ss * n1) - m4 * c1) * q;
-  const double r2 = n2 + (8.0 * (s2 * sn - ss * n2) - m4 * c2) * q;
-  const double r3 = n3 + (8.0 * (s3 * sn - ss * n3) - m4 * c3) * q;
+  r[0] = n1 + (8.0 * (s1 * sn - ss * n1) - m4 * c1) * q;
+  r[1] = n2 + (8.0 * (s2 * sn - ss * n2) - m4 * c2) * q;
+  r[2] = n3 + (8.0 * (s3 * sn - ss * n3) - m4 * c3) * q;
+}
+
+// u_g = g0 (r x J r), r = C_BN(sigma) n, of the kernel's g = (g0, n) [N m]
+// (the plant's Rhs and gravity_gradient_orbit; sc_rt.model.orbit.gg_torque).
+inline void gg_orbit_torque(const double J[3][3], double s1, double s2, double s3, const double g[4],
+                            double out[3]) {
+  double r[3];
+  rotate_to_B(s1, s2, s3, g[1], g[2], g[3], r);
+  const double r1 = r[0], r2 = r[1], r3 = r[2];
   const double j1 = J[0][0] * r1 + J[0][1] * r2 + J[0][2] * r3;
   const double j2 = J[1][0] * r1 + J[1][1] * r2 + J[1][2] * r3;
   const double j3 = J[2][0] * r1 + J[2][1] * r2 + J[2][2] * r3;

@@ -23,7 +23,7 @@ Examples
 from __future__ import annotations
 
 from sc_rt.model.field import NT, field_for
-from sc_rt.model.orbit import OrbitParams, orbit_position, orbit_rates
+from sc_rt.model.orbit import OrbitParams, orbit_position, orbit_rates, rotate_to_B
 
 __all__ = ["make_field_N", "mag_torque", "held_dipole"]
 
@@ -64,20 +64,8 @@ def held_dipole(residual, dipole_B) -> tuple[float, float, float] | None:
 
 
 def mag_torque(mb, s1: float, s2: float, s3: float) -> tuple[float, float, float]:
-    """``tau_B = m_B x (C_BN(sigma) B_N)`` [N m] for ``mb = (m_B [A m^2], B_N [T])``.
-
-    ``C_BN(sigma) n = n + [8 (s (s.n) - |s|^2 n) - 4 (1 - |s|^2) (s x n)] / (1 + |s|^2)^2``
-    (Schaub & Junkins (3.153), as sc_rt.model.orbit.gg_torque).
-    """
+    """``tau_B = m_B x (C_BN(sigma) B_N)`` [N m] for ``mb = (m_B [A m^2], B_N [T])``, the field
+    rotated into B by ``sc_rt.model.orbit.rotate_to_B``."""
     m1, m2, m3, n1, n2, n3 = mb
-    ss = s1 * s1 + s2 * s2 + s3 * s3
-    q = 1.0 / ((1.0 + ss) * (1.0 + ss))
-    m4 = 4.0 * (1.0 - ss)
-    sn = s1 * n1 + s2 * n2 + s3 * n3
-    c1 = s2 * n3 - s3 * n2
-    c2 = s3 * n1 - s1 * n3
-    c3 = s1 * n2 - s2 * n1
-    b1 = n1 + (8.0 * (s1 * sn - ss * n1) - m4 * c1) * q
-    b2 = n2 + (8.0 * (s2 * sn - ss * n2) - m4 * c2) * q
-    b3 = n3 + (8.0 * (s3 * sn - ss * n3) - m4 * c3) * q
+    b1, b2, b3 = rotate_to_B(s1, s2, s3, n1, n2, n3)
     return (m2 * b3 - m3 * b2, m3 * b1 - m1 * b3, m1 * b2 - m2 * b1)

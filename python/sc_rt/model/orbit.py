@@ -40,6 +40,7 @@ __all__ = [
     "J2_EARTH",
     "JD_J2000",
     "KEPLER_ITERATIONS",
+    "rotate_to_B",
     "OrbitParams",
     "OrbitRates",
     "orbit_rates",
@@ -279,14 +280,9 @@ def gg_terms(mu: float, r1: float, r2: float, r3: float) -> tuple[float, float, 
     return (3.0 * mu / (rr * rn), r1 / rn, r2 / rn, r3 / rn)
 
 
-def gg_torque(J, s1: float, s2: float, s3: float, g) -> tuple[float, float, float]:
-    """``u_g = g0 (r x J r)``, ``r = C_BN(sigma) n`` for ``g = (g0, n)`` [N m].
-
-    ``C_BN(sigma) n = n + [8 (s (s.n) - |s|^2 n) - 4 (1 - |s|^2) (s x n)] / (1 + |s|^2)^2``
-    (Schaub & Junkins (3.153)); ``J`` a 3x3 nested sequence of floats.
-    """
-    (J11, J12, J13), (J21, J22, J23), (J31, J32, J33) = J
-    g0, n1, n2, n3 = g
+def rotate_to_B(s1: float, s2: float, s3: float, n1: float, n2: float, n3: float) -> tuple[float, float, float]:
+    """``C_BN(sigma) n`` on scalars (its C++ twin is rotate_to_B in cpp/include/sc_rt/orbit.hpp, the same operations):
+    ``n + [8 (s (s.n) - |s|^2 n) - 4 (1 - |s|^2) (s x n)] / (1 + |s|^2)^2`` (Schaub & Junkins (3.153))."""
     ss = s1 * s1 + s2 * s2 + s3 * s3
     q = 1.0 / ((1.0 + ss) * (1.0 + ss))
     m4 = 4.0 * (1.0 - ss)
@@ -294,9 +290,17 @@ def gg_torque(J, s1: float, s2: float, s3: float, g) -> tuple[float, float, floa
     c1 = s2 * n3 - s3 * n2
     c2 = s3 * n1 - s1 * n3
     c3 = s1 * n2 - s2 * n1
-    r1 = n1 + (8.0 * (s1 * sn - ss * n1) - m4 * c1) * q
-    r2 = n2 + (8.0 * (s2 * sn - ss * n2) - m4 * c2) * q
-    r3 = n3 + (8.0 * (s3 * sn - ss * n3) - m4 * c3) * q
+    return (n1 + (8.0 * (s1 * sn - ss * n1) - m4 * c1) * q,
+            n2 + (8.0 * (s2 * sn - ss * n2) - m4 * c2) * q,
+            n3 + (8.0 * (s3 * sn - ss * n3) - m4 * c3) * q)
+
+
+def gg_torque(J, s1: float, s2: float, s3: float, g) -> tuple[float, float, float]:
+    """``u_g = g0 (r x J r)``, ``r = C_BN(sigma) n`` (``rotate_to_B``) for ``g = (g0, n)`` [N m];
+    ``J`` a 3x3 nested sequence of floats."""
+    (J11, J12, J13), (J21, J22, J23), (J31, J32, J33) = J
+    g0, n1, n2, n3 = g
+    r1, r2, r3 = rotate_to_B(s1, s2, s3, n1, n2, n3)
     j1 = J11 * r1 + J12 * r2 + J13 * r3
     j2 = J21 * r1 + J22 * r2 + J23 * r3
     j3 = J31 * r1 + J32 * r2 + J33 * r3
