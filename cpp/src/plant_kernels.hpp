@@ -12,8 +12,8 @@ namespace sc_rt::detail {
 
 // ---------------------------------------------------------------------------
 // The hot path, written as plain scalar expressions in EXACTLY the order of
-// the Python reference (sc_rt/model/plant.py: _inv3, _make_rhs, _make_wheel_map,
-// _make_disturbance, rk4_step; sc_rt/model/actuators.py: sat4, accel4), so that
+// the Python reference (sc_rt/model/kernels.py: inv3, make_rhs, make_wheel_map,
+// make_disturbance; sc_rt/model/plant.py: rk4_step; sc_rt/model/actuators.py: sat4, accel4), so that
 // both engines give bit-identical results (IEEE double, -ffp-contract=off,
 // the same glibc cos/expm1). Python evaluates a + b + c as (a + b) + c, as
 // C++ does; no Eigen products here (their summation order is Eigen's own).
@@ -21,7 +21,7 @@ namespace sc_rt::detail {
 // (tests/test_plant.py holds the two to np.array_equal).
 // ---------------------------------------------------------------------------
 
-// Inverse of a 3x3 matrix by cofactors: inv = adj(M) / det(M) (plant.py _inv3).
+// Inverse of a 3x3 matrix by cofactors: inv = adj(M) / det(M) (kernels.py inv3).
 inline void inv3(const Mat3& M, double I[3][3]) {
   const double a = M(0, 0), b = M(0, 1), c = M(0, 2);
   const double d = M(1, 0), e = M(1, 1), f = M(1, 2);
@@ -55,7 +55,7 @@ inline void mag_torque(const double mb[6], double s1, double s2, double s3, doub
   out[2] = m1 * b2 - m2 * b1;
 }
 
-// One right-hand side of (1),(2),(7) (plant.py _make_rhs): J, its inverse and
+// One right-hand side of (1),(2),(7) (kernels.py make_rhs): J, its inverse and
 // k = 3 w0^2 as plain doubles.
 struct Rhs {
   double J[3][3];
@@ -63,7 +63,7 @@ struct Rhs {
   double k;
   Rhs(const Mat3& Jm, double w0) : Rhs(Jm, Jm, w0) {}
   // H and u_g with J, omega_dot solved with M (torque-commanded wheels: M = J -
-  // Cbar diag(Jw) Cbar', torque_plant.cpp; plant.py TorquePlant's _make_rhs(J, inv(M), k))
+  // Cbar diag(Jw) Cbar', torque_plant.cpp; torque_plant.py TorquePlant's make_rhs(J, inv3(M), k))
   Rhs(const Mat3& Jm, const Mat3& Mm, double w0) : k(3.0 * w0 * w0) {
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) J[r][c] = Jm(r, c);
@@ -126,7 +126,7 @@ struct Rhs {
   }
 };
 
-// Cbar Jw v (plant.py _make_wheel_map): of wheel speeds the wheels' momentum
+// Cbar Jw v (kernels.py make_wheel_map): of wheel speeds the wheels' momentum
 // in B, of wheel accelerations their reaction torque with its sign flipped.
 struct WheelMap {
   double C[3][4];
@@ -140,7 +140,7 @@ struct WheelMap {
   }
 };
 
-// d(t) (plant.py _make_disturbance): the bias alone when every amplitude is 0.
+// d(t) (kernels.py make_disturbance): the bias alone when every amplitude is 0.
 inline void dist3(const PlantParams& p, double t, double out[3]) {
   if (p.dist_amp(0) == 0.0 && p.dist_amp(1) == 0.0 && p.dist_amp(2) == 0.0) {
     for (int i = 0; i < 3; ++i) out[i] = p.dist_bias(i);

@@ -35,7 +35,8 @@ import numpy as np
 
 from sc_rt.model.actuators import ActuatorParams
 from sc_rt.model.magnetic import held_dipole, make_field_N
-from sc_rt.model.plant import PlantParams, _inv3, _make_disturbance, _make_rhs, _mrp_to_dcm, make_orbit_gg
+from sc_rt.model.kernels import inv3, make_disturbance, make_orbit_gg, make_rhs, mrp_to_dcm
+from sc_rt.model.plant import PlantParams
 from sc_rt.model.wheels import TorqueWheels, applied_torque, friction_torque, wheel_torque_command
 
 __all__ = ["TorqueWheels", "TorquePlant", "torque_plant_to_cpp", "step_inputs"]
@@ -78,10 +79,10 @@ class TorquePlant:
         if not np.all(np.linalg.eigvalsh(0.5 * (Mn + Mn.T)) > 0.0):
             raise ValueError(f"TorquePlant: J - Cbar diag(Jw) Cbar' is not positive definite: {M!r}")
         self.M = Mn
-        self._f = _make_rhs(p.J, _inv3(Mn), 3.0 * p.w0 * p.w0)  # H and u_g with J, solved with M
+        self._f = make_rhs(p.J, inv3(Mn), 3.0 * p.w0 * p.w0)  # H and u_g with J, solved with M
         self._C, self._Jw = C, Jw
         self._CJ = [[C[r][i] * Jw[i] for i in range(4)] for r in range(3)]
-        self._dist = _make_disturbance(p.disturbance)
+        self._dist = make_disturbance(p.disturbance)
         # the orbit's gravity gradient (None: the w0 form)
         self._gg = make_orbit_gg(p.orbit if p.orbit_gravity_gradient else None)
         self._field = make_field_N(p.orbit, p.field_model)  # B_N(t) [T] (None: no field)
@@ -148,7 +149,7 @@ class TorquePlant:
         """[N m s] the spacecraft's and wheels' angular momentum in N (3,)."""
         xs = np.asarray(x, float)
         H_B = np.asarray(self.p.J) @ xs[3:6] + (np.asarray(self.p.Cbar) * np.asarray(self.p.Jw)) @ xs[6:10]
-        return _mrp_to_dcm(xs[0:3]).T @ H_B
+        return mrp_to_dcm(xs[0:3]).T @ H_B
 
     def energy(self, x) -> float:
         """[J] the rotational kinetic energy of spacecraft and wheels:
