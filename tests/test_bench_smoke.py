@@ -164,6 +164,8 @@ def bench_timing(res: dict, out: str) -> None:
                 # 1 s runs: fewer rows than the two chunks before the first spill
                 assert sp["chunk_rows"] > 0 and sp["spills"] == 0 and sp["around_spills_us"]["p99"] is None, sp
                 assert fin(sp["elsewhere_us"]["p99"]) and sp["record_writer_waits"] == 0, sp
+                # a run that did not keep real time is measured, not a failed row (the machine's load decides)
+                assert r["kept_real_time"] in (True, False), r
     lock = rows["lockstep + sc-rt-logger"]
     assert lock["steps"] > 0 and all(pos(x) for x in lock["steps_per_s_runs"]), lock
     assert all(pos(x) for x in lock["latency_p99_over_floor_p99"]), lock
