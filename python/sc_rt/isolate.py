@@ -45,7 +45,8 @@ def forward_signal(signum: int) -> None:
     for, if any (safe in a signal handler): it may stop cleanly (its rows
     so far) within INTERRUPT_GRACE_S, else it is killed."""
     pid = _WAITING["pid"]
-    if pid is None:
+    if pid is None:  # before the child is forked: call_in_child passes it on as soon as it is
+        _WAITING["pending"] = signum
         return
     try:
         os.kill(pid, signum)
@@ -211,6 +212,9 @@ def call_in_child(fn: Callable[..., Any], *args: Any, timeout: float | None = No
     chunks, answered = [], False
     outer = _WAITING["pid"], _WAITING["kill_at"]
     _WAITING["pid"], _WAITING["kill_at"] = pid, None
+    pending = _WAITING.pop("pending", None)
+    if pending is not None:  # an interrupt that came while the child was being started
+        forward_signal(pending)
     try:
         while True:
             now = time.monotonic()
