@@ -20,7 +20,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import HIL_MEASURE, ROOT, machine, mode, write
+from common import HIL_MEASURE, ROOT, hil_timing, machine, mode, write
 
 sys.path.insert(0, str(ROOT / "tests"))
 import lcmnet  # noqa: E402
@@ -39,9 +39,7 @@ def hil(args: list[str]) -> dict:
         cmd = lcmnet.wrap([sys.executable, "-m", "sc_rt.cli", "hil", "paper_faults", "--no-plots",
                            "--out", d, *HIL_MEASURE, *args])
         r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, timeout=900)
-        if r.returncode != 0:
-            raise RuntimeError(r.stderr)
-        t = json.loads((Path(d) / "timing.json").read_text())
+        t = hil_timing(r.returncode, Path(d), " ".join(args), r.stderr)
         t["law"] = json.loads((Path(d) / "metrics.json").read_text())["controller"]
         return t
 

@@ -24,7 +24,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from common import HIL_MEASURE, ROOT, machine, mode, write
+from common import HIL_MEASURE, ROOT, hil_timing, machine, mode, write
 
 sys.path.insert(0, str(ROOT / "tests"))
 import lcmnet  # noqa: E402
@@ -53,16 +53,19 @@ def run(way: str, duration: float) -> dict:
                    str(Path(d) / "client.json"), "--timeout", str(60 + 2 * duration),
                    *(["--no-client"] if way == "live_no_client" else []), "--", *hil, "--live", str(port)]
         r = subprocess.run(lcmnet.wrap(cmd), capture_output=True, text=True, cwd=ROOT, timeout=600)
-        if r.returncode != 0:
-            raise RuntimeError(f"{way}: {r.stderr[-2000:]}")
+        rc, err = r.returncode, r.stderr
         if way != "no_live":
+            if rc != 0:
+                raise RuntimeError(f"{way}: {r.stderr[-2000:]}")
             got = json.loads((Path(d) / "client.json").read_text())
-            if got.get("hil_rc") != 0 or "live on" not in (got.get("live_line") or ""):
+            if "live on" not in (got.get("live_line") or ""):
                 raise RuntimeError(f"{way}: {got.get('error')} {got.get('hil_stderr', '')[-2000:]}")
-        t = json.loads((out / "timing.json").read_text())
+            rc, err = got.get("hil_rc"), f"{got.get('error')} {got.get('hil_stderr', '')}"
+        t = hil_timing(rc, out, way, err)
     res = {"latency_p99_us": t["state_to_cmd_latency_us"]["p99"],
            "latency_p50_us": t["state_to_cmd_latency_us"]["p50"],
-           "fresh_fraction": t["fresh_fraction"], "deadline_misses": t["deadline_misses"], "steps": t["steps"]}
+           "fresh_fraction": t["fresh_fraction"], "deadline_misses": t["deadline_misses"], "steps": t["steps"],
+           "kept_real_time": t.get("kept_real_time")}
     if way == "live_client":
         res["client_messages"] = sum(len(v) for v in got.get("messages", {}).values())
         res["client_states"] = len(got.get("messages", {}).get("SCRT_STATE", []))

@@ -50,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common import HIL_MEASURE, results_dir
+from common import HIL_MEASURE, hil_timing, results_dir
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -213,9 +213,7 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
         os.killpg(p.pid, signal.SIGINT)
         p.wait()
         raise
-    if p.returncode != 0:
-        raise RuntimeError(f"sc-rt hil exited {p.returncode}: {stderr[-2000:]}")
-    timing = json.loads((out / "timing.json").read_text())
+    timing = hil_timing(p.returncode, out, "soak", stderr)
     summary = json.loads((out / "controller_summary.json").read_text())
     from sc_rt.results.record.run import Run
 
