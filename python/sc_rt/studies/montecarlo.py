@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from sc_rt.scenario.model import Scenario
-from sc_rt.studies.campaign import Campaign, Dispersion, disperse, run_campaign, write_summary
+from sc_rt.studies.campaign import Dispersion, disperse, plan_campaign, run_campaign, write_summary
 from sc_rt.studies.campaign.store import RunStore
 
 __all__ = ["Dispersion", "disperse", "run_montecarlo", "write_montecarlo"]
@@ -77,7 +77,7 @@ def run_montecarlo(scn: Scenario, runs: int, *, workers: int | None = None, seed
         ``out`` holds runs already (without ``resume`` or ``overwrite``), or
         a different campaign to resume.
     """
-    c = Campaign(scn, dispersion, seed, law, control_rate_hz)
+    c = plan_campaign(scn, dispersion, seed, law, control_rate_hz)
     with tempfile.TemporaryDirectory(prefix="sc-rt-mc-") as tmp:
         where = Path(out) if out is not None else Path(tmp)
         res = run_campaign(c, runs, where, workers=workers, progress=progress, **campaign)
