@@ -16,7 +16,7 @@ import numpy as np
 from sc_rt_lcm import controller_config_t
 
 from sc_rt import _core
-from sc_rt.pylaw import is_python_law, register
+from sc_rt.pylaw import registry_spec
 from sc_rt.scenario.laws import law_table_name
 from sc_rt.scenario.lawspec import law_problem
 from sc_rt.scenario.schema import convert, field_spec
@@ -42,7 +42,7 @@ def controller_config_msg(
         _, problem = convert(value, field_spec(type(scn.run), name))
         if problem:
             raise ValueError(f"{name} {problem}, got {value!r}")
-    if not is_python_law(law) and (problem := law_problem(law)):
+    if problem := law_problem(law):  # the form a scenario holds (sc_rt.scenario.lawspec.law_spec)
         raise ValueError(f"controller {problem}, got {law!r}")
     p, a, g, c = scn.plant, scn.actuators, scn.guidance, scn.controller
     m = controller_config_t()
@@ -116,6 +116,5 @@ def core_config(
     does. A Python law is put in the core's registry first (sc_rt.pylaw),
     so that a controller built from the config in this process runs it."""
     msg = controller_config_msg(scn, law, control_rate_hz, nav=False)  # the core reads no nav_* field
-    if is_python_law(msg.law):
-        msg.law = register(msg.law)  # its registry spec, "python:..." (file.py:Class given without it too)
+    msg.law = registry_spec(msg.law)  # a Python law: into the core's registry (sc_rt.pylaw)
     return _core.ControllerConfig.from_lcm_bytes(msg.encode())

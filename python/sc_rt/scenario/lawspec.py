@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from sc_rt import _core
-from sc_rt.pylaw import PYTHON_PREFIX, is_python_law, law_label, load_law
+from sc_rt.pylaw import PYTHON_PREFIX, is_python_law, law_label, python_law
 
 __all__ = ["LAWS", "LAW_NAMES", "PLUGIN_PREFIX", "law_identity", "law_spec", "law_problem"]
 
@@ -35,11 +35,11 @@ def law_identity(spec: str) -> dict[str, Any]:
     not know (an external controller) is its own name. A Python law is
     labelled by its ``name``; its file (when given by one) and that file's
     ``sha256`` are kept as a plugin's."""
-    if is_python_law(spec):
+    if (cls := python_law(spec)) is not None:
         target = spec[len(PYTHON_PREFIX):] if spec.startswith(PYTHON_PREFIX) else spec
         src = Path(target.rpartition(":")[0])
         is_file = src.suffix == ".py" and src.is_file()
-        return {"name": law_label(load_law(spec)), "spec": spec, "source": str(src) if is_file else "python",
+        return {"name": law_label(cls), "spec": spec, "source": str(src) if is_file else "python",
                 "sha256": hashlib.sha256(src.read_bytes()).hexdigest() if is_file else None}
     if not spec.startswith(PLUGIN_PREFIX):
         return {"name": spec, "spec": spec, "source": "built-in" if spec in LAWS else "external"}
