@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -18,7 +19,7 @@ from sc_rt_lcm import controller_config_t
 from sc_rt import _core
 from sc_rt.pylaw import registry_spec
 from sc_rt.scenario.laws import law_table_name
-from sc_rt.scenario.lawspec import law_problem
+from sc_rt.scenario.lawspec import law_problem, law_spec
 from sc_rt.scenario.schema import convert, field_spec
 from sc_rt.scenario.sensors import nav_config
 
@@ -36,7 +37,8 @@ def controller_config_msg(
     initial gyro calibration estimate (``[controller.estimator]
     initial_scale_factor``, ``initial_misalignment``; offline engines only).
     """
-    law = scn.run.controller if law is None else law
+    # a law given here in any form (file.py:Class without python:) as the reader writes a file's
+    law = scn.run.controller if law is None else law_spec(law, Path.cwd()) if isinstance(law, str) else law
     rate = scn.run.control_rate_hz if control_rate_hz is None else control_rate_hz
     for name, value in (("controller", law), ("control_rate_hz", rate)):
         _, problem = convert(value, field_spec(type(scn.run), name))
