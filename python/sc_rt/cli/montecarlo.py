@@ -370,8 +370,7 @@ def _rerun(c: Any, run: int, out: Path, args: argparse.Namespace) -> int:
     except OSError as e:
         return _fail(f"--out {args.out}: {e}")
     verdict = rerun_verdict(row, where)  # its requirements (the envelope where the scenario asks for it)
-    how = "its recorded draw" if recorded is not None else "drawn"
-    print(f"sc-rt montecarlo: run {run} of seed {c.seed} ({c.scenario.name}, {how}): {verdict} -> {where}/")
+    print(f"sc-rt montecarlo: run {run} of seed {c.seed} ({c.scenario.name}): {verdict} -> {where}/")
     problems = _rerun_gate(row, where) if args.strict else []
     if same is not None:  # the campaign in --out holds this run: the two must agree
         match = repr(same) == repr({k: row.get(k) for k in same})
