@@ -11,6 +11,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from sc_rt.plan.run import RunPlan
 from sc_rt.scenario.model import Scenario
 from sc_rt.studies.campaign import Dispersion, disperse, plan_campaign, run_campaign, write_summary
 from sc_rt.studies.campaign.store import RunStore
@@ -18,7 +19,7 @@ from sc_rt.studies.campaign.store import RunStore
 __all__ = ["Dispersion", "disperse", "run_montecarlo", "write_montecarlo"]
 
 
-def run_montecarlo(scn: Scenario, runs: int, *, workers: int | None = None, seed: int = 0,
+def run_montecarlo(scn: Scenario | RunPlan, runs: int, *, workers: int | None = None, seed: int = 0,
                    dispersion: Dispersion = Dispersion(), law: str | None = None,
                    control_rate_hz: float | None = None, progress: bool = True,
                    out: Path | None = None, **campaign: Any) -> dict[str, Any]:
@@ -32,9 +33,12 @@ def run_montecarlo(scn: Scenario, runs: int, *, workers: int | None = None, seed
 
     Parameters
     ----------
-    scn : Scenario
-        The nominal scenario; its ``[montecarlo]`` table, if any, adds its
-        dispersions to the shortcut ones.
+    scn : Scenario or RunPlan
+        The nominal scenario, planned once with ``law`` and
+        ``control_rate_hz`` (sc_rt.studies.campaign.plan_campaign), or a
+        base plan already made (``sc_rt.plan_run(..., engine="cpp")``; then
+        ``law`` and ``control_rate_hz`` are not used). Its ``[montecarlo]``
+        table, if any, adds its dispersions to the shortcut ones.
     runs : int
         The number of runs (ids 0 .. runs - 1).
     workers : int, optional
