@@ -24,7 +24,8 @@ from common import ROOT, machine, mode, write
 
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
-from sc_rt.studies.campaign import Campaign, Dispersion, RunStore, run_campaign, run_one, run_seed_sequence
+from sc_rt.studies.campaign import (Campaign, Dispersion, RunStore, plan_campaign, run_campaign, run_one,
+                                   run_seed_sequence)
 from sc_rt.studies.campaign.backends import DaskBackend, PoolBackend
 
 
@@ -72,7 +73,7 @@ def dataset_sizes(c: Campaign, out: Path) -> dict:
 
 def main(size: str = "full") -> None:
     scn = load_scenario(ROOT / "scenarios" / "ppc_feasible_10hz.toml")
-    c = Campaign(scn, Dispersion(), seed=0)
+    c = plan_campaign(scn, Dispersion(), seed=0)
     smoke = size == "smoke"
     runs = {"full": 600, "quick": 200, "smoke": 8}[size]
     reps = 1 if smoke else 2

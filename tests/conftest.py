@@ -71,6 +71,9 @@ SLOW_TESTS = (
     "tests/test_bdot.py::test_lyapunov_function_decreases_monotonically",
     # issue 38: a lockstep run over LCM and its rerun (~1.6 s)
     "tests/test_run_plan.py::test_rerun_replays_the_plan_a_lockstep_hil_run_recorded",
+    # issue 38: a campaign and its reruns replaying the recorded draws (~10 s each)
+    "tests/test_montecarlo_rerun.py::test_rerun_replays_the_recorded_draw_whatever_the_seed_and_table_say_now",
+    "tests/test_montecarlo_rerun.py::test_sc_rt_rerun_of_a_run_alone_replays_its_plan_and_draw",
     # round 4: the gate's and the log's LCM runs, campaigns, interrupts (tests of 0.7 s or more)
     "tests/test_log_paced.py::test_a_logger_that_never_comes_back_stops_the_run_invalid",
     "tests/test_log_paced.py::test_a_stopped_logger_holds_the_lockstep_bench_and_loses_nothing",

@@ -17,7 +17,7 @@ import pytest
 
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import with_overrides
-from sc_rt.studies.campaign import Campaign, Dispersion, RunStore, run_campaign
+from sc_rt.studies.campaign import plan_campaign, Dispersion, RunStore, run_campaign
 
 ROOT = Path(__file__).resolve().parent.parent
 FEASIBLE = ROOT / "scenarios/ppc_feasible_10hz.toml"
@@ -50,7 +50,7 @@ def test_a_dask_cluster_gives_the_local_pools_rows_bitwise(tmp_path):
     from distributed import Client
 
     scn = with_overrides(load_scenario(FEASIBLE), duration=60)
-    c = Campaign(scn, Dispersion(), seed=21)
+    c = plan_campaign(scn, Dispersion(), seed=21)
     run_campaign(c, 24, tmp_path / "pool", workers=2, progress=False)
     pool = RunStore(tmp_path / "pool", c.columns()).read().to_pylist()
 
@@ -106,7 +106,7 @@ def test_sigkill_loses_only_runs_in_flight_and_resume_completes(tmp_path):
             p.wait(timeout=10)
     assert p.returncode == -signal.SIGKILL
     scn = load_scenario(scn_path)
-    c = Campaign(scn, Dispersion(), seed=4)
+    c = plan_campaign(scn, Dispersion(), seed=4)
     store = RunStore(out, c.columns())
     kept = store.read().to_pylist()  # every file that exists is whole
     assert 20 <= len(kept) < runs  # killed in the middle; no batch lost before it
@@ -129,7 +129,7 @@ def test_sigkill_loses_only_runs_in_flight_and_resume_completes(tmp_path):
 
 def test_a_dask_localcluster_gives_the_same_rows(tmp_path):
     scn = with_overrides(load_scenario(FEASIBLE), duration=30)
-    c = Campaign(scn, Dispersion(), seed=8)
+    c = plan_campaign(scn, Dispersion(), seed=8)
     run_campaign(c, 8, tmp_path / "serial", workers=1, progress=False)
     res = run_campaign(c, 8, tmp_path / "dask", backend="dask", workers=2, batch_size=3, progress=False)
     assert res["backend"] == "dask" and res["scheduler"] == "LocalCluster" and res["workers"] == 2

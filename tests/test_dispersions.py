@@ -13,7 +13,7 @@ from sc_rt.scenario.keys import get_key, scenario_data
 from sc_rt.scenario.model import ScenarioError
 from sc_rt.scenario.reader import load_scenario, scenario_from_data
 from sc_rt.sim.engines import with_overrides
-from sc_rt.studies.campaign import NO_SHORTCUTS, Campaign, RunStore, draw_run, run_campaign, run_one
+from sc_rt.studies.campaign import NO_SHORTCUTS, plan_campaign, RunStore, draw_run, run_campaign, run_one
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE = (ROOT / "scenarios/paper_faults.toml").read_text()
@@ -160,7 +160,7 @@ high = {high}
 
 def _campaign(tmp_path, mode, n, low=-12.0, high=12.0):
     s = with_overrides(scenario(tmp_path, WIDE.format(mode=mode, n=n, low=low, high=high)), duration=5)
-    return Campaign(s, NO_SHORTCUTS, seed=1, law="pd")
+    return plan_campaign(s, NO_SHORTCUTS, seed=1, law="pd")
 
 
 def test_an_invalid_draw_is_redrawn_within_max_redraws(tmp_path):
@@ -198,7 +198,7 @@ def test_a_run_with_no_valid_draw_is_failed_after_max_redraws(tmp_path):
 
 def test_a_table_campaign_stores_its_values_and_reruns_bitwise(tmp_path):
     s = with_overrides(scenario(tmp_path, TABLE), duration=20)
-    c = Campaign(s, NO_SHORTCUTS, seed=9, law="dsc-ppc")
+    c = plan_campaign(s, NO_SHORTCUTS, seed=9, law="dsc-ppc")
     run_campaign(c, 4, tmp_path / "mc", workers=2, progress=False)
     rows = RunStore(tmp_path / "mc", c.columns()).read().to_pylist()
     assert {"spacecraft.dJ[1][2]", "faults[1].onset", "laws.dsc-ppc.k2", "spacecraft.Jw[3]",

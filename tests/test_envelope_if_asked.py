@@ -157,7 +157,7 @@ def test_compare_ranks_and_headlines_by_the_requirements(files, tmp_path, capsys
 
 
 def test_the_campaign_figure_and_rerun_speak_of_the_requirements(files, tmp_path):
-    from sc_rt.studies.campaign import Campaign, Dispersion
+    from sc_rt.studies.campaign import plan_campaign, Dispersion
     from sc_rt.studies.campaign.figure import figure
     from sc_rt.studies.campaign.store import RunStore
 
@@ -170,7 +170,7 @@ def test_the_campaign_figure_and_rerun_speak_of_the_requirements(files, tmp_path
     summary = json.loads((out / "montecarlo.json").read_text())
     assert (out / "montecarlo.png").is_file() and summary["judged_by"] == "requirements"
     scn = load_scenario(files["without"])
-    rows = RunStore(out, Campaign(scn, Dispersion(), 0).columns()).read().to_pylist()
+    rows = RunStore(out, plan_campaign(scn, Dispersion(), 0).columns()).read().to_pylist()
     fig = figure(summary, rows)  # what montecarlo.png holds, as artists
     texts = artist_texts(fig)
     no_envelope("\n".join(texts), "montecarlo.png")

@@ -283,14 +283,14 @@ def test_lockstep_hil_is_bitwise_sim_with_flight_wheels_and_their_faults(tmp_pat
 
 
 def test_a_flight_wheels_campaign_disperses_a_wheel_key(tmp_path):
-    from sc_rt.studies.campaign import Campaign, Dispersion, draw_run, run_one
+    from sc_rt.studies.campaign import plan_campaign, Dispersion, draw_run, run_one
 
     path = tmp_path / "mc.toml"
     path.write_text(_flight_text(extra=(
         "\n[montecarlo]\n\n[[montecarlo.disperse]]\nkey = \"wheels.coulomb\"\ndist = \"uniform\"\n"
         "low = 1e-4\nhigh = 1e-2\napply = \"set\"\n")).replace("duration = 4000.0", "duration = 200.0"))
     scn = load_scenario(path)
-    campaign = Campaign(scn, Dispersion(), seed=5)
+    campaign = plan_campaign(scn, Dispersion(), seed=5)
     drawn = [draw_run(scn, Dispersion(), 5, i)[0].actuators.wheels.friction for i in range(3)]
     coulombs = {f.coulomb for run in drawn for f in run}
     assert len(coulombs) == 12 and all(1e-4 <= c <= 1e-2 for c in coulombs)

@@ -19,7 +19,7 @@ from sc_rt import _core
 from sc_rt.cli.main import main
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate, with_overrides
-from sc_rt.studies.campaign import (Campaign, Dispersion, RunStore, clopper_pearson,
+from sc_rt.studies.campaign import (plan_campaign, Dispersion, RunStore, clopper_pearson,
                                     draw_run, rerun, run_campaign, run_one, run_seed_sequence,
                                     tolerance_bound, wilks_order, wilks_runs)
 from sc_rt.studies.campaign.figure import figure
@@ -89,7 +89,7 @@ def test_reproducible_from_the_seed_for_any_number_of_workers_and_order():
 
 def test_a_run_alone_equals_the_run_inside_its_campaign(tmp_path):
     scn = with_overrides(load_scenario(FAULTS), duration=40)
-    c = Campaign(scn, Dispersion(), seed=11)
+    c = plan_campaign(scn, Dispersion(), seed=11)
     run_campaign(c, 6, tmp_path / "mc", workers=2, progress=False)
     rows = RunStore(tmp_path / "mc", c.columns()).read().to_pylist()
     alone = run_one(c, 4)

@@ -58,7 +58,8 @@ from sc_rt import _core
 from sc_rt.isolate import beat
 
 __all__ = ["PYTHON_PREFIX", "TELEMETRY", "LAW_COMMANDS", "LawParamError", "LawSetup", "is_python_law",
-           "load_law", "law_command", "law_label", "law_spec", "register", "split_unit", "FLAG_LAW_INVALID"]
+           "load_law", "law_command", "law_label", "law_spec", "python_law", "register", "registry_spec",
+           "split_unit", "FLAG_LAW_INVALID"]
 
 #: what a law's u_cmd may be, and its unit
 LAW_COMMANDS: dict[str, str] = {"acceleration": "rad/s^2", "torque": "N m"}
@@ -197,6 +198,21 @@ def register(law: str | type) -> str:
     doc = (cls.__doc__ or "").strip().splitlines()
     _core.register_python_law(spec, law_label(cls), doc[0] if doc else "", _factory(cls), law_command(cls))
     return spec
+
+
+def python_law(spec: Any) -> type | None:
+    """The class a Python law's spec names, loaded (ValueError when it does
+    not load); None for a spec that names no Python law (a built-in, a
+    plugin, an external controller's name). What the modules below the plan
+    ask instead of reading a spec's form themselves (issue 38)."""
+    return load_law(spec) if is_python_law(spec) else None
+
+
+def registry_spec(spec: str) -> str:
+    """The law a ``ControllerConfig`` runs ``spec`` by: a Python law put in
+    the core's registry first (:func:`register`, once per process), any
+    other law as it is."""
+    return register(spec) if is_python_law(spec) else spec
 
 
 class _Params(dict):

@@ -142,8 +142,8 @@ def _add_sim(sub) -> None:
 
 def _add_rerun(sub) -> None:
     """sc-rt rerun."""
-    r = sub.add_parser("rerun", help="run again the plan a sim or hil run recorded (its scenario file, overrides, "
-                                     "law, engine or mode and set-up)")
+    r = sub.add_parser("rerun", help="run again the plan a sim, hil or montecarlo --rerun run recorded (its scenario "
+                                     "file, overrides, drawn values, law, engine or mode and set-up)")
     r.add_argument("run_dir", metavar="DIR", help="the recorded run's directory (its trajectory.npz or .arrow)")
     r.add_argument("--out", required=True, type=out_dir, metavar="DIR", help="where the new run writes")
     add_strict(r)

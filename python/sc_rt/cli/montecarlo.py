@@ -17,11 +17,11 @@ from typing import Any
 
 __all__ = ["add_parser", "cmd_montecarlo", "headline", "rerun_verdict"]
 
-from sc_rt.scenario.model import LAWS  # noqa: E402
+from sc_rt.scenario.lawspec import LAWS  # noqa: E402
 from sc_rt.cli.validate import LAW_HELP, law_choice  # noqa: E402
 from sc_rt.cli.common import add_set, add_strict, claim_out, strict_exit  # noqa: E402
 
-LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
+LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.lawspec)
 SHORTCUTS = ("inertia", "onset", "effectiveness", "attitude", "rate")
 _ADDRESS_RE = re.compile(r"^(tcp|tls)://(\[[0-9a-fA-F:]+\]|[A-Za-z0-9.\-]+):(\d{1,5})$")
 
@@ -47,7 +47,9 @@ def add_parser(sub: Any) -> argparse.ArgumentParser:
     m.add_argument("--batch", metavar="N", help="runs per task and per dataset file (default: <= 64)")
     m.add_argument("--resume", action="store_true", help="continue the campaign in --out: skip finished ids")
     m.add_argument("--overwrite", action="store_true", help="replace the runs already in --out")
-    m.add_argument("--rerun", metavar="ID", help="run ID alone and write its full outputs to OUT/rerun-ID/")
+    m.add_argument("--rerun", metavar="ID", help="run ID alone and write its full outputs to OUT/rerun-ID/: the "
+                                                 "draw the campaign in --out recorded for it, replayed (else "
+                                                 "drawn from --seed)")
     m.add_argument("--confidence", metavar="C", help="confidence of the requirements' statements, in (0, 1) "
                                                      "(default 0.95; docs/REQUIREMENTS.md)")
     m.add_argument("--coverage", metavar="P", help="the fraction of runs a per-run (temporal, settling, margin, "
@@ -172,18 +174,6 @@ def _clear_reruns(out: Path) -> None:
             shutil.rmtree(d)
 
 
-def _dataset_row(c: Any, out: Path, run: int) -> dict[str, Any] | None:
-    """Run ``run``'s row in the dataset of ``out``, if that is this campaign's."""
-    from sc_rt.studies.campaign.store import RunStore, fingerprint
-
-    store = RunStore(out, c.columns())
-    old = store.existing_manifest()
-    if old is None or old.get("fingerprint") != fingerprint(c.identity()):
-        return None
-    rows = [r for r in store.read().to_pylist() if r["run"] == run]
-    return {k: v for k, v in rows[0].items() if v is not None or k in ("message",)} if rows else None
-
-
 def _stats(o: dict[str, Any]) -> dict[str, float]:
     """The requirements' statistics options given (the rest keep their defaults)."""
     return {k: o[k] for k in ("confidence", "coverage") if o[k] is not None}
@@ -267,8 +257,8 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     except BadOption as e:
         return _fail(str(e))
     from sc_rt.cli.common import scenario_arg
-    from sc_rt.studies.campaign import (Campaign, CampaignExists, SchedulerUnreachable, make_backend,
-                                        rerun, run_campaign, write_summary)
+    from sc_rt.studies.campaign import (CampaignExists, SchedulerUnreachable, make_backend, plan_campaign,
+                                        run_campaign, write_summary)
     from sc_rt.studies.campaign.runner import check_out
     from sc_rt.studies.campaign.store import RunStore
 
@@ -276,40 +266,21 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
     scn = scenario_arg(args.scenario, args, probe=args.law is not None)
     from sc_rt.plan.run import plan_run
 
-    # the campaign's law loaded and probed at rest once, before any run (ScenarioError: exit 2)
-    plan_run(scn, law=args.law, engine="cpp", control_rate_hz=o["control_rate"], strays=False)
+    # the campaign planned once: its base plan, the law loaded and probed at rest before any run
+    # (ScenarioError: exit 2); every run is this plan with its drawn values
+    plan = plan_run(scn, law=args.law, engine="cpp", control_rate_hz=o["control_rate"], strays=False)
     from sc_rt.cli.validate import UsageError, check_run_size
-    from sc_rt.scenario.overrides import with_overrides
 
     try:  # a run of each worker held at once
-        check_run_size(with_overrides(scn, control_rate_hz=o["control_rate"]),
-                       f"--control-rate {args.control_rate}" if args.control_rate else "",
+        check_run_size(plan.scenario, f"--control-rate {args.control_rate}" if args.control_rate else "",
                        copies=o["workers"] or 1)
     except UsageError as e:
         return _fail(str(e))
-    c = Campaign(scn, _dispersion(o, scn.montecarlo is not None and bool(scn.montecarlo.disperse)),
-                 o["seed"], args.law, o["control_rate"])
+    c = plan_campaign(plan, _dispersion(o, scn.montecarlo is not None and bool(scn.montecarlo.disperse)),
+                      o["seed"])
     out = Path(args.out)
     if o["rerun"] is not None:
-        where = out / f"rerun-{o['rerun']}"
-        try:
-            claim_out(where)
-        except UsageError as e:
-            return _fail(str(e))
-        try:
-            row = rerun(c, o["rerun"], where)
-        except OSError as e:
-            return _fail(f"--out {args.out}: {e}")
-        verdict = rerun_verdict(row, where)  # its requirements (the envelope where the scenario asks for it)
-        print(f"sc-rt montecarlo: run {o['rerun']} of seed {o['seed']} ({scn.name}): {verdict} -> {where}/")
-        problems = _rerun_gate(row, where) if args.strict else []
-        same = _dataset_row(c, out, o["rerun"])
-        if same is not None:  # the campaign in --out holds this run: the two must agree
-            match = repr(same) == repr({k: row.get(k) for k in same})
-            print(f"sc-rt montecarlo: run {o['rerun']} {'matches' if match else 'DIFFERS FROM'} "
-                  f"its row in {out}/runs")
-            return strict_exit(problems, 0 if match else 1, "montecarlo", args.strict)
-        return strict_exit(problems, 0, "montecarlo", args.strict)
+        return _rerun(c, o["rerun"], out, args)
     try:
         check_out(c, out, args.resume, args.overwrite)
     except CampaignExists as e:
@@ -363,6 +334,49 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
               f"{res['runs']} runs: counted as failures (montecarlo.json 'failed', status crashed)",
               file=sys.stderr)
     return strict_exit(campaign_gate_problems(res), 0, "montecarlo", args.strict)
+
+
+def _rerun(c: Any, run: int, out: Path, args: argparse.Namespace) -> int:
+    """``--rerun ID``: run ID alone into OUT/rerun-ID/. When the campaign in
+    --out holds run ID, its recorded draw is replayed exactly (its seed and
+    values as the campaign drew them, whatever --seed, the shortcut options
+    or the [montecarlo] table say now) and the new row is compared with the
+    recorded one; else the run is drawn from (--seed, ID)."""
+    import dataclasses
+
+    from sc_rt.cli.validate import UsageError
+    from sc_rt.studies.campaign import RunDraw, rerun
+    from sc_rt.studies.campaign.runner import recorded_row
+
+    where = out / f"rerun-{run}"
+    try:
+        claim_out(where)
+    except UsageError as e:
+        return _fail(str(e))
+    same, ours = recorded_row(c, out, run)
+    recorded = None
+    if same is not None:
+        recorded = RunDraw.from_row(same)
+        c = dataclasses.replace(c, seed=int(same["seed"]))
+        if not ours:
+            print(f"sc-rt montecarlo: note: the campaign in {out} was planned with other settings (seed, "
+                  f"dispersions, [montecarlo] table, scenario or law); run {run} replays the draw it recorded "
+                  f"(seed {c.seed})", file=sys.stderr)
+    try:
+        row = rerun(c, run, where, recorded=recorded)
+    except KeyError as e:
+        return _fail(f"--rerun {run}: the draw {out}/runs recorded sets {e}, which {c.scenario.name} does "
+                     "not have: rerun it with the campaign's scenario")
+    except OSError as e:
+        return _fail(f"--out {args.out}: {e}")
+    verdict = rerun_verdict(row, where)  # its requirements (the envelope where the scenario asks for it)
+    print(f"sc-rt montecarlo: run {run} of seed {c.seed} ({c.scenario.name}): {verdict} -> {where}/")
+    problems = _rerun_gate(row, where) if args.strict else []
+    if same is not None:  # the campaign in --out holds this run: the two must agree
+        match = repr(same) == repr({k: row.get(k) for k in same})
+        print(f"sc-rt montecarlo: run {run} {'matches' if match else 'DIFFERS FROM'} its row in {out}/runs")
+        return strict_exit(problems, 0 if match else 1, "montecarlo", args.strict)
+    return strict_exit(problems, 0, "montecarlo", args.strict)
 
 
 def _rerun_gate(row: dict[str, Any], where: Path) -> list[str]:

@@ -10,7 +10,7 @@
   emulator can keep; a run that cannot fit is refused with the numbers
   (``UsageError``);
 - ``law_choice`` / ``core_law_choice`` for ``--law``: a law of the core's
-  table (sc_rt.scenario.model.LAWS), a C++ plugin ``plugin:PATH_OR_NAME``
+  table (sc_rt.scenario.lawspec.LAWS), a C++ plugin ``plugin:PATH_OR_NAME``
   (loaded now) or a Python law ``module:Class`` / ``file.py:Class``
   (imported now): a law that does not load is refused in one line.
 """

@@ -22,7 +22,7 @@ from sc_rt.results.record.inputs import run_inputs
 from sc_rt.plan.timing import RealtimeLimits, Timing, TimingSetup
 from sc_rt.scenario.laws import stray_tables
 from sc_rt.scenario.model import Scenario, ScenarioError
-from sc_rt.scenario.overrides import with_overrides
+from sc_rt.scenario.overrides import DRAW, with_draws, with_overrides
 from sc_rt.scenario.reader import load_scenario
 
 __all__ = ["ENGINES", "Outputs", "Bus", "RunPlan", "PlanConflict", "plan_run", "plan_from_inputs"]
@@ -213,8 +213,10 @@ def plan_run(scenario: str | Path | Scenario, *, sets: Any = (), law: str | None
 def plan_from_inputs(inputs: dict[str, Any], out: Path | None = None) -> RunPlan:
     """The plan a run recorded (``RunPlan.inputs()``) made again: its scenario
     file read with its ``--set`` overrides, its run overrides, its law, engine
-    and set-up (``out``: another directory to write to). ValueError when the
-    record holds no plan, or its scenario file changed since (SHA-256)."""
+    and set-up, and a Monte Carlo run's drawn values (``draw KEY``,
+    sc_rt.scenario.overrides.with_draws) as recorded, not drawn again
+    (``out``: another directory to write to). ValueError when the record
+    holds no plan, or its scenario file changed since (SHA-256)."""
     if "plan" not in inputs or not inputs.get("scenario_file"):
         raise ValueError("the run's inputs hold no plan (written before sc-rt recorded its plan)")
     p = inputs["plan"]
@@ -242,6 +244,12 @@ def plan_from_inputs(inputs: dict[str, Any], out: Path | None = None) -> RunPlan
         raise ValueError(f"{recorded.module}: the law's file changed since the run (SHA-256 {recorded.sha256})")
     if plan.law != recorded and not isinstance(recorded, ExternalLaw):
         raise ValueError(f"the law resolves to {plan.law} now, not to the recorded {recorded}")
+    draws = [(k[len(DRAW):], v) for k, v in inputs.get("overrides", {}).items() if k.startswith(DRAW)]
+    if draws:  # a campaign's run: the base plan with the values it drew
+        try:
+            plan = dataclasses.replace(plan, scenario=with_draws(plan.scenario, draws))
+        except KeyError as e:
+            raise ValueError(f"the run's drawn value {e} is not a key of the scenario") from None
     return plan
 
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.pylaw import is_python_law, law_command, law_label, load_law
+from sc_rt.pylaw import law_command, law_label, python_law
 from sc_rt.scenario.schema import ScenarioIssue, Table, key_lines
 
 __all__ = ["LEGACY_TABLES", "read_laws", "law_table_name", "command_of", "wheels_command", "resolved", "items_of",
@@ -144,9 +144,8 @@ def law_table_name(spec: str) -> str:
     ``name``, see ``sc_rt.pylaw.law_label``)."""
     if spec.startswith("plugin:"):
         return _core.law_info(spec)["name"]
-    if is_python_law(spec):
-        return law_label(load_law(spec))
-    return spec
+    cls = python_law(spec)
+    return spec if cls is None else law_label(cls)
 
 
 def command_of(spec: str) -> str:
@@ -154,9 +153,8 @@ def command_of(spec: str) -> str:
     (``sc_rt.pylaw.LAW_COMMANDS``): a plugin's declaration (the library is
     loaded), a Python law's ``command`` attribute; the built-ins command
     accelerations. ValueError when the law does not load."""
-    if is_python_law(spec):
-        return law_command(load_law(spec))
-    return _core.law_info(spec)["command"]
+    cls = python_law(spec)
+    return _core.law_info(spec)["command"] if cls is None else law_command(cls)
 
 
 def wheels_command(scn: Any) -> str:

@@ -11,13 +11,14 @@ timing); controller gains may be left out and then take the paper's values
 :class:`ScenarioError` naming the file, line, dotted key and bad value.
 The controller receives its part as an LCM ``controller_config_t``
 (:meth:`Scenario.controller_config_msg`); :meth:`Scenario.core_config`
-decodes those bytes with the same C++ translator as the real-time process.
+decodes those bytes with the same C++ translator as the real-time process
+(both in sc_rt.scenario.config_msg). The law table and the law spec's
+helpers (``LAWS``, ``law_spec``, ``law_identity``, ...) live in
+sc_rt.scenario.lawspec and are importable from here too.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,8 +41,16 @@ from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIs
     spec,
     vector_spec,
 )
-from sc_rt.pylaw import PYTHON_PREFIX, is_python_law, law_label, load_law, register
-from sc_rt.scenario.laws import items_of, law_table_name, resolved
+from sc_rt.scenario.config_msg import controller_config_msg, core_config
+from sc_rt.scenario.laws import items_of, resolved
+from sc_rt.scenario.lawspec import (  # noqa: F401  (the law table and spec helpers are public here too)
+    LAW_NAMES,
+    LAWS,
+    PLUGIN_PREFIX,
+    law_identity,
+    law_problem,
+    law_spec,
+)
 from sc_rt.scenario.guidance import (
     FileGuidance,
     Guidance,
@@ -71,13 +80,6 @@ __all__ = [
     "SlewGuidance",
     "ScenarioIssue",
 ]
-
-# The law table: the core's law registry at import (the built-in laws: name ->
-# code, = controller_status_t.law); every other module takes it from here. A
-# plugin law is given as "plugin:PATH_OR_NAME" (docs/LAWS.md).
-LAWS: dict[str, int] = {name: code for code, name in enumerate(_core.law_names())}
-LAW_NAMES: dict[int, str] = {v: k for k, v in LAWS.items()}
-PLUGIN_PREFIX = "plugin:"
 
 #: The paper's controller values (the C++ defaults): the defaults of every gain.
 PAPER_DEFAULTS = _core.ControllerConfig()
@@ -289,157 +291,13 @@ class Scenario:
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None, *, nav: bool = True
     ) -> controller_config_t:
-        """The controller's part of the scenario as an LCM message, every field filled.
-
-        ``law`` and ``control_rate_hz`` override the run's values; ``nav``
-        False leaves the estimator's part out (the offline engines build it
-        from the scenario). ValueError for what the message cannot carry: an
-        initial gyro calibration estimate (``[controller.estimator]
-        initial_scale_factor``, ``initial_misalignment``; offline engines only).
-        """
-        law = self.run.controller if law is None else law
-        rate = self.run.control_rate_hz if control_rate_hz is None else control_rate_hz
-        for name, value in (("controller", law), ("control_rate_hz", rate)):
-            _, problem = convert(value, field_spec(RunParams, name))
-            if problem:
-                raise ValueError(f"{name} {problem}, got {value!r}")
-        if not is_python_law(law) and (problem := law_problem(law)):
-            raise ValueError(f"controller {problem}, got {law!r}")
-        p, a, g, c = self.plant, self.actuators, self.guidance, self.controller
-        m = controller_config_t()
-        m.utime = time.time_ns() // 1000
-        m.scenario = self.name
-        m.law = law
-        m.law_api_version = _core.LAW_API_VERSION
-        # its table by the law's name; [controller.params] of a plugin or Python law the file
-        # runs is kept under the spec (the reader loads no law to learn its name)
-        table = c.table(law_table_name(law)) or c.table(law)
-        m.n_law_params = len(table)
-        m.law_param_keys = [k for k, _ in table]
-        m.law_param_len = [len(v) for _, v in table]
-        m.law_param_values = [float(x) for _, v in table for x in v]
-        m.n_law_param_values = len(m.law_param_values)
-        m.control_rate_hz = float(rate)
-        m.J0 = p.J0.tolist()
-        m.Cbar = p.Cbar.tolist()
-        m.Jw = p.Jw.tolist()
-        m.umin = a.umin.tolist()
-        m.umax = a.umax.tolist()
-        m.wheel_torque_command = a.wheels is not None and a.wheels.command == "torque"
-        # the wheels' speed limits, 0 for none (finite on the wire; the core reads 0 as inf)
-        m.wheel_speed_max = ([max(float(w.omega_max), 0.0) for w in a.wheels.limits] if a.wheels is not None
-                             else [float(v) if np.isfinite(v) else 0.0 for v in a.max_wheel_speed])
-        m.w0 = float(p.w0)
-        g.fill_config(m)
-        # The wire names are the field names with a prefix (safety: none).
-        for prefix, group in (("ppc_", c.ppc), ("", c.safety)):
-            for f in dataclasses.fields(group):
-                value = getattr(group, f.name)
-                wire = value.tolist() if isinstance(value, np.ndarray) else value
-                setattr(m, prefix + f.name, wire)
-        m.pinv_damping = float(c.pinv_damping)
-        if nav:
-            self._fill_nav(m)
-        return m
-
-    def _fill_nav(self, m: controller_config_t) -> None:
-        """The estimator's part of the controller's configuration (a scenario
-        with [sensors]; else nav_enabled 0 and zeros): the MEKF's noise model
-        and the run's initial estimate, computed here from the seed as the
-        offline loop does (``_core.initial_estimate``)."""
-        if self.sensors is None:
-            return
-        e = self.sensors.estimator
-        if np.any(np.asarray(e.initial_scale_factor) != 0.0) or np.any(np.asarray(e.initial_misalignment) != 0.0):
-            raise ValueError("[controller.estimator] initial_scale_factor / initial_misalignment: controller_config_t "
-                             "does not carry an initial calibration estimate; run it with sc-rt sim")
-        from sc_rt.scenario.sensors import nav_config  # builds on these types
-
-        nav = nav_config(self.sensors, self.run.plant_step, f"{self.path}")
-        k = nav.mekf
-        m.nav_enabled = True
-        m.nav_use_estimate = bool(nav.use_estimate)
-        for name in ("arw", "rrw", "bias_sigma", "bias_tau", "quantization", "sigma_cross",
-                     "sigma_boresight", "initial_attitude_sigma", "initial_bias_sigma", "degraded_after",
-                     "initial_scale_factor_sigma", "initial_misalignment_sigma"):
-            setattr(m, "nav_" + name, float(getattr(k, name)))
-        m.nav_boresight = [float(v) for v in k.boresight]
-        m.nav_history = int(k.history)
-        m.nav_calibrate = bool(k.calibrate)
-        sigma0 = _core.initial_estimate(nav.sensors.seed, k.initial_attitude_sigma,
-                                        np.asarray(self.initial.sigma_BN, float))
-        m.nav_sigma0 = [float(v) for v in sigma0]
+        """The controller's part of the scenario as an LCM message, every field
+        filled (sc_rt.scenario.config_msg.controller_config_msg)."""
+        return controller_config_msg(self, law, control_rate_hz, nav=nav)
 
     def core_config(
         self, law: str | None = None, control_rate_hz: float | None = None
     ) -> _core.ControllerConfig:
         """The C++ config, decoded from the LCM bytes as the real-time process
-        does. A Python law is put in the core's registry first (sc_rt.pylaw),
-        so that a controller built from the config in this process runs it."""
-        msg = self.controller_config_msg(law, control_rate_hz, nav=False)  # the core reads no nav_* field
-        if is_python_law(msg.law):
-            msg.law = register(msg.law)  # its registry spec, "python:..." (file.py:Class given without it too)
-        return _core.ControllerConfig.from_lcm_bytes(msg.encode())
-
-
-def law_identity(spec: str) -> dict[str, Any]:
-    """Who a law spec is, for the run's record and its log: ``name`` (the
-    registered name: a plugin is labelled by it, not by its path), ``spec``,
-    and for a plugin its ``source`` file and that file's ``sha256`` (the
-    same name from another build is another law). A spec the registry does
-    not know (an external controller) is its own name. A Python law is
-    labelled by its ``name``; its file (when given by one) and that file's
-    ``sha256`` are kept as a plugin's."""
-    if is_python_law(spec):
-        import hashlib
-
-        target = spec[len(PYTHON_PREFIX):] if spec.startswith(PYTHON_PREFIX) else spec
-        src = Path(target.rpartition(":")[0])
-        is_file = src.suffix == ".py" and src.is_file()
-        return {"name": law_label(load_law(spec)), "spec": spec, "source": str(src) if is_file else "python",
-                "sha256": hashlib.sha256(src.read_bytes()).hexdigest() if is_file else None}
-    if not spec.startswith(PLUGIN_PREFIX):
-        return {"name": spec, "spec": spec, "source": "built-in" if spec in LAWS else "external"}
-    import hashlib
-
-    info = _core.law_info(spec)  # loads the plugin (refused before a run when it cannot be)
-    src = Path(info["source"])
-    sha = hashlib.sha256(src.read_bytes()).hexdigest() if src.is_file() else None
-    return {"name": info["name"], "spec": spec, "source": str(src), "sha256": sha}
-
-
-def law_spec(spec: str, base: Path) -> str:
-    """``spec`` with a relative plugin file path made absolute against ``base``
-    (a path: has a "/" or ends in ".so"; a plugin name is searched in
-    SCRT_LAW_PATH by the core), and so a Python law's file
-    (``python:file.py:Class``; ``file.py:Class`` and ``module:Class`` get the
-    prefix)."""
-    if is_python_law(spec) and not spec.startswith(PYTHON_PREFIX):
-        spec = PYTHON_PREFIX + spec
-    if spec.startswith(PYTHON_PREFIX):
-        target, sep, cls = spec[len(PYTHON_PREFIX):].rpartition(":")
-        if sep and target.endswith(".py") and not Path(target).is_absolute():
-            return f"{PYTHON_PREFIX}{(base / target).resolve()}:{cls}"
-        return spec
-    if not spec.startswith(PLUGIN_PREFIX):
-        return spec
-    target = spec[len(PLUGIN_PREFIX):]
-    if ("/" in target or target.endswith(".so")) and not Path(target).is_absolute():
-        return PLUGIN_PREFIX + str((base / target).resolve())
-    return spec
-
-
-def law_problem(spec: Any) -> str:
-    """Why ``spec`` cannot name a law ("" if it can: a name of LAWS or of a
-    loaded plugin, or "plugin:PATH_OR_NAME"; the plugin itself is checked by
-    sc_rt.plan.law.probe_law, where a run is planned)."""
-    if not isinstance(spec, str):
-        return "must be a string"
-    if spec.startswith(PLUGIN_PREFIX):
-        return "" if spec[len(PLUGIN_PREFIX):] else "plugin: needs a library path or name"
-    if spec.startswith(PYTHON_PREFIX):  # the class itself is checked by sc_rt.plan.law.probe_law
-        return "" if ":" in spec[len(PYTHON_PREFIX):] else "python: needs module:Class or file.py:Class"
-    if spec in LAWS or spec in _core.law_names():
-        return ""
-    return ("must be one of " + ", ".join(f'"{n}"' for n in _core.law_names())
-            + ', "plugin:PATH_OR_NAME" or "python:FILE_OR_MODULE:Class" (docs/LAWS.md)')
+        does (sc_rt.scenario.config_msg.core_config)."""
+        return core_config(self, law, control_rate_hz)

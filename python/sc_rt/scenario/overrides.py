@@ -1,19 +1,24 @@
 """What a run of a scenario needs besides the scenario itself: CLI-style
-overrides, the sampling grid, the initial state. Shared by every engine
+overrides, a Monte Carlo run's drawn values, the sampling grid, the initial state. Shared by every engine
 and by the emulator (one definition, so they all step the same way)."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from sc_rt.scenario.keys import scenario_data, set_key
 from sc_rt.scenario.model import Scenario
-from sc_rt.scenario.reader import with_run
+from sc_rt.scenario.reader import scenario_from_data, with_run
 
-__all__ = ["Grid", "grid", "initial_state", "with_overrides"]
+__all__ = ["DRAW", "Grid", "grid", "initial_state", "with_draws", "with_overrides"]
+
+#: The prefix of a drawn value in ``Scenario.overrides`` ("draw spacecraft.dJ"): a
+#: campaign run's values, recorded as its inputs and replayed (sc_rt.plan.run).
+DRAW = "draw "
 
 
 class Grid(NamedTuple):
@@ -78,6 +83,48 @@ def with_overrides(scn: Scenario, *, law: str | None = None, control_rate_hz: fl
     # the law as resolved (a file's path made absolute): what a replay of the record runs
     given = tuple((k, new.run.controller if k == "run.controller" else v) for k, v in given)
     return dataclasses.replace(new, overrides=scn.overrides + given) if given else new
+
+
+def with_draws(scn: Scenario, draws: Any, where: str = "") -> Scenario:
+    """The scenario with a Monte Carlo run's drawn values, validated like the file.
+
+    Parameters
+    ----------
+    scn : Scenario
+        The campaign's base scenario (its plan's); it is not changed.
+    draws : iterable of (str, value)
+        (dotted key, value) pairs of the scenario's data
+        (sc_rt.scenario.keys.scenario_data: "spacecraft.dJ",
+        "faults[0].onset", "sensors.seed"), each value as the data holds it
+        (a number, or nested lists of numbers).
+    where : str
+        Appended to the file's name in an error (" (run 4)").
+
+    Returns
+    -------
+    Scenario
+        The base's data with those values, read back through the file's
+        checks; its ``overrides`` are the base's followed by one
+        ``("draw KEY", value)`` pair per value (what the run records).
+
+    Raises
+    ------
+    ScenarioError
+        The values make an invalid scenario (a draw to redraw, or a run
+        without a valid draw).
+    KeyError
+        A key the base's data does not hold (draws of another scenario).
+    """
+    draws = tuple((str(k), v) for k, v in draws)
+    data = scenario_data(scn)
+    for key, value in draws:
+        try:
+            set_key(data, key, value)
+        except (KeyError, IndexError, TypeError):
+            raise KeyError(key) from None
+    out = scenario_from_data(data, scn.path, where)
+    return dataclasses.replace(out, path=scn.path,
+                               overrides=scn.overrides + tuple((DRAW + k, v) for k, v in draws))
 
 
 def grid(scn: Scenario) -> Grid:

@@ -30,7 +30,7 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.isolate import beat, beat_done, beating
 from sc_rt.model import actuators, plant, truth
-from sc_rt.pylaw import is_python_law, register
+from sc_rt.pylaw import register
 from sc_rt.results.judge.metrics import finish_run, record_law_failures
 from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, loop_columns
 from sc_rt.results.record.fields import COLUMNS, packed_layout
@@ -229,8 +229,8 @@ def simulate(scn: Scenario, *, law: str | None = None, engine: str = "python",
     """
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
-    if isinstance(law, type) or is_python_law(law):  # a Python law: into the core's registry
-        law = register(law)
+    if isinstance(law, type):  # a Python law's class: into the core's registry (a spec goes in with its
+        law = register(law)    # scenario's config: sc_rt.scenario.config_msg.core_config)
     scn = with_overrides(scn, law=law, control_rate_hz=control_rate_hz,
                          duration=duration, plant_step=plant_step)
     t0 = time.perf_counter()

@@ -17,20 +17,11 @@ from typing import Any
 
 from sc_rt.isolate import ChildDied, ChildInterrupted, ChildStalled, call_in_child, stall_timeout
 
-__all__ = ["RunCrashed", "simulate_contained", "simulate_isolated", "simulate_plan", "needs_isolation"]
+__all__ = ["RunCrashed", "simulate_isolated", "simulate_plan"]
 
 
 class RunCrashed(RuntimeError):
     """The process running a law died (one line: the law and how)."""
-
-
-def needs_isolation(law: Any) -> bool:
-    """Whether a law is code the bench does not own, run in its process: a
-    plugin (native code), or a Python law (which can call native code,
-    ``os._exit``, or never return). Each then runs in a child of its own."""
-    from sc_rt.pylaw import is_python_law
-
-    return isinstance(law, type) or (isinstance(law, str) and (law.startswith("plugin:") or is_python_law(law)))
 
 
 def _simulate_handed_over(scn, **kwargs: Any):
@@ -61,17 +52,6 @@ def simulate_isolated(scn, **kwargs: Any):
     except ChildDied as e:
         law = kwargs.get("law") or scn.run.controller
         raise RunCrashed(f"the law {law} ended the run's process ({e.how}): nothing of the run was kept") from None
-
-
-def simulate_contained(scn, **kwargs: Any):
-    """``simulate(scn, **kwargs)``, in a child of its own when the law that
-    runs (``law``, else the scenario's) is native code (needs_isolation),
-    in this process otherwise; RunCrashed when the child dies."""
-    if needs_isolation(kwargs.get("law") or scn.run.controller):
-        return simulate_isolated(scn, **kwargs)
-    from sc_rt.sim.engines import simulate
-
-    return simulate(scn, **kwargs)
 
 
 def simulate_plan(plan: Any):

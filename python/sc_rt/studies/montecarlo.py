@@ -11,14 +11,15 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from sc_rt.plan.run import RunPlan
 from sc_rt.scenario.model import Scenario
-from sc_rt.studies.campaign import Campaign, Dispersion, disperse, run_campaign, write_summary
+from sc_rt.studies.campaign import Dispersion, disperse, plan_campaign, run_campaign, write_summary
 from sc_rt.studies.campaign.store import RunStore
 
 __all__ = ["Dispersion", "disperse", "run_montecarlo", "write_montecarlo"]
 
 
-def run_montecarlo(scn: Scenario, runs: int, *, workers: int | None = None, seed: int = 0,
+def run_montecarlo(scn: Scenario | RunPlan, runs: int, *, workers: int | None = None, seed: int = 0,
                    dispersion: Dispersion = Dispersion(), law: str | None = None,
                    control_rate_hz: float | None = None, progress: bool = True,
                    out: Path | None = None, **campaign: Any) -> dict[str, Any]:
@@ -32,9 +33,12 @@ def run_montecarlo(scn: Scenario, runs: int, *, workers: int | None = None, seed
 
     Parameters
     ----------
-    scn : Scenario
-        The nominal scenario; its ``[montecarlo]`` table, if any, adds its
-        dispersions to the shortcut ones.
+    scn : Scenario or RunPlan
+        The nominal scenario, planned once with ``law`` and
+        ``control_rate_hz`` (sc_rt.studies.campaign.plan_campaign), or a
+        base plan already made (``sc_rt.plan_run(..., engine="cpp")``; then
+        ``law`` and ``control_rate_hz`` are not used). Its ``[montecarlo]``
+        table, if any, adds its dispersions to the shortcut ones.
     runs : int
         The number of runs (ids 0 .. runs - 1).
     workers : int, optional
@@ -77,7 +81,7 @@ def run_montecarlo(scn: Scenario, runs: int, *, workers: int | None = None, seed
         ``out`` holds runs already (without ``resume`` or ``overwrite``), or
         a different campaign to resume.
     """
-    c = Campaign(scn, dispersion, seed, law, control_rate_hz)
+    c = plan_campaign(scn, dispersion, seed, law, control_rate_hz)
     with tempfile.TemporaryDirectory(prefix="sc-rt-mc-") as tmp:
         where = Path(out) if out is not None else Path(tmp)
         res = run_campaign(c, runs, where, workers=workers, progress=progress, **campaign)

@@ -59,7 +59,7 @@ class RunMeta:
         The run had sensors (a ``[sensors]`` table): the estimator fields are
         filled and the bound is judged on ``sigma_BD_true``.
     law_identity : dict or None
-        Who the law is (``sc_rt.scenario.model.law_identity``): name, spec,
+        Who the law is (``sc_rt.scenario.lawspec.law_identity``): name, spec,
         source and, for a plugin, its file and the file's SHA-256.
     requirements : tuple of dict
         The scenario's ``[[requirements]]`` rows (every field of

@@ -28,23 +28,33 @@ all fail is a failed run (status "invalid") with the values of its last draw.
 A scenario with ``[sensors]``: run i's sensors seed is drawn from
 ``SeedSequence([seed, sensors.seed], spawn_key=(i, 2))`` (63 bits), so every
 run has its own sensor noise and initial estimation error.
+
+A run's draw is its values (:class:`RunDraw`: every key the shortcuts
+write, the table's keys and the sensor seed, as the scenario's data holds
+them); its scenario is the base with those values, read back through the
+file's checks (``sc_rt.scenario.overrides.with_draws``), in the campaign as
+in a replay. The campaign records the values (the row's ``draws``), and
+``--rerun`` replays them without drawing again.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from sc_rt.scenario.dispersions import draw
 from sc_rt.scenario.keys import element_names, get_key, scenario_data, set_key
 from sc_rt.scenario.model import Scenario, ScenarioError
-from sc_rt.scenario.reader import scenario_from_data
+from sc_rt.scenario.overrides import with_draws
 
-__all__ = ["Dispersion", "NO_SHORTCUTS", "disperse", "draw_run", "run_seed_sequence", "value_columns"]
+__all__ = ["Dispersion", "NO_SHORTCUTS", "RunDraw", "disperse", "draw_run", "draw_scenario", "plan_draw",
+           "run_scenario",
+           "run_seed_sequence", "value_columns", "value_keys"]
 
 
 @dataclass(frozen=True)
@@ -154,58 +164,123 @@ def _keys(scn: Scenario, d: Dispersion) -> list[str]:
     return list(dict.fromkeys(_shortcut_keys(scn, d) + table))
 
 
+def value_keys(scn: Scenario, d: Dispersion) -> list[str]:
+    """The dispersed keys of a campaign, whose elements are the row's value columns."""
+    return _keys(scn, d)
+
+
 def value_columns(scn: Scenario, d: Dispersion) -> list[str]:
     """Names of the dispersed-value columns of a campaign (one per element)."""
     data = scenario_data(scn)
     return [c for k in _keys(scn, d) for c in element_names(k, np.shape(get_key(data, k)))]
 
 
-def _values(data: dict[str, Any], keys: list[str]) -> dict[str, float]:
-    out: dict[str, float] = {}
-    for k in keys:
-        v = np.asarray(get_key(data, k), float)
-        out.update(zip(element_names(k, v.shape), (float(x) for x in v.flat)))
-    return out
+class RunDraw(NamedTuple):
+    """What run ``run`` of a campaign drew: its values, recorded as its inputs
+    (the run's dataset row, column ``draws``; its plan's overrides) and
+    replayed by ``--rerun`` without drawing again."""
+
+    values: tuple  # ((dotted key, value as the scenario's data holds it), ...)
+    redraws: int  # invalid draws before this one (all of them: a run with no valid draw)
+    message: str  # why the last draw was invalid ("" when this one is valid)
+
+    def columns(self, keys: list[str] | None = None) -> dict[str, float]:
+        """The dispersed-value columns of the row (one per element of
+        ``keys``; None: every drawn key but the sensors' seed)."""
+        drawn = dict(self.values)
+        out: dict[str, float] = {}
+        for k in ([k for k in drawn if k != SENSORS_SEED] if keys is None else keys):
+            v = np.asarray(drawn[k], float)
+            out.update(zip(element_names(k, v.shape), (float(x) for x in v.flat)))
+        return out
+
+    def to_json(self) -> str:
+        """The values as the row's ``draws`` column (JSON: floats written exactly)."""
+        return json.dumps([[k, v] for k, v in self.values])
+
+    @classmethod
+    def from_row(cls, row: dict[str, Any]) -> RunDraw:
+        """The draw a dataset row recorded (its ``draws``, ``redraws``, ``message``)."""
+        return cls(tuple((k, v) for k, v in json.loads(row["draws"])), int(row["redraws"]),
+                   str(row.get("message") or "") if row.get("status") == "invalid" else "")
 
 
-def _with_sensor_seed(s: Scenario | None, seed: int, run: int) -> Scenario | None:
-    if s is None or s.sensors is None:
-        return s
-    ss = np.random.SeedSequence([int(seed), int(s.sensors.seed)], spawn_key=(int(run), 2))
-    new = int(ss.generate_state(1, np.uint64)[0] >> np.uint64(1))
-    return dataclasses.replace(s, sensors=dataclasses.replace(s.sensors, seed=new))
+#: the key of a run's own sensor seed among its drawn values
+SENSORS_SEED = "sensors.seed"
+
+
+def _all_shortcut_keys(scn: Scenario) -> list[str]:
+    """Every key ``disperse`` writes, whatever its widths (a width of 0 still
+    writes: the inertia's diagonal form, the fault's clipped values)."""
+    keys = ["spacecraft.dJ"]
+    for i, f in enumerate(scn.actuators.faults):
+        keys += [f"faults[{i}].onset"] + ([f"faults[{i}].end"] if f.end is not None else [])
+        keys += [] if f.stuck else [f"faults[{i}].effectiveness"]
+    return keys + ["initial.sigma_BN", "initial.omega_BN_B"]
+
+
+def _pairs(data: dict[str, Any], keys: list[str]) -> tuple:
+    def plain(v: Any) -> Any:
+        return np.asarray(v).tolist() if isinstance(v, (np.ndarray, np.generic)) else v
+
+    return tuple((k, plain(get_key(data, k))) for k in keys)
+
+
+def _sensor_seed(scn: Scenario, seed: int, run: int) -> tuple:
+    if scn.sensors is None:
+        return ()
+    ss = np.random.SeedSequence([int(seed), int(scn.sensors.seed)], spawn_key=(int(run), 2))
+    return ((SENSORS_SEED, int(ss.generate_state(1, np.uint64)[0] >> np.uint64(1))),)
+
+
+def draw_scenario(scn: Scenario, d: Dispersion, seed: int, run: int) -> tuple[RunDraw, Scenario | None, str]:
+    """Run ``run``'s draw, from (seed, run) alone: the shortcut dispersions
+    (when any is set), then the table's, redrawn while the scenario they
+    make is invalid (``on_invalid``, ``max_redraws``), and the run's sensor
+    seed; with the scenario the values make (``run_scenario``: None when
+    they make none) and why not ("" when they do)."""
+    s = scn
+    keys: list[str] = []
+    if d != NO_SHORTCUTS:
+        s = disperse(scn, np.random.default_rng(run_seed_sequence(seed, run)), d)
+        keys = _all_shortcut_keys(scn)
+    table = scn.montecarlo
+    sensor = _sensor_seed(scn, seed, run)
+    if table is None or not table.disperse:
+        rd = RunDraw(_pairs(scenario_data(s), keys) + sensor, 0, "")
+        return (rd, *run_scenario(scn, rd, run))
+    keys = list(dict.fromkeys(keys + [e.key for e in table.disperse]))
+    rng = np.random.default_rng(run_seed_sequence(seed, run, 1))
+    base = scenario_data(s)
+    attempts = table.max_redraws if table.on_invalid == "redraw" else 1
+    for attempt in range(attempts):
+        data = scenario_data(s)  # a fresh copy: set_key writes into it
+        for e in table.disperse:
+            set_key(data, e.key, draw(e, get_key(base, e.key), rng))
+        rd = RunDraw(_pairs(data, keys) + sensor, attempt, "")
+        out, message = run_scenario(scn, rd, run)
+        if out is not None:
+            return rd, out, ""
+    return RunDraw(rd.values, attempts, message), None, message
+
+
+def plan_draw(scn: Scenario, d: Dispersion, seed: int, run: int) -> RunDraw:
+    """Run ``run``'s draw (:func:`draw_scenario`), its values only."""
+    return draw_scenario(scn, d, seed, run)[0]
+
+
+def run_scenario(scn: Scenario, rd: RunDraw, run: int) -> tuple[Scenario | None, str]:
+    """(run ``run``'s scenario: ``scn`` with the draw's values, or None when
+    they make an invalid scenario; the first line of why, else "")."""
+    try:
+        return with_draws(scn, rd.values, f" (run {run})"), ""
+    except ScenarioError as err:
+        return None, str(err).splitlines()[0]
 
 
 def draw_run(scn: Scenario, d: Dispersion, seed: int, run: int
              ) -> tuple[Scenario | None, dict[str, float], int, str]:  # fmt: skip
     """Run ``run``'s scenario: (scenario or None if no valid draw, dispersed
     values by column, redraws used, message of the last invalid draw)."""
-    s, values, redraws, message = _draw_run(scn, d, seed, run)
-    return _with_sensor_seed(s, seed, run), values, redraws, message
-
-
-def _draw_run(scn: Scenario, d: Dispersion, seed: int, run: int
-              ) -> tuple[Scenario | None, dict[str, float], int, str]:  # fmt: skip
-    s = scn
-    active = d != NO_SHORTCUTS
-    if active:
-        s = disperse(scn, np.random.default_rng(run_seed_sequence(seed, run)), d)
-    table = scn.montecarlo
-    keys = _keys(scn, d)
-    if table is None or not table.disperse:
-        return s, _values(scenario_data(s), keys), 0, ""
-    rng = np.random.default_rng(run_seed_sequence(seed, run, 1))
-    base = scenario_data(s)
-    attempts = table.max_redraws if table.on_invalid == "redraw" else 1
-    message = ""
-    for attempt in range(attempts):
-        data = scenario_data(s)  # a fresh copy: set_key writes into it
-        for e in table.disperse:
-            set_key(data, e.key, draw(e, get_key(base, e.key), rng))
-        try:
-            out = scenario_from_data(data, scn.path, f" (run {run})")
-        except ScenarioError as err:
-            message = str(err).splitlines()[0]
-            continue
-        return dataclasses.replace(out, path=scn.path), _values(data, keys), attempt, ""
-    return None, _values(data, keys), attempts, message
+    rd, s, message = draw_scenario(scn, d, seed, run)
+    return s, rd.columns(value_keys(scn, d)), rd.redraws, message

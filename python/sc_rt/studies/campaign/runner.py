@@ -14,19 +14,22 @@ from typing import Any
 
 import numpy as np
 
+from sc_rt.plan.run import RunPlan, plan_run
 from sc_rt.scenario.keys import scenario_data
-from sc_rt.scenario.model import Scenario, law_identity
+from sc_rt.scenario.model import Scenario
 from sc_rt.studies.campaign.backends import make_backend
-from sc_rt.studies.campaign.draws import Dispersion, draw_run, value_columns
+from sc_rt.studies.campaign.draws import (Dispersion, RunDraw, draw_scenario, run_scenario, value_columns,
+                                          value_keys)
 from sc_rt.studies.campaign.requirements import campaign_requirements, row_columns
 from sc_rt.studies.campaign.stats import clopper_pearson, tolerance_bound
 from sc_rt.studies.campaign.store import RunStore, fingerprint
 
-__all__ = ["Campaign", "CampaignExists", "check_out", "run_batch", "run_campaign",
-           "run_one", "rerun", "summarize"]
+__all__ = ["Campaign", "CampaignExists", "check_out", "plan_campaign", "recorded_row", "run_batch",
+           "run_campaign", "run_one", "rerun", "summarize"]
 
 _HEAD = [("run", "int64"), ("seed", "int64"), ("status", "string"), ("redraws", "int64"),
-         ("holds_bound", "bool"), ("message", "string")]  # fmt: skip
+         ("holds_bound", "bool"), ("message", "string"),
+         ("draws", "string")]  # the run's drawn values, JSON (draws.RunDraw): what --rerun replays  # fmt: skip
 #: Metrics left out of the rows: the same for every run, or not a property of the run.
 SKIP_METRICS = ("scenario", "controller", "engine", "control_rate_hz", "duration_s", "wall_s",
                 # a failed law is the row's status and message (law_failed), not columns
@@ -46,14 +49,21 @@ class CampaignExists(RuntimeError):
 
 @dataclass(frozen=True)
 class Campaign:
-    """What every worker needs: the scenario itself (in-memory changes
-    included: it pickles) and the campaign's settings."""
+    """A campaign, planned once: its base plan (the scenario with its
+    overrides, the law resolved, the engine), the shortcut dispersions and
+    the seed. Run i is the base plan with run i's drawn values
+    (sc_rt.studies.campaign.draws.plan_draw), which its plan records as
+    inputs. Pickles to the workers (in-memory changes included). Build it
+    with :func:`plan_campaign`."""
 
-    scenario: Scenario
+    plan: RunPlan
     dispersion: Dispersion
     seed: int
-    law: str | None = None
-    control_rate_hz: float | None = None
+
+    @property
+    def scenario(self) -> Scenario:
+        """The base plan's scenario (overrides applied, law resolved)."""
+        return self.plan.scenario
 
     def columns(self) -> list[tuple[str, str]]:
         """The columns known before any run (the metrics' follow simulate()'s .metrics)."""
@@ -66,7 +76,32 @@ class Campaign:
                 "dispersion": dataclasses.asdict(self.dispersion),
                 "table": None if mc is None else [dataclasses.asdict(e) for e in mc.disperse],
                 "on_invalid": None if mc is None else [mc.on_invalid, mc.max_redraws],
-                "law": self.law, "control_rate_hz": self.control_rate_hz, "engine": "cpp"}
+                "law": dataclasses.asdict(self.plan.law), "engine": self.plan.engine}
+
+    def run_plan(self, run: int, recorded: RunDraw | None = None) -> tuple[RunPlan | None, RunDraw, str]:
+        """(run ``run``'s plan: the base plan with its drawn values, None when
+        they make no valid scenario; the draw; why not, else ""). ``recorded``:
+        the draw a dataset recorded, replayed instead of drawn (--rerun)."""
+        if recorded is None:
+            rd, scn, message = draw_scenario(self.scenario, self.dispersion, self.seed, run)
+        else:
+            rd, (scn, message) = recorded, run_scenario(self.scenario, recorded, run)
+        return (None if scn is None else dataclasses.replace(self.plan, scenario=scn)), rd, message
+
+
+def plan_campaign(scenario: Scenario | RunPlan, dispersion: Dispersion = Dispersion(), seed: int = 0,
+                  law: str | None = None, control_rate_hz: float | None = None) -> Campaign:
+    """A campaign's plan: the base plan of ``scenario`` (a Scenario, planned
+    here with ``law`` and ``control_rate_hz`` on the cpp engine as
+    ``sc_rt.plan.run.plan_run`` does: the law loaded and probed once; or a
+    RunPlan already made), the dispersions and the seed."""
+    if isinstance(scenario, RunPlan):
+        plan = scenario
+    else:
+        plan = plan_run(scenario, law=law, engine="cpp", control_rate_hz=control_rate_hz, strays=False)
+    if plan.engine not in ("python", "cpp"):
+        raise ValueError(f"a campaign runs on an offline engine (cpp or python), not {plan.engine!r}")
+    return Campaign(plan, dispersion, int(seed))
 
 
 def _metric_row(m: dict[str, Any]) -> dict[str, Any]:
@@ -92,22 +127,25 @@ def _metric_row(m: dict[str, Any]) -> dict[str, Any]:
     return row
 
 
-def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple:
-    """Run ``run`` of the campaign: its dataset row (and, with ``keep``, the
-    dispersed scenario and the simulation result too)."""
-    from sc_rt.sim.isolated import RunCrashed, simulate_contained
+def run_one(c: Campaign, run: int, keep: bool = False, recorded: RunDraw | None = None
+            ) -> dict[str, Any] | tuple:  # fmt: skip
+    """Run ``run`` of the campaign: its dataset row (and, with ``keep``, its
+    plan and the simulation result too). ``recorded``: the draw a dataset
+    recorded for this run, replayed (the row's columns are its values')."""
+    from sc_rt.sim.isolated import RunCrashed, simulate_plan
 
-    scn, values, redraws, message = draw_run(c.scenario, c.dispersion, c.seed, run)
-    row: dict[str, Any] = {"run": run, "seed": c.seed, "redraws": redraws, **values}
+    plan, rd, message = c.run_plan(run, recorded)
+    values = rd.columns() if recorded is not None else rd.columns(value_keys(c.scenario, c.dispersion))
+    row: dict[str, Any] = {"run": run, "seed": c.seed, "redraws": rd.redraws, "draws": rd.to_json(), **values}
     res = None
-    if scn is None:
+    if plan is None:
         row.update(status="invalid", holds_bound=False, message=message)
     else:
         try:  # a plugin runs in a child of its own: one crash fails this run, not the campaign (docs/HIL.md)
-            res = simulate_contained(scn, law=c.law, engine="cpp", control_rate_hz=c.control_rate_hz)
+            res = simulate_plan(plan)
         except RunCrashed as e:
             row.update(status="crashed", holds_bound=False, message=str(e))
-            return (row, scn, None) if keep else row
+            return (row, plan, None) if keep else row
         m = res.metrics
         law_failed = m.get("valid") is False  # the law threw, went non-finite or gave a wrong shape
         row.update(status="diverged" if m.get("diverged") else "law_failed" if law_failed else "ok",
@@ -118,7 +156,7 @@ def run_one(c: Campaign, run: int, keep: bool = False) -> dict[str, Any] | tuple
             from sc_rt.results.judge.ensemble import campaign_series
 
             row.update(row_columns(m["requirements"], campaign_series(res, m["requirements"])))
-    return (row, scn, res) if keep else row
+    return (row, plan, res) if keep else row
 
 
 def run_batch(c: Campaign, runs: list[int]) -> list[dict[str, Any]]:
@@ -224,10 +262,10 @@ def summarize(c: Campaign, store: RunStore, runs: int, confidence: float = 0.95,
     mc = c.scenario.montecarlo
     return {
         "scenario": c.scenario.name,
-        "law": c.law or c.scenario.run.controller,
+        "law": c.plan.law.spec,
         # its name (a plugin's or a Python law's, not its path)
-        "law_name": law_identity(c.law or c.scenario.run.controller)["name"],
-        "control_rate_hz": c.control_rate_hz or c.scenario.run.control_rate_hz,
+        "law_name": c.plan.law.name,
+        "control_rate_hz": c.scenario.run.control_rate_hz,
         "duration_s": c.scenario.run.duration,
         "runs": n, "runs_requested": runs, "complete": n == runs, "seed": c.seed,
         "dispersion": dataclasses.asdict(c.dispersion),
@@ -264,7 +302,7 @@ def _requirements_summary(c: Campaign, rows: list[dict[str, Any]], confidence: f
         return {"requirements": [] if not reqs else None}
     n = len(rows)
     met = sum(r.get("meets_requirements") is True for r in rows)
-    rate = c.control_rate_hz or c.scenario.run.control_rate_hz
+    rate = c.scenario.run.control_rate_hz
     return {
         "requirements_confidence": confidence, "requirements_coverage": coverage,
         "judged_by": "envelope" if all(r.kind == "envelope" for r in reqs) else "requirements",
@@ -274,19 +312,37 @@ def _requirements_summary(c: Campaign, rows: list[dict[str, Any]], confidence: f
     }
 
 
-def rerun(c: Campaign, run: int, out: Path, plots: bool = True) -> dict[str, Any]:
-    """Run ``run`` alone (the same draws as inside the campaign) and write its
-    full outputs to ``out`` as ``sc-rt sim`` does (trajectory.npz,
-    metrics.json, figures) plus run.json (its dataset row)."""
+def recorded_row(c: Campaign, out: Path, run: int) -> tuple[dict[str, Any] | None, bool]:
+    """(run ``run``'s row in the campaign dataset of ``out``, its nulls left
+    out; None without one, or a row written before runs recorded their draws;
+    whether that campaign is ``c``: the same fingerprint)."""
+    store = RunStore(out, c.columns())
+    old = store.existing_manifest()
+    if old is None or not store.has_runs():
+        return None, False
+    rows = [r for r in store.read().to_pylist() if r["run"] == run]
+    if not rows or rows[0].get("draws") is None:
+        return None, False
+    row = {k: v for k, v in rows[0].items() if v is not None or k in ("message",)}
+    return row, old.get("fingerprint") == fingerprint(c.identity())
+
+
+def rerun(c: Campaign, run: int, out: Path, plots: bool = True, recorded: RunDraw | None = None) -> dict[str, Any]:
+    """Run ``run`` alone and write its full outputs to ``out`` as ``sc-rt
+    sim`` does (trajectory.npz, metrics.json, figures; its inputs: the base
+    plan and the run's drawn values, which ``sc-rt rerun`` replays) plus
+    run.json (its dataset row). ``recorded``: the draw the campaign's
+    dataset recorded for it, replayed exactly (not drawn again from the
+    seed); None: drawn from (seed, run), the same draws as inside the campaign."""
     import json
 
     from sc_rt.results.judge.metrics import json_safe
     from sc_rt.results.present.output import write_run  # what sc-rt sim writes
 
-    row, scn, res = run_one(c, run, keep=True)
+    row, plan, res = run_one(c, run, keep=True, recorded=recorded)
     out.mkdir(parents=True, exist_ok=True)
     if res is not None:
         write_run(res, out, figures=plots,
-                  title=f"{scn.name}, run {run} of seed {c.seed}, {res.metrics['controller']}")
+                  title=f"{plan.scenario.name}, run {run} of seed {c.seed}, {res.metrics['controller']}")
     (out / "run.json").write_text(json.dumps(json_safe(row), indent=2) + "\n")
     return row
