@@ -1,14 +1,15 @@
 """Basilisk's stateful Stribeck friction (issue 43, item 6): the static part
 of a flight-like wheel's friction switched on near rest and off when the
-wheel decelerates (Basilisk's reactionWheelStateEffector.cpp,
+wheel decelerates (Basilisk's
+src/simulation/dynamics/reactionWheels/reactionWheelStateEffector.cpp,
 updateContributions), a per-wheel state the run carries through the RK4
 stages of both plants (docs/MODEL.md, "Flight-like wheels").
 
 The plant is the closed-form one of tests/test_flight_wheels.py: wheels 1
 and 4 on the x axis of a diagonal inertia and no external torque, so that a
 net torque u on wheel 1 gives Omega_dot_1 = u (1/Jw + 1/M), M = J_xx - 2 Jw.
-The friction values are those of Basilisk's own FrictionSpinUp /
-FrictionSpinDown cases (test_reactionWheelStateEffector_integrated.py:
+The friction values are those of Basilisk's own friction spin-up and
+spin-down cases (src/simulation/dynamics/reactionWheels/_UnitTest/test_reactionWheelStateEffector_integrated.py:
 f_c = 0.03 N m, f_s = 0.06 N m, beta = 0.15 rad/s, c = 0.001 N m s, an HR16
 of 100 N m s at 6000 rpm), whose test only plots them: the reference here is
 an independent event-located integration of the same law.
@@ -43,7 +44,7 @@ JW = 100.0 / (6000.0 * 2.0 * math.pi / 60.0)  # [kg m^2] HR16, 100 N m s at 6000
 JXX = 10.0
 M = JXX - 2 * JW
 GAIN = 1.0 / JW + 1.0 / M  # Omega_dot_1 per N m on wheel 1
-FC, FS, BETA, CV = 0.03, 0.06, 0.15, 0.001  # Basilisk's FrictionSpinUp values
+FC, FS, BETA, CV = 0.03, 0.06, 0.15, 0.001  # Basilisk's friction spin-up case
 PLANT = PlantParams(J0=np.diag([JXX, 12.0, 14.0]), dJ=np.zeros((3, 3)),
                     Cbar=np.c_[np.eye(3), [1.0, 0.0, 0.0]], Jw=np.full(4, JW), w0=0.0,
                     disturbance=DisturbanceParams(amp=np.zeros(3), freq=np.zeros(3)))
@@ -104,7 +105,7 @@ def test_the_switch_is_basilisks_rule_in_both_languages():
 
 
 def test_a_spin_up_from_rest_switches_on_and_a_coast_down_switches_off():
-    # Basilisk's FrictionSpinUp: from rest with 0.1 N m (omega_lc = 0.001 rad/s); then the torque
+    # Basilisk's friction spin-up case: from rest with 0.1 N m (omega_lc = 0.001 rad/s); then the torque
     # ends (coast down to rest), then -0.1 N m from rest. The Python and C++ plants step together.
     h = 0.01
     torques = [0.1] * 500 + [0.0] * 1500 + [-0.1] * 200

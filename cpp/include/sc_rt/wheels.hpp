@@ -70,9 +70,10 @@ double wheel_applied_torque(double u, double omega, const WheelLimits& lim);
 double wheel_friction_torque(double omega, const WheelFriction& f, bool stribeck);
 
 // Basilisk's switch of the static (Stribeck) part at one evaluation of the
-// friction (reactionWheelStateEffector.cpp, updateContributions, run at every
-// derivative call): on is the switch before it, omega [rad/s] the wheel speed
-// there, omega_start [rad/s] the speed at the step's start (Basilisk's
+// friction (updateContributions in Basilisk's
+// src/simulation/dynamics/reactionWheels/reactionWheelStateEffector.cpp, run
+// at every derivative call): on is the switch before it, omega [rad/s] the
+// wheel speed there, omega_start [rad/s] the speed at the step's start (Basilisk's
 // omegaBefore). On when |omega| < 0.1 omega_limit_cycle; then off when the
 // wheel decelerates, sign(omega) = -sign(omega - omega_start) != 0; never on
 // with beta <= 0 (sc_rt.model.wheels.stribeck_switch).

@@ -164,7 +164,8 @@ def friction_torque(omega: float, f: WheelFriction, stribeck: bool = False) -> f
 
 def stribeck_switch(on: bool, omega: float, omega_start: float, f: WheelFriction) -> bool:
     """Basilisk's switch of the static (Stribeck) friction at one evaluation
-    of the friction (reactionWheelStateEffector.cpp, updateContributions,
+    of the friction (updateContributions in Basilisk's
+    src/simulation/dynamics/reactionWheels/reactionWheelStateEffector.cpp,
     which runs at every derivative call of the integrator).
 
     Parameters
