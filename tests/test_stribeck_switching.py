@@ -240,6 +240,27 @@ def test_the_switch_without_its_state_is_refused_not_ignored():
         TorqueWheels(stribeck=True, stribeck_switching=True)
 
 
+def test_the_emulators_plant_carries_the_switches_from_row_to_row():
+    # the emulator's arithmetic (emulator/twin.py), on its C++ twin and on the Python plant: rows of
+    # two plant steps through zero speed, each row's output taken at its start's carried state
+    from sc_rt.emulator.twin import PlantTwin
+
+    act, h = _act(0.05), 0.005
+    out = {}
+    for cpp in (True, False):
+        twin, x, rows = PlantTwin(PLANT, cpp=cpp), np.array([0.0] * 6 + [0.02, 0.0, 0.0, 0.0]), []
+        for k in range(40):
+            u = np.array([-0.1 if k < 20 else 0.1, 0.0, 0.0, 0.0])
+            x1 = twin.integrate(act, 2 * k * h, x, u, 2, h)
+            # the row at its start (x, the carried state before its steps), as emulator/process.py takes it
+            rows.append((*x1, *twin.row(act, 2 * k * h, x, u, twin.motor_at_start)[1], *twin.motor))
+            x = x1
+        out[cpp] = np.array(rows, float)
+    assert np.array_equal(out[True], out[False])
+    switches = out[True][:, -4]
+    assert switches[0] == 0.0 and switches[10] == 1.0 and switches[25] == 0.0  # off, on past zero, off slowing
+
+
 @pytest.mark.lcm
 def test_lockstep_hil_is_bitwise_sim_with_the_switch_on(tmp_path):
     lcmnet.require()
