@@ -51,6 +51,28 @@ void set_faults(ActuatorParams& a, const std::vector<WheelFault>& faults) {
   for (std::size_t i = 0; i < 4; ++i) a.faults[i] = faults[i];
 }
 
+// A run's carried wheel state as Python holds it (sc_rt.model.truth.new_motor):
+// the 4 motor torques [N m], then with stribeck_switching the 4 switches (0/1).
+WheelCarry carry_from(const ActuatorParams& a, const Eigen::VectorXd& v) {
+  const Eigen::Index n = a.wheels.stribeck_switching ? 8 : 4;
+  if (v.size() != n)
+    throw std::invalid_argument("motor: " + std::to_string(n) + " numbers for these wheels (motor torques" +
+                                (n == 8 ? ", Stribeck switches" : "") + "), got " + std::to_string(v.size()));
+  WheelCarry c;
+  for (int i = 0; i < 4; ++i) c.motor(i) = v(i);
+  if (n == 8)
+    for (int i = 0; i < 4; ++i) c.stribeck[static_cast<std::size_t>(i)] = v(4 + i) != 0.0;
+  return c;
+}
+
+Eigen::VectorXd carry_to(const ActuatorParams& a, const WheelCarry& c) {
+  Eigen::VectorXd v(a.wheels.stribeck_switching ? 8 : 4);
+  for (int i = 0; i < 4; ++i) v(i) = c.motor(i);
+  if (v.size() == 8)
+    for (int i = 0; i < 4; ++i) v(4 + i) = c.stribeck[static_cast<std::size_t>(i)] ? 1.0 : 0.0;
+  return v;
+}
+
 TorqueWheels torque_wheels(const std::vector<std::array<double, 4>>& limits,
                            const std::vector<std::array<double, 5>>& friction, bool stribeck, bool torque_command) {
   if (limits.size() != 4 || friction.size() != 4) throw std::invalid_argument("TorqueWheels: 4 limits and 4 frictions");
@@ -163,7 +185,9 @@ void bind_plant(py::module_& m) {
       .def_readonly("enabled", &TorqueWheels::enabled)
       .def_readonly("stribeck", &TorqueWheels::stribeck)
       .def_readonly("torque_command", &TorqueWheels::torque_command)
-      .def_readwrite("lag", &TorqueWheels::lag, "[s] motor lag time constants (0: none)");
+      .def_readwrite("lag", &TorqueWheels::lag, "[s] motor lag time constants (0: none)")
+      .def_readwrite("stribeck_switching", &TorqueWheels::stribeck_switching,
+                     "the static (Stribeck) friction switched per wheel by Basilisk's rule (a carried state)");
 
   py::class_<ActuatorParams>(m, "ActuatorParams",
                              "Wheel limits and faults (C++ engine). The keyword constructor "
@@ -268,21 +292,36 @@ void bind_plant(py::module_& m) {
       arg("omega"), arg("coulomb"), arg("static"), arg("beta"), arg("viscous"), arg("omega_limit_cycle"),
       arg("stribeck"), "The friction torque [N m] on a wheel at omega [rad/s] (opposing it).");
   m.def(
+      "wheel_stribeck_switch",
+      [](bool on, double omega, double omega_start, double beta, double omega_lc) {
+        return wheel_stribeck_switch(on, omega, omega_start, WheelFriction{0.0, 0.0, beta, 0.0, omega_lc});
+      },
+      arg("on"), arg("omega"), arg("omega_start"), arg("beta"), arg("omega_limit_cycle"),
+      "Basilisk's switch of the static (Stribeck) friction at one evaluation: on near rest\n"
+      "(|omega| < 0.1 omega_limit_cycle), off while |omega| decreases from omega_start [rad/s].");
+  m.def(
       "plant_row",
       [](const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x, const Vec4& u_cmd,
-         const std::optional<Vec4>& motor) { return plant_row(p, a, t, x, u_cmd, motor ? &*motor : nullptr); },
+         const std::optional<Eigen::VectorXd>& motor) {
+        if (!motor) return plant_row(p, a, t, x, u_cmd, nullptr);
+        const WheelCarry c = carry_from(a, *motor);
+        return plant_row(p, a, t, x, u_cmd, &c);
+      },
       arg("p"), arg("a"), arg("t"), arg("x"), arg("u_cmd"), arg("motor") = py::none(),
       "The wheels' output of a row at (t, x) for u_cmd, either wheel model (sc_rt.model.truth.row);\n"
-      "motor: the motor torques at t of lagged wheels.");
+      "motor: what the run carries at t (truth.new_motor): the motor torques of lagged wheels, then\n"
+      "with stribeck_switching the Stribeck switches (0/1).");
   m.def(
       "plant_rk4_step_motor",
       [](const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x, double h, const Vec4& u_cmd,
-         Vec4 motor, const std::optional<Vec3>& dipole_B) {
-        const PlantState r = plant_rk4_step(p, a, t, x, h, u_cmd, motor, dipole_B ? &*dipole_B : nullptr);
-        return py::make_tuple(r, motor);
+         const Eigen::VectorXd& motor, const std::optional<Vec3>& dipole_B) {
+        WheelCarry c = carry_from(a, motor);
+        const PlantState r = plant_rk4_step(p, a, t, x, h, u_cmd, c, dipole_B ? &*dipole_B : nullptr);
+        return py::make_tuple(r, carry_to(a, c));
       },
       arg("p"), arg("a"), arg("t"), arg("x"), arg("h"), arg("u_cmd"), arg("motor"), arg("dipole_B") = py::none(),
-      "plant_rk4_step carrying the motor torques of torque-commanded wheels: (state, motor at t + h).");
+      "plant_rk4_step carrying the state of torque-commanded wheels (truth.new_motor: the motor torques,\n"
+      "then with stribeck_switching the Stribeck switches as 0/1): (state, motor at t + h).");
   m.def("wheel_torque_command", &wheel_torque_command, arg("u"), arg("Jw"), arg("torque_command"),
         "The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).");
   py::class_<TorquePlant>(m, "TorquePlant",

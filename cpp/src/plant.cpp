@@ -219,6 +219,8 @@ std::vector<std::string> validate(const ActuatorParams& a) {
         }
     }
   }
+  if (a.wheels.enabled && a.wheels.stribeck && a.wheels.stribeck_switching)
+    errs.push_back("wheels: stribeck (always on) and stribeck_switching (Basilisk's switch) exclude each other");
   return errs;
 }
 

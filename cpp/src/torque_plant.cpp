@@ -17,14 +17,15 @@ namespace {
 constexpr double kOnes[4] = {1.0, 1.0, 1.0, 1.0};
 constexpr double kZeros[4] = {0.0, 0.0, 0.0, 0.0};
 
-// x_dot of the torque-commanded plant (TorquePlant.derivative in Python).
+// x_dot of the torque-commanded plant (TorquePlant.derivative in Python);
+// on: per wheel, the static (Stribeck) part of the friction on.
 void torque_derivative(const PlantParams& p, const TorqueWheels& w, const detail::Rhs& rhs, const double C[3][4],
                        const double CJ[3][4], const double Jw[4], double t, const double x[10],
-                       const double u_motor[4], const double scale[4], const double brake[4], double out[10],
-                       const detail::MagField& mag) {
+                       const double u_motor[4], const double scale[4], const double brake[4], const bool on[4],
+                       double out[10], const detail::MagField& mag) {
   double u[4];
   for (int i = 0; i < 4; ++i)
-    u[i] = u_motor[i] + scale[i] * wheel_friction_torque(x[6 + i], w.friction[static_cast<std::size_t>(i)], w.stribeck) -
+    u[i] = u_motor[i] + scale[i] * wheel_friction_torque(x[6 + i], w.friction[static_cast<std::size_t>(i)], on[i]) -
            brake[i] * x[6 + i];
   double hw[3], tw[3], d[3], sw[6];
   for (int r = 0; r < 3; ++r) {
@@ -103,6 +104,9 @@ TorquePlant::TorquePlant(const PlantParams& p, const TorqueWheels& wheels) : p_(
   if (!(es.eigenvalues().minCoeff() > 0.0))
     throw std::invalid_argument("TorquePlant: J - Cbar diag(Jw) Cbar' is not positive definite");
   k_ = std::make_unique<const Kernel>(p, M_);
+  if (wheels.stribeck_switching)
+    throw std::invalid_argument(
+        "TorquePlant: stribeck_switching needs the carried switches (torque_rk4_step with a WheelCarry)");
 }
 
 TorquePlant::~TorquePlant() = default;
@@ -137,12 +141,26 @@ bool lagged(const ActuatorParams& a, const void* motor) {
   for (double tau : a.wheels.lag) any = any || tau > 0.0;
   if (any && motor == nullptr)
     throw std::invalid_argument("wheels with a motor lag need the motor state (plant_rk4_step's motor)");
+  if (a.wheels.stribeck_switching && motor == nullptr)
+    throw std::invalid_argument(
+        "wheels with stribeck_switching need the carried switches (plant_rk4_step's motor, a WheelCarry)");
   return any;
+}
+
+// The friction's static part per wheel at a step's first stage (the row's):
+// the carried switch through Basilisk's rule at the step's start speed, where
+// omega - omega_start = 0 (switching), or the fixed flag.
+void stage1_switches(const TorqueWheels& w, const WheelCarry* motor, const Vec4& wheel_speed, bool on[4]) {
+  for (int i = 0; i < 4; ++i) {
+    const auto s = static_cast<std::size_t>(i);
+    on[i] = w.stribeck_switching ? wheel_stribeck_switch(motor->stribeck[s], wheel_speed(i), wheel_speed(i), w.friction[s])
+                                 : w.stribeck;
+  }
 }
 }  // namespace
 
 PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                           double h, const Vec4& u_cmd, Vec4* motor, const Vec3* dipole_B) {
+                           double h, const Vec4& u_cmd, WheelCarry* motor, const Vec3* dipole_B) {
   const StackKernel k(p);
   Vec3 rod_m;  // no dipole input: the rods' for a zero command (truth.py rk4_step)
   if (dipole_B == nullptr && p.rods.enabled) {
@@ -156,41 +174,57 @@ PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double
   if (lagged(a, motor)) {
     for (int i = 0; i < 4; ++i) {
       double avg, end;
-      motor_lag(u[i], (*motor)(i), a.wheels.lag[static_cast<std::size_t>(i)], h, &avg, &end);
+      motor_lag(u[i], motor->motor(i), a.wheels.lag[static_cast<std::size_t>(i)], h, &avg, &end);
       u[i] = avg;
-      (*motor)(i) = end;
+      motor->motor(i) = end;
     }
   } else if (motor != nullptr) {
-    for (int i = 0; i < 4; ++i) (*motor)(i) = u[i];
+    for (int i = 0; i < 4; ++i) motor->motor(i) = u[i];
   }
+  // the friction's static part per wheel: fixed, or Basilisk's switch at every
+  // stage against the step's start speed, carried to the next step (docs/MODEL.md)
+  const TorqueWheels& w = a.wheels;
+  const bool sw = w.stribeck_switching;
+  bool on[4];
+  for (int i = 0; i < 4; ++i) on[i] = sw ? motor->stribeck[static_cast<std::size_t>(i)] : w.stribeck;
   auto f = [&](double ts, const double* xs, double* out) {
-    torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, ts, xs, u, scale, brake, out, mag);
+    if (sw)
+      for (int i = 0; i < 4; ++i) {
+        const auto s = static_cast<std::size_t>(i);
+        on[i] = wheel_stribeck_switch(on[i], xs[6 + i], x.wheel_speed(i), w.friction[s]);
+      }
+    torque_derivative(p, w, k.rhs, k.C, k.CJ, k.Jw, ts, xs, u, scale, brake, on, out, mag);
   };
-  return rk4_held(f, t, x, h);
+  const PlantState r = rk4_held(f, t, x, h);
+  if (sw)
+    for (int i = 0; i < 4; ++i) motor->stribeck[static_cast<std::size_t>(i)] = on[i];
+  return r;
 }
 
 PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                          double h, const Vec4& u_cmd, Vec4& motor, const Vec3* dipole_B) {
+                          double h, const Vec4& u_cmd, WheelCarry& motor, const Vec3* dipole_B) {
   if (a.wheels.enabled) return torque_rk4_step(p, a, t, x, h, u_cmd, &motor, dipole_B);
   return plant_rk4_step(p, a, t, x, h, u_cmd, dipole_B);
 }
 
 WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                      const Vec4& u_cmd, const Vec4* motor) {
+                      const Vec4& u_cmd, const WheelCarry* motor) {
   if (!a.wheels.enabled) return wheel_accel(a, t, u_cmd, x.wheel_speed);
   const StackKernel k(p);
   double u[4], scale[4], brake[4], x0[10], d[10];
   torque_step_inputs(p, a, t, u_cmd, x.wheel_speed, u, scale, brake);
   if (lagged(a, motor))
     for (int i = 0; i < 4; ++i)
-      if (a.wheels.lag[static_cast<std::size_t>(i)] > 0.0) u[i] = (*motor)(i);
+      if (a.wheels.lag[static_cast<std::size_t>(i)] > 0.0) u[i] = motor->motor(i);
+  bool on[4];
+  stage1_switches(a.wheels, motor, x.wheel_speed, on);
   for (int i = 0; i < 3; ++i) x0[i] = x.sigma_BN(i), x0[3 + i] = x.omega_BN_B(i);
   for (int i = 0; i < 4; ++i) x0[6 + i] = x.wheel_speed(i);
   double m[3];  // the residual dipole and the rods' for a zero command (truth.py row)
   Vec3 rod_m;
   if (p.rods.enabled) rod_m = rods_dipole_B(p.rods, t);
   const detail::MagField mag(p, detail::held_dipole(p, p.rods.enabled ? &rod_m : nullptr, m) ? m : nullptr);
-  torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, t, x0, u, scale, brake, d, mag);
+  torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, t, x0, u, scale, brake, on, d, mag);
   WheelOutput out;
   for (int i = 0; i < 4; ++i) {
     out.u_sat(i) = u[i] / p.Jw(i);
@@ -209,7 +243,8 @@ void TorquePlant::derivative(double t, const double x[10], const double u_motor[
   const Kernel& k = *k_;
   double m[3];  // the residual dipole (TorquePlant.derivative's, no magnetorquers)
   const detail::MagField mag(p_, detail::held_dipole(p_, nullptr, m) ? m : nullptr);
-  torque_derivative(p_, w_, k.rhs, k.C, k.CJ, k.Jw, t, x, u_motor, scale, brake, out, mag);
+  const bool on[4] = {w_.stribeck, w_.stribeck, w_.stribeck, w_.stribeck};
+  torque_derivative(p_, w_, k.rhs, k.C, k.CJ, k.Jw, t, x, u_motor, scale, brake, on, out, mag);
 }
 
 PlantState TorquePlant::step_held(double t, const PlantState& x, double h, const double u[4],

@@ -1,6 +1,7 @@
 #include "sc_rt/wheels.hpp"
 
 #include <cmath>
+#include <cstdlib>
 
 namespace sc_rt {
 
@@ -37,6 +38,15 @@ double wheel_friction_torque(double omega, const WheelFriction& f, bool stribeck
   const double lc = f.omega_limit_cycle;
   if (lc > 0.0 && std::fabs(omega) < lc) force = friction(lc, f, stribeck) / lc * omega;
   return -force;
+}
+
+bool wheel_stribeck_switch(bool on, double omega, double omega_start, const WheelFriction& f) {
+  if (!(f.beta > 0.0)) return false;
+  if (std::fabs(omega) < 0.1 * f.omega_limit_cycle) on = true;  // near rest: on
+  const int s = (omega > 0.0) - (omega < 0.0);
+  const double d = omega - omega_start;
+  const int sd = (d > 0.0) - (d < 0.0);
+  return on && std::abs(s - sd) < 2;  // off while |omega| decreases
 }
 
 }  // namespace sc_rt

@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_REVISION', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantRods', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'rods_dipole_B', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_REVISION', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantRods', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'rods_dipole_B', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_stribeck_switch', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -1273,6 +1273,14 @@ class TorqueWheels:
         ...
     @property
     def stribeck(self) -> bool:
+        ...
+    @property
+    def stribeck_switching(self) -> bool:
+        """
+        the static (Stribeck) friction switched per wheel by Basilisk's rule (a carried state)
+        """
+    @stribeck_switching.setter
+    def stribeck_switching(self, arg0: bool) -> None:
         ...
     @property
     def torque_command(self) -> bool:
@@ -2998,14 +3006,16 @@ def plant_rk4_step(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | 
     One RK4 step from t to t + h [s], u_cmd and the magnetorquers' body dipole dipole_B [A m^2]
     held; then the MRP short set.
     """
-def plant_rk4_step_motor(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], dipole_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> tuple[PlantState, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]]:
+def plant_rk4_step_motor(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 1]"], dipole_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> tuple[PlantState, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[m, 1]"]]:
     """
-    plant_rk4_step carrying the motor torques of torque-commanded wheels: (state, motor at t + h).
+    plant_rk4_step carrying the state of torque-commanded wheels (truth.new_motor: the motor torques,
+    then with stribeck_switching the Stribeck switches as 0/1): (state, motor at t + h).
     """
-def plant_row(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] | None = None) -> WheelOutput:
+def plant_row(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], motor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[m, 1]"] | None = None) -> WheelOutput:
     """
     The wheels' output of a row at (t, x) for u_cmd, either wheel model (sc_rt.model.truth.row);
-    motor: the motor torques at t of lagged wheels.
+    motor: what the run carries at t (truth.new_motor): the motor torques of lagged wheels, then
+    with stribeck_switching the Stribeck switches (0/1).
     """
 def plugin_file_problem(path: str) -> str:
     """
@@ -3175,6 +3185,11 @@ def wheel_applied_torque(u: typing.SupportsFloat | typing.SupportsIndex, omega: 
 def wheel_friction_torque(omega: typing.SupportsFloat | typing.SupportsIndex, coulomb: typing.SupportsFloat | typing.SupportsIndex, static: typing.SupportsFloat | typing.SupportsIndex, beta: typing.SupportsFloat | typing.SupportsIndex, viscous: typing.SupportsFloat | typing.SupportsIndex, omega_limit_cycle: typing.SupportsFloat | typing.SupportsIndex, stribeck: bool) -> float:
     """
     The friction torque [N m] on a wheel at omega [rad/s] (opposing it).
+    """
+def wheel_stribeck_switch(on: bool, omega: typing.SupportsFloat | typing.SupportsIndex, omega_start: typing.SupportsFloat | typing.SupportsIndex, beta: typing.SupportsFloat | typing.SupportsIndex, omega_limit_cycle: typing.SupportsFloat | typing.SupportsIndex) -> bool:
+    """
+    Basilisk's switch of the static (Stribeck) friction at one evaluation: on near rest
+    (|omega| < 0.1 omega_limit_cycle), off while |omega| decreases from omega_start [rad/s].
     """
 def wheel_torque_command(u: typing.SupportsFloat | typing.SupportsIndex, Jw: typing.SupportsFloat | typing.SupportsIndex, torque_command: bool) -> float:
     """

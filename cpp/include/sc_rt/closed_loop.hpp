@@ -119,7 +119,7 @@ class ClosedLoop {
   std::unique_ptr<Navigation> nv_;
   NavTelemetry tel_;
   PlantState x_;
-  Vec4 motor_ = Vec4::Zero();  // the motor torques of torque-commanded wheels (their lag's state)
+  WheelCarry motor_;  // torque-commanded wheels' carried state: motor torques (a lag's), Stribeck switches
   int n_ctrl_, n_sub_;
   double rate_, h_;
   std::int64_t next_ = 0;  // the next plant step at which a sensor is due

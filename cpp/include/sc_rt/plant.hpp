@@ -139,10 +139,12 @@ WheelOutput wheel_accel(const ActuatorParams& a, double t, const Vec4& u_cmd,
 // model: for the paper's wheels wheel_accel's; for torque-commanded ones
 // u_sat = the applied motor torque / Jw, accel = Omega_w_dot of the dynamics
 // (torque_plant.cpp; sc_rt.model.truth.row).
-// motor: the motor torques at t of wheels with a lag (plant_rk4_step's); may be
-// null only without a lag (std::invalid_argument otherwise).
+// motor: what the run carries at t (plant_rk4_step's): the motor torques of
+// wheels with a lag, the Stribeck switches (the row takes the step's first
+// stage's); may be null only without a lag and without stribeck_switching
+// (std::invalid_argument otherwise).
 WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                      const Vec4& u_cmd, const Vec4* motor = nullptr);
+                      const Vec4& u_cmd, const WheelCarry* motor = nullptr);
 
 // What torque-commanded wheels hold over a step from t (sc_rt.model.torque_plant.step_inputs):
 // motor torques [N m], friction scales, seizure brakes [N m s].
@@ -151,17 +153,18 @@ void torque_step_inputs(const PlantParams& p, const ActuatorParams& a, double t,
 
 // One RK4 step of the plant on torque-commanded wheels (plant_rk4_step calls it
 // when a.wheels.enabled). No allocation.
-// motor: the motor torques [N m] carried from step to step (zero at the
-// start), advanced to t + h; null: wheels without a lag (std::invalid_argument
-// otherwise).
+// motor: the motor torques [N m] and the Stribeck switches carried from step
+// to step (zero at the start), advanced to t + h; null: wheels without a lag
+// and without stribeck_switching (std::invalid_argument otherwise).
 // dipole_B: the magnetorquers' body dipole [A m^2] held over the step (null: none).
 PlantState torque_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                           double h, const Vec4& u_cmd, Vec4* motor = nullptr, const Vec3* dipole_B = nullptr);
+                           double h, const Vec4& u_cmd, WheelCarry* motor = nullptr,
+                           const Vec3* dipole_B = nullptr);
 
 // plant_rk4_step with the motor state of torque-commanded wheels (unused for
 // the paper's wheels): what a loop that carries it calls.
 PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                          double h, const Vec4& u_cmd, Vec4& motor, const Vec3* dipole_B = nullptr);
+                          double h, const Vec4& u_cmd, WheelCarry& motor, const Vec3* dipole_B = nullptr);
 
 // d(t) = bias + amp cos(freq t) [N m], in B.
 Vec3 disturbance(const PlantParams& p, double t);

@@ -32,9 +32,20 @@ struct TorqueWheels {
   bool enabled = false;   //!< false: the paper's acceleration-commanded wheels
   std::array<WheelLimits, 4> limits{};
   std::array<WheelFriction, 4> friction{};
-  bool stribeck = false;        //!< the static (Stribeck) part of the friction
+  bool stribeck = false;        //!< the static (Stribeck) part of the friction, always on
+  //! the static part switched per wheel by Basilisk's rule (wheel_stribeck_switch), a state the
+  //! run carries (WheelCarry::stribeck); exclusive with stribeck
+  bool stribeck_switching = false;
   bool torque_command = false;  //!< the command is a motor torque [N m], not an acceleration [rad/s^2]
   std::array<double, 4> lag{};  //!< [s] first-order motor lag time constants (0: none)
+};
+
+// What a run carries from step to step beside x for torque-commanded wheels
+// (sc_rt.model.truth.new_motor's list: the 4 motor torques, then with
+// stribeck_switching the 4 Stribeck switches as 0/1). Zero at the start.
+struct WheelCarry {
+  Vec4 motor = Vec4::Zero();       //!< [N m] the motor torques (a lag's state)
+  std::array<bool, 4> stribeck{};  //!< [-] per wheel: the static (Stribeck) friction part on
 };
 
 // A first-order motor lag over a step h [s] toward the torque c from the motor
@@ -57,5 +68,15 @@ double wheel_applied_torque(double u, double omega, const WheelLimits& lim);
 
 // The friction torque at omega (opposing it); stribeck: the static part on.
 double wheel_friction_torque(double omega, const WheelFriction& f, bool stribeck);
+
+// Basilisk's switch of the static (Stribeck) part at one evaluation of the
+// friction (updateContributions in Basilisk's
+// src/simulation/dynamics/reactionWheels/reactionWheelStateEffector.cpp, run
+// at every derivative call): on is the switch before it, omega [rad/s] the
+// wheel speed there, omega_start [rad/s] the speed at the step's start (Basilisk's
+// omegaBefore). On when |omega| < 0.1 omega_limit_cycle; then off when the
+// wheel decelerates, sign(omega) = -sign(omega - omega_start) != 0; never on
+// with beta <= 0 (sc_rt.model.wheels.stribeck_switch).
+bool wheel_stribeck_switch(bool on, double omega, double omega_start, const WheelFriction& f);
 
 }  // namespace sc_rt

@@ -56,8 +56,9 @@ class PlantTwin:
 
     def __init__(self, params, cpp: bool = True):
         self.params, self.cpp = params, cpp
-        #: the motor torques of torque-commanded wheels (their lag's state), carried
-        #: from row to row; ``motor_at_start``: as they were at the latest row's start
+        #: what torque-commanded wheels carry from row to row (truth.new_motor: the
+        #: motor torques of a lag, the Stribeck switches); ``motor_at_start``: as it
+        #: was at the latest row's start
         self.motor: list[float] | None = None
         self.motor_at_start: tuple | None = None
         self._cpp_params: tuple = (None,)

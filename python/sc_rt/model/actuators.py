@@ -386,6 +386,7 @@ def actuator_params_to_cpp(a: ActuatorParams):
                                     [(f.coulomb, f.static, f.beta, f.viscous, f.omega_limit_cycle)
                                      for f in w.friction], w.stribeck, w.command == "torque")
         wheels.lag = list(w.lag)
+        wheels.stribeck_switching = bool(w.stribeck_switching)
     return _core.ActuatorParams(
         umin=np.array(a.umin),
         umax=np.array(a.umax),

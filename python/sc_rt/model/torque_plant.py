@@ -24,7 +24,10 @@ the motor torque after its limits (sc_rt.model.wheels.applied_torque: torque
 limit, deadband, power and speed limits), taken once per step at the step's
 start speed and held over it, plus the friction
 (sc_rt.model.wheels.friction_torque) at each RK4 stage's wheel speed, as
-Basilisk takes them (docs/MODEL.md, "Flight-like wheels").
+Basilisk takes them (docs/MODEL.md, "Flight-like wheels"). With
+``stribeck_switching`` the friction's static part is switched per wheel at
+every stage by Basilisk's rule (sc_rt.model.wheels.stribeck_switch, against
+the step's start speed), the switches carried from step to step.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from sc_rt.model.actuators import ActuatorParams
 from sc_rt.model.magnetic import held_dipole, make_field_N
 from sc_rt.model.kernels import inv3, make_disturbance, make_orbit_gg, make_rhs, mrp_to_dcm
 from sc_rt.model.plant import PlantParams
-from sc_rt.model.wheels import TorqueWheels, applied_torque, friction_torque, wheel_torque_command
+from sc_rt.model.wheels import TorqueWheels, applied_torque, friction_torque, stribeck_switch, wheel_torque_command
 
 __all__ = ["TorqueWheels", "TorquePlant", "torque_plant_to_cpp", "step_inputs"]
 
@@ -93,22 +96,25 @@ class TorquePlant:
         at the wheel speeds ``omega_w`` (their limits)."""
         return [applied_torque(float(u_cmd[i]), float(omega_w[i]), self.wheels.limits[i]) for i in range(4)]
 
-    def net_torques(self, u_motor, omega_w, scale=_ONES, brake=_ZEROS) -> list[float]:
+    def net_torques(self, u_motor, omega_w, scale=_ONES, brake=_ZEROS, on=None) -> list[float]:
         """[N m] motor torque plus friction (times ``scale``, a friction-rise
         fault) minus the seizure brake ``brake`` Omega at the wheel speeds
-        ``omega_w``."""
+        ``omega_w``; ``on``: per wheel, the friction's static part on (None:
+        ``wheels.stribeck`` for all)."""
         w = self.wheels
-        return [u_motor[i] + scale[i] * friction_torque(float(omega_w[i]), w.friction[i], w.stribeck)
+        on = (w.stribeck,) * 4 if on is None else on
+        return [u_motor[i] + scale[i] * friction_torque(float(omega_w[i]), w.friction[i], bool(on[i]))
                 - brake[i] * float(omega_w[i]) for i in range(4)]
 
-    def derivative(self, t: float, x, u_motor, scale=_ONES, brake=_ZEROS, dipole_B=None) -> list[float]:
+    def derivative(self, t: float, x, u_motor, scale=_ONES, brake=_ZEROS, dipole_B=None, on=None) -> list[float]:
         """x_dot (10) at time ``t`` [s] and state ``x`` with the motor torques
         ``u_motor`` [N m] (after their limits; the friction, times
         ``scale``, and the seizure brake are added here) and the
         magnetorquers' body dipole ``dipole_B`` [A m^2] (None: none; the
-        residual dipole acts either way, sc_rt.model.magnetic)."""
+        residual dipole acts either way, sc_rt.model.magnetic); ``on``: per
+        wheel, the friction's static part on (None: ``wheels.stribeck``)."""
         s1, s2, s3, w1, w2, w3, O1, O2, O3, O4 = (float(v) for v in x)
-        u1, u2, u3, u4 = self.net_torques(u_motor, (O1, O2, O3, O4), scale, brake)
+        u1, u2, u3, u4 = self.net_torques(u_motor, (O1, O2, O3, O4), scale, brake, on)
         C, CJ, Jw = self._C, self._CJ, self._Jw
         hw = [CJ[r][0] * O1 + CJ[r][1] * O2 + CJ[r][2] * O3 + CJ[r][3] * O4 for r in range(3)]
         tw = [C[r][0] * u1 + C[r][1] * u2 + C[r][2] * u3 + C[r][3] * u4 for r in range(3)]
@@ -127,17 +133,40 @@ class TorquePlant:
         x0 = [float(v) for v in x]
         return self.step_held(t, x0, h, self.motor_torques(u_cmd, x0[6:10]))
 
-    def step_held(self, t: float, x, h: float, u, scale=_ONES, brake=_ZEROS, dipole_B=None) -> np.ndarray:
+    def step_held(self, t: float, x, h: float, u, scale=_ONES, brake=_ZEROS, dipole_B=None,
+                  stribeck=None) -> np.ndarray:
         """One RK4 step with the motor torques ``u`` [N m] (after limits and
         faults), the friction scale, the seizure brake and the magnetorquers'
-        body dipole ``dipole_B`` [A m^2] (None: none) held over it."""
+        body dipole ``dipole_B`` [A m^2] (None: none) held over it.
+
+        ``stribeck``: with ``wheels.stribeck_switching``, the 4 switches of
+        the friction's static part carried from the previous step (a list,
+        updated in place): each stage first applies Basilisk's rule
+        (``stribeck_switch``) at its wheel speeds against the step's start
+        speeds, then evaluates the friction with the result.
+        """
         x0 = [float(v) for v in x]
         hh = 0.5 * h
         m = dipole_B
-        k1 = self.derivative(t, x0, u, scale, brake, m)
-        k2 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k1)], u, scale, brake, m)
-        k3 = self.derivative(t + hh, [a + hh * b for a, b in zip(x0, k2)], u, scale, brake, m)
-        k4 = self.derivative(t + h, [a + h * b for a, b in zip(x0, k3)], u, scale, brake, m)
+        switching = self.wheels.stribeck_switching
+        if switching and stribeck is None:
+            raise ValueError("TorquePlant: stribeck_switching needs the carried switches (step_held's stribeck)")
+        fr = self.wheels.friction
+
+        def on(xs):  # Basilisk's switch at this stage; None: the fixed flag
+            if not switching:
+                return None
+            for i in range(4):
+                stribeck[i] = stribeck_switch(bool(stribeck[i]), xs[6 + i], x0[6 + i], fr[i])
+            return tuple(stribeck)
+
+        k1 = self.derivative(t, x0, u, scale, brake, m, on(x0))
+        xs = [a + hh * b for a, b in zip(x0, k1)]
+        k2 = self.derivative(t + hh, xs, u, scale, brake, m, on(xs))
+        xs = [a + hh * b for a, b in zip(x0, k2)]
+        k3 = self.derivative(t + hh, xs, u, scale, brake, m, on(xs))
+        xs = [a + h * b for a, b in zip(x0, k3)]
+        k4 = self.derivative(t + h, xs, u, scale, brake, m, on(xs))
         h6 = h / 6.0
         out = [a + h6 * (b + 2.0 * (c + d) + e) for a, b, c, d, e in zip(x0, k1, k2, k3, k4)]
         ss = out[0] * out[0] + out[1] * out[1] + out[2] * out[2]
@@ -197,4 +226,7 @@ def torque_plant_to_cpp(p: PlantParams, wheels: TorqueWheels = _FREE):
 
     limits = [(w.u_max, w.u_min, w.p_max, w.omega_max) for w in wheels.limits]
     friction = [(f.coulomb, f.static, f.beta, f.viscous, f.omega_limit_cycle) for f in wheels.friction]
+    if wheels.stribeck_switching:
+        raise ValueError("torque_plant_to_cpp: stribeck_switching needs the carried switches: the C++ twin is "
+                         "_core.plant_rk4_step_motor (truth.rk4_step's)")
     return _core.TorquePlant(plant_params_to_cpp(p), limits, friction, wheels.stribeck)

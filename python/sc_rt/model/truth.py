@@ -16,19 +16,25 @@ from sc_rt.model.actuators import ActuatorParams
 from sc_rt.model.plant import PlantParams
 from sc_rt.model.rods import rods_dipole_B
 from sc_rt.model.torque_plant import TorquePlant, step_inputs
-from sc_rt.model.wheels import motor_lag
+from sc_rt.model.wheels import motor_lag, stribeck_switch
 
 __all__ = ["rk4_step", "row", "torque_plant", "new_motor"]
 
 
 def new_motor(act: ActuatorParams) -> list[float] | None:
-    """The motor torques a run carries from step to step [N m], all 0 at the
-    start (torque-commanded wheels; None for the paper's). ``rk4_step``
-    updates it in place, ``row`` reads it."""
-    return None if act.wheels is None else [0.0] * 4
+    """What torque-commanded wheels carry from step to step, all 0 at the
+    start (None for the paper's wheels): the 4 motor torques [N m] (a lag's
+    state), then with ``stribeck_switching`` the 4 switches of the
+    friction's static part (1.0 on, 0.0 off). ``rk4_step`` updates it in
+    place, ``row`` reads it."""
+    if act.wheels is None:
+        return None
+    return [0.0] * (8 if act.wheels.stribeck_switching else 4)
 
 
 def _lagged(act: ActuatorParams, motor) -> bool:
+    if act.wheels.stribeck_switching and (motor is None or len(motor) != 8):
+        raise ValueError("wheels with stribeck_switching need the carried switches (truth.new_motor, 8 numbers)")
     if not any(act.wheels.lag):
         return False
     if motor is None:
@@ -65,8 +71,13 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd, 
         for i, tau in enumerate(act.wheels.lag):
             u[i], motor[i] = motor_lag(u[i], motor[i], tau, h)
     elif motor is not None:
-        motor[:] = u
-    return tp.step_held(float(t), x0, h, u, scale, brake, dipole_B)
+        motor[0:4] = u
+    if not act.wheels.stribeck_switching:
+        return tp.step_held(float(t), x0, h, u, scale, brake, dipole_B)
+    on = [motor[4 + i] != 0.0 for i in range(4)]
+    x1 = tp.step_held(float(t), x0, h, u, scale, brake, dipole_B, on)
+    motor[4:8] = [1.0 if v else 0.0 for v in on]
+    return x1
 
 
 def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> tuple:
@@ -78,7 +89,9 @@ def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> 
     (the acceleration it gives a free wheel) and the acceleration comes from
     the dynamics at (t, x); delta_2 is then exact, since (7) holds for them
     with the true Omega_w_dot. With a motor lag the motor torque at t is the
-    state ``motor`` (before this row's step), not the command.
+    state ``motor`` (before this row's step), not the command; with
+    ``stribeck_switching`` the friction's static part is the one the step's
+    first stage takes (``motor``'s switches through the rule at t).
     """
     if act.wheels is None:
         u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
@@ -89,6 +102,10 @@ def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> 
         if _lagged(act, motor):
             u = [m if tau > 0.0 else c for m, c, tau in zip(motor, u, act.wheels.lag)]
         rods = None if p.magnetorquers is None else rods_dipole_B(p.magnetorquers, float(t))
-        accel = tp.derivative(float(t), x0, u, scale, brake, rods)[6:10]
+        on = None  # the static part as the step's first stage takes it (its omega - omega_start = 0)
+        if act.wheels.stribeck_switching:
+            on = [stribeck_switch(motor[4 + i] != 0.0, x0[6 + i], x0[6 + i], act.wheels.friction[i])
+                  for i in range(4)]
+        accel = tp.derivative(float(t), x0, u, scale, brake, rods, on)[6:10]
         u_sat = [u[i] / float(p.Jw[i]) for i in range(4)]
     return u_sat, accel, plant.lumped_disturbance(p, t, x, u_sat, accel)

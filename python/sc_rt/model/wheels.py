@@ -19,7 +19,12 @@ the same wheel number for number (docs/MODEL.md, "Flight-like wheels"):
   rest, ``stribeck``), sqrt(2 e) (f_s - f_c) exp(-(Omega/beta)^2 / 2)
   Omega / (beta sqrt 2) + f_c tanh(10 Omega / beta) + c Omega; below the
   limit-cycle speed omega_lc the friction is linear in Omega through its
-  value at omega_lc, so that the integration stays smooth near rest.
+  value at omega_lc, so that the integration stays smooth near rest;
+- the static part is either always on (``stribeck``) or switched per wheel
+  by Basilisk's rule at every evaluation of the friction
+  (``stribeck_switching``, ``stribeck_switch``): on near rest
+  (|Omega| < 0.1 omega_lc), off while the wheel decelerates, a state the run
+  carries (sc_rt.model.truth.new_motor).
 
 ``TorqueWheels`` gathers the four wheels' limits and friction and the
 command interface: a scenario's ``[wheels]`` table (docs/SCENARIOS.md) puts
@@ -36,7 +41,7 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["WheelLimits", "WheelFriction", "TorqueWheels", "COMMANDS", "applied_torque", "friction_torque",
-           "wheel_torque_command", "motor_lag"]
+           "stribeck_switch", "wheel_torque_command", "motor_lag"]
 
 #: the wheel command interfaces: a wheel acceleration [rad/s^2] or a motor torque [N m]
 COMMANDS = ("acceleration", "torque")
@@ -69,8 +74,11 @@ class TorqueWheels:
 
     limits: tuple[WheelLimits, ...] = (WheelLimits(),) * 4
     friction: tuple[WheelFriction, ...] = (WheelFriction(),) * 4
-    #: the static (Stribeck) part of the friction (a wheel starting from rest)
+    #: the static (Stribeck) part of the friction, always on
     stribeck: bool = False
+    #: the static part switched per wheel by Basilisk's rule (``stribeck_switch``),
+    #: a state the run carries; exclusive with ``stribeck``
+    stribeck_switching: bool = False
     #: what the 4 numbers of a wheel command are: "acceleration" [rad/s^2]
     #: (turned into Jw a by the drive) or "torque" [N m]
     command: str = "acceleration"
@@ -84,6 +92,9 @@ class TorqueWheels:
         if len(self.lag) != 4 or not all(isinstance(v, (int, float)) and math.isfinite(v) and v >= 0.0
                                          for v in self.lag):
             raise ValueError(f"TorqueWheels.lag must be 4 times >= 0 [s], got {self.lag!r}")
+        if self.stribeck and self.stribeck_switching:
+            raise ValueError("TorqueWheels: stribeck (always on) and stribeck_switching (Basilisk's switch) "
+                             "exclude each other")
         if self.command not in COMMANDS:
             raise ValueError(f"TorqueWheels.command must be one of {COMMANDS}, got {self.command!r}")
         for i, (lim, f) in enumerate(zip(self.limits, self.friction)):
@@ -149,3 +160,36 @@ def friction_torque(omega: float, f: WheelFriction, stribeck: bool = False) -> f
     if lc > 0.0 and abs(omega) < lc:
         force = _friction(lc, f, stribeck) / lc * omega
     return -force
+
+
+def stribeck_switch(on: bool, omega: float, omega_start: float, f: WheelFriction) -> bool:
+    """Basilisk's switch of the static (Stribeck) friction at one evaluation
+    of the friction (updateContributions in Basilisk's
+    src/simulation/dynamics/reactionWheels/reactionWheelStateEffector.cpp,
+    which runs at every derivative call of the integrator).
+
+    Parameters
+    ----------
+    on : bool
+        The switch before this evaluation (carried from the previous one).
+    omega : float
+        [rad/s] The wheel speed at this evaluation (an RK4 stage's).
+    omega_start : float
+        [rad/s] The wheel speed at the step's start (Basilisk's omegaBefore).
+    f : WheelFriction
+        The wheel's friction: ``beta`` and ``omega_limit_cycle``.
+
+    Returns
+    -------
+    bool
+        On when |omega| < 0.1 omega_limit_cycle (near rest), then off when the
+        wheel decelerates, sign(omega) = -sign(omega - omega_start) != 0;
+        never on with beta <= 0.
+    """
+    if not f.beta > 0.0:
+        return False
+    if abs(omega) < 0.1 * f.omega_limit_cycle:
+        on = True
+    s = (omega > 0.0) - (omega < 0.0)
+    d = omega - omega_start
+    return on and abs(s - ((d > 0.0) - (d < 0.0))) < 2

@@ -114,6 +114,8 @@ def _wheels(w: Any) -> dict[str, Any]:
     if w is None:
         return {}
     table: dict[str, Any] = {"command": w.command, "stribeck": bool(w.stribeck), "lag": [float(v) for v in w.lag]}
+    if w.stribeck_switching:  # written only when on: a table without it reads back unchanged
+        table["stribeck_switching"] = True
     for group in (w.limits, w.friction):
         for name in (f.name for f in dataclasses.fields(group[0])):
             table[name] = [float(getattr(g, name)) for g in group]

@@ -64,23 +64,33 @@ def read_wheels(root: Table) -> TorqueWheels | None | bool:
     preset = PRESETS.get(preset_name, {})
     command = t.read("command", Spec("str", choices=COMMANDS), default="acceleration")
     stribeck = t.read("stribeck", Spec("bool"), default=False)
+    switching = t.read("stribeck_switching", Spec("bool"), default=False)
     lag = t.read("lag", _PER_WHEEL, default=np.zeros(4))
     values: dict[str, np.ndarray | None] = {}
     for key in (*LIMIT_KEYS, *FRICTION_KEYS):
         values[key] = t.read(key, _PER_WHEEL, default=np.full(4, float(preset.get(key, 0.0))))
     t.finish()
-    if command is None or stribeck is None or lag is None or any(v is None for v in values.values()):
+    if (command is None or stribeck is None or switching is None or lag is None
+            or any(v is None for v in values.values())):
         return False
     if stribeck and not np.all(values["beta"] > 0.0):
         t.fail("stribeck", "the static (Stribeck) friction needs beta > 0 on every wheel")
+        return False
+    if switching and stribeck:
+        t.fail("stribeck_switching", "give stribeck (the static friction always on) or stribeck_switching "
+                                     "(switched by Basilisk's rule), not both")
+        return False
+    if switching and not (np.all(values["beta"] > 0.0) and np.all(values["omega_limit_cycle"] > 0.0)):
+        t.fail("stribeck_switching", "Basilisk's switch needs beta > 0 and omega_limit_cycle > 0 on every wheel "
+                                     "(it switches on below 0.1 omega_limit_cycle)")
         return False
     if values["u_min"] is not None and np.any((values["u_max"] > 0.0) & (values["u_min"] > values["u_max"])):
         t.fail("u_min", "u_min (the deadband) must be <= u_max")
         return False
     limits = tuple(WheelLimits(**{k: float(values[k][i]) for k in LIMIT_KEYS}) for i in range(4))
     friction = tuple(WheelFriction(**{k: float(values[k][i]) for k in FRICTION_KEYS}) for i in range(4))
-    return TorqueWheels(limits=limits, friction=friction, stribeck=bool(stribeck), command=command,
-                        lag=tuple(float(v) for v in lag))
+    return TorqueWheels(limits=limits, friction=friction, stribeck=bool(stribeck),
+                        stribeck_switching=bool(switching), command=command, lag=tuple(float(v) for v in lag))
 
 
 def check_wheel_fault(t: Table, stuck: bool, rate: float | None, has_wheels: bool,
