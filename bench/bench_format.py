@@ -71,9 +71,35 @@ def _arrow(path: Path, batches, compression: str) -> list[float]:
     return per
 
 
+def _to_numpy(table, names) -> int:
+    """The table's columns ``names`` as numpy arrays (a vector field: rows x width); their bytes."""
+    n = 0
+    shapes = {name: (shape, dtype) for name, shape, dtype, _f in COLUMNS}
+    for name in names:
+        shape, dtype = shapes[name]
+        col = table.column(name).combine_chunks()
+        n += np.asarray((col.flatten() if shape else col).to_numpy(zero_copy_only=False), dtype).nbytes
+    return n
+
+
 def _read_arrow(path: Path, names=None) -> int:
+    """pyarrow's read of the file (``names``: only those columns' buffers are decompressed)."""
+    pa = _pa()
+    with pa.OSFile(str(path), "rb") as src:
+        if names is None:
+            table = pa.ipc.open_file(src).read_all()
+        else:
+            schema = pa.ipc.open_file(src).schema
+            opts = pa.ipc.IpcReadOptions(included_fields=[schema.get_field_index(n) for n in names],
+                                         use_threads=False)
+            table = pa.ipc.open_file(src, options=opts).read_all()
+        return _to_numpy(table, names or NAMES)
+
+
+def _read_sc_rt(path: Path, names=None) -> int:
+    """sc-rt's reader (``Run.load``'s ChunkReader): every column, a column at a time."""
     r = ChunkReader(path)
-    n = sum(v.nbytes for name in (names or r.names) for v in (r.column(name),))
+    n = sum(r.column(name).nbytes for name in (names or NAMES))
     r.close()
     return n
 
@@ -95,14 +121,7 @@ def _parquet(path: Path, batches, schema) -> list[float]:
 def _read_parquet(path: Path, names=None) -> int:
     import pyarrow.parquet as pq
 
-    t = pq.read_table(str(path), columns=names, use_threads=False)
-    n = 0
-    for name, (_n, shape, dtype, _f) in zip(NAMES, COLUMNS):
-        if names is not None and name not in names:
-            continue
-        col = t.column(name).combine_chunks()
-        n += np.asarray((col.flatten() if shape else col).to_numpy(zero_copy_only=False), dtype).nbytes
-    return n
+    return _to_numpy(pq.read_table(str(path), columns=names, use_threads=False), names or NAMES)
 
 
 def _npz(path: Path, batches) -> None:
@@ -115,35 +134,52 @@ def _read_npz(path: Path, names=None) -> int:
         return sum(z[name].nbytes for name in (names or NAMES))
 
 
-def measure(run, work: Path) -> dict:
-    """Every format's figures for one run."""
+FORMATS = ("arrow_lz4", "arrow_zstd", "parquet", "npz")
+
+
+def _once(fmt: str, path: Path, batches, schema) -> dict:
+    """One write and the reads of one format: times [s], append times [s] per batch."""
+    t0 = time.perf_counter()
+    if fmt.startswith("arrow"):
+        per = _arrow(path, batches, fmt.split("_")[1])
+        read = _read_arrow
+    elif fmt == "parquet":
+        per = _parquet(path, batches, schema)
+        read = _read_parquet
+    else:
+        _npz(path, batches)
+        per = []
+        read = _read_npz
+    out = {"write_s": time.perf_counter() - t0, "per": per, "bytes": path.stat().st_size}
+    t0 = time.perf_counter()
+    out["numpy_bytes"] = read(path)
+    out["read_all_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    read(path, ["sigma_BD"])
+    out["read_one_column_s"] = time.perf_counter() - t0
+    if fmt == "arrow_lz4":  # sc-rt's own reader of what it writes
+        t0 = time.perf_counter()
+        _read_sc_rt(path)
+        out["sc_rt_read_all_s"] = time.perf_counter() - t0
+    path.unlink()
+    return out
+
+
+def measure(run, work: Path, repeats: int) -> dict:
+    """Every format's figures for one run: medians of ``repeats`` rounds, the formats alternating."""
     batches = _batches(run)
     schema = ChunkFile(None, COLUMNS).schema
-    res: dict = {"rows": len(run), "batches": len(batches), "fields": len(NAMES)}
-    for fmt in ("arrow_lz4", "arrow_zstd", "parquet", "npz"):
-        path = work / f"rec.{fmt}"
-        t0 = time.perf_counter()
-        if fmt.startswith("arrow"):
-            per = _arrow(path, batches, fmt.split("_")[1])
-            read = _read_arrow
-        elif fmt == "parquet":
-            per = _parquet(path, batches, schema)
-            read = _read_parquet
-        else:
-            _npz(path, batches)
-            per = []
-            read = _read_npz
-        write_s = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        nbytes = read(path)
-        read_s = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        read(path, ["sigma_BD"])
-        one_s = time.perf_counter() - t0
-        res[fmt] = {"bytes": path.stat().st_size, "bytes_per_row": path.stat().st_size / len(run),
-                    "write_s": write_s, "append_batch_ms_median": float(np.median(per)) * 1e3 if per else None,
-                    "read_all_s": read_s, "read_one_column_s": one_s, "numpy_bytes": nbytes}
-        path.unlink()
+    res: dict = {"rows": len(run), "batches": len(batches), "fields": len(NAMES), "repeats": repeats}
+    rounds = {fmt: [] for fmt in FORMATS}
+    for _ in range(repeats):
+        for fmt in FORMATS:
+            rounds[fmt].append(_once(fmt, work / f"rec.{fmt}", batches, schema))
+    for fmt, rs in rounds.items():
+        per = [x for r in rs for x in r["per"]]
+        res[fmt] = {"bytes": rs[0]["bytes"], "bytes_per_row": rs[0]["bytes"] / len(run),
+                    "numpy_bytes": rs[0]["numpy_bytes"],
+                    "append_batch_ms_median": float(np.median(per)) * 1e3 if per else None,
+                    **{k: float(np.median([r[k] for r in rs])) for k in rs[0] if k.endswith("_s")}}
     return res
 
 
@@ -155,21 +191,25 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="bench-format-") as d:
         work = Path(d)
         run = simulate(load_scenario(ROOT / "scenarios" / "paper_faults.toml"), engine="cpp", duration=short)
-        res["short"] = {"scenario": "paper_faults", "duration_s": short, **measure(run, work)}
+        measure(run, work, 1)  # warm-up: every codec and reader loaded once, not timed
+        res["short"] = {"scenario": "paper_faults", "duration_s": short,
+                        **measure(run, work, 1 if size == "smoke" else 5)}
         t0 = time.perf_counter()
         run = simulate(load_scenario(ROOT / "scenarios" / "ppc_feasible_1khz.toml"), engine="cpp", duration=long,
                        record_dir=work / "long")
         res["long_simulate_s"] = time.perf_counter() - t0
-        res["long"] = {"scenario": "ppc_feasible_1khz", "duration_s": long, **measure(run, work)}
+        res["long"] = {"scenario": "ppc_feasible_1khz", "duration_s": long,
+                       **measure(run, work, 1 if size != "quick" else 2)}
     write("format", res)
     for which in ("short", "long"):
         r = res[which]
         print(f"{which}: {r['rows']} rows")
-        for fmt in ("arrow_lz4", "arrow_zstd", "parquet", "npz"):
+        for fmt in FORMATS:
             f = r[fmt]
             print(f"  {fmt:11s} {f['bytes'] / 1e6:9.2f} MB  write {f['write_s']:7.3f} s  "
                   f"read all {f['read_all_s']:7.3f} s  one column {f['read_one_column_s']:7.4f} s"
-                  + (f"  append/batch {f['append_batch_ms_median']:6.2f} ms" if f["append_batch_ms_median"] else ""))
+                  + (f"  append/batch {f['append_batch_ms_median']:6.2f} ms" if f["append_batch_ms_median"] else "")
+                  + (f"  sc-rt's reader {f['sc_rt_read_all_s']:7.3f} s" if "sc_rt_read_all_s" in f else ""))
 
 
 if __name__ == "__main__":

@@ -297,6 +297,7 @@ def bench_format(res: dict, out: str) -> None:
             assert f["append_batch_ms_median"] is None if fmt == "npz" else pos(f["append_batch_ms_median"]), f
             sizes[fmt] = f["numpy_bytes"]
         assert len(set(sizes.values())) == 1, sizes  # every format gave back the same numpy arrays
+        assert r["repeats"] == 1 and pos(r["arrow_lz4"]["sc_rt_read_all_s"]), r
     assert "arrow_lz4" in out and "long: 2001 rows" in out
 
 

@@ -325,7 +325,7 @@ class Run:
     # --- files ------------------------------------------------------------
     def save_arrow(self, path: Path) -> Path:
         """trajectory.arrow, the run's one on-disk format whatever produced it
-        (results/record/store.py; docs/DESIGN.md, "The run record on disk"):
+        (results/record/store.py; docs/RECORD.md):
         one column per field of ``FIELDS``, batches of ``CHUNK_ROWS`` rows,
         and the meta as JSON in the schema's metadata (``sc-rt:meta``). A run
         on disk moves its file there (it is the same format)."""
@@ -349,7 +349,7 @@ class Run:
     @classmethod
     def load(cls, run_dir: Path) -> Run:
         """The run in ``run_dir``: its trajectory.arrow, read a batch at a time
-        (``chunks``), or the trajectory.npz of a run written before every
+        (``chunks``; ``in_memory`` reads it whole), or the trajectory.npz of a run written before every
         run was written as trajectory.arrow (``load_npz``); metrics.json and
         timing.json read when present."""
         run_dir = Path(run_dir)
