@@ -526,7 +526,9 @@ def run_case(work: Path, netem: str | None, *, duration: float = 30.0, rate: flo
     summary = json.loads((work / "ctl.json").read_text())
     emu = json.loads((out / "emulator.json").read_text())
     metrics = json.loads((out / "metrics.json").read_text())
-    tr = np.load(out / "trajectory.npz")
+    from sc_rt.results.record.run import Run
+
+    tr = Run.load(out)  # trajectory.arrow (docs/RECORD.md)
     rows = emu["rows"]
     plant, ctl_session = metrics["plant_session"], metrics["controller_session"]
     # controller side: the states (seq 0..rows-1) as A's logger received them

@@ -31,6 +31,7 @@ BENCHES = ["bench_core.py", "bench_sim.py", "bench_montecarlo.py", "bench_hil.py
            "bench_env.py"]
 #: benchmarks run on their own, not by ``make bench`` (each has --smoke, and tests/test_bench_smoke.py runs it)
 OTHER_BENCHES = {
+    "bench_format.py": "the run record's format (Arrow IPC, Parquet, npz) on a 10 min 1 kHz run: a one-off choice",
     "bench_netem.py": "needs root (network namespaces, nftables or tc netem); 12 cases of 30 s",
     "soak.py": "a 30-minute real-time run",
 }

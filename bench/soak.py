@@ -217,7 +217,7 @@ def soak(minutes: float, rate: float = 100.0, out: Path | None = None, sample_s:
     summary = json.loads((out / "controller_summary.json").read_text())
     from sc_rt.results.record.run import Run
 
-    tr = Run.load(out)  # trajectory.npz, or trajectory.arrow read a chunk at a time
+    tr = Run.load(out)  # trajectory.arrow, read a chunk at a time
     rows, steps = timing["rows"], summary["steps"]
     # warm-up: the first 10 % of the run (at least 20 s), from the first
     # sample with both processes up; the end: the run's (real time: its

@@ -155,6 +155,11 @@ SLOW_TESTS = (
     "tests/test_stall_timeout.py::test_progress_and_the_work_after_the_steps_are_never_stopped",
     "tests/test_stall_timeout.py::test_a_child_that_stops_beating_is_killed_naming_its_last_time",
     "tests/test_stall_timeout.py::test_sim_of_a_python_law_that_never_returns_fails_naming_it",
+    # issue 39 item 6: sim and hil runs, and readers in a fresh interpreter (pandas, polars: 2-6 s each)
+    "tests/test_one_format.py::test_sim_and_lockstep_hil_write_one_file_of_one_schema",
+    "tests/test_one_format.py::test_pyarrow_pandas_and_polars_read_a_run_without_sc_rt_as_run_load_does",
+    "tests/test_one_format.py::test_the_docs_pandas_and_polars_examples_run_as_written_without_sc_rt",
+    "tests/test_one_format.py::test_every_sim_engine_writes_trajectory_arrow_and_no_npz",
 )
 
 

@@ -13,7 +13,6 @@ import sys
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from sc_rt import _core
@@ -22,7 +21,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet
-from trajcmp import compared_fields
+from trajcmp import compared_fields, load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
@@ -136,7 +135,7 @@ wait $HIL
     assert summary["auth"] is True and 0 < summary["auth_failed"] <= forged["sent"]["SCRT_STATE"], summary
     assert "foreign_session" not in emu and summary["rejected"]["foreign_session"] == 0
     assert summary["sessions_adopted"] == 0 and "controller_sessions_adopted" not in emu
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario(ROOT / "scenarios/paper_faults.toml"), engine="python", duration=300)
     compared_fields(hil, sim)
     m = json.loads((out / "metrics.json").read_text())

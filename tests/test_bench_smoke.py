@@ -284,6 +284,23 @@ def soak(res: dict, out: str) -> None:
     assert "soak: ok" in out
 
 
+def bench_format(res: dict, out: str) -> None:
+    """bench_format.py: each format's figures for the short (10 s at 10 Hz) and the long (2 s at 1 kHz) run."""
+    assert res["chunk_rows"] > 0 and pos(res["long_simulate_s"])
+    for which, rows in (("short", 101), ("long", 2001)):
+        r = res[which]
+        assert r["rows"] == rows and r["batches"] >= 1 and r["fields"] > 0, r
+        sizes = {}
+        for fmt in ("arrow_lz4", "arrow_zstd", "parquet", "npz"):
+            f = r[fmt]
+            check_pos(f, "bytes", "bytes_per_row", "write_s", "read_all_s", "read_one_column_s", "numpy_bytes")
+            assert f["append_batch_ms_median"] is None if fmt == "npz" else pos(f["append_batch_ms_median"]), f
+            sizes[fmt] = f["numpy_bytes"]
+        assert len(set(sizes.values())) == 1, sizes  # every format gave back the same numpy arrays
+        assert r["repeats"] == 1 and pos(r["arrow_lz4"]["sc_rt_read_all_s"]), r
+    assert "arrow_lz4" in out and "long: 2001 rows" in out
+
+
 # --------------------------------------------------------------------------- #
 # the benchmarks: their check, extra arguments, where they write, marks, timeout [s]
 
@@ -300,6 +317,7 @@ SPECS = {
     "bench_sensors.py": dict(check=bench_sensors),
     "bench_live.py": dict(check=bench_live, marks=LCM, timeout=180),
     "bench_env.py": dict(check=bench_env, marks=(pytest.mark.slow,)),  # ~1.2 s: the module import and its runs
+    "bench_format.py": dict(check=bench_format, marks=(pytest.mark.slow,)),  # ~3 s: two runs, four formats
     # root: network namespaces and nftables / tc netem (skips, saying why, elsewhere)
     "bench_netem.py": dict(check=bench_netem, marks=LCM, timeout=240, out=["--out", "{dir}/netem.json"]),
     "soak.py": dict(check=soak, marks=LCM, timeout=120,

@@ -17,6 +17,7 @@ import pytest
 from sc_rt.hil.procs import OUTPUT_CAP_BYTES
 
 import lcmnet
+from trajcmp import load_traj
 
 
 def _metrics(out):
@@ -33,7 +34,7 @@ def test_a_law_flooding_stderr_neither_blocks_its_controller_nor_fills_the_disk(
     assert r.returncode == 0, r.stderr[-2000:]
     m = _metrics(out)
     assert m["valid"] is True and m["steps"] == 201
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     assert np.all(np.isfinite(hil["latency_us"])), "a state the controller did not answer"
     err = (out / "controller_stderr.txt").read_bytes()
     # 201 steps x 16 x 1023 bytes written: the first OUTPUT_CAP_BYTES kept, the rest counted
@@ -45,7 +46,7 @@ def test_a_law_flooding_stderr_neither_blocks_its_controller_nor_fills_the_disk(
     s = lcmnet.run_cli(["sim", "paper_fault_free", "--law", law, "--engine", "cpp", "--duration", "20",
                         "--out", str(off), "--no-plots"], netns=False)
     assert s.returncode == 0, s.stderr[-2000:]
-    sim = np.load(off / "trajectory.npz")
+    sim = load_traj(off)
     for k in ("sigma_BN", "omega_BN_B", "u_cmd", "u_sat"):
         assert np.array_equal(hil[k], sim[k]), k
 

@@ -19,6 +19,7 @@ from sc_rt.scenario.overrides import with_overrides
 
 import lcmnet
 from ctlscript import wait_for_line
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
@@ -67,7 +68,7 @@ wait $CTL
     # stale input: SAFE zero commands (flagged stale) while no plant it follows
     # publishes; the second emulator applied them until the controller adopted it
     assert summary["safe_steps"] >= 10, summary
-    tr = np.load(tmp_path / "e2" / "trajectory.npz")
+    tr = load_traj(tmp_path / "e2")
     mode, flags, u = tr["ctrl_mode"], tr["flags"], tr["u_cmd"]
     safe = np.flatnonzero(mode == _core.MODE_SAFE)
     normal = np.flatnonzero(mode == _core.MODE_NORMAL)

@@ -22,6 +22,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "external_controller" / "qfb_controller.py"
@@ -56,7 +57,7 @@ def test_external_controller_in_lockstep_equals_the_offline_law(tmp_path):
     assert r.returncode == 0, r.stderr + r.stdout
     m = json.loads((out / "metrics.json").read_text())
     timing = json.loads((out / "timing.json").read_text())
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     off = simulate(load_scenario("paper_faults"), duration=d, law=QFB_OFFLINE)
     rows = int(d * 10) + 1
     assert m["controller"] == "quaternion-feedback" and m["finite"] and m["steps"] == rows
@@ -128,7 +129,7 @@ def test_python_law_through_lcm_equals_offline_bitwise(tmp_path):
     r = lcmnet.run_cli(["hil", "paper_faults", "--duration", "20", "--law", PD_SPEC, "--out", str(out),
                         "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     off = simulate(load_scenario("paper_faults"), duration=20, law=PD_SPEC)
     for k in ("sigma_BN", "omega_BN_B", "wheel_speed", "u_cmd", "u_sat", "sigma_BD", "omega_BD_B", "e1",
               "e2", "chi", "lam", "flags", "ctrl_mode"):
@@ -237,7 +238,7 @@ def test_emulator_with_a_hand_started_controller_records_errors_and_label(tmp_pa
               f"wait $E; R=$?; kill $C; exit $R")
     r = lcmnet.run_script(script, timeout=120)
     assert r.returncode == 0, (tmp_path / "emu.err").read_text()
-    tr = np.load(out / "trajectory.npz")
+    tr = load_traj(out)
     assert len(tr["t"]) == 51 and not np.any(tr["cmd_stale"])
     assert np.all(np.isfinite(tr["sigma_BD"])) and np.all(np.isfinite(tr["omega_BD_B"]))
     m = json.loads((out / "metrics.json").read_text())
@@ -261,7 +262,7 @@ def test_python_law_in_real_time(tmp_path):
     assert s["steps"] >= 40 and s["received"] >= 40  # it ran on its own clock through the run (61 ticks)
     assert t["rows"] == 61 and t["mode"] == "realtime" and m["controller"] == "python-pd" and m["finite"]
     assert t["compute_us"]["p50"] > 0 and t["wake_lateness_us"]["p50"] is not None
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     used = ~np.isnan(hil["compute_us"])  # rows whose state the controller used (its status)
     assert used.sum() >= 30 and np.all(np.isfinite(hil["sigma_BD"]))  # most ticks, even on a loaded machine
 
@@ -278,6 +279,6 @@ def test_external_controller_in_real_time(tmp_path):
     m = json.loads((out / "metrics.json").read_text())
     t = json.loads((out / "timing.json").read_text())
     assert m["controller"] == "quaternion-feedback" and m["finite"] and t["rows"] == 61
-    tr = np.load(out / "trajectory.npz")
+    tr = load_traj(out)
     assert np.all(np.isfinite(tr["sigma_BD"]))
     assert np.count_nonzero(tr["cmd_stale"] == 0) >= 30  # commands applied on most of the 61 ticks

@@ -33,7 +33,7 @@ from sc_rt.scenario.schema import ScenarioError
 from sc_rt.sim.engines import simulate
 
 import lcmnet
-from trajcmp import compared_fields
+from trajcmp import compared_fields, load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 FLIGHT = ROOT / "scenarios" / "flight_wheels.toml"
@@ -276,7 +276,7 @@ def test_lockstep_hil_is_bitwise_sim_with_flight_wheels_and_their_faults(tmp_pat
     r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration), "--out", str(out),
                         "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario(path), engine="python", duration=duration)
     assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
     compared_fields(hil, sim)

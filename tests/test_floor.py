@@ -13,6 +13,7 @@ import pytest
 from sc_rt.hil.floor import FLOOR_SERIES, TimingSetup, compare_to_floor
 
 import lcmnet
+from trajcmp import load_traj
 
 
 def _cli(args, cache, timeout=300):
@@ -114,7 +115,7 @@ def test_a_realtime_run_carries_its_cached_floor_and_the_null_law_answers_zero(t
             f"plots=False), timing=Timing(mode='lockstep', setup=TimingSetup(null_law=True))))")
     r = lcmnet.run([sys.executable, "-c", code], timeout=300)
     assert r.returncode == 0, r.stderr + r.stdout
-    z = np.load(null / "trajectory.npz")
+    z = load_traj(null)
     assert len(z["u_cmd"]) == 21 and not np.any(z["u_cmd"]) and not np.any(z["cmd_stale"])
     s = json.loads((null / "controller_summary.json").read_text())
     assert s["null_law"] is True and s["steps"] == 21

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from sc_rt.results.judge.gate import expect_result, gate_problems
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 LIB = ROOT / "python" / "sc_rt" / "scenario" / "library"
@@ -99,7 +100,7 @@ def test_sim_strict_exits_1_on_a_failing_run_and_0_on_a_passing_one(tmp_path, ca
     out = tmp_path / "sim"
     assert main(["sim", str(p), "--engine", "cpp", "--duration", "25", "--out", str(out), "--no-plots"]) == 0
     default = capsys.readouterr()
-    traj = np.load(out / "trajectory.npz")
+    traj = load_traj(out)
     verdict = "holds" if holds(traj, bound) else "violates"
     m = json.loads((out / "metrics.json").read_text())
     assert m["expect"]["stated"] == expect and m["expect"]["verdict"] == verdict
@@ -124,7 +125,7 @@ def test_hil_strict_exits_1_on_a_failing_run_and_0_on_a_passing_one(tmp_path):
         out = tmp_path / f"hil_{bound:g}"
         r = lcmnet.run_cli(["hil", str(p), "--mode", "lockstep", "--duration", "25", "--out", str(out),
                             "--no-plots", "--strict"])
-        want = 0 if holds(np.load(out / "trajectory.npz"), bound) else 1
+        want = 0 if holds(load_traj(out), bound) else 1
         assert r.returncode == want, r.stderr[-2000:]
         assert ("--strict: exit 1" in r.stderr) is bool(want), r.stderr[-2000:]
         assert json.loads((out / "metrics.json").read_text())["expect"]["matches"] is (want == 0)
@@ -139,7 +140,7 @@ def test_compare_strict_gates_every_law(tmp_path, capsys):
         p = gate_file(tmp_path, bound)
         sim = tmp_path / f"sim_{bound:g}"
         assert main(["sim", str(p), "--engine", "cpp", "--out", str(sim), "--no-plots"]) == 0
-        verdicts[bound] = holds(np.load(sim / "trajectory.npz"), bound)
+        verdicts[bound] = holds(load_traj(sim), bound)
         assert main(["compare", str(p), "--law", "pd"]) == 0  # the default: the verdict does not set the code
         capsys.readouterr()
         rc = main(["compare", str(p), "--law", "pd", "--strict", "--out", str(tmp_path / f"cmp_{bound:g}")])
@@ -167,7 +168,7 @@ def test_montecarlo_strict_gates_the_campaign_and_a_rerun(tmp_path, capsys):
         each = []
         for run in (0, 1):  # each run alone, its rows recorded: the gate follows them
             rc = main(["montecarlo", str(p), *opts, "--out", str(out), "--rerun", str(run), "--strict"])
-            each.append(holds(np.load(out / f"rerun-{run}" / "trajectory.npz"), bound))
+            each.append(holds(load_traj(out / f"rerun-{run}"), bound))
             assert rc == (0 if each[-1] else 1)
         capsys.readouterr()
         rc = main(["montecarlo", str(p), *opts, "--out", str(out), "--overwrite", "--strict"])

@@ -20,7 +20,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet
-from trajcmp import compared_fields
+from trajcmp import compared_fields, load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.lcm
@@ -37,7 +37,7 @@ def test_lockstep_hil_is_bit_identical_to_offline_sim(scenario, tmp_path):
                  str(duration), "--out", str(out), "--no-plots"])
     wall = time.monotonic() - t0  # the whole command, start-up included: an upper bound
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     scn = load_scenario(ROOT / "scenarios" / f"{scenario}.toml")
     sim = simulate(scn, engine="python", duration=duration)
     rows = int(duration * scn.run.control_rate_hz) + 1

@@ -26,7 +26,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet
-from trajcmp import compared_fields
+from trajcmp import compared_fields, load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 LIB = ROOT / "scenarios"
@@ -70,7 +70,7 @@ def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measureme
     r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration),
                         "--out", str(out), "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     scn = load_scenario(path)
     sim = simulate(scn, engine="cpp", duration=duration)
     rows = int(round(duration * scn.run.control_rate_hz)) + 1
@@ -120,7 +120,7 @@ def test_lockstep_with_sensors_is_bit_identical_to_sim(tmp_path, name, measureme
     rep = tmp_path / "report"
     r2 = lcmnet.run_cli(["report", str(out / "run.lcmlog"), "--out", str(rep), "--no-plots"], netns=False)
     assert r2.returncode == 0, r2.stderr + r2.stdout
-    back = np.load(rep / "trajectory.npz")
+    back = load_traj(rep)
     rows_back = np.searchsorted(hil["t"], back["t"])
     assert np.array_equal(hil["t"][rows_back], back["t"]) and len(back["t"]) >= 0.5 * rows
     for k in NAV_FIELDS + ("sigma_BN", "u_cmd"):
@@ -170,7 +170,7 @@ def test_realtime_with_sensors_stays_up_and_estimates(tmp_path):
     r = lcmnet.run_cli(["hil", str(path), "--mode", "realtime", "--duration", "6", "--out", str(out),
                         "--no-plots"], timeout=240)
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     summary = json.loads((out / "controller_summary.json").read_text())
     ss_rows = np.isfinite(hil["sigma_BN_est"]).all(axis=1)
     assert ss_rows.sum() >= 0.5 * len(hil["t"])  # the status of most rows carried the estimate
@@ -211,7 +211,7 @@ def test_lockstep_with_sensors_and_authentication_is_still_bit_identical(tmp_pat
     r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", "8", "--out", str(out),
                         "--no-plots", "--auth-key", str(key)])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario(path), engine="cpp", duration=8.0)
     done = compared_fields(hil, sim)
     assert "sigma_BN_est" in done and "innovation" in done
@@ -253,7 +253,7 @@ wait $HIL
     assert 0 < rejected <= n, nav
     for kind in ("malformed", "invalid", "foreign", "out_of_order"):
         assert nav["rejected"][kind] > 0, nav
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario(path), engine="cpp", duration=float(duration))
     done = compared_fields(hil, sim)
     assert "sigma_BN_est" in done and "nis" in done

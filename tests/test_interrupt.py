@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 import lcmnet
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 PY = shlex.quote(sys.executable)
@@ -54,7 +55,7 @@ def assert_complete_rows(rep: Path) -> None:
     """The report's rows: every one complete (its truth and command): the
     last, and those whose plant_truth_t a busy logger lost are left out."""
     m = metrics(rep)
-    with np.load(rep / "trajectory.npz") as z:
+    with load_traj(rep) as z:
         acc, u = z["wheel_accel"], z["u_cmd"]
     assert np.all(np.isfinite(acc[-1])) and np.all(np.isfinite(u[-1]))
     assert m["max_abs_u_cmd"] is not None and np.isfinite(m["max_abs_u_cmd"])

@@ -8,7 +8,6 @@ import shlex
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from sc_rt.emulator.collision import COLLISION_MESSAGES, CollisionGuard
@@ -16,7 +15,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet
-from trajcmp import compared_fields
+from trajcmp import compared_fields, load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
@@ -97,5 +96,5 @@ echo $? > {tmp_path}/a.rc
     else:
         assert mb["valid"] is True and "partial" not in mb, mb
         sim = simulate(load_scenario(ROOT / "scenarios/paper_fault_free.toml"), engine="python", duration=300)
-        compared_fields(np.load(b / "trajectory.npz"), sim)
+        compared_fields(load_traj(b), sim)
     assert mb["plant_session"] != ma["plant_session"]

@@ -25,7 +25,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 import lcmnet
-from trajcmp import compared_fields
+from trajcmp import compared_fields, load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 FLIGHT = ROOT / "scenarios" / "flight_wheels.toml"
@@ -176,7 +176,7 @@ def test_lockstep_converts_as_sim_does_bitwise(plugins, tmp_path):
     r = lcmnet.run_cli(["hil", str(path), "--law", law, "--mode", "lockstep", "--duration", str(duration),
                         "--out", str(out), "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario(path), law=law, engine="python", duration=duration)
     assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
     compared_fields(hil, sim)

@@ -26,6 +26,7 @@ from sc_rt.scenario.reader import load_scenario
 import lcmnet
 import plugbuild
 from test_laws import _qf_expected
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 FIXED = np.array([1e-3, -2e-3, 3e-3, -4e-3])
@@ -98,7 +99,7 @@ def test_sim(laws, tmp_path, engine, kind):
     if kind not in SIM[engine]:
         return _refused(r, out)
     assert r.returncode == 0, r.stderr
-    u0 = np.load(out / "trajectory.npz")["u_cmd"][0]
+    u0 = load_traj(out)["u_cmd"][0]
     want = _signature(kind, spec, load_scenario("paper_fault_free"))
     np.testing.assert_allclose(u0, want, rtol=1e-9, atol=1e-12)
 
@@ -115,7 +116,7 @@ def test_sim_with_sensors(laws, tmp_path, engine, kind):
     r = _cli(["sim", "paper_faults_sensors", "--engine", engine, "--law", spec, "--duration", "2", "--out",
               str(out), "--no-plots"], tmp_path)
     assert r.returncode == 0, r.stderr
-    u0 = np.load(out / "trajectory.npz")["u_cmd"][0]
+    u0 = load_traj(out)["u_cmd"][0]
     scn = load_scenario("paper_faults_sensors")
     dist = {k: float(np.linalg.norm(u0 - _signature(k, laws[k], scn))) for k in ("builtin", "plugin", "python")}
     nearest = min(dist, key=dist.get)
@@ -149,5 +150,5 @@ def test_hil_lockstep(laws, tmp_path, kind):
     r = lcmnet.run_cli(["hil", "paper_fault_free", "--law", spec, "--mode", "lockstep", "--duration", "2", "--out",
                         str(out), "--no-plots"])
     assert r.returncode == 0, r.stderr
-    u0 = np.load(out / "trajectory.npz")["u_cmd"][0]
+    u0 = load_traj(out)["u_cmd"][0]
     np.testing.assert_allclose(u0, _signature(kind, spec, load_scenario("paper_fault_free")), rtol=1e-9, atol=1e-12)

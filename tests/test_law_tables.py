@@ -26,6 +26,7 @@ from sc_rt.scenario.schema import ScenarioError
 from sc_rt.sim.engines import simulate
 
 from test_laws import _qf_expected
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 PY_PD = f"{ROOT}/examples/python_laws/pd.py:PythonPD"
@@ -198,7 +199,7 @@ def test_a_python_law_named_by_the_scenario_runs_in_lockstep_bitwise(tmp_path):
     out = tmp_path / "hil"
     r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", "10", "--out", str(out), "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario(path), duration=10.0)
     for name in ("sigma_BN", "omega_BN_B", "wheel_speed", "u_cmd"):
         assert np.array_equal(hil[name], sim[name]), name

@@ -16,6 +16,7 @@ import pytest
 from sc_rt.logs.logread import read_log
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 OLD_LOG = ROOT / "tests" / "data" / "v1_paper_faults_lockstep_3s.lcmlog"
@@ -80,12 +81,12 @@ def test_a_log_written_before_the_telemetry_reads_it_as_not_recorded():
 
 
 def _check_bus(out: Path, sim, names: tuple[str, ...]) -> None:
-    """trajectory.npz, the LCM log's statuses, the MCAP export and report.html of a hil run against sim."""
+    """trajectory.arrow, the LCM log's statuses, the MCAP export and report.html of a hil run against sim."""
     from mcap.reader import make_reader
 
     from sc_rt.export.mcap_export import export_mcap
 
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     for k in ("telemetry", "x2d", "rho_hat", "e1", "e2", "u_cmd"):
         assert np.array_equal(hil[k], sim[k]), k
     meta = json.loads(str(hil["meta_json"]))
@@ -148,4 +149,4 @@ def test_the_fixed_slots_go_through_the_bench_bitwise(tmp_path):
         assert r.returncode in (0, 1), r.stderr + r.stdout
         _check_bus(out, sim, ())
         slot = "rho_hat" if law == "rft" else "x2d"
-        assert np.any(np.load(out / "trajectory.npz")[slot] != 0), slot
+        assert np.any(load_traj(out)[slot] != 0), slot

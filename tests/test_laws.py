@@ -29,7 +29,7 @@ from sc_rt.sim.engines import simulate
 import lcmnet
 import plugbuild
 from refmath import mrp_sub, mrp_to_quat
-from trajcmp import compared_fields
+from trajcmp import compared_fields, load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 BIN = Path(sys.executable).parent
@@ -396,7 +396,7 @@ def test_lockstep_hil_with_a_plugin_is_bit_identical_to_sim(plugins, tmp_path):
     r = lcmnet.run_cli(["hil", "scenarios/paper_faults.toml", "--law", _spec(plugins["qf"]), "--mode",
                         "lockstep", "--duration", str(duration), "--out", str(out), "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario(ROOT / "scenarios" / "paper_faults.toml"), law=_spec(plugins["qf"]),
                    engine="python", duration=duration)
     assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
@@ -449,7 +449,7 @@ def test_new_law_scaffold_builds_and_runs(tmp_path):
     assert r.returncode == 0, r.stderr
     # the scaffold's PD with its default gains is the built-in PD: same numbers
     pd = simulate(load_scenario("paper_fault_free"), law="pd", duration=30.0)
-    np.testing.assert_array_equal(np.load(out / "trajectory.npz")["u_cmd"], pd["u_cmd"])
+    np.testing.assert_array_equal(load_traj(out)["u_cmd"], pd["u_cmd"])
     again = subprocess.run([sys.executable, "-m", "sc_rt.cli", "new-law", "my-law", "--out", str(proj)],
                            capture_output=True, text=True)
     assert again.returncode == 2 and "exists" in again.stderr
@@ -659,7 +659,7 @@ def test_hil_with_a_reset_that_throws_keeps_the_controller_alive(plugins, tmp_pa
     if mode == "lockstep":
         sim = simulate(load_scenario("paper_fault_free"), law=_spec(plugins["throws_in"]), engine="python",
                        duration=5.0)
-        assert np.array_equal(np.load(out / "trajectory.npz")["ctrl_mode"], sim["ctrl_mode"])
+        assert np.array_equal(load_traj(out)["ctrl_mode"], sim["ctrl_mode"])
 
 
 def test_montecarlo_with_a_failing_law_finishes_and_counts_the_failures(plugins, tmp_path):

@@ -21,6 +21,7 @@ from sc_rt.hil.runner import LOCKSTEP_ANSWER_S
 
 import lcmnet
 from test_log_paced import stalled_run
+from trajcmp import load_traj
 
 HANGS = '''
 import numpy as np
@@ -82,7 +83,7 @@ def test_a_law_that_never_returns_fails_the_lockstep_run_named(tmp_path):
     m = _metrics(out)
     assert m["valid"] is False and "did not answer state 20 (t = 2 s)" in m["invalid_reason"], m["invalid_reason"]
     assert m["partial"] is True and m["steps"] == 20  # rows 0..19, each the law's own answer
-    tr = np.load(out / "trajectory.npz")
+    tr = load_traj(out)
     assert np.all(np.isfinite(tr["latency_us"])) and np.all(~tr["cmd_stale"])
     # a stopped run still writes its report, which says INVALID and why in its headline (issue 40 item 9)
     html = (out / "report.html").read_text()

@@ -29,6 +29,7 @@ from sc_rt.model.wheels import WheelFriction, WheelLimits
 from sc_rt.scenario.reader import scenario_from_data
 from sc_rt.scenario.schema import ScenarioError
 from sc_rt.scenario.shipped import resolve
+from trajcmp import load_traj
 
 ORBIT = OrbitParams(a=R_EARTH + 500e3, e=0.01, i=math.radians(51.6), raan=0.3, argp=1.1, M0=0.2, j2=True)
 X0 = np.array([0.1, -0.2, 0.3, 0.01, -0.02, 0.015, 10.0, -20.0, 30.0, 5.0])
@@ -178,7 +179,7 @@ def test_lockstep_hil_with_a_residual_dipole_and_a_stuck_rod_is_bitwise_sim(tmp_
     r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration), "--out", str(out),
                         "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     scn = load_scenario(path)
     sim = simulate(scn, engine="cpp", duration=duration)
     assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1

@@ -98,7 +98,7 @@ def test_a_run_alone_equals_the_run_inside_its_campaign(tmp_path):
     assert same(row, alone)
     metrics = json.loads((tmp_path / "rerun" / "metrics.json").read_text())
     assert metrics["steps"] == rows[4]["steps"]
-    assert (tmp_path / "rerun" / "trajectory.npz").exists()
+    assert (tmp_path / "rerun" / "trajectory.arrow").exists()
 
 
 def test_seeding_is_o1_in_the_run_id(monkeypatch):

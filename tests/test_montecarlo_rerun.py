@@ -19,6 +19,7 @@ import numpy as np
 from sc_rt.cli.main import main
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.studies.campaign import Dispersion, RunStore, disperse, draw_run, run_seed_sequence
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 BASE = re.sub(r"(?m)^duration = 300\.0", "duration = 3.0", (ROOT / "scenarios/paper_faults.toml").read_text())
@@ -50,7 +51,7 @@ def _values(row: dict) -> dict:
 
 def _inputs(run_dir: Path) -> dict:
     """What a run recorded as its inputs (its trajectory's meta)."""
-    return json.loads(str(np.load(run_dir / "trajectory.npz")["meta_json"]))["inputs"]
+    return json.loads(str(load_traj(run_dir)["meta_json"]))["inputs"]
 
 
 def _row(out: Path, run: int) -> dict:

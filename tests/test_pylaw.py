@@ -19,6 +19,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 
 from conftest import core_config
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 PD_SPEC = str(ROOT / "examples" / "python_laws" / "pd.py") + ":PythonPD"
@@ -48,7 +49,7 @@ def test_cli_sim_with_a_python_law_equals_the_builtin(tmp_path):
                             "--duration", "20", "--no-plots", "--out", str(tmp_path / name)],
                            capture_output=True, text=True, cwd=tmp_path, timeout=120)
         assert r.returncode == 0, r.stderr
-        runs[name] = np.load(tmp_path / name / "trajectory.npz")
+        runs[name] = load_traj(tmp_path / name)
     for k in COMPARED:
         assert np.allclose(runs["core"][k], runs["py"][k], rtol=0, atol=1e-12), k
     assert "python-pd" in (tmp_path / "py" / "metrics.json").read_text()

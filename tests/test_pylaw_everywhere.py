@@ -16,6 +16,7 @@ import pytest
 
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 PD_SPEC = str(ROOT / "examples" / "python_laws" / "pd.py") + ":PythonPD"
@@ -44,7 +45,7 @@ def test_a_python_law_with_sensors_in_lockstep_equals_sim(tmp_path):
     r = lcmnet.run_cli(["hil", "paper_faults_sensors", "--law", PD_SPEC, "--mode", "lockstep", "--duration", "10",
                         "--out", str(out), "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario("paper_faults_sensors"), law=PD_SPEC, duration=10.0)
     for k in SENSED:
         assert np.array_equal(hil[k], sim[k], equal_nan=True), k

@@ -22,6 +22,7 @@ import pytest
 from sc_rt.hil.bench_end import run_trigger
 from sc_rt.hil.external import python_controller_command
 from sc_rt.hil.floor import TimingSetup
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 PD_SPEC = str(ROOT / "examples" / "python_laws" / "pd.py") + ":PythonPD"
@@ -61,7 +62,7 @@ def test_a_python_law_in_real_time_runs_the_trigger_and_priority_it_is_given(tmp
     assert s["scheduler"].startswith(("SCHED_FIFO 80", "SCHED_OTHER (SCHED_FIFO denied)")), s["scheduler"]
     assert t["scheduler"] == s["scheduler"]
     assert s["steps"] > 0 and s["law"] == "python-pd"
-    late = np.load(out / "trajectory.npz")["wake_lateness_us"]
+    late = load_traj(out)["wake_lateness_us"]
     late = late[np.isfinite(late)]
     assert late.size > 0
     if trigger == "event":  # each step at its state's arrival: no deadline to be late for

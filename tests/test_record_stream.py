@@ -170,7 +170,7 @@ def test_lockstep_run_written_as_it_runs_is_bit_identical_to_offline_sim(tmp_pat
     r = lcmnet.run([sys.executable, "-c", code], timeout=300)
     assert r.returncode == 0, r.stderr + r.stdout
     assert r.stdout.split()[-2:] == ["True", "301"]
-    assert not (out / "trajectory.npz").exists() and not (out / "record.raw.arrow").exists()
+    assert not (out / "record.raw.arrow").exists()
     hil = Run.load(out)
     assert hil.is_stored and len(hil) == 301
     sim = simulate(load_scenario(ROOT / "scenarios" / "paper_faults.toml"), engine="python", duration=30.0)
@@ -207,7 +207,7 @@ def test_the_report_of_a_run_on_disk_draws_the_timeline_of_the_run_held_whole(tm
     disk.metrics = dict(whole.metrics)
     write_run(whole, tmp_path / "whole", figures=False)
     write_run(disk, tmp_path / "disk", figures=False)
-    assert (tmp_path / "disk" / "trajectory.arrow").exists() and not (tmp_path / "disk" / "trajectory.npz").exists()
+    assert (tmp_path / "disk" / "trajectory.arrow").exists()
 
     def svg(d: Path) -> str:
         return re.search(r'<svg viewBox=.*?id="timeline-svg">.*?</svg>', render_html(d), re.S).group(0)

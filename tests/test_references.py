@@ -20,6 +20,7 @@ from sc_rt.results.judge.metrics import fill_tracking_errors
 from sc_rt.results.record.run import Run
 from sc_rt.scenario.model import ScenarioError
 from sc_rt.scenario.reader import load_scenario, with_run
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 SLEW = ROOT / "scenarios" / "slew_rest_to_rest.toml"
@@ -484,7 +485,7 @@ def test_lockstep_hil_of_a_slew_is_bit_identical_to_sim(tmp_path):
     r = lcmnet.run_cli(["hil", "slew_rest_to_rest", "--mode", "lockstep", "--duration", str(duration),
                         "--out", str(out), "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario("slew_rest_to_rest"), engine="python", duration=duration)
     assert len(hil["t"]) == len(sim["t"]) == 401
     compared_fields(hil, sim)
@@ -517,7 +518,7 @@ def test_a_file_reference_reaches_the_controller_process_and_the_log(tmp_path):
     r = lcmnet.run_cli(["hil", str(scn_path), "--law", "pd", "--mode", "lockstep", "--out", str(out),
                         "--no-plots"])
     assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario(scn_path), law="pd", engine="python")
     assert len(hil["t"]) == len(sim["t"]) == 201
     compared_fields(hil, sim)
@@ -542,13 +543,13 @@ def test_a_file_reference_reaches_the_controller_process_and_the_log(tmp_path):
     rep = tmp_path / "report"
     r = lcmnet.run_cli(["report", str(out / "run.lcmlog"), "--out", str(rep), "--no-plots"], netns=False)
     assert r.returncode == 0, r.stderr + r.stdout
-    rt = np.load(rep / "trajectory.npz")  # the rows whose messages the logger kept
+    rt = load_traj(rep)  # the rows whose messages the logger kept
     rows = np.searchsorted(hil["t"], rt["t"])
     np.testing.assert_array_equal(hil["t"][rows], rt["t"])
     np.testing.assert_array_equal(rt["sigma_DN"], hil["sigma_DN"][rows])
     # rows without controller telemetry (a real-time run's unused states) are
     # filled from the logged reference exactly as the controller had them
-    run = Run.load_npz(out / "trajectory.npz")
+    run = Run.load(out).in_memory()  # (its columns written into below)
     gone = np.arange(3, 201, 7)
     for name in ("sigma_DN", "sigma_BD", "omega_BD_B"):
         run[name][gone] = np.nan

@@ -20,6 +20,7 @@ from sc_rt.logs.report import read_log, write_report
 
 import figcheck
 import lcmnet
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 #: not in a log: the wall time, the producer, the run's own id (its --out
@@ -96,7 +97,7 @@ def test_report_reproduces_the_lockstep_runs_metrics_exactly(lockstep_run, tmp_p
             assert rep_m[k] == run_m[k], k
     assert rep_m["engine"] == "report" and run_m["steps"] == 301
     # the trajectory itself, bit for bit
-    a, b = np.load(lockstep_run / "trajectory.npz"), np.load(out / "trajectory.npz")
+    a, b = load_traj(lockstep_run), load_traj(out)
     for k in CORE_FIELDS:
         assert np.array_equal(a[k], b[k], equal_nan=k != "bound_ok"), k
     for k in ("compute_us", "state_age_us", "wake_lateness_us"):
@@ -228,5 +229,5 @@ def test_a_restarted_controller_and_a_replayed_command_map_to_the_right_command(
     w.close()
     rep = write_report(log, tmp_path / "rep", plots=False)
     assert rep["rows"] == 6
-    u = np.load(tmp_path / "rep" / "trajectory.npz")["u_sat"][:, 0]
+    u = load_traj(tmp_path / "rep")["u_sat"][:, 0]
     assert list(u) == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]

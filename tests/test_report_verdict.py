@@ -15,6 +15,7 @@ import pytest
 from sc_rt.pylaw import FLAG_LAW_INVALID
 
 import lcmnet
+from trajcmp import load_traj
 
 LAW = '''
 import numpy as np
@@ -48,8 +49,8 @@ def test_report_of_a_log_gives_the_live_runs_law_failures(tmp_path):
     live = json.loads((out / "metrics.json").read_text())
     assert live["valid"] is False and "law failed" in live["invalid_reason"]
     # independent of the metrics: the rows the run recorded with the law's flag
-    flags = np.load(out / "trajectory.npz")["flags"]
-    t = np.load(out / "trajectory.npz")["t"]
+    flags = load_traj(out)["flags"]
+    t = load_traj(out)["t"]
     failed = (flags & FLAG_LAW_INVALID) != 0
     assert failed.any() and np.all(t[failed] >= 1.0 - 1e-9)
     rep = lcmnet.run_cli(["report", str(out / "run.lcmlog"), "--no-plots", "--out", str(tmp_path / "rep")],

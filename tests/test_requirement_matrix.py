@@ -26,6 +26,7 @@ from scipy.spatial.transform import Rotation
 from refmath import chi, mrp_dcm, mrp_sub
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.requirements import KINDS
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 LIB = ROOT / "python" / "sc_rt" / "scenario" / "library"
@@ -326,7 +327,7 @@ def test_every_kind_through_sim(scenario, tmp_path, capsys, engine):
     assert_console_rows(console)
     assert (out / "report.html").is_file()
     metrics = json.loads((out / "metrics.json").read_text())
-    assert_matches_reference(metrics, np.load(out / "trajectory.npz"), load_scenario(scenario), f"sim {engine}")
+    assert_matches_reference(metrics, load_traj(out), load_scenario(scenario), f"sim {engine}")
 
 
 @pytest.mark.lcm
@@ -341,12 +342,12 @@ def test_every_kind_through_hil_lockstep_and_its_report(scenario, tmp_path):
     assert_console_rows(r.stdout)
     assert (out / "report.html").is_file()
     metrics = json.loads((out / "metrics.json").read_text())
-    assert_matches_reference(metrics, np.load(out / "trajectory.npz"), scn, "hil lockstep")
+    assert_matches_reference(metrics, load_traj(out), scn, "hil lockstep")
     rep = tmp_path / "report"
     r = lcmnet.run_cli(["report", str(out / "run.lcmlog"), "--out", str(rep), "--no-plots"], netns=False)
     assert r.returncode == 0, r.stderr[-3000:]
     assert_console_rows(r.stdout)
-    assert_matches_reference(json.loads((rep / "metrics.json").read_text()), np.load(rep / "trajectory.npz"), scn,
+    assert_matches_reference(json.loads((rep / "metrics.json").read_text()), load_traj(rep), scn,
                              "report LOG")
 
 
@@ -358,7 +359,7 @@ def test_every_kind_through_compare_and_a_campaigns_rerun(scenario, tmp_path, ca
     assert main(["montecarlo", str(scenario), "--runs", "2", "--rerun", "1", "--out", str(out)]) == 0
     rerun = out / "rerun-1"
     metrics = json.loads((rerun / "metrics.json").read_text())
-    assert_matches_reference(metrics, np.load(rerun / "trajectory.npz"), scn, "montecarlo --rerun")
+    assert_matches_reference(metrics, load_traj(rerun), scn, "montecarlo --rerun")
     # compare: the values of the same run offline (sim --engine cpp, checked above against the reference)
     sim = tmp_path / "sim"
     assert main(["sim", str(scenario), "--engine", "cpp", "--out", str(sim), "--no-plots"]) == 0

@@ -23,6 +23,7 @@ import pytest
 
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.scenario.schema import ScenarioError
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 PAPER = ROOT / "scenarios" / "paper_fault_free.toml"
@@ -193,7 +194,7 @@ def test_the_plan_round_trips_through_the_records_inputs(tmp_path):
                     duration=2.0, outputs=Outputs(out=tmp_path / "a", plots=False))
     run = simulate_plan(plan)
     write_run(run, tmp_path / "a", figures=False)
-    inputs = json.loads(str(np.load(tmp_path / "a" / "trajectory.npz")["meta_json"]))["inputs"]
+    inputs = json.loads(str(load_traj(tmp_path / "a")["meta_json"]))["inputs"]
     # against independent values: the file's bytes, the overrides as given
     assert inputs["scenario_sha256"] == hashlib.sha256(PAPER.read_bytes()).hexdigest()
     assert inputs["overrides"] == {"set laws.pd.beta1": 0.07, "run.controller": "pd", "run.duration": 2.0}
@@ -227,12 +228,12 @@ def test_rerun_replays_the_plan_a_sim_recorded(tmp_path):
     assert main(["sim", "paper_fault_free", "--law", "pd", "--engine", "cpp", "--duration", "3",
                  "--set", "laws.pd.beta2=0.3", "--out", str(a), "--no-plots"]) == 0
     assert main(["rerun", str(a), "--out", str(b)]) == 0
-    first, again = (json.loads(str(np.load(d / "trajectory.npz")["meta_json"]))["inputs"] for d in (a, b))
+    first, again = (json.loads(str(load_traj(d)["meta_json"]))["inputs"] for d in (a, b))
     assert again["plan"].pop("outputs") == {"out": str(b), "plots": False, "mcap": None}
     first["plan"].pop("outputs")
     assert again == first  # the same plan: file, overrides, law, engine, timing, bus
     assert first["overrides"] == {"set laws.pd.beta2": 0.3, "run.controller": "pd", "run.duration": 3.0}
-    ta, tb = np.load(a / "trajectory.npz"), np.load(b / "trajectory.npz")
+    ta, tb = load_traj(a), load_traj(b)
     for k in ("sigma_BN", "omega_BN_B", "wheel_speed", "u_cmd"):
         assert np.array_equal(ta[k], tb[k]), k
 
@@ -259,12 +260,12 @@ def test_rerun_replays_the_plan_a_lockstep_hil_run_recorded(tmp_path):
     assert r.returncode == 0, r.stderr
     r = lcmnet.run_cli(["rerun", str(a), "--out", str(b)])
     assert r.returncode == 0, r.stderr
-    first, again = (json.loads(str(np.load(d / "trajectory.npz")["meta_json"]))["inputs"] for d in (a, b))
+    first, again = (json.loads(str(load_traj(d)["meta_json"]))["inputs"] for d in (a, b))
     assert again["plan"].pop("outputs")["out"] == str(b)
     first["plan"].pop("outputs")
     assert again == first
     assert first["plan"]["engine"] == "bench" and first["plan"]["timing"]["mode"] == "lockstep"
     assert first["plan"]["bus"]["prefix"] == "RP_" and first["plan"]["law"] == {"kind": "builtin", "name": "pd"}
-    ta, tb = np.load(a / "trajectory.npz"), np.load(b / "trajectory.npz")
+    ta, tb = load_traj(a), load_traj(b)
     for k in ("sigma_BN", "omega_BN_B", "wheel_speed", "u_cmd"):
         assert np.array_equal(ta[k], tb[k]), k

@@ -26,6 +26,7 @@ from sc_rt.sim.engines import simulate
 
 from figcheck import record_figures
 from test_law_command import FLIGHT, torque_flight
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 TORQUE_REQS = """
@@ -107,7 +108,7 @@ def test_a_torque_wheel_run_labels_its_commands_in_newton_metres(plugins, tmp_pa
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["units"]["max_abs_u_cmd"] == "N m" and metrics["wheel_command"] == "torque"
     assert metrics["law_command"] == "acceleration"
-    with np.load(out / "trajectory.npz") as z:
+    with load_traj(out) as z:
         meta = json.loads(str(z["meta_json"]))
     assert meta["wheel_command"] == "torque" and meta["units"]["u_sat"] == "N m"
     html = (out / "report.html").read_text()

@@ -28,6 +28,7 @@ import pytest
 from sc_rt import _core, load_scenario, simulate
 
 import lcmnet
+from trajcmp import load_traj
 
 HERE = Path(__file__).resolve().parent
 PY = sys.executable
@@ -65,7 +66,7 @@ echo "rc=$?"
 
 
 def _same_as_offline(out: Path) -> None:
-    hil = np.load(out / "trajectory.npz")
+    hil = load_traj(out)
     sim = simulate(load_scenario("paper_faults"), engine="python")
     for k in ("sigma_BN", "omega_BN_B", "u_cmd", "wheel_speed"):
         assert np.array_equal(hil[k], sim[k]), k

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from trajcmp import load_traj
 
 LIB = Path(__file__).resolve().parent.parent / "python" / "sc_rt" / "scenario" / "library"
 
@@ -32,7 +33,7 @@ def test_set_runs_what_the_edited_file_runs_and_is_recorded(tmp_path):
     assert r.returncode == 0, r.stderr
     r = _cli("sim", str(f), "--engine", "cpp", "--duration", "20", "--out", str(b), "--no-plots")
     assert r.returncode == 0, r.stderr
-    ta, tb = np.load(a / "trajectory.npz"), np.load(b / "trajectory.npz")
+    ta, tb = load_traj(a), load_traj(b)
     for k in ("sigma_BN", "u_cmd"):
         assert np.array_equal(ta[k], tb[k]), k
     inputs = json.loads(str(ta["meta_json"]))["inputs"]

@@ -16,6 +16,7 @@ from sc_rt.scenario.reader import load_scenario
 from sc_rt.results.present.output import write_run
 from sc_rt.scenario.overrides import with_overrides
 from sc_rt.sim.engines import simulate
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ("paper_fault_free", "paper_faults")
@@ -98,7 +99,7 @@ def test_metrics_and_trajectory_files(scenarios, tmp_path):
     # checkpoints follow the run's duration: none past its end
     assert list(m["sigma_e_norm"]) == ["30", "70", "100"] and m["sigma_e_norm"]["100"] is not None
     assert m["max_observer_error_after_30s"] is None  # PD has no observer
-    z = np.load(tmp_path / "trajectory.npz")
+    z = load_traj(tmp_path)
     for k in CORE_FIELDS:
         assert z[k].shape[0] == 1001, k
     assert z["bound_ok"].dtype == bool and z["bound_ok"].shape == (1001, 3)

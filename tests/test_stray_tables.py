@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from sc_rt.cli import main
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 LIB = ROOT / "python" / "sc_rt" / "scenario" / "library"
@@ -108,7 +109,7 @@ def test_each_laws_own_table_runs_and_another_laws_is_a_note(tmp_path, capsys):
     x2 = np.asarray(scn.initial.omega_BN_B)  # an inertial hold: no reference rate
     pl = scn.plant
     B = -np.linalg.inv(pl.J0) @ pl.Cbar @ np.diag(pl.Jw)
-    u0 = np.load(tmp_path / "py" / "trajectory.npz")["u_cmd"][0]
+    u0 = load_traj(tmp_path / "py")["u_cmd"][0]
     np.testing.assert_allclose(u0, -np.linalg.pinv(B) @ (beta1 * x1 + beta2 * x2), rtol=1e-9)
     # compare names both laws: no note, both run
     assert main(["compare", str(p), "--law", "pd", "--law", PY_PD, "--duration", "5",

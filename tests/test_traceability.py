@@ -13,10 +13,9 @@ import sys
 import tomllib
 from pathlib import Path
 
-import numpy as np
-
 import sc_rt
 from sc_rt import _core
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 LIB = ROOT / "python" / "sc_rt" / "scenario" / "library"
@@ -28,7 +27,7 @@ def test_a_sim_records_its_inputs(tmp_path):
                         "2", "--control-rate", "20", "--out", str(out), "--no-plots"],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    meta = json.loads(str(np.load(out / "trajectory.npz")["meta_json"]))
+    meta = json.loads(str(load_traj(out)["meta_json"]))
     inp = meta["inputs"]
     src = LIB / "paper_faults.toml"
     assert Path(inp["scenario_file"]).resolve() == src.resolve()

@@ -36,6 +36,7 @@ import sc_rt_lcm
 from mcap.reader import make_reader
 
 import lcmnet
+from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).resolve().parent
@@ -110,7 +111,7 @@ def _sim(tmp: Path, path: Path, capsys) -> tuple[dict, dict, str]:
     assert main(["sim", str(path), "--engine", "cpp", "--duration", str(DURATION_S), "--out", str(out),
                  "--no-plots"]) == 0
     console = capsys.readouterr().out
-    with np.load(out / "trajectory.npz") as z:
+    with load_traj(out) as z:
         rec = {k: z[k] for k in z.files}
     return json.loads((out / "metrics.json").read_text()), rec, console
 
@@ -215,7 +216,7 @@ def blackout_live(tmp_path_factory):
                        "--no-plots", "--mcap",
                        "--external", _gated_controller(tmp / "gate")],
                  "--gate", str(tmp / "gate"), "--topics", "/derived/pointing", "SCRT_STATE")
-    with np.load(out / "trajectory.npz") as z:
+    with load_traj(out) as z:
         rec = {k: z[k] for k in z.files}
     return got, out, rec
 

@@ -1,6 +1,7 @@
-"""Bitwise comparison of two runs' per-row fields (a trajectory.npz, a
+"""Bitwise comparison of two runs' per-row fields (a trajectory.arrow, a
 simulate result): every field both produced, and the core trajectory always
-(shared by the HIL tests)."""
+(shared by the HIL tests); ``load_traj``, a run's trajectory.arrow read with
+pyarrow alone (not through sc_rt's reader)."""
 
 from __future__ import annotations
 
@@ -21,10 +22,12 @@ def _produced(v: np.ndarray) -> bool:
 
 
 def compared_fields(hil, sim) -> list[str]:
-    """Every field of the HIL run's trajectory.npz that the simulator also
+    """Every field of the HIL run's trajectory that the simulator also
     produced, each required bit-identical; the core trajectory always."""
     done = []
     for k in hil.files:
+        if k == "meta_json":
+            continue
         try:
             b = sim[k]
         except KeyError:  # HIL-only (latencies, controller timing)
@@ -44,21 +47,40 @@ def compared_fields(hil, sim) -> list[str]:
 
 
 class _Columns(dict):
-    """A run's columns by name, read like a trajectory.npz (``.files``)."""
+    """A run's columns by name, read like the npz files runs were once
+    written as (``.files``, ``["meta_json"]``, ``with ... as z``)."""
 
     @property
     def files(self) -> list[str]:
         return list(self)
 
+    def __enter__(self) -> _Columns:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        return None
+
 
 def load_traj(out):
-    """The per-row arrays a run wrote into ``out``: its trajectory.npz, or
-    (a run written to disk as it ran) its trajectory.arrow's columns."""
+    """The per-row arrays a run wrote into ``out`` (its trajectory.arrow, read
+    with pyarrow: a vector field's fixed-size list reshaped by the file's
+    ``sc-rt:shapes``), and its meta as ``"meta_json"`` (the JSON string of the
+    schema metadata's ``sc-rt:meta``)."""
+    import json
     from pathlib import Path
 
-    out = Path(out)
-    if (out / "trajectory.npz").exists():
-        return np.load(out / "trajectory.npz")
-    from sc_rt.results.record.run import Run
+    import pyarrow as pa
 
-    return _Columns(Run.load(out).trajectory)
+    path = Path(out) / "trajectory.arrow"
+    with pa.OSFile(str(path), "rb") as f:
+        table = pa.ipc.open_file(f).read_all()
+    md = {k.decode(): v.decode() for k, v in table.schema.metadata.items()}
+    shapes = json.loads(md["sc-rt:shapes"])
+    cols = _Columns()
+    for name in table.column_names:
+        shape, dtype = shapes[name]
+        col = table.column(name).combine_chunks()
+        flat = col.flatten() if shape else col
+        cols[name] = np.asarray(flat.to_numpy(zero_copy_only=False), dtype=dtype).reshape(-1, *shape)
+    cols["meta_json"] = np.array(md["sc-rt:meta"])
+    return cols

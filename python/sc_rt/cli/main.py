@@ -144,7 +144,8 @@ def _add_rerun(sub) -> None:
     """sc-rt rerun."""
     r = sub.add_parser("rerun", help="run again the plan a sim, hil or montecarlo --rerun run recorded (its scenario "
                                      "file, overrides, drawn values, law, engine or mode and set-up)")
-    r.add_argument("run_dir", metavar="DIR", help="the recorded run's directory (its trajectory.npz or .arrow)")
+    r.add_argument("run_dir", metavar="DIR",
+                   help="the recorded run's directory (its trajectory.arrow, or an older run's trajectory.npz)")
     r.add_argument("--out", required=True, type=out_dir, metavar="DIR", help="where the new run writes")
     add_strict(r)
     r.set_defaults(func=cmd_rerun)
@@ -208,7 +209,7 @@ def _add_emulator(sub) -> None:
     e.add_argument("--accept-fault-commands", action="store_true",
                    help="apply fault_cmd_t from SCRT_FAULT (default: ignored)")
     e.add_argument("--out", metavar="DIR", type=out_dir,
-                   help="write trajectory.npz and emulator.json there (default: nothing written)")
+                   help="write trajectory.arrow and emulator.json there (default: nothing written)")
     e.add_argument("--start-timeout", type=number(0, 86400, unit="s"), metavar="S",
                    help="re-send the first state until a controller answers it, up to S s (a controller "
                         "started after the emulator; default: no wait)")

@@ -11,7 +11,8 @@ spare chunk in its place, so no compression or disk write happens inside a
 tick (a spill cost the real-time tick 2-22 ms before). After the run, ``close``
 reads the record back a chunk at a time, decodes the statuses and writes
 ``trajectory.arrow``; a run that fits in the two chunks never touches the
-disk and is returned in memory.
+disk while it runs and is returned in memory (``write_run`` then writes it
+as the same ``trajectory.arrow``: docs/RECORD.md).
 """
 
 from __future__ import annotations

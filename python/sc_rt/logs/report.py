@@ -144,7 +144,7 @@ def _expect(d, scenario: str | None) -> str:
 
 def write_report(log: str | Path, out: str | Path, *, scenario: str | None = None,
                  prefix: str | None = None, mode: str | None = None, plots: bool = True) -> dict[str, Any]:
-    """Read ``log`` and write metrics.json, timing.json, trajectory.npz,
+    """Read ``log`` and write metrics.json, timing.json, trajectory.arrow,
     report.json and the figures into ``out``; returns report.json's content."""
     out = Path(out)
     d = read_log(log, prefix)
@@ -209,8 +209,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     _law_failures_from_flags(run)
     run.timing = _timing(run, r, d, wall)
     build_s = time.perf_counter() - t_build
-    # uncompressed: zlib would take longer than reading a million-event log
-    write_run(run, out, figures=plots, compress=False)
+    write_run(run, out, figures=plots)
     report = {"log": str(d.path), "events": d.events, "read_decode_s": d.decode_s,
               "events_per_s": d.events / d.decode_s if d.decode_s > 0 else None,
               "rebuild_s": build_s, "prefix": d.prefix, "mode": r.mode, "rows": rows,

@@ -1,7 +1,7 @@
 """``report.html``: a run's report for a person, in one self-contained file.
 
 Built from the run's output directory alone (``metrics.json``, and when
-present ``timing.json``, ``trajectory.npz``, ``report.json`` and the PNG
+present ``timing.json``, ``trajectory.arrow``, ``report.json`` and the PNG
 figures), so ``sc-rt sim``, ``sc-rt hil`` and ``sc-rt report`` write the
 same page. The figures are embedded (base64 PNG), the style is inline,
 nothing is fetched. Order: the verdict (the requirements, or the bound where the scenario asks
@@ -150,10 +150,10 @@ def _load(run_dir: Path) -> dict[str, Any]:
         raise FileNotFoundError(f"{run_dir}: no metrics.json (not a run's output directory)")
     traj: dict[str, np.ndarray] = {}
     meta: dict[str, Any] = {}
-    p = run_dir / "trajectory.npz"
-    if not p.exists() and (run_dir / "trajectory.arrow").exists():
+    p = run_dir / "trajectory.npz"  # a run written before trajectory.arrow was the one format
+    if (run_dir / "trajectory.arrow").exists():
         traj, meta = _timeline_of_stored(run_dir / "trajectory.arrow")
-    if p.exists():
+    elif p.exists():
         with np.load(p, allow_pickle=False) as z:
             for k in ("t", "bound_ok", "ctrl_mode", "flags", "fault_Y", "cmd_stale"):
                 if k in z.files:
@@ -430,7 +430,7 @@ def render_html(run_dir: str | Path) -> str:
                                                    for c, n in legend) + "</p>")
         _ = MODE_NAMES
     else:
-        parts.append("<p>No trajectory.npz: no timeline.</p>")
+        parts.append("<p>No trajectory.arrow: no timeline.</p>")
     parts.append('</section><h2>Figures</h2><section id="figures">')
     captions = dict(FIGURES if envelope else FIGURES_WITHOUT_ENVELOPE)
     if m.get("wheel_command") == "torque":  # the wheels take motor torques: the commands' unit is N m

@@ -32,11 +32,10 @@ def check_out_dir(out: Path, option: str = "--out") -> str | None:
 FIGURE_ROWS = 40_000
 
 
-def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
-              compress: bool = True) -> list[Path]:
-    """trajectory.npz (a run on disk: trajectory.arrow, results/record/store.py),
-    metrics.json, timing.json (bench runs) and the figures into ``out``;
-    returns every file written, in order.
+def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "") -> list[Path]:
+    """trajectory.arrow (the one on-disk format of a run, whatever produced
+    it: ``Run.save_arrow``), metrics.json, timing.json (bench runs) and the
+    figures into ``out``; returns every file written, in order.
 
     Parameters
     ----------
@@ -51,13 +50,11 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
     title : str
         The second title line of the tracking figures ("": "scenario, law,
         engine" of ``run.meta``).
-    compress : bool
-        Write trajectory.npz compressed (``numpy.savez_compressed``).
 
     Returns
     -------
     list of Path
-        Every file written, in order: trajectory.npz, metrics.json,
+        Every file written, in order: trajectory.arrow, metrics.json,
         timing.json (when ``run.timing`` is set), then the figures.
     """
     out = Path(out)
@@ -68,8 +65,7 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "",
     if figures:  # from every row, before the saved rows are thinned ([record] every)
         paths_fig = _figures(run, out, title)
     saved = run.thinned(every)
-    traj = saved.save_arrow(out / "trajectory.arrow") if saved.is_stored else saved.save_npz(
-        out / "trajectory.npz", compress=compress)
+    traj = saved.save_arrow(out / "trajectory.arrow")
     paths = [traj, write_json(out / "metrics.json", run.metrics)]
     if run.timing is not None:
         paths.append(write_json(out / "timing.json", run.timing))

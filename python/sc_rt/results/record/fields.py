@@ -27,7 +27,7 @@ class Field:
     """One per-row array of a run.
 
     ``FIELDS`` (public as ``sc_rt.FIELDS``) is the tuple of every one, in the
-    order trajectory.npz lists them; ``FIELD`` maps name -> Field.
+    order trajectory.arrow's columns list them; ``FIELD`` maps name -> Field.
 
     Attributes
     ----------
@@ -148,7 +148,7 @@ def merge_fields(core: tuple[Field, ...]) -> tuple[Field, ...]:
     return tuple(out)
 
 
-#: Every per-row array of a run, in the order trajectory.npz lists them: the
+#: Every per-row array of a run, in the order trajectory.arrow's columns list them: the
 #: core's table (``_core.FIELD_TABLE``) with the Python-only fields merged in.
 FIELDS: tuple[Field, ...] = merge_fields(core_fields())
 FIELD: dict[str, Field] = {f.name: f for f in FIELDS}

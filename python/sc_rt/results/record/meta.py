@@ -21,8 +21,8 @@ class RunMeta:
     """What a run is: its scenario, law, engine and the parameters its
     figures and checks need (so no consumer needs the scenario file).
 
-    Usually built by :meth:`of_scenario`; saved in trajectory.npz (or in
-    trajectory.arrow's schema metadata) as JSON (:meth:`to_json`, :meth:`from_json`).
+    Usually built by :meth:`of_scenario`; saved in trajectory.arrow's schema
+    metadata (``sc-rt:meta``) as JSON (:meth:`to_json`, :meth:`from_json`).
 
     Attributes
     ----------

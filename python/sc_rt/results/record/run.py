@@ -121,15 +121,16 @@ class Run:
     @classmethod
     def stored(cls, meta: RunMeta, path: Path, **kw: Any) -> Run:
         """A run whose rows are on disk (``trajectory.arrow``, results/record/store.py),
-        read a batch at a time (``chunks``); ``kw`` as the constructor's."""
+        read a batch at a time (``chunks``); ``kw`` as the constructor's. A
+        field the file lacks (a record written before the field was declared)
+        reads as its fill value."""
         from sc_rt.results.record.store import ChunkReader
 
         r = cls(meta, {"t": np.zeros(0)}, **kw)
         r._a = {}
-        r._store = ChunkReader(path)
-        missing = set(FIELD) - set(r._store.names)
-        if missing:
-            raise ValueError(f"{path}: not a run's rows (no {sorted(missing)[:3]})")
+        r._store = ChunkReader(path, COLUMNS)
+        if "t" in r._store.filled:
+            raise ValueError(f"{path}: not a run's rows (no column t)")
         return r
 
     @property
@@ -141,6 +142,17 @@ class Run:
     def path(self) -> Path | None:
         """The file of a stored run's rows (None: in memory)."""
         return None if self._store is None else self._store.path
+
+    def in_memory(self) -> Run:
+        """The run with its rows in memory: itself when they are, else a copy
+        that reads every column now (its size grows with the run)."""
+        if self._store is None:
+            return self
+        r = Run.__new__(Run)
+        r.__dict__.update(self.__dict__)
+        r._a = self.trajectory
+        r._store = None
+        return r
 
     def head(self, rows: int) -> Run:
         """The first ``rows`` rows (views), everything else shared."""
@@ -160,7 +172,7 @@ class Run:
             yield self
             return
         for i in range(self._store.n_batches):
-            yield Run(self.meta, self._store.batch(i), diverged=self.diverged, partial=self.partial)
+            yield Run(self.meta, self._store.batch(i, FIELD), diverged=self.diverged, partial=self.partial)
 
     def map_chunks(self, fn: Any) -> None:
         """Call ``fn(chunk)`` on every chunk in order, keeping what it writes
@@ -191,7 +203,7 @@ class Run:
         w.close()
         src.close()
         tmp.replace(src.path)
-        self._store = ChunkReader(src.path)
+        self._store = ChunkReader(src.path, COLUMNS)
 
     def thinned(self, every: int) -> Run:
         """The run keeping every ``every``-th row (t_k with k a multiple of
@@ -254,7 +266,7 @@ class Run:
         if isinstance(d.get("_store"), str):
             from sc_rt.results.record.store import ChunkReader
 
-            d["_store"] = ChunkReader(Path(d["_store"]))
+            d["_store"] = ChunkReader(Path(d["_store"]), COLUMNS)
         self.__dict__.update(d)
 
     # --- access -----------------------------------------------------------
@@ -311,19 +323,13 @@ class Run:
         return ~np.all(flat == f.fill, axis=1)
 
     # --- files ------------------------------------------------------------
-    def save_npz(self, path: Path, *, compress: bool = True) -> Path:
-        """trajectory.npz: every field by name, and the meta as JSON."""
-        if self._store is not None:
-            raise ValueError("a run on disk is saved as trajectory.arrow (save_arrow)")
-        save = np.savez_compressed if compress else np.savez
-        save(path, **self._a, meta_json=np.array(json.dumps(self.meta.to_json())))
-        return path
-
     def save_arrow(self, path: Path) -> Path:
-        """trajectory.arrow (results/record/store.py): every field, a batch at a
-        time, and the meta as JSON in the schema's metadata. A run on disk
-        moves its file there (it is the same format)."""
-        from sc_rt.results.record.store import ChunkFile, ChunkReader
+        """trajectory.arrow, the run's one on-disk format whatever produced it
+        (results/record/store.py; docs/RECORD.md):
+        one column per field of ``FIELDS``, batches of ``CHUNK_ROWS`` rows,
+        and the meta as JSON in the schema's metadata (``sc-rt:meta``). A run
+        on disk moves its file there (it is the same format)."""
+        from sc_rt.results.record.store import CHUNK_ROWS, ChunkFile, ChunkReader
 
         path = Path(path)
         if self._store is not None:
@@ -332,46 +338,54 @@ class Run:
 
                 self._store.close()
                 shutil.move(self._store.path, path)  # (a temporary directory may be another file system)
-                self._store = ChunkReader(path)
+                self._store = ChunkReader(path, COLUMNS)
             return path
-        w = ChunkFile(path, COLUMNS,
-                      {"sc-rt:meta": json.dumps(self.meta.to_json())})
-        w.write(self._a, len(self))
+        w = ChunkFile(path, COLUMNS, {"sc-rt:meta": json.dumps(self.meta.to_json())})
+        n = len(self)
+        for k in range(0, n, CHUNK_ROWS):  # batches of a run written as it ran, for readers a batch at a time
+            w.write({name: v[k:k + CHUNK_ROWS] for name, v in self._a.items()}, min(CHUNK_ROWS, n - k))
         return w.close()
 
     @classmethod
     def load(cls, run_dir: Path) -> Run:
-        """The run in ``run_dir``: trajectory.npz, or trajectory.arrow for a
-        run written on disk as it ran (metrics.json and timing.json read
-        when present)."""
+        """The run in ``run_dir``: its trajectory.arrow, read a batch at a time
+        (``chunks``; ``in_memory`` reads it whole), or the trajectory.npz of a run written before every
+        run was written as trajectory.arrow (``load_npz``); metrics.json and
+        timing.json read when present."""
         run_dir = Path(run_dir)
-        npz, arrow = run_dir / "trajectory.npz", run_dir / "trajectory.arrow"
-        if npz.exists() or not arrow.exists():
-            return cls.load_npz(npz)
+        arrow = run_dir / "trajectory.arrow"
+        if not arrow.exists() and (run_dir / "trajectory.npz").exists():
+            return cls.load_npz(run_dir / "trajectory.npz")
         from sc_rt.results.record.store import ChunkReader
 
-        meta = RunMeta.from_json(json.loads(ChunkReader(arrow).metadata["sc-rt:meta"]))
+        r = ChunkReader(arrow)
+        meta = RunMeta.from_json(json.loads(r.metadata["sc-rt:meta"]))
+        r.close()
         run = cls.stored(meta, arrow)
-        for name, attr in (("metrics.json", "metrics"), ("timing.json", "timing")):
-            p = run_dir / name
-            if p.exists():
-                setattr(run, attr, json.loads(p.read_text()))
+        _read_json_beside(run, run_dir)
         return run
 
     @classmethod
     def load_npz(cls, path: Path) -> Run:
-        """A run written by ``save_npz`` (metrics.json / timing.json next to
-        it are read when present)."""
+        """A run in the format sc-rt wrote short runs in before trajectory.arrow
+        (trajectory.npz: every field by name and ``meta_json``), in memory;
+        metrics.json / timing.json next to it read when present. Nothing
+        writes it any more."""
         path = Path(path)
         with np.load(path, allow_pickle=False) as z:
             meta = RunMeta.from_json(json.loads(str(z["meta_json"])))
             arrays = {k: z[k] for k in z.files if k in FIELD}
         run = cls(meta, arrays)
-        for name, attr in (("metrics.json", "metrics"), ("timing.json", "timing")):
-            p = path.parent / name
-            if p.exists():
-                setattr(run, attr, json.loads(p.read_text()))
+        _read_json_beside(run, path.parent)
         return run
+
+
+def _read_json_beside(run: Run, run_dir: Path) -> None:
+    """The run's metrics.json and timing.json in ``run_dir``, when there."""
+    for name, attr in (("metrics.json", "metrics"), ("timing.json", "timing")):
+        p = run_dir / name
+        if p.exists():
+            setattr(run, attr, json.loads(p.read_text()))
 
 
 def provenance(plant_session: int | None, controller_session: int | None,

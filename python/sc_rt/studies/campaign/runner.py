@@ -329,7 +329,7 @@ def recorded_row(c: Campaign, out: Path, run: int) -> tuple[dict[str, Any] | Non
 
 def rerun(c: Campaign, run: int, out: Path, plots: bool = True, recorded: RunDraw | None = None) -> dict[str, Any]:
     """Run ``run`` alone and write its full outputs to ``out`` as ``sc-rt
-    sim`` does (trajectory.npz, metrics.json, figures; its inputs: the base
+    sim`` does (trajectory.arrow, metrics.json, figures; its inputs: the base
     plan and the run's drawn values, which ``sc-rt rerun`` replays) plus
     run.json (its dataset row). ``recorded``: the draw the campaign's
     dataset recorded for it, replayed exactly (not drawn again from the
