@@ -245,6 +245,9 @@ class Scenario:
         ``[environment] field``: "igrf", "dipole" or "none" (the default),
         the geomagnetic field along the orbit (``plant.orbit``);
         ``sc_rt.model.field.field_for(model, jd)`` builds it.
+    magnetic_control : MagneticControl or None
+        The ``[momentum]`` and ``[bdot]`` tables (sc_rt.scenario.momentum): the
+        controller's momentum manager and B-dot; None without either.
     law_key, law_keys : str, tuple
         Where the file names its law and each law parameter (dotted keys),
         for the errors of the law's probe (sc_rt.plan.law).
@@ -285,6 +288,8 @@ class Scenario:
     # reports a problem (sc_rt.plan.law)
     law_key: str = "run.controller"
     law_keys: tuple = ()
+    # [momentum] and [bdot]: the controller's magnetic part (sc_rt.scenario.momentum.MagneticControl), None: none
+    magnetic_control: Any = None
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None, *, nav: bool = True
@@ -379,7 +384,10 @@ class Scenario:
         msg = self.controller_config_msg(law, control_rate_hz, nav=False)  # the core reads no nav_* field
         if is_python_law(msg.law):
             msg.law = register(msg.law)  # its registry spec, "python:..." (file.py:Class given without it too)
-        return _core.ControllerConfig.from_lcm_bytes(msg.encode())
+        cfg = _core.ControllerConfig.from_lcm_bytes(msg.encode())
+        if self.magnetic_control is not None:  # not on the wire yet (sc-rt hil refuses it)
+            cfg.magnetic = self.magnetic_control.to_core(self.plant.magnetorquers)
+        return cfg
 
 
 def law_identity(spec: str) -> dict[str, Any]:
