@@ -59,8 +59,12 @@ def mag_data(extra: str, *, duration: float, wheel_speed=(0.0, 0.0, 0.0, 0.0), o
 
 
 def mag_scenario(extra: str, *, duration: float, gravity_gradient: bool = True, **kw):
-    """The Scenario of ``mag_data`` (``gravity_gradient`` False: the plant without the orbit's)."""
-    scn = scenario_from_data(mag_data(extra, duration=duration, **kw), "mag.toml")
+    """The Scenario of ``mag_data`` (``gravity_gradient`` False: the plant without any, the
+    orbit's nor the constant-rate form's, w0 = 0)."""
+    data = mag_data(extra, duration=duration, **kw)
+    if not gravity_gradient:
+        data["spacecraft"]["w0"] = 0.0
+    scn = scenario_from_data(data, "mag.toml")
     if not gravity_gradient:  # test-only switch of the plant (PlantParams.orbit_gravity_gradient)
         scn = dataclasses.replace(scn, plant=dataclasses.replace(scn.plant, orbit_gravity_gradient=False))
     return scn

@@ -64,14 +64,14 @@ def test_kinetic_energy_never_increases_while_detumbling(detumble):
 
 def test_the_detumble_time_is_within_a_factor_of_the_gain_rule(detumble):
     """The prediction: Markley & Crassidis (2014) section 7.5.1, after
-    Avanzini & Giulietti (2012), choose k = 2 n (1 + sin xi_m) J_min so that
-    the slowest closed-loop mode of the orbit-averaged B-dot law decays as
+    Avanzini & Giulietti (2012), choose k = 2 n (1 + sin xi_m) J_min for the
+    orbit-averaged B-dot law, under which a body axis of inertia J decays as
     exp(-k <1 - (b.e)^2> t / J); for a body tumbling across the field, b is
-    spread over the sphere in body axes and <1 - (b.e)^2> = 2/3, so
-    |omega| falls from omega0 to rate_off in t = 3 J ln(omega0 / rate_off) / (2 k)
-    with J = J_min: the gain rule's own inertia. Within a factor of 3 (the
-    rods' 30 A m^2 limit slows the first part; the body's other inertias
-    are up to 1.8 J_min)."""
+    spread over the sphere in body axes and <1 - (b.e)^2> = 2/3. |omega|
+    reaching rate_off is set by the slowest axis, J = J_max of the true
+    inertia: t = 3 J_max ln(omega0 / rate_off) / (2 k). Within a factor of 2
+    (the rods' 30 A m^2 limit slows the first part; the tumble is not
+    isotropic). Measured: 1846 s against 1435 s."""
     scn, run = detumble
     orbit = scn.plant.orbit
     n = math.sqrt(orbit.mu / orbit.a ** 3)
@@ -79,6 +79,7 @@ def test_the_detumble_time_is_within_a_factor_of_the_gain_rule(detumble):
     k = 2 * n * (1 + math.sin(magnetic_inclination(orbit))) * J_min  # the rule, written here
     assert k == pytest.approx(scn.magnetic_control.bdot.gain, rel=1e-12)
     omega0 = float(np.linalg.norm(OMEGA0))
-    t_pred = 3 * J_min * math.log(omega0 / 0.0087) / (2 * k)
+    J_max = float(np.linalg.eigvalsh(scn.plant.J).max())
+    t_pred = 3 * J_max * math.log(omega0 / 0.0087) / (2 * k)
     t_done = run.t[np.flatnonzero(run["detumble_mode"] == 1)[0]]
-    assert t_pred / 3 < t_done < 3 * t_pred, (t_done, t_pred)
+    assert t_pred / 2 < t_done < 2 * t_pred, (t_done, t_pred)

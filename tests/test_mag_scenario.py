@@ -104,3 +104,12 @@ def test_the_tables_round_trip_through_the_scenarios_data(tmp_path):
                                'null_bias = 7.0\n[bdot]\nderivative = "analytic"\nfilter_tau = 0.5\n'))
     back = scenario_from_data(scenario_data(scn), "rt.toml")
     assert back.magnetic_control == scn.magnetic_control
+
+
+def test_the_unsampled_engine_refuses_magnetic_control():
+    from magscn import mag_scenario
+    from sc_rt import simulate
+
+    scn = mag_scenario("[momentum]\ncapacity = 2.0\n", duration=1.0, paper_wheels=True)
+    with pytest.raises(ValueError, match=r"no magnetic control \(\[momentum\], \[bdot\]\)"):
+        simulate(scn, engine="unsampled")

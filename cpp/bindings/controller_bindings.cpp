@@ -173,7 +173,16 @@ void bind_controllers(py::module_& m) {
       .def_readonly("vs", &Command::vs)
       .def_readonly("rho_hat", &Command::rho_hat)
       .def_readonly("telemetry", &Command::telemetry, "the law's named telemetry (Controller.telemetry_names)")
-      .def_readonly("magnetic", &Command::magnetic, "the magnetic part's decision (MagneticOutput)");
+      .def_readonly("magnetic", &Command::magnetic, "the magnetic part's decision (MagneticOutput)")
+      // the magnetic part's fields under their field-table names (FIELD_TABLE)
+      .def_property_readonly("rod_dipole_cmd", [](const Command& c) { return c.magnetic.rod_dipole_cmd; },
+                             "[A m^2] (6,)")
+      .def_property_readonly("m_B_cmd", [](const Command& c) { return c.magnetic.m_B_cmd; }, "[A m^2]")
+      .def_property_readonly("B_B", [](const Command& c) { return c.magnetic.B_B; }, "[T]")
+      .def_property_readonly("h_wheels_B", [](const Command& c) { return c.magnetic.h_wheels_B; }, "[N m s]")
+      .def_property_readonly("wheel_fill", [](const Command& c) { return c.magnetic.wheel_fill; }, "[-]")
+      .def_property_readonly("unloading", [](const Command& c) { return c.magnetic.unloading; })
+      .def_property_readonly("detumble_mode", [](const Command& c) { return c.magnetic.detumble_mode; });
   py::class_<TrackingErrors>(m, "TrackingErrors")
       .def_readonly("sigma_BD", &TrackingErrors::sigma_BD)
       .def_readonly("omega_BD_B", &TrackingErrors::omega_BD_B)

@@ -583,6 +583,11 @@ class Measurement:
         ...
 class Command:
     @property
+    def B_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [T]
+        """
+    @property
     def chi(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
     @property
@@ -590,6 +595,9 @@ class Command:
         """
         mode under its field-table name (FIELD_TABLE: ctrl_mode)
         """
+    @property
+    def detumble_mode(self) -> int:
+        ...
     @property
     def e1(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
@@ -600,8 +608,18 @@ class Command:
     def flags(self) -> int:
         ...
     @property
+    def h_wheels_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [N m s]
+        """
+    @property
     def lam(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
+    @property
+    def m_B_cmd(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [A m^2]
+        """
     @property
     def magnetic(self) -> ...:
         """
@@ -616,6 +634,11 @@ class Command:
     @property
     def rho_hat(self) -> float:
         ...
+    @property
+    def rod_dipole_cmd(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[6, 1]"]:
+        """
+        [A m^2] (6,)
+        """
     @property
     def sigma_BD(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
@@ -641,8 +664,16 @@ class Command:
         [rad/s^2] after saturation
         """
     @property
+    def unloading(self) -> int:
+        ...
+    @property
     def vs(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
         ...
+    @property
+    def wheel_fill(self) -> float:
+        """
+        [-]
+        """
     @property
     def x2d(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
