@@ -110,3 +110,48 @@ def test_the_commanded_magnetic_torque_goes_into_the_wheels():
     want = tau_mag[:-1] + np.array(BIAS)
     rows = slice(20, None)  # after the first 2 s (the law settles the feed-forward's start)
     assert np.allclose(dh[rows], want[rows], atol=0.05 * np.abs(want).max())
+
+
+class _Constant:
+    """A Python law: a constant wheel acceleration, and what it was handed back."""
+
+    name = "constant"
+    seen: list = []
+
+    def __init__(self, setup):
+        pass
+
+    def reset(self, inp) -> None:
+        pass
+
+    def step(self, inp):
+        _Constant.seen.append(np.array(inp.u_sat_prev))
+        return np.array([0.01, -0.02, 0.015, 0.005]), {}
+
+
+def test_a_python_law_sees_none_of_the_manager():
+    """Any law (here a Python one, through the core's registry) is summed
+    with the manager's feed-forward before saturation, and gets its own
+    command back as u_sat_prev; the sum's body torque cancels m x B
+    (numpy: -Cbar Jw (u_cmd - u_law) + m_B_cmd x B_B = 0)."""
+    from sc_rt import _core
+    from sc_rt.pylaw import register
+
+    scn = mag_scenario(MOMENTUM.replace("null_gain = 0.01", "null_gain = 0.0"), duration=1.0,
+                       wheel_speed=tuple(10 * v for v in H0), paper_wheels=True)
+    cfg = scn.core_config()
+    cfg.law, cfg.law_params = register(_Constant), []
+    ctl = _core.Controller(cfg)
+    x = np.array([0.1, 0.2, -0.3, 0.0, 0.0, 0.0, *(10 * v for v in H0)])
+    ctl.reset(_core.Measurement(0.0, x[0:3], x[3:6], x[6:10]))
+    B_B = np.array([2e-5, -1e-5, 3e-5])
+    _Constant.seen.clear()
+    law = np.array([0.01, -0.02, 0.015, 0.005])
+    for t in (0.0, 0.1, 0.2):
+        c = ctl.step(_core.Measurement(t, x[0:3], x[3:6], x[6:10]), B_B)
+        assert c.unloading == 1 and c.flags & 0b1111000 == 0  # unloading, no wheel saturated
+        extra = np.asarray(c.u_cmd) - law
+        body = -(scn.plant.Cbar * scn.plant.Jw) @ extra + np.cross(c.m_B_cmd, B_B)
+        assert np.linalg.norm(body) < 1e-12 * np.linalg.norm(np.cross(c.m_B_cmd, B_B))
+        assert np.linalg.norm(np.cross(c.m_B_cmd, B_B)) > 1e-5
+    assert all(np.array_equal(s, law) for s in _Constant.seen[1:])  # its own command, not the sum

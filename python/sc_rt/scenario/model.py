@@ -283,13 +283,13 @@ class Scenario:
     # "none" (sc_rt.model.field.field_for); the plant's too (plant.field_model), where the
     # residual dipole and the magnetorquers' dipole act
     field_model: str = "none"
+    # [momentum] and [bdot]: the controller's magnetic part (sc_rt.scenario.momentum.MagneticControl), None: none
+    magnetic_control: Any = None
     # the dotted key the file names its law by ("controller.law" or "run.controller"), and the
     # dotted key of each law parameter ((law, key), dotted key) pairs: where a law's probe
     # reports a problem (sc_rt.plan.law)
     law_key: str = "run.controller"
     law_keys: tuple = ()
-    # [momentum] and [bdot]: the controller's magnetic part (sc_rt.scenario.momentum.MagneticControl), None: none
-    magnetic_control: Any = None
 
     def controller_config_msg(
         self, law: str | None = None, control_rate_hz: float | None = None, *, nav: bool = True
