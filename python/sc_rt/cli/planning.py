@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from sc_rt.cli.common import checked_out, scenario_arg
+from sc_rt.cli.common import checked_out, refuse_off_bus, scenario_arg
 from sc_rt.cli.controller import external_choice
 from sc_rt.cli.validate import UsageError, resolve_url
 from sc_rt.plan.law import ExternalLaw, PythonLaw
@@ -52,7 +52,7 @@ def hil_plan(args: argparse.Namespace) -> RunPlan:
                     rt_limits=args.rt_limits or RealtimeLimits(), start_timeout=args.start_timeout,
                     controller_memory_limit_mb=args.controller_memory_limit)
     scn = _scenario(args)
-    _refuse_off_bus(scn)
+    refuse_off_bus(scn, "sc-rt hil")
     try:
         plan = plan_run(scn, law=args.law, engine="bench", control_rate_hz=args.control_rate,
                         duration=args.duration, external=args.external, external_wait=args.external_wait,
@@ -64,18 +64,6 @@ def hil_plan(args: argparse.Namespace) -> RunPlan:
     if args.start_timeout is not None and not isinstance(plan.law, (PythonLaw, ExternalLaw)):
         raise UsageError("--start-timeout applies to --external, --external-wait or a Python --law only")
     return _noted(plan)
-
-
-def _refuse_off_bus(scn) -> None:
-    """``sc-rt hil`` refuses what the bus does not carry yet: the controller's
-    magnetic part (``[momentum]``, ``[bdot]``; its dipoles and field are not
-    on the wire), so that no lockstep run silently ignores the rods
-    (UsageError: exit 2, one line naming the key)."""
-    mc = scn.magnetic_control
-    for name in ("momentum", "bdot"):
-        if mc is not None and getattr(mc, name) is not None:
-            raise UsageError(f"{scn.path}: {name}.enabled = true: not yet carried on the bus "
-                             f"(sc-rt hil runs no [{name}]; run it offline with sc-rt sim)")
 
 
 def _scenario(args: argparse.Namespace):
