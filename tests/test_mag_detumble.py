@@ -45,8 +45,9 @@ def test_the_rate_reaches_rate_off_and_the_mode_switches_there(detumble):
     assert run["flags"][k] & _core.FLAG_MODE_SWITCH
     assert not np.any(run["flags"][1:k] & _core.FLAG_MODE_SWITCH)
     assert np.all(np.isfinite(run["u_cmd"][k:]))
-    # while detumbling the wheels are commanded zero
+    # while detumbling the wheels are commanded zero, and the tracking error is still recorded
     assert np.all(run["u_cmd"][:k] == 0.0)
+    assert np.all(np.linalg.norm(run["sigma_BD"][:k], axis=1) > 0.0)
 
 
 def test_kinetic_energy_never_increases_while_detumbling(detumble):

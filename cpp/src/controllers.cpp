@@ -241,6 +241,10 @@ Command Controller::step(const Measurement& m, const Vec3& B_B) {
     out.mode = MODE_NORMAL;
     out.flags = mo.switched ? FLAG_MODE_SWITCH : 0;
     out.sigma_DN = guidance_.sigma_DN();
+    // The tracking errors and the envelope stay true while detumbling, as in
+    // SAFE (bounded work: the guidance's evaluation at m.t).
+    LawInput in;
+    if (m.t >= guidance_.t()) observe(m, out, in);
     engaged_ = false;
     mag_->detumble(m.t, B_B, m.omega_BN_B, m.wheel_speed, mo);
     out.magnetic = mo;
