@@ -623,6 +623,6 @@ def test_scenario_type_has_the_documented_fields():
     assert [f.name for f in dataclasses.fields(Scenario)] == [
         "name", "description", "path", "run", "plant", "actuators", "initial", "guidance",
         "controller", "montecarlo", "sensors", "expect", "requirements", "record", "deprecations", "overrides",
-        "field_model",
+        "field_model", "magnetic_control",
         "law_key", "law_keys",
     ]  # fmt: skip

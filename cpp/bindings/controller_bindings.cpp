@@ -1,6 +1,7 @@
 // pybind11 bindings of the control laws, their registry and the
 // controllers (sc_rt._core), with the offline closed loop and the packed
 // telemetry of the simulator's hot path. Called from core.cpp's module.
+#include <optional>
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -25,7 +26,7 @@ namespace {
 // step_packed's row: the table's packed fields (fields.hpp) in table order,
 // written by the core's producer (closed_loop.hpp for_each_command_field).
 constexpr int kPackedSize = packed_size();
-static_assert(kPackedSize == 45 + kLawMaxTelemetry, "step_packed's row changed size: update its docstring");
+static_assert(kPackedSize == 63 + kLawMaxTelemetry, "step_packed's row changed size: update its docstring");
 
 template <typename T>
 py::bytes encode_lcm(const T& msg) {
@@ -107,7 +108,8 @@ void bind_controllers(py::module_& m) {
            {"FLAG_BOUND_Z", FLAG_BOUND_Z}, {"FLAG_SAT_1", FLAG_SAT_1},
            {"FLAG_INVALID_STATE", FLAG_INVALID_STATE}, {"FLAG_STALE_STATE", FLAG_STALE_STATE},
            {"FLAG_TIME_NOT_ADVANCING", FLAG_TIME_NOT_ADVANCING},
-           {"FLAG_LAW_INVALID", FLAG_LAW_INVALID}, {"FLAG_TIME_JUMP", FLAG_TIME_JUMP}})
+           {"FLAG_LAW_INVALID", FLAG_LAW_INVALID}, {"FLAG_TIME_JUMP", FLAG_TIME_JUMP},
+           {"FLAG_MODE_SWITCH", FLAG_MODE_SWITCH}})
     m.attr(name) = v;
   m.attr("MAX_DT_PERIODS") = kMaxDtPeriods;
   py::class_<SafetyLimits>(m, "SafetyLimits")
@@ -126,6 +128,8 @@ void bind_controllers(py::module_& m) {
       .def_readwrite("guidance", &ControllerConfig::guidance)
       .def_readwrite("ppc", &ControllerConfig::ppc)
       .def_readwrite("safety", &ControllerConfig::safety)
+      .def_readwrite("magnetic", &ControllerConfig::magnetic,
+                     "the rods, momentum manager and B-dot (MagneticConfig; not in controller_config_t yet)")
       .def_static("from_lcm_bytes",
                   [](const py::bytes& b) {
                     const std::string s = b;
@@ -168,7 +172,17 @@ void bind_controllers(py::module_& m) {
       .def_readonly("x2d", &Command::x2d)
       .def_readonly("vs", &Command::vs)
       .def_readonly("rho_hat", &Command::rho_hat)
-      .def_readonly("telemetry", &Command::telemetry, "the law's named telemetry (Controller.telemetry_names)");
+      .def_readonly("telemetry", &Command::telemetry, "the law's named telemetry (Controller.telemetry_names)")
+      .def_readonly("magnetic", &Command::magnetic, "the magnetic part's decision (MagneticOutput)")
+      // the magnetic part's fields under their field-table names (FIELD_TABLE)
+      .def_property_readonly("rod_dipole_cmd", [](const Command& c) { return c.magnetic.rod_dipole_cmd; },
+                             "[A m^2] (6,)")
+      .def_property_readonly("m_B_cmd", [](const Command& c) { return c.magnetic.m_B_cmd; }, "[A m^2]")
+      .def_property_readonly("B_B", [](const Command& c) { return c.magnetic.B_B; }, "[T]")
+      .def_property_readonly("h_wheels_B", [](const Command& c) { return c.magnetic.h_wheels_B; }, "[N m s]")
+      .def_property_readonly("wheel_fill", [](const Command& c) { return c.magnetic.wheel_fill; }, "[-]")
+      .def_property_readonly("unloading", [](const Command& c) { return c.magnetic.unloading; })
+      .def_property_readonly("detumble_mode", [](const Command& c) { return c.magnetic.detumble_mode; });
   py::class_<TrackingErrors>(m, "TrackingErrors")
       .def_readonly("sigma_BD", &TrackingErrors::sigma_BD)
       .def_readonly("omega_BD_B", &TrackingErrors::omega_BD_B)
@@ -197,7 +211,9 @@ void bind_controllers(py::module_& m) {
   py::class_<Controller>(m, "Controller", "One control law behind reset/step.")
       .def(py::init(&Controller::create), arg("c"))
       .def("reset", &Controller::reset, arg("m"))
-      .def("step", &Controller::step, arg("m"))
+      .def("step", py::overload_cast<const Measurement&>(&Controller::step), arg("m"))
+      .def("step", py::overload_cast<const Measurement&, const Vec3&>(&Controller::step), arg("m"), arg("B_B"),
+           "One step with the field in B, B_B [T] (for the magnetic part only; NaN: none known).")
       .def("safe_command", &Controller::safe_command, arg("t"), arg("flags"))
       .def_property_readonly("law_name", &Controller::law_name, "the law's registry name")
       .def_property_readonly(
@@ -232,9 +248,9 @@ void bind_controllers(py::module_& m) {
   }
   m.def(
       "step_packed",
-      [](Controller& c, double t, const Eigen::Matrix<double, 10, 1>& x) {
+      [](Controller& c, double t, const Eigen::Matrix<double, 10, 1>& x, const std::optional<Vec3>& B_B) {
         Measurement m{t, x.segment<3>(0), x.segment<3>(3), x.segment<4>(6)};
-        const Command cmd = c.step(m);
+        const Command cmd = B_B ? c.step(m, *B_B) : c.step(m);
         py::array_t<double> out(kPackedSize);
         double* o = out.mutable_data();
         for_each_command_field(cmd, [o](FieldId f, const auto& v) {
@@ -246,9 +262,10 @@ void bind_controllers(py::module_& m) {
         });
         return out;
       },
-      arg("controller"), arg("t"), arg("x"),
-      "One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];\n"
-      "returns the packed telemetry (53,): the field table's packed fields in table order\n"
+      arg("controller"), arg("t"), arg("x"), arg("B_B") = py::none(),
+      "One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s]\n"
+      "(B_B: the field in B [T] for the controller's magnetic part, None: step(m));\n"
+      "returns the packed telemetry (71,): the field table's packed fields in table order\n"
       "(PACKED_FIELDS: (name, width) in this order).");
 
   m.attr("CLOSED_LOOP_FIELDS") = sc_rt_bind::loop_columns(kLoop);

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "sc_rt/bdot.hpp"
+#include "sc_rt/magnetic_control.hpp"
 #include "sc_rt/magnetorquer.hpp"
 #include "sc_rt/momentum.hpp"
 #include "sc_rt/plant.hpp"
@@ -200,6 +201,29 @@ void bind_magnetics(py::module_& m) {
       .def(py::init<const BdotParams&, const MagnetorquerParams&>(), arg("p"), arg("rods"))
       .def("update", &Bdot::update, arg("s"), arg("t"), arg("B_B"), arg("omega_BN_B"))
       .def_property_readonly("params", &Bdot::params);
+
+  // --- the controller's magnetic part (magnetic_control.hpp)
+  py::class_<MagneticConfig>(m, "MagneticConfig",
+                             "The rods as the controller knows them, the momentum manager and B-dot "
+                             "(magnetic_control.hpp).")
+      .def(py::init<>())
+      .def_readwrite("rods_enabled", &MagneticConfig::rods_enabled)
+      .def_readwrite("rods", &MagneticConfig::rods, "nominal rods (no faults)")
+      .def_readwrite("momentum_enabled", &MagneticConfig::momentum_enabled)
+      .def_readwrite("momentum", &MagneticConfig::momentum)
+      .def_readwrite("bdot_enabled", &MagneticConfig::bdot_enabled)
+      .def_readwrite("bdot", &MagneticConfig::bdot)
+      .def("active", &MagneticConfig::active, "either part enabled");
+  py::class_<MagneticOutput>(m, "MagneticOutput", "What the controller's magnetic part decided at a step.")
+      .def_readonly("rod_dipole_cmd", &MagneticOutput::rod_dipole_cmd, "[A m^2] (6,), 0 beyond the rods")
+      .def_readonly("m_B_cmd", &MagneticOutput::m_B_cmd, "[A m^2]")
+      .def_readonly("B_B", &MagneticOutput::B_B, "[T]")
+      .def_readonly("h_wheels_B", &MagneticOutput::h_wheels_B, "[N m s]")
+      .def_readonly("wheel_fill", &MagneticOutput::wheel_fill, "[-]")
+      .def_readonly("unloading", &MagneticOutput::unloading, "1, 0; -1 no manager")
+      .def_readonly("detumble_mode", &MagneticOutput::detumble_mode, "0 detumble, 1 attitude; -1 no B-dot")
+      .def_readonly("switched", &MagneticOutput::switched)
+      .def_readonly("wheel_cmd", &MagneticOutput::wheel_cmd, "the manager's wheel command, wheels' unit");
 
   // --- magnetometer (sensors.hpp)
   py::class_<MagnetometerParams>(m, "MagnetometerParams", "Three-axis magnetometer (SI units; sensors.hpp).")

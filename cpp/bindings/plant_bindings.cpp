@@ -255,6 +255,15 @@ void bind_plant(py::module_& m) {
         "Saturation and faults (15),(16), stuck wheels and the speed limit.");
   m.def("disturbance", &disturbance, arg("p"), arg("t"), "d(t) [N m] in B.");
   m.def(
+      "plant_field_B",
+      [](const PlantParams& p, double t, const Vec3& sigma_BN) -> std::optional<Vec3> {
+        Vec3 B;
+        if (!plant_field_B(p, t, sigma_BN, B)) return std::nullopt;
+        return B;
+      },
+      arg("p"), arg("t"), arg("sigma_BN"),
+      "The plant's field in B [T] at t [s] for the attitude sigma_BN (None without a field).");
+  m.def(
       "plant_derivative",
       [](const PlantParams& p, double t, const PlantState& x, const Vec4& wheel_accel,
          const std::optional<Vec3>& dipole_B) {

@@ -1,6 +1,7 @@
 #include "sc_rt/closed_loop.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <utility>
@@ -25,6 +26,8 @@ ClosedLoop::ClosedLoop(const ControllerConfig& cfg, const PlantParams& plant, co
   if (n_ctrl < 0 || n_sub < 1 || !(rate > 0.0))
     throw std::invalid_argument("simulate_closed_loop: need n_ctrl >= 0, n_sub >= 1, rate > 0");
   ctl_ = Controller::create(cfg);
+  mag_ = cfg.magnetic.active();
+  rods_ = mag_ && plant_.rods.enabled;
   if (nav) nv_ = std::make_unique<Navigation>(*nav);
   h_ = 1.0 / (rate * n_sub);
   if (nv_) {
@@ -58,8 +61,13 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
       nv->tick(next_, t, x_);
       next_ = nv->next_tick(next_);
     }
-    const Command c = ctl_->step(nv ? nv->measure(t, x_, out ? &tel_ : nullptr)
-                                    : Measurement{t, x_.sigma_BN, x_.omega_BN_B, x_.wheel_speed});
+    const Measurement m = nv ? nv->measure(t, x_, out ? &tel_ : nullptr)
+                             : Measurement{t, x_.sigma_BN, x_.omega_BN_B, x_.wheel_speed};
+    // Magnetic control: the true field in B at t_k (one evaluation per
+    // control step; NaN without a field), docs/MODEL.md section 17.
+    Vec3 B_B = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+    if (mag_) plant_field_B(plant_, t, x_.sigma_BN, B_B);
+    const Command c = mag_ ? ctl_->step(m, B_B) : ctl_->step(m);
     const WheelOutput w = plant_row(plant_, act_, t, x_, c.u_cmd, &motor_);
     if (out) {
       out->put(FieldId::t, i, t);
@@ -80,12 +88,21 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
       done_ = true;
       break;
     }
+    RodVec d_cmd;
+    if (rods_) d_cmd = c.magnetic.rod_dipole_cmd.head(plant_.rods.params.G_B.cols());
     for (int j = 0; j < n_sub_; ++j) {
       if (nv && j > 0 && k * nsub64 + j == next_) {
         nv->tick(next_, t + j * h_, x_);
         next_ = nv->next_tick(next_);
       }
-      x_ = plant_rk4_step(plant_, act_, t + j * h_, x_, h_, c.u_cmd, motor_);
+      if (rods_) {
+        // the rod commands held over the period, through the plant's rods
+        // and their faults at each step's time (truth.py rk4_step's dipole_B)
+        const Vec3 m_B = rods_dipole_B(plant_.rods, t + j * h_, &d_cmd);
+        x_ = plant_rk4_step(plant_, act_, t + j * h_, x_, h_, c.u_cmd, motor_, &m_B);
+      } else {
+        x_ = plant_rk4_step(plant_, act_, t + j * h_, x_, h_, c.u_cmd, motor_);
+      }
     }
     if (!finite(x_)) {
       diverged_ = done_ = true;

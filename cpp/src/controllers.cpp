@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "sc_rt/mrp.hpp"
@@ -30,6 +31,7 @@ std::vector<std::string> validate(const ControllerConfig& c) {
   positive(errs, "safety.max_rate", c.safety.max_rate);
   positive(errs, "safety.max_wheel_speed", c.safety.max_wheel_speed);
   positive(errs, "safety.stale_periods", c.safety.stale_periods);
+  append(errs, validate(c.magnetic, c.spacecraft));
   return errs;
 }
 
@@ -119,6 +121,7 @@ Controller::Controller(const ControllerConfig& c)
   const bool law_torque = entry_.command == LawCommand::Torque;
   if (law_torque != law_model_.wheel_torque_command) convert_ = law_torque ? -1 : +1;
   telemetry_names_ = law_->telemetry_names();
+  if (cfg_.magnetic.active()) mag_ = std::make_unique<MagneticControl>(cfg_.magnetic, cfg_.spacecraft);
   if (telemetry_names_.size() > static_cast<std::size_t>(kLawMaxTelemetry)) {
     const std::string d = "declares " + std::to_string(telemetry_names_.size()) +
                           " telemetry names, at most " + std::to_string(kLawMaxTelemetry);
@@ -216,6 +219,49 @@ void Controller::observe(const Measurement& m, Command& out, LawInput& in) {
 }
 
 Command Controller::step(const Measurement& m) {
+  if (!mag_) return step_law(m, nullptr);
+  return step(m, Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
+}
+
+Command Controller::step(const Measurement& m, const Vec3& B_B) {
+  if (!mag_) return step_law(m, nullptr);
+  // The magnetic part beside the law (magnetic_control.hpp; docs/MODEL.md section 17).
+  MagneticOutput mo = mag_->idle(B_B);
+  if (!measurement_valid(m, cfg_.safety)) {  // SAFE: the law's path, the rods idle
+    Command out = step_law(m, nullptr);
+    out.magnetic = mo;
+    return out;
+  }
+  if (mag_->mode_at(m.omega_BN_B.norm(), mo) == DetumbleMode::Detumble) {
+    // B-dot on the rods, the wheels commanded zero, the law not stepped: it
+    // is (re-)engaged from the measurement at the switch to Attitude.
+    ++counts_.steps;
+    Command out;
+    out.t = m.t;
+    out.mode = MODE_NORMAL;
+    out.flags = mo.switched ? FLAG_MODE_SWITCH : 0;
+    out.sigma_DN = guidance_.sigma_DN();
+    // The tracking errors and the envelope stay true while detumbling, as in
+    // SAFE (bounded work: the guidance's evaluation at m.t).
+    LawInput in;
+    if (m.t >= guidance_.t()) observe(m, out, in);
+    engaged_ = false;
+    mag_->detumble(m.t, B_B, m.omega_BN_B, m.wheel_speed, mo);
+    out.magnetic = mo;
+    return out;
+  }
+  mag_->attitude(m.wheel_speed, B_B, mo);
+  Command out = step_law(m, cfg_.magnetic.momentum_enabled ? &mo.wheel_cmd : nullptr);
+  if (out.mode == MODE_SAFE) {  // no wheel command: no feed-forward, so no dipole either
+    mo.rod_dipole_cmd.setZero();
+    mo.m_B_cmd.setZero();
+  }
+  if (mo.switched) out.flags |= FLAG_MODE_SWITCH;
+  out.magnetic = mo;
+  return out;
+}
+
+Command Controller::step_law(const Measurement& m, const Vec4* extra) {
   ++counts_.steps;
   LawInput in;
   if (!measurement_valid(m, cfg_.safety)) {
@@ -279,7 +325,10 @@ Command Controller::step(const Measurement& m) {
   }
   // The one place every law's output passes: in the wheels' unit before
   // saturation (the limits umin/umax are the wheels').
-  out.u_cmd = to_wheels(lo.u_cmd);
+  const Vec4 law_w = to_wheels(lo.u_cmd);
+  // The momentum manager's command (feed-forward + null space, already in
+  // the wheels' unit) is summed with the law's before the one saturation.
+  out.u_cmd = extra != nullptr ? Vec4(law_w + *extra) : law_w;
   out.e1 = lo.e1;
   out.e2 = lo.e2;
   out.z1 = lo.z1;
@@ -292,8 +341,16 @@ Command Controller::step(const Measurement& m) {
   out.u_sat = model_.saturate(out.u_cmd);
   for (int i = 0; i < 4; ++i)
     if (out.u_sat(i) != out.u_cmd(i)) out.flags |= (FLAG_SAT_1 << i);
-  // The law sees its own unit back (the held command, anti-windup).
-  u_sat_prev_ = to_law(out.u_sat);
+  // The law sees its own unit back (the held command, anti-windup): with the
+  // manager's command added, its own share of it (u_sat less the manager's
+  // where a wheel saturated, its own command where none did).
+  if (extra != nullptr) {
+    Vec4 share;
+    for (int i = 0; i < 4; ++i) share(i) = out.u_sat(i) == out.u_cmd(i) ? law_w(i) : out.u_sat(i) - (*extra)(i);
+    u_sat_prev_ = to_law(share);
+  } else {
+    u_sat_prev_ = to_law(out.u_sat);
+  }
   std::string after_why;
   bool after_threw = false;
   try {

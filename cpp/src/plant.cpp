@@ -178,6 +178,18 @@ Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd) {
   return m;
 }
 
+bool plant_field_B(const PlantParams& p, double t, const Vec3& sigma_BN, Vec3& B_B) {
+  if (!p.field) return false;
+  const double none[3] = {1.0, 0.0, 0.0};  // any non-null dipole: MagField then evaluates the field
+  const detail::MagField mag(p, none);
+  double mb[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  mag(t, mb);  // mb[3..5]: B_N [T]
+  double r[3];
+  detail::rotate_to_B(sigma_BN(0), sigma_BN(1), sigma_BN(2), mb[3], mb[4], mb[5], r);
+  B_B = Vec3(r[0], r[1], r[2]);
+  return true;
+}
+
 std::shared_ptr<const GeomagField> plant_field(const OrbitParams& orbit, int nmax) {
   if (nmax == 0) return nullptr;
   return std::make_shared<const GeomagField>(igrf14_coefficients(decimal_year(orbit.jd_epoch), nmax));

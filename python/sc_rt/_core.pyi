@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_REVISION', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantRods', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'rods_dipole_B', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_stribeck_switch', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_MODE_SWITCH', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_REVISION', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'MagneticConfig', 'MagneticOutput', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantRods', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_field_B', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'rods_dipole_B', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_stribeck_switch', 'wheel_torque_command']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -540,6 +540,14 @@ class ControllerConfig:
     @law_params.setter
     def law_params(self, arg0: collections.abc.Sequence[tuple[str, collections.abc.Sequence[typing.SupportsFloat | typing.SupportsIndex]]]) -> None:
         ...
+    @property
+    def magnetic(self) -> ...:
+        """
+        the rods, momentum manager and B-dot (MagneticConfig; not in controller_config_t yet)
+        """
+    @magnetic.setter
+    def magnetic(self, arg0: ...) -> None:
+        ...
 class Measurement:
     def __init__(self, t: typing.SupportsFloat | typing.SupportsIndex, sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], omega_BN_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> None:
         ...
@@ -575,6 +583,11 @@ class Measurement:
         ...
 class Command:
     @property
+    def B_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [T]
+        """
+    @property
     def chi(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
     @property
@@ -582,6 +595,9 @@ class Command:
         """
         mode under its field-table name (FIELD_TABLE: ctrl_mode)
         """
+    @property
+    def detumble_mode(self) -> int:
+        ...
     @property
     def e1(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
@@ -592,8 +608,23 @@ class Command:
     def flags(self) -> int:
         ...
     @property
+    def h_wheels_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [N m s]
+        """
+    @property
     def lam(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
+    @property
+    def m_B_cmd(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [A m^2]
+        """
+    @property
+    def magnetic(self) -> ...:
+        """
+        the magnetic part's decision (MagneticOutput)
+        """
     @property
     def mode(self) -> int:
         ...
@@ -603,6 +634,11 @@ class Command:
     @property
     def rho_hat(self) -> float:
         ...
+    @property
+    def rod_dipole_cmd(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[6, 1]"]:
+        """
+        [A m^2] (6,)
+        """
     @property
     def sigma_BD(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
@@ -628,8 +664,16 @@ class Command:
         [rad/s^2] after saturation
         """
     @property
+    def unloading(self) -> int:
+        ...
+    @property
     def vs(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
         ...
+    @property
+    def wheel_fill(self) -> float:
+        """
+        [-]
+        """
     @property
     def x2d(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
         ...
@@ -721,8 +765,14 @@ class Controller:
         ...
     def safe_command(self, t: typing.SupportsFloat | typing.SupportsIndex, flags: typing.SupportsInt | typing.SupportsIndex) -> Command:
         ...
+    @typing.overload
     def step(self, m: Measurement) -> Command:
         ...
+    @typing.overload
+    def step(self, m: Measurement, B_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> Command:
+        """
+        One step with the field in B, B_B [T] (for the magnetic part only; NaN: none known).
+        """
     @property
     def command_converted(self) -> bool:
         """
@@ -2733,6 +2783,76 @@ class Bdot:
     @property
     def params(self) -> BdotParams:
         ...
+class MagneticConfig:
+    """
+    The rods as the controller knows them, the momentum manager and B-dot (magnetic_control.hpp).
+    """
+    bdot: BdotParams
+    bdot_enabled: bool
+    momentum: MomentumParams
+    momentum_enabled: bool
+    rods_enabled: bool
+    def __init__(self) -> None:
+        ...
+    def active(self) -> bool:
+        """
+        either part enabled
+        """
+    @property
+    def rods(self) -> MagnetorquerParams:
+        """
+        nominal rods (no faults)
+        """
+    @rods.setter
+    def rods(self, arg0: MagnetorquerParams) -> None:
+        ...
+class MagneticOutput:
+    """
+    What the controller's magnetic part decided at a step.
+    """
+    @property
+    def B_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [T]
+        """
+    @property
+    def detumble_mode(self) -> int:
+        """
+        0 detumble, 1 attitude; -1 no B-dot
+        """
+    @property
+    def h_wheels_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [N m s]
+        """
+    @property
+    def m_B_cmd(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [A m^2]
+        """
+    @property
+    def rod_dipole_cmd(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[6, 1]"]:
+        """
+        [A m^2] (6,), 0 beyond the rods
+        """
+    @property
+    def switched(self) -> bool:
+        ...
+    @property
+    def unloading(self) -> int:
+        """
+        1, 0; -1 no manager
+        """
+    @property
+    def wheel_cmd(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[4, 1]"]:
+        """
+        the manager's wheel command, wheels' unit
+        """
+    @property
+    def wheel_fill(self) -> float:
+        """
+        [-]
+        """
 class MagnetometerParams:
     """
     Three-axis magnetometer (SI units; sensors.hpp).
@@ -3001,6 +3121,10 @@ def plant_derivative(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIn
     State derivative (1),(2),(7) for the actual wheel accelerations [rad/s^2]
     (dipole_B: the magnetorquers' body dipole [A m^2]).
     """
+def plant_field_B(p: PlantParams, t: typing.SupportsFloat | typing.SupportsIndex, sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"] | None:
+    """
+    The plant's field in B [T] at t [s] for the attitude sigma_BN (None without a field).
+    """
 def plant_rk4_step(p: PlantParams, a: ActuatorParams, t: typing.SupportsFloat | typing.SupportsIndex, x: PlantState, h: typing.SupportsFloat | typing.SupportsIndex, u_cmd: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"], dipole_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> PlantState:
     """
     One RK4 step from t to t + h [s], u_cmd and the magnetorquers' body dipole dipole_B [A m^2]
@@ -3086,10 +3210,11 @@ def slew_axis(p: GuidanceParams) -> typing.Annotated[numpy.typing.NDArray[numpy.
     """
     Eigenaxis of the slew (zero for no rotation).
     """
-def step_packed(controller: Controller, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"]) -> numpy.typing.NDArray[numpy.float64]:
+def step_packed(controller: Controller, t: typing.SupportsFloat | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], B_B: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] | None = None) -> numpy.typing.NDArray[numpy.float64]:
     """
-    One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s];
-    returns the packed telemetry (53,): the field table's packed fields in table order
+    One step from the plant state x = [sigma_BN, omega_BN_B, wheel_speed] (10,) at t [s]
+    (B_B: the field in B [T] for the controller's magnetic part, None: step(m));
+    returns the packed telemetry (71,): the field table's packed fields in table order
     (PACKED_FIELDS: (name, width) in this order).
     """
 def sun_direction_N(jd_day: typing.SupportsFloat | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
@@ -3195,15 +3320,16 @@ def wheel_torque_command(u: typing.SupportsFloat | typing.SupportsIndex, Jw: typ
     """
     The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).
     """
-CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('wheel_speed', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1)]
+CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('wheel_speed', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1), ('rod_dipole_cmd', 6), ('m_B_cmd', 3), ('B_B', 3), ('h_wheels_B', 3), ('wheel_fill', 1), ('unloading', 1), ('detumble_mode', 1)]
 DEFAULT_LAW: str = 'dsc-ppc'
 DEFAULT_LCM_URL: str = 'udpm://239.255.76.67:7667?ttl=0'
-FIELD_TABLE: list = [{'name': 't', 'width': 1, 'dtype': 'f8', 'unit': 's', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'control instant t_k = k / rate'}, {'name': 'sigma_BN', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'MRP attitude of the body B relative to N at t_k'}, {'name': 'omega_BN_B', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'body rate relative to N, body frame'}, {'name': 'wheel_speed', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'wheel speeds relative to the body'}, {'name': 'sigma_DN', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'desired attitude (guidance) at t_k'}, {'name': 'sigma_BD', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'attitude tracking error, MRP of B relative to D (8)'}, {'name': 'omega_BD_B', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'rate tracking error, body frame (8)'}, {'name': 'u_cmd', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': 'command', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': True, 'doc': 'wheel command before saturation (what the law asked for)'}, {'name': 'u_sat', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': 'command', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': True, 'doc': "the command after the controller's saturation (15)"}, {'name': 'wheel_accel', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'truth', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'actual wheel acceleration, faults applied (15)'}, {'name': 'z1', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'NESO estimate of the rate error state'}, {'name': 'z2', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'NESO estimate of the lumped disturbance'}, {'name': 'delta2', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'truth', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'true lumped disturbance (20),(21)'}, {'name': 'chi', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'prescribed envelope chi(t) the controller used (29)'}, {'name': 'lam', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'normalised error lambda = sigma_BD / chi (30)'}, {'name': 'e1', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': 'transformed error of the PPC (34)'}, {'name': 'e2', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': 'second DSC surface error (27)'}, {'name': 'vs', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': 'law', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': 'anti-windup auxiliary state (42)'}, {'name': 'x2d', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': "the law's filtered virtual control, DSC's filter output (LawOutput.x2d; 0 unused)"}, {'name': 'rho_hat', 'width': 1, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': "the law's adaptive gain (LawOutput.rho_hat: RFT's; 0 unused)"}, {'name': 'telemetry', 'width': 8, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': "the law's named telemetry (LawOutput.telemetry): column i is the run's telemetry_names[i], unit as its name gives it ('name [unit]'); 0 unused"}, {'name': 'flags', 'width': 1, 'dtype': 'i8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'controller flags bit set (safety, bound, invalid input)'}, {'name': 'ctrl_mode', 'width': 1, 'dtype': 'i8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'controller mode: 0 INIT, 1 NORMAL, 2 SAFE; -1 unknown'}, {'name': 'sigma_BN_est', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'MEKF attitude estimate at t_k (what the law gets with measurement = estimate)'}, {'name': 'bias_est', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'MEKF gyro bias estimate'}, {'name': 'bias_true', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'truth', 'group': 'nav', 'packed': False, 'bus': False, 'core': False, 'doc': "the gyro's true bias (bias0 + Gauss-Markov + random walk)"}, {'name': 'P_diag', 'width': 6, 'dtype': 'f8', 'unit': 'rad^2, (rad/s)^2', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'MEKF covariance diagonal: attitude error (3, body) then bias error (3)'}, {'name': 'att_est_error', 'width': 3, 'dtype': 'f8', 'unit': 'rad', 'unit_rule': '', 'source': 'truth', 'group': 'nav', 'packed': False, 'bus': False, 'core': False, 'doc': 'estimation error: rotation vector of the true attitude relative to the estimate, body frame'}, {'name': 'innovation', 'width': 3, 'dtype': 'f8', 'unit': 'rad', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'star tracker residual of the last update since the previous row (NaN: none)'}, {'name': 'nis', 'width': 1, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': "normalised innovation squared z' S^-1 z of that update (NaN: none)"}, {'name': 'gyro_cal_est', 'width': 9, 'dtype': 'f8', 'unit': '-, rad', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': "calibrating filter's gyro scale factors s1 s2 s3 [-], then misalignments ku1 ku2 ku3, kl1 kl2 kl3 [rad] of S = [[s1 ku1 ku2], [kl1 s2 ku3], [kl2 kl3 s3]] (NaN: the 6-state filter)"}, {'name': 'gyro_cal_3sigma', 'width': 9, 'dtype': 'f8', 'unit': '-, rad', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': "3 sigma of each gyro_cal_est value, 3 sqrt of the filter's covariance diagonal (NaN: the 6-state filter)"}]
+FIELD_TABLE: list = [{'name': 't', 'width': 1, 'dtype': 'f8', 'unit': 's', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'control instant t_k = k / rate'}, {'name': 'sigma_BN', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'MRP attitude of the body B relative to N at t_k'}, {'name': 'omega_BN_B', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'body rate relative to N, body frame'}, {'name': 'wheel_speed', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'plant', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'wheel speeds relative to the body'}, {'name': 'sigma_DN', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'desired attitude (guidance) at t_k'}, {'name': 'sigma_BD', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'attitude tracking error, MRP of B relative to D (8)'}, {'name': 'omega_BD_B', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'rate tracking error, body frame (8)'}, {'name': 'u_cmd', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': 'command', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': True, 'doc': 'wheel command before saturation (what the law asked for)'}, {'name': 'u_sat', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': 'command', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': True, 'doc': "the command after the controller's saturation (15)"}, {'name': 'wheel_accel', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'truth', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'actual wheel acceleration, faults applied (15)'}, {'name': 'z1', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'NESO estimate of the rate error state'}, {'name': 'z2', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'NESO estimate of the lumped disturbance'}, {'name': 'delta2', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'truth', 'group': 'loop', 'packed': False, 'bus': False, 'core': True, 'doc': 'true lumped disturbance (20),(21)'}, {'name': 'chi', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'prescribed envelope chi(t) the controller used (29)'}, {'name': 'lam', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': True, 'doc': 'normalised error lambda = sigma_BD / chi (30)'}, {'name': 'e1', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': 'transformed error of the PPC (34)'}, {'name': 'e2', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': 'second DSC surface error (27)'}, {'name': 'vs', 'width': 4, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': 'law', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': 'anti-windup auxiliary state (42)'}, {'name': 'x2d', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': "the law's filtered virtual control, DSC's filter output (LawOutput.x2d; 0 unused)"}, {'name': 'rho_hat', 'width': 1, 'dtype': 'f8', 'unit': 'rad/s^2', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': "the law's adaptive gain (LawOutput.rho_hat: RFT's; 0 unused)"}, {'name': 'telemetry', 'width': 8, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': True, 'core': False, 'doc': "the law's named telemetry (LawOutput.telemetry): column i is the run's telemetry_names[i], unit as its name gives it ('name [unit]'); 0 unused"}, {'name': 'flags', 'width': 1, 'dtype': 'i8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'controller flags bit set (safety, bound, invalid input)'}, {'name': 'ctrl_mode', 'width': 1, 'dtype': 'i8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'controller mode: 0 INIT, 1 NORMAL, 2 SAFE; -1 unknown'}, {'name': 'rod_dipole_cmd', 'width': 6, 'dtype': 'f8', 'unit': 'A m^2', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'magnetorquer rod dipole commands, rod i in column i (0 beyond the rods given; NaN: no magnetic control)'}, {'name': 'm_B_cmd', 'width': 3, 'dtype': 'f8', 'unit': 'A m^2', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'body dipole commanded, G_B rod_dipole_cmd (NaN: no magnetic control)'}, {'name': 'B_B', 'width': 3, 'dtype': 'f8', 'unit': 'T', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'geomagnetic field in B the controller used (the true field without a magnetometer; NaN: none)'}, {'name': 'h_wheels_B', 'width': 3, 'dtype': 'f8', 'unit': 'N m s', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': "wheels' momentum Cbar Jw Omega from the measured speeds (NaN: no momentum manager)"}, {'name': 'wheel_fill', 'width': 1, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': "momentum manager's |h_err_B| / capacity (NaN: no momentum manager)"}, {'name': 'unloading', 'width': 1, 'dtype': 'i8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': "momentum manager's unloading state: 1 on, 0 off; -1 no momentum manager"}, {'name': 'detumble_mode', 'width': 1, 'dtype': 'i8', 'unit': '-', 'unit_rule': '', 'source': 'controller', 'group': 'loop', 'packed': True, 'bus': False, 'core': False, 'doc': 'B-dot mode: 0 detumble, 1 attitude; -1 no B-dot (a switch: flags bit 13, FLAG_MODE_SWITCH)'}, {'name': 'sigma_BN_est', 'width': 3, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'MEKF attitude estimate at t_k (what the law gets with measurement = estimate)'}, {'name': 'bias_est', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'MEKF gyro bias estimate'}, {'name': 'bias_true', 'width': 3, 'dtype': 'f8', 'unit': 'rad/s', 'unit_rule': '', 'source': 'truth', 'group': 'nav', 'packed': False, 'bus': False, 'core': False, 'doc': "the gyro's true bias (bias0 + Gauss-Markov + random walk)"}, {'name': 'P_diag', 'width': 6, 'dtype': 'f8', 'unit': 'rad^2, (rad/s)^2', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'MEKF covariance diagonal: attitude error (3, body) then bias error (3)'}, {'name': 'att_est_error', 'width': 3, 'dtype': 'f8', 'unit': 'rad', 'unit_rule': '', 'source': 'truth', 'group': 'nav', 'packed': False, 'bus': False, 'core': False, 'doc': 'estimation error: rotation vector of the true attitude relative to the estimate, body frame'}, {'name': 'innovation', 'width': 3, 'dtype': 'f8', 'unit': 'rad', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': 'star tracker residual of the last update since the previous row (NaN: none)'}, {'name': 'nis', 'width': 1, 'dtype': 'f8', 'unit': '-', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': "normalised innovation squared z' S^-1 z of that update (NaN: none)"}, {'name': 'gyro_cal_est', 'width': 9, 'dtype': 'f8', 'unit': '-, rad', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': "calibrating filter's gyro scale factors s1 s2 s3 [-], then misalignments ku1 ku2 ku3, kl1 kl2 kl3 [rad] of S = [[s1 ku1 ku2], [kl1 s2 ku3], [kl2 kl3 s3]] (NaN: the 6-state filter)"}, {'name': 'gyro_cal_3sigma', 'width': 9, 'dtype': 'f8', 'unit': '-, rad', 'unit_rule': '', 'source': 'estimator', 'group': 'nav', 'packed': False, 'bus': True, 'core': False, 'doc': "3 sigma of each gyro_cal_est value, 3 sqrt of the filter's covariance diagonal (NaN: the 6-state filter)"}]
 FLAG_BOUND_X: int = 1
 FLAG_BOUND_Y: int = 2
 FLAG_BOUND_Z: int = 4
 FLAG_INVALID_STATE: int = 128
 FLAG_LAW_INVALID: int = 1024
+FLAG_MODE_SWITCH: int = 8192
 FLAG_NAV_DEGRADED: int = 2048
 FLAG_SAT_1: int = 8
 FLAG_STALE_STATE: int = 256
@@ -3226,7 +3352,7 @@ MODE_NORMAL: int = 1
 MODE_SAFE: int = 2
 NAV_FIELDS: list = [('sigma_BN_est', 3), ('bias_est', 3), ('bias_true', 3), ('P_diag', 6), ('att_est_error', 3), ('innovation', 3), ('nis', 1), ('gyro_cal_est', 9), ('gyro_cal_3sigma', 9), ('nav_flags', 1)]
 NAV_SIZE: int = 41
-PACKED_FIELDS: list = [('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('u_cmd', 4), ('u_sat', 4), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1)]
-PACKED_SIZE: int = 53
+PACKED_FIELDS: list = [('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('u_cmd', 4), ('u_sat', 4), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1), ('rod_dipole_cmd', 6), ('m_B_cmd', 3), ('B_B', 3), ('h_wheels_B', 3), ('wheel_fill', 1), ('unloading', 1), ('detumble_mode', 1)]
+PACKED_SIZE: int = 71
 PYTHON_LAW_OUT_SIZE: int = 32
 __version__: str = '0.1.0'

@@ -15,6 +15,7 @@
 namespace sc_rt {
 
 static_assert(field_width(FieldId::telemetry) == kLawMaxTelemetry, "fields.hpp: telemetry's width");
+static_assert(field_width(FieldId::rod_dipole_cmd) == kMaxRods, "fields.hpp: rod_dipole_cmd's width");
 
 // The producers of the table's rows from the core's structs (fields.hpp):
 // f(FieldId, value) for every packed field of a Command and every kNav field
@@ -40,6 +41,13 @@ void for_each_command_field(const Command& c, F&& f) {
   f(FieldId::telemetry, Eigen::Map<const Eigen::Matrix<double, kLawMaxTelemetry, 1>>(c.telemetry.data()));
   f(FieldId::flags, static_cast<double>(c.flags));
   f(FieldId::ctrl_mode, static_cast<double>(c.mode));
+  f(FieldId::rod_dipole_cmd, c.magnetic.rod_dipole_cmd);
+  f(FieldId::m_B_cmd, c.magnetic.m_B_cmd);
+  f(FieldId::B_B, c.magnetic.B_B);
+  f(FieldId::h_wheels_B, c.magnetic.h_wheels_B);
+  f(FieldId::wheel_fill, c.magnetic.wheel_fill);
+  f(FieldId::unloading, static_cast<double>(c.magnetic.unloading));
+  f(FieldId::detumble_mode, static_cast<double>(c.magnetic.detumble_mode));
 }
 template <class F>
 void for_each_nav_field(const NavTelemetry& t, F&& f) {
@@ -125,6 +133,8 @@ class ClosedLoop {
   std::int64_t next_ = 0;  // the next plant step at which a sensor is due
   int k_ = 0;
   bool done_ = false, diverged_ = false;
+  bool mag_ = false;   // magnetic control: the controller gets the true field in B
+  bool rods_ = false;  // and its rod commands reach the plant's rods
 };
 
 // n_ctrl control periods of 1/rate s (n_ctrl + 1 rows, t_k = k / rate), each

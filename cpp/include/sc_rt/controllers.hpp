@@ -13,6 +13,7 @@
 #include "sc_rt/guidance.hpp"
 #include "sc_rt/law.hpp"
 #include "sc_rt/law_registry.hpp"
+#include "sc_rt/magnetic_control.hpp"
 #include "sc_rt/neso.hpp"
 #include "sc_rt/ppc.hpp"
 #include "sc_rt/spacecraft.hpp"
@@ -31,6 +32,9 @@ enum Flags : int {
   //! stamp went back, or ahead by more than kMaxDtPeriods periods, of the
   //! engaged controller's previous step: SAFE, re-engaged at the next valid state
   FLAG_TIME_JUMP = 4096,
+  //! bit 13: the detumble mode (B-dot, magnetic_control.hpp) switched at this
+  //! step (Detumble <-> Attitude; the record's detumble_mode says to which)
+  FLAG_MODE_SWITCH = 8192,
 };
 
 //! The time contract (docs/CORE.md, "The time contract"; law.hpp's LawInput):
@@ -71,6 +75,9 @@ struct ControllerConfig {
   GuidanceParams guidance;
   PpcParams ppc;
   SafetyLimits safety;
+  //! the rods as the controller knows them, the momentum manager and B-dot
+  //! (magnetic_control.hpp); nothing enabled: the controller without them
+  MagneticConfig magnetic;
 };
 
 // Every problem of the configuration, each naming the key and the value.
@@ -98,6 +105,8 @@ struct Command {
   double rho_hat = 0.0;            //!< [rad/s^2] RFT adaptive gain
   //! the law's named telemetry (Controller::telemetry_names())
   std::array<double, kLawMaxTelemetry> telemetry{};
+  //! the magnetic part's decision (NaN / -1 without magnetic control)
+  MagneticOutput magnetic;
 };
 
 // Tracking errors (8)-(11) and the model terms of (21) for one measurement.
@@ -148,6 +157,12 @@ class Controller {
   // (FLAG_LAW_INVALID). Bounded work whatever the stamps: at most three law
   // calls and Guidance's bound of RK4 steps (docs/CORE.md).
   Command step(const Measurement& m);
+  // The same with the field in B, B_B [T], measured at m.t (the true field
+  // on runs without a magnetometer; NaN: none known). It reaches only the
+  // magnetic part (ControllerConfig::magnetic): the law's Measurement is the
+  // plugin interface (law.hpp) and stays as it is. Without magnetic control
+  // this is step(m) exactly.
+  Command step(const Measurement& m, const Vec3& B_B);
   // Zero command in SAFE mode (for a shell whose input went stale); the next
   // valid step re-engages the law from its measurement.
   Command safe_command(double t, int flags);
@@ -206,7 +221,13 @@ class Controller {
   Vec4 to_wheels(const Vec4& u) const;
   Vec4 to_law(const Vec4& u) const;
 
+  //! the magnetic part (null: none configured, step(m, B_B) is step(m))
+  std::unique_ptr<MagneticControl> mag_;
+
   LawInput input_at(const Measurement& m, double dt);
+  // The law's step (step(m) without magnetic control); extra: the wheel
+  // command [wheels' unit] added to the law's before saturation (null: none).
+  Command step_law(const Measurement& m, const Vec4* extra);
   // Guidance to m.t, errors, the PPC transform, and their telemetry in out.
   void observe(const Measurement& m, Command& out, LawInput& in);
 };

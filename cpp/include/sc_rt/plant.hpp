@@ -89,6 +89,13 @@ struct PlantParams {
 // orbit's epoch, for PlantParams::field (sc_rt.model.field.field_for's).
 std::shared_ptr<const GeomagField> plant_field(const OrbitParams& orbit, int nmax);
 
+// The plant's field in B, B_B = C_BN(sigma_BN) B_N(t) [T], B_N at the orbit's
+// position at t [s] (the magnetic torque's evaluation, plant_kernels.hpp
+// MagField, then rotate_to_B): what the offline engines give the controller
+// on a run without a magnetometer (sc_rt.model.plant.field_B, the same
+// operations). false, B_B untouched, without a field.
+bool plant_field_B(const PlantParams& p, double t, const Vec3& sigma_BN, Vec3& B_B);
+
 // One fault of one wheel, (16).
 struct WheelFault {
   bool active = false;                                    //!< false: healthy wheel

@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from sc_rt.cli.common import checked_out, scenario_arg
+from sc_rt.cli.common import checked_out, refuse_off_bus, scenario_arg
 from sc_rt.cli.controller import external_choice
 from sc_rt.cli.validate import UsageError, resolve_url
 from sc_rt.plan.law import ExternalLaw, PythonLaw
@@ -51,8 +51,10 @@ def hil_plan(args: argparse.Namespace) -> RunPlan:
                     floor=None if args.floor == "off" or args.mode != "realtime" else args.floor,
                     rt_limits=args.rt_limits or RealtimeLimits(), start_timeout=args.start_timeout,
                     controller_memory_limit_mb=args.controller_memory_limit)
+    scn = _scenario(args)
+    refuse_off_bus(scn, "sc-rt hil")
     try:
-        plan = plan_run(_scenario(args), law=args.law, engine="bench", control_rate_hz=args.control_rate,
+        plan = plan_run(scn, law=args.law, engine="bench", control_rate_hz=args.control_rate,
                         duration=args.duration, external=args.external, external_wait=args.external_wait,
                         timing=timing, outputs=Outputs(out=out, plots=not args.no_plots, mcap=mcap),
                         bus=Bus(lcm_url=url, prefix=args.prefix, accept_fault_commands=args.accept_fault_commands,

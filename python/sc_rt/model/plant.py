@@ -39,7 +39,7 @@ from sc_rt.model.field import FIELD_MODELS
 from sc_rt.model.kernels import inv3, make_disturbance, make_orbit_gg, make_rhs, make_wheel_map, mrp_to_dcm
 from sc_rt.model.magnetic import held_dipole, make_field_N
 from sc_rt.model.rods import Magnetorquers, rods_dipole_B, rods_to_cpp
-from sc_rt.model.orbit import OrbitParams, orbit_params_to_cpp
+from sc_rt.model.orbit import OrbitParams, orbit_params_to_cpp, rotate_to_B
 
 __all__ = [
     "DisturbanceParams",
@@ -50,6 +50,7 @@ __all__ = [
     "rk4_step",
     "lumped_disturbance",
     "total_angular_momentum_N",
+    "field_B",
     "plant_params_to_cpp",
 ]
 
@@ -441,6 +442,17 @@ def lumped_disturbance(p: PlantParams, t: float, x, u_sat, accel) -> np.ndarray:
         s1, s2, s3, w1, w2, w3, *hw, *fp.wheel(*floats(u_sat, 4, "u_sat")), 0.0, 0.0, 0.0
     )
     return np.array((a1 - m1, a2 - m2, a3 - m3))
+
+
+def field_B(p: PlantParams, t: float, sigma_BN) -> tuple[float, float, float] | None:
+    """The plant's field in B, ``C_BN(sigma) B_N(t)`` [T], at ``t`` [s] for the attitude
+    ``sigma_BN`` (None without a field): what the engines give the controller on a run
+    without a magnetometer. The twin of ``plant_field_B`` in cpp/src/plant.cpp."""
+    fN = p._fast.field
+    if fN is None:
+        return None
+    n1, n2, n3 = fN(float(t))
+    return rotate_to_B(float(sigma_BN[0]), float(sigma_BN[1]), float(sigma_BN[2]), n1, n2, n3)
 
 
 def total_angular_momentum_N(x, p: PlantParams) -> np.ndarray:

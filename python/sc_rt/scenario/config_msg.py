@@ -119,4 +119,7 @@ def core_config(
     so that a controller built from the config in this process runs it."""
     msg = controller_config_msg(scn, law, control_rate_hz, nav=False)  # the core reads no nav_* field
     msg.law = registry_spec(msg.law)  # a Python law: into the core's registry (sc_rt.pylaw)
-    return _core.ControllerConfig.from_lcm_bytes(msg.encode())
+    cfg = _core.ControllerConfig.from_lcm_bytes(msg.encode())
+    if scn.magnetic_control is not None:  # not on the wire yet (sc-rt hil refuses it)
+        cfg.magnetic = scn.magnetic_control.to_core(scn.plant.magnetorquers)
+    return cfg

@@ -70,6 +70,7 @@ def scenario_data(scn: Any) -> dict[str, Any]:
         **_wheels(a.wheels),
         **_orbit(p),
         **_magnetorquers(p.magnetorquers),
+        **(scn.magnetic_control.data() if getattr(scn, "magnetic_control", None) is not None else {}),
     }
 
 

@@ -247,6 +247,9 @@ class Scenario:
         ``[environment] field``: "igrf", "dipole" or "none" (the default),
         the geomagnetic field along the orbit (``plant.orbit``);
         ``sc_rt.model.field.field_for(model, jd)`` builds it.
+    magnetic_control : MagneticControl or None
+        The ``[momentum]`` and ``[bdot]`` tables (sc_rt.scenario.momentum): the
+        controller's momentum manager and B-dot; None without either.
     law_key, law_keys : str, tuple
         Where the file names its law and each law parameter (dotted keys),
         for the errors of the law's probe (sc_rt.plan.law).
@@ -282,6 +285,8 @@ class Scenario:
     # "none" (sc_rt.model.field.field_for); the plant's too (plant.field_model), where the
     # residual dipole and the magnetorquers' dipole act
     field_model: str = "none"
+    # [momentum] and [bdot]: the controller's magnetic part (sc_rt.scenario.momentum.MagneticControl), None: none
+    magnetic_control: Any = None
     # the dotted key the file names its law by ("controller.law" or "run.controller"), and the
     # dotted key of each law parameter ((law, key), dotted key) pairs: where a law's probe
     # reports a problem (sc_rt.plan.law)

@@ -5,6 +5,7 @@ shipped scenarios by name (sc_rt.scenario.shipped)."""
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 import tomllib
 from pathlib import Path
@@ -15,6 +16,7 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.scenario.wheels import read_wheels
 from sc_rt.scenario.magnetorquers import read_magnetorquers
+from sc_rt.scenario.momentum import read_magnetic_control
 from sc_rt.scenario.orbit import read_environment, read_orbit
 from sc_rt.scenario.dispersions import read_montecarlo
 from sc_rt.scenario.files import MAX_NESTING, FileProblem, deep_key, nesting_problem, read_bounded
@@ -145,6 +147,8 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     orbit = read_orbit(root)  # [orbit]: the plant's gravity gradient of the orbit
     environment = read_environment(root, orbit is not None)  # [environment] field, residual_dipole
     rods = read_magnetorquers(root, environment[0] if environment else None)  # [magnetorquers]
+    magnetic = read_magnetic_control(root, orbit or None, rods or None, sensors is not None,  # [momentum], [bdot]
+                                     plant.J0 if plant is not None else None, _speed_limits(actuators, wheels))
     requirements = read_requirements(root, run.duration if run else None,
                                      guidance_phases(guidance) if guidance is not None else {})
     record = read_fields(root.sub("record", required=False), RecordParams)
@@ -182,12 +186,20 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
         record=record,
         deprecations=tuple(deprecations),
         field_model=field_model,
+        magnetic_control=magnetic or None,
         law_key="controller.law" if "law" in ctl_data else "run.controller",
         law_keys=tuple(where.items()),
     )
     # a law of the other unit than the wheels take is converted by the controller (docs/LAWS.md,
     # "What a law commands"), not refused
     return dataclasses.replace(scenario, montecarlo=read_montecarlo(montecarlo, scenario))
+
+
+def _speed_limits(actuators, wheels) -> np.ndarray:
+    """The wheels' speed limits [rad/s] as the controller knows them (inf: none)."""
+    if wheels:
+        return np.array([w.omega_max if w.omega_max > 0 else math.inf for w in wheels.limits])
+    return np.asarray(actuators.max_wheel_speed, float) if actuators is not None else np.full(4, math.inf)
 
 
 def scenario_from_data(data: dict[str, Any], path: str | Path, where: str = "") -> Scenario:

@@ -6,7 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["loop_columns", "LAW_FAILURES", "TELEMETRY_NAMES"]
+__all__ = ["loop_columns", "LAW_FAILURES", "TELEMETRY_NAMES", "INT_FIELDS"]
+
+#: The packed integer fields of the magnetic part besides flags and ctrl_mode (fields.hpp)
+INT_FIELDS = ("unloading", "detumble_mode")
 
 
 def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[str, str]) -> dict[str, np.ndarray]:
@@ -17,6 +20,9 @@ def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[st
     for name, p in recorded.items():
         col = OUT[:, packed[p]]
         cols[name] = col[:, 0] if col.shape[1] == 1 else col  # a scalar field: one column
+    for name in INT_FIELDS:  # the controller's integer fields: -1 where no step ran or none is kept
+        if name in cols:
+            cols[name] = np.nan_to_num(cols[name], nan=-1).astype(np.int64)
     cols["flags"] = np.nan_to_num(OUT[:, packed["flags"]][:, 0]).astype(np.int64)
     cols["ctrl_mode"] = np.nan_to_num(OUT[:, packed["ctrl_mode"]][:, 0], nan=-1).astype(np.int64)
     return cols

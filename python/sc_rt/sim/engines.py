@@ -30,6 +30,7 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.isolate import beat, beat_done, beating
 from sc_rt.model import actuators, plant, truth
+from sc_rt.model.rods import rods_dipole_B
 from sc_rt.pylaw import register
 from sc_rt.results.judge.metrics import finish_run, record_law_failures
 from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, loop_columns
@@ -59,6 +60,10 @@ for _k, _p in RECORDED.items():  # the run declares each with the packed width (
     assert FIELD[_k].shape in ((PACKED[_p].stop - PACKED[_p].start,), ()), _k
 
 
+#: the field the controller gets on a run without one: none known
+_NAN3 = (math.nan, math.nan, math.nan)
+
+
 def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     n_ctrl, n_sub, h, rate = grid(scn)
     pp, act = scn.plant, scn.actuators
@@ -79,9 +84,18 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     plant_row, rk4 = truth.row, truth.rk4_step
     motor = truth.new_motor(act)  # the wheels' motor torques (a lag's state), None for the paper's
     isfinite = math.isfinite
+    # magnetic control (docs/MODEL.md section 17): the true field in B at t_k for the controller,
+    # its rod commands held over the period through the plant's rods and their faults
+    mag = scn.magnetic_control is not None
+    rods = pp.magnetorquers if mag else None
+    rod_slice = PACKED["rod_dipole_cmd"]
     for k in range(n):
         t = k / rate
-        out = step(t, x)
+        if mag:
+            B_B = plant.field_B(pp, t, x)
+            out = step(t, x, _NAN3 if B_B is None else B_B)
+        else:
+            out = step(t, x)
         u_cmd = out[u_slice]
         _, accel, delta2 = plant_row(pp, act, t, x, u_cmd, motor)
         T[k] = t
@@ -93,8 +107,13 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
         beat(t)  # a step done: for a parent watching a contained run (sc_rt.isolate)
         if k == n_ctrl or STOP.is_set():
             break
-        for j in range(n_sub):
-            x = rk4(pp, act, t + j * h, x, h, u_cmd, motor)
+        if rods is not None:
+            d_cmd = out[rod_slice][:rods.n_rods].tolist()
+            for j in range(n_sub):
+                x = rk4(pp, act, t + j * h, x, h, u_cmd, motor, rods_dipole_B(rods, t + j * h, d_cmd))
+        else:
+            for j in range(n_sub):
+                x = rk4(pp, act, t + j * h, x, h, u_cmd, motor)
         if not all(map(isfinite, x)):
             diverged = True
             break

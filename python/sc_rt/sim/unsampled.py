@@ -50,6 +50,9 @@ class _Law:
         if scn.actuators.wheels is not None:
             raise ValueError("the unsampled engine has the paper's wheels only, not the scenario's [wheels]; "
                              "use --engine python or cpp")
+        if scn.magnetic_control is not None:
+            raise ValueError("the unsampled engine has no magnetic control ([momentum], [bdot]); "
+                             "use --engine python or cpp")
         self.cfg = cfg
         self.model = _core.SpacecraftModel(cfg.spacecraft)
         self.B = np.asarray(self.model.B)

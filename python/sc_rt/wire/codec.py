@@ -63,6 +63,9 @@ STATUS_NOT_CARRIED: dict[str, str] = {
     "u_cmd": "wheel_cmd_t (the command itself)", "u_sat": "wheel_cmd_t", "flags": "wheel_cmd_t",
     "ctrl_mode": "wheel_cmd_t", "latency_us": "the emulator's receipt time of the command",
     "tick_lateness_us": "the emulator's own loop", "state_log_us": "lcm-logger's receive time of the state",
+    # the controller's magnetic part: offline only until the bus carries it (sc-rt hil refuses it, docs/HIL.md)
+    **{name: "not yet on the bus (offline engines only)" for name in (
+        "rod_dipole_cmd", "m_B_cmd", "B_B", "h_wheels_B", "wheel_fill", "unloading", "detumble_mode")},
 }
 
 

@@ -84,10 +84,11 @@ def _f(name, shape, unit, source, doc, core=False, dtype="f8", fill=math.nan) ->
 
 def _fill(dtype: str, name: str) -> Any:
     """A core field's fill value: NaN for floats; -1 for ``ctrl_mode`` (no
-    step ran), 0 for the other integers."""
+    step ran) and the magnetic part's modes ``unloading``, ``detumble_mode``
+    (none kept), 0 for the other integers."""
     if dtype != "i8":
         return math.nan
-    return -1 if name == "ctrl_mode" else 0
+    return -1 if name in ("ctrl_mode", "unloading", "detumble_mode") else 0
 
 
 def core_fields(table=None) -> tuple[Field, ...]:
