@@ -84,3 +84,22 @@ def test_the_detumble_time_is_within_a_factor_of_the_gain_rule(detumble):
     t_pred = 3 * J_max * math.log(omega0 / 0.0087) / (2 * k)
     t_done = run.t[np.flatnonzero(run["detumble_mode"] == 1)[0]]
     assert t_pred / 2 < t_done < 2 * t_pred, (t_done, t_pred)
+
+
+def test_the_controller_starts_in_detumble_and_leaves_it_only_below_rate_off():
+    """With B-dot the entry mode is Detumble (docs/MODEL.md section 17), as
+    flight software's after a separation: a body at 1 deg/s, between rate_off
+    (0.5 deg/s) and rate_on (8 deg/s), is detumbled from the first row, not
+    handed to the attitude law (on the old code it started in Attitude: the
+    rate was under rate_on). A body already below rate_off is the law's from
+    the first row, that row naming the switch."""
+    bdot = '[bdot]\ngain = "auto"\nderivative = "analytic"\nrate_on = 0.14\nrate_off = 0.0087\n'
+    slow = (0.01, -0.012, 0.008)  # |omega| 0.0176 rad/s (1.0 deg/s)
+    run = simulate(mag_scenario(bdot, duration=60.0, omega=slow, paper_wheels=True), engine="cpp")
+    mode = run["detumble_mode"]
+    assert np.linalg.norm(slow) > 0.0087 and mode[0] == 0 and np.all(mode == 0)
+    assert np.all(run["u_cmd"] == 0.0) and np.any(run["rod_dipole_cmd"][1:] != 0.0)
+    still = (0.002, -0.002, 0.001)  # 0.17 deg/s
+    run = simulate(mag_scenario(bdot, duration=5.0, omega=still, paper_wheels=True), engine="cpp")
+    assert np.all(run["detumble_mode"] == 1) and run["flags"][0] & _core.FLAG_MODE_SWITCH
+    assert not np.any(run["flags"][1:] & _core.FLAG_MODE_SWITCH)

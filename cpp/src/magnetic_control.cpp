@@ -25,7 +25,10 @@ std::vector<std::string> validate(const MagneticConfig& c, const SpacecraftParam
 MagneticControl::MagneticControl(const MagneticConfig& c, const SpacecraftParams& wheels) : cfg_(c) {
   throw_if_errors("MagneticConfig", validate(c, wheels));
   if (c.momentum_enabled) mgr_.emplace(c.momentum, wheels, c.rods);
-  if (c.bdot_enabled) bdot_.emplace(c.bdot, c.rods);
+  if (c.bdot_enabled) {
+    bdot_.emplace(c.bdot, c.rods);
+    mode_ = DetumbleMode::Detumble;  // the entry mode (magnetic_control.hpp)
+  }
 }
 
 DetumbleMode MagneticControl::mode_at(double rate, MagneticOutput& out) {

@@ -12,6 +12,12 @@
 //                   law not stepped (re-engaged at the switch to Attitude).
 //   The mode:       detumble_mode(previous, |omega_BN_B| measured, rate_on,
 //                   rate_off) when B-dot is enabled, else always Attitude.
+//                   With B-dot the controller starts in Detumble, as flight
+//                   software enters its detumble mode after separation (or,
+//                   here, a capture): it leaves below rate_off (at its first
+//                   step when the body is already that slow) and re-enters
+//                   only above rate_on, a safety threshold above any rate the
+//                   attitude law commands.
 //
 // The field B_B [T] is the measured field in B (the true one on runs
 // without a magnetometer); a non-finite B_B (no field known) gives zero rod
@@ -95,7 +101,7 @@ class MagneticControl {
   std::optional<Bdot> bdot_;
   bool unloading_ = false;                       // the manager's hysteresis state
   BdotState bdot_state_{};                       // B-dot's derivative state
-  DetumbleMode mode_ = DetumbleMode::Attitude;   // the current mode
+  DetumbleMode mode_ = DetumbleMode::Attitude;   // the current mode (Detumble at the start with B-dot)
 };
 
 }  // namespace sc_rt
