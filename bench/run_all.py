@@ -28,7 +28,7 @@ from common import RESULTS_ENV, results_dir  # noqa: E402
 #: the benchmarks ``make bench`` runs, in order
 BENCHES = ["bench_core.py", "bench_sim.py", "bench_montecarlo.py", "bench_hil.py", "bench_timing.py",
            "bench_external.py", "bench_report.py", "bench_mcap.py", "bench_sensors.py", "bench_live.py",
-           "bench_env.py"]
+           "bench_env.py", "bench_day.py"]
 #: benchmarks run on their own, not by ``make bench`` (each has --smoke, and tests/test_bench_smoke.py runs it)
 OTHER_BENCHES = {
     "bench_format.py": "the run record's format (Arrow IPC, Parquet, npz) on a 10 min 1 kHz run: a one-off choice",

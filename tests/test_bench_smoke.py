@@ -249,6 +249,17 @@ def bench_env(res: dict, out: str) -> None:
     assert res["target_igrf_us"] == SMOKE
 
 
+def bench_day(res: dict, out: str) -> None:
+    """bench_day.py: 10 min of day_hold on the C++ engine, its bare loop and the field's cost."""
+    assert res["scenario"] == "day_hold" and res["duration_s"] == 600.0 and res["control_steps"] == 6000
+    check_summary(res["engine_wall_s"])
+    check_summary(res["bare_loop_s"])
+    check_pos(res, "engine_us_per_step", "bare_us_per_step", "igrf_eval_us", "igrf_share_of_bare_step",
+              "day_engine_s")
+    assert res["igrf_evals_per_step"] == 5  # 4 RK4 stages of the one plant step, and the controller's
+    assert res["target_day_le_10s"] == SMOKE
+
+
 def bench_netem(res: dict, out: str) -> None:
     if "skipped" in res:
         pytest.skip(f"bench_netem --smoke: {res['skipped']}")
@@ -318,6 +329,7 @@ SPECS = {
     "bench_live.py": dict(check=bench_live, marks=LCM, timeout=180),
     "bench_env.py": dict(check=bench_env, marks=(pytest.mark.slow,)),  # ~1.2 s: the module import and its runs
     "bench_format.py": dict(check=bench_format, marks=(pytest.mark.slow,)),  # ~3 s: two runs, four formats
+    "bench_day.py": dict(check=bench_day, marks=(pytest.mark.slow,)),  # ~2 s: the module import and two runs
     # root: network namespaces and nftables / tc netem (skips, saying why, elsewhere)
     "bench_netem.py": dict(check=bench_netem, marks=LCM, timeout=240, out=["--out", "{dir}/netem.json"]),
     "soak.py": dict(check=soak, marks=LCM, timeout=120,
