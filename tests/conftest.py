@@ -70,6 +70,8 @@ SLOW_TESTS = (
     # issue 43: a day on the C++ engine, with and without the momentum manager (~13 s each)
     "tests/test_day_hold.py::test_without_the_manager_the_wheels_gather_the_secular_torque_and_saturate",
     "tests/test_day_hold.py::test_with_the_manager_the_wheels_are_unloaded_and_kept_in_the_band",
+    # issue 43: a three-run Monte Carlo of day_hold (30 min runs) and each run again by hand (~15 s)
+    "tests/test_day_montecarlo.py::test_each_run_draws_the_declared_values_and_is_the_hand_edited_scenario",
     # issue 43 item 6: a lockstep run over LCM with Basilisk's Stribeck switch (~1.7 s)
     "tests/test_stribeck_switching.py::test_lockstep_hil_is_bitwise_sim_with_the_switch_on",
     # issue #43: three orbits of momentum unloading on the C++ engine, twice (~5 s)
