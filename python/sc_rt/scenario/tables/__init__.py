@@ -1,6 +1,6 @@
 """The per-table readers of a scenario file, one module per table or group of
 tables (docs/SCENARIOS.md): ``[spacecraft]``, ``[disturbance]`` and
-``[[faults]]`` (spacecraft.py), ``[guidance]`` (guidance.py), ``[laws.NAME]``
+``[[faults]]`` (spacecraft.py), ``[guidance]`` (guidance.py; its reference files, reference_file.py), ``[laws.NAME]``
 (laws.py), ``[wheels]`` (wheels.py), ``[orbit]`` and ``[environment]``
 (orbit.py), ``[magnetorquers]`` (magnetorquers.py), ``[momentum]`` and
 ``[bdot]`` (momentum.py), ``[sensors]`` and the estimator (sensors.py),
