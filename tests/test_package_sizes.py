@@ -38,7 +38,6 @@ OVER_AIM = {
     "results/present/html_report.py": "results/present/ is being edited on another branch",
     "results/present/figures.py": "results/present/ is being edited on another branch",
     "emulator/process.py": "one class, the emulator's loops; no plain second job to move out yet",
-    "emulator/inbox.py": "the inbox and the receiver's handlers; split next",
     "results/record/run.py": "one line over: Run and its field access",
 }
 
