@@ -38,7 +38,7 @@ from common import ROOT, alternate, machine, mode, summary, write
 from sc_rt import _core
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 from sc_rt.scenario.reader import load_scenario
-from sc_rt.scenario.sensors import nav_config
+from sc_rt.scenario.tables.sensors import nav_config
 from sc_rt.sim.engines import simulate
 
 LOOP_TARGET = 0.30    # [-] added to the loop

@@ -29,7 +29,7 @@ def reference_params(c: _core.ControllerConfig) -> dict:
     g = c.guidance
     p = c.ppc
 
-    from sc_rt.scenario.laws import resolved
+    from sc_rt.scenario.tables.laws import resolved
 
     # each law's declared defaults, overlaid with the config's table where it is that law's
     tables = ((c.law, tuple((k, tuple(v)) for k, v in c.law_params)),)

@@ -171,7 +171,7 @@ def test_a_reference_file_that_is_no_regular_file_or_too_large_is_refused(tmp_pa
 def test_a_reference_npz_that_unpacks_beyond_the_limit_is_not_unpacked(tmp_path):
     import numpy as np
 
-    from sc_rt.scenario.guidance import read_reference_file
+    from sc_rt.scenario.tables.reference_file import read_reference_file
 
     n = 200_000  # 4.8 MB of zeros unpacked, a few kB packed
     np.savez_compressed(tmp_path / "ref.npz", t=np.zeros(n), sigma=np.zeros((n, 3)), omega=np.zeros((n, 3)))

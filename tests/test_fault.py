@@ -17,7 +17,7 @@ import sc_rt_lcm
 
 from collections import Counter
 
-from sc_rt.emulator.inbox import Receiver
+from sc_rt.emulator.receiver import Receiver
 from sc_rt.emulator.state import Shared
 from sc_rt.tools.faultcmd import clear_msg, inject_msg
 from sc_rt.logs.report import read_log, write_report

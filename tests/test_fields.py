@@ -23,7 +23,7 @@ from sc_rt.model import actuators, plant
 from sc_rt.results.record import fields
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 from sc_rt.scenario.reader import load_scenario
-from sc_rt.scenario.sensors import nav_config
+from sc_rt.scenario.tables.sensors import nav_config
 from sc_rt.sim import engines
 from sc_rt.wire import codec
 

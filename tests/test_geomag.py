@@ -21,7 +21,7 @@ from sc_rt.model import field as fld
 from sc_rt.model.field import GeomagField, decimal_year, field_for, geomag_dipole, igrf14_coefficients
 from sc_rt.model.igrf14_table import ROWS, YEARS
 from sc_rt.model.orbit import OrbitParams, R_EARTH, eci_to_ecef, orbit_state
-from sc_rt.scenario.orbit import julian_date
+from sc_rt.scenario.tables.orbit import julian_date
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -130,7 +130,7 @@ def test_noise_free_increments_carry_the_filter_through_a_tumble_exactly():
 
 
 def test_the_scenario_key_selects_the_output_and_bad_values_exit_with_the_key():
-    from sc_rt.scenario.sensors import nav_config
+    from sc_rt.scenario.tables.sensors import nav_config
 
     path = ROOT / "scenarios" / "ppc_feasible_10hz_sensors.toml"
     base = tomllib.loads(path.read_text())

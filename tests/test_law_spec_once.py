@@ -5,7 +5,7 @@ is called only by pylaw itself (the owner of the format: ``python_law``,
 scenario reader's spec form (sc_rt.scenario.lawspec.law_spec: a file made
 absolute, the ``python:`` prefix added) and the command line's parsing of
 ``--law``. Everything else reads the plan's typed law (``RunPlan.law``) or
-asks pylaw. Fails on the old main, where sim/, scenario/laws.py,
+asks pylaw. Fails on the old main, where sim/, scenario/tables/laws.py,
 scenario/model.py and sim/isolated.py each read the spec again."""
 
 from __future__ import annotations

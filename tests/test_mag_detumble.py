@@ -17,7 +17,7 @@ import pytest
 
 from magscn import mag_scenario
 from sc_rt import _core, simulate
-from sc_rt.scenario.momentum import magnetic_inclination
+from sc_rt.scenario.tables.momentum import magnetic_inclination
 
 #: [rad/s] 3 deg/s about a skew axis
 OMEGA0 = (0.03, -0.035, 0.025)

@@ -20,7 +20,7 @@ from sc_rt.model.actuators import ActuatorParams, actuator_params_to_cpp
 from sc_rt.model.field import field_for
 from sc_rt.model.orbit import R_EARTH, OrbitParams, eci_to_ecef, orbit_state
 from sc_rt.model.plant import DisturbanceParams, PlantParams, derivative, plant_params_to_cpp
-from sc_rt.scenario.orbit import julian_date
+from sc_rt.scenario.tables.orbit import julian_date
 
 ppigrf = pytest.importorskip("ppigrf")
 

@@ -1,4 +1,4 @@
-"""The ``[momentum]`` and ``[bdot]`` tables (sc_rt.scenario.momentum): their
+"""The ``[momentum]`` and ``[bdot]`` tables (sc_rt.scenario.tables.momentum): their
 defaults, a bad value refused with exit 2 and one line naming the key and
 the value, the tables they need, and ``sc-rt hil`` refusing them until the
 bus carries the dipoles. All fail on the old main (unknown tables)."""

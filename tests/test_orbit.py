@@ -12,7 +12,7 @@ import pytest
 from sc_rt import _core
 from sc_rt.model import orbit as orb
 from sc_rt.model.orbit import MU_EARTH, R_EARTH, OrbitParams, orbit_params_to_cpp
-from sc_rt.scenario.orbit import julian_date
+from sc_rt.scenario.tables.orbit import julian_date
 
 _ORBITS = {
     "circular_leo": OrbitParams(a=R_EARTH + 400e3),

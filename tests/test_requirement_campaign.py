@@ -33,7 +33,7 @@ from scipy.stats import binom, binomtest
 from sc_rt.results.judge.ensemble import bin_width, campaign_series, n_bins
 from sc_rt.results.judge.metrics import finish_run
 from sc_rt.results.record.run import Run, RunMeta
-from sc_rt.scenario.requirements import Requirement
+from sc_rt.scenario.tables.requirements import Requirement
 from sc_rt.studies.campaign.requirements import campaign_requirements, row_columns
 from sc_rt.studies.campaign.stats import (clopper_pearson_lower, hoeffding_lower, quantile_upper_rank,
                                           runs_needed)

@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 
 from refmath import chi, mrp_dcm, mrp_sub
 from sc_rt.scenario.reader import load_scenario
-from sc_rt.scenario.requirements import KINDS
+from sc_rt.scenario.tables.requirements import KINDS
 from trajcmp import load_traj
 
 ROOT = Path(__file__).resolve().parent.parent

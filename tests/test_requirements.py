@@ -1,5 +1,5 @@
 """The [[requirements]] of a scenario and their evaluation on a run (issue #27;
-sc_rt.scenario.requirements, sc_rt.results.judge.requirements, docs/REQUIREMENTS.md).
+sc_rt.scenario.tables.requirements, sc_rt.results.judge.requirements, docs/REQUIREMENTS.md).
 
 The statistics are checked against answers known by construction or computed
 here independently with numpy/scipy, never with the module's own helpers:
@@ -35,7 +35,7 @@ from sc_rt.results.record.run import Run, RunMeta
 from sc_rt.results.judge.verdict import verdict_line
 from sc_rt.scenario.model import ScenarioError
 from sc_rt.scenario.reader import load_scenario
-from sc_rt.scenario.requirements import Requirement
+from sc_rt.scenario.tables.requirements import Requirement
 
 ROOT = Path(__file__).resolve().parent.parent
 ARCSEC = math.pi / 648000.0

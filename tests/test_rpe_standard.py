@@ -23,7 +23,7 @@ import pytest
 
 from sc_rt.results.judge.metrics import finish_run
 from sc_rt.results.record.run import Run, RunMeta
-from sc_rt.scenario.requirements import Requirement
+from sc_rt.scenario.tables.requirements import Requirement
 
 ARCSEC = math.pi / 648000.0
 RATE = 10.0

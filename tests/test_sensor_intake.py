@@ -18,7 +18,7 @@ import pytest
 from sc_rt import _core
 from sc_rt.scenario.overrides import grid, initial_state
 from sc_rt.scenario.reader import load_scenario
-from sc_rt.scenario.sensors import nav_config
+from sc_rt.scenario.tables.sensors import nav_config
 from sc_rt.sim.sensed import NAV
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -33,12 +33,12 @@ def scenario_arg(path: str, args: argparse.Namespace | None = None, strays: bool
     file's, or one the command names: ``args.law``, ``args.laws``) but is
     near one is an error (ScenarioError: exit 2 with the file, the line and
     the nearest law name); one near none is a note (another law's table;
-    sc_rt.scenario.laws.stray_tables). The file's law (a plugin, a Python
+    sc_rt.scenario.tables.laws.stray_tables). The file's law (a plugin, a Python
     law) is loaded and probed at rest (sc_rt.plan.law.probe_law: reading the
     file does not), so that a command refuses a file naming a broken law
     before anything starts. ``strays`` and ``probe`` False: a command that
     plans its run (sc_rt.plan.run.plan_run does both, with the law it runs)."""
-    from sc_rt.scenario.laws import stray_tables
+    from sc_rt.scenario.tables.laws import stray_tables
     from sc_rt.scenario.model import ScenarioError
     from sc_rt.scenario.reader import load_scenario
 
@@ -140,7 +140,7 @@ def _num(v, unit: str) -> str:
     return f"{v:.4g}" if unit == "-" else f"{v:.4g} {unit}"
 
 
-#: What the peak requirements measure (every kind of sc_rt.scenario.requirements.KINDS that is
+#: What the peak requirements measure (every kind of sc_rt.scenario.tables.requirements.KINDS that is
 #: neither a pointing index, settling nor the envelope: tests/test_requirement_matrix.py).
 PEAKS = {"wheel_speed_margin": "max |Omega|", "momentum_margin": "max |Cbar Jw Omega|", "max_command": "max |u_cmd|",
          "max_torque": "max |Cbar tau_cmd|"}

@@ -1,5 +1,5 @@
-"""The plant emulator's receive side (emulator/process.py): its LCM handlers and
-what they keep per state seq.
+"""What the plant emulator's receive side (emulator/process.py) keeps per
+state seq.
 
 - ``Inbox``: per state seq k of the run's n rows, the first valid command
   answering k (its bytes, the monotonic ns of its receipt, its utime), the
@@ -11,35 +11,23 @@ what they keep per state seq.
   [0, n) (a hostile or stray message) is counted (``state_seq_out_of_range``)
   and not kept, as is one outside the live rows (``state_seq_not_live``);
   -1 (answers no state) is not kept either, as always.
-- ``Receiver``: the handlers, a part of ``Emulator``; they never raise.
-  Every message is decoded under guard and counted by kind (``counters``);
-  commands and status come from one controller session at a time, a new one
-  adopted only once the current one is lost; fault commands change the
-  actuators when accepted; another plant, or another controller while ours
-  is alive, is a bench collision (emulator/collision.py) that stops the run.
+- The handlers that fill it, ``Receiver``, are emulator/receiver.py.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import struct
-import time
 from collections import Counter
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import sc_rt_lcm
 
-from sc_rt.wire.lcmio import channel
 from sc_rt.emulator.loopstats import MISSING
-from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS, decode_as
-from sc_rt.emulator.peers import ControllerPeers
-from sc_rt.emulator.state import Shared
-from sc_rt.model.actuators import WheelFault
+from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
 from sc_rt.results.record.store import RowRing
 
-__all__ = ["Inbox", "Receiver", "Cmd", "SEQ_WINDOW", "INBOX_COLUMNS", "decode_status", "fill_from_inbox"]
+__all__ = ["Inbox", "Cmd", "SEQ_WINDOW", "INBOX_COLUMNS", "decode_status", "fill_from_inbox"]
 
 # controller_status_t's fixed layout: fingerprint, then utime, cmd_seq,
 # session, state_seq (big-endian int64), as generated from the .lcm file
@@ -231,194 +219,3 @@ def fill_from_inbox(run, cols: dict[str, np.ndarray]) -> None:
     rx, pub = cols["cmd_rx"][:rows], cols["pub_ns"][:rows]
     ok = (rx != MISSING) & (pub != MISSING)
     run["latency_us"][ok] = (rx[ok] - pub[ok]) / 1e3
-
-
-class Receiver:
-    """The emulator's LCM handlers (a part of ``Emulator``, built and tested
-    alone: tests/test_fault.py, tests/test_inbox.py).
-
-    Owns the receive state: ``inbox``, the newest command (``newest_cmd``,
-    ``newest_cmd_ns``), the adopted controller session (``ctl_session``,
-    ``ctl_last_ns``, ``peer_lost``, which the loop sets when a state went
-    unanswered) and the last seqs taken from it. Shares with the other parts
-    only ``shared`` (emulator/state.py): the counters, the wheels' faults
-    (a fault command replaces ``shared.act``), the run's time and a bench
-    collision (``shared.collision``)."""
-
-    def __init__(self, lc: Any, prefix: str, session: int, n_rows: int, shared: Shared, *,
-                 guard: Any = None, peers: ControllerPeers | None = None, accept_faults: bool = False,
-                 authenticated: bool = False, ring: RowRing | None = None):
-        self.lc, self.prefix, self.session, self.shared = lc, prefix, session, shared
-        self.counters = shared.counters
-        self.guard = guard
-        self.peers = peers if peers is not None else ControllerPeers(None)
-        self.accept_faults = accept_faults
-        #: a bus with a key: a fault command must name this emulator's session and a seq above the last
-        self.authenticated = authenticated
-        self._last_fault_seq: int | None = None
-        self.inbox = Inbox(n_rows, self.counters, ring)
-        self.newest_cmd: Cmd | None = None
-        self.newest_cmd_ns = 0
-        self._last_cmd_seq = -1
-        self._last_status_seq = -1
-        # per counter, the newest unconfirmed seq jump (-2: none)
-        self._jumps = {"cmd_seq_jump": -2, "status_seq_jump": -2}
-        self.ctl_session: int | None = None
-        self.ctl_last_ns = 0  # monotonic ns of the adopted controller's newest message
-        self.peer_lost = False
-        # LCM silently drops messages beyond a subscription's queue capacity
-        # (30 by default): hold many, so every one is either used or counted
-        for name, handler in (("SCRT_CMD", self.on_cmd), ("SCRT_CTRL_STATUS", self.on_status),
-                              ("SCRT_FAULT", self.on_fault), ("SCRT_CTRL_INFO", self.on_info),
-                              ("SCRT_STATE", self.on_plant_state)):
-            self.lc.subscribe(channel(name, self.prefix), handler).set_queue_capacity(100_000)
-
-    def on_plant_state(self, _ch: str, data: bytes) -> None:
-        """Our own states come back (multicast loopback); another plant's mean another bench."""
-        if len(data) == _STATE_SIZE and data[:8] == _STATE_FP:
-            _, seq, session = struct.unpack_from(">qqq", data, 8)
-            if session != self.session and self.guard is not None:
-                self.shared.collision(self.guard.plant_state(session, seq, self.ctl_session))
-
-    def _session_ok(self, session: int, now: int, seq: int = -1, kind: str = "cmd") -> bool:
-        """Commands and status come from one controller session at a time; a
-        new session is adopted only once the current controller is lost (the
-        loop saw an unanswered state in lockstep or a stale command in real
-        time: a crashed or restarted controller), never while it answers."""
-        if session == self.ctl_session:
-            self.ctl_last_ns = now
-            return True
-        if self.ctl_session is None or self.peer_lost:
-            if self.ctl_session is not None:
-                self.counters["controller_sessions_adopted"] += 1
-            self.ctl_session = session
-            self.ctl_last_ns = now
-            self.peer_lost = False
-            self._last_cmd_seq = -1
-            self._last_status_seq = -1
-            return True
-        self.counters["foreign_session"] += 1
-        if self.guard is not None:
-            self.shared.collision(self.guard.controller_msg(session, seq, self.ctl_session, self.ctl_last_ns,
-                                                            now, kind))
-        return False
-
-    def _unconfirmed_jump(self, counter: str, last: int, seq: int) -> bool:
-        """Whether ``seq`` is more than SEQ_WINDOW ahead of ``last`` (the newest
-        taken) and not confirmed by being the successor of the jump held
-        before: dropped, counted under ``counter`` and held in its turn."""
-        if last >= 0 and seq - last > SEQ_WINDOW and seq != self._jumps[counter] + 1:
-            self._jumps[counter] = seq
-            self.counters[counter] += 1
-            return True
-        self._jumps[counter] = -2
-        return False
-
-    def on_cmd(self, _ch: str, data: bytes) -> None:
-        now = time.monotonic_ns()
-        self.counters["cmd_received"] += 1
-        fixed = len(data) == _CMD_SIZE and data[:8] == _CMD_FP
-        if fixed:  # the fixed layout, unpacked at once
-            v = _CMD_LAYOUT.unpack_from(data, 8)
-            msg = _cmd_of(v)
-        else:  # not exactly one wheel_cmd_t: count it by kind
-            msg = decode_as(sc_rt_lcm.wheel_cmd_t, data, self.counters)
-            if msg is None:
-                return
-        # any finite command is meaningful: the wheels saturate it (15)
-        if not all(math.isfinite(v) for v in msg.u_cmd):
-            self.counters["invalid_command"] += 1
-            return
-        if not self._session_ok(msg.session, now, msg.seq, "cmd"):
-            return
-        if msg.seq <= self._last_cmd_seq:
-            last = self.newest_cmd
-            if (msg.seq == self._last_cmd_seq and last is not None
-                    and (msg.state_seq != last.state_seq or tuple(msg.u_cmd) != tuple(last.u_cmd))):
-                # the controller's session and seq, another command: a forged or racing sender
-                self.counters["cmd_conflict"] += 1
-            else:
-                self.counters["duplicate" if msg.seq == self._last_cmd_seq else "out_of_order"] += 1
-            return
-        if self._unconfirmed_jump("cmd_seq_jump", self._last_cmd_seq, msg.seq):
-            return
-        self._last_cmd_seq = msg.seq
-        self.newest_cmd, self.newest_cmd_ns = msg, now
-        if fixed:
-            self.inbox.put_cmd(msg.state_seq, data, msg, now, v[0])
-        else:
-            self.inbox.put_cmd(msg.state_seq, None, msg, now)
-
-    def on_status(self, _ch: str, data: bytes) -> None:
-        # The loop needs only the header (session, seqs) now; the full decode
-        # (~35 us in Python) waits until the run is over (fill_from_inbox).
-        now = time.monotonic_ns()
-        if len(data) == _STATUS_SIZE and data[:8] == _STATUS_FP:
-            _, cmd_seq, session, state_seq = _STATUS_HEAD.unpack_from(data, 8)
-        else:  # not exactly one status message: count it by kind
-            msg = decode_as(sc_rt_lcm.controller_status_t, data, self.counters)
-            if msg is None:
-                return
-            cmd_seq, session, state_seq = msg.cmd_seq, msg.session, msg.state_seq
-        if not self._session_ok(session, now, cmd_seq, "status"):
-            return
-        if cmd_seq <= self._last_status_seq:
-            self.counters["status_out_of_order"] += 1
-            return
-        if self._unconfirmed_jump("status_seq_jump", self._last_status_seq, cmd_seq):
-            return
-        self._last_status_seq = cmd_seq
-        self.peers.saw_status(session)
-        self.inbox.put_status(state_seq, data)
-
-    def on_info(self, _ch: str, data: bytes) -> None:
-        self.peers.on_info(data, self.counters)
-
-    @property
-    def controller_info(self) -> dict[str, Any] | None:
-        """The controller_info_t of the session in use (None: none announced)."""
-        return self.peers.info.get(self.ctl_session) if self.ctl_session is not None else None
-
-    def on_fault(self, _ch: str, data: bytes) -> None:
-        msg = decode_as(sc_rt_lcm.fault_cmd_t, data, self.counters)
-        if msg is None:
-            return
-        if not self.accept_faults:
-            self.counters["fault_ignored"] += 1
-            return
-        # addressed to another emulator (or, under authentication, to none): not ours
-        if (msg.session != 0 or self.authenticated) and msg.session != self.session:
-            self.counters["fault_foreign_session"] += 1
-            return
-        if self.authenticated and self._last_fault_seq is not None and msg.seq <= self._last_fault_seq:
-            self.counters["fault_replayed"] += 1  # a captured command sent again: refused
-            return
-        try:
-            self._apply_fault(msg)
-            self.counters["fault_applied"] += 1
-            self._last_fault_seq = msg.seq
-        except ValueError as e:
-            self.counters["fault_rejected"] += 1
-            self.shared.faults_applied.append({"rejected": str(e), "wheel": msg.wheel})
-
-    def _apply_fault(self, m) -> None:
-        if not 1 <= m.wheel <= 4:
-            raise ValueError(f"wheel must be 1..4, got {m.wheel}")
-        w = m.wheel - 1
-        others = tuple(f for f in self.shared.act.faults if f.wheel != w)
-        if m.action == sc_rt_lcm.fault_cmd_t.ACTION_CLEAR:
-            new = others
-            rec = {"t": self.shared.t_now, "wheel": m.wheel, "action": "clear"}
-        elif m.action == sc_rt_lcm.fault_cmd_t.ACTION_INJECT:
-            onset = self.shared.t_now if m.now else m.t_onset
-            fault = WheelFault(wheel=w, effectiveness=m.effectiveness, bias=m.bias, onset=onset,
-                               end=None if m.t_end < 0 else m.t_end, rate=m.rate, stuck=bool(m.stuck),
-                               friction=m.friction)
-            new = others + (fault,)
-            rec = {"t": self.shared.t_now, "wheel": m.wheel, "action": "inject",
-                   **{k: getattr(fault, k) for k in ("effectiveness", "bias", "onset", "end", "rate", "stuck",
-                                                             "friction")}}
-        else:
-            raise ValueError(f"unknown action {m.action}")
-        self.shared.act = dataclasses.replace(self.shared.act, faults=new)  # validated by ActuatorParams
-        self.shared.faults_applied.append(rec)

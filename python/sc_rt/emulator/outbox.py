@@ -1,7 +1,7 @@
 """The emulator's publishing side (a part of ``emulator.process.Emulator``):
 the guidance and the state of a control instant, the truth of a row, the
 sensors' samples of a plant step (emulator/sensorpub.py), and draining what
-our own multicast brings back (handled by the receiver, emulator/inbox.py).
+our own multicast brings back (handled by the receiver, emulator/receiver.py).
 Owns what it last sent (the guidance values of the newest state); writes
 the truth's fields of each row (and the gyro's true bias) into the
 emulator's record."""

@@ -22,9 +22,10 @@ Python one: emulator/twin.py), and run with the garbage collector frozen
 the tick and polls from there.
 
 The publishing side (guidance, state, truth, the sensors' samples) is
-emulator/outbox.py; the receive side is emulator/inbox.py: the handlers (bad input never stops the
-loop: every message is decoded under guard and counted by kind,
-``counters``) and, per state seq, the commands, statuses and publish times.
+emulator/outbox.py; the receive side is emulator/receiver.py, the handlers (bad input never
+stops the loop: every message is decoded under guard and counted by kind,
+``counters``), and emulator/inbox.py, per state seq, the commands, statuses
+and publish times.
 Both write into the run's record, emulator/record.py: two chunks of rows
 allocated when the emulator is made, the older rows written to disk as the
 run goes, so that its memory stays flat however long the run lasts.
@@ -44,7 +45,7 @@ import numpy as np
 
 from sc_rt.wire.auth import open_bus
 from sc_rt.emulator.collision import CollisionGuard
-from sc_rt.emulator.inbox import Receiver
+from sc_rt.emulator.receiver import Receiver
 from sc_rt.emulator.logpace import LogPace
 from sc_rt.emulator.record import BYTES_PER_ROW, Record
 from sc_rt.emulator.outbox import Publisher
@@ -62,7 +63,7 @@ __all__ = ["Emulator", "Options", "BYTES_PER_ROW"]
 
 class Emulator:
     """The plant process: the loops (lockstep, real time) over its parts,
-    the receiver (emulator/inbox.py), the publisher (emulator/outbox.py),
+    the receiver (emulator/receiver.py), the publisher (emulator/outbox.py),
     the plant twin (emulator/twin.py) and the sensors, which share only
     ``shared`` (emulator/state.py)."""
 

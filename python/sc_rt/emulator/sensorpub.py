@@ -23,7 +23,7 @@ import sc_rt_lcm
 
 from sc_rt import _core
 from sc_rt.wire.lcmio import channel
-from sc_rt.scenario.sensors import nav_config
+from sc_rt.scenario.tables.sensors import nav_config
 
 __all__ = ["SensorPublisher", "SENT_COUNTERS", "gyro_bytes", "star_bytes", "tach_bytes"]
 

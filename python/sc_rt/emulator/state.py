@@ -2,7 +2,7 @@
 
 - ``Options``: the emulator's settings (mode, bus, timing, watchdog,
   scheduling), one frozen value instead of a long keyword list.
-- ``Shared``: the few values its parts (the receiver, emulator/inbox.py;
+- ``Shared``: the few values its parts (the receiver, emulator/receiver.py;
   the publisher, emulator/outbox.py; the loops, emulator/process.py) read
   and write across their boundary: the counters, the wheels' faults as
   applied now (a fault command changes them), the run's time, and why the

@@ -28,7 +28,7 @@ from typing import Any, Literal, Union
 from sc_rt import _core
 from sc_rt.isolate import PROBE_TIMEOUT_ENV, ChildDied, ChildTimedOut, call_in_child, probe_timeout
 from sc_rt.pylaw import PYTHON_PREFIX, is_python_law, law_label, load_law
-from sc_rt.scenario.laws import report_issues
+from sc_rt.scenario.tables.laws import report_issues
 from sc_rt.scenario.model import LAWS, PLUGIN_PREFIX, Scenario
 from sc_rt.scenario.schema import Doc, ScenarioError, key_lines
 

@@ -20,7 +20,7 @@ from typing import Any
 from sc_rt.plan.law import ExternalLaw, LawRef, PythonLaw, law_from_dict, resolve_law
 from sc_rt.results.record.inputs import run_inputs
 from sc_rt.plan.timing import RealtimeLimits, Timing, TimingSetup
-from sc_rt.scenario.laws import stray_tables
+from sc_rt.scenario.tables.laws import stray_tables
 from sc_rt.scenario.model import Scenario, ScenarioError
 from sc_rt.scenario.overrides import DRAW, with_draws, with_overrides
 from sc_rt.scenario.reader import load_scenario
@@ -172,7 +172,7 @@ def plan_run(scenario: str | Path | Scenario, *, sets: Any = (), law: str | None
         no directory, a free LCM port).
     strays : bool
         Refuse a ``[laws.NAME]`` table that no law of the run reads but is
-        near its law's name (a misspelling; sc_rt.scenario.laws.stray_tables),
+        near its law's name (a misspelling; sc_rt.scenario.tables.laws.stray_tables),
         and note the others (``RunPlan.notes``). False: checked by the caller
         (``sc-rt compare``, against every law it compares).
 

@@ -18,10 +18,10 @@ from sc_rt_lcm import controller_config_t
 
 from sc_rt import _core
 from sc_rt.pylaw import registry_spec
-from sc_rt.scenario.laws import law_table_name
+from sc_rt.scenario.tables.laws import law_table_name
 from sc_rt.scenario.lawspec import law_problem, law_spec
 from sc_rt.scenario.schema import convert, field_spec
-from sc_rt.scenario.sensors import nav_config
+from sc_rt.scenario.tables.sensors import nav_config
 
 __all__ = ["controller_config_msg", "fill_nav", "core_config"]
 

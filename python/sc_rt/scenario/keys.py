@@ -61,7 +61,7 @@ def scenario_data(scn: Any) -> dict[str, Any]:
         },  # fmt: skip
         "disturbance": _group(p.disturbance),
         "initial": _group(scn.initial),
-        "guidance": scn.guidance.data(),  # its kind's keys (sc_rt.scenario.guidance)
+        "guidance": scn.guidance.data(),  # its kind's keys (sc_rt.scenario.tables.guidance)
         "controller": controller,
         **({"laws": laws} if laws else {}),
         "faults": faults,
@@ -127,7 +127,7 @@ def _requirements(scn: Any) -> dict[str, Any]:
     """The [[requirements]] rows, if any."""
     if not getattr(scn, "requirements", ()):
         return {}
-    from sc_rt.scenario.requirements import requirements_data
+    from sc_rt.scenario.tables.requirements import requirements_data
 
     return {"requirements": requirements_data(scn.requirements)}
 
@@ -136,7 +136,7 @@ def _sensors(scn: Any, controller: dict[str, Any]) -> dict[str, Any]:
     """The [sensors] table (and [controller] measurement, estimator), if any."""
     if getattr(scn, "sensors", None) is None:
         return {}
-    from sc_rt.scenario.sensors import sensors_data
+    from sc_rt.scenario.tables.sensors import sensors_data
 
     table, extra = sensors_data(scn.sensors)
     controller.update(extra)

@@ -42,7 +42,7 @@ from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIs
     vector_spec,
 )
 from sc_rt.scenario.config_msg import controller_config_msg, core_config
-from sc_rt.scenario.laws import items_of, resolved
+from sc_rt.scenario.tables.laws import items_of, resolved
 from sc_rt.scenario.lawspec import (  # noqa: F401  (the law table and spec helpers are public here too)
     LAW_NAMES,
     LAWS,
@@ -51,7 +51,7 @@ from sc_rt.scenario.lawspec import (  # noqa: F401  (the law table and spec help
     law_problem,
     law_spec,
 )
-from sc_rt.scenario.guidance import (
+from sc_rt.scenario.tables.guidance import (
     FileGuidance,
     Guidance,
     GuidanceParams,
@@ -174,7 +174,7 @@ class ControllerParams:
     )
     # [laws.NAME]: each law's own parameters, ((law name, ((key, (numbers...)), ...)), ...),
     # handed to that law's constructor, which validates them (docs/LAWS.md); a law
-    # without a table runs its defaults (sc_rt.scenario.laws)
+    # without a table runs its defaults (sc_rt.scenario.tables.laws)
     laws: tuple = field(default=(), metadata=spec("params"))
 
     def table(self, law: str) -> tuple:
@@ -228,9 +228,9 @@ class Scenario:
         The ``[montecarlo]`` table (sc_rt.scenario.dispersions), None without one.
     sensors : Sensors or None
         The ``[sensors]`` tables and ``[controller] measurement``
-        (sc_rt.scenario.sensors), None without ``[sensors]``.
+        (sc_rt.scenario.tables.sensors), None without ``[sensors]``.
     requirements : tuple of Requirement
-        The ``[[requirements]]`` rows (sc_rt.scenario.requirements), what a
+        The ``[[requirements]]`` rows (sc_rt.scenario.tables.requirements), what a
         run is judged by (sc_rt.results.judge.requirements); ``()`` without any.
     record : RecordParams
         ``[record]``: what a run keeps of its rows (``every``: the saved rows
@@ -238,7 +238,7 @@ class Scenario:
     deprecations : tuple of str
         One line per older table the file gave (``[controller.dsc]``, ...),
         read as its new form; the command line prints them
-        (sc_rt.scenario.laws).
+        (sc_rt.scenario.tables.laws).
     overrides : tuple of (str, value)
         The overrides applied to the file's values, in order, as (dotted
         key, value) pairs (``sc_rt.with_overrides``); a run records them
@@ -248,7 +248,7 @@ class Scenario:
         the geomagnetic field along the orbit (``plant.orbit``);
         ``sc_rt.model.field.field_for(model, jd)`` builds it.
     magnetic_control : MagneticControl or None
-        The ``[momentum]`` and ``[bdot]`` tables (sc_rt.scenario.momentum): the
+        The ``[momentum]`` and ``[bdot]`` tables (sc_rt.scenario.tables.momentum): the
         controller's momentum manager and B-dot; None without either.
     law_key, law_keys : str, tuple
         Where the file names its law and each law parameter (dotted keys),
@@ -263,20 +263,20 @@ class Scenario:
     actuators: ActuatorParams
     initial: InitialState
     # the [guidance] table's kind: GuidanceParams (the paper's), HoldGuidance,
-    # SlewGuidance or FileGuidance (sc_rt.scenario.guidance)
+    # SlewGuidance or FileGuidance (sc_rt.scenario.tables.guidance)
     guidance: Guidance
     controller: ControllerParams
     # the [montecarlo] table (sc_rt.scenario.dispersions.MonteCarloTable), None without one
     montecarlo: Any = None
-    # the [sensors] tables and [controller] measurement (sc_rt.scenario.sensors.Sensors), None without [sensors]
+    # the [sensors] tables and [controller] measurement (sc_rt.scenario.tables.sensors.Sensors), None without [sensors]
     sensors: Any = None
     # the expect key: "holds", "violates" or "" (unstated)
     expect: str = ""
-    # the [[requirements]] rows (sc_rt.scenario.requirements.Requirement), () without any
+    # the [[requirements]] rows (sc_rt.scenario.tables.requirements.Requirement), () without any
     requirements: tuple = ()
     # [record]: what a run keeps of its rows
     record: RecordParams = RecordParams()
-    # one line per older table the file gave, read as its new form (sc_rt.scenario.laws)
+    # one line per older table the file gave, read as its new form (sc_rt.scenario.tables.laws)
     deprecations: tuple = ()
     # the overrides applied to the file's values, in order: (dotted key, value) pairs
     # (sc_rt.scenario.overrides.with_overrides); a run records them (results/record/inputs.py)
@@ -285,7 +285,7 @@ class Scenario:
     # "none" (sc_rt.model.field.field_for); the plant's too (plant.field_model), where the
     # residual dipole and the magnetorquers' dipole act
     field_model: str = "none"
-    # [momentum] and [bdot]: the controller's magnetic part (sc_rt.scenario.momentum.MagneticControl), None: none
+    # [momentum] and [bdot]: the controller's magnetic part (sc_rt.scenario.tables.momentum.MagneticControl), None: none
     magnetic_control: Any = None
     # the dotted key the file names its law by ("controller.law" or "run.controller"), and the
     # dotted key of each law parameter ((law, key), dotted key) pairs: where a law's probe

@@ -14,10 +14,10 @@ from typing import Any
 import numpy as np
 
 from sc_rt import _core
-from sc_rt.scenario.wheels import read_wheels
-from sc_rt.scenario.magnetorquers import read_magnetorquers
-from sc_rt.scenario.momentum import read_magnetic_control
-from sc_rt.scenario.orbit import read_environment, read_orbit
+from sc_rt.scenario.tables.wheels import read_wheels
+from sc_rt.scenario.tables.magnetorquers import read_magnetorquers
+from sc_rt.scenario.tables.momentum import read_magnetic_control
+from sc_rt.scenario.tables.orbit import read_environment, read_orbit
 from sc_rt.scenario.dispersions import read_montecarlo
 from sc_rt.scenario.files import MAX_NESTING, FileProblem, deep_key, nesting_problem, read_bounded
 from sc_rt.scenario.schema import (
@@ -32,13 +32,13 @@ from sc_rt.scenario.schema import (
     read_fields,
     read_values,
 )
-from sc_rt.scenario.guidance import coverage_problem, guidance_phases, read_guidance
-from sc_rt.scenario.requirements import read_requirements
-from sc_rt.scenario.sensors import read_sensors
+from sc_rt.scenario.tables.guidance import coverage_problem, guidance_phases, read_guidance
+from sc_rt.scenario.tables.requirements import read_requirements
+from sc_rt.scenario.tables.sensors import read_sensors
 from sc_rt.scenario.shipped import resolve
-from sc_rt.scenario.spacecraft import read_faults, read_spacecraft
+from sc_rt.scenario.tables.spacecraft import read_faults, read_spacecraft
 
-from sc_rt.scenario.laws import read_laws, report_issues
+from sc_rt.scenario.tables.laws import read_laws, report_issues
 from sc_rt.scenario.model import (LAWS, PAPER_DEFAULTS, ControllerParams, InitialState,
                                   PpcParams, RecordParams, RunParams, SafetyLimits, Scenario,
                                   law_problem, law_spec)

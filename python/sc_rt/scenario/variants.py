@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.scenario.laws import with_items
+from sc_rt.scenario.tables.laws import with_items
 from sc_rt.scenario.model import Scenario
 
 __all__ = ["with_law_params", "with_ppc", "without_faults"]

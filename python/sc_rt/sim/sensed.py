@@ -32,7 +32,7 @@ from sc_rt.results.record.fields import packed_layout
 from sc_rt.results.record.run import FIELD
 from sc_rt.scenario.overrides import grid, initial_state
 from sc_rt.scenario.schema import ScenarioError, ScenarioIssue
-from sc_rt.scenario.sensors import nav_config
+from sc_rt.scenario.tables.sensors import nav_config
 from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, loop_columns
 
 __all__ = ["run_sensed", "NAV", "NAV_RECORDED"]

@@ -31,7 +31,7 @@ from sc_rt import _core
 from sc_rt.studies.lawparams import dsc_gains, neso_core, neso_params
 from sc_rt.scenario.model import Scenario, ScenarioError
 from sc_rt.scenario.reader import load_scenario, with_run
-from sc_rt.scenario.laws import command_of, stray_tables, wheels_command
+from sc_rt.scenario.tables.laws import command_of, stray_tables, wheels_command
 from sc_rt.plan.law import resolve_law
 
 __all__ = ["Finding", "check_scenario", "exit_code", "LEVELS", "PAPER_C"]

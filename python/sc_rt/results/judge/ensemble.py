@@ -28,7 +28,7 @@ import numpy as np
 from sc_rt.results.judge.indices import index_values
 from sc_rt.results.judge.pointing import mode_mask, outside_mode
 from sc_rt.results.judge.requirements import is_sensed, knowledge_error, requirement_span
-from sc_rt.scenario.requirements import ANGLE_UNITS, KNOWLEDGE, PERFORMANCE
+from sc_rt.scenario.tables.requirements import ANGLE_UNITS, KNOWLEDGE, PERFORMANCE
 
 __all__ = ["MAX_BINS", "bin_width", "campaign_series", "n_bins"]
 

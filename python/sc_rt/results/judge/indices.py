@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.results.judge.pointing import error_signal, pair_differences, relative_errors, window_means, windows
-from sc_rt.scenario.requirements import PAIRED
+from sc_rt.scenario.tables.requirements import PAIRED
 
 __all__ = ["IndexValues", "index_values"]
 

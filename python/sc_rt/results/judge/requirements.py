@@ -48,11 +48,12 @@ import numpy as np
 from sc_rt.results.judge.indices import index_values
 from sc_rt.results.judge.pointing import (error_signal, mode_mask, mrp_subtract, nearest_rank, outside_mode,
                                    settling_time, wheel_momentum)
-from sc_rt.scenario.requirements import ANGLE_UNITS, COUNTERPART, KNOWLEDGE, PERFORMANCE, UNITS
+from sc_rt.scenario.tables.requirements import ANGLE_UNITS, COUNTERPART, KNOWLEDGE, PERFORMANCE, UNITS
 
 __all__ = ["body_torque", "evaluate_requirements", "is_sensed", "knowledge_error", "requirement_span", "worst"]
 
-#: Unit -> its value in SI (rad, rad/s, N m s, rad/s^2), the scenario's units (sc_rt.scenario.requirements.UNITS).
+#: Unit -> its value in SI (rad, rad/s, N m s, rad/s^2), the scenario's units
+#: (sc_rt.scenario.tables.requirements.UNITS).
 _SI = {u: f for units in UNITS.values() for u, f in units.items()}
 _EPS_T = 1e-9  # [s] time comparisons on the control grid
 

@@ -300,7 +300,7 @@ def _observer_figure(run: Run, out: Path, title: str) -> Path:
 def _pointing_bounds(ax, run: Run) -> None:
     """The bounds of the APE requirements on the full angle or a cone, in
     arcsec, over their spans (requirements.png draws every requirement)."""
-    from sc_rt.scenario.requirements import ANGLE_UNITS
+    from sc_rt.scenario.tables.requirements import ANGLE_UNITS
 
     results = {r["name"]: r for r in run.metrics.get("requirements") or []}
     for j, q in enumerate(q for q in getattr(run.meta, "requirements", ()) or ()

@@ -26,7 +26,7 @@ from sc_rt.results.judge.indices import index_values
 from sc_rt.results.judge.pointing import error_signal, wheel_momentum
 from sc_rt.results.judge.requirements import is_sensed, knowledge_error, requirement_span
 from sc_rt.results.record.run import Run
-from sc_rt.scenario.requirements import ANGLE_UNITS, COUNTERPART, KNOWLEDGE, PERFORMANCE, UNITS
+from sc_rt.scenario.tables.requirements import ANGLE_UNITS, COUNTERPART, KNOWLEDGE, PERFORMANCE, UNITS
 
 __all__ = ["requirement_figure", "requirement_figures", "wheel_figure"]
 

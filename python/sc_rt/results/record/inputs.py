@@ -50,7 +50,7 @@ def run_inputs(scn: Any, law_name: str) -> dict[str, Any]:
     the parameters of the law ``law_name`` as it runs them, and sc-rt's
     version and commit."""
     from sc_rt import __version__
-    from sc_rt.scenario.laws import resolved
+    from sc_rt.scenario.tables.laws import resolved
 
     path = getattr(scn, "path", None)
     laws = getattr(getattr(scn, "controller", None), "laws", ())

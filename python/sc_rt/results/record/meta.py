@@ -63,7 +63,7 @@ class RunMeta:
         source and, for a plugin, its file and the file's SHA-256.
     requirements : tuple of dict
         The scenario's ``[[requirements]]`` rows (every field of
-        ``sc_rt.scenario.requirements.Requirement``), what the run is judged
+        ``sc_rt.scenario.tables.requirements.Requirement``), what the run is judged
         by (sc_rt.results.judge.requirements); ``()``: none stated.
     Cbar : tuple of tuple of float
         [-] the wheels' spin axes in B (3 rows of 4), the plant's; ``()``:
@@ -125,7 +125,7 @@ class RunMeta:
     sensors: bool = False
     #: who the law is: name, spec, source (and a plugin's file and its sha256)
     law_identity: dict[str, Any] | None = None
-    #: the scenario's [[requirements]] rows as dicts (sc_rt.scenario.requirements.Requirement's fields)
+    #: the scenario's [[requirements]] rows as dicts (sc_rt.scenario.tables.requirements.Requirement's fields)
     requirements: tuple[dict[str, Any], ...] = ()
     #: [-] the wheels' spin axes in B (3 x 4), [kg m^2] their inertias, [rad/s] their speed limits; () unknown
     Cbar: tuple[tuple[float, ...], ...] = ()
@@ -224,7 +224,7 @@ class RunMeta:
 def command_meta(scn) -> dict[str, Any]:
     """The run's command interface of the scenario ``scn``: ``command_fields``
     of what its wheels take and of its law."""
-    from sc_rt.scenario.laws import wheels_command
+    from sc_rt.scenario.tables.laws import wheels_command
 
     return command_fields(wheels_command(scn), scn.run.controller)
 
@@ -235,7 +235,7 @@ def command_fields(wheel_command: str, law_spec: str | None) -> dict[str, Any]:
     known or does not load here) and every field's resolved ``units`` (the
     "command" rule: the wheels' unit; the "law" rule: the law's)."""
     from sc_rt.results.record.fields import FIELDS
-    from sc_rt.scenario.laws import command_of
+    from sc_rt.scenario.tables.laws import command_of
 
     law = ""
     if law_spec:

@@ -50,7 +50,7 @@ import numpy as np
 import scipy.linalg
 
 from sc_rt.scenario.model import Scenario
-from sc_rt.scenario.sensors import ARCSEC, DEG_PER_H, DEG_PER_RT_H, Sensors
+from sc_rt.scenario.tables.sensors import ARCSEC, DEG_PER_H, DEG_PER_RT_H, Sensors
 from sc_rt.studies.design.sampled import SAMPLED_STATES, SampledLoop
 
 __all__ = ["NoiseFloor", "estimator_gains", "noise_floor", "format_noise_floor", "noise_floor_report",

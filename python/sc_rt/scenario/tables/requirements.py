@@ -120,7 +120,7 @@ class Requirement:
     mode : str
         One of ``MODES``: only the span's rows in that window are judged ("": all).
     phase : str
-        A phase of the guidance (``sc_rt.scenario.guidance.guidance_phases``:
+        A phase of the guidance (``sc_rt.scenario.tables.guidance.guidance_phases``:
         a slew's "before", "slew", "hold"; a hold's "hold") whose interval
         gave ``t_from`` and ``t_to`` ("": the span as written).
     """

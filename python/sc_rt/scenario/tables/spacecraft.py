@@ -15,7 +15,7 @@ from sc_rt.model.actuators import ActuatorParams, WheelFault
 from sc_rt.model.combined import RigidBody, combine
 from sc_rt.model.plant import DisturbanceParams, PlantParams
 from sc_rt.scenario.schema import Spec, Table, build, format_value, read_only
-from sc_rt.scenario.wheels import check_wheel_fault
+from sc_rt.scenario.tables.wheels import check_wheel_fault
 
 __all__ = ["read_spacecraft", "read_faults"]
 
