@@ -32,7 +32,7 @@ def total_momentum_N(p, x) -> tuple[float, float, float]:
         v = (float(J0[r][0]) + float(dJ[r][0])) * w1
         v += (float(J0[r][1]) + float(dJ[r][1])) * w2
         v += (float(J0[r][2]) + float(dJ[r][2])) * w3
-        for c, O in enumerate((O1, O2, O3, O4)):
-            v += (float(C[r][c]) * float(Jw[c])) * O
+        for c, Om in enumerate((O1, O2, O3, O4)):
+            v += (float(C[r][c]) * float(Jw[c])) * Om
         hb.append(v)
     return rotate_to_B(-s1, -s2, -s3, hb[0], hb[1], hb[2])  # C_NB(sigma) = C_BN(-sigma)
