@@ -67,6 +67,8 @@ def rng() -> np.random.Generator:
 #: cores), left out of the fast loop (`pytest -m "not slow"`, under a minute)
 #: and run by `make test` like every other: whole LCM runs, CLI round trips.
 SLOW_TESTS = (
+    # issue 43 item 8: two short runs written with their figures and report.html (~5 s)
+    "tests/test_mag_record.py::test_report_has_the_magnetic_figure_only_with_magnetic_control",
     # issue 43 item 6: a lockstep run over LCM with Basilisk's Stribeck switch (~1.7 s)
     "tests/test_stribeck_switching.py::test_lockstep_hil_is_bitwise_sim_with_the_switch_on",
     # issue #43: three orbits of momentum unloading on the C++ engine, twice (~5 s)
