@@ -24,7 +24,7 @@ from magscn import H0, MOMENTUM, mag_data
 from sc_rt import simulate
 from sc_rt.model.orbit import eci_to_ecef, orbit_state
 from sc_rt.results.present.html_report import write_html_report
-from sc_rt.results.present.magnetic_figure import FILE, magnetic_series
+from sc_rt.results.present.magnetic_figure import FILE, magnetic_figure, magnetic_series
 from sc_rt.results.present.output import write_run
 from sc_rt.scenario.reader import scenario_from_data
 
@@ -84,7 +84,7 @@ def test_row_wheel_accel_is_the_step_with_the_commanded_dipole(engine):
     acceleration; a first-order difference, so off by about T/2 times the
     acceleration's rate). The commanded dipole's share, measured from the
     record as the rods' torque through the body, is far above that error."""
-    scn = _scenario(MOMENTUM, duration=4.0, wheel_speed=tuple(10 * v for v in H0))
+    scn = _scenario(MOMENTUM, duration=3.0, wheel_speed=tuple(10 * v for v in H0))
     run = simulate(scn, engine=engine, control_rate_hz=100.0)
     assert np.all(run["unloading"] == 1)
     T = float(np.diff(run.t[:2])[0])
@@ -160,3 +160,15 @@ def test_report_has_the_magnetic_figure_only_with_magnetic_control(tmp_path):
             assert s["band"]["on_h"] == 0.5 and math.isclose(s["band"]["off_h"], 0.1)  # capacity 1 N m s
             assert s["limits"] == (30.0, 30.0, 30.0) and s["dipole"].shape == (len(run.t), 3)
             assert s["detumble"] is None
+
+
+def test_bdot_alone_draws_dipoles_and_mode(tmp_path):
+    """B-dot without a manager: no momentum panels (h_wheels_B is NaN), the
+    mode series the record's detumble_mode, the figure written."""
+    bdot = '[bdot]\nderivative = "analytic"\nrate_on = 0.0466\nrate_off = 0.0464\n'
+    run = simulate(_scenario(bdot, duration=3.0, omega=(0.03, -0.03, 0.02)), engine="cpp")
+    s = magnetic_series(run)
+    assert np.all(np.isnan(s["h_norm"])) and s["band"] is None
+    np.testing.assert_array_equal(s["detumble"], run["detumble_mode"])
+    assert s["detumble"][0] == 0  # detumbling from the first row
+    assert magnetic_figure(run, tmp_path).name == FILE

@@ -79,23 +79,25 @@ def magnetic_figure(run: Run, out: Path, title: str = "") -> Path | None:
         return None
     s = magnetic_series(run)
     t, unl = s["t"], s["unloading"] == 1
-    panels = 3 + (s["detumble"] is not None)
-    fig, axs = plt.subplots(panels, 1, figsize=(9, 2.3 * panels + 1.0), sharex=True)
-    ax = axs[0]
-    ax.plot(t, s["h_norm"], lw=1, label="|h_wheels_B|")
-    if s["band"] is not None:
-        ax.axhline(s["band"]["on_h"], ls="--", lw=0.8, color="C3", label="unloading on")
-        ax.axhline(s["band"]["off_h"], ls=":", lw=0.8, color="C2", label="unloading off")
-    ax.set_ylabel(f"|h_wheels| [{s['h_unit']}]")
-    ax2 = axs[1]
-    ax2.plot(t, s["fill"], lw=1, color="C1", label="fill")
-    if s["band"] is not None:
-        ax2.axhline(s["band"]["on_fraction"], ls="--", lw=0.8, color="C3")
-        ax2.axhline(s["band"]["off_fraction"], ls=":", lw=0.8, color="C2")
-    ax2.set_ylabel(f"fill [{s['fill_unit']}]")
-    for a in axs[:2]:
-        _shade(a, t, unl, "unloading")
-    ax3 = axs[2]
+    manager = bool(np.isfinite(s["h_norm"]).any())  # the momentum manager ran (else: B-dot alone)
+    n = 1 + 2 * manager + (s["detumble"] is not None)
+    fig, axs = plt.subplots(n, 1, figsize=(9, 2.3 * n + 1.0), sharex=True, squeeze=False)
+    axs = list(axs[:, 0])
+    rest = list(axs)
+    if manager:
+        ax, ax2 = rest.pop(0), rest.pop(0)
+        ax.plot(t, s["h_norm"], lw=1, label="|h_wheels_B|")
+        ax2.plot(t, s["fill"], lw=1, color="C1", label="fill")
+        if s["band"] is not None:
+            ax.axhline(s["band"]["on_h"], ls="--", lw=0.8, color="C3", label="unloading on")
+            ax.axhline(s["band"]["off_h"], ls=":", lw=0.8, color="C2", label="unloading off")
+            ax2.axhline(s["band"]["on_fraction"], ls="--", lw=0.8, color="C3")
+            ax2.axhline(s["band"]["off_fraction"], ls=":", lw=0.8, color="C2")
+        ax.set_ylabel(f"|h_wheels| [{s['h_unit']}]")
+        ax2.set_ylabel(f"fill [{s['fill_unit']}]")
+        for a in (ax, ax2):
+            _shade(a, t, unl, "unloading")
+    ax3 = rest.pop(0)
     for j in range(s["dipole"].shape[1]):
         line, = ax3.plot(t, s["dipole"][:, j], lw=0.9, label=f"rod {j + 1}")
         if j < len(s["limits"]):
@@ -103,9 +105,10 @@ def magnetic_figure(run: Run, out: Path, title: str = "") -> Path | None:
                 ax3.axhline(sign * s["limits"][j], ls="--", lw=0.6, color=line.get_color())
     ax3.set_ylabel(f"rod dipole [{s['dipole_unit']}]")
     if s["detumble"] is not None:
-        axs[3].step(t, s["detumble"], where="post", lw=1)
-        axs[3].set_yticks([0, 1], ["detumble", "attitude"])
-        axs[3].set_ylabel("B-dot mode")
+        ax4 = rest.pop(0)
+        ax4.step(t, s["detumble"], where="post", lw=1)
+        ax4.set_yticks([0, 1], ["detumble", "attitude"])
+        ax4.set_ylabel("B-dot mode")
     for a in axs:
         a.grid(alpha=0.3)
         if a.get_legend_handles_labels()[0]:
@@ -113,8 +116,9 @@ def magnetic_figure(run: Run, out: Path, title: str = "") -> Path | None:
         if s["t_unit"] == "s":
             mark_events(a, run)
     axs[-1].set_xlabel(f"t [{s['t_unit']}]")
-    axs[0].set_title("Wheel momentum, the momentum manager and the rod dipoles (shaded: unloading)\n"
-                     f"{title or run_title(run)}", fontsize=10)
+    head = ("Wheel momentum, the momentum manager and the rod dipoles (shaded: unloading)" if manager
+            else "The rod dipoles and B-dot's mode")
+    axs[0].set_title(f"{head}\n{title or run_title(run)}", fontsize=10)
     path = save_figure(fig, Path(out) / FILE)
     plt.close(fig)
     return path
