@@ -172,3 +172,27 @@ def test_bdot_alone_draws_dipoles_and_mode(tmp_path):
     np.testing.assert_array_equal(s["detumble"], run["detumble_mode"])
     assert s["detumble"][0] == 0  # detumbling from the first row
     assert magnetic_figure(run, tmp_path).name == FILE
+
+
+def test_row_with_a_dipole_is_bitwise_in_the_two_plants():
+    """sc_rt.model.truth.row and _core.plant_row with the same held dipole:
+    equal with ==, and not the row without it (the dipole moves the wheels
+    of flight wheels through the body)."""
+    from sc_rt import _core
+    from sc_rt.model import truth
+    from sc_rt.model.actuators import actuator_params_to_cpp
+    from sc_rt.model.plant import plant_params_to_cpp
+
+    scn = _scenario(MOMENTUM, duration=1.0)
+    p, act = scn.plant, scn.actuators
+    pc, ac = plant_params_to_cpp(p), actuator_params_to_cpp(act)
+    x = np.array([0.1, -0.2, 0.3, 0.01, -0.02, 0.005, 30.0, -60.0, 50.0, 40.0])
+    u = np.array([0.01, -0.02, 0.005, 0.0])
+    m = [25.0, -30.0, 12.0]  # [A m^2]
+    mot = truth.new_motor(act)
+    rows = [(truth.row(p, act, 100.0, x, u, None if mot is None else list(mot), d)[1],
+             _core.plant_row(pc, ac, 100.0, _core.PlantState.from_vector(x), u,
+                             None if mot is None else np.array(mot), d).accel) for d in (m, None)]
+    for py, cpp in rows:
+        assert np.array_equal(np.asarray(py), np.asarray(cpp))
+    assert not np.array_equal(np.asarray(rows[0][0]), np.asarray(rows[1][0]))
