@@ -72,6 +72,8 @@ SLOW_TESTS = (
     "tests/test_day_hold.py::test_with_the_manager_the_wheels_are_unloaded_and_kept_in_the_band",
     # issue 43: a three-run Monte Carlo of day_hold (30 min runs) and each run again by hand (~15 s)
     "tests/test_day_montecarlo.py::test_each_run_draws_the_declared_values_and_is_the_hand_edited_scenario",
+    # issue 43 item 8: two short runs written with their figures and report.html (~5 s)
+    "tests/test_mag_record.py::test_report_has_the_magnetic_figure_only_with_magnetic_control",
     # issue 43 item 6: a lockstep run over LCM with Basilisk's Stribeck switch (~1.7 s)
     "tests/test_stribeck_switching.py::test_lockstep_hil_is_bitwise_sim_with_the_switch_on",
     # issue #43: three orbits of momentum unloading on the C++ engine, twice (~5 s)

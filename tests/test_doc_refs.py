@@ -599,6 +599,7 @@ FIELD_SYMBOL = {
     "u_sat": "sat(uc_i)",
     "wheel_accel": "Omega_w_dot_i",
     "delta2": "delta_2",
+    "H_N": "H",  # the total angular momentum of (3), in N
     "chi": "chi_i(t)",
     "lam": "lambda_i",
     "e1": "e1_i",

@@ -311,15 +311,17 @@ void bind_plant(py::module_& m) {
   m.def(
       "plant_row",
       [](const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x, const Vec4& u_cmd,
-         const std::optional<Eigen::VectorXd>& motor) {
-        if (!motor) return plant_row(p, a, t, x, u_cmd, nullptr);
+         const std::optional<Eigen::VectorXd>& motor, const std::optional<Vec3>& dipole_B) {
+        const Vec3* m_B = dipole_B ? &*dipole_B : nullptr;
+        if (!motor) return plant_row(p, a, t, x, u_cmd, nullptr, m_B);
         const WheelCarry c = carry_from(a, *motor);
-        return plant_row(p, a, t, x, u_cmd, &c);
+        return plant_row(p, a, t, x, u_cmd, &c, m_B);
       },
-      arg("p"), arg("a"), arg("t"), arg("x"), arg("u_cmd"), arg("motor") = py::none(),
+      arg("p"), arg("a"), arg("t"), arg("x"), arg("u_cmd"), arg("motor") = py::none(), arg("dipole_B") = py::none(),
       "The wheels' output of a row at (t, x) for u_cmd, either wheel model (sc_rt.model.truth.row);\n"
       "motor: what the run carries at t (truth.new_motor): the motor torques of lagged wheels, then\n"
-      "with stribeck_switching the Stribeck switches (0/1).");
+      "with stribeck_switching the Stribeck switches (0/1); dipole_B [A m^2]: the magnetorquers' body\n"
+      "dipole the step from t holds (None: the rods' for a zero command).");
   m.def(
       "plant_rk4_step_motor",
       [](const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x, double h, const Vec4& u_cmd,

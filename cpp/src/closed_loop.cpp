@@ -68,7 +68,15 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
     Vec3 B_B = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
     if (mag_) plant_field_B(plant_, t, x_.sigma_BN, B_B);
     const Command c = mag_ ? ctl_->step(m, B_B) : ctl_->step(m);
-    const WheelOutput w = plant_row(plant_, act_, t, x_, c.u_cmd, &motor_);
+    // the rod commands held over the period; the row's wheel accelerations with
+    // the dipole the step's first stage holds (docs/MODEL.md section 17)
+    RodVec d_cmd;
+    Vec3 m_B0;
+    if (rods_) {
+      d_cmd = c.magnetic.rod_dipole_cmd.head(plant_.rods.params.G_B.cols());
+      m_B0 = rods_dipole_B(plant_.rods, t, &d_cmd);
+    }
+    const WheelOutput w = plant_row(plant_, act_, t, x_, c.u_cmd, &motor_, rods_ ? &m_B0 : nullptr);
     if (out) {
       out->put(FieldId::t, i, t);
       out->put(FieldId::sigma_BN, i, x_.sigma_BN);
@@ -76,6 +84,7 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
       out->put(FieldId::wheel_speed, i, x_.wheel_speed);
       out->put(FieldId::wheel_accel, i, w.accel);
       out->put(FieldId::delta2, i, delta2_(t, x_, w.u_sat, w.accel));
+      out->put(FieldId::H_N, i, total_momentum_N(plant_, x_));
       for_each_command_field(c, [out, i](FieldId f, const auto& v) { out->put(f, i, v); });
       if (nv) {
         out->put(FieldId::flags, i, c.flags | tel_.flags);
@@ -88,8 +97,6 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
       done_ = true;
       break;
     }
-    RodVec d_cmd;
-    if (rods_) d_cmd = c.magnetic.rod_dipole_cmd.head(plant_.rods.params.G_B.cols());
     for (int j = 0; j < n_sub_; ++j) {
       if (nv && j > 0 && k * nsub64 + j == next_) {
         nv->tick(next_, t + j * h_, x_);
@@ -98,7 +105,7 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
       if (rods_) {
         // the rod commands held over the period, through the plant's rods
         // and their faults at each step's time (truth.py rk4_step's dipole_B)
-        const Vec3 m_B = rods_dipole_B(plant_.rods, t + j * h_, &d_cmd);
+        const Vec3 m_B = j == 0 ? m_B0 : rods_dipole_B(plant_.rods, t + j * h_, &d_cmd);
         x_ = plant_rk4_step(plant_, act_, t + j * h_, x_, h_, c.u_cmd, motor_, &m_B);
       } else {
         x_ = plant_rk4_step(plant_, act_, t + j * h_, x_, h_, c.u_cmd, motor_);

@@ -396,6 +396,22 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
   return y;
 }
 
+Vec3 total_momentum_N(const PlantParams& p, const PlantState& x) {
+  // H_B = J omega + Cbar Jw Omega_w (3), row by row left to right, then
+  // C_NB(sigma) H_B = C_BN(-sigma) H_B (rotate_to_B, orbit.hpp)
+  double hb[3];
+  for (int r = 0; r < 3; ++r) {
+    double v = (p.J0(r, 0) + p.dJ(r, 0)) * x.omega_BN_B(0);
+    v += (p.J0(r, 1) + p.dJ(r, 1)) * x.omega_BN_B(1);
+    v += (p.J0(r, 2) + p.dJ(r, 2)) * x.omega_BN_B(2);
+    for (int i = 0; i < 4; ++i) v += (p.Cbar(r, i) * p.Jw(i)) * x.wheel_speed(i);
+    hb[r] = v;
+  }
+  double h[3];
+  detail::rotate_to_B(-x.sigma_BN(0), -x.sigma_BN(1), -x.sigma_BN(2), hb[0], hb[1], hb[2], h);
+  return Vec3(h[0], h[1], h[2]);
+}
+
 struct LumpedDisturbance::Impl {
   // As plant.py: omega_dot of (7) with the true J, the actual accelerations
   // and d(t), minus the model of (21): the same right-hand side with J0 (u_g0

@@ -208,7 +208,7 @@ PlantState plant_rk4_step(const PlantParams& p, const ActuatorParams& a, double 
 }
 
 WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                      const Vec4& u_cmd, const WheelCarry* motor) {
+                      const Vec4& u_cmd, const WheelCarry* motor, const Vec3* dipole_B) {
   if (!a.wheels.enabled) return wheel_accel(a, t, u_cmd, x.wheel_speed);
   const StackKernel k(p);
   double u[4], scale[4], brake[4], x0[10], d[10];
@@ -220,10 +220,15 @@ WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, c
   stage1_switches(a.wheels, motor, x.wheel_speed, on);
   for (int i = 0; i < 3; ++i) x0[i] = x.sigma_BN(i), x0[3 + i] = x.omega_BN_B(i);
   for (int i = 0; i < 4; ++i) x0[6 + i] = x.wheel_speed(i);
-  double m[3];  // the residual dipole and the rods' for a zero command (truth.py row)
+  // the residual dipole and the one the step holds: dipole_B, or without it the
+  // rods' for a zero command (torque_rk4_step's, truth.py row)
+  double m[3];
   Vec3 rod_m;
-  if (p.rods.enabled) rod_m = rods_dipole_B(p.rods, t);
-  const detail::MagField mag(p, detail::held_dipole(p, p.rods.enabled ? &rod_m : nullptr, m) ? m : nullptr);
+  if (dipole_B == nullptr && p.rods.enabled) {
+    rod_m = rods_dipole_B(p.rods, t);
+    dipole_B = &rod_m;
+  }
+  const detail::MagField mag(p, detail::held_dipole(p, dipole_B, m) ? m : nullptr);
   torque_derivative(p, a.wheels, k.rhs, k.C, k.CJ, k.Jw, t, x0, u, scale, brake, on, d, mag);
   WheelOutput out;
   for (int i = 0; i < 4; ++i) {

@@ -86,6 +86,9 @@ namespace sc_rt {
     "momentum manager's unloading state: 1 on, 0 off; -1 no momentum manager")                                  \
   X(detumble_mode, 1, "i8", "-", "", "controller", kLoop, true, false, false,                                   \
     "B-dot mode: 0 detumble, 1 attitude; -1 no B-dot (a switch: flags bit 13, FLAG_MODE_SWITCH)")                \
+  X(H_N, 3, "f8", "N m s", "", "truth", kLoop, false, false, false,                                               \
+    "total angular momentum in N, C_NB (J omega_BN_B + Cbar Jw wheel_speed) with the true J (3) "                  \
+    "(NaN: the unsampled engine, lockstep)")                                                                     \
   X(sigma_BN_est, 3, "f8", "-", "", "estimator", kNav, false, true, false,                                      \
     "MEKF attitude estimate at t_k (what the law gets with measurement = estimate)")                             \
   X(bias_est, 3, "f8", "rad/s", "", "estimator", kNav, false, true, false, "MEKF gyro bias estimate")            \

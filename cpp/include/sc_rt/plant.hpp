@@ -150,8 +150,16 @@ WheelOutput wheel_accel(const ActuatorParams& a, double t, const Vec4& u_cmd,
 // wheels with a lag, the Stribeck switches (the row takes the step's first
 // stage's); may be null only without a lag and without stribeck_switching
 // (std::invalid_argument otherwise).
+// dipole_B: [A m^2] the magnetorquers' body dipole the step from t holds
+// (plant_rk4_step's; null: the rods' for a zero command), so that the row's
+// accel is the step's first stage's (docs/MODEL.md section 17).
 WheelOutput plant_row(const PlantParams& p, const ActuatorParams& a, double t, const PlantState& x,
-                      const Vec4& u_cmd, const WheelCarry* motor = nullptr);
+                      const Vec4& u_cmd, const WheelCarry* motor = nullptr, const Vec3* dipole_B = nullptr);
+
+// [N m s] the total angular momentum in N of (3), H_N = C_NB(sigma) (J omega +
+// Cbar Jw Omega_w) with the true J = J0 + dJ (the record's H_N;
+// sc_rt.model.momentum.total_momentum_N, the same operations).
+Vec3 total_momentum_N(const PlantParams& p, const PlantState& x);
 
 // What torque-commanded wheels hold over a step from t (sc_rt.model.torque_plant.step_inputs):
 // motor torques [N m], friction scales, seizure brakes [N m s].

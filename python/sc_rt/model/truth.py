@@ -80,7 +80,7 @@ def rk4_step(p: PlantParams, act: ActuatorParams, t: float, x, h: float, u_cmd, 
     return x1
 
 
-def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> tuple:
+def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None, dipole_B=None) -> tuple:
     """(u_sat, wheel accel, delta2) of a row: the command after the wheels'
     limits [rad/s^2], the wheels' actual acceleration relative to the body
     Omega_w_dot [rad/s^2] and the true lumped disturbance delta_2 [rad/s^2].
@@ -92,6 +92,9 @@ def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> 
     state ``motor`` (before this row's step), not the command; with
     ``stribeck_switching`` the friction's static part is the one the step's
     first stage takes (``motor``'s switches through the rule at t).
+    ``dipole_B``: the magnetorquers' body dipole [A m^2] the step from t
+    holds (``rk4_step``'s; None: the rods' for a zero command), so that the
+    acceleration is the step's first stage's (docs/MODEL.md section 17).
     """
     if act.wheels is None:
         u_sat, accel, _ = actuators.wheel_accel(act, t, u_cmd, x[6:10])
@@ -101,11 +104,12 @@ def row(p: PlantParams, act: ActuatorParams, t: float, x, u_cmd, motor=None) -> 
         u, scale, brake = step_inputs(act, p.Jw, float(t), u_cmd, x0[6:10])
         if _lagged(act, motor):
             u = [m if tau > 0.0 else c for m, c, tau in zip(motor, u, act.wheels.lag)]
-        rods = None if p.magnetorquers is None else rods_dipole_B(p.magnetorquers, float(t))
+        if dipole_B is None and p.magnetorquers is not None:
+            dipole_B = rods_dipole_B(p.magnetorquers, float(t))  # the rods' own dipole (a stuck rod's)
         on = None  # the static part as the step's first stage takes it (its omega - omega_start = 0)
         if act.wheels.stribeck_switching:
             on = [stribeck_switch(motor[4 + i] != 0.0, x0[6 + i], x0[6 + i], act.wheels.friction[i])
                   for i in range(4)]
-        accel = tp.derivative(float(t), x0, u, scale, brake, rods, on)[6:10]
+        accel = tp.derivative(float(t), x0, u, scale, brake, dipole_B, on)[6:10]
         u_sat = [u[i] / float(p.Jw[i]) for i in range(4)]
     return u_sat, accel, plant.lumped_disturbance(p, t, x, u_sat, accel)

@@ -30,6 +30,7 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.isolate import beat, beat_done, beating
 from sc_rt.model import actuators, plant, truth
+from sc_rt.model.momentum import total_momentum_N
 from sc_rt.model.rods import rods_dipole_B
 from sc_rt.pylaw import register
 from sc_rt.results.judge.metrics import finish_run, record_law_failures
@@ -78,6 +79,7 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     OUT = np.full((n, _core.PACKED_SIZE), np.nan)
     ACC = np.full((n, 4), np.nan)
     D2 = np.full((n, 3), np.nan)
+    HN = np.full((n, 3), np.nan)
     u_slice = PACKED["u_cmd"]
     rows = 0
     diverged = False
@@ -97,20 +99,25 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
         else:
             out = step(t, x)
         u_cmd = out[u_slice]
-        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd, motor)
+        m_B0 = None  # the dipole the step's first stage holds: the row's accelerations with it
+        if rods is not None:
+            d_cmd = out[rod_slice][:rods.n_rods].tolist()
+            m_B0 = rods_dipole_B(rods, t, d_cmd)
+        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd, motor, m_B0)
         T[k] = t
         X[k] = x
         OUT[k] = out
         ACC[k] = accel
         D2[k] = delta2
+        HN[k] = total_momentum_N(pp, x)
         rows = k + 1
         beat(t)  # a step done: for a parent watching a contained run (sc_rt.isolate)
         if k == n_ctrl or STOP.is_set():
             break
         if rods is not None:
-            d_cmd = out[rod_slice][:rods.n_rods].tolist()
             for j in range(n_sub):
-                x = rk4(pp, act, t + j * h, x, h, u_cmd, motor, rods_dipole_B(rods, t + j * h, d_cmd))
+                m_B = m_B0 if j == 0 else rods_dipole_B(rods, t + j * h, d_cmd)
+                x = rk4(pp, act, t + j * h, x, h, u_cmd, motor, m_B)
         else:
             for j in range(n_sub):
                 x = rk4(pp, act, t + j * h, x, h, u_cmd, motor)
@@ -118,6 +125,7 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
             diverged = True
             break
     cols = loop_columns(T, X, ACC, D2, OUT, PACKED, RECORDED)
+    cols["H_N"] = HN
     cols[LAW_FAILURES], cols[TELEMETRY_NAMES] = ctl.law_failures, ctl.telemetry_names
     return cols, rows, diverged
 

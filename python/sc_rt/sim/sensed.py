@@ -27,6 +27,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
+from sc_rt.model.momentum import total_momentum_N
 from sc_rt.isolate import beat, beat_done
 from sc_rt.results.record.fields import packed_layout
 from sc_rt.results.record.run import FIELD
@@ -68,6 +69,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
     NAVT = np.full((n, _core.NAV_SIZE), np.nan)
     ACC = np.full((n, 4), np.nan)
     D2 = np.full((n, 3), np.nan)
+    HN = np.full((n, 3), np.nan)
     items = list(packed.items())
     rows, diverged = 0, False
     plant_row, rk4 = truth.row, truth.rk4_step
@@ -91,6 +93,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
         NAVT[k] = tel
         ACC[k] = accel
         D2[k] = delta2
+        HN[k] = total_momentum_N(pp, x)
         rows = k + 1
         beat(t)  # a step done: for a parent watching a contained run (sc_rt.isolate)
         if k == n_ctrl:
@@ -104,6 +107,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
             diverged = True
             break
     cols = loop_columns(T, X, ACC, D2, OUT, packed, recorded)
+    cols["H_N"] = HN
     for name in NAV_RECORDED:
         v = NAVT[:, NAV[name]]
         cols[name] = v[:, 0] if v.shape[1] == 1 else v

@@ -50,6 +50,9 @@ FIGURES = {
     "faults.png": "Wheel faults as the plant reported them",
     "timing.png": "Timing: state-to-command latency, compute and wake lateness [us]",
     "law_telemetry.png": "The law's own telemetry: its named values and the fixed slots it fills (x2d, rho_hat)",
+    "magnetic_control.png": ("Magnetic control: the wheels' momentum |h_wheels_B| with the momentum manager's "
+                             "on/off band, its fill, the rod dipole commands with their limits and B-dot's mode "
+                             "when it ran; shaded: unloading"),
     "gyro_calibration.png": ("The calibrating filter's gyro scale factors [ppm] and misalignments [arcsec] "
                              "with their 3 sigma (gyro_cal_est, gyro_cal_3sigma)"),
 }

@@ -75,9 +75,11 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "") -> 
 
 
 def _figures(run: Run, out: Path, title: str) -> list[Path]:
-    """The tracking, wheel speed, requirements and (bench runs) timing figures."""
+    """The tracking, wheel speed, requirements, (magnetic control) momentum and
+    dipole, and (bench runs) timing figures."""
     from sc_rt.results.present import figures as fig
     from sc_rt.results.present.calibration_figure import calibration_figure
+    from sc_rt.results.present.magnetic_figure import magnetic_figure
     from sc_rt.results.present.telemetry_figure import telemetry_figure
     from sc_rt.results.present.requirement_figures import requirement_figures
 
@@ -87,6 +89,8 @@ def _figures(run: Run, out: Path, title: str) -> list[Path]:
     if (p := telemetry_figure(drawn, out, title)) is not None:  # the law's own telemetry, when it has any
         paths.append(p)
     if (p := calibration_figure(drawn, out, title)) is not None:  # a calibrating filter's estimates
+        paths.append(p)
+    if (p := magnetic_figure(drawn, out, title)) is not None:  # magnetic control: momentum and dipoles
         paths.append(p)
     if run.timing is not None:
         paths += fig.timing_figures(drawn, out)

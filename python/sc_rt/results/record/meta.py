@@ -13,7 +13,7 @@ import numpy as np
 
 from sc_rt.results.record.jsonsafe import json_safe
 
-__all__ = ["RunMeta", "command_fields", "command_meta"]
+__all__ = ["RunMeta", "command_fields", "command_meta", "magnetic_meta"]
 
 
 @dataclass(frozen=True)
@@ -98,6 +98,13 @@ class RunMeta:
         Every field's unit on this run (``Field.resolved_unit`` of
         sc_rt.results.record.fields: a "command" field's is the wheels'):
         what outputs label the run's numbers with (``unit``).
+    magnetic : dict
+        The controller's magnetic part (docs/MODEL.md section 17), what the
+        magnetic figure draws its bands and limits from: "rod_max_dipole"
+        [A m^2] (per rod), "momentum" (None, or "on_fraction",
+        "off_fraction" [-] and "capacity" [N m s], resolved: 0 takes
+        min_i Jw_i omega_max_i as the core does) and "bdot" (bool);
+        ``{}``: none (or an older record).
     telemetry_names : tuple of str
         The law's telemetry names (its ``telemetry_names()``): the columns
         of the run's ``telemetry`` field, ``"name [unit]"`` where the law
@@ -145,6 +152,9 @@ class RunMeta:
     units: dict[str, str] = dataclasses.field(default_factory=dict)
     #: the scenario's expect: "holds", "violates" or "" (unstated)
     expect: str = ""
+    #: the controller's magnetic part: rod limits [A m^2], the manager's band and capacity [N m s],
+    #: B-dot on; {} none (magnetic_meta)
+    magnetic: dict[str, Any] = dataclasses.field(default_factory=dict)
     #: what the run was made from (results/record/inputs.py): the scenario file and its sha256,
     #: the overrides, the law's parameters as run, sc-rt's version and commit; {} unknown (older runs)
     inputs: dict[str, Any] = dataclasses.field(default_factory=dict)
@@ -182,6 +192,7 @@ class RunMeta:
         d["requirements"] = tuple(d.get("requirements", ()))
         d["telemetry_names"] = tuple(d.get("telemetry_names", ()))
         d["units"] = dict(d.get("units", {}))
+        d["magnetic"] = dict(d.get("magnetic") or {})
         d["Cbar"] = tuple(tuple(float(x) for x in row) for row in d.get("Cbar", ()))
         for k in ("Jw", "max_wheel_speed"):
             d[k] = tuple(math.inf if x is None else float(x) for x in d.get(k, ()))
@@ -207,7 +218,7 @@ class RunMeta:
                   requirements=tuple(dataclasses.asdict(r) for r in getattr(scn, "requirements", ())),
                   Cbar=tuple(tuple(float(x) for x in row) for row in np.asarray(plant.Cbar, float)),
                   Jw=tuple(float(x) for x in np.asarray(plant.Jw, float)),
-                  max_wheel_speed=_speed_limits(a),
+                  max_wheel_speed=_speed_limits(a), magnetic=magnetic_meta(scn),
                   record_every=int(getattr(getattr(scn, "record", None), "every", 1)),
                   expect=str(getattr(scn, "expect", "") or ""))
         from sc_rt.results.record.inputs import run_inputs
@@ -253,3 +264,23 @@ def _speed_limits(a) -> tuple[float, ...]:
     if getattr(a, "wheels", None) is not None:
         return tuple(float(w.omega_max) if w.omega_max > 0.0 else math.inf for w in a.wheels.limits)
     return tuple(float(x) for x in np.asarray(a.max_wheel_speed, float))
+
+
+def magnetic_meta(scn) -> dict[str, Any]:
+    """``RunMeta.magnetic`` of the scenario ``scn``: {} without magnetic
+    control, else the rods' limits [A m^2], the momentum manager's on/off
+    fractions [-] and capacity [N m s] (0 resolved to min_i Jw_i
+    omega_max_i, the core's MomentumParams rule) or None, and B-dot on."""
+    mc = getattr(scn, "magnetic_control", None)
+    rods = getattr(scn.plant, "magnetorquers", None)
+    if mc is None or rods is None:
+        return {}
+    mom = None
+    if mc.momentum is not None:
+        cap = float(mc.momentum.capacity)
+        if cap == 0.0:
+            cap = min(j * w for j, w in zip(np.asarray(scn.plant.Jw, float), _speed_limits(scn.actuators)))
+        mom = {"on_fraction": float(mc.momentum.on_fraction), "off_fraction": float(mc.momentum.off_fraction),
+               "capacity": float(cap)}
+    return {"rod_max_dipole": [float(v) for v in np.asarray(rods.max_dipole, float)], "momentum": mom,
+            "bdot": mc.bdot is not None}
