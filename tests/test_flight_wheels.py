@@ -32,8 +32,7 @@ from sc_rt.scenario.reader import load_scenario, scenario_from_data
 from sc_rt.scenario.schema import ScenarioError
 from sc_rt.sim.engines import simulate
 
-import lcmnet
-from trajcmp import compared_fields, load_traj
+from trajcmp import lockstep_equals_sim
 
 ROOT = Path(__file__).resolve().parent.parent
 FLIGHT = ROOT / "scenarios" / "flight_wheels.toml"
@@ -270,16 +269,7 @@ def test_a_friction_rise_needs_flight_wheels(tmp_path):
 
 @pytest.mark.lcm
 def test_lockstep_hil_is_bitwise_sim_with_flight_wheels_and_their_faults(tmp_path):
-    lcmnet.require()
-    path, duration = _flight_file(tmp_path), 40.0
-    out = tmp_path / "hil"
-    r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration), "--out", str(out),
-                        "--no-plots"])
-    assert r.returncode == 0, r.stderr + r.stdout
-    hil = load_traj(out)
-    sim = simulate(load_scenario(path), engine="python", duration=duration)
-    assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
-    compared_fields(hil, sim)
+    lockstep_equals_sim(_flight_file(tmp_path), tmp_path / "hil", 40.0)
 
 
 def test_a_flight_wheels_campaign_disperses_a_wheel_key(tmp_path):

@@ -23,7 +23,6 @@ from sc_rt.model.wheels import WheelFriction, WheelLimits
 from sc_rt.scenario.reader import load_scenario, scenario_from_data
 from sc_rt.scenario.schema import ScenarioError
 from sc_rt.scenario.shipped import resolve
-from trajcmp import load_traj
 
 ORBIT = OrbitParams(a=R_EARTH + 500e3, e=0.01, i=math.radians(51.6), raan=0.3, argp=1.1, M0=0.2, j2=True)
 X0 = np.array([0.1, -0.2, 0.3, 0.01, -0.02, 0.015, 10.0, -20.0, 30.0, 5.0])
@@ -175,20 +174,9 @@ def test_environment_field_key_reads_and_needs_an_orbit():
 @pytest.mark.lcm
 def test_lockstep_hil_with_an_orbit_is_bitwise_sim(tmp_path):
     # the emulator process integrates the same orbit plant as the offline engines
-    import lcmnet
-    from trajcmp import compared_fields
+    from trajcmp import lockstep_equals_sim
 
-    from sc_rt.sim.engines import simulate
-
-    lcmnet.require()
-    path, duration = tmp_path / "orbit.toml", 20.0
+    path = tmp_path / "orbit.toml"
     path.write_text(Path(resolve("paper_faults")).read_text()
                     + "\n[orbit]\naltitude = 500e3\ne = 0.01\ninclination = 51.6\nj2 = true\n")
-    out = tmp_path / "hil"
-    r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration), "--out", str(out),
-                        "--no-plots"])
-    assert r.returncode == 0, r.stderr + r.stdout
-    hil = load_traj(out)
-    sim = simulate(load_scenario(path), engine="cpp", duration=duration)
-    assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
-    compared_fields(hil, sim)
+    lockstep_equals_sim(path, tmp_path / "hil", 20.0, engine="cpp")

@@ -34,8 +34,7 @@ from sc_rt.scenario.reader import load_scenario, scenario_from_data
 from sc_rt.scenario.schema import ScenarioError
 from sc_rt.sim.engines import simulate
 
-import lcmnet
-from trajcmp import compared_fields
+from trajcmp import lockstep_equals_sim
 
 ROOT = Path(__file__).resolve().parent.parent
 FLIGHT = ROOT / "scenarios" / "flight_wheels.toml"
@@ -263,13 +262,4 @@ def test_the_emulators_plant_carries_the_switches_from_row_to_row():
 
 @pytest.mark.lcm
 def test_lockstep_hil_is_bitwise_sim_with_the_switch_on(tmp_path):
-    lcmnet.require()
-    path, duration = _flight_switched(tmp_path), 20.0
-    out = tmp_path / "hil"
-    r = lcmnet.run_cli(["hil", str(path), "--mode", "lockstep", "--duration", str(duration), "--out", str(out),
-                        "--no-plots"])
-    assert r.returncode == 0, r.stderr + r.stdout
-    hil = np.load(out / "trajectory.npz")
-    sim = simulate(load_scenario(path), engine="python", duration=duration)
-    assert len(hil["t"]) == len(sim["t"]) == int(duration * 10) + 1
-    compared_fields(hil, sim)
+    lockstep_equals_sim(_flight_switched(tmp_path), tmp_path / "hil", 20.0)
