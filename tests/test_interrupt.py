@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import shlex
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -147,10 +148,12 @@ def test_hil_on_a_full_disk(tmp_path):
     assert len(lines) == 1 and "on disk at most" in lines[0] and "free in" in lines[0], r.stderr
     assert r.stdout.strip().endswith("rc=2"), r.stdout  # nothing written
     assert not leftovers(str(out))
-    # the estimate passes (150 MB), then the disk fills under the running bench
+    # the estimate passes (a tmpfs 20 MB above the estimate the refusal named: rows grow as the
+    # field table does), then the disk fills under the running bench
+    need_mb = int(re.search(r"= (\d+) MB", lines[0]).group(1))
     grow = GROW.format(f=out / "run.lcmlog", n=3_000_000)
     inner = (f"ip link set lo up && ip route add 224.0.0.0/4 dev lo && mkdir -p {out} && "
-             f"mount -t tmpfs -o size=150m tmpfs {out} && "
+             f"mount -t tmpfs -o size={need_mb + 20}m tmpfs {out} && "
              f"{{ {CLI} hil paper_fault_free --control-rate 100 --out {out} --no-plots & }} && P=$! && "
              f"{grow} && (dd if=/dev/zero of={out}/filler bs=1M 2>/dev/null || true) && "
              f"wait $P; echo rc=$?")
