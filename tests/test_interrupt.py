@@ -9,8 +9,8 @@ the run shows progress (polled), never after a sleep alone."""
 from __future__ import annotations
 
 import json
-import shlex
 import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
