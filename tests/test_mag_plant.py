@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from refmath import mrp_dcm
 from sc_rt import _core
 from sc_rt.model.actuators import ActuatorParams, actuator_params_to_cpp
 from sc_rt.model.field import field_for
@@ -45,18 +46,9 @@ def _plant(res=(0.0, 0.0, 0.0), field="igrf") -> PlantParams:
 ACT = ActuatorParams(umin=np.full(4, -7.0), umax=np.full(4, 10.0))
 
 
-def _C_BN(sigma) -> np.ndarray:
-    """[BN] of an MRP through its Euler parameters (Schaub & Junkins (3.93), (3.132))."""
-    s = np.asarray(sigma, float)
-    ss = s @ s
-    q0, q = (1.0 - ss) / (1.0 + ss), 2.0 * s / (1.0 + ss)
-    qx = np.array([[0.0, -q[2], q[1]], [q[2], 0.0, -q[0]], [-q[1], q[0], 0.0]])
-    return (q0 * q0 - q @ q) * np.eye(3) + 2.0 * np.outer(q, q) - 2.0 * q0 * qx
-
-
 def _H_N(x) -> np.ndarray:
     """[N m s] spacecraft + wheels' angular momentum in N."""
-    return _C_BN(x[0:3]).T @ (J0 @ x[3:6] + (CBAR * JW) @ x[6:10])
+    return mrp_dcm(x[0:3]).T @ (J0 @ x[3:6] + (CBAR * JW) @ x[6:10])
 
 
 def _field_N(times) -> np.ndarray:
@@ -99,7 +91,7 @@ def test_residual_dipole_torque_is_m_cross_the_field_in_the_body():
             x = X0.copy()
             x[0:3] = sigma
             tau = J0 @ (derivative(t, x, acc, p)[3:6] - derivative(t, x, acc, p0)[3:6])
-            ref = np.cross(m, _C_BN(sigma) @ B)
+            ref = np.cross(m, mrp_dcm(sigma) @ B)
             # ppigrf and the bench's IGRF-14 agree to < 1 nT (tests/test_geomag.py): 1e-9 T |m|
             np.testing.assert_allclose(tau, ref, rtol=0, atol=1e-9 * np.linalg.norm(m))
             assert np.linalg.norm(ref) > 1e-5  # [N m]: 20-50 uT times 3 A m^2 is a real torque
@@ -132,7 +124,7 @@ def test_momentum_change_is_the_integral_of_m_cross_b_in_n():
     for b in range(nblocks):
         k = slice(b * block, (b + 1) * block + 1)
         m_B = res + dip[b]
-        tau = np.array([np.cross(_C_BN(x[0:3]).T @ m_B, B) for x, B in zip(xs[k], B_N[k])])
+        tau = np.array([np.cross(mrp_dcm(x[0:3]).T @ m_B, B) for x, B in zip(xs[k], B_N[k])])
         integral += (h / 3.0) * (w @ tau)
     dH = _H_N(xs[-1]) - _H_N(xs[0])
     # the field's difference (< 1 nT of ppigrf against the bench's IGRF-14) times |m| <= 22 A m^2
@@ -149,7 +141,7 @@ def _bench_field_error(res, h: float, n: int) -> tuple[float, float]:
     f = field_for("igrf", JD)
     t = h * np.arange(n + 1)
     B_N = np.array([f.B_eci(orbit_state(ORBIT, tk)[0], JD, tk) for tk in t]) * 1e-9
-    tau = np.array([np.cross(_C_BN(x[0:3]).T @ res, B) for x, B in zip(xs, B_N)])
+    tau = np.array([np.cross(mrp_dcm(x[0:3]).T @ res, B) for x, B in zip(xs, B_N)])
     w = np.ones(n + 1)
     w[1:-1:2], w[2:-1:2] = 4.0, 2.0
     integral = (h / 3.0) * (w @ tau)

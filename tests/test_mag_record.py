@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from magscn import H0, MOMENTUM, mag_data
+from refmath import mrp_dcm
 from sc_rt import simulate
 from sc_rt.model.orbit import eci_to_ecef, orbit_state
 from sc_rt.results.present.html_report import write_html_report
@@ -45,21 +46,12 @@ def _scenario(extra: str, *, duration: float, bias: bool = True, **kw):
     return dataclasses.replace(scn, plant=dataclasses.replace(scn.plant, orbit_gravity_gradient=False))
 
 
-def _C_BN(sigma) -> np.ndarray:
-    """[BN] of an MRP through its Euler parameters (Schaub & Junkins (3.93), (3.132))."""
-    s = np.asarray(sigma, float)
-    ss = s @ s
-    q0, q = (1.0 - ss) / (1.0 + ss), 2.0 * s / (1.0 + ss)
-    qx = np.array([[0.0, -q[2], q[1]], [q[2], 0.0, -q[0]], [-q[1], q[0], 0.0]])
-    return (q0 * q0 - q @ q) * np.eye(3) + 2.0 * np.outer(q, q) - 2.0 * q0 * qx
-
-
 def _H_N(scn, run) -> np.ndarray:
     """[N m s] numpy's C_NB (J omega + Cbar Jw Omega) from the record's state."""
     J = np.asarray(scn.plant.J0, float) + np.asarray(scn.plant.dJ, float)
     CJ = np.asarray(scn.plant.Cbar, float) * np.asarray(scn.plant.Jw, float)
     H_B = run["omega_BN_B"] @ J.T + run["wheel_speed"] @ CJ.T
-    return np.array([_C_BN(s).T @ h for s, h in zip(run["sigma_BN"], H_B)])
+    return np.array([mrp_dcm(s).T @ h for s, h in zip(run["sigma_BN"], H_B)])
 
 
 def _field_N(orbit, times) -> np.ndarray:
@@ -114,7 +106,7 @@ def test_total_momentum_changes_by_the_integral_of_m_cross_b():
     B0, Bm = _field_N(scn.plant.orbit, t), _field_N(scn.plant.orbit, tm)
     sig = run["sigma_BN"]
     m_B = run["m_B_cmd"][:-1]  # healthy rods: the plant's dipole is the command
-    m_N = [np.array([_C_BN(s).T @ m for s, m in zip(ss, m_B)])
+    m_N = [np.array([mrp_dcm(s).T @ m for s, m in zip(ss, m_B)])
            for ss in (sig[:-1], 0.5 * (sig[:-1] + sig[1:]), sig[1:])]
     tau = [np.cross(m, B) for m, B in zip(m_N, (B0[:-1], Bm, B0[1:]))]
     integral = (T / 6.0) * (tau[0] + 4.0 * tau[1] + tau[2])
