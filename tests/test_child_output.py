@@ -114,3 +114,9 @@ def test_a_controller_over_its_memory_limit_fails_the_run(tmp_path):
     assert m["valid"] is False and "over the limit of 600 MB" in m["invalid_reason"], m.get("invalid_reason")
     assert m["partial"] is True and m["steps"] < 3001
     assert m["controller_peak_rss_mb"] > 600
+    # the log's report gives the live reason, from the bench's end record (it said only "the log ends early")
+    rep = lcmnet.run_cli(["report", str(out / "run.lcmlog"), "--no-plots", "--out", str(tmp_path / "rep")],
+                         netns=False)
+    assert rep.returncode == 0, rep.stderr
+    mr = _metrics(tmp_path / "rep")
+    assert mr["valid"] is False and "over the limit of 600 MB" in mr["invalid_reason"], mr.get("invalid_reason")

@@ -89,3 +89,10 @@ def test_a_law_that_never_returns_fails_the_lockstep_run_named(tmp_path):
     html = (out / "report.html").read_text()
     head = html[html.index('<p id="verdict-bound">'):]
     assert head.startswith('<p id="verdict-bound">INVALID: ') and "did not answer state 20" in head[:400]
+    # the log's report gives the live reason, from the bench's end record (it said only "the log ends early")
+    rep = lcmnet.run_cli(["report", str(out / "run.lcmlog"), "--no-plots", "--out", str(tmp_path / "rep")],
+                         netns=False)
+    assert rep.returncode == 0, rep.stderr
+    mr = _metrics(tmp_path / "rep")
+    assert mr["valid"] is False and "did not answer state 20" in mr["invalid_reason"], mr.get("invalid_reason")
+    assert "end record" in mr["invalid_reason"]

@@ -121,3 +121,38 @@ def test_report_of_a_log_with_another_plants_states_is_invalid(tmp_path):
     rep, m = reports["two"]
     assert [p["session"] for p in rep["plant_sessions"]][1] == other and rep["plant_sessions"][1]["states"] == 30
     assert m["valid"] is False and "states of 2 plants" in m["invalid_reason"], m.get("invalid_reason")
+
+
+def _conflicts_by_hand(msgs) -> int:
+    """An independent count: per (session, seq), the messages that differ from
+    the one before them of the same key, in log order."""
+    last: dict = {}
+    n = 0
+    for session, seq, state_seq, u in msgs:
+        if not np.all(np.isfinite(u)):
+            continue
+        k = (session, seq)
+        if k in last and last[k] != (state_seq, tuple(u)):
+            n += 1
+        last[k] = (state_seq, tuple(u))
+    return n
+
+
+def test_command_conflicts_in_a_log_are_counted_as_the_plant_counts_them():
+    from sc_rt.logs.report import command_conflicts
+    from sc_rt.wire.codec import TYPES, numpy_dtype
+
+    rng = np.random.default_rng(4)
+    dt = numpy_dtype(TYPES["wheel_cmd_t"])
+    genuine = [(7, k, k, rng.normal(size=4)) for k in range(200)]
+    repeats = [genuine[k] for k in (3, 50, 51)]  # a controller's repeated answer: no conflict
+    racing = [(7, k, k, np.array([9.0, -7.0, 9.0, -7.0])) for k in (10, 11, 120)]  # its session and seq
+    other = [(8, k, k, rng.normal(size=4)) for k in range(5)]  # another session's seq: not a conflict
+    nan = [(7, 12, 12, np.full(4, np.nan))]  # the plant drops it
+    msgs = genuine[:60] + repeats + racing + nan + other + genuine[60:]
+    rec = np.zeros(len(msgs), dt)
+    for i, (session, seq, state_seq, u) in enumerate(msgs):
+        rec[i]["session"], rec[i]["seq"], rec[i]["state_seq"], rec[i]["u_cmd"] = session, seq, state_seq, u
+    assert command_conflicts(rec) == _conflicts_by_hand(msgs) == 3
+    assert command_conflicts(rec[: 60 + len(repeats)]) == 0
+    assert command_conflicts(rec[:0]) == 0

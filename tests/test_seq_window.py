@@ -106,3 +106,10 @@ def test_commands_racing_the_controller_fail_the_run_named(tmp_path):
     emu = json.loads((out / "timing.json").read_text())["emulator_counters"]
     assert emu.get("cmd_conflict", 0) > 0, emu
     assert m["valid"] is False and "forged or racing sender" in m["invalid_reason"], m["invalid_reason"]
+    # the log alone gives the same verdict (issue 40 item 4: its report said valid before)
+    rep = lcmnet.run_cli(["report", str(out / "run.lcmlog"), "--no-plots", "--out", str(tmp_path / "rep")],
+                         netns=False)
+    assert rep.returncode == 0, rep.stderr
+    mr = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    assert mr["valid"] is False and "forged or racing sender" in mr["invalid_reason"], mr.get("invalid_reason")
+    assert json.loads((tmp_path / "rep" / "report.json").read_text())["command_conflicts"] > 0

@@ -35,7 +35,7 @@ from sc_rt.results.record.run import Run, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.wire.auth import load_key, open_bus
 from sc_rt.wire.lcmio import channel, free_port_url, open_lcm
-from sc_rt.wire.startrec import encode_start
+from sc_rt.wire.startrec import encode_end, encode_start
 
 __all__ = ["HilResult", "run_hil", "CONTROLLER_START_TIMEOUT_S", "LOCKSTEP_ANSWER_S"]
 
@@ -235,6 +235,17 @@ def _start_record(b: _Bench) -> bytes:
     return encode_start(rec)
 
 
+def _end_record(scn, res, stopper: Stopper) -> bytes:
+    """The end marker's payload (wire/startrec.py): what the bench saw that
+    no message shows, for ``sc-rt report`` to give the live run's reasons."""
+    rec: dict = {"scenario": scn.name}
+    if res is not None:
+        rec.update(rows=len(res), partial=bool(res.partial), stopped=res.message if res.partial else None)
+    if stopper.died is not None:
+        rec["died"] = stopper.died
+    return encode_end(rec)
+
+
 def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     scn, out, url, mode, prefix = b.scn, b.out, b.url, b.mode, b.prefix
     realtime_priority, setup, floor, ext, key = b.realtime_priority, b.setup, b.floor, b.ext, b.key
@@ -267,6 +278,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     if key_path is not None:
         cmd += ["--auth-key", str(key_path)]
     cmd += setup.controller_args()  # --trigger, --cpu, --null-law
+    res = None
     try:
         ctl = (ext.start(child_kwargs()) if ext else
                subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **child_kwargs()))
@@ -303,7 +315,7 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
         if ctl is not None:
             stop_child(ctl, signal.SIGTERM)
         ctl_err = ext.close_output() if ext else drain.close()
-        log_complete = wait_logged(url, log_path, logger, prefix + "SCRT_HIL_END", scn.name.encode())
+        log_complete = wait_logged(url, log_path, logger, prefix + "SCRT_HIL_END", _end_record(scn, res, stopper))
         logger_rc = stop_child(logger, signal.SIGINT)
     logger_err = logger.stderr.read().decode(errors="replace").strip() if logger.stderr else ""
     if stopper.died is not None and res.partial and res.message == stopper.died:

@@ -18,7 +18,7 @@ import lcm
 import numpy as np
 
 from sc_rt.wire.lcmio import CHANNELS
-from sc_rt.wire.startrec import start_record
+from sc_rt.wire.startrec import end_record, start_record
 from sc_rt.wire.codec import TYPES, decode_any, numpy_dtype
 from sc_rt.wire.legacy import decode_current, upgrade
 
@@ -40,6 +40,9 @@ class LogData:
     #: mode, trigger, rate, law identity, run id); None in a log written
     #: before it carried one (then a consumer has to guess, and says so)
     start: dict[str, Any] | None = None
+    #: the run's end record (SCRT_HIL_END, JSON: why the bench stopped, how
+    #: its controller ended); None in an older log or one cut before its end
+    end: dict[str, Any] | None = None
 
     @property
     def undecodable(self) -> int:
@@ -121,5 +124,6 @@ def read_log(path: str | Path, prefix: str | None = None) -> LogData:
                         "undecodable": int(sum(counts.values())), "undecodable_kinds": dict(counts)}
     skipped = {ch: len(v) for ch, v in sorted(by_ch.items())}
     return LogData(path, events, prefix, time.perf_counter() - t0, records, stamps, messages,
-                   channels, skipped, start_record(by_ch.get(prefix + "SCRT_HIL_START", [])))
+                   channels, skipped, start_record(by_ch.get(prefix + "SCRT_HIL_START", [])),
+                   end_record(by_ch.get(prefix + "SCRT_HIL_END", [])))
 

@@ -49,7 +49,8 @@ from sc_rt.results.present.output import write_run
 from sc_rt.results.record.meta import command_fields
 from sc_rt.results.record.run import Run, RunMeta, json_safe, provenance
 
-__all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command", "plant_sessions"]
+__all__ = ["LogData", "read_log", "rebuild", "write_report", "replay_command", "plant_sessions",
+           "command_conflicts"]
 
 
 def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
@@ -189,9 +190,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
                    telemetry_names=tuple((d.start or {}).get("telemetry_names") or ()), **extra)
     run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:
-        run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None,
-                       "stopped": "the log ends before the run's duration (an interrupted, crashed or "
-                                  "full-disk run, or a logger stopped early)"}
+        run.metrics = {"t_reached_s": float(r.arrays["t"][-1]) if rows else None, "stopped": _stopped(d.end)}
     if dropped:
         run.metrics.update(incomplete_rows_dropped=dropped, incomplete_rows_at_end=at_end)
     run.metrics.update(provenance(_main_session(d.records["SCRT_STATE"]), _main_session(d.records["SCRT_CMD"])))
@@ -201,6 +200,11 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
                           + ", ".join(f"{p['session']:#x}" for p in plants)
                           + "); a sc-rt hil run has one: another bench on the same URL and prefix (judged "
                             "from the log)")
+    if (conflicts := command_conflicts(d.records["SCRT_CMD"])):  # the live run's cmd_conflict, from the log
+        mark_invalid(run, f"{conflicts} commands carried another command's session and seq: a forged or racing "
+                          "sender on the bus (docs/PROTOCOL.md, 'Sequence numbers'; judged from the log)")
+    if d.end is not None and d.end.get("died"):  # how the controller ended: the bench saw it, no message does
+        mark_invalid(run, f"{d.end['died']} (the bench's end record in the log)")
     guidance = logged_guidance(d, scenario)
     fill_tracking_errors(run, guidance)
     faults = fault_summary(d, r)
@@ -218,13 +222,42 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
               "start": d.start,
               "incomplete_rows_dropped": dropped, "incomplete_rows_at_end": at_end, "partial": run.partial,
               "parameters_from": source, "undecodable": d.undecodable, "channels": d.channels,
-              "skipped": d.skipped, "faults": faults, "sensors": sensor_summary(d), "plant_sessions": plants}
+              "skipped": d.skipped, "faults": faults, "sensors": sensor_summary(d), "plant_sessions": plants,
+              "end": d.end, "command_conflicts": conflicts}
     if cfg is not None:
         report["config"] = {"scenario": cfg.scenario, "law": law, "control_rate_hz": rate}
     (out / "report.json").write_text(json.dumps(json_safe(report), indent=2) + "\n")
     report["metrics"] = run.metrics
     report["timing"] = run.timing
     return report
+
+
+def _stopped(end: dict[str, Any] | None) -> str:
+    """Why a log that ends before its run's duration stopped: the bench's
+    own line from its end record (a state left unanswered, a controller that
+    died or was killed over its memory limit, an interrupt), else what the
+    log cannot tell."""
+    if end is not None and end.get("stopped"):
+        return f"{end['stopped']} (the bench's end record in the log)"
+    why = ("the log ends before the run's duration (an interrupted, crashed or full-disk run, or a logger "
+           "stopped early)")
+    return why + ("" if end is not None else "; the log has no end record, so why the run stopped is not in it")
+
+
+def command_conflicts(cmd: np.ndarray) -> int:
+    """Commands of the log that carry the (session, seq) of another, different
+    command (another answered state or another command): a forged or racing
+    sender, the emulator's ``cmd_conflict`` (emulator/receiver.py). A
+    controller's repeated identical command is not one. Non-finite commands,
+    which the plant drops, are not counted."""
+    names = set(cmd.dtype.names or ())
+    if cmd.size < 2 or not {"session", "seq", "state_seq", "u_cmd"} <= names:
+        return 0
+    c = cmd[np.all(np.isfinite(cmd["u_cmd"]), axis=1)]
+    c = c[np.lexsort((c["seq"], c["session"]))]  # stable: a key's messages in log order
+    same = (c["session"][1:] == c["session"][:-1]) & (c["seq"][1:] == c["seq"][:-1])
+    differs = (c["state_seq"][1:] != c["state_seq"][:-1]) | np.any(c["u_cmd"][1:] != c["u_cmd"][:-1], axis=1)
+    return int(np.count_nonzero(same & differs))
 
 
 def _law_failures_from_flags(run: Run) -> None:
