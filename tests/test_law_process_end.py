@@ -9,11 +9,16 @@ child of its own (sc_rt.sim.isolated), so that
   ends with its summary (before: "process pool is not usable anymore",
   exit 2, no montecarlo.json);
 - SIGINT or SIGTERM to ``sc-rt sim`` while the law never returns ends the
-  command with 130 / 143 within the interrupt grace (before: ignored)."""
+  command with 130 / 143 within the interrupt grace (before: ignored);
+- a law that hangs mid-step in every run of a campaign: each run is killed
+  after the stall timeout and recorded as ``hung`` (before: "crashed its
+  run's process"), the campaign and its ``--resume`` go on; ``compare``
+  runs the other laws and says which one hung."""
 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -95,3 +100,34 @@ echo "rc=$?"
     err = (tmp_path / "e.txt").read_text()
     assert f"rc={code}" in r.stdout, r.stdout + err
     assert "STOPPED" in err and "did not stop within" in err, err
+
+
+def test_a_campaign_goes_on_past_a_law_that_hangs_mid_step_and_resumes(tmp_path):
+    """Every run's law loops for ever from t = 1 s: each run is killed after
+    the stall timeout and recorded as hung (not crashed), the campaign ends
+    with its summary, and --resume runs the new ids the same way."""
+    out = tmp_path / "mc"
+    env = {**os.environ, "SCRT_STALL_TIMEOUT": "1"}
+    args = [PY, "-m", "sc_rt.cli", "montecarlo", "paper_fault_free", "--workers", "2",
+            "--law", _law(tmp_path, "hang"), "--out", str(out)]
+    r = subprocess.run(args + ["--runs", "2"], capture_output=True, text=True, timeout=600, env=env)
+    s = json.loads((out / "montecarlo.json").read_text())
+    assert s["status"].get("hung") == 2 and not s["status"].get("crashed"), (s["status"], r.stderr)
+    assert "the law hung in 2 of 2 runs" in r.stderr, r.stderr
+    r = subprocess.run(args + ["--runs", "3", "--resume"], capture_output=True, text=True, timeout=600, env=env)
+    s = json.loads((out / "montecarlo.json").read_text())
+    assert s["runs"] == 3 and s["status"].get("hung") == 3, (s, r.stderr)
+    assert "the law hung in 3 of 3 runs" in r.stderr, r.stderr
+
+
+def test_compare_goes_on_past_a_law_that_hangs_mid_step(tmp_path):
+    out = tmp_path / "cmp"
+    r = subprocess.run([PY, "-m", "sc_rt.cli", "compare", "paper_fault_free", "--duration", "3", "--law",
+                        _law(tmp_path, "hang"), "--law", "pd", "--out", str(out)], capture_output=True, text=True,
+                       timeout=600, env={**os.environ, "SCRT_STALL_TIMEOUT": "1"})
+    assert r.returncode == 1 and "pd done" in r.stderr, r.stderr  # a failed run fails the command; the rest ran
+    rows = {row["law"]: row for row in json.loads((out / "compare.json").read_text())["rows"]}
+    hung = [row for law, row in rows.items() if law != "pd"]
+    assert len(hung) == 1 and hung[0]["valid"] is False, rows
+    assert "hung: no step returned for 1 s (after t = 0.9" in hung[0]["invalid_reason"], hung[0]
+    assert rows["pd"]["valid"] is True

@@ -217,6 +217,8 @@ def rerun_verdict(row: dict[str, Any], where: Path) -> str:
         return f"has no valid draw ({row['message']})"
     if row["status"] == "crashed":
         return f"crashed its process ({row['message']})"
+    if row["status"] == "hung":
+        return f"hung: its process was killed ({row['message']})"
     metrics = where / "metrics.json"
     reqs = json.loads(metrics.read_text()).get("requirements") if metrics.is_file() else None
     if reqs is not None and not (reqs and all(r.get("kind") == "envelope" for r in reqs)):
@@ -333,6 +335,10 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         print(f"sc-rt montecarlo: the law crashed its run's process in {res['status']['crashed']} of "
               f"{res['runs']} runs: counted as failures (montecarlo.json 'failed', status crashed)",
               file=sys.stderr)
+    if res["status"].get("hung"):  # a law that returned no step for the stall timeout: killed, that run only
+        print(f"sc-rt montecarlo: the law hung in {res['status']['hung']} of {res['runs']} runs (no step "
+              "returned within SCRT_STALL_TIMEOUT; killed): counted as failures (montecarlo.json 'failed', "
+              "status hung)", file=sys.stderr)
     return strict_exit(campaign_gate_problems(res), 0, "montecarlo", args.strict)
 
 
@@ -389,6 +395,8 @@ def _rerun_gate(row: dict[str, Any], where: Path) -> list[str]:
     metrics = where / "metrics.json"
     if row.get("status") == "crashed":
         return [f"the law crashed the run's process ({row.get('message')})"]
+    if row.get("status") == "hung":
+        return [f"the law hung; its run's process was killed ({row.get('message')})"]
     if row.get("status") == "invalid" or not metrics.is_file():
         return [f"run {row.get('run')} has no valid draw ({row.get('message')})"]
     return gate_problems(json.loads(metrics.read_text()))

@@ -17,11 +17,16 @@ from typing import Any
 
 from sc_rt.isolate import ChildDied, ChildInterrupted, ChildStalled, call_in_child, stall_timeout
 
-__all__ = ["RunCrashed", "simulate_isolated", "simulate_plan"]
+__all__ = ["RunCrashed", "RunHung", "simulate_isolated", "simulate_plan"]
 
 
 class RunCrashed(RuntimeError):
     """The process running a law died (one line: the law and how)."""
+
+
+class RunHung(RunCrashed):
+    """The law returned no step for the stall timeout: its process was
+    killed (one line: the law and the last time it reached)."""
 
 
 def _simulate_handed_over(scn, **kwargs: Any):
@@ -48,7 +53,7 @@ def simulate_isolated(scn, **kwargs: Any):
         raise RunCrashed(f"interrupted; the law's run {e}; nothing of the run was kept") from None
     except ChildStalled as e:  # a law that never returns
         law = kwargs.get("law") or scn.run.controller
-        raise RunCrashed(f"the law {law} hung: {e.how}; nothing of the run was kept") from None
+        raise RunHung(f"the law {law} hung: {e.how}; nothing of the run was kept") from None
     except ChildDied as e:
         law = kwargs.get("law") or scn.run.controller
         raise RunCrashed(f"the law {law} ended the run's process ({e.how}): nothing of the run was kept") from None

@@ -101,7 +101,7 @@ def campaign_gate_problems(res: dict[str, Any]) -> list[str]:
     (unless the file expects a violation)."""
     out = []
     status = res.get("status") or {}
-    bad = {k: int(status.get(k) or 0) for k in ("invalid", "law_failed", "crashed")}
+    bad = {k: int(status.get(k) or 0) for k in ("invalid", "law_failed", "crashed", "hung")}
     if any(bad.values()):
         out.append("runs not valid: " + ", ".join(f"{v} {k}" for k, v in bad.items() if v))
     e = res.get("expect") or campaign_expect(res, "")

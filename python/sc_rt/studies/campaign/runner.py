@@ -132,7 +132,7 @@ def run_one(c: Campaign, run: int, keep: bool = False, recorded: RunDraw | None 
     """Run ``run`` of the campaign: its dataset row (and, with ``keep``, its
     plan and the simulation result too). ``recorded``: the draw a dataset
     recorded for this run, replayed (the row's columns are its values')."""
-    from sc_rt.sim.isolated import RunCrashed, simulate_plan
+    from sc_rt.sim.isolated import RunCrashed, RunHung, simulate_plan
 
     plan, rd, message = c.run_plan(run, recorded)
     values = rd.columns() if recorded is not None else rd.columns(value_keys(c.scenario, c.dispersion))
@@ -144,7 +144,7 @@ def run_one(c: Campaign, run: int, keep: bool = False, recorded: RunDraw | None 
         try:  # a plugin runs in a child of its own: one crash fails this run, not the campaign (docs/HIL.md)
             res = simulate_plan(plan)
         except RunCrashed as e:
-            row.update(status="crashed", holds_bound=False, message=str(e))
+            row.update(status="hung" if isinstance(e, RunHung) else "crashed", holds_bound=False, message=str(e))
             return (row, plan, None) if keep else row
         m = res.metrics
         law_failed = m.get("valid") is False  # the law threw, went non-finite or gave a wrong shape
@@ -276,7 +276,7 @@ def summarize(c: Campaign, store: RunStore, runs: int, confidence: float = 0.95,
         "fraction_holding_bound_ci95": list(clopper_pearson(held, n)) if n else None,
         "ci_method": "Clopper-Pearson, two-sided 95 %",
         "status": {s: sum(r["status"] == s for r in rows)
-                   for s in ("ok", "diverged", "invalid", "law_failed", "crashed")},
+                   for s in ("ok", "diverged", "invalid", "law_failed", "crashed", "hung")},
         "redraws_total": sum(r["redraws"] for r in rows),
         "final_metric": final,
         "worst_final_sigma_BD": max(fin) if fin else None,
