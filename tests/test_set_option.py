@@ -48,3 +48,43 @@ def test_a_bad_set_is_refused_in_one_line_naming_the_key(tmp_path):
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and words in lines[0], (pair, r.stderr)
         assert not (tmp_path / "o").exists()
+
+
+def test_every_command_that_reads_a_scenario_takes_set(tmp_path):
+    """The bus and study commands too (emulator, controller, design, floor,
+    config; check lists it as an error of the file): a key the file has not is one line naming it, exit 2,
+    nothing started or written."""
+    cmds = {"emulator": ["emulator", "paper_faults", "--out", str(tmp_path / "e")],
+            "controller": ["controller", "paper_faults", "--law", str(tmp_path / "law.py") + ":Law"],
+            "design": ["design", "paper_faults", "--no-plots", "--out", str(tmp_path / "d")],
+            "floor": ["floor", "paper_faults", "--json", "--no-cache"],
+            "config": ["config", "paper_faults", "--out", str(tmp_path / "c.bin")]}
+    (tmp_path / "law.py").write_text("class Law:\n    def __init__(self, setup): pass\n"
+                                     "    def reset(self, inp): pass\n    def step(self, inp): return [0.0] * 4\n")
+    for name, args in cmds.items():
+        r = _cli(*args, "--set", "run.no_such_key=1")
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1 and "run.no_such_key" in lines[0], (name, r.stderr)
+    assert not any((tmp_path / x).exists() for x in ("e", "d", "c.bin"))
+    r = _cli("check", "paper_faults", "--set", "run.no_such_key=1")
+    assert r.returncode == 2 and "run.no_such_key = 1: unknown key" in r.stdout, r.stdout
+
+
+def test_design_with_set_designs_for_the_edited_file(tmp_path):
+    """design reads the inertia it is given: --set of J0 equals a copy of
+    the file with J0 edited (design.json compared whole), and differs from
+    the file's own design."""
+    text = (LIB / "paper_faults.toml").read_text()
+    new = "[[30.0, 0.0, 0.0], [0.0, 25.0, 0.0], [0.0, 0.0, 20.0]]"
+    edited, n = re.subn(r"(?m)^J0 = \[\[.*\]\]", f"J0 = {new}", text, count=1)
+    assert n == 1
+    f = tmp_path / "edited.toml"
+    f.write_text(edited)
+    r1 = _cli("design", "paper_faults", "--set", f"spacecraft.J0={new}", "--no-plots", "--out", str(tmp_path / "a"))
+    r2 = _cli("design", str(f), "--no-plots", "--out", str(tmp_path / "b"))
+    r0 = _cli("design", "paper_faults", "--no-plots", "--out", str(tmp_path / "o"))
+    assert r1.returncode == r2.returncode == r0.returncode == 0, r1.stderr + r2.stderr + r0.stderr
+    a, b, o = (json.loads((tmp_path / x / "design.json").read_text()) for x in "abo")
+    for d in (a, b, o):
+        d.pop("scenario_path")
+    assert a == b and a != o

@@ -44,3 +44,35 @@ def test_a_sim_records_its_inputs(tmp_path):
         assert inp["sc_rt_commit"].startswith(head.stdout.strip())
     html = (out / "report.html").read_text()
     assert inp["scenario_sha256"] in html and "override run.duration" in html
+    # metrics.json, the file a gate reads, carries them too
+    assert json.loads((out / "metrics.json").read_text())["inputs"] == inp
+
+
+def _sha(name: str) -> str:
+    return hashlib.sha256((LIB / f"{name}.toml").read_bytes()).hexdigest()
+
+
+def test_compare_and_montecarlo_record_their_inputs(tmp_path):
+    """compare.json holds each law's inputs, montecarlo.json the campaign's
+    base plan's (its runs' draws are in the dataset): the file's hash by
+    hashlib, each law's parameters by the core's declared defaults."""
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "compare", "paper_fault_free", "--law", "pd", "--law",
+                        "dsc", "--duration", "1", "--out", str(tmp_path / "c")], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    inputs = json.loads((tmp_path / "c" / "compare.json").read_text())["inputs"]
+    assert set(inputs) == {"pd", "dsc"}
+    table = tomllib.loads((LIB / "paper_fault_free.toml").read_text()).get("laws", {})
+    for law, inp in inputs.items():
+        assert inp["scenario_sha256"] == _sha("paper_fault_free")
+        # a per-axis default is three numbers, a scalar one
+        expected = {k: float(v[0]) if len(v) == 1 else [float(x) for x in v]
+                    for k, v in dict(_core.law_info(law)["defaults"]).items()}
+        expected.update({k: v for k, v in table.get(law, {}).items()})
+        assert inp["law_params"] == expected, law
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "montecarlo", "paper_fault_free", "--runs", "2",
+                        "--workers", "1", "--set", "run.duration=1.0", "--out", str(tmp_path / "m")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    inp = json.loads((tmp_path / "m" / "montecarlo.json").read_text())["inputs"]
+    assert inp["scenario_sha256"] == _sha("paper_fault_free") and inp["sc_rt_version"] == sc_rt.__version__

@@ -111,7 +111,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
         doc = {"scenario": scn.name, "rows": rows,
                "ranking": {name: [e["law"] for e in entries if e["rank"] is not None]
                            for name, entries in ranked.items()},
-               "overall": [law for law, _ in overall(rows)]}
+               "overall": [law for law, _ in overall(rows)],
+               # what each law's runs were made from (RunPlan.inputs: the file and its sha256, the law's
+               # parameters as run, overrides, sc-rt's version and commit)
+               "inputs": {plans[law].law.name: plans[law].inputs() for law in args.laws}}
         (out / "compare.json").write_text(json.dumps(json_safe(doc), indent=2) + "\n")
         (out / "compare.md").write_text(text + "\n")
     return strict_exit(_gate(rows), 1 if failed else 0, "compare", args.strict)

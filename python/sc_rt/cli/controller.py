@@ -13,7 +13,7 @@ import sys
 
 from sc_rt.cli.validate import (AUTH_KEY_HELP, MAX_RATE_HZ, UsageError, auth_key_file, integer, law_choice, lcm_url,
                                 number, resolve_url)
-from sc_rt.cli.common import refuse_off_bus
+from sc_rt.cli.common import add_set, refuse_off_bus
 from sc_rt.pylaw import is_python_law
 
 __all__ = ["add_parser", "add_external_options", "external_choice", "cmd_controller"]
@@ -78,6 +78,7 @@ def add_parser(sub) -> None:
                    help="the stepping thread asks for SCHED_FIFO 80 and mlockall, and falls back to SCHED_OTHER "
                         "with a warning where not permitted (the summary's scheduler says which; default: off)")
     c.add_argument("--cpu", type=integer(0), metavar="N", help="pin the stepping thread to CPU N")
+    add_set(c)
     c.set_defaults(func=cmd_controller)
 
 
@@ -112,7 +113,7 @@ def cmd_controller(args: argparse.Namespace) -> int:
         from sc_rt.scenario.overrides import with_overrides
 
         try:  # the Python law's own table ([laws.NAME], NAME its name attribute or class name)
-            scn = with_overrides(load_scenario(args.scenario), control_rate_hz=args.control_rate)
+            scn = with_overrides(load_scenario(args.scenario, args.sets or ()), control_rate_hz=args.control_rate)
             msg = scn.controller_config_msg(law=spec)
         except ValueError as e:
             raise UsageError(str(e)) from e

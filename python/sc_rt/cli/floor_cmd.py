@@ -10,6 +10,7 @@ import json
 import math
 import sys
 
+from sc_rt.cli.common import add_set
 from sc_rt.cli.validate import MAX_RATE_HZ, integer, number
 
 __all__ = ["add_timing_options", "timing_setup", "add_floor_parser", "cmd_floor", "floor_table"]
@@ -97,6 +98,7 @@ def add_floor_parser(sub) -> None:
     f.add_argument("--json", action="store_true", help="print the floor as JSON")
     f.add_argument("--no-cache", action="store_true", help="do not write the floor cache")
     add_timing_options(f, floor_policy=False)
+    add_set(f)
     f.set_defaults(func=cmd_floor)
 
 
@@ -128,7 +130,7 @@ def cmd_floor(args: argparse.Namespace) -> int:
     from sc_rt.hil.runner import run_hil
     from sc_rt.cli.common import scenario_arg
 
-    scn = scenario_arg(args.scenario)
+    scn = scenario_arg(args.scenario, args)
     setup = timing_setup(args)
     if args.realtime_priority is None:  # as sc-rt hil: on in real time
         args.realtime_priority = args.mode == "realtime"

@@ -213,6 +213,7 @@ def _add_emulator(sub) -> None:
     e.add_argument("--start-timeout", type=number(0, 86400, unit="s"), metavar="S",
                    help="re-send the first state until a controller answers it, up to S s (a controller "
                         "started after the emulator; default: no wait)")
+    add_set(e)
     _lcm_opts(e, "default: $SCRT_LCM_URL, else udpm://239.255.76.67:7667?ttl=0 (the port sc-rt-controller "
                 "uses by default)")
     e.set_defaults(func=cmd_emulator)
@@ -260,6 +261,7 @@ def _add_design(sub) -> None:
     g.add_argument("--timing", metavar="FILE", help="take the latency from a HIL timing.json (p99)")
     g.add_argument("--out", default="out/design", type=out_dir, metavar="DIR", help="default: %(default)s")
     g.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
+    add_set(g)
     g.set_defaults(func=cmd_design)
 
 

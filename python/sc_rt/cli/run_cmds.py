@@ -183,7 +183,7 @@ def cmd_emulator(args: argparse.Namespace) -> int:
 
     if args.out:
         checked_out(args.out)
-    scn = with_overrides(scenario_arg(args.scenario), control_rate_hz=args.rate, duration=args.duration)
+    scn = with_overrides(scenario_arg(args.scenario, args), control_rate_hz=args.rate, duration=args.duration)
     refuse_off_bus(scn, "sc-rt emulator")
     check_run_size(scn, given_options(args, rate="--rate", duration="--duration", time_scale="--time-scale"),
                    bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale,

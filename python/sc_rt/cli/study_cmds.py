@@ -65,7 +65,7 @@ def cmd_design(args: argparse.Namespace) -> int:
     from sc_rt.studies.design import DEFAULT_LATENCY_S, design_report, format_design_text, write_design
     from sc_rt.sim.engines import with_overrides
 
-    scn = with_overrides(scenario_arg(args.scenario), control_rate_hz=args.rate)  # validates --rate
+    scn = with_overrides(scenario_arg(args.scenario, args), control_rate_hz=args.rate)  # validates --rate
     latency = DEFAULT_LATENCY_S if args.latency is None else args.latency
     if args.timing:
         try:

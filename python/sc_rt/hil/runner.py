@@ -231,7 +231,9 @@ def _start_record(b: _Bench) -> bytes:
            "requirements": [dataclasses.asdict(r) for r in b.scn.requirements], "expect": b.scn.expect,
            "telemetry_names": list(b.telemetry_names),
            # what "kept real time" meant for this run: sc-rt report LOG judges the log by it
-           "rt_limits": dataclasses.asdict(b.rt_limits)}
+           "rt_limits": dataclasses.asdict(b.rt_limits),
+           # what the run was made from (RunPlan.inputs): sc-rt report LOG traces the log to it
+           "inputs": b.inputs}
     return encode_start(rec)
 
 

@@ -186,7 +186,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     meta = RunMeta(scenario=name, law=law, engine="report", control_rate_hz=rate, duration_s=duration,
                    ppc=ppc, umin=tuple(float(x) for x in umin), umax=tuple(float(x) for x in umax),
                    wall_s=wall, mode=r.mode, law_identity=ident, requirements=_requirements(d, scenario),
-                   expect=_expect(d, scenario),
+                   expect=_expect(d, scenario), inputs=(d.start or {}).get("inputs") or {},
                    telemetry_names=tuple((d.start or {}).get("telemetry_names") or ()), **extra)
     run = Run(meta, r.arrays, gaps=r.gaps, partial=bool(at_end or short))
     if run.partial:
@@ -227,7 +227,7 @@ def write_report(log: str | Path, out: str | Path, *, scenario: str | None = Non
     if cfg is not None:
         report["config"] = {"scenario": cfg.scenario, "law": law, "control_rate_hz": rate}
     (out / "report.json").write_text(json.dumps(json_safe(report), indent=2) + "\n")
-    report["metrics"] = run.metrics
+    report["metrics"] = {**run.metrics, **({"inputs": meta.inputs} if meta.inputs else {})}  # as metrics.json
     report["timing"] = run.timing
     return report
 

@@ -66,7 +66,10 @@ def write_run(run: Run, out: Path, *, figures: bool = True, title: str = "") -> 
         paths_fig = _figures(run, out, title)
     saved = run.thinned(every)
     traj = saved.save_arrow(out / "trajectory.arrow")
-    paths = [traj, write_json(out / "metrics.json", run.metrics)]
+    # what the run was made from (RunMeta.inputs: the scenario file and its sha256, overrides, the law's
+    # parameters as run, sc-rt's version and commit), beside its verdict: a gate's file traces to its inputs
+    inputs = getattr(run.meta, "inputs", None)
+    paths = [traj, write_json(out / "metrics.json", {**run.metrics, **({"inputs": inputs} if inputs else {})})]
     if run.timing is not None:
         paths.append(write_json(out / "timing.json", run.timing))
     if figures:

@@ -265,6 +265,8 @@ def summarize(c: Campaign, store: RunStore, runs: int, confidence: float = 0.95,
         "law": c.plan.law.spec,
         # its name (a plugin's or a Python law's, not its path)
         "law_name": c.plan.law.name,
+        # what the campaign was made from (the base plan's inputs; each run's draws are in its dataset row)
+        "inputs": c.plan.inputs(),
         "control_rate_hz": c.scenario.run.control_rate_hz,
         "duration_s": c.scenario.run.duration,
         "runs": n, "runs_requested": runs, "complete": n == runs, "seed": c.seed,
