@@ -291,7 +291,10 @@ def test_reengagement_an_hour_into_a_1khz_run_costs_a_bounded_number_of_guidance
     """Before: Guidance::reset(t0) integrated the paper's reference from
     t = 0 to t0 at every re-engagement (36,001 RK4 steps at t = 3600 s, about
     0.8 s at 1 kHz); now it continues on the controller's time line. The
-    work is counted (RK4 steps), not timed."""
+    work is counted (RK4 steps), not timed: the set-up's own jump from t = 0
+    to t = 3599.9 s too, which under the time contract (docs/CORE.md) is a
+    SAFE step flagged FLAG_TIME_JUMP whose cost is the reference's period
+    table, built once (2,912 steps), plus at most 64."""
     from sc_rt.scenario.reader import load_scenario
 
     scn = load_scenario("paper_faults")
@@ -306,7 +309,10 @@ def test_reengagement_an_hour_into_a_1khz_run_costs_a_bounded_number_of_guidance
 
     g = ctl.guidance
     ctl.step(m(0.0))
-    for k in range(1, 101):  # engaged, stepping at 1 kHz
+    jump = ctl.step(m(3599.901))  # an hour ahead of the previous step: SAFE, flagged, bounded work
+    assert jump.mode == _core.MODE_SAFE and jump.flags & 4096, (jump.mode, jump.flags)
+    assert g.rk4_steps <= 2912 + 64, g.rk4_steps
+    for k in range(2, 101):  # re-engaged, stepping at 1 kHz
         ctl.step(m(3599.9 + k * 1e-3))
     assert ctl.step(m(3600.0, ok=False)).mode == _core.MODE_SAFE  # one bad state
     before = g.rk4_steps
