@@ -113,11 +113,11 @@ def test_a_campaign_goes_on_past_a_law_that_hangs_mid_step_and_resumes(tmp_path)
     r = subprocess.run(args + ["--runs", "2"], capture_output=True, text=True, timeout=600, env=env)
     s = json.loads((out / "montecarlo.json").read_text())
     assert s["status"].get("hung") == 2 and not s["status"].get("crashed"), (s["status"], r.stderr)
-    assert "the law hung in 2 of 2 runs" in r.stderr, r.stderr
+    assert "the law hung (no step within SCRT_STALL_TIMEOUT; killed) in 2 of 2 runs" in r.stderr, r.stderr
     r = subprocess.run(args + ["--runs", "3", "--resume"], capture_output=True, text=True, timeout=600, env=env)
     s = json.loads((out / "montecarlo.json").read_text())
     assert s["runs"] == 3 and s["status"].get("hung") == 3, (s, r.stderr)
-    assert "the law hung in 3 of 3 runs" in r.stderr, r.stderr
+    assert "the law hung (no step within SCRT_STALL_TIMEOUT; killed) in 3 of 3 runs" in r.stderr, r.stderr
 
 
 def test_compare_goes_on_past_a_law_that_hangs_mid_step(tmp_path):

@@ -331,14 +331,11 @@ def cmd_montecarlo(args: argparse.Namespace) -> int:
         print(f"sc-rt montecarlo: the law failed (threw, non-finite or wrong shape; contained) in "
               f"{res['status']['law_failed']} of {res['runs']} runs: counted as failures "
               f"(montecarlo.json 'failed', status law_failed)", file=sys.stderr)
-    if res["status"].get("crashed"):  # a plugin that killed its run's process: that run only
-        print(f"sc-rt montecarlo: the law crashed its run's process in {res['status']['crashed']} of "
-              f"{res['runs']} runs: counted as failures (montecarlo.json 'failed', status crashed)",
-              file=sys.stderr)
-    if res["status"].get("hung"):  # a law that returned no step for the stall timeout: killed, that run only
-        print(f"sc-rt montecarlo: the law hung in {res['status']['hung']} of {res['runs']} runs (no step "
-              "returned within SCRT_STALL_TIMEOUT; killed): counted as failures (montecarlo.json 'failed', "
-              "status hung)", file=sys.stderr)
+    for status, what in (("crashed", "crashed its run's process"),  # a law that killed its run's process
+                         ("hung", "hung (no step within SCRT_STALL_TIMEOUT; killed)")):  # that run only
+        if res["status"].get(status):
+            print(f"sc-rt montecarlo: the law {what} in {res['status'][status]} of {res['runs']} runs: counted "
+                  f"as failures (montecarlo.json 'failed', status {status})", file=sys.stderr)
     return strict_exit(campaign_gate_problems(res), 0, "montecarlo", args.strict)
 
 

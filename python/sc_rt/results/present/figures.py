@@ -13,6 +13,7 @@ import numpy as np  # noqa: E402
 
 from sc_rt.results.judge.metrics import LAWS_WITH_OBSERVER, prescribed_chi  # noqa: E402
 from sc_rt.results.judge.verdict import asks_envelope  # noqa: E402
+from sc_rt.results.record.jsonsafe import atomic_path  # noqa: E402
 from sc_rt.results.record.run import Run  # noqa: E402
 
 __all__ = ["limit_lines", "tracking_figures", "timing_figures", "fault_figure", "estimation_figure", "mark_events",
@@ -31,10 +32,14 @@ def run_title(run: Run) -> str:
 
 
 def save_figure(fig, path: Path, dpi: int = 110) -> Path:
-    """Lay a figure out, write it to ``path`` (PNG at ``dpi``) and close it; returns ``path``."""
-    fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    """Lay a figure out, write it to ``path`` (PNG at ``dpi``, whole or not at
+    all: a full disk leaves no truncated figure) and close it; returns ``path``."""
+    try:
+        fig.tight_layout()
+        with atomic_path(Path(path)) as part:
+            fig.savefig(part, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -340,11 +340,19 @@ class Run:
                 shutil.move(self._store.path, path)  # (a temporary directory may be another file system)
                 self._store = ChunkReader(path, COLUMNS)
             return path
-        w = ChunkFile(path, COLUMNS, {"sc-rt:meta": json.dumps(self.meta.to_json())})
-        n = len(self)
-        for k in range(0, n, CHUNK_ROWS):  # batches of a run written as it ran, for readers a batch at a time
-            w.write({name: v[k:k + CHUNK_ROWS] for name, v in self._a.items()}, min(CHUNK_ROWS, n - k))
-        return w.close()
+        from sc_rt.results.record.jsonsafe import atomic_path
+
+        with atomic_path(path) as part:  # whole or not at all: a full disk leaves no truncated record
+            w = ChunkFile(part, COLUMNS, {"sc-rt:meta": json.dumps(self.meta.to_json())})
+            try:
+                n = len(self)
+                for k in range(0, n, CHUNK_ROWS):  # batches of a run as it ran, for readers a batch at a time
+                    w.write({name: v[k:k + CHUNK_ROWS] for name, v in self._a.items()}, min(CHUNK_ROWS, n - k))
+                w.close()
+            except BaseException:
+                w.discard()
+                raise
+        return path
 
     @classmethod
     def load(cls, run_dir: Path) -> Run:

@@ -159,6 +159,17 @@ class ChunkFile:
         self._w.write_batch(pa.RecordBatch.from_arrays(arrays, schema=self.schema))
         self.rows += rows
 
+    def discard(self) -> None:
+        """Stop writing without a footer (the file is to be removed: a write
+        failed); errors closing it are ignored."""
+        w, self._w = self._w, None
+        for c in (w, self._sink):
+            try:
+                if c is not None:
+                    c.close()
+            except (OSError, ValueError, RuntimeError):  # (pyarrow's ArrowIOError is an OSError)
+                pass
+
     def close(self) -> Path | None:
         """Write the file's footer; returns its path."""
         if self._w is not None:
