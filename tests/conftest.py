@@ -110,6 +110,7 @@ SLOW_TESTS = (
     "tests/test_set_option.py::test_a_bad_set_is_refused_in_one_line_naming_the_key",
     "tests/test_set_option.py::test_set_runs_what_the_edited_file_runs_and_is_recorded",
     "tests/test_set_option.py::test_every_command_that_reads_a_scenario_takes_set",
+    "tests/test_requirement_matrix.py::test_every_kind_through_a_campaign_and_its_ensemble_row",
     "tests/test_full_disk_outputs.py::test_a_full_disk_leaves_every_output_whole_or_absent",
     "tests/test_set_option.py::test_design_with_set_designs_for_the_edited_file",
     "tests/test_traceability.py::test_compare_and_montecarlo_record_their_inputs",
