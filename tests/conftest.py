@@ -105,6 +105,7 @@ SLOW_TESTS = (
     "tests/test_seq_window.py::test_one_forged_state_far_ahead_does_not_cut_the_controller_off",
     "tests/test_seq_window.py::test_one_forged_command_far_ahead_does_not_cut_the_plant_off",
     "tests/test_seq_window.py::test_commands_racing_the_controller_fail_the_run_named",
+    "tests/test_seq_window.py::test_one_forged_state_inside_the_window_fails_the_run_named",
     "tests/test_report_verdict.py::test_report_of_a_log_gives_the_live_runs_law_failures",
     "tests/test_report_verdict.py::test_report_html_of_an_invalid_offline_run_says_invalid_in_its_headline",
     "tests/test_set_option.py::test_a_bad_set_is_refused_in_one_line_naming_the_key",

@@ -5,6 +5,9 @@
 - ``state``: at the 200th genuine plant state it hears, one copy of it with
   seq + 10^6 (the plant's session): were it taken as the newest, the
   controller would drop every genuine state after it.
+- ``state_in_window``: the same with seq + 999, inside the window of 1000
+  that a plant which lost states may jump: taken as the newest, so the
+  genuine states after it are out of order until they pass it.
 - ``cmd``: at the 200th genuine command, one copy with seq + 10^6 and the
   command [9, -7, 9, -7] (the controller's session), for the plant side.
 - ``race``: from the 200th genuine state on, for each state a command
@@ -37,8 +40,8 @@ def main(url: str, mode: str, out: str) -> int:
         except Exception:
             return
         heard[ch] += 1
-        if mode == "state" and heard[ch] == AT:
-            st.seq += 10**6
+        if mode in ("state", "state_in_window") and heard[ch] == AT:
+            st.seq += 10**6 if mode == "state" else 999
             lc.publish(ch, st.encode())
             sent[ch] += 1
         elif mode == "race" and heard[ch] >= AT and last_cmd[0] is not None:

@@ -97,6 +97,24 @@ def test_one_forged_command_far_ahead_does_not_cut_the_plant_off(tmp_path):
 
 
 @pytest.mark.lcm
+def test_one_forged_state_inside_the_window_fails_the_run_named(tmp_path):
+    """Inside the window (seq + 999 < W) a forged state is indistinguishable
+    from a plant that lost 998 states: the controller takes it and drops the
+    genuine states after it as out of order. Lockstep does not answer-fill
+    them: the bench waits for the answer to the next state, then stops the
+    run, invalid, naming it (never a valid run with zeroed rows).
+    docs/PROTOCOL.md: --auth-key refuses the forged state itself."""
+    lcmnet.require()
+    r, log, forged, out = _bench(tmp_path, "state_in_window", 7974)
+    assert forged["sent"]["SCRT_STATE"] == 1, forged
+    assert "rc=1" in r.stdout, r.stdout + log
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["valid"] is False and "did not answer state" in m["invalid_reason"], m["invalid_reason"]
+    tr = load_traj(out)
+    assert np.all(~tr["cmd_stale"]) and len(tr) < 601  # every row its own answer, up to the stop
+
+
+@pytest.mark.lcm
 def test_commands_racing_the_controller_fail_the_run_named(tmp_path):
     lcmnet.require()
     r, log, forged, out = _bench(tmp_path, "race", 7973)
