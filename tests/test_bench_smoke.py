@@ -145,10 +145,13 @@ def bench_hil(res: dict, out: str) -> None:
 def bench_timing(res: dict, out: str) -> None:
     assert "failed" not in res, res.get("failed")
     rows = res["rows"]
-    # hil's defaults (100 Hz), 100 Hz, 1 kHz, lockstep, timer, CPU placement
-    assert len(rows) == 6, list(rows)
+    # hil's defaults (100 Hz), 100 Hz, 1 kHz, lockstep at 10 Hz and at 1 kHz, timer, CPU placement
+    assert len(rows) == 7, list(rows)
     assert "100 Hz, hil's defaults" in rows and "--trigger" not in rows["100 Hz, hil's defaults"]["args"]
-    assert sum(n.startswith("lockstep") for n in rows) == 1
+    assert sum(n.startswith("lockstep") for n in rows) == 2
+    k = rows["lockstep 1 kHz + sc-rt-logger"]
+    assert k["scenario"] == "ppc_feasible_1khz" and "6000" in k["checks"][0]["target"], k["checks"][0]
+    assert k["steps"] == 1001 and all(pos(x) for x in k["steps_per_s_runs"]), k
     for name, row in rows.items():
         assert row["runs"] >= 1 and row["checks"], name
         for c in row["checks"]:
