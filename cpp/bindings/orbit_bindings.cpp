@@ -87,6 +87,11 @@ void bind_orbit(py::module_& m) {
       .def_readonly("nmax", &GeomagCoeffs::nmax, "highest degree");
   m.def("igrf14_coefficients", &igrf14_coefficients, arg("year"), arg("nmax") = kGeomagMaxDegree,
         "IGRF-14 at a decimal year in [1900, 2030] to degree nmax (1: the tilted dipole).");
+  m.attr("WMM_MAX_DEGREE") = kWmmMaxDegree;
+  m.def("wmm2025_coefficients", &wmm2025_coefficients, arg("year"), arg("nmax") = kWmmMaxDegree,
+        "WMM2025 at a decimal year in [2025, 2030] to degree nmax <= 12: g + (year - 2025) g-dot.");
+  m.def("geomag_model_coefficients", &geomag_model_coefficients, arg("model"), arg("year"),
+        "The coefficients of a field model by name (\"igrf\", \"dipole\", \"wmm2025\") at a decimal year.");
   py::class_<GeomagField>(m, "GeomagField", "The field of one set of Gauss coefficients [nT].")
       .def(py::init<const GeomagCoeffs&>(), arg("c"))
       .def_property_readonly("coefficients", &GeomagField::coefficients)
