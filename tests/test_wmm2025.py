@@ -231,3 +231,24 @@ def test_sc_rt_refuses_an_epoch_outside_wmm2025_with_exit_2_and_one_line(tmp_pat
     assert not (tmp_path / "out").exists()
     r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "check", str(path)], capture_output=True, text=True)
     assert r.returncode == 2 and "valid for epochs 2025.0-2030.0" in r.stdout + r.stderr
+
+
+@pytest.mark.lcm
+def test_lockstep_hil_in_wmm2025_is_bitwise_sim(tmp_path):
+    # the emulator process's plant (the Python twin) in WMM2025 against the C++ engine
+    from trajcmp import lockstep_equals_sim
+
+    from sc_rt.sim.engines import simulate
+
+    path, duration = tmp_path / "wmm.toml", 10.0
+    path.write_text(Path(resolve("paper_faults")).read_text() + "\n" + _env("2028-02-01T00:00:00Z", "wmm2025")
+                    + "[magnetorquers]\naxes = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\nmax_dipole = 30\n"
+                    + '[[magnetorquers.faults]]\nrod = 2\nkind = "stuck"\ndipole = 20.0\nonset = 3.0\n')
+    _, sim = lockstep_equals_sim(path, tmp_path / "hil", duration, engine="cpp")
+    # and the field is WMM2025's: the same run in IGRF-14 differs
+    igrf = tmp_path / "igrf.toml"
+    igrf.write_text(path.read_text().replace('field = "wmm2025"', 'field = "igrf"'))
+    from sc_rt.scenario.reader import load_scenario
+
+    other = simulate(load_scenario(igrf), engine="cpp", duration=duration)
+    assert not np.array_equal(np.asarray(other["omega_BN_B"]), np.asarray(sim["omega_BN_B"]))
