@@ -3237,7 +3237,7 @@ def sun_distance_au(jd_day: typing.SupportsFloat | typing.SupportsIndex, t: typi
     """
 def time_environment(orbit: OrbitParams, n: typing.SupportsInt | typing.SupportsIndex, reps: typing.SupportsInt | typing.SupportsIndex) -> dict:
     """
-    Seconds of n evaluations (reps times) of the orbit's gravity-gradient terms, the Sun, the IGRF-14 and dipole fields in ECI along the orbit, and a plant RK4 step with the orbit and with w0.
+    Seconds of n evaluations (reps times) of the orbit's gravity-gradient terms, the Sun, the IGRF-14, dipole and WMM2025 fields in ECI along the orbit (epoch in 2025-2030 for WMM2025), and a plant RK4 step with the orbit and with w0.
     """
 def time_estimator(c: NavConfig, rate: typing.SupportsFloat | typing.SupportsIndex, n_ctrl: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], reps: typing.SupportsInt | typing.SupportsIndex) -> dict:
     """
