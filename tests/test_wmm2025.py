@@ -220,6 +220,14 @@ def test_an_epoch_outside_the_models_window_is_refused_naming_the_key_and_window
         scenario_from_data(_scenario_data(_env(epoch, field)), "f.toml")
 
 
+@pytest.mark.parametrize("epoch", ["2025-01-01T00:00:00Z", "2029-12-31T11:00:00Z"])
+def test_the_first_and_last_days_of_the_window_are_accepted(epoch):
+    # decimal years are Julian years from 2000 (decimal_year): 2030.0 is 2029-12-31 12:00 UTC
+    scn = scenario_from_data(_scenario_data(_env(epoch, "wmm2025")), "f.toml")
+    assert scn.field_model == "wmm2025"
+    assert 2025.0 <= decimal_year(scn.plant.orbit.jd_epoch) <= 2030.0
+
+
 def test_sc_rt_refuses_an_epoch_outside_wmm2025_with_exit_2_and_one_line(tmp_path):
     path = tmp_path / "late.toml"
     path.write_text(Path(resolve("paper_fault_free")).read_text() + "\n" + _env("2031-01-01T00:00:00Z", "wmm2025"))
