@@ -40,6 +40,7 @@ __all__ = [
     "GEOMAG_RADIUS",
     "MAX_DEGREE",
     "NT",
+    "WMM_MAX_DEGREE",
     "GeomagCoeffs",
     "GeomagField",
     "decimal_year",
