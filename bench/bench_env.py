@@ -1,8 +1,8 @@
 """The orbit and the geomagnetic field (issue 43): what one evaluation costs
 in C++, timed in C++ (_core.time_environment, the GIL released): the orbit's
 gravity-gradient terms (a Kepler solve), the Sun, the IGRF-14 field (degree
-13) and the tilted dipole in ECI along the orbit (position, Earth rotation,
-the field), and a plant RK4 step with the orbit's gravity gradient against
+13), the tilted dipole and WMM2025 (degree 12) in ECI along the orbit
+(position, Earth rotation, the field), and a plant RK4 step with the orbit's gravity gradient against
 one with the constant-rate form. Target: an IGRF-14 evaluation <= 10 us
 (a day at 10 Hz is 864,000 of them: under 10 s).
 
@@ -22,7 +22,7 @@ from sc_rt import _core
 from sc_rt.model.orbit import R_EARTH, OrbitParams, orbit_params_to_cpp
 
 IGRF_TARGET_US = 10.0  # [us] one IGRF-14 evaluation in ECI
-KINDS = ("orbit_gg", "sun", "igrf_eci", "dipole_eci", "plant_step_orbit", "plant_step_w0")
+KINDS = ("orbit_gg", "sun", "igrf_eci", "dipole_eci", "wmm2025_eci", "plant_step_orbit", "plant_step_w0")
 
 
 def main(size: str = "full") -> None:

@@ -245,7 +245,7 @@ def bench_live(res: dict, out: str) -> None:
 
 
 def bench_env(res: dict, out: str) -> None:
-    for k in ("orbit_gg", "sun", "igrf_eci", "dipole_eci", "plant_step_orbit", "plant_step_w0"):
+    for k in ("orbit_gg", "sun", "igrf_eci", "dipole_eci", "wmm2025_eci", "plant_step_orbit", "plant_step_w0"):
         check_summary(res[f"{k}_us"])
     assert res["evaluations_per_run"] == 1000
     assert fin(res["orbit_gg_added_to_plant_step_us"]) and pos(res["day_at_10hz_igrf_s"])

@@ -47,13 +47,13 @@ def _dipole(t: float) -> list[float]:
     return [20.0 * math.sin(0.01 * t), -15.0, 10.0 * math.cos(0.02 * t)]
 
 
-@pytest.mark.parametrize("field", ["igrf", "dipole"])
+@pytest.mark.parametrize("field", ["igrf", "dipole", "wmm2025"])
 def test_paper_wheel_plant_with_dipoles_is_bit_identical_in_python_and_cpp(field):
     p = _plant(field)
     act = ActuatorParams(umin=np.full(4, -7.0), umax=np.full(4, 10.0), max_wheel_speed=np.full(4, 400.0),
                          faults=(WheelFault(wheel=1, effectiveness=0.3, onset=20.0),))
     pc, ac = plant_params_to_cpp(p), actuator_params_to_cpp(act)
-    assert pc.field_nmax == {"igrf": 13, "dipole": 1}[field] and list(pc.residual_dipole) == list(RES)
+    assert pc.field_nmax == {"igrf": 13, "dipole": 1, "wmm2025": 12}[field] and list(pc.residual_dipole) == list(RES)
     x_py, x_c = X0.copy(), X0.copy()
     h = 0.1
     for k in range(600):

@@ -29,6 +29,7 @@ NOT_MODULES = ("__init__.py", "__main__.py")
 #: Generated data, exempt from the line limits: path under python/sc_rt -> its generator.
 GENERATED = {
     "model/igrf14_table.py": "tools/gen_igrf14.py (the IGRF-14 coefficients as data)",
+    "model/wmm2025_table.py": "tools/gen_wmm2025.py (the WMM2025 coefficients as data)",
 }
 
 #: Modules over AIM_LINES, each waiting for its split: path under python/sc_rt -> why it is still here.

@@ -87,6 +87,11 @@ void bind_orbit(py::module_& m) {
       .def_readonly("nmax", &GeomagCoeffs::nmax, "highest degree");
   m.def("igrf14_coefficients", &igrf14_coefficients, arg("year"), arg("nmax") = kGeomagMaxDegree,
         "IGRF-14 at a decimal year in [1900, 2030] to degree nmax (1: the tilted dipole).");
+  m.attr("WMM_MAX_DEGREE") = kWmmMaxDegree;
+  m.def("wmm2025_coefficients", &wmm2025_coefficients, arg("year"), arg("nmax") = kWmmMaxDegree,
+        "WMM2025 at a decimal year in [2025, 2030] to degree nmax <= 12: g + (year - 2025) g-dot.");
+  m.def("geomag_model_coefficients", &geomag_model_coefficients, arg("model"), arg("year"),
+        "The coefficients of a field model by name (\"igrf\", \"dipole\", \"wmm2025\") at a decimal year.");
   py::class_<GeomagField>(m, "GeomagField", "The field of one set of Gauss coefficients [nT].")
       .def(py::init<const GeomagCoeffs&>(), arg("c"))
       .def_property_readonly("coefficients", &GeomagField::coefficients)
@@ -121,12 +126,13 @@ void bind_orbit(py::module_& m) {
         const OrbitRates k = orbit_rates(o);
         const GeomagField igrf(igrf14_coefficients(decimal_year(o.jd_epoch)));
         const GeomagField dipole(igrf14_coefficients(decimal_year(o.jd_epoch), 1));
+        const GeomagField wmm(wmm2025_coefficients(decimal_year(o.jd_epoch)));
         PlantParams p_orbit, p_w0;
         p_orbit.orbit = o;
         p_orbit.orbit.enabled = true;
         const ActuatorParams a;
         const Vec4 u(0.1, -0.2, 0.3, 0.0);
-        std::vector<std::vector<double>> secs(6);
+        std::vector<std::vector<double>> secs(7);
         double sink = 0.0;
         {
           py::gil_scoped_release release;
@@ -164,16 +170,23 @@ void bind_orbit(py::module_& m) {
               x = plant_rk4_step(p_w0, a, t, x, 0.1, u);
               return x.omega_BN_B(0);
             });
+            timed(6, [&](double t) {
+              double r[3];
+              orbit_position(o, k, t, r);
+              return wmm.B_eci(Vec3(r[0], r[1], r[2]), o.jd_epoch, t)(0);
+            });
           }
         }
         py::dict d;
-        const char* names[] = {"orbit_gg", "sun", "igrf_eci", "dipole_eci", "plant_step_orbit", "plant_step_w0"};
-        for (std::size_t i = 0; i < 6; ++i) d[names[i]] = secs[i];
+        const char* names[] = {"orbit_gg",         "sun",           "igrf_eci",   "dipole_eci",
+                               "plant_step_orbit", "plant_step_w0", "wmm2025_eci"};
+        for (std::size_t i = 0; i < 7; ++i) d[names[i]] = secs[i];
         d["n"] = n;
         d["sink"] = sink;
         return d;
       },
       arg("orbit"), arg("n"), arg("reps"),
-      "Seconds of n evaluations (reps times) of the orbit's gravity-gradient terms, the Sun, the IGRF-14 and "
-      "dipole fields in ECI along the orbit, and a plant RK4 step with the orbit and with w0.");
+      "Seconds of n evaluations (reps times) of the orbit's gravity-gradient terms, the Sun, the IGRF-14, "
+      "dipole and WMM2025 fields in ECI along the orbit (epoch in 2025-2030 for WMM2025), and a plant RK4 "
+      "step with the orbit and with w0.");
 }

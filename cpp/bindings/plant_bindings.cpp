@@ -100,18 +100,19 @@ void bind_plant(py::module_& m) {
                           "The keyword constructor validates.")
       .def(py::init([](const Mat3& J0, const Mat3& dJ, const Mat34& Cbar, const Vec4& Jw,
                        double w0, const Vec3& dist_amp, const Vec3& dist_freq,
-                       const Vec3& dist_bias, const OrbitParams& orbit, int field_nmax,
+                       const Vec3& dist_bias, const OrbitParams& orbit, const std::string& field_model,
                        const Vec3& residual_dipole, bool orbit_gravity_gradient,
                        const std::optional<PlantRods>& rods) {
              PlantParams p;
              p.orbit = orbit;
-             if (!(field_nmax == 0 || field_nmax == 1 || field_nmax == kGeomagMaxDegree))
-               throw py::value_error("PlantParams: field_nmax must be 0, 1 or 13, got " +
-                                     std::to_string(field_nmax));
-             if (field_nmax != 0 && !orbit.enabled)
-               throw py::value_error("PlantParams: field_nmax = " + std::to_string(field_nmax) +
-                                     " needs an orbit (orbit.enabled)");
-             p.field = plant_field(orbit, field_nmax);
+             if (!(field_model == "none" || field_model == "dipole" || field_model == "igrf" ||
+                   field_model == "wmm2025"))
+               throw py::value_error("PlantParams: field_model must be \"none\", \"dipole\", \"igrf\" or "
+                                     "\"wmm2025\", got \"" + field_model + "\"");
+             if (field_model != "none" && !orbit.enabled)
+               throw py::value_error("PlantParams: field_model = \"" + field_model +
+                                     "\" needs an orbit (orbit.enabled)");
+             p.field = plant_field(orbit, field_model);
              p.residual_dipole = residual_dipole;
              p.orbit_gravity_gradient = orbit_gravity_gradient;
              if (rods) p.rods = *rods;
@@ -128,7 +129,7 @@ void bind_plant(py::module_& m) {
            }),
            arg("J0") = P.J0, arg("dJ") = P.dJ, arg("Cbar") = P.Cbar, arg("Jw") = P.Jw,
            arg("w0") = P.w0, arg("dist_amp") = P.dist_amp, arg("dist_freq") = P.dist_freq,
-           arg("dist_bias") = P.dist_bias, arg("orbit") = P.orbit, arg("field_nmax") = 0,
+           arg("dist_bias") = P.dist_bias, arg("orbit") = P.orbit, arg("field_model") = "none",
            arg("residual_dipole") = P.residual_dipole, arg("orbit_gravity_gradient") = true,
            arg("rods") = py::none())
       .def_readwrite("J0", &PlantParams::J0, "[kg m^2] nominal inertia (3x3)")
@@ -143,7 +144,14 @@ void bind_plant(py::module_& m) {
                      "the orbit (enabled: its gravity gradient replaces the w0 form of (5))")
       .def_property_readonly(
           "field_nmax", [](const PlantParams& p) { return p.field ? p.field->coefficients().nmax : 0; },
-          "[-] the field's degree along the orbit (0: none, 1: tilted dipole, 13: IGRF-14)")
+          "[-] the field's degree along the orbit (0: none, 1: tilted dipole, 12: WMM2025, 13: IGRF-14)")
+      .def_property_readonly(
+          "field_coefficients",
+          [](const PlantParams& p) -> std::optional<GeomagCoeffs> {
+            if (!p.field) return std::nullopt;
+            return p.field->coefficients();
+          },
+          "the field's Gauss coefficients [nT] at the orbit's epoch (None: no field)")
       .def_readwrite("residual_dipole", &PlantParams::residual_dipole,
                      "[A m^2] the spacecraft's residual dipole in B (torque m x B)")
       .def_readwrite("orbit_gravity_gradient", &PlantParams::orbit_gravity_gradient,

@@ -13,6 +13,7 @@ namespace sc_rt {
 
 namespace {
 #include "igrf14_table.inc"
+#include "wmm2025_table.inc"
 }  // namespace
 
 double decimal_year(double jd) { return 2000.0 + (jd - 2451544.5) / 365.25; }
@@ -37,6 +38,33 @@ GeomagCoeffs igrf14_coefficients(double year, int nmax) {
     else c.h[n][-m] = v;
   }
   return c;
+}
+
+GeomagCoeffs wmm2025_coefficients(double year, int nmax) {
+  if (!(year >= kWmm2025Epoch && year <= kWmm2025Last))
+    throw std::invalid_argument("wmm2025_coefficients: year must be in [2025, 2030], got " + format_double(year));
+  if (nmax < 1 || nmax > kWmmMaxDegree)
+    throw std::invalid_argument("wmm2025_coefficients: nmax must be in [1, 12], got " + std::to_string(nmax));
+  // the WMM2025 report's eq. (9): g(t) = g(t0) + (t - t0) g-dot, h likewise
+  const double dt = year - kWmm2025Epoch;
+  GeomagCoeffs c;
+  c.nmax = nmax;
+  for (int row = 0; row < kWmm2025Rows; ++row) {
+    const int n = kWmm2025N[row], m = kWmm2025M[row];
+    if (n > nmax) continue;
+    const double* v = kWmm2025Coeffs[row];  // g, h [nT], g-dot, h-dot [nT/yr]
+    c.g[n][m] = v[0] + dt * v[2];
+    c.h[n][m] = v[1] + dt * v[3];
+  }
+  return c;
+}
+
+GeomagCoeffs geomag_model_coefficients(const std::string& model, double year) {
+  if (model == "igrf") return igrf14_coefficients(year, kGeomagMaxDegree);
+  if (model == "dipole") return igrf14_coefficients(year, 1);
+  if (model == "wmm2025") return wmm2025_coefficients(year, kWmmMaxDegree);
+  throw std::invalid_argument("geomag_model_coefficients: model must be \"igrf\", \"dipole\" or \"wmm2025\", got \"" +
+                              model + "\"");
 }
 
 GeomagField::GeomagField(const GeomagCoeffs& c) : c_(c) {

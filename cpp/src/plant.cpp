@@ -190,9 +190,9 @@ bool plant_field_B(const PlantParams& p, double t, const Vec3& sigma_BN, Vec3& B
   return true;
 }
 
-std::shared_ptr<const GeomagField> plant_field(const OrbitParams& orbit, int nmax) {
-  if (nmax == 0) return nullptr;
-  return std::make_shared<const GeomagField>(igrf14_coefficients(decimal_year(orbit.jd_epoch), nmax));
+std::shared_ptr<const GeomagField> plant_field(const OrbitParams& orbit, const std::string& model) {
+  if (model == "none") return nullptr;
+  return std::make_shared<const GeomagField>(geomag_model_coefficients(model, decimal_year(orbit.jd_epoch)));
 }
 
 std::vector<std::string> validate(const WheelFault& f) {

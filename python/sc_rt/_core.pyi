@@ -7,7 +7,7 @@ import collections.abc
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_MODE_SWITCH', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_REVISION', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'MagneticConfig', 'MagneticOutput', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantRods', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_field_B', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'rods_dipole_B', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_stribeck_switch', 'wheel_torque_command']
+__all__: list[str] = ['ActuatorParams', 'Bdot', 'BdotDerivative', 'BdotOutput', 'BdotParams', 'BdotState', 'CLOSED_LOOP_FIELDS', 'ClosedLoop', 'Command', 'Controller', 'ControllerConfig', 'ControllerCounts', 'DEFAULT_LAW', 'DEFAULT_LCM_URL', 'DetumbleMode', 'DipoleAllocation', 'DipoleAllocator', 'Estimator', 'FIELD_TABLE', 'FLAG_BOUND_X', 'FLAG_BOUND_Y', 'FLAG_BOUND_Z', 'FLAG_INVALID_STATE', 'FLAG_LAW_INVALID', 'FLAG_MODE_SWITCH', 'FLAG_NAV_DEGRADED', 'FLAG_SAT_1', 'FLAG_STALE_STATE', 'FLAG_TIME_JUMP', 'FLAG_TIME_NOT_ADVANCING', 'GEOMAG_RADIUS', 'GUIDANCE_MAX_CATCH_UP', 'GUIDANCE_PERIOD_STEPS_MAX', 'GUIDANCE_TABLE_MAX', 'GYRO_MEAN_RATE', 'GYRO_RATE', 'GateCounts', 'GateVerdict', 'GeomagCoeffs', 'GeomagField', 'Guidance', 'GuidanceKind', 'GuidanceParams', 'GuidancePeriodTable', 'GyroParams', 'InputGate', 'LAW_API_REVISION', 'LAW_API_VERSION', 'LAW_FINGERPRINT', 'LAW_MAX_TELEMETRY', 'LawError', 'LawInput', 'LawModel', 'LogHistogram', 'MAX_DT_PERIODS', 'MAX_RODS', 'MODE_INIT', 'MODE_NORMAL', 'MODE_SAFE', 'MagneticConfig', 'MagneticOutput', 'Magnetometer', 'MagnetometerParams', 'MagnetorquerOutput', 'MagnetorquerParams', 'Magnetorquers', 'Measurement', 'Mekf', 'MekfCal', 'MekfCalState', 'MekfParams', 'MekfState', 'MomentumManager', 'MomentumOutput', 'MomentumParams', 'NAV_FIELDS', 'NAV_SIZE', 'NavConfig', 'Navigation', 'Neso', 'NesoParams', 'OrbitParams', 'PACKED_FIELDS', 'PACKED_SIZE', 'PYTHON_LAW_OUT_SIZE', 'PhaseLock', 'PlantParams', 'PlantRods', 'PlantState', 'PpcParams', 'PpcResult', 'Reference', 'Rng', 'RodFault', 'SafetyLimits', 'SensorCounts', 'SensorIntake', 'SensorParams', 'SensorSuite', 'SpacecraftModel', 'SpacecraftParams', 'StarTrackerParams', 'TachometerParams', 'TorquePlant', 'TorqueWheels', 'TrackingErrors', 'UnloadKind', 'WMM_MAX_DEGREE', 'WheelFault', 'WheelOutput', 'bare_closed_loop', 'bdot_gain', 'boresight_frame', 'check_law', 'clear_python_laws', 'cross_product_dipole', 'decimal_year', 'detumble_mode', 'detumble_mode_name', 'disturbance', 'eci_to_ecef', 'fault_Y', 'geomag_dipole', 'geomag_model_coefficients', 'gmst', 'gravity_gradient', 'gravity_gradient_orbit', 'guidance_integrated', 'guidance_kind_name', 'guidance_period_table', 'guidance_rk4_step', 'gyro_calibration_matrix', 'hmac_sha256', 'igrf14_coefficients', 'in_eclipse', 'initial_estimate', 'law_info', 'law_names', 'load_law_plugin', 'lumped_disturbance', 'magnetic_torque', 'mean_anomaly_from_true', 'measurement_valid', 'message_tag', 'mrp_G', 'mrp_G_inverse', 'mrp_compose', 'mrp_error_vector', 'mrp_rotate_body', 'mrp_shadow', 'mrp_short', 'mrp_subtract', 'mrp_to_dcm', 'nav_from_config_bytes', 'neso_condition_26', 'omega_d', 'omega_d_dot', 'orbit_rates', 'orbit_state', 'plant_derivative', 'plant_field_B', 'plant_rk4_step', 'plant_rk4_step_motor', 'plant_row', 'plugin_file_problem', 'ppc_chi', 'ppc_chi_dot', 'ppc_inverse', 'ppc_transform', 'register_python_law', 'rod_fault_name', 'rods_dipole_B', 'run_sensors', 'run_steps', 'sha256', 'sig_pow', 'sigma_d', 'simulate_closed_loop', 'simulate_closed_loop_sensed', 'skew', 'slew_angle', 'slew_axis', 'step_packed', 'sun_direction_N', 'sun_distance_au', 'time_environment', 'time_estimator', 'time_steps', 'torque_to_dipole', 'tracking_errors', 'unload_kind_name', 'validate', 'wheel_accel', 'wheel_applied_torque', 'wheel_friction_torque', 'wheel_stribeck_switch', 'wheel_torque_command', 'wmm2025_coefficients']
 class SpacecraftParams:
     """
     Parameters the controller knows; defaults are the paper's.
@@ -1128,7 +1128,7 @@ class PlantParams:
     """
     True plant parameters (C++ engine); defaults are the paper's. The keyword constructor validates.
     """
-    def __init__(self, J0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., dJ: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., Cbar: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 4]"] = ..., Jw: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., w0: typing.SupportsFloat | typing.SupportsIndex = 0.0011, dist_amp: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_freq: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit: OrbitParams = ..., field_nmax: typing.SupportsInt | typing.SupportsIndex = 0, residual_dipole: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit_gravity_gradient: bool = True, rods: ... | None = None) -> None:
+    def __init__(self, J0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., dJ: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"] = ..., Cbar: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 4]"] = ..., Jw: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"] = ..., w0: typing.SupportsFloat | typing.SupportsIndex = 0.0011, dist_amp: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_freq: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., dist_bias: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit: OrbitParams = ..., field_model: str = 'none', residual_dipole: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"] = ..., orbit_gravity_gradient: bool = True, rods: ... | None = None) -> None:
         ...
     @property
     def Cbar(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 4]"]:
@@ -1187,9 +1187,14 @@ class PlantParams:
     def dist_freq(self, arg0: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
         ...
     @property
+    def field_coefficients(self) -> GeomagCoeffs | None:
+        """
+        the field's Gauss coefficients [nT] at the orbit's epoch (None: no field)
+        """
+    @property
     def field_nmax(self) -> int:
         """
-        [-] the field's degree along the orbit (0: none, 1: tilted dipole, 13: IGRF-14)
+        [-] the field's degree along the orbit (0: none, 1: tilted dipole, 12: WMM2025, 13: IGRF-14)
         """
     @property
     def orbit(self) -> OrbitParams:
@@ -2978,6 +2983,10 @@ def geomag_dipole(c: GeomagCoeffs) -> tuple[float, typing.Annotated[numpy.typing
     """
     (B0 [nT], unit dipole axis in ECEF) of the coefficients' degree 1.
     """
+def geomag_model_coefficients(model: str, year: typing.SupportsFloat | typing.SupportsIndex) -> GeomagCoeffs:
+    """
+    The coefficients of a field model by name ("igrf", "dipole", "wmm2025") at a decimal year.
+    """
 def gmst(jd_day: typing.SupportsFloat | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex = 0.0) -> float:
     """
     Greenwich mean sidereal time [rad] at jd_day + t/86400 (IAU-1982, Meeus (12.4)).
@@ -3228,7 +3237,7 @@ def sun_distance_au(jd_day: typing.SupportsFloat | typing.SupportsIndex, t: typi
     """
 def time_environment(orbit: OrbitParams, n: typing.SupportsInt | typing.SupportsIndex, reps: typing.SupportsInt | typing.SupportsIndex) -> dict:
     """
-    Seconds of n evaluations (reps times) of the orbit's gravity-gradient terms, the Sun, the IGRF-14 and dipole fields in ECI along the orbit, and a plant RK4 step with the orbit and with w0.
+    Seconds of n evaluations (reps times) of the orbit's gravity-gradient terms, the Sun, the IGRF-14, dipole and WMM2025 fields in ECI along the orbit (epoch in 2025-2030 for WMM2025), and a plant RK4 step with the orbit and with w0.
     """
 def time_estimator(c: NavConfig, rate: typing.SupportsFloat | typing.SupportsIndex, n_ctrl: typing.SupportsInt | typing.SupportsIndex, x: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[10, 1]"], reps: typing.SupportsInt | typing.SupportsIndex) -> dict:
     """
@@ -3321,6 +3330,10 @@ def wheel_torque_command(u: typing.SupportsFloat | typing.SupportsIndex, Jw: typ
     """
     The motor torque [N m] a wheel command asks: Jw u (acceleration) or u (torque).
     """
+def wmm2025_coefficients(year: typing.SupportsFloat | typing.SupportsIndex, nmax: typing.SupportsInt | typing.SupportsIndex = 12) -> GeomagCoeffs:
+    """
+    WMM2025 at a decimal year in [2025, 2030] to degree nmax <= 12: g + (year - 2025) g-dot.
+    """
 CLOSED_LOOP_FIELDS: list = [('t', 1), ('sigma_BN', 3), ('omega_BN_B', 3), ('wheel_speed', 4), ('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('u_cmd', 4), ('u_sat', 4), ('wheel_accel', 4), ('z1', 3), ('z2', 3), ('delta2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1), ('rod_dipole_cmd', 6), ('m_B_cmd', 3), ('B_B', 3), ('h_wheels_B', 3), ('wheel_fill', 1), ('unloading', 1), ('detumble_mode', 1), ('H_N', 3)]
 DEFAULT_LAW: str = 'dsc-ppc'
 DEFAULT_LCM_URL: str = 'udpm://239.255.76.67:7667?ttl=0'
@@ -3356,4 +3369,5 @@ NAV_SIZE: int = 41
 PACKED_FIELDS: list = [('sigma_DN', 3), ('sigma_BD', 3), ('omega_BD_B', 3), ('u_cmd', 4), ('u_sat', 4), ('z1', 3), ('z2', 3), ('chi', 3), ('lam', 3), ('e1', 3), ('e2', 3), ('vs', 4), ('x2d', 3), ('rho_hat', 1), ('telemetry', 8), ('flags', 1), ('ctrl_mode', 1), ('rod_dipole_cmd', 6), ('m_B_cmd', 3), ('B_B', 3), ('h_wheels_B', 3), ('wheel_fill', 1), ('unloading', 1), ('detumble_mode', 1)]
 PACKED_SIZE: int = 71
 PYTHON_LAW_OUT_SIZE: int = 32
+WMM_MAX_DEGREE: int = 12
 __version__: str = '0.1.0'

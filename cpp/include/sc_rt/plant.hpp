@@ -74,8 +74,8 @@ struct PlantParams {
   Vec3 dist_bias = Vec3::Zero();                 //!< [N m]
   //! enabled: u_g of the orbit's actual radius and nadir (orbit.hpp) replaces the w0 form of (5)
   OrbitParams orbit{};
-  //! the geomagnetic field along the orbit (IGRF-14 or the dipole at the orbit's epoch,
-  //! plant_field); null: none. Shared: built once, read by every step.
+  //! the geomagnetic field along the orbit (IGRF-14, its dipole or WMM2025 at the orbit's
+  //! epoch, plant_field); null: none. Shared: built once, read by every step.
   std::shared_ptr<const GeomagField> field{};
   Vec3 residual_dipole = Vec3::Zero();  //!< [A m^2] the spacecraft's residual dipole in B (m x B)
   //! test-only: false drops the orbit's gravity gradient (u_g then has the w0 form; w0 = 0: none)
@@ -85,9 +85,10 @@ struct PlantParams {
   PlantRods rods{};
 };
 
-// The field of degree nmax (0: none, 1: the tilted dipole, 13: IGRF-14) at the
-// orbit's epoch, for PlantParams::field (sc_rt.model.field.field_for's).
-std::shared_ptr<const GeomagField> plant_field(const OrbitParams& orbit, int nmax);
+// The field `model` ("none": null, "dipole", "igrf", "wmm2025";
+// geomag_model_coefficients) at the orbit's epoch, for PlantParams::field
+// (sc_rt.model.field.field_for's).
+std::shared_ptr<const GeomagField> plant_field(const OrbitParams& orbit, const std::string& model);
 
 // The plant's field in B, B_B = C_BN(sigma_BN) B_N(t) [T], B_N at the orbit's
 // position at t [s] (the magnetic torque's evaluation, plant_kernels.hpp

@@ -33,7 +33,7 @@ def make_field_N(orbit: OrbitParams | None, model: str):
     epoch, or None when there is no field (``model`` "none" or no orbit).
 
     ``model`` is the scenario's ``[environment] field`` ("igrf", "dipole",
-    "none"); the coefficients are those of the orbit's epoch
+    "wmm2025", "none"); the coefficients are those of the orbit's epoch
     (sc_rt.model.field.field_for).
     """
     if orbit is None or model == "none":

@@ -99,7 +99,7 @@ class PlantParams:
     disturbance: DisturbanceParams = field(default_factory=DisturbanceParams)
     # an orbit: u_g of its actual radius and nadir replaces the w0 form (docs/MODEL.md section 11)
     orbit: OrbitParams | None = None
-    # the geomagnetic field along the orbit ([environment] field: "igrf", "dipole", "none"),
+    # the geomagnetic field along the orbit ([environment] field: "igrf", "dipole", "wmm2025", "none"),
     # through which the residual dipole and the magnetorquers' dipole act (docs/MODEL.md section 16)
     field_model: str = "none"
     # [A m^2] the spacecraft's residual dipole in B, a disturbance m x B
@@ -485,7 +485,7 @@ def plant_params_to_cpp(p: PlantParams):
         dist_freq=np.array(d.freq),
         dist_bias=np.array(d.bias),
         orbit=orbit_params_to_cpp(p.orbit),
-        field_nmax=FIELD_MODELS[p.field_model],
+        field_model=p.field_model,
         residual_dipole=np.array(p.residual_dipole),
         orbit_gravity_gradient=p.orbit_gravity_gradient,
         rods=rods_to_cpp(p.magnetorquers),

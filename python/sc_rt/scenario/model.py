@@ -244,7 +244,7 @@ class Scenario:
         key, value) pairs (``sc_rt.with_overrides``); a run records them
         (sc_rt.results.record.inputs).
     field_model : str
-        ``[environment] field``: "igrf", "dipole" or "none" (the default),
+        ``[environment] field``: "igrf", "dipole", "wmm2025" or "none" (the default),
         the geomagnetic field along the orbit (``plant.orbit``);
         ``sc_rt.model.field.field_for(model, jd)`` builds it.
     magnetic_control : MagneticControl or None
@@ -281,8 +281,8 @@ class Scenario:
     # the overrides applied to the file's values, in order: (dotted key, value) pairs
     # (sc_rt.scenario.overrides.with_overrides); a run records them (results/record/inputs.py)
     overrides: tuple = ()
-    # [environment] field: the geomagnetic field model along the orbit, "igrf", "dipole" or
-    # "none" (sc_rt.model.field.field_for); the plant's too (plant.field_model), where the
+    # [environment] field: the geomagnetic field model along the orbit, "igrf", "dipole",
+    # "wmm2025" or "none" (sc_rt.model.field.field_for); the plant's too (plant.field_model), where the
     # residual dipole and the magnetorquers' dipole act
     field_model: str = "none"
     # [momentum] and [bdot]: the controller's magnetic part (sc_rt.scenario.tables.momentum.MagneticControl), None: none

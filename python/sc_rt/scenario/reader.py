@@ -145,7 +145,7 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     faults = read_faults(root, run.plant_step if run else None)
     wheels = read_wheels(root)
     orbit = read_orbit(root)  # [orbit]: the plant's gravity gradient of the orbit
-    environment = read_environment(root, orbit is not None)  # [environment] field, residual_dipole
+    environment = read_environment(root, orbit)  # [environment] field, residual_dipole
     rods = read_magnetorquers(root, environment[0] if environment else None)  # [magnetorquers]
     magnetic = read_magnetic_control(root, orbit or None, rods or None, sensors is not None,  # [momentum], [bdot]
                                      plant.J0 if plant is not None else None, _speed_limits(actuators, wheels))

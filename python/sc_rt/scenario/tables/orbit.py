@@ -4,7 +4,9 @@ Without the table the plant keeps the constant-rate gravity gradient of
 ``spacecraft.w0``, exactly as before.
 
 The ``[environment]`` table names the geomagnetic field model evaluated
-along the orbit (``field = "igrf" | "dipole" | "none"``, sc_rt.model.field)
+along the orbit (``field = "igrf" | "dipole" | "wmm2025" | "none"``,
+sc_rt.model.field; the orbit's epoch must be in the model's window,
+``FIELD_WINDOWS``)
 and the spacecraft's residual dipole (``residual_dipole = [x, y, z]`` in
 A m^2, body frame), whose torque m x B the plant adds
 (sc_rt.model.magnetic; docs/MODEL.md section 16).
@@ -19,7 +21,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 
-from sc_rt.model.field import FIELD_MODELS
+from sc_rt.model.field import FIELD_MODELS, FIELD_WINDOWS, decimal_year
 from sc_rt.model.orbit import R_EARTH, OrbitParams, mean_anomaly_from_true
 from sc_rt.scenario.schema import Spec, Table
 
@@ -113,11 +115,14 @@ def read_orbit(root: Table) -> OrbitParams | None | bool:
         return False
 
 
-def read_environment(root: Table, has_orbit: bool) -> tuple[str, tuple] | None:
+def read_environment(root: Table, orbit: OrbitParams | None | bool) -> tuple[str, tuple] | None:
     """The ``[environment]`` table's field model and residual dipole [A m^2]
     (``("none", (0, 0, 0))`` without the table); None after reporting a
-    problem. A field other than "none" needs ``[orbit]``; a nonzero residual
-    dipole needs a field."""
+    problem. ``orbit`` is ``read_orbit``'s answer (None: no ``[orbit]``;
+    False: refused, reported). A field other than "none" needs ``[orbit]``,
+    whose epoch must be in the model's window (``FIELD_WINDOWS``: IGRF-14
+    1900-2030, WMM2025 2025-2030); a nonzero residual dipole needs a field."""
+    has_orbit = orbit is not None
     t = root.sub("environment", required=False)
     if t.data is None:
         return None
@@ -129,8 +134,16 @@ def read_environment(root: Table, has_orbit: bool) -> tuple[str, tuple] | None:
     if model != "none" and not has_orbit:
         t.fail("field", f'field = "{model}" is evaluated along the orbit: give an [orbit] table too')
         return None
+    if model != "none" and isinstance(orbit, OrbitParams):
+        first, last = FIELD_WINDOWS[model]
+        year = decimal_year(orbit.jd_epoch)
+        if not (first <= year <= last):
+            t.fail("field", f'"{model}" is valid for epochs {first:.1f}-{last:.1f}; the orbit\'s epoch is '
+                            f"{year:.2f}: give an [orbit] epoch within it or another field")
+            return None
     res = tuple(float(v) for v in res)
     if model == "none" and any(res):
-        t.fail("residual_dipole", 'a residual dipole acts through the field: give field = "igrf" or "dipole"')
+        t.fail("residual_dipole",
+               'a residual dipole acts through the field: give field = "igrf", "dipole" or "wmm2025"')
         return None
     return model, res
