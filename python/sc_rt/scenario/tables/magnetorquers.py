@@ -111,7 +111,7 @@ def read_magnetorquers(root: Table, field_model: str | None) -> Magnetorquers | 
         return False
     if field_model == "none":  # (None: [environment] was refused, reported)
         t.fail("max_dipole" if t.has("max_dipole") else "axes",
-               'magnetorquers act through the field: give [environment] field = "igrf" or "dipole"')
+               'magnetorquers act through the field: give [environment] field = "igrf", "wmm2025" or "dipole"')
         return False
     try:
         return Magnetorquers(axes=G, max_dipole=np.asarray(lim, float), faults=faults)
