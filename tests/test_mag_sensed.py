@@ -276,3 +276,18 @@ def test_detumble_from_a_noisy_magnetometer():
     assert switched.size, f"never detumbled: |omega| at the end {rate[-1]:.4f} rad/s"
     k = switched[0]
     assert rate[k] < scn.magnetic_control.bdot.rate_off and np.all(rate[:k] >= scn.magnetic_control.bdot.rate_off)
+
+
+def test_a_magnetometer_beside_the_gyro_and_star_tracker_changes_no_other_field():
+    """A sensed run without magnetic control, with and without [sensors.magnetometer]: every field
+    (the MEKF's estimate, its covariance, the law's rows) equal with ==, on both engines."""
+    base = GYRO_STAR.replace("[sensors.gyro]", "[sensors]\nseed = 11\n[sensors.gyro]")
+    without = mag_scenario(base, duration=10.0)
+    with_mag = mag_scenario(MAGNETOMETER + GYRO_STAR, duration=10.0)
+    assert with_mag.sensors.magnetometer is not None and without.sensors.magnetometer is None
+    for engine in ("cpp", "python"):
+        a, b = simulate(without, engine=engine), simulate(with_mag, engine=engine)
+        assert np.all(np.isfinite(a["sigma_BN_est"]))
+        diff = [k for k in a.trajectory if not np.array_equal(np.asarray(a[k]), np.asarray(b[k]),
+                                                              equal_nan=np.asarray(a[k]).dtype.kind == "f")]
+        assert diff == [], engine
