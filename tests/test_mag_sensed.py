@@ -291,3 +291,15 @@ def test_a_magnetometer_beside_the_gyro_and_star_tracker_changes_no_other_field(
         diff = [k for k in a.trajectory if not np.array_equal(np.asarray(a[k]), np.asarray(b[k]),
                                                               equal_nan=np.asarray(a[k]).dtype.kind == "f")]
         assert diff == [], engine
+
+
+def test_the_table_round_trips_through_the_scenarios_data():
+    """What Monte Carlo workers and reruns rebuild a scenario from (sc_rt.scenario.keys.scenario_data):
+    the same magnetometer, the same run bitwise."""
+    from sc_rt.scenario.keys import scenario_data
+
+    scn = _sensed(_mag(5.0, noise=50.0, bias=BIAS_NT, mounting=MOUNT, lsb=2.0), duration=5.0)
+    back = scenario_from_data(scenario_data(scn), "rt.toml")
+    a, b = scn.sensors.magnetometer, back.sensors.magnetometer
+    assert all(np.array_equal(getattr(a, k), getattr(b, k)) for k in a.__dataclass_fields__)
+    np.testing.assert_array_equal(simulate(scn, engine="cpp")["B_B"], simulate(back, engine="cpp")["B_B"])
