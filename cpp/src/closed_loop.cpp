@@ -80,7 +80,7 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
     // controller gets without sensors; with them it gets the magnetometer's
     // latest sample rotated to B (Navigation::field_B), the truth recorded beside it.
     Vec3 B_true = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-    if (mag_) plant_field_B(plant_, t, x_.sigma_BN, B_true);
+    if (mag_ && (!mag_meas_ || out)) plant_field_B(plant_, t, x_.sigma_BN, B_true);  // (sensed: for the record only)
     const Command c = mag_ ? ctl_->step(m, mag_meas_ ? nv->field_B() : B_true) : ctl_->step(m);
     // the rod commands held over the period; the row's wheel accelerations with
     // the dipole the step's first stage holds (docs/MODEL.md section 17)
