@@ -280,7 +280,7 @@ CORE_TESTS = ["test_controllers.py", "test_laws.py", "test_references.py", "test
               "test_mekf.py", "test_shell_policy.py", "test_sensor_intake.py", "test_auth.py", "test_pylaw.py",
               "test_sim.py", "test_wheels.py", "test_torque_plant.py", "test_flight_wheels.py",
               "test_mag_plant_twin.py", "test_mag_plant.py", "test_mag_rods.py", "test_stribeck_switching.py",
-              "test_mag_control.py", "test_mag_detumble.py", "test_wmm2025.py"]
+               "test_mag_control.py", "test_mag_detumble.py", "test_wmm2025.py", "test_mag_sensed.py"]
 
 
 def _asan_python_env(asan: Path, logs: Path) -> dict[str, str]:

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <type_traits>
 #include <utility>
@@ -114,6 +115,7 @@ inline void bind_sensors(py::module_& m) {
       .def_readwrite("gyro", &SensorParams::gyro)
       .def_readwrite("star_tracker", &SensorParams::star_tracker)
       .def_readwrite("tachometer", &SensorParams::tachometer)
+      .def_readwrite("magnetometer", &SensorParams::magnetometer, "MagnetometerParams (SI units)")
       .def_readwrite("seed", &SensorParams::seed)
       .def_readwrite("dt", &SensorParams::dt, "[s] plant step (one tick)");
   py::class_<MekfParams>(m, "MekfParams", "The MEKF's noise model and start (mekf.hpp).")
@@ -153,16 +155,24 @@ inline void bind_sensors(py::module_& m) {
   m.def("mrp_error_vector", &mrp_error_vector, arg("s1"), arg("s2"),
         "Rotation vector [rad] of R(s1) R(s2)'.");
 
-  py::class_<SensorSuite>(m, "SensorSuite", "Gyro, star tracker and tachometers (sensors.hpp).")
+  m.def("magnetometer_field_B", &magnetometer_field_B, arg("R_SB"), arg("B_S"),
+        "The controller's field in B [T] from a magnetometer sample B_S [T]: R_SB' B_S.");
+  py::class_<SensorSuite>(m, "SensorSuite", "Gyro, star tracker, tachometers and magnetometer (sensors.hpp).")
       .def(py::init<const SensorParams&>(), arg("p"))
       .def("reset", &SensorSuite::reset)
-      .def("tick", [](SensorSuite& s, std::int64_t i, double t,
-                      const Vec10& x) { s.tick(i, t, state_of(x)); },
-           arg("i"), arg("t"), arg("x"))
+      .def("tick", [](SensorSuite& s, std::int64_t i, double t, const Vec10& x,
+                      const std::optional<Vec3>& B_B) { s.tick(i, t, state_of(x), B_B ? &*B_B : nullptr); },
+           arg("i"), arg("t"), arg("x"), arg("B_B") = py::none(),
+           "B_B [T]: the true field in B at t, for the magnetometer when it is due (None: a sample of NaN).")
       .def("next_tick", &SensorSuite::next_tick, arg("i"))
+      .def("magnetometer_due", &SensorSuite::magnetometer_due, arg("i"))
       .def_property_readonly("gyro_new", &SensorSuite::gyro_new)
       .def_property_readonly("star_new", &SensorSuite::star_new)
       .def_property_readonly("tach_new", &SensorSuite::tach_new)
+      .def_property_readonly("mag_new", &SensorSuite::mag_new)
+      .def_property_readonly("mag", [](const SensorSuite& s) {
+        return py::make_tuple(s.mag().t, s.mag().B_S);
+      }, "(t, B_S [T], sensor frame)")
       .def_property_readonly("gyro", [](const SensorSuite& s) {
         return py::make_tuple(s.gyro().t, s.gyro().omega, s.gyro().output);
       }, "(t, omega_m)")
@@ -330,10 +340,14 @@ inline void bind_sensors(py::module_& m) {
   py::class_<Navigation>(m, "Navigation", "Sensors + MEKF -> the law's Measurement (mekf.hpp).")
       .def(py::init<const NavConfig&>(), arg("c"))
       .def("reset", [](Navigation& n, const Vec10& x) { n.reset(state_of(x)); }, arg("x0"))
-      .def("tick", [](Navigation& n, std::int64_t i, double t,
-                      const Vec10& x) { n.tick(i, t, state_of(x)); },
-           arg("i"), arg("t"), arg("x"))
+      .def("tick", [](Navigation& n, std::int64_t i, double t, const Vec10& x,
+                      const std::optional<Vec3>& B_B) { n.tick(i, t, state_of(x), B_B ? &*B_B : nullptr); },
+           arg("i"), arg("t"), arg("x"), arg("B_B") = py::none(),
+           "B_B [T]: the true field in B at t, for the magnetometer when it is due (magnetometer_due).")
       .def("next_tick", &Navigation::next_tick, arg("i"))
+      .def("magnetometer_due", &Navigation::magnetometer_due, arg("i"))
+      .def_property_readonly("field_B", &Navigation::field_B,
+                             "[T] the magnetometer's latest sample rotated to B (NaN: none yet)")
       .def("measure", [](Navigation& n, double t, const Vec10& x) {
              NavTelemetry tel;
              const Measurement m = n.measure(t, state_of(x), &tel);

@@ -29,10 +29,15 @@ ClosedLoop::ClosedLoop(const ControllerConfig& cfg, const PlantParams& plant, co
   mag_ = cfg.magnetic.active();
   rods_ = mag_ && plant_.rods.enabled;
   if (nav) nv_ = std::make_unique<Navigation>(*nav);
+  // with sensors the controller gets the field it measures (docs/MODEL.md section 17)
+  if (nv_ && mag_ && !nav->sensors.magnetometer.enabled)
+    throw std::invalid_argument("simulate_closed_loop: magnetic control with sensors needs the magnetometer "
+                                "(NavConfig.sensors.magnetometer.enabled): the controller uses the field it measures");
+  mag_meas_ = nv_ && mag_;
   h_ = 1.0 / (rate * n_sub);
   if (nv_) {
     nv_->reset(x_);
-    nv_->tick(0, 0.0, x_);
+    tick(0, 0.0);
     ctl_->reset(nv_->measure(0.0, x_));
   } else {
     ctl_->reset(Measurement{0.0, x_.sigma_BN, x_.omega_BN_B, x_.wheel_speed});
@@ -41,6 +46,13 @@ ClosedLoop::ClosedLoop(const ControllerConfig& cfg, const PlantParams& plant, co
 }
 
 ClosedLoop::~ClosedLoop() = default;
+
+void ClosedLoop::tick(std::int64_t i, double t) {
+  // the magnetometer samples the plant's true field in B at the tick (evaluated only when it is due)
+  Vec3 B_B;
+  const bool field = nv_->magnetometer_due(i) && plant_field_B(plant_, t, x_.sigma_BN, B_B);
+  nv_->tick(i, t, x_, field ? &B_B : nullptr);
+}
 
 const LawFailures& ClosedLoop::law_failures() const { return ctl_->law_failures(); }
 const std::vector<std::string>& ClosedLoop::telemetry_names() const { return ctl_->telemetry_names(); }
@@ -58,16 +70,18 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
     const int i = written;  // the row in this chunk
     const double t = k / rate_;
     if (nv && k > 0 && k * nsub64 == next_) {
-      nv->tick(next_, t, x_);
+      tick(next_, t);
       next_ = nv->next_tick(next_);
     }
     const Measurement m = nv ? nv->measure(t, x_, out ? &tel_ : nullptr)
                              : Measurement{t, x_.sigma_BN, x_.omega_BN_B, x_.wheel_speed};
-    // Magnetic control: the true field in B at t_k (one evaluation per
-    // control step; NaN without a field), docs/MODEL.md section 17.
-    Vec3 B_B = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-    if (mag_) plant_field_B(plant_, t, x_.sigma_BN, B_B);
-    const Command c = mag_ ? ctl_->step(m, B_B) : ctl_->step(m);
+    // Magnetic control, docs/MODEL.md section 17: the true field in B at t_k
+    // (one evaluation per control step; NaN without a field), which the
+    // controller gets without sensors; with them it gets the magnetometer's
+    // latest sample rotated to B (Navigation::field_B), the truth recorded beside it.
+    Vec3 B_true = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+    if (mag_ && (!mag_meas_ || out)) plant_field_B(plant_, t, x_.sigma_BN, B_true);  // (sensed: for the record only)
+    const Command c = mag_ ? ctl_->step(m, mag_meas_ ? nv->field_B() : B_true) : ctl_->step(m);
     // the rod commands held over the period; the row's wheel accelerations with
     // the dipole the step's first stage holds (docs/MODEL.md section 17)
     RodVec d_cmd;
@@ -85,6 +99,7 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
       out->put(FieldId::wheel_accel, i, w.accel);
       out->put(FieldId::delta2, i, delta2_(t, x_, w.u_sat, w.accel));
       out->put(FieldId::H_N, i, total_momentum_N(plant_, x_));
+      out->put(FieldId::B_B_true, i, B_true);
       for_each_command_field(c, [out, i](FieldId f, const auto& v) { out->put(f, i, v); });
       if (nv) {
         out->put(FieldId::flags, i, c.flags | tel_.flags);
@@ -99,7 +114,7 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
     }
     for (int j = 0; j < n_sub_; ++j) {
       if (nv && j > 0 && k * nsub64 + j == next_) {
-        nv->tick(next_, t + j * h_, x_);
+        tick(next_, t + j * h_);
         next_ = nv->next_tick(next_);
       }
       if (rods_) {

@@ -364,14 +364,16 @@ Navigation::Navigation(const NavConfig& c)
 
 void Navigation::reset(const PlantState& x0) {
   sensors_.reset();
+  field_B_ = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
   est_.reset(initial_estimate(c_.sensors.seed, c_.mekf.initial_attitude_sigma, x0.sigma_BN));
 }
 
-void Navigation::tick(std::int64_t i, double t, const PlantState& x) {
-  sensors_.tick(i, t, x);
+void Navigation::tick(std::int64_t i, double t, const PlantState& x, const Vec3* B_B) {
+  sensors_.tick(i, t, x, B_B);
   if (sensors_.gyro_new()) est_.gyro(sensors_.gyro());
   if (sensors_.star_new()) est_.star(sensors_.star());
   if (sensors_.tach_new()) est_.tach(sensors_.tach());
+  if (sensors_.mag_new()) field_B_ = magnetometer_field_B(c_.sensors.magnetometer.R_SB, sensors_.mag().B_S);
 }
 
 Measurement Navigation::measure(double t, const PlantState& x, NavTelemetry* tel) {

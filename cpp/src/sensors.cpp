@@ -88,7 +88,8 @@ Vec3 mrp_error_vector(const Vec3& s1, const Vec3& s2) {
 SensorSuite::SensorSuite(const SensorParams& p)
     : p_(p),
       A_(boresight_frame(p.star_tracker.boresight)),
-      gyro_M_(Mat3::Identity()) {
+      gyro_M_(Mat3::Identity()),
+      mag_model_(p.magnetometer, p.seed) {
   const GyroParams& g = p_.gyro;
   gyro_M_ = (Mat3::Identity() + Mat3(g.scale_factor.asDiagonal())) *
             (Mat3::Identity() - skew(g.misalignment));
@@ -111,6 +112,7 @@ void SensorSuite::reset() {
   rng_bias_ = Rng(seed, S_BIAS);
   rng_star_ = Rng(seed, S_STAR);
   rng_loss_ = Rng(seed, S_LOSS);
+  mag_model_.reset();  // its own stream (Magnetometer::kStream)
   const GyroParams& g = p_.gyro;
   gm_.setZero();
   rw_.setZero();
@@ -122,15 +124,16 @@ void SensorSuite::reset() {
   gyro_ = GyroSample{};
   star_ = StarSample{};
   tach_ = TachSample{};
-  gyro_new_ = star_new_ = tach_new_ = false;
+  mag_ = MagSample{};
+  gyro_new_ = star_new_ = tach_new_ = mag_new_ = false;
   q_head_ = q_size_ = 0;
   lost_ = blacked_ = delivered_ = 0;
   last_bias_tick_ = -1;
   next_gyro_ = next_star_ = next_tach_ = 0;
 }
 
-void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
-  gyro_new_ = star_new_ = tach_new_ = false;
+void SensorSuite::tick(std::int64_t i, double t, const PlantState& x, const Vec3* B_B) {
+  gyro_new_ = star_new_ = tach_new_ = mag_new_ = false;
   const GyroParams& g = p_.gyro;
   if (g.enabled && due(i, g.period_ticks, next_gyro_)) {
     if (last_bias_tick_ >= 0) {  // the bias moves one gyro period
@@ -206,6 +209,11 @@ void SensorSuite::tick(std::int64_t i, double t, const PlantState& x) {
     tach_ = TachSample{t, w};
     tach_new_ = true;
   }
+  if (magnetometer_due(i)) {  // last at a tick: the other sensors' draws are not moved by it
+    const Vec3 B = B_B ? *B_B : Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+    mag_ = MagSample{t, mag_model_.sample(B)};
+    mag_new_ = true;
+  }
 }
 
 std::int64_t SensorSuite::next_tick(std::int64_t i) const {
@@ -216,6 +224,10 @@ std::int64_t SensorSuite::next_tick(std::int64_t i) const {
     if (q_size_ > 0) best = std::min(best, queue_[q_head_].deliver);
   }
   if (p_.tachometer.enabled) best = std::min(best, next_multiple(i, p_.tachometer.period_ticks, next_tach_));
+  if (p_.magnetometer.enabled) {
+    const std::int64_t n = p_.magnetometer.period_ticks;
+    best = std::min(best, i >= 0 ? (i / n + 1) * n : 0);
+  }
   return best;
 }
 

@@ -135,6 +135,9 @@ class ClosedLoop {
   bool done_ = false, diverged_ = false;
   bool mag_ = false;   // magnetic control: the controller gets the true field in B
   bool rods_ = false;  // and its rod commands reach the plant's rods
+  bool mag_meas_ = false;  // magnetic control with sensors: the controller gets the magnetometer's field
+  // the navigation's tick i at t from the current state (the magnetometer's true field evaluated when due)
+  void tick(std::int64_t i, double t);
 };
 
 // n_ctrl control periods of 1/rate s (n_ctrl + 1 rows, t_k = k / rate), each
@@ -142,8 +145,10 @@ class ClosedLoop {
 // nav (optional): sensors and estimator (mekf.hpp), ticked at the plant
 // steps i = k n_sub + j where a sensor samples or delivers (next_tick), from
 // the state at the step's start; the law gets
-// nav->measure(), the row's flags include the navigation's. Without nav the
-// loop is exactly the one without sensors.
+// nav->measure(), the row's flags include the navigation's; with magnetic
+// control its magnetic part gets nav->field_B(), the magnetometer's (which
+// must be enabled: std::invalid_argument otherwise). Without nav the loop is
+// exactly the one without sensors.
 // (A ClosedLoop run whole into one result.)
 ClosedLoopResult simulate_closed_loop(const ControllerConfig& cfg, const PlantParams& plant,
                                       const ActuatorParams& act, const PlantState& x0, int n_ctrl,

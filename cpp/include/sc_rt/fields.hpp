@@ -77,7 +77,8 @@ namespace sc_rt {
   X(m_B_cmd, 3, "f8", "A m^2", "", "controller", kLoop, true, false, false,                                     \
     "body dipole commanded, G_B rod_dipole_cmd (NaN: no magnetic control)")                                      \
   X(B_B, 3, "f8", "T", "", "controller", kLoop, true, false, false,                                             \
-    "geomagnetic field in B the controller used (the true field without a magnetometer; NaN: none)")             \
+    "geomagnetic field in B the controller used: without [sensors] the true field, with them the "            \
+    "magnetometer's latest sample rotated to B by its known mounting (NaN: none)")                             \
   X(h_wheels_B, 3, "f8", "N m s", "", "controller", kLoop, true, false, false,                                  \
     "wheels' momentum Cbar Jw Omega from the measured speeds (NaN: no momentum manager)")                       \
   X(wheel_fill, 1, "f8", "-", "", "controller", kLoop, true, false, false,                                      \
@@ -89,6 +90,9 @@ namespace sc_rt {
   X(H_N, 3, "f8", "N m s", "", "truth", kLoop, false, false, false,                                               \
     "total angular momentum in N, C_NB (J omega_BN_B + Cbar Jw wheel_speed) with the true J (3) "                  \
     "(NaN: the unsampled engine, lockstep)")                                                                     \
+  X(B_B_true, 3, "f8", "T", "", "truth", kLoop, false, false, false,                                            \
+    "the plant's true geomagnetic field in B at t_k, C_BN(sigma_BN) B_N(t_k), beside the B_B the controller "  \
+    "used (NaN: no magnetic control, the unsampled engine, lockstep)")                                         \
   X(sigma_BN_est, 3, "f8", "-", "", "estimator", kNav, false, true, false,                                      \
     "MEKF attitude estimate at t_k (what the law gets with measurement = estimate)")                             \
   X(bias_est, 3, "f8", "rad/s", "", "estimator", kNav, false, true, false, "MEKF gyro bias estimate")            \

@@ -244,9 +244,15 @@ class Navigation {
   // truth rotated by a draw of the initial covariance, bias estimate 0.
   void reset(const PlantState& x0);
   // Plant step i at time t with the plant state x (every tick, or only at
-  // next_tick(): the same numbers).
-  void tick(std::int64_t i, double t, const PlantState& x);
+  // next_tick(): the same numbers); B_B [T]: the plant's true field in B at
+  // t, needed where magnetometer_due(i) (SensorSuite::tick).
+  void tick(std::int64_t i, double t, const PlantState& x, const Vec3* B_B = nullptr);
   std::int64_t next_tick(std::int64_t i) const { return sensors_.next_tick(i); }
+  bool magnetometer_due(std::int64_t i) const { return sensors_.magnetometer_due(i); }
+  //! [T] the controller's field in B: the latest magnetometer sample rotated
+  //! to B with the known mounting (magnetometer_field_B), held until the
+  //! next; NaN before the first sample and without a magnetometer
+  const Vec3& field_B() const { return field_B_; }
   // The law's measurement at t (truth or estimate) and the row's telemetry.
   Measurement measure(double t, const PlantState& x, NavTelemetry* tel = nullptr);
   const SensorSuite& sensors() const { return sensors_; }
@@ -257,6 +263,7 @@ class Navigation {
   NavConfig c_;
   SensorSuite sensors_;
   Estimator est_;
+  Vec3 field_B_ = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
 }  // namespace sc_rt

@@ -125,16 +125,18 @@ struct TachometerParams {
   double period = 0.1;          //!< [s] sample period T (sets the quantum)
 };
 
-// Three-axis magnetometer (SI units: tesla; the scenario reader will convert
-// from nT). Output in the sensor frame S:
+// Three-axis magnetometer (SI units: tesla; the scenario reader converts
+// from nT, sc_rt.scenario.tables.magnetometer). Output in the sensor frame S:
 //   B_m = q(sat(M R_SB B_B + bias + n)),  n ~ N(0, noise^2) per axis, white
 // R_SB the body-to-sensor rotation, M the scale factor and misalignment
 // (I: none), q(x) = lsb nearbyint(x / lsb) per axis (lsb 0: none), sat the
 // per-axis range. Seeded like the others: its own stream (id 5) of the seed.
-// Not yet ticked by SensorSuite (the field comes with the orbit; issue #43).
+// SensorSuite ticks it (enabled) on the plant's grid from the plant's true
+// field in B at the sample instant, which its caller evaluates
+// (docs/MODEL.md section 13).
 struct MagnetometerParams {
-  bool enabled = false;               //!< for SensorSuite, once it ticks the magnetometer
-  int period_ticks = 1;               //!< plant steps per sample (the same)
+  bool enabled = false;               //!< SensorSuite ticks it
+  int period_ticks = 1;               //!< plant steps per sample
   double noise = 0.0;                 //!< [T] 1 sigma white noise per axis
   Vec3 bias = Vec3::Zero();           //!< [T] constant bias, sensor frame
   Mat3 M = Mat3::Identity();          //!< [-] scale factor and misalignment (sensor frame)
@@ -165,6 +167,7 @@ struct SensorParams {
   GyroParams gyro;
   StarTrackerParams star_tracker;
   TachometerParams tachometer;
+  MagnetometerParams magnetometer;
   std::uint64_t seed = 0;
   double dt = 0.01;  //!< [s] plant step (one tick)
 };
@@ -183,6 +186,16 @@ struct TachSample {
   double t = 0.0;
   Vec4 wheel_speed = Vec4::Zero();
 };
+struct MagSample {
+  double t = 0.0;             //!< [s] sample instant
+  Vec3 B_S = Vec3::Zero();    //!< [T] measured field, sensor frame
+};
+
+// The field in B [T] a controller takes from a magnetometer sample B_S [T]:
+// B_B = R_SB' B_S, the sample rotated from the sensor frame to B with the
+// known mounting R_SB (body to sensor). The controller knows nothing of the
+// bias, scale factor or misalignment: they stay in its field.
+inline Vec3 magnetometer_field_B(const Mat3& R_SB, const Vec3& B_S) { return R_SB.transpose() * B_S; }
 
 // Orthonormal sensor frame [x y b] with b the normalised boresight.
 Mat3 boresight_frame(const Vec3& boresight);
@@ -196,23 +209,32 @@ Vec3 mrp_compose(const Vec3& s1, const Vec3& s2);
 // Rotation vector [rad] of the small rotation R(s1) R(s2)' (s1 relative to s2).
 Vec3 mrp_error_vector(const Vec3& s1, const Vec3& s2);
 
-// The three sensors. tick() samples those due at tick i from the plant state
-// and queues the star tracker's exposures until their delivery tick. No
-// allocation after construction.
+// The four sensors. tick() samples those due at tick i from the plant state
+// (the magnetometer from the true field in B its caller gives) and queues the
+// star tracker's exposures until their delivery tick. No allocation after
+// construction.
 class SensorSuite {
  public:
   explicit SensorSuite(const SensorParams& p);
   void reset();
-  // Sample every sensor due at tick i (time t) from the plant state x.
-  void tick(std::int64_t i, double t, const PlantState& x);
+  // Sample every sensor due at tick i (time t) from the plant state x; the
+  // magnetometer, when due (magnetometer_due), from B_B [T], the plant's true
+  // field in B at t (null: none known, a sample of NaN; its draws are taken).
+  void tick(std::int64_t i, double t, const PlantState& x, const Vec3* B_B = nullptr);
+  // Whether the magnetometer samples at tick i (the caller then evaluates the field).
+  bool magnetometer_due(std::int64_t i) const {
+    return p_.magnetometer.enabled && i % p_.magnetometer.period_ticks == 0;
+  }
 
   // What the last tick produced (valid until the next tick).
   bool gyro_new() const { return gyro_new_; }
   bool star_new() const { return star_new_; }
   bool tach_new() const { return tach_new_; }
+  bool mag_new() const { return mag_new_; }
   const GyroSample& gyro() const { return gyro_; }
   const StarSample& star() const { return star_; }
   const TachSample& tach() const { return tach_; }
+  const MagSample& mag() const { return mag_; }
   const Vec3& gyro_bias() const { return bias_; }  //!< [rad/s] the true bias now
   // Counters: exposures lost at random, inside a blackout, delivered.
   long lost() const { return lost_; }
@@ -239,7 +261,9 @@ class SensorSuite {
   GyroSample gyro_;
   StarSample star_;
   TachSample tach_;
-  bool gyro_new_ = false, star_new_ = false, tach_new_ = false;
+  Magnetometer mag_model_;
+  MagSample mag_;
+  bool gyro_new_ = false, star_new_ = false, tach_new_ = false, mag_new_ = false;
   struct Pending {
     std::int64_t deliver;
     StarSample s;

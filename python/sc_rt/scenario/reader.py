@@ -148,7 +148,12 @@ def _read_scenario(doc: Doc, data: dict[str, Any], path: Path) -> Scenario | Non
     environment = read_environment(root, orbit)  # [environment] field, residual_dipole
     rods = read_magnetorquers(root, environment[0] if environment else None)  # [magnetorquers]
     magnetic = read_magnetic_control(root, orbit or None, rods or None, sensors is not None,  # [momentum], [bdot]
-                                     plant.J0 if plant is not None else None, _speed_limits(actuators, wheels))
+                                     plant.J0 if plant is not None else None, _speed_limits(actuators, wheels),
+                                     sensors is not None and sensors.magnetometer is not None)
+    if sensors is not None and sensors.magnetometer is not None and (not environment or environment[0] == "none"):
+        mt = root.sub("sensors").sub("magnetometer")  # a magnetometer measures the plant's field
+        mt.fail(next(iter(mt.data or {}), "rate_hz"), "[sensors.magnetometer] measures the geomagnetic field "
+                'along the orbit: give [orbit] and [environment] field = "igrf" or "dipole"')
     requirements = read_requirements(root, run.duration if run else None,
                                      guidance_phases(guidance) if guidance is not None else {})
     record = read_fields(root.sub("record", required=False), RecordParams)

@@ -80,6 +80,7 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     ACC = np.full((n, 4), np.nan)
     D2 = np.full((n, 3), np.nan)
     HN = np.full((n, 3), np.nan)
+    BT = np.full((n, 3), np.nan)  # the true field in B (what the controller gets here: no magnetometer)
     u_slice = PACKED["u_cmd"]
     rows = 0
     diverged = False
@@ -95,6 +96,8 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
         t = k / rate
         if mag:
             B_B = plant.field_B(pp, t, x)
+            if B_B is not None:
+                BT[k] = B_B
             out = step(t, x, _NAN3 if B_B is None else B_B)
         else:
             out = step(t, x)
@@ -126,6 +129,7 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
             break
     cols = loop_columns(T, X, ACC, D2, OUT, PACKED, RECORDED)
     cols["H_N"] = HN
+    cols["B_B_true"] = BT
     cols[LAW_FAILURES], cols[TELEMETRY_NAMES] = ctl.law_failures, ctl.telemetry_names
     return cols, rows, diverged
 

@@ -9,14 +9,21 @@ the MEKF are the C++ core's ``_core.Navigation``):
     for k = 0..N:                               t_k = k / rate, tick i = k n_sub
         if k > 0: nav.tick(i, t_k, x)
         m = nav.measure(t_k, x)                 truth or estimate ([controller] measurement)
-        command = controller.step(m); record row k (+ the estimator's telemetry)
+        command = controller.step(m)            magnetic control: step(m, nav.field_B)
+        record row k (+ the estimator's telemetry)
         for j = 0..n_sub-1:
             if j > 0: nav.tick(i + j, t_k + j h, x)
-            x = rk4_step(x, h, command.u_cmd)
+            x = rk4_step(x, h, command.u_cmd)   (+ the rods' dipole of the held commands)
 
-Both engines call ``nav.tick`` only at the ticks where a sensor samples or
-delivers (``nav.next_tick``; a tick with nothing due would change nothing),
-and stay bitwise equal (tests/test_sensors.py).
+A tick where the magnetometer is due (``nav.magnetometer_due``) gets the
+plant's true field in B at that instant (``sc_rt.model.plant.field_B``); with
+magnetic control (``[momentum]``, ``[bdot]``) the controller gets
+``nav.field_B``, the magnetometer's latest sample rotated to B with its known
+mounting (docs/MODEL.md section 17), and the row records the true field
+beside it (``B_B_true``). Both engines call ``nav.tick`` only at the ticks
+where a sensor samples or delivers (``nav.next_tick``; a tick with nothing
+due would change nothing), and stay bitwise equal (tests/test_sensors.py,
+tests/test_mag_sensed.py).
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ import numpy as np
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
 from sc_rt.model.momentum import total_momentum_N
+from sc_rt.model.rods import rods_dipole_B
 from sc_rt.isolate import beat, beat_done
 from sc_rt.results.record.fields import packed_layout
 from sc_rt.results.record.run import FIELD
@@ -52,6 +60,12 @@ def _config(scn):
     return nav_config(scn.sensors, scn.run.plant_step, f"{scn.path}")
 
 
+def _tick(nav, pp, i: int, t: float, x) -> None:
+    """The navigation's tick i at t from the state x, with the plant's true field in B
+    for the magnetometer when it is due (the C++ loop's ClosedLoop::tick)."""
+    nav.tick(i, t, x, plant.field_B(pp, t, x) if nav.magnetometer_due(i) else None)
+
+
 def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
     n_ctrl, n_sub, h, rate = grid(scn)
     pp, act = scn.plant, scn.actuators
@@ -59,8 +73,13 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
     ctl = _core.Controller(scn.core_config())
     nav = _core.Navigation(_config(scn))
     nav.reset(x)
-    nav.tick(0, 0.0, x)
+    _tick(nav, pp, 0, 0.0, x)
     ctl.reset(nav.measure_only(0.0, x))
+    # magnetic control (docs/MODEL.md section 17): the magnetometer's field for the controller,
+    # its rod commands held over the period through the plant's rods and their faults
+    mag = scn.magnetic_control is not None
+    rods = pp.magnetorquers if mag else None
+    BT = np.full((n_ctrl + 1, 3), np.nan)
     nxt = nav.next_tick(0)
     n = n_ctrl + 1
     T = np.full(n, np.nan)
@@ -79,15 +98,25 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
         t = k / rate
         i0 = k * n_sub
         if k > 0 and i0 == nxt:
-            nav.tick(i0, t, x)
+            _tick(nav, pp, i0, t, x)
             nxt = nav.next_tick(i0)
         m, tel = nav.measure(t, x)
-        c = ctl.step(m)
+        if mag:
+            B_true = plant.field_B(pp, t, x)
+            if B_true is not None:
+                BT[k] = B_true
+            c = ctl.step(m, nav.field_B)
+        else:
+            c = ctl.step(m)
         row = OUT[k]
         for name, sl in items:
             row[sl] = getattr(c, name)
         u_cmd = row[packed["u_cmd"]].copy()
-        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd, motor)
+        m_B0 = None  # the dipole the step's first stage holds: the row's accelerations with it
+        if rods is not None:
+            d_cmd = row[packed["rod_dipole_cmd"]][:rods.n_rods].tolist()
+            m_B0 = rods_dipole_B(rods, t, d_cmd)
+        _, accel, delta2 = plant_row(pp, act, t, x, u_cmd, motor, m_B0)
         T[k] = t
         X[k] = x
         NAVT[k] = tel
@@ -100,14 +129,19 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
             break
         for j in range(n_sub):
             if j > 0 and i0 + j == nxt:
-                nav.tick(i0 + j, t + j * h, x)
+                _tick(nav, pp, i0 + j, t + j * h, x)
                 nxt = nav.next_tick(i0 + j)
-            x = rk4(pp, act, t + j * h, x, h, u_cmd, motor)
+            if rods is not None:
+                m_B = m_B0 if j == 0 else rods_dipole_B(rods, t + j * h, d_cmd)
+                x = rk4(pp, act, t + j * h, x, h, u_cmd, motor, m_B)
+            else:
+                x = rk4(pp, act, t + j * h, x, h, u_cmd, motor)
         if not all(map(isfinite, x)):
             diverged = True
             break
     cols = loop_columns(T, X, ACC, D2, OUT, packed, recorded)
     cols["H_N"] = HN
+    cols["B_B_true"] = BT
     for name in NAV_RECORDED:
         v = NAVT[:, NAV[name]]
         cols[name] = v[:, 0] if v.shape[1] == 1 else v

@@ -4,6 +4,6 @@ tables (docs/SCENARIOS.md): ``[spacecraft]``, ``[disturbance]`` and
 (laws.py), ``[wheels]`` (wheels.py), ``[orbit]`` and ``[environment]``
 (orbit.py), ``[magnetorquers]`` (magnetorquers.py), ``[momentum]`` and
 ``[bdot]`` (momentum.py), ``[sensors]`` and the estimator (sensors.py),
-``[[requirements]]`` (requirements.py). Each reads and checks its table
+``[sensors.magnetometer]`` (magnetometer.py), ``[[requirements]]`` (requirements.py). Each reads and checks its table
 with the schema machinery of sc_rt.scenario.schema; sc_rt.scenario.reader
 puts the tables together into a ``Scenario``."""

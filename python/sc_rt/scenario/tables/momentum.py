@@ -7,8 +7,9 @@ the controller has none, exactly as before.
 Both drive the ``[magnetorquers]`` rods (the controller knows them as
 given, without their faults) in the field along the ``[orbit]``: they need
 both tables. They are offline for now: ``sc-rt hil`` refuses them (the bus
-does not carry the dipoles yet), and so does a run with ``[sensors]`` (the
-magnetometer does not reach the controller yet).
+does not carry the dipoles yet). With ``[sensors]`` the controller gets the
+field it measures, so a run with ``[sensors]`` needs ``[sensors.magnetometer]``
+(docs/MODEL.md section 17); without ``[sensors]`` it gets the true field.
 
 ``[bdot] gain = "auto"`` is Markley & Crassidis' rule (after Avanzini &
 Giulietti 2012), ``k = 2 n (1 + sin xi_m) J_min`` [N m s]: n the orbit's
@@ -176,11 +177,13 @@ def _read_bdot(t: Table, orbit: OrbitParams | None, J0: np.ndarray) -> BdotTable
 
 
 def read_magnetic_control(root: Table, orbit: OrbitParams | None, rods: Magnetorquers | None, has_sensors: bool,
-                          J0: np.ndarray | None, speed_limits: np.ndarray) -> MagneticControl | None | bool:
+                          J0: np.ndarray | None, speed_limits: np.ndarray,
+                          has_magnetometer: bool = False) -> MagneticControl | None | bool:
     """The scenario's ``[momentum]`` and ``[bdot]`` tables; None when neither
     is given or enabled; False after reporting a problem (a bad value, or a
     table enabled without ``[orbit]`` and ``[magnetorquers]``, or with
-    ``[sensors]``). ``speed_limits`` [rad/s]: the wheels' (inf: none)."""
+    ``[sensors]`` but no ``[sensors.magnetometer]``: the controller uses the
+    field it measures). ``speed_limits`` [rad/s]: the wheels' (inf: none)."""
     parts: dict[str, object] = {}
     for name in ("momentum", "bdot"):
         if not root.has(name):
@@ -202,9 +205,9 @@ def read_magnetic_control(root: Table, orbit: OrbitParams | None, rods: Magnetor
             missing = " and ".join(n for n, v in (("[orbit]", orbit), ("[magnetorquers]", rods)) if not v)
             t.fail(key, f"[{name}] drives the magnetorquer rods in the field along the orbit: give {missing}")
             return False
-        if has_sensors:
-            t.fail(key, f"[{name}] with [sensors] is not supported yet (the magnetometer does not reach the "
-                        "controller): run it without [sensors]")
+        if has_sensors and not has_magnetometer:
+            t.fail(key, f"[{name}] with [sensors] needs a [sensors.magnetometer] table: the controller uses "
+                        "the field it measures")
             return False
         parts[name] = part
     return MagneticControl(**parts) if parts else None

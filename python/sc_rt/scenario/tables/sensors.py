@@ -4,8 +4,9 @@
 ``_core.NavConfig`` (the models themselves are C++: cpp/include/sc_rt/sensors.hpp,
 mekf.hpp).
 
-Units in the file are the data sheets' (deg/sqrt(h), deg/h, arcsec, ppm);
-:func:`nav_config` converts to SI.
+Units in the file are the data sheets' (deg/sqrt(h), deg/h, arcsec, ppm;
+the magnetometer's nT, sc_rt.scenario.tables.magnetometer); :func:`nav_config`
+converts to SI.
 
 Rates and the plant step: every sensor samples on the plant's grid, so
 1 / (rate_hz * plant_step) must be a whole number of plant steps, and the
@@ -24,6 +25,7 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.scenario.schema import ScenarioError, ScenarioIssue, Spec, Table, convert, read_only, spec, vector_spec
+from sc_rt.scenario.tables.magnetometer import MagnetometerSpec, magnetometer_params
 
 __all__ = ["GyroSpec", "StarTrackerSpec", "TachometerSpec", "EstimatorSpec", "Sensors",
            "MEASUREMENTS", "read_sensors", "nav_config", "period_ticks", "ARCSEC", "DEG_PER_H",
@@ -114,6 +116,7 @@ class Sensors:
     star_tracker: StarTrackerSpec | None = None
     tachometer: TachometerSpec | None = None
     measurement: str = "truth"
+    magnetometer: MagnetometerSpec | None = None
     estimator: EstimatorSpec = field(default_factory=EstimatorSpec)
 
 
@@ -199,7 +202,8 @@ def read_sensors(root: Table, controller: Table, run: Any) -> Sensors | None:
     duration = None if run is None else run.duration
     specs: dict[str, Any] = {}
     ok = True
-    for name, cls in (("gyro", GyroSpec), ("star_tracker", StarTrackerSpec), ("tachometer", TachometerSpec)):
+    for name, cls in (("gyro", GyroSpec), ("star_tracker", StarTrackerSpec), ("tachometer", TachometerSpec),
+                      ("magnetometer", MagnetometerSpec)):
         if not s.has(name):
             s.used.add(name)
             specs[name] = None
@@ -243,7 +247,7 @@ def read_sensors(root: Table, controller: Table, run: Any) -> Sensors | None:
     if not ok or seed is None or measurement is None or any(x is None for x in est_v.values()):
         return None
     return Sensors(seed=seed, gyro=g, star_tracker=st, tachometer=specs.get("tachometer"),
-                   measurement=measurement, estimator=EstimatorSpec(**est_v))
+                   measurement=measurement, estimator=EstimatorSpec(**est_v), magnetometer=specs.get("magnetometer"))
 
 
 def nav_config(sensors: Sensors, plant_step: float, where: str = "scenario") -> _core.NavConfig:
@@ -296,6 +300,8 @@ def nav_config(sensors: Sensors, plant_step: float, where: str = "scenario") -> 
         p.tachometer.period_ticks = ticks("sensors.tachometer.rate_hz", tc.rate_hz)
         p.tachometer.counts_per_rev = tc.counts_per_rev
         p.tachometer.period = 1.0 / tc.rate_hz
+    if (mg := sensors.magnetometer) is not None:
+        p.magnetometer = magnetometer_params(mg, ticks("sensors.magnetometer.rate_hz", mg.rate_hz))
     if issues:
         raise ScenarioError(where, issues)
     e = sensors.estimator
@@ -326,7 +332,7 @@ def sensors_data(sensors: Sensors) -> tuple[dict[str, Any], dict[str, Any]]:
         return out
 
     data: dict[str, Any] = {"seed": int(sensors.seed)}
-    for name in ("gyro", "star_tracker", "tachometer"):
+    for name in ("gyro", "star_tracker", "tachometer", "magnetometer"):
         part = getattr(sensors, name)
         if part is not None:
             data[name] = table(part)
