@@ -14,19 +14,6 @@ from sc_rt.scenario.model import LAWS  # noqa: E402
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 
 
-def refuse_off_bus(scn, command: str) -> None:
-    """The bus commands (``sc-rt hil``, ``emulator``, ``controller``) refuse
-    what the bus does not carry yet: the controller's magnetic part
-    (``[momentum]``, ``[bdot]``; its dipoles and field are not on the wire),
-    so that no lockstep or real-time run silently ignores the rods
-    (UsageError: exit 2, one line naming the key; docs/HIL.md)."""
-    mc = getattr(scn, "magnetic_control", None)
-    for name in ("momentum", "bdot"):
-        if mc is not None and getattr(mc, name) is not None:
-            raise UsageError(f"{scn.path}: {name}.enabled = true: not yet carried on the bus "
-                             f"({command} runs no [{name}]; run it offline with sc-rt sim)")
-
-
 def scenario_arg(path: str, args: argparse.Namespace | None = None, strays: bool = True, probe: bool = True):
     """The scenario a command names; its deprecation notes on stderr, one
     line each. A ``[laws.NAME]`` table that matches no law (a built-in, the

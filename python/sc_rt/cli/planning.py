@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from sc_rt.cli.common import checked_out, refuse_off_bus, scenario_arg
+from sc_rt.cli.common import checked_out, scenario_arg
 from sc_rt.cli.controller import external_choice
 from sc_rt.cli.validate import UsageError, resolve_url
 from sc_rt.plan.law import ExternalLaw, PythonLaw
@@ -52,7 +52,6 @@ def hil_plan(args: argparse.Namespace) -> RunPlan:
                     rt_limits=args.rt_limits or RealtimeLimits(), start_timeout=args.start_timeout,
                     controller_memory_limit_mb=args.controller_memory_limit)
     scn = _scenario(args)
-    refuse_off_bus(scn, "sc-rt hil")
     try:
         plan = plan_run(scn, law=args.law, engine="bench", control_rate_hz=args.control_rate,
                         duration=args.duration, external=args.external, external_wait=args.external_wait,

@@ -22,6 +22,11 @@ to SCHED_OTHER with a warning where that is not permitted; ``--cpu N`` pins
 it. The summary says what it got (``scheduler``) and which trigger ran
 (``trigger``), so timing.json never guesses.
 
+With magnetic control (``[momentum]``, ``[bdot]``) it takes the field of
+each state from SCRT_MAG (magnetometer_t, the one at the state's time and
+session; else none: the rods at zero) and publishes rod_cmd_t just before
+each wheel_cmd_t, as sc-rt-controller does (docs/PROTOCOL.md).
+
 It publishes wheel_cmd_t and controller_status_t per step, announces itself
 with controller_info_t (at start and at each new plant session), and writes
 the exit summary with the C++ process's keys (controller_summary.json). The
@@ -33,6 +38,7 @@ same controller as every other law's, so a lockstep run equals
 from __future__ import annotations
 
 import json
+import math
 import secrets
 import select
 import signal
@@ -161,6 +167,12 @@ class PyControllerProcess:
         self._ch_cmd, self._ch_status = channel("SCRT_CMD", prefix), channel("SCRT_CTRL_STATUS", prefix)
         self._ch_info = channel("SCRT_CTRL_INFO", prefix)
         self.lc.subscribe(channel("SCRT_STATE", prefix), self._on_state).set_queue_capacity(100_000)
+        #: magnetic control: the rods commanded, the newest field (session, t, B_B [T]), the rods' channel
+        self.n_rods = config.magnetic.rods.G_B.shape[1] if config.magnetic.active() else 0
+        self._field: tuple | None = None
+        self._ch_rod = channel("SCRT_ROD_CMD", prefix)
+        if self.n_rods:
+            self.lc.subscribe(channel("SCRT_MAG", prefix), self._on_mag).set_queue_capacity(100_000)
         if self.intake is not None:  # [sensors]: the estimator runs here, as in sc-rt-controller
             for name, cls, offer in (("SCRT_GYRO", sc_rt_lcm.gyro_t, self._gyro),
                                      ("SCRT_STAR", sc_rt_lcm.star_tracker_t, self._star),
@@ -186,6 +198,25 @@ class PyControllerProcess:
         self.intake.offer_tach(m.session, m.seq, m.t, list(m.wheel_speed))
 
     # --- input --------------------------------------------------------------
+    def _on_mag(self, _ch: str, data: bytes) -> None:
+        """An ideal magnetometer's field (the true field in B), the newest kept."""
+        m = decode_as(sc_rt_lcm.magnetometer_t, data, self.cnt)
+        if (m is None or m.source != m.SOURCE_TRUE_FIELD or m.frame != m.FRAME_BODY
+                or not all(map(math.isfinite, m.B))):
+            self.cnt["field_rejected"] += 1
+            return
+        self.cnt["field_received"] += 1
+        self._field = (m.session, m.t, tuple(m.B))
+
+    def _field_for(self, session: int, t: float) -> tuple:
+        """[T] the field at the state's time of its plant session, else NaN (none: the rods at zero)."""
+        f = self._field
+        if f is not None and f[0] == session and f[1] == t:
+            self.cnt["field_used"] += 1
+            return f[2]
+        self.cnt["field_missing"] += 1
+        return (math.nan,) * 3
+
     def _on_state(self, _ch: str, data: bytes) -> None:
         now = time.monotonic_ns()
         bad: Counter = Counter()
@@ -213,7 +244,7 @@ class PyControllerProcess:
             self.announce()
         if self.intake is not None:
             self.intake.use(msg.session, msg.t)  # its sensor samples up to msg.t feed the estimator
-        self._state = (msg.seq, msg.t, m)
+        self._state = (msg.seq, msg.t, m, msg.session)
         self._fresh = True
         if self.on_arrival:  # lockstep, or real time event-triggered: at once
             self.step(now, now)
@@ -246,7 +277,7 @@ class PyControllerProcess:
             if self._reengage:
                 self._reengage = False
                 self.ctl.reset(m)
-            cmd = self.ctl.step(m)
+            cmd = self.ctl.step(m, self._field_for(st[3], st[1])) if self.n_rods else self.ctl.step(m)
             if cmd.mode == _core.MODE_SAFE:
                 self.cnt["safe_steps"] += 1
         self._used_fresh, self._used_rx = fresh and not stale, rx
@@ -278,6 +309,13 @@ class PyControllerProcess:
 
     def _publish(self, cmd, flags: int, state_seq: int, late_us: float, comp_us: float, age_us: float) -> None:
         self._last_flags = flags
+        if self.n_rods:  # the rods' command just before the wheel command it goes with (same seq)
+            r = sc_rt_lcm.rod_cmd_t()
+            r.utime, r.seq, r.session, r.state_seq = time.time_ns() // 1000, self._cmd_seq, self.session, state_seq
+            r.t, r.n_rods = cmd.t, self.n_rods
+            d = [float(v) for v in cmd.rod_dipole_cmd]  # translate.cpp's fill_rod_cmd: no decision (NaN) is 0
+            r.dipole = [v if i < self.n_rods and math.isfinite(v) else 0.0 for i, v in enumerate(d)]
+            self.lc.publish(self._ch_rod, r.encode())
         c = sc_rt_lcm.wheel_cmd_t()
         c.utime, c.seq, c.session, c.state_seq = time.time_ns() // 1000, self._cmd_seq, self.session, state_seq
         c.t, c.u_cmd, c.u_sat = cmd.t, cmd.u_cmd.tolist(), cmd.u_sat.tolist()
@@ -290,7 +328,7 @@ class PyControllerProcess:
         # (translate.cpp's fill_status, whose twin this is), and the command itself
         for name in STATUS_RUN_FIELDS + ("u_cmd", "u_sat"):
             v = getattr(cmd, name)
-            setattr(s, name, float(v) if isinstance(v, float) else [float(x) for x in v])
+            setattr(s, name, float(v) if isinstance(v, (int, float)) else [float(x) for x in v])
         s.n_telemetry = len(self.ctl.telemetry_names)
         s.wake_lateness_us, s.compute_us, s.state_age_us = late_us, comp_us, age_us
         s.steps, s.deadline_misses = self.cnt["steps"], self.cnt["deadline_misses"]
@@ -369,7 +407,9 @@ class PyControllerProcess:
                 "rejected": {k: g.as_dict()[k] for k in ("malformed", "trailing_bytes", "duplicate",
                                                          "out_of_order", "invalid_state", "foreign_session",
                                                          "seq_jump")},
-                "sessions_adopted": g.sessions_adopted, "plant_sessions": list(self.plant_sessions)}
+                "sessions_adopted": g.sessions_adopted, "plant_sessions": list(self.plant_sessions),
+                **({"magnetic": {"rods": self.n_rods, **{k: self.cnt[k] for k in (
+                    "field_received", "field_rejected", "field_used", "field_missing")}}} if self.n_rods else {})}
 
 
 def write_summary(summary: dict[str, Any], path: str | None) -> None:

@@ -6,9 +6,9 @@ the controller has none, exactly as before.
 
 Both drive the ``[magnetorquers]`` rods (the controller knows them as
 given, without their faults) in the field along the ``[orbit]``: they need
-both tables. They are offline for now: ``sc-rt hil`` refuses them (the bus
-does not carry the dipoles yet), and so does a run with ``[sensors]`` (the
-magnetometer does not reach the controller yet).
+both tables. They run offline and on the bus (``controller_config_t``'s
+``mag_*`` and ``bdot_*``, docs/PROTOCOL.md); a run with ``[sensors]`` is
+refused (the magnetometer's samples do not reach the controller yet).
 
 ``[bdot] gain = "auto"`` is Markley & Crassidis' rule (after Avanzini &
 Giulietti 2012), ``k = 2 n (1 + sin xi_m) J_min`` [N m s]: n the orbit's
