@@ -35,6 +35,7 @@ import lcmnet
 from trajcmp import compared_fields, load_traj
 
 HERE = Path(__file__).resolve().parent
+PD_SPEC = str(HERE.parent / "examples" / "python_laws" / "pd.py") + ":PythonPD"
 PY = sys.executable
 MAG_FIELDS = ("rod_dipole_cmd", "m_B_cmd", "B_B", "h_wheels_B", "wheel_fill", "unloading", "detumble_mode")
 
@@ -114,12 +115,12 @@ def _hil(path, out, duration, *extra) -> None:
     assert r.returncode == 0, r.stderr + r.stdout
 
 
-def _same_as_sim(path, out, duration) -> tuple:
-    """The lockstep run in ``out`` against the C++ engine's run of the file: every
-    field both produced bit for bit, the magnetic ones among them."""
+def _same_as_sim(path, out, duration, law=None) -> tuple:
+    """The lockstep run in ``out`` against the C++ engine's run of the file (with
+    ``law``: that law's): every field both produced bit for bit, the magnetic ones among them."""
     hil = load_traj(out)
     scn = with_overrides(load_scenario(path), duration=duration)
-    run = simulate(scn, engine="cpp")
+    run = simulate(scn, engine="cpp") if law is None else simulate(scn, law=law, engine="cpp")
     # the file keeps every `[record] every`-th row (day_hold: a row a second), the simulation all of them
     every = scn.record.every
     sim = {k: np.asarray(run[k])[::every] for k in hil.files if k != "meta_json" and k in run}
@@ -212,6 +213,17 @@ def test_detumble_in_lockstep_is_bitwise_the_cpp_engine_through_its_mode_switch(
     assert mode[0] == 0 and k > 0 and np.all(mode[:k] == 0) and np.all(mode[k:] == 1), mode
     assert hil["flags"][k] & _core.FLAG_MODE_SWITCH
     assert np.all(hil["u_cmd"][:k] == 0.0) and np.any(hil["u_cmd"][k:] != 0.0)  # B-dot: wheels at zero
+
+
+@pytest.mark.lcm
+def test_a_python_law_in_sc_rt_controller_detumbles_and_switches_bitwise_as_sim(tmp_path):
+    # sc-rt controller (python/sc_rt/controller/pycontroller.py) speaks the same magnetic wire
+    lcmnet.require()
+    path, out = _detumble_file(tmp_path), tmp_path / "hil"
+    _hil(path, out, 80.0, "--law", PD_SPEC)
+    hil, _ = _same_as_sim(path, out, 80.0, PD_SPEC)
+    assert hil["detumble_mode"][0] == 0 and hil["detumble_mode"][-1] == 1  # B-dot, then the law
+    assert json.loads((out / "controller_summary.json").read_text())["magnetic"]["field_missing"] == 0
 
 
 @pytest.mark.lcm

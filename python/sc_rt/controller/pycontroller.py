@@ -22,10 +22,8 @@ to SCHED_OTHER with a warning where that is not permitted; ``--cpu N`` pins
 it. The summary says what it got (``scheduler``) and which trigger ran
 (``trigger``), so timing.json never guesses.
 
-With magnetic control (``[momentum]``, ``[bdot]``) it takes the field of
-each state from SCRT_MAG (magnetometer_t, the one at the state's time and
-session; else none: the rods at zero) and publishes rod_cmd_t just before
-each wheel_cmd_t, as sc-rt-controller does (docs/PROTOCOL.md).
+With magnetic control it takes each state's field and sends the rods'
+commands just before each wheel command (controller/maglink.py).
 
 It publishes wheel_cmd_t and controller_status_t per step, announces itself
 with controller_info_t (at start and at each new plant session), and writes
@@ -38,7 +36,6 @@ same controller as every other law's, so a lockstep run equals
 from __future__ import annotations
 
 import json
-import math
 import secrets
 import select
 import signal
@@ -53,6 +50,7 @@ from sc_rt import _core
 from sc_rt.wire.auth import open_bus
 from sc_rt.wire.lcmio import channel
 from sc_rt.results.record.fields import packed_layout
+from sc_rt.controller.maglink import MagLink
 from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, decode_as
 
 __all__ = ["PyControllerProcess", "STEP_PRIORITY", "nearest_rank", "setup_scheduler", "write_summary"]
@@ -167,12 +165,11 @@ class PyControllerProcess:
         self._ch_cmd, self._ch_status = channel("SCRT_CMD", prefix), channel("SCRT_CTRL_STATUS", prefix)
         self._ch_info = channel("SCRT_CTRL_INFO", prefix)
         self.lc.subscribe(channel("SCRT_STATE", prefix), self._on_state).set_queue_capacity(100_000)
-        #: magnetic control: the rods commanded, the newest field (session, t, B_B [T]), the rods' channel
-        self.n_rods = config.magnetic.rods.G_B.shape[1] if config.magnetic.active() else 0
-        self._field: tuple | None = None
+        #: magnetic control: the field in, the rods' commands out (controller/maglink.py)
+        self.mag = MagLink(config.magnetic.rods.G_B.shape[1], self.cnt) if config.magnetic.active() else None
         self._ch_rod = channel("SCRT_ROD_CMD", prefix)
-        if self.n_rods:
-            self.lc.subscribe(channel("SCRT_MAG", prefix), self._on_mag).set_queue_capacity(100_000)
+        if self.mag is not None:
+            self.lc.subscribe(channel("SCRT_MAG", prefix), self.mag.on_mag).set_queue_capacity(100_000)
         if self.intake is not None:  # [sensors]: the estimator runs here, as in sc-rt-controller
             for name, cls, offer in (("SCRT_GYRO", sc_rt_lcm.gyro_t, self._gyro),
                                      ("SCRT_STAR", sc_rt_lcm.star_tracker_t, self._star),
@@ -198,25 +195,6 @@ class PyControllerProcess:
         self.intake.offer_tach(m.session, m.seq, m.t, list(m.wheel_speed))
 
     # --- input --------------------------------------------------------------
-    def _on_mag(self, _ch: str, data: bytes) -> None:
-        """An ideal magnetometer's field (the true field in B), the newest kept."""
-        m = decode_as(sc_rt_lcm.magnetometer_t, data, self.cnt)
-        if (m is None or m.source != m.SOURCE_TRUE_FIELD or m.frame != m.FRAME_BODY
-                or not all(map(math.isfinite, m.B))):
-            self.cnt["field_rejected"] += 1
-            return
-        self.cnt["field_received"] += 1
-        self._field = (m.session, m.t, tuple(m.B))
-
-    def _field_for(self, session: int, t: float) -> tuple:
-        """[T] the field at the state's time of its plant session, else NaN (none: the rods at zero)."""
-        f = self._field
-        if f is not None and f[0] == session and f[1] == t:
-            self.cnt["field_used"] += 1
-            return f[2]
-        self.cnt["field_missing"] += 1
-        return (math.nan,) * 3
-
     def _on_state(self, _ch: str, data: bytes) -> None:
         now = time.monotonic_ns()
         bad: Counter = Counter()
@@ -277,7 +255,7 @@ class PyControllerProcess:
             if self._reengage:
                 self._reengage = False
                 self.ctl.reset(m)
-            cmd = self.ctl.step(m, self._field_for(st[3], st[1])) if self.n_rods else self.ctl.step(m)
+            cmd = self.ctl.step(m, self.mag.field_for(st[3], st[1])) if self.mag else self.ctl.step(m)
             if cmd.mode == _core.MODE_SAFE:
                 self.cnt["safe_steps"] += 1
         self._used_fresh, self._used_rx = fresh and not stale, rx
@@ -309,13 +287,8 @@ class PyControllerProcess:
 
     def _publish(self, cmd, flags: int, state_seq: int, late_us: float, comp_us: float, age_us: float) -> None:
         self._last_flags = flags
-        if self.n_rods:  # the rods' command just before the wheel command it goes with (same seq)
-            r = sc_rt_lcm.rod_cmd_t()
-            r.utime, r.seq, r.session, r.state_seq = time.time_ns() // 1000, self._cmd_seq, self.session, state_seq
-            r.t, r.n_rods = cmd.t, self.n_rods
-            d = [float(v) for v in cmd.rod_dipole_cmd]  # translate.cpp's fill_rod_cmd: no decision (NaN) is 0
-            r.dipole = [v if i < self.n_rods and math.isfinite(v) else 0.0 for i, v in enumerate(d)]
-            self.lc.publish(self._ch_rod, r.encode())
+        if self.mag is not None:  # the rods' command just before the wheel command it goes with (same seq)
+            self.lc.publish(self._ch_rod, self.mag.rod_msg(cmd, self._cmd_seq, self.session, state_seq).encode())
         c = sc_rt_lcm.wheel_cmd_t()
         c.utime, c.seq, c.session, c.state_seq = time.time_ns() // 1000, self._cmd_seq, self.session, state_seq
         c.t, c.u_cmd, c.u_sat = cmd.t, cmd.u_cmd.tolist(), cmd.u_sat.tolist()
@@ -408,8 +381,7 @@ class PyControllerProcess:
                                                          "out_of_order", "invalid_state", "foreign_session",
                                                          "seq_jump")},
                 "sessions_adopted": g.sessions_adopted, "plant_sessions": list(self.plant_sessions),
-                **({"magnetic": {"rods": self.n_rods, **{k: self.cnt[k] for k in (
-                    "field_received", "field_rejected", "field_used", "field_missing")}}} if self.n_rods else {})}
+                **({"magnetic": self.mag.summary()} if self.mag is not None else {})}
 
 
 def write_summary(summary: dict[str, Any], path: str | None) -> None:
