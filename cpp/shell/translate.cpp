@@ -79,7 +79,18 @@ void magnetic_from_lcm(const sc_rt_lcm::controller_config_t& m, MagneticConfig& 
 }
 
 void magnetic_to_lcm(const MagneticConfig& c, sc_rt_lcm::controller_config_t& m) {
-  m.mag_rods_enabled = c.rods_enabled && c.active();
+  if (!c.active()) {  // none: every field off and zero, as sc_rt.scenario.config_msg writes it
+    m.mag_rods_enabled = m.mag_momentum_enabled = m.bdot_enabled = m.mag_hysteresis = m.bdot_normalized = false;
+    m.mag_n_rods = m.mag_unload_kind = m.bdot_derivative = 0;
+    for (int j = 0; j < kMaxRods; ++j) {
+      for (int i = 0; i < 3; ++i) m.mag_G_B[i][j] = 0.0;
+      m.mag_dipole_max[j] = 0.0;
+    }
+    m.mag_gain = m.mag_on_fraction = m.mag_off_fraction = m.mag_capacity = m.mag_null_gain = m.mag_null_bias = 0.0;
+    m.bdot_gain = m.bdot_filter_tau = m.bdot_rate_on = m.bdot_rate_off = 0.0;
+    return;
+  }
+  m.mag_rods_enabled = c.rods_enabled;
   const int n = m.mag_rods_enabled ? static_cast<int>(c.rods.G_B.cols()) : 0;
   m.mag_n_rods = static_cast<int8_t>(n);
   for (int j = 0; j < kMaxRods; ++j) {
