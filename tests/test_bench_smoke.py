@@ -319,6 +319,7 @@ def bench_day_lockstep(res: dict, out: str) -> None:
     # the rods' commands and the field travelled and were compared, with the core trajectory
     assert {"rod_dipole_cmd", "B_B", "m_B_cmd", "wheel_fill", "h_wheels_B", "sigma_BN"} <= set(res["fields_compared"])
     check_pos(res, "lockstep_wall_s", "lockstep_steps_per_s", "sim_cpp_wall_s")
+    assert set(res["requirements"]) == {"pointing", "wheel_speed", "momentum"}, res["requirements"]
     assert res["target_bitwise_equal_sim"] == SMOKE
 
 
