@@ -164,6 +164,8 @@ def test_the_log_reports_the_run_with_its_rods_and_field(day, tmp_path):
     r = lcmnet.run_cli(["report", str(day / "run.lcmlog"), "--out", str(tmp_path / "rep"), "--no-plots"],
                        netns=False)
     assert r.returncode == 0, r.stderr + r.stdout
+    timing = json.loads((tmp_path / "rep" / "timing.json").read_text())
+    assert timing["log_missing"] == {"SCRT_STATE": 0, "SCRT_TRUTH": 0, "SCRT_GUIDANCE": 0, "SCRT_MAG": 0}, timing
     rep, hil = load_traj(tmp_path / "rep"), load_traj(day)
     assert len(rep["t"]) == 6001 and np.array_equal(rep["t"][::10], hil["t"])  # every row; the run kept 1 in 10
     for name in ("rod_dipole_cmd", "B_B", "h_wheels_B", "wheel_fill", "unloading"):
