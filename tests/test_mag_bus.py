@@ -252,6 +252,19 @@ echo "rc=$?"
 
 
 @pytest.mark.lcm
+def test_a_controller_that_sends_no_rod_commands_still_runs_the_scenario_with_the_rods_held(tmp_path):
+    # wheel_cmd_t is unchanged: the example written against it runs a magnetic scenario, its rods held at zero
+    lcmnet.require()
+    out = tmp_path / "hil"
+    _hil(resolve("day_hold"), out, 5.0, "--external",
+         "{python} " + str(HERE.parent / "examples" / "external_controller" / "qfb_controller.py"))
+    emu = json.loads((out / "timing.json").read_text())["emulator_counters"]
+    assert emu["rod_cmd_held"] == 51 and emu.get("rod_cmd_received", 0) == 0 and emu.get("cmd_timeout", 0) == 0, emu
+    hil = load_traj(out)
+    assert np.all(hil["rod_dipole_cmd"] == 0.0) and np.any(hil["u_cmd"] != 0.0)
+
+
+@pytest.mark.lcm
 def test_a_short_real_time_day_hold_commands_the_rods(tmp_path):
     lcmnet.require()
     out = tmp_path / "rt"

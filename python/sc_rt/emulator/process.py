@@ -59,7 +59,10 @@ from sc_rt.results.record.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
-__all__ = ["Emulator", "Options", "BYTES_PER_ROW"]
+__all__ = ["Emulator", "Options", "BYTES_PER_ROW", "ROD_GRACE_NS"]
+
+#: [ns] lockstep: how long the rods' command of a state may trail its wheel command
+ROD_GRACE_NS = 50_000_000
 
 class Emulator:
     """The plant process: the loops (lockstep, real time) over its parts,
@@ -305,9 +308,14 @@ class Emulator:
                     self._guidance_next = self.guidance.values((k + 1) / rate)
                 deadline = time.monotonic_ns() + int(timeout * 1e9)
                 while time.monotonic_ns() < deadline and not self._should_stop():
-                    if inbox.has_cmd(k) and (not self.rods.n_rods or inbox.has_rod(k)) and (
+                    if inbox.has_cmd(k) and (
                             inbox.has_status(k) or not self.peers.wants_status(inbox.cmd_session(k))):
-                        break
+                        # the rods' command goes out just before the wheels' (the same publisher, in order):
+                        # one not in by then gets a short grace, then the rods are held (a controller that
+                        # sends no rods: RodHold counts it) rather than the state re-sent
+                        if not self.rods.n_rods or inbox.has_rod(k):
+                            break
+                        deadline = min(deadline, time.monotonic_ns() + ROD_GRACE_NS)
                     rem_ms = max(1, (deadline - time.monotonic_ns()) // 1_000_000)
                     try:
                         self.lc.handle_timeout(int(min(rem_ms, 100)))
