@@ -34,6 +34,7 @@ OTHER_BENCHES = {
     "bench_format.py": "the run record's format (Arrow IPC, Parquet, npz) on a 10 min 1 kHz run: a one-off choice",
     "bench_netem.py": "needs root (network namespaces, nftables or tc netem); 12 cases of 30 s",
     "soak.py": "a 30-minute real-time run",
+    "bench_day_lockstep.py": "day_hold in lockstep, bitwise against sim (24 h: as long as the lockstep loop takes)",
 }
 #: modules of bench/ that are no benchmark: shared code, and the delay line bench_netem runs
 HELPERS = {"common.py", "netem_lab.py", "nfq_delay.py", "run_all.py"}

@@ -73,6 +73,16 @@ SLOW_TESTS = (
     "tests/test_wmm2025.py::test_lockstep_hil_in_wmm2025_is_bitwise_sim",
     # issue 43: day_hold's first 4 h with a realistic magnetometer in the loop (~3 s, 350 MB of rows)
     "tests/test_mag_sensed.py::test_day_hold_with_a_realistic_magnetometer_still_unloads",
+    # issue 43, the bus side: lockstep runs with magnetic control over LCM (day_hold 10 min with its MCAP
+    # and report ~8 s, detumble, a Python law and a forger ~2.5 s each) and a 5 s real-time run (~6.6 s)
+    "tests/test_mag_bus.py::test_day_hold_in_lockstep_is_bitwise_the_cpp_engine_rods_and_field_included",
+    "tests/test_mag_bus.py::test_the_log_reports_the_run_with_its_rods_and_field",
+    "tests/test_mag_bus.py::test_the_mcap_has_the_magnetic_fields_with_their_units",
+    "tests/test_mag_bus.py::test_detumble_in_lockstep_is_bitwise_the_cpp_engine_through_its_mode_switch",
+    "tests/test_mag_bus.py::test_one_forged_rod_command_far_ahead_is_dropped_and_the_run_stays_bitwise",
+    "tests/test_mag_bus.py::test_a_short_real_time_day_hold_commands_the_rods",
+    "tests/test_mag_bus.py::test_a_controller_that_sends_no_rod_commands_still_runs_the_scenario_with_the_rods_held",
+    "tests/test_mag_bus.py::test_a_python_law_in_sc_rt_controller_detumbles_and_switches_bitwise_as_sim",
     # issue 43: a day on the C++ engine, with and without the momentum manager (~13 s each)
     "tests/test_day_hold.py::test_without_the_manager_the_wheels_gather_the_secular_torque_and_saturate",
     "tests/test_day_hold.py::test_with_the_manager_the_wheels_are_unloaded_and_kept_in_the_band",

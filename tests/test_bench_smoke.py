@@ -315,6 +315,17 @@ def bench_format(res: dict, out: str) -> None:
     assert "arrow_lz4" in out and "long: 2001 rows" in out
 
 
+def bench_day_lockstep(res: dict, out: str) -> None:
+    """bench_day_lockstep.py: 60 s of day_hold in lockstep, bitwise the C++ engine's run."""
+    assert res["scenario"] == "day_hold" and res["duration_s"] == 60.0 and res["rows"] == 601
+    assert res["valid"] is True and res["bitwise_equal_sim"] is True and res["first_difference"] is None, res
+    # the rods' commands and the field travelled and were compared, with the core trajectory
+    assert {"rod_dipole_cmd", "B_B", "m_B_cmd", "wheel_fill", "h_wheels_B", "sigma_BN"} <= set(res["fields_compared"])
+    check_pos(res, "lockstep_wall_s", "lockstep_steps_per_s", "sim_cpp_wall_s")
+    assert set(res["requirements"]) == {"pointing", "wheel_speed", "momentum"}, res["requirements"]
+    assert res["target_bitwise_equal_sim"] == SMOKE
+
+
 # --------------------------------------------------------------------------- #
 # the benchmarks: their check, extra arguments, where they write, marks, timeout [s]
 
@@ -335,6 +346,7 @@ SPECS = {
     "bench_day.py": dict(check=bench_day, marks=(pytest.mark.slow,)),  # ~2 s: the module import and two runs
     # root: network namespaces and nftables / tc netem (skips, saying why, elsewhere)
     "bench_netem.py": dict(check=bench_netem, marks=LCM, timeout=240, out=["--out", "{dir}/netem.json"]),
+    "bench_day_lockstep.py": dict(check=bench_day_lockstep, marks=LCM, timeout=180),
     "soak.py": dict(check=soak, marks=LCM, timeout=120,
                     out=["--out", "{dir}/soak_run", "--json", "{dir}/soak.json"]),
 }

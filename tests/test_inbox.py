@@ -129,5 +129,7 @@ def test_status_kept_as_bytes_and_decoded_after():
 
 def test_the_memory_estimate_counts_what_the_bench_keeps_per_row():
     assert bus_bytes_per_row() == emulator.BYTES_PER_ROW == Inbox.BYTES_PER_ROW + 5 * 8
+    # the rod command as received and its receipt time (magnetic control) too
     assert Inbox.BYTES_PER_ROW == (len(sc_rt_lcm.wheel_cmd_t().encode())
-                                   + len(sc_rt_lcm.controller_status_t().encode()) + 4 * 8 + 4)
+                                   + len(sc_rt_lcm.controller_status_t().encode()) + 4 * 8 + 4
+                                   + len(sc_rt_lcm.rod_cmd_t().encode()) + 8)

@@ -218,6 +218,32 @@ def test_live_run_is_bitwise_the_runs_record(live_run):
         assert len(live) == ROWS and live == frames(mcap["/tf"], child)[-ROWS:], child
 
 
+@pytest.mark.lcm
+@pytest.mark.slow  # ~3 s: a lockstep run of day_hold with its live server and a client
+def test_a_magnetic_run_serves_its_field_and_rods_live_as_the_export(tmp_path):
+    """Issue 43, the bus side: the field (SCRT_MAG) and the rods' commands
+    (SCRT_ROD_CMD) are served live with the export's schemas and bytes, and
+    the status's magnetic fields carry their units in its schema."""
+    lcmnet.require()
+    port, out = free_port(), tmp_path / "hil"
+    got = _drive(tmp_path, port, ["day_hold", "--mode", "lockstep", "--duration", "10", "--out", str(out),
+                                  "--no-plots", "--mcap", "--external", _gated_controller(tmp_path / "gate"),
+                                  "--live", str(port)], "--gate", str(tmp_path / "gate"))
+    assert "error" not in got and got["hil_rc"] == 0, got.get("error") or got["hil_stderr"]
+    mcap, schemas = read_mcap(out / "run.mcap")
+    for topic in ("SCRT_MAG", "SCRT_ROD_CMD", "SCRT_CTRL_STATUS"):
+        ch = got["channels"][topic]
+        assert (ch["schemaName"], json.loads(ch["schema"])) == schemas[topic], topic
+    status = schemas["SCRT_CTRL_STATUS"][1]["properties"]
+    assert status["rod_dipole_cmd"]["description"].startswith("[A m^2]")
+    assert status["B_B"]["description"].startswith("[T]")
+    rods = [p.encode() for _, p in got["messages"]["SCRT_ROD_CMD"]]
+    # the controller started after the client subscribed: a rod command per row of the run, the export's
+    # bytes (but for the controller's re-answers of the first state: the cap keeps one per time)
+    assert len(rods) == 101 and rods == capped(mcap["SCRT_ROD_CMD"])
+    assert any(any(abs(d) > 1.0 for d in json.loads(p)["dipole"][:3]) for p in rods)
+
+
 def capped(payloads: list[bytes], periodic: bool = True) -> list[bytes]:
     """The messages sc-rt live's default cap keeps (50 Hz of their own time), computed on the record."""
     lim = RateLimiter(50.0 if periodic else 0.0)

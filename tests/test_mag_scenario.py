@@ -80,24 +80,6 @@ def test_both_need_an_orbit_and_rods(tmp_path, capsys, missing):
         assert rc == 2 and any(f"{name}." in line and missing in line for line in err), err
 
 
-PD = str(Path(__file__).resolve().parents[1] / "examples" / "python_laws" / "pd.py") + ":PythonPD"
-
-
-@pytest.mark.parametrize("command, args", [
-    ("hil", ["--mode", "lockstep", "--duration", "1"]),
-    ("emulator", ["--duration", "1"]),
-    ("controller", ["--law", PD]),
-])
-def test_the_bus_commands_refuse_magnetic_control_until_the_bus_carries_it(tmp_path, capsys, monkeypatch,
-                                                                           command, args):
-    monkeypatch.setenv("SCRT_LCM_URL", "memq://")
-    for table, key in (("[momentum]\ncapacity = 2.0\n", "momentum.enabled"), ("[bdot]\n", "bdot.enabled")):
-        path = _write(tmp_path, BASE + MAG + table)
-        out = ["--out", str(tmp_path / "out")] if command != "controller" else []
-        rc, err = _run(capsys, [command, str(path), *args, *out])
-        assert rc == 2 and len(err) == 1, err
-        assert key in err[0] and "not yet carried on the bus" in err[0] and f"sc-rt {command}" in err[0], err
-        assert not (tmp_path / "out").exists()
 
 
 def test_the_mode_switch_flag_is_a_bit_of_its_own():

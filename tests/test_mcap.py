@@ -273,15 +273,17 @@ def _validate(schema: dict, body) -> None:
         raise AssertionError(e.message) from e
 
 
-def _structural(s: dict, v, where: str) -> None:
+def _structural(s: dict, v, where: str, nullable: bool = False) -> None:
     t = s.get("type")
+    # a double that is not finite is null, as its field's description says (wire/lcmdefs.py)
+    nullable = nullable or "(null: not finite)" in s.get("description", "")
     ok = {"object": dict, "array": list, "string": str, "boolean": bool}.get(t)
     if ok is not None:
         assert isinstance(v, ok), where
     elif t == "integer":
         assert type(v) is int and s.get("minimum", -math.inf) <= v <= s.get("maximum", math.inf), where
     elif t == "number":
-        assert type(v) in (int, float), where
+        assert type(v) in (int, float) or (v is None and nullable), where
     if t == "object":
         assert set(s.get("required", ())) <= set(v), where
         if s.get("additionalProperties") is False:
@@ -292,7 +294,7 @@ def _structural(s: dict, v, where: str) -> None:
     if t == "array":
         assert s.get("minItems", 0) <= len(v) <= s.get("maxItems", math.inf), where
         for i, x in enumerate(v):
-            _structural(s["items"], x, f"{where}[{i}]")
+            _structural(s["items"], x, f"{where}[{i}]", nullable)
 
 
 def test_schemas_validate_every_exported_message(exported):

@@ -81,6 +81,12 @@ EXPECTED_MSG = {
     "nav_sigma_boresight": 0.0, "nav_boresight": [0.0, 0.0, 0.0], "nav_initial_attitude_sigma": 0.0,
     "nav_initial_bias_sigma": 0.0, "nav_degraded_after": 0.0, "nav_history": 0, "nav_sigma0": [0.0, 0.0, 0.0],
     "nav_calibrate": False, "nav_initial_scale_factor_sigma": 0.0, "nav_initial_misalignment_sigma": 0.0,
+    # magnetic control: none in this file, every field off and zero
+    "mag_rods_enabled": False, "mag_n_rods": 0, "mag_G_B": [[0.0] * 6] * 3, "mag_dipole_max": [0.0] * 6,
+    "mag_momentum_enabled": False, "mag_unload_kind": 0, "mag_gain": 0.0, "mag_hysteresis": False,
+    "mag_on_fraction": 0.0, "mag_off_fraction": 0.0, "mag_capacity": 0.0, "mag_null_gain": 0.0,
+    "mag_null_bias": 0.0, "bdot_enabled": False, "bdot_gain": 0.0, "bdot_normalized": False,
+    "bdot_derivative": 0, "bdot_filter_tau": 0.0, "bdot_rate_on": 0.0, "bdot_rate_off": 0.0,
 }
 
 

@@ -312,7 +312,8 @@ bool wait_config(lcm::LCM& lcm, const Options& o, std::vector<char>& cfg_bytes) 
   return true;
 }
 
-// The shell's subscriptions: states, and the sensors of a [sensors] scenario.
+// The shell's subscriptions: states, the sensors of a [sensors] scenario, the
+// field of a run with magnetic control.
 void subscribe(lcm::LCM& lcm, const Options& o, Shell& shell) {
   // LCM drops messages beyond a subscription's queue capacity (30 by
   // default) without a word: under a burst of hostile traffic that would lose
@@ -326,6 +327,8 @@ void subscribe(lcm::LCM& lcm, const Options& o, Shell& shell) {
     lcm.subscribeFunction(o.prefix + "SCRT_TACH", &Shell::on_sensor<sc_rt_lcm::tachometer_t>, &shell)
         ->setQueueCapacity(100000);
   }
+  if (shell.magnetic())  // the field of a run with magnetic control (docs/PROTOCOL.md, "Magnetic control")
+    lcm.subscribeFunction(o.prefix + "SCRT_MAG", &Shell::on_mag, &shell)->setQueueCapacity(100000);
 }
 
 // The run: one step per state on its arrival (lockstep, event trigger), or

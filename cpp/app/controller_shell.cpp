@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 
 namespace sc_rt_controller {
@@ -29,6 +30,8 @@ Shell::Shell(const Options& o, lcm::LCM& lcm, const std::atomic<bool>& stop)
       ch_state_(o.prefix + "SCRT_STATE"),
       ch_cmd_(o.prefix + "SCRT_CMD"),
       ch_status_(o.prefix + "SCRT_CTRL_STATUS"),
+      ch_mag_(o.prefix + "SCRT_MAG"),
+      ch_rod_(o.prefix + "SCRT_ROD_CMD"),
       lcm_(lcm),
       stop_(stop) {
   // every message the step encodes fits: send() never grows it on the step path
@@ -42,6 +45,8 @@ void Shell::configure(const sc_rt::ControllerConfig& cfg, const sc_rt::NavSetup&
   ctl_->prepare();
   // [sensors]: the estimator runs here on the emulator's sensor messages (sensor_intake.hpp)
   if (nav.enabled) intake_ = std::make_unique<sc_rt::SensorIntake>(nav.mekf, nav.use_estimate, nav.sigma0);
+  mag_ = cfg.magnetic.active();
+  n_rods_ = mag_ ? static_cast<int>(cfg.magnetic.rods.G_B.cols()) : 0;
   period_ns_ = int64_t(std::llround(1e9 / cfg.control_rate_hz));
   stale_ns_ = int64_t(cfg.safety.stale_periods * double(period_ns_));
   // a silent plant is replaced after max(stale time, 2 s)
@@ -89,6 +94,42 @@ void Shell::offer(const sc_rt_lcm::tachometer_t& m) {
   intake_->offer_tach(m.session, m.seq, sc_rt::tach_from_lcm(m));
 }
 
+void Shell::handle_mag(const lcm::ReceiveBuffer* rb) {
+  int size = int(rb->data_size);
+  if (auth_) {
+    if (!auth_->verify(ch_mag_, rb->data, rb->data_size)) {
+      ++auth_failed_;
+      return;
+    }
+    size -= int(sc_rt::HmacSha256::kSize);
+  }
+  sc_rt_lcm::magnetometer_t msg;
+  const int n = msg.decode(rb->data, 0, size);
+  sc_rt::Vec3 B;
+  if (n < 0 || n != size || !sc_rt::field_from_lcm(msg, B)) {
+    ++mag_rejected_;
+    return;
+  }
+  ++mag_received_;
+  std::lock_guard<PiMutex> lock(mu_);
+  mag_msg_ = msg;
+  have_mag_ = true;
+}
+
+sc_rt::Vec3 Shell::field_for(const sc_rt_lcm::plant_state_t& st) {
+  sc_rt::Vec3 B = sc_rt::Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  {
+    std::lock_guard<PiMutex> lock(mu_);
+    // the field at the state's instant, from its plant (published just before the state)
+    if (have_mag_ && mag_msg_.session == st.session && mag_msg_.t == st.t) sc_rt::field_from_lcm(mag_msg_, B);
+  }
+  if (B.allFinite())
+    ++mag_used_;
+  else
+    ++mag_missing_;  // no field known: the magnetic part commands the rods zero (magnetic_control.hpp)
+  return B;
+}
+
 void Shell::handle_state(const lcm::ReceiveBuffer* rb) {
   const int64_t now = mono_ns();
   int size = int(rb->data_size);
@@ -124,6 +165,7 @@ void Shell::handle_state(const lcm::ReceiveBuffer* rb) {
     // (holding it here deadlocked a [sensors] run at the first re-sent state).
     lock.unlock();
     if (!opt_.realtime && have_cmd_) {
+      if (mag_) publish_rod(last_cmd_, msg.seq);
       publish_cmd(last_cmd_, msg.seq);
       publish_status(last_cmd_, msg.seq, 0.0, 0.0, 0.0);
     }
@@ -188,6 +230,8 @@ void Shell::step(int64_t now, int64_t deadline) {
       cmd = sc_rt::Command{};
       cmd.t = st.t;
       cmd.mode = sc_rt::MODE_NORMAL;
+    } else if (mag_) {
+      cmd = ctl_->step(m, field_for(st));  // the magnetic part beside the law (docs/MODEL.md section 17)
     } else {
       cmd = ctl_->step(m);
     }
@@ -201,6 +245,7 @@ void Shell::step(int64_t now, int64_t deadline) {
   last_cmd_ = cmd;
   have_cmd_ = true;
   const int64_t used_seq = have ? st.seq : -1;
+  if (mag_) publish_rod(cmd, used_seq);  // just before the wheel command it goes with
   publish_cmd(cmd, used_seq);
   const double comp_us = double(t_end - t_start) / 1e3;
   const double late_us = double(now - deadline) / 1e3;
@@ -246,6 +291,16 @@ void Shell::publish_cmd(const sc_rt::Command& cmd, int64_t state_seq) {
   sc_rt::fill_wheel_cmd(cmd, m);
   send(ch_cmd_, m);
   ++cmd_seq_;
+}
+
+void Shell::publish_rod(const sc_rt::Command& cmd, int64_t state_seq) {
+  sc_rt_lcm::rod_cmd_t m{};
+  m.utime = wall_us();
+  m.seq = cmd_seq_;  // the wheel command's, published next
+  m.session = session_;
+  m.state_seq = state_seq;
+  sc_rt::fill_rod_cmd(cmd, n_rods_, m);
+  send(ch_rod_, m);
 }
 
 void Shell::publish_status(const sc_rt::Command& cmd, int64_t state_seq, double late_us, double comp_us,
@@ -348,6 +403,15 @@ std::string Shell::summary_json(const std::string& scheduler) const {
                   (long long)c.invalid, (long long)c.out_of_order, (long long)c.too_old, (long long)c.foreign,
                   (long long)c.before_fix);
     js += nb;
+  }
+  if (mag_) {
+    char mb[256];
+    std::snprintf(mb, sizeof mb,
+                  ", \"magnetic\": {\"rods\": %d, \"field_received\": %lld, \"field_rejected\": %lld, "
+                  "\"field_used\": %lld, \"field_missing\": %lld}",
+                  n_rods_, (long long)mag_received_.load(), (long long)mag_rejected_.load(),
+                  (long long)mag_used_.load(), (long long)mag_missing_.load());
+    js += mb;
   }
   if (alloc_probe_linked()) {
     char ab[160];

@@ -109,6 +109,14 @@ class Shell {
     self->handle_state(rb);
   }
   bool nav() const { return intake_ != nullptr; }
+  //! the run has magnetic control: the shell takes SCRT_MAG and sends SCRT_ROD_CMD
+  bool magnetic() const { return mag_; }
+
+  // magnetometer_t (SCRT_MAG): verified, decoded by hand, the newest kept
+  // under the lock; a step uses it when it is the field at its state's time
+  // of its state's plant session (docs/PROTOCOL.md, "Magnetic control").
+  static void on_mag(const lcm::ReceiveBuffer* rb, const std::string&, Shell* self) { self->handle_mag(rb); }
+  void handle_mag(const lcm::ReceiveBuffer* rb);
 
   // A sensor message (gyro_t, star_tracker_t, tachometer_t): verified,
   // decoded by hand and handed to the intake, which decides (sensor_intake.hpp).
@@ -137,6 +145,10 @@ class Shell {
   void offer(const sc_rt_lcm::star_tracker_t& m);
   void offer(const sc_rt_lcm::tachometer_t& m);
   void publish_cmd(const sc_rt::Command& cmd, int64_t state_seq);
+  // the rods' command of cmd (rod_cmd_t), with the seq of the wheel command that follows it
+  void publish_rod(const sc_rt::Command& cmd, int64_t state_seq);
+  // the field in B for state st [T]: the newest magnetometer_t at st's time and session, else NaN (counted)
+  sc_rt::Vec3 field_for(const sc_rt_lcm::plant_state_t& st);
   void publish_status(const sc_rt::Command& cmd, int64_t state_seq, double late_us, double comp_us,
                       double age_us);
   void alloc_probe_step();  // sc-rt-controller-alloc only (alloc_probe.hpp)
@@ -149,7 +161,7 @@ class Shell {
 
   const Options& opt_;
   // the channel names, built once (a prefixed name is past the small-string limit)
-  const std::string ch_state_, ch_cmd_, ch_status_;
+  const std::string ch_state_, ch_cmd_, ch_status_, ch_mag_, ch_rod_;
   lcm::LCM& lcm_;
   const std::atomic<bool>& stop_;
   std::unique_ptr<sc_rt::Controller> ctl_;
@@ -164,6 +176,13 @@ class Shell {
   std::unique_ptr<sc_rt::HmacSha256> auth_;  // --auth-key
   std::unique_ptr<sc_rt::SensorIntake> intake_;  // [sensors]: the estimator (under mu_)
   sc_rt::NavTelemetry tel_;                      // the estimator's telemetry of the last step (under mu_)
+  bool mag_ = false;                             // magnetic control ([momentum] or [bdot])
+  int n_rods_ = 0;                               // the rods the controller commands
+  sc_rt_lcm::magnetometer_t mag_msg_{};          // the newest field message (under mu_)
+  bool have_mag_ = false;                        // one arrived (under mu_)
+  //! magnetic control's counts: field messages taken, rejected (no tag, do not decode, not an
+  //! ideal field in B), steps that had the field of their state, steps without (rods at zero)
+  std::atomic<int64_t> mag_received_{0}, mag_rejected_{0}, mag_used_{0}, mag_missing_{0};
   std::atomic<int64_t> auth_failed_{0};      // states whose tag did not verify
   std::vector<int64_t> plant_sessions_;     // plant sessions followed, in order (under mu_)
   std::vector<uint8_t> tx_;                 // a message being encoded (step thread; reserved once)

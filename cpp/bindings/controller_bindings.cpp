@@ -129,7 +129,7 @@ void bind_controllers(py::module_& m) {
       .def_readwrite("ppc", &ControllerConfig::ppc)
       .def_readwrite("safety", &ControllerConfig::safety)
       .def_readwrite("magnetic", &ControllerConfig::magnetic,
-                     "the rods, momentum manager and B-dot (MagneticConfig; not in controller_config_t yet)")
+                     "the rods, momentum manager and B-dot (MagneticConfig; controller_config_t mag_*, bdot_*)")
       .def_static("from_lcm_bytes",
                   [](const py::bytes& b) {
                     const std::string s = b;

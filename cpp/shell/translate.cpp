@@ -35,6 +35,88 @@ void put_slot(sc_rt_lcm::controller_status_t& m, FieldId f, const V& v) {
 }
 }  // namespace
 
+void magnetic_from_lcm(const sc_rt_lcm::controller_config_t& m, MagneticConfig& c) {
+  c = MagneticConfig{};
+  c.rods_enabled = m.mag_rods_enabled;
+  if (c.rods_enabled) {
+    if (m.mag_n_rods < 1 || m.mag_n_rods > kMaxRods)
+      throw std::invalid_argument("controller_config_t.mag_n_rods must be 1.." + std::to_string(kMaxRods) +
+                                  " with mag_rods_enabled, got " + std::to_string(m.mag_n_rods));
+    const int n = m.mag_n_rods;
+    c.rods.G_B.resize(3, n);
+    c.rods.dipole_max.resize(n);
+    for (int j = 0; j < n; ++j) {
+      for (int i = 0; i < 3; ++i) c.rods.G_B(i, j) = m.mag_G_B[i][j];
+      c.rods.dipole_max(j) = m.mag_dipole_max[j];
+    }
+  }
+  c.momentum_enabled = m.mag_momentum_enabled;
+  if (m.mag_unload_kind < 0 || m.mag_unload_kind > 1)
+    throw std::invalid_argument("controller_config_t.mag_unload_kind must be 0..1, got " +
+                                std::to_string(m.mag_unload_kind));
+  MomentumParams& p = c.momentum;
+  p.kind = static_cast<UnloadKind>(m.mag_unload_kind);
+  p.gain = m.mag_gain;
+  p.hysteresis = m.mag_hysteresis;
+  p.on_fraction = m.mag_on_fraction;
+  p.off_fraction = m.mag_off_fraction;
+  p.capacity = m.mag_capacity;
+  p.null_gain = m.mag_null_gain;
+  p.null_bias = m.mag_null_bias;
+  c.bdot_enabled = m.bdot_enabled;
+  if (m.bdot_derivative < 0 || m.bdot_derivative > 1)
+    throw std::invalid_argument("controller_config_t.bdot_derivative must be 0..1, got " +
+                                std::to_string(m.bdot_derivative));
+  BdotParams& b = c.bdot;
+  b.gain = m.bdot_gain;
+  b.normalized = m.bdot_normalized;
+  b.derivative = static_cast<BdotDerivative>(m.bdot_derivative);
+  b.filter_tau = m.bdot_filter_tau;
+  b.rate_on = m.bdot_rate_on;
+  b.rate_off = m.bdot_rate_off;
+  if (!c.momentum_enabled && !c.bdot_enabled) c = MagneticConfig{};  // none: the controller without them
+  // the values themselves: MagneticConfig's validate (Controller's constructor)
+}
+
+void magnetic_to_lcm(const MagneticConfig& c, sc_rt_lcm::controller_config_t& m) {
+  if (!c.active()) {  // none: every field off and zero, as sc_rt.scenario.config_msg writes it
+    m.mag_rods_enabled = m.mag_momentum_enabled = m.bdot_enabled = m.mag_hysteresis = m.bdot_normalized = false;
+    m.mag_n_rods = m.mag_unload_kind = m.bdot_derivative = 0;
+    for (int j = 0; j < kMaxRods; ++j) {
+      for (int i = 0; i < 3; ++i) m.mag_G_B[i][j] = 0.0;
+      m.mag_dipole_max[j] = 0.0;
+    }
+    m.mag_gain = m.mag_on_fraction = m.mag_off_fraction = m.mag_capacity = m.mag_null_gain = m.mag_null_bias = 0.0;
+    m.bdot_gain = m.bdot_filter_tau = m.bdot_rate_on = m.bdot_rate_off = 0.0;
+    return;
+  }
+  m.mag_rods_enabled = c.rods_enabled;
+  const int n = m.mag_rods_enabled ? static_cast<int>(c.rods.G_B.cols()) : 0;
+  m.mag_n_rods = static_cast<int8_t>(n);
+  for (int j = 0; j < kMaxRods; ++j) {
+    for (int i = 0; i < 3; ++i) m.mag_G_B[i][j] = j < n ? c.rods.G_B(i, j) : 0.0;
+    m.mag_dipole_max[j] = j < n ? c.rods.dipole_max(j) : 0.0;
+  }
+  const MomentumParams& p = c.momentum;
+  m.mag_momentum_enabled = c.momentum_enabled;
+  m.mag_unload_kind = static_cast<int8_t>(p.kind);
+  m.mag_gain = p.gain;
+  m.mag_hysteresis = p.hysteresis;
+  m.mag_on_fraction = p.on_fraction;
+  m.mag_off_fraction = p.off_fraction;
+  m.mag_capacity = p.capacity;
+  m.mag_null_gain = p.null_gain;
+  m.mag_null_bias = p.null_bias;
+  const BdotParams& b = c.bdot;
+  m.bdot_enabled = c.bdot_enabled;
+  m.bdot_gain = b.gain;
+  m.bdot_normalized = b.normalized;
+  m.bdot_derivative = static_cast<int8_t>(b.derivative);
+  m.bdot_filter_tau = b.filter_tau;
+  m.bdot_rate_on = b.rate_on;
+  m.bdot_rate_off = b.rate_off;
+}
+
 ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   ControllerConfig c;
   if (m.law_api_version != SC_RT_LAW_API_VERSION)
@@ -103,6 +185,7 @@ ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   p.dmin = vec(m.ppc_dmin);
   p.dmax = vec(m.ppc_dmax);
   c.safety = {m.max_rate, m.max_wheel_speed, m.stale_periods};
+  magnetic_from_lcm(m, c.magnetic);
   return c;
 }
 
@@ -161,6 +244,7 @@ sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const st
   m.max_rate = c.safety.max_rate;
   m.max_wheel_speed = c.safety.max_wheel_speed;
   m.stale_periods = c.safety.stale_periods;
+  magnetic_to_lcm(c.magnetic, m);
   return m;
 }
 
@@ -188,6 +272,15 @@ void fill_wheel_cmd(const Command& c, sc_rt_lcm::wheel_cmd_t& msg) {
   put(msg.u_sat, c.u_sat);
   msg.mode = static_cast<int8_t>(c.mode);
   msg.flags = c.flags;
+}
+
+void fill_rod_cmd(const Command& c, int n_rods, sc_rt_lcm::rod_cmd_t& msg) {
+  msg.t = c.t;
+  msg.n_rods = static_cast<int8_t>(n_rods);
+  for (int i = 0; i < kMaxRods; ++i) {  // no decision (NaN): zero, the rods off
+    const double d = i < n_rods ? c.magnetic.rod_dipole_cmd(i) : 0.0;
+    msg.dipole[i] = std::isfinite(d) ? d : 0.0;
+  }
 }
 
 void fill_status(const Command& c, int law, int n_telemetry, sc_rt_lcm::controller_status_t& msg) {
@@ -242,6 +335,16 @@ NavSetup nav_from_bytes(const void* data, int size) {
   sc_rt_lcm::controller_config_t m;
   if (m.decode(data, 0, size) < 0) throw std::invalid_argument("cannot decode controller_config_t");
   return nav_from_lcm(m);
+}
+
+bool field_from_lcm(const sc_rt_lcm::magnetometer_t& msg, Vec3& B_B) {
+  if (msg.source != sc_rt_lcm::magnetometer_t::SOURCE_TRUE_FIELD ||
+      msg.frame != sc_rt_lcm::magnetometer_t::FRAME_BODY)
+    return false;  // a sensor's sample: the estimator's (not on this branch of the bench)
+  const Vec3 B = vec(msg.B);
+  if (!B.allFinite()) return false;
+  B_B = B;
+  return true;
 }
 
 GyroSample gyro_from_lcm(const sc_rt_lcm::gyro_t& msg) { return GyroSample{msg.t, vec(msg.omega), msg.output}; }

@@ -4,7 +4,9 @@
 #include <sc_rt_lcm/controller_config_t.hpp>
 #include <sc_rt_lcm/controller_status_t.hpp>
 #include <sc_rt_lcm/gyro_t.hpp>
+#include <sc_rt_lcm/magnetometer_t.hpp>
 #include <sc_rt_lcm/plant_state_t.hpp>
+#include <sc_rt_lcm/rod_cmd_t.hpp>
 #include <sc_rt_lcm/star_tracker_t.hpp>
 #include <sc_rt_lcm/tachometer_t.hpp>
 #include <sc_rt_lcm/wheel_cmd_t.hpp>
@@ -20,12 +22,25 @@ namespace sc_rt {
 ControllerConfig config_from_lcm(const sc_rt_lcm::controller_config_t& msg);
 sc_rt_lcm::controller_config_t config_to_lcm(const ControllerConfig& c, const std::string& scenario);
 
+// The magnetic part (mag_*, bdot_*) of a controller_config_t: none unless
+// the momentum manager or B-dot is enabled. Throws std::invalid_argument for
+// an impossible rod count or kind; the values are MagneticConfig's validate's.
+void magnetic_from_lcm(const sc_rt_lcm::controller_config_t& msg, MagneticConfig& c);
+void magnetic_to_lcm(const MagneticConfig& c, sc_rt_lcm::controller_config_t& msg);
+
 // Decode a controller_config_t from its LCM encoding (fingerprint checked).
 ControllerConfig config_from_bytes(const void* data, int size);
 
 Measurement measurement_from_lcm(const sc_rt_lcm::plant_state_t& msg);
 
 void fill_wheel_cmd(const Command& c, sc_rt_lcm::wheel_cmd_t& msg);
+// The rods' dipole commands of c (n_rods of them; a non-finite one, no
+// decision, as 0). seq, session, state_seq and utime are the caller's.
+void fill_rod_cmd(const Command& c, int n_rods, sc_rt_lcm::rod_cmd_t& msg);
+// The field in B [T] of an ideal magnetometer's message (source
+// SOURCE_TRUE_FIELD, frame FRAME_BODY) into B_B; false (B_B untouched) for a
+// sensor's sample or a non-finite field.
+bool field_from_lcm(const sc_rt_lcm::magnetometer_t& msg, Vec3& B_B);
 // law: the controller's law code (Controller::law_code()).
 // n_telemetry: how many named values the law declared (Controller::telemetry_names)
 void fill_status(const Command& c, int law, int n_telemetry, sc_rt_lcm::controller_status_t& msg);

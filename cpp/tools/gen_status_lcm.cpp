@@ -6,8 +6,9 @@
 //
 // OUT_LCM: TEMPLATE (lcmtypes/controller_status_t.lcm.in) with its line
 // "@FIELD_TABLE@" replaced by the table's bus fields in table order, each a
-// double (or int64_t for an "i8" field) per value under its table name, the
-// unit and doc as its comment. OUT_HPP: status_slot(msg, field), the
+// double per value under its table name (an "i8" field too: its values are
+// small integers, exact in a double, as in the core's buffers), the unit and
+// doc as its comment. OUT_HPP: status_slot(msg, field), the
 // generated message's storage of each bus field (nullptr for the others),
 // which cpp/shell/translate.cpp fills through the core's producers.
 #include <fstream>
@@ -45,7 +46,7 @@ std::string block() {
   for (const sc_rt::FieldSpec& f : sc_rt::kFields) {
     if (!f.bus) continue;
     s << "    // [" << unit_of(f) << "] " << f.doc << " (" << f.source << ")\n";
-    s << "    " << (f.dtype == "i8" ? "int64_t " : "double ") << f.name;
+    s << "    double " << f.name;
     if (f.width > 1) s << "[" << f.width << "]";
     s << ";\n";
   }
@@ -62,7 +63,6 @@ std::string slots() {
        "  switch (f) {\n";
   for (const sc_rt::FieldSpec& f : sc_rt::kFields) {
     if (!f.bus) continue;
-    if (f.dtype == "i8") throw std::runtime_error("gen_status_lcm: an integer bus field needs a slot of its type");
     s << "    case FieldId::" << f.name << ":\n      return " << (f.width > 1 ? "m." : "&m.") << f.name << ";\n";
   }
   s << "    default:\n      return nullptr;\n  }\n}\n}  // namespace sc_rt\n";

@@ -72,20 +72,20 @@ namespace sc_rt {
     "controller flags bit set (safety, bound, invalid input)")                                                   \
   X(ctrl_mode, 1, "i8", "-", "", "controller", kLoop, true, false, false,                                       \
     "controller mode: 0 INIT, 1 NORMAL, 2 SAFE; -1 unknown")                                                     \
-  X(rod_dipole_cmd, 6, "f8", "A m^2", "", "controller", kLoop, true, false, false,                              \
+  X(rod_dipole_cmd, 6, "f8", "A m^2", "", "controller", kLoop, true, true, false,                              \
     "magnetorquer rod dipole commands, rod i in column i (0 beyond the rods given; NaN: no magnetic control)")   \
-  X(m_B_cmd, 3, "f8", "A m^2", "", "controller", kLoop, true, false, false,                                     \
+  X(m_B_cmd, 3, "f8", "A m^2", "", "controller", kLoop, true, true, false,                                     \
     "body dipole commanded, G_B rod_dipole_cmd (NaN: no magnetic control)")                                      \
-  X(B_B, 3, "f8", "T", "", "controller", kLoop, true, false, false,                                             \
+  X(B_B, 3, "f8", "T", "", "controller", kLoop, true, true, false,                                             \
     "geomagnetic field in B the controller used: without [sensors] the true field, with them the "            \
     "magnetometer's latest sample rotated to B by its known mounting (NaN: none)")                             \
-  X(h_wheels_B, 3, "f8", "N m s", "", "controller", kLoop, true, false, false,                                  \
+  X(h_wheels_B, 3, "f8", "N m s", "", "controller", kLoop, true, true, false,                                  \
     "wheels' momentum Cbar Jw Omega from the measured speeds (NaN: no momentum manager)")                       \
-  X(wheel_fill, 1, "f8", "-", "", "controller", kLoop, true, false, false,                                      \
+  X(wheel_fill, 1, "f8", "-", "", "controller", kLoop, true, true, false,                                      \
     "momentum manager's |h_err_B| / capacity (NaN: no momentum manager)")                                        \
-  X(unloading, 1, "i8", "-", "", "controller", kLoop, true, false, false,                                       \
+  X(unloading, 1, "i8", "-", "", "controller", kLoop, true, true, false,                                       \
     "momentum manager's unloading state: 1 on, 0 off; -1 no momentum manager")                                  \
-  X(detumble_mode, 1, "i8", "-", "", "controller", kLoop, true, false, false,                                   \
+  X(detumble_mode, 1, "i8", "-", "", "controller", kLoop, true, true, false,                                   \
     "B-dot mode: 0 detumble, 1 attitude; -1 no B-dot (a switch: flags bit 13, FLAG_MODE_SWITCH)")                \
   X(H_N, 3, "f8", "N m s", "", "truth", kLoop, false, false, false,                                               \
     "total angular momentum in N, C_NB (J omega_BN_B + Cbar Jw wheel_speed) with the true J (3) "                  \

@@ -14,17 +14,20 @@ from sc_rt.scenario.model import LAWS  # noqa: E402
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 
 
-def refuse_off_bus(scn, command: str) -> None:
+def refuse_sensed_magnetic(scn, command: str) -> None:
     """The bus commands (``sc-rt hil``, ``emulator``, ``controller``) refuse
-    what the bus does not carry yet: the controller's magnetic part
-    (``[momentum]``, ``[bdot]``; its dipoles and field are not on the wire),
-    so that no lockstep or real-time run silently ignores the rods
-    (UsageError: exit 2, one line naming the key; docs/HIL.md)."""
+    magnetic control with ``[sensors]``: the emulator publishes the true
+    field (``magnetometer_t``), not the magnetometer's samples yet, so such a
+    run would not be the offline one (UsageError: exit 2, one line; docs/HIL.md,
+    "Magnetic control on the bus")."""
     mc = getattr(scn, "magnetic_control", None)
+    if getattr(scn, "sensors", None) is None or mc is None:
+        return
     for name in ("momentum", "bdot"):
-        if mc is not None and getattr(mc, name) is not None:
-            raise UsageError(f"{scn.path}: {name}.enabled = true: not yet carried on the bus "
-                             f"({command} runs no [{name}]; run it offline with sc-rt sim)")
+        if getattr(mc, name) is not None:
+            raise UsageError(f"{scn.path}: [sensors] with [{name}]: the magnetometer's samples are not yet carried "
+                             f"on the bus ({command} runs magnetic control without [sensors]; run this one "
+                             "offline with sc-rt sim)")
 
 
 def scenario_arg(path: str, args: argparse.Namespace | None = None, strays: bool = True, probe: bool = True):

@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from sc_rt.cli.common import checked_out, refuse_off_bus, scenario_arg
+from sc_rt.cli.common import checked_out, refuse_sensed_magnetic, scenario_arg
 from sc_rt.cli.controller import external_choice
 from sc_rt.cli.validate import UsageError, resolve_url
 from sc_rt.plan.law import ExternalLaw, PythonLaw
@@ -52,7 +52,6 @@ def hil_plan(args: argparse.Namespace) -> RunPlan:
                     rt_limits=args.rt_limits or RealtimeLimits(), start_timeout=args.start_timeout,
                     controller_memory_limit_mb=args.controller_memory_limit)
     scn = _scenario(args)
-    refuse_off_bus(scn, "sc-rt hil")
     try:
         plan = plan_run(scn, law=args.law, engine="bench", control_rate_hz=args.control_rate,
                         duration=args.duration, external=args.external, external_wait=args.external_wait,
@@ -70,7 +69,9 @@ def _scenario(args: argparse.Namespace):
     """The command's scenario, read (with --set); the file's own law probed
     here only when --law replaces it (a file naming a broken law is refused
     all the same), else by the plan."""
-    return scenario_arg(args.scenario, args, strays=False, probe=args.law is not None)
+    scn = scenario_arg(args.scenario, args, strays=False, probe=args.law is not None)
+    refuse_sensed_magnetic(scn, "sc-rt hil")
+    return scn
 
 
 def _noted(plan: RunPlan) -> RunPlan:

@@ -22,6 +22,9 @@ to SCHED_OTHER with a warning where that is not permitted; ``--cpu N`` pins
 it. The summary says what it got (``scheduler``) and which trigger ran
 (``trigger``), so timing.json never guesses.
 
+With magnetic control it takes each state's field and sends the rods'
+commands just before each wheel command (controller/maglink.py).
+
 It publishes wheel_cmd_t and controller_status_t per step, announces itself
 with controller_info_t (at start and at each new plant session), and writes
 the exit summary with the C++ process's keys (controller_summary.json). The
@@ -47,6 +50,7 @@ from sc_rt import _core
 from sc_rt.wire.auth import open_bus
 from sc_rt.wire.lcmio import channel
 from sc_rt.results.record.fields import packed_layout
+from sc_rt.controller.maglink import MagLink
 from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, decode_as
 
 __all__ = ["PyControllerProcess", "STEP_PRIORITY", "nearest_rank", "setup_scheduler", "write_summary"]
@@ -161,6 +165,11 @@ class PyControllerProcess:
         self._ch_cmd, self._ch_status = channel("SCRT_CMD", prefix), channel("SCRT_CTRL_STATUS", prefix)
         self._ch_info = channel("SCRT_CTRL_INFO", prefix)
         self.lc.subscribe(channel("SCRT_STATE", prefix), self._on_state).set_queue_capacity(100_000)
+        #: magnetic control: the field in, the rods' commands out (controller/maglink.py)
+        self.mag = MagLink(config.magnetic.rods.G_B.shape[1], self.cnt) if config.magnetic.active() else None
+        self._ch_rod = channel("SCRT_ROD_CMD", prefix)
+        if self.mag is not None:
+            self.lc.subscribe(channel("SCRT_MAG", prefix), self.mag.on_mag).set_queue_capacity(100_000)
         if self.intake is not None:  # [sensors]: the estimator runs here, as in sc-rt-controller
             for name, cls, offer in (("SCRT_GYRO", sc_rt_lcm.gyro_t, self._gyro),
                                      ("SCRT_STAR", sc_rt_lcm.star_tracker_t, self._star),
@@ -213,7 +222,7 @@ class PyControllerProcess:
             self.announce()
         if self.intake is not None:
             self.intake.use(msg.session, msg.t)  # its sensor samples up to msg.t feed the estimator
-        self._state = (msg.seq, msg.t, m)
+        self._state = (msg.seq, msg.t, m, msg.session)
         self._fresh = True
         if self.on_arrival:  # lockstep, or real time event-triggered: at once
             self.step(now, now)
@@ -246,7 +255,7 @@ class PyControllerProcess:
             if self._reengage:
                 self._reengage = False
                 self.ctl.reset(m)
-            cmd = self.ctl.step(m)
+            cmd = self.ctl.step(m, self.mag.field_for(st[3], st[1])) if self.mag else self.ctl.step(m)
             if cmd.mode == _core.MODE_SAFE:
                 self.cnt["safe_steps"] += 1
         self._used_fresh, self._used_rx = fresh and not stale, rx
@@ -278,6 +287,8 @@ class PyControllerProcess:
 
     def _publish(self, cmd, flags: int, state_seq: int, late_us: float, comp_us: float, age_us: float) -> None:
         self._last_flags = flags
+        if self.mag is not None:  # the rods' command just before the wheel command it goes with (same seq)
+            self.lc.publish(self._ch_rod, self.mag.rod_msg(cmd, self._cmd_seq, self.session, state_seq).encode())
         c = sc_rt_lcm.wheel_cmd_t()
         c.utime, c.seq, c.session, c.state_seq = time.time_ns() // 1000, self._cmd_seq, self.session, state_seq
         c.t, c.u_cmd, c.u_sat = cmd.t, cmd.u_cmd.tolist(), cmd.u_sat.tolist()
@@ -290,7 +301,7 @@ class PyControllerProcess:
         # (translate.cpp's fill_status, whose twin this is), and the command itself
         for name in STATUS_RUN_FIELDS + ("u_cmd", "u_sat"):
             v = getattr(cmd, name)
-            setattr(s, name, float(v) if isinstance(v, float) else [float(x) for x in v])
+            setattr(s, name, float(v) if isinstance(v, (int, float)) else [float(x) for x in v])
         s.n_telemetry = len(self.ctl.telemetry_names)
         s.wake_lateness_us, s.compute_us, s.state_age_us = late_us, comp_us, age_us
         s.steps, s.deadline_misses = self.cnt["steps"], self.cnt["deadline_misses"]
@@ -369,7 +380,8 @@ class PyControllerProcess:
                 "rejected": {k: g.as_dict()[k] for k in ("malformed", "trailing_bytes", "duplicate",
                                                          "out_of_order", "invalid_state", "foreign_session",
                                                          "seq_jump")},
-                "sessions_adopted": g.sessions_adopted, "plant_sessions": list(self.plant_sessions)}
+                "sessions_adopted": g.sessions_adopted, "plant_sessions": list(self.plant_sessions),
+                **({"magnetic": self.mag.summary()} if self.mag is not None else {})}
 
 
 def write_summary(summary: dict[str, Any], path: str | None) -> None:

@@ -3,6 +3,7 @@ state seq.
 
 - ``Inbox``: per state seq k of the run's n rows, the first valid command
   answering k (its bytes, the monotonic ns of its receipt, its utime), the
+  first valid rod command answering k (a run with magnetic control), the
   first status for k (its bytes, decoded after the run) and the times state
   k went out (the utime of its first publish, the monotonic ns of its last).
   Columns of the emulator's record (results/record/store.py ``RowRing``): two
@@ -24,10 +25,10 @@ import numpy as np
 import sc_rt_lcm
 
 from sc_rt.emulator.loopstats import MISSING
-from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
+from sc_rt.wire.codec import STATUS_FROM_COMMANDS, STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
 from sc_rt.results.record.store import RowRing
 
-__all__ = ["Inbox", "Cmd", "SEQ_WINDOW", "INBOX_COLUMNS", "decode_status", "fill_from_inbox"]
+__all__ = ["Inbox", "Cmd", "Rod", "SEQ_WINDOW", "INBOX_COLUMNS", "decode_status", "fill_from_inbox"]
 
 # controller_status_t's fixed layout: fingerprint, then utime, cmd_seq,
 # session, state_seq (big-endian int64), as generated from the .lcm file
@@ -39,6 +40,11 @@ _CMD_FP = sc_rt_lcm.wheel_cmd_t._get_packed_fingerprint()
 _CMD_SIZE = len(sc_rt_lcm.wheel_cmd_t().encode())
 _CMD_LAYOUT = struct.Struct(">qqqqd4d4dbi")
 assert _CMD_LAYOUT.size + 8 == _CMD_SIZE and _STATUS_HEAD.size + 8 < _STATUS_SIZE
+# rod_cmd_t: utime, seq, session, state_seq, t, n_rods, dipole[6]
+_ROD_FP = sc_rt_lcm.rod_cmd_t._get_packed_fingerprint()
+_ROD_SIZE = len(sc_rt_lcm.rod_cmd_t().encode())
+_ROD_LAYOUT = struct.Struct(">qqqqdb6d")
+assert _ROD_LAYOUT.size + 8 == _ROD_SIZE
 # plant_state_t: its seq and session (after utime), to tell another plant's
 _STATE_SIZE = len(sc_rt_lcm.plant_state_t().encode())
 _STATE_FP = sc_rt_lcm.plant_state_t._get_packed_fingerprint()
@@ -63,6 +69,19 @@ class Cmd(NamedTuple):
     flags: int = 0
 
 
+class Rod(NamedTuple):
+    """The fields of a rod_cmd_t the loop uses."""
+
+    seq: int
+    session: int
+    state_seq: int
+    dipole: tuple  # [A m^2] the n_rods commands
+
+
+def _rod_of(v: tuple) -> Rod:
+    return Rod(seq=v[1], session=v[2], state_seq=v[3], dipole=v[6:6 + max(0, min(6, v[5]))])
+
+
 def _cmd_of(v: tuple) -> Cmd:
     return Cmd(seq=v[1], session=v[2], state_seq=v[3], u_cmd=v[5:9], u_sat=v[9:13], mode=v[13], flags=v[14])
 
@@ -77,6 +96,8 @@ INBOX_COLUMNS = (
     ("pub_ns", (), "i8", MISSING),  # [monotonic ns] state k's last publish
     ("status_raw", (_STATUS_SIZE,), "u1", 0),
     ("status_len", (), "i4", -1),  # -1: no status for k; 0: one not kept (too long)
+    ("rod_raw", (_ROD_SIZE,), "u1", 0),  # the rod command answering k (magnetic control)
+    ("rod_rx", (), "i8", MISSING),  # [monotonic ns] its receipt; MISSING: none for k
 )
 
 
@@ -91,7 +112,7 @@ class Inbox:
     Without ``ring`` every row is live (a ring of one chunk of ``n`` rows)."""
 
     #: bytes per row: the command and the status as received, four int64 times, the status length
-    BYTES_PER_ROW = _CMD_SIZE + _STATUS_SIZE + 4 * 8 + 4
+    BYTES_PER_ROW = _CMD_SIZE + _STATUS_SIZE + 4 * 8 + 4 + _ROD_SIZE + 8
 
     def __init__(self, n: int, counters: Counter, ring: RowRing | None = None):
         self.n, self.counters = n, counters
@@ -148,6 +169,30 @@ class Inbox:
         """(receipt [monotonic ns], utime [us]) of the command answering k (MISSING: none)."""
         c, j = self._slot(k, count=False)
         return int(c["cmd_rx"][j]), int(c["cmd_utime"][j])
+
+    # --- rod commands -----------------------------------------------------------
+    def put_rod(self, k: int, data: bytes, now: int) -> None:
+        """The first valid rod command answering state k (its bytes, the fixed
+        layout); later ones are not kept."""
+        s = self._slot(k)
+        if s is None:
+            return
+        c, j = s
+        if c["rod_rx"][j] != _NONE:
+            return
+        c["rod_raw"][j] = np.frombuffer(data, np.uint8)
+        c["rod_rx"][j] = now
+
+    def has_rod(self, k: int) -> bool:
+        s = self._slot(k, count=False)
+        return s is not None and s[0]["rod_rx"][s[1]] != _NONE
+
+    def rod(self, k: int) -> Rod | None:
+        """The first valid rod command answering state k, None when none came."""
+        s = self._slot(k, count=False)
+        if s is None or s[0]["rod_rx"][s[1]] == _NONE:
+            return None
+        return _rod_of(_ROD_LAYOUT.unpack_from(s[0]["rod_raw"][s[1]], 8))
 
     # --- status ----------------------------------------------------------------
     def put_status(self, k: int, data: bytes) -> None:
@@ -211,7 +256,8 @@ def fill_from_inbox(run, cols: dict[str, np.ndarray]) -> None:
     for k in np.flatnonzero(cols["status_len"][:rows] > 0):
         s = decode_status(cols, k)
         for name in STATUS_RUN_FIELDS + STATUS_TIMING_FIELDS:
-            run[name][k] = getattr(s, name)
+            if name not in STATUS_FROM_COMMANDS:  # those: the commands the row applied (emulator/process.py)
+                run[name][k] = getattr(s, name)
         if s.nav:  # a [sensors] run: the controller's estimator, its flag into the row's (as offline)
             for name in STATUS_NAV_FIELDS:
                 run[name][k] = getattr(s, name)

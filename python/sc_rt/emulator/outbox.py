@@ -1,5 +1,6 @@
 """The emulator's publishing side (a part of ``emulator.process.Emulator``):
-the guidance and the state of a control instant, the truth of a row, the
+the field (a run with magnetic control: ``magnetometer_t``, the ideal
+magnetometer), the guidance and the state of a control instant, the truth of a row, the
 sensors' samples of a plant step (emulator/sensorpub.py), and draining what
 our own multicast brings back (handled by the receiver, emulator/receiver.py).
 Owns what it last sent (the guidance values of the newest state); writes
@@ -8,11 +9,14 @@ emulator's record."""
 
 from __future__ import annotations
 
+import math
 import select
+import struct
 import time
 from typing import Any, Callable
 
 import numpy as np
+import sc_rt_lcm
 
 from sc_rt.emulator.inbox import Inbox
 from sc_rt.emulator.peers import GuidancePublisher
@@ -21,7 +25,18 @@ from sc_rt.emulator.twin import PlantTwin, state_bytes, truth_bytes
 from sc_rt.wire.lcmio import channel
 from sc_rt.results.record.store import RowRing
 
-__all__ = ["Publisher"]
+__all__ = ["Publisher", "mag_bytes"]
+
+# magnetometer_t: utime, seq, session, tick, t, B[3], source, frame
+_MAG_FP = sc_rt_lcm.magnetometer_t._get_packed_fingerprint()
+_MAG_LAYOUT = struct.Struct(">qqqqd3dbb")
+assert _MAG_LAYOUT.size + 8 == len(sc_rt_lcm.magnetometer_t().encode())
+_NAN3 = (math.nan, math.nan, math.nan)
+
+
+def mag_bytes(utime: int, seq: int, session: int, tick: int, t: float, B, source: int = 0, frame: int = 0) -> bytes:
+    """magnetometer_t: the field B [T] (source 0, frame 0: the true field in B)."""
+    return _MAG_FP + _MAG_LAYOUT.pack(utime, seq, session, tick, t, *B, source, frame)
 
 
 class Publisher:
@@ -40,6 +55,13 @@ class Publisher:
         self.pace: Any = None
         self.should_stop: Callable[[], bool] = lambda: False
         self.shared_stop: Callable[[str], None] = lambda why: None
+        #: a run with magnetic control: the true field in B of (t, x) [T] (None: no field), published
+        #: before each state as the ideal magnetometer (SCRT_MAG), tick = seq x ``n_sub``; None: no field
+        self.field: Callable[[float, np.ndarray], Any] | None = None
+        self.n_sub = 1
+        self._ch_mag = channel("SCRT_MAG", prefix)
+        #: the distinct magnetometer seqs sent (0 .. mag_sent - 1), for the log's completeness
+        self.mag_sent = 0
 
     def state(self, k: int, t: float, x: np.ndarray, guidance: tuple | None = None) -> None:
         """State k (and its guidance first: a controller has it with the state)."""
@@ -49,6 +71,11 @@ class Publisher:
             self.shared_stop(why)  # the logger stalled: the state is not published, the run stops
             return
         self._guidance_sent = (k, guidance)
+        if self.field is not None:  # the field at the state's instant, before it (docs/PROTOCOL.md)
+            B = self.field(t, x)
+            self.lc.publish(self._ch_mag, mag_bytes(time.time_ns() // 1000, k, self.session, k * self.n_sub, t,
+                                                    _NAN3 if B is None else B))
+            self.mag_sent = max(self.mag_sent, k + 1)
         self.guidance.publish(k, t, guidance)
         utime = time.time_ns() // 1000
         data = state_bytes(utime, k, self.session, t, x)

@@ -54,12 +54,15 @@ from sc_rt.wire.lcmio import channel
 from sc_rt.emulator.peers import ControllerPeers, GuidancePublisher
 from sc_rt.emulator.rtproc import RealtimeThread
 from sc_rt.emulator.sensorpub import SensorPublisher
-from sc_rt.emulator.twin import PlantTwin
+from sc_rt.emulator.twin import PlantTwin, RodHold
 from sc_rt.results.record.run import Run, RunMeta, provenance
 from sc_rt.scenario.model import Scenario
 from sc_rt.scenario.overrides import grid, initial_state, with_overrides
 
-__all__ = ["Emulator", "Options", "BYTES_PER_ROW"]
+__all__ = ["Emulator", "Options", "BYTES_PER_ROW", "ROD_GRACE_NS"]
+
+#: [ns] lockstep: how long the rods' command of a state may trail its wheel command
+ROD_GRACE_NS = 50_000_000
 
 class Emulator:
     """The plant process: the loops (lockstep, real time) over its parts,
@@ -128,8 +131,11 @@ class Emulator:
         #: the handlers and, per state seq of the run's rows, its command,
         #: status and publish times, preallocated (emulator/inbox.py); a second
         #: bench on our URL and prefix stops the run, marked invalid (emulator/collision.py)
+        #: magnetic control: the rods' commands each row holds (emulator/twin.py), the field before each state
+        self.rods = RodHold(scn.plant.magnetorquers.n_rods if scn.magnetic_control is not None else 0,
+                            self.shared.counters)
         self.receiver = Receiver(
-            self.lc, opts.prefix, self.session, n_rows, self.shared, peers=self.peers,
+            self.lc, opts.prefix, self.session, n_rows, self.shared, peers=self.peers, n_rods=self.rods.n_rods,
             accept_faults=opts.accept_fault_commands, authenticated=opts.auth_key is not None, ring=self.ring,
             guard=CollisionGuard(opts.url, opts.prefix, self.session,
                                  alive_s=max(0.5, self.stale_periods / self.rate / opts.time_scale)))
@@ -142,6 +148,8 @@ class Emulator:
         self.publisher = Publisher(self.lc, opts.prefix, self.session, guidance, self.inbox, self.twin,
                                    self.sensors, self.ring)
         self.guidance = guidance
+        if self.rods.n_rods:
+            self.publisher.field, self.publisher.n_sub = self.twin.field_B, grid(scn)[1]
         if opts.log_paced and self.mode == "lockstep":  # never ahead of the logger (emulator/logpace.py)
             self.publisher.pace = LogPace(self.lc, opts.prefix, self.shared.counters)
             self.publisher.should_stop = self._should_stop
@@ -253,8 +261,10 @@ class Emulator:
     def _meta(self) -> RunMeta:
         return RunMeta.of_scenario(self.scn, f"hil-{self.mode}", mode=self.mode)
 
-    def _record(self, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2) -> None:
+    def _record(self, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd=None) -> None:
         run, k = self.ring.slot(k)
+        if d_cmd is not None:  # the rods' commands the row held (0 beyond the rods, as the core's Command)
+            run["rod_dipole_cmd"][k] = (*d_cmd, *(0.0,) * (6 - len(d_cmd)))
         self._last_t = t
         run["t"][k] = t
         run["sigma_BN"][k] = x[0:3]
@@ -298,9 +308,14 @@ class Emulator:
                     self._guidance_next = self.guidance.values((k + 1) / rate)
                 deadline = time.monotonic_ns() + int(timeout * 1e9)
                 while time.monotonic_ns() < deadline and not self._should_stop():
-                    if inbox.has_cmd(k) and (inbox.has_status(k)
-                                             or not self.peers.wants_status(inbox.cmd_session(k))):
-                        break
+                    if inbox.has_cmd(k) and (
+                            inbox.has_status(k) or not self.peers.wants_status(inbox.cmd_session(k))):
+                        # the rods' command goes out just before the wheels' (the same publisher, in order):
+                        # one not in by then gets a short grace, then the rods are held (a controller that
+                        # sends no rods: RodHold counts it) rather than the state re-sent
+                        if not self.rods.n_rods or inbox.has_rod(k):
+                            break
+                        deadline = min(deadline, time.monotonic_ns() + ROD_GRACE_NS)
                     rem_ms = max(1, (deadline - time.monotonic_ns()) // 1_000_000)
                     try:
                         self.lc.handle_timeout(int(min(rem_ms, 100)))
@@ -323,7 +338,9 @@ class Emulator:
             row, j = ring.slot(k)
             stamps = row["stamps"][j]
             stamps[0] = time.monotonic_ns()
-            x = self._apply(k, t, x, cmd, n_sub, h, None if k == n_ctrl else (k + 1, (k + 1) / rate), stamps)
+            d_cmd = self.rods.for_row(cmd, inbox.rod(k))
+            x = self._apply(k, t, x, cmd, n_sub, h, None if k == n_ctrl else (k + 1, (k + 1) / rate), stamps,
+                            d_cmd=d_cmd)
             rows = k + 1
             if k == n_ctrl or x is None or self._should_stop():
                 break
@@ -361,23 +378,25 @@ class Emulator:
                 cmd = None
             elif cmd.state_seq == k:  # computed from the state of the period that just ended
                 self.fresh_ticks += 1
+            d_cmd = self.rods.for_row(cmd, self.receiver.newest_rod)
             x = self._apply(k, t, x, cmd, n_sub, h, None if k == n_ticks else (k + 1, (k + 1) * period),
-                            stamps, defer_ns=defer_ns)
+                            stamps, defer_ns=defer_ns, d_cmd=d_cmd)
             rows = k + 1
             if k == n_ticks or x is None or self._should_stop():
                 break
         return self._finish(rows, x is None and rows < n_ticks + 1)
 
     def _apply(self, k: int, t: float, x: np.ndarray, cmd, n_sub: int, h: float,
-               next_state: tuple[int, float] | None = None, stamps=None, defer_ns: int | None = None):
+               next_state: tuple[int, float] | None = None, stamps=None, defer_ns: int | None = None,
+               d_cmd: tuple | None = None):
         """Row k: apply ``cmd`` (None: the watchdog's zero) over one control
         period; publish the next state (``next_state``: its seq and t; not when
         the run stops or diverged) first, then record row k with the truth at t and publish the
         truth. ``stamps``: the row's monotonic ns (integrated, state out, truth
         out) go to stamps[1:5]. ``defer_ns``: the record and the truth wait
         until the answer to the next state is in, at most this long
-        (``_handle_until``). Returns the next state, or None when it is not
-        finite."""
+        (``_handle_until``). ``d_cmd``: the rods' commands held (RodHold).
+        Returns the next state, or None when it is not finite."""
         stale = cmd is None
         self.receiver.peer_lost = stale
         if stale:
@@ -392,7 +411,7 @@ class Emulator:
         act = self.shared.act  # the row's faults (a handler may change shared.act only while we wait)
         # the sensors sample inside the period only when a next row follows (as offline)
         sensors = self.sensors if next_state is not None else None
-        x_next = self.twin.integrate(act, t, x, u_cmd, n_sub, h, sensors, k * n_sub)
+        x_next = self.twin.integrate(act, t, x, u_cmd, n_sub, h, sensors, k * n_sub, d_cmd)
         finite = bool(np.all(np.isfinite(x_next)))
         if stamps is not None:
             stamps[1] = time.monotonic_ns()
@@ -407,7 +426,8 @@ class Emulator:
             stamps[2] = time.monotonic_ns()
         if self._pending is not None:  # a late tick: the previous row's record and truth first, never lost
             self._flush_pending()
-        self._pending = (k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, self.twin.motor_at_start)
+        self._pending = (k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, self.twin.motor_at_start,
+                         d_cmd)
         if defer_ns is None or next_state is None or not finite:
             self._flush_pending()
         else:
@@ -416,12 +436,12 @@ class Emulator:
 
     def _flush_pending(self) -> None:
         """The deferred part of a row: its record and its truth."""
-        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, motor = self._pending
+        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, motor, d_cmd = self._pending
         self._pending = None
         if stamps is not None:
             stamps[3] = time.monotonic_ns()
-        _, accel, delta2 = self.twin.row(act, t, x, u_cmd, motor)
-        self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2)
+        _, accel, delta2 = self.twin.row(act, t, x, u_cmd, motor, d_cmd)
+        self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd)
         self.publisher.drain()  # an answer that came meanwhile is received now, not after the truth's publish
         self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act)
         if stamps is not None:
@@ -438,6 +458,8 @@ class Emulator:
         run, self._breakdown = self.record.close(rows, self._meta(), self.mode)
         if self.sensors is not None:
             self.shared.counters.update(self.sensors.counters())
+        if self.rods.n_rods:
+            self.shared.counters["mag_sent"] = self.publisher.mag_sent
         run.counters = dict(self.shared.counters)
         run.gaps = list(self._gaps)
         run.faults_applied = list(self.shared.faults_applied)

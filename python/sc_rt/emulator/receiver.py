@@ -20,7 +20,7 @@ import sc_rt_lcm
 
 from sc_rt.wire.lcmio import channel
 from sc_rt.emulator.inbox import (
-    Cmd, Inbox, SEQ_WINDOW, _cmd_of,
+    Cmd, Inbox, Rod, SEQ_WINDOW, _cmd_of, _rod_of, _ROD_FP, _ROD_SIZE, _ROD_LAYOUT,
     _CMD_FP, _CMD_SIZE, _CMD_LAYOUT, _STATE_FP, _STATE_SIZE, _STATUS_FP, _STATUS_SIZE, _STATUS_HEAD,
 )
 from sc_rt.wire.codec import decode_as
@@ -46,7 +46,7 @@ class Receiver:
 
     def __init__(self, lc: Any, prefix: str, session: int, n_rows: int, shared: Shared, *,
                  guard: Any = None, peers: ControllerPeers | None = None, accept_faults: bool = False,
-                 authenticated: bool = False, ring: RowRing | None = None):
+                 authenticated: bool = False, ring: RowRing | None = None, n_rods: int = 0):
         self.lc, self.prefix, self.session, self.shared = lc, prefix, session, shared
         self.counters = shared.counters
         self.guard = guard
@@ -60,8 +60,12 @@ class Receiver:
         self.newest_cmd_ns = 0
         self._last_cmd_seq = -1
         self._last_status_seq = -1
+        #: magnetic control: the rods' newest command (rod_cmd_t) and its receipt [monotonic ns]
+        self.n_rods = n_rods
+        self.newest_rod: Rod | None = None
+        self._last_rod_seq = -1
         # per counter, the newest unconfirmed seq jump (-2: none)
-        self._jumps = {"cmd_seq_jump": -2, "status_seq_jump": -2}
+        self._jumps = {"cmd_seq_jump": -2, "status_seq_jump": -2, "rod_seq_jump": -2}
         self.ctl_session: int | None = None
         self.ctl_last_ns = 0  # monotonic ns of the adopted controller's newest message
         self.peer_lost = False
@@ -71,6 +75,8 @@ class Receiver:
                               ("SCRT_FAULT", self.on_fault), ("SCRT_CTRL_INFO", self.on_info),
                               ("SCRT_STATE", self.on_plant_state)):
             self.lc.subscribe(channel(name, self.prefix), handler).set_queue_capacity(100_000)
+        if n_rods:  # a run with magnetic control: the rods' commands (docs/PROTOCOL.md)
+            self.lc.subscribe(channel("SCRT_ROD_CMD", self.prefix), self.on_rod).set_queue_capacity(100_000)
 
     def on_plant_state(self, _ch: str, data: bytes) -> None:
         """Our own states come back (multicast loopback); another plant's mean another bench."""
@@ -95,6 +101,7 @@ class Receiver:
             self.peer_lost = False
             self._last_cmd_seq = -1
             self._last_status_seq = -1
+            self._last_rod_seq = -1
             return True
         self.counters["foreign_session"] += 1
         if self.guard is not None:
@@ -147,6 +154,39 @@ class Receiver:
             self.inbox.put_cmd(msg.state_seq, data, msg, now, v[0])
         else:
             self.inbox.put_cmd(msg.state_seq, None, msg, now)
+
+    def on_rod(self, _ch: str, data: bytes) -> None:
+        """A rod command (rod_cmd_t): the same session, order and window rules
+        as a wheel command, its own seq line; kept per state seq and as the newest."""
+        now = time.monotonic_ns()
+        self.counters["rod_cmd_received"] += 1
+        if len(data) == _ROD_SIZE and data[:8] == _ROD_FP:
+            v = _ROD_LAYOUT.unpack_from(data, 8)
+        else:  # not exactly one rod_cmd_t: count it by kind
+            msg = decode_as(sc_rt_lcm.rod_cmd_t, data, self.counters)
+            if msg is None:
+                return
+            data = msg.encode()
+            v = _ROD_LAYOUT.unpack_from(data, 8)
+        rod = _rod_of(v)
+        if v[5] != self.n_rods or not all(math.isfinite(d) for d in rod.dipole):
+            self.counters["invalid_rod_command"] += 1  # another rod count, or a non-finite dipole
+            return
+        if not self._session_ok(rod.session, now, rod.seq, "rod"):
+            return
+        if rod.seq <= self._last_rod_seq:
+            last = self.newest_rod
+            if (rod.seq == self._last_rod_seq and last is not None
+                    and (rod.state_seq != last.state_seq or rod.dipole != last.dipole)):
+                self.counters["rod_conflict"] += 1  # the controller's session and seq, another command
+            else:
+                self.counters["rod_duplicate" if rod.seq == self._last_rod_seq else "rod_out_of_order"] += 1
+            return
+        if self._unconfirmed_jump("rod_seq_jump", self._last_rod_seq, rod.seq):
+            return
+        self._last_rod_seq = rod.seq
+        self.newest_rod = rod
+        self.inbox.put_rod(rod.state_seq, data, now)
 
     def on_status(self, _ch: str, data: bytes) -> None:
         # The loop needs only the header (session, seqs) now; the full decode

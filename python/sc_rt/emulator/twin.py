@@ -9,6 +9,11 @@
   ``plant.lumped_disturbance``, bitwise, or those); the truth's fault
   fields. Always for the fault set the row was applied with (``act``: a
   fault command may change the emulator's while it waits).
+- a run with magnetic control: the true field in B at a control instant
+  (``field_B``: ``_core.plant_field_B`` or ``model.plant.field_B``, the
+  ideal magnetometer) and the rods' dipole commands held over the period
+  through the plant's rods and their faults at each step's time
+  (``rods_dipole_B``), as the offline engines do (sim/engines.py).
 - ``plant_state_t`` and ``plant_truth_t`` packed with struct, exactly the
   generated encoding (tests/test_emulator_wire.py), for speed.
 """
@@ -22,8 +27,9 @@ import sc_rt_lcm
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
+from sc_rt.model.rods import rods_dipole_B
 
-__all__ = ["PlantTwin", "state_bytes", "truth_bytes"]
+__all__ = ["PlantTwin", "RodHold", "state_bytes", "truth_bytes"]
 
 # plant_state_t: utime, seq, session, t, sigma_BN[3], omega_BN_B[3], wheel_speed[4]
 _STATE_FP = sc_rt_lcm.plant_state_t._get_packed_fingerprint()
@@ -63,15 +69,39 @@ class PlantTwin:
         self.motor_at_start: tuple | None = None
         self._cpp_params: tuple = (None,)
         self._fault_fields: tuple = (None,)
+        self._pp = None  # the C++ plant parameters of the field (no faults in them)
 
     def _cpp(self, act) -> tuple:
         if self._cpp_params[0] is not act:  # the fault set changed (live injection)
             self._cpp_params = (act, plant.plant_params_to_cpp(self.params), actuators.actuator_params_to_cpp(act))
         return self._cpp_params[1], self._cpp_params[2]
 
+    def field_B(self, t: float, x: np.ndarray) -> tuple | None:
+        """[T] the plant's true field in B at t for the state x (None: no field)."""
+        if self.cpp:
+            B = _core.plant_field_B(self._plant_cpp(), t, x[0:3])
+            return None if B is None else tuple(float(v) for v in B)
+        return plant.field_B(self.params, t, x)
+
+    def dipole_B(self, t: float, d_cmd) -> tuple | None:
+        """[A m^2] the body dipole of the rod commands ``d_cmd`` [A m^2] (one
+        per rod; None: no magnetic control, the step holds the rods' own) at t
+        through the plant's rods and their faults."""
+        if d_cmd is None:
+            return None
+        if self.cpp:  # the C++ loop's (closed_loop.cpp), bitwise the Python one
+            return _core.rods_dipole_B(self._plant_cpp().rods, t, np.asarray(d_cmd, float))
+        return rods_dipole_B(self.params.magnetorquers, t, d_cmd)
+
+    def _plant_cpp(self):
+        if self._pp is None:
+            self._pp = plant.plant_params_to_cpp(self.params)
+        return self._pp
+
     def integrate(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, n_sub: int, h: float,
-                  sensors=None, i0: int = 0) -> np.ndarray:
-        """n_sub RK4 steps of h from t with u_cmd held. ``sensors`` (a
+                  sensors=None, i0: int = 0, d_cmd=None) -> np.ndarray:
+        """n_sub RK4 steps of h from t with u_cmd held (``d_cmd``: the rods'
+        dipole commands, held too, through the rods at each step's time). ``sensors`` (a
         emulator.sensorpub.SensorPublisher, the row's first plant step ``i0``):
         ticked before each sub-step j > 0 whose plant step i0 + j it names
         (``next_tick``), at t + j h with the state then, as the offline loop
@@ -83,7 +113,8 @@ class PlantTwin:
             for j in range(n_sub):
                 if j > 0 and sensors is not None and i0 + j == sensors.next_tick:
                     sensors.tick(i0 + j, t + j * h, x)
-                x = truth.rk4_step(self.params, act, t + j * h, x, h, u_cmd, self.motor)
+                x = truth.rk4_step(self.params, act, t + j * h, x, h, u_cmd, self.motor,
+                                   self.dipole_B(t + j * h, d_cmd))
             return x
         pp, ap = self._cpp(act)
         xs = _core.PlantState.from_vector(x)
@@ -91,25 +122,29 @@ class PlantTwin:
         for j in range(n_sub):
             if j > 0 and sensors is not None and i0 + j == sensors.next_tick:
                 sensors.tick(i0 + j, t + j * h, xs.to_vector())
+            m_B = self.dipole_B(t + j * h, d_cmd)
             if motor is None:
-                xs = _core.plant_rk4_step(pp, ap, t + j * h, xs, h, u_cmd)
+                xs = _core.plant_rk4_step(pp, ap, t + j * h, xs, h, u_cmd, m_B)
             else:
-                xs, motor = _core.plant_rk4_step_motor(pp, ap, t + j * h, xs, h, u_cmd, motor)
+                xs, motor = _core.plant_rk4_step_motor(pp, ap, t + j * h, xs, h, u_cmd, motor, m_B)
         if motor is not None:
             self.motor[:] = motor.tolist()
         return xs.to_vector()
 
-    def row(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, motor=None) -> tuple:
+    def row(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, motor=None, d_cmd=None) -> tuple:
         """(u_sat, wheel accel, delta2) of the row at t, state x, command u_cmd
-        (``motor``: the motor torques at t, ``motor_at_start`` of its integrate)."""
+        (``motor``: the motor torques at t, ``motor_at_start`` of its integrate;
+        ``d_cmd``: the rods' commands the row holds, the step's first stage's dipole)."""
+        m_B = self.dipole_B(t, d_cmd)
         if self.cpp:
             pp, ap = self._cpp(act)
             xs = _core.PlantState.from_vector(x)
-            w = _core.plant_row(pp, ap, t, xs, u_cmd, None if motor is None else np.array(motor))
+            w = _core.plant_row(pp, ap, t, xs, u_cmd, None if motor is None else np.array(motor), m_B)
             u_sat, accel = w.u_sat, w.accel
             delta2 = _core.lumped_disturbance(pp, t, xs, u_sat, accel)
         else:
-            u_sat, accel, delta2 = truth.row(self.params, act, t, x, u_cmd, None if motor is None else list(motor))
+            u_sat, accel, delta2 = truth.row(self.params, act, t, x, u_cmd, None if motor is None else list(motor),
+                                             m_B)
         return u_sat, accel, delta2
 
     def fault_fields(self, act, t: float) -> tuple[list, list]:
@@ -126,3 +161,28 @@ class PlantTwin:
 
     def disturbance(self, t: float):
         return plant.disturbance(self.params, t)
+
+
+class RodHold:
+    """The rods' commands a row holds (a run with magnetic control; ``n_rods``
+    0: none, ``for_row`` returns None): the rod command answering the same
+    state as the row's wheel command; without one the previous commands go
+    on (zero-order hold, counted ``rod_cmd_held``); under the watchdog (no
+    wheel command) zero, as the wheels."""
+
+    def __init__(self, n_rods: int, counters):
+        self.n_rods, self.counters = n_rods, counters
+        self.held = (0.0,) * n_rods  # [A m^2]
+
+    def for_row(self, cmd, rod) -> tuple | None:
+        """[A m^2] the row's rod commands for the wheel command ``cmd`` (None:
+        the watchdog's zero) and the rod command ``rod`` (None: none)."""
+        if not self.n_rods:
+            return None
+        if cmd is None:
+            self.held = (0.0,) * self.n_rods
+        elif rod is None or rod.state_seq != cmd.state_seq or rod.session != cmd.session:
+            self.counters["rod_cmd_held"] += 1
+        else:
+            self.held = tuple(rod.dipole)
+        return self.held

@@ -370,9 +370,11 @@ def _run_children(b: _Bench, stopper: Stopper) -> HilResult:
     res.timing["log_complete"] = bool(log_complete)
     res.timing["logger_scheduler"] = logger_policy
     res.timing["log_missing"] = log_missing(log_path, prefix, len(res),
-                                            {c: int(res.counters.get(k, 0)) for c, k in SENT_COUNTERS.items()})
+                                            {c: int(res.counters.get(k, 0))
+                                             for c, k in {**SENT_COUNTERS, "SCRT_MAG": "mag_sent"}.items()})
     res.timing["logger"] = logger_summary(logger_err)
-    if (conflicts := int(res.counters.get("cmd_conflict", 0))):  # a command not the controller's reached the bus
+    # a command (wheels or rods) not the controller's reached the bus
+    if (conflicts := int(res.counters.get("cmd_conflict", 0)) + int(res.counters.get("rod_conflict", 0))):
         why = (f"{conflicts} commands carried the controller's session and seq but not its command: a forged or "
                "racing sender on the bus (docs/PROTOCOL.md, 'Sequence numbers'; --auth-key refuses them)")
         mark_invalid(res, why)

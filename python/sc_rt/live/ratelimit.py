@@ -28,7 +28,7 @@ __all__ = ["DEFAULT_RATE_HZ", "PERIODIC", "RateLimiter", "MessageClock", "parse_
 DEFAULT_RATE_HZ = 50.0
 #: the channels (lcmio.CHANNELS names, without prefix) the cap applies to
 PERIODIC = frozenset({"SCRT_STATE", "SCRT_CMD", "SCRT_TRUTH", "SCRT_CTRL_STATUS", "SCRT_GUIDANCE",
-                      "SCRT_GYRO", "SCRT_STAR", "SCRT_TACH"})
+                      "SCRT_GYRO", "SCRT_STAR", "SCRT_TACH", "SCRT_MAG", "SCRT_ROD_CMD"})
 #: relative tolerance on the period (times on a grid: 20 ms after 0.0 is 0.020000000000000004)
 _TOL = 1e-9
 #: the time field of a type, in order of preference

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from sc_rt.logs.logread import LogData
-from sc_rt.wire.codec import STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
+from sc_rt.wire.codec import STATUS_FROM_COMMANDS, STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
 from sc_rt.results.record.run import RunMeta, empty_arrays
 from sc_rt.scenario.model import LAW_NAMES
 
@@ -84,6 +84,25 @@ def _applied_cmd(C: np.ndarray, c_stamp: np.ndarray, seq: np.ndarray, stamp: np.
     return out
 
 
+def _applied_rods(R: np.ndarray, has: np.ndarray, applied: np.ndarray, rows: np.ndarray,
+                  ridx: np.ndarray) -> np.ndarray:
+    """[A m^2] the rods' commands of the rows with their truth (``has``), as the
+    emulator held them (emulator/twin.py RodHold): the rod command with the
+    seq of the row's applied wheel command (``rows``: the rows that applied
+    one, ``ridx``: its index in ``R``, -1 none), else the previous row's
+    (zero-order hold); zero under the watchdog (no command applied)."""
+    at = np.full(len(has), -1, np.int64)
+    at[rows] = ridx
+    out, held = [], np.zeros(6)
+    for k in np.flatnonzero(has):
+        if applied[k] < 0:
+            held = np.zeros(6)
+        elif at[k] >= 0:
+            held = _f(R["dipole"][at[k]])
+        out.append(held)
+    return np.array(out).reshape(-1, 6)
+
+
 def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
     """The trajectory, one row per plant state, as the emulator recorded it."""
     S = d.records["SCRT_STATE"]
@@ -120,6 +139,10 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
         traj["u_sat"][rows[ok]] = _f(C["u_sat"][idx[ok]])
         traj["flags"][rows[ok]] = C["flags"][idx[ok]]
         traj["ctrl_mode"][rows[ok]] = C["mode"][idx[ok]]
+        R = d.records.get("SCRT_ROD_CMD")
+        if R is not None and R.size:  # magnetic control: the rods the row held
+            ridx = _applied_cmd(R, d.stamps["SCRT_ROD_CMD"], applied[rows], d.stamps["SCRT_TRUTH"][ti[pos[rows]]])
+            traj["rod_dipole_cmd"][has] = _applied_rods(R, has, applied, rows, ridx)
     # a state without its truth: the command answering it (first received)
     miss = ~has
     if np.any(miss) and C.size:
@@ -136,7 +159,14 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
     if np.any(hs):
         sm = sti[ps[hs]]
         for k in STATUS_RUN_FIELDS + STATUS_TIMING_FIELDS:
-            traj[k][hs] = _f(St[k][sm])
+            if k in STATUS_FROM_COMMANDS:  # from the commands applied (_applied_rods)
+                continue
+            v = _f(St[k][sm])
+            if traj[k].dtype.kind == "i":  # an integer field an older layout lacks (NaN) keeps its fill
+                ok = np.isfinite(v)
+                traj[k][np.flatnonzero(hs)[ok]] = v[ok].astype(np.int64)
+            else:
+                traj[k][hs] = v
         if "nav" in (St.dtype.names or ()):  # a [sensors] run: the estimator's fields and flag
             nav = np.zeros(n, bool)
             nav[hs] = St["nav"][sm] != 0

@@ -69,7 +69,10 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     if d.start is not None:  # the run's own record: how it was triggered
         out["trigger"] = d.start.get("trigger")
         out["mode"] = d.start.get("mode", out["mode"])
-    out["log_missing"] = log_missing(d.path, d.prefix, len(run))
+    # with magnetic control (its field in the log) a field per row too, as sc-rt hil counts it
+    mag = d.records.get("SCRT_MAG")
+    out["log_missing"] = log_missing(d.path, d.prefix, len(run),
+                                     {"SCRT_MAG": len(run)} if mag is not None and mag.size else None)
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"
     if out.get("mode") == "realtime":

@@ -2,7 +2,8 @@
 the LCM ``controller_config_t`` (:func:`controller_config_msg`), every field
 filled from the typed scenario (sc_rt.scenario.model), and the C++ config
 decoded from its bytes by the same translator as the real-time process
-(:func:`core_config`). ``Scenario.controller_config_msg`` and
+(:func:`core_config`), the magnetic part included (:func:`fill_magnetic`).
+``Scenario.controller_config_msg`` and
 ``Scenario.core_config`` call these.
 """
 
@@ -23,7 +24,7 @@ from sc_rt.scenario.lawspec import law_problem, law_spec
 from sc_rt.scenario.schema import convert, field_spec
 from sc_rt.scenario.tables.sensors import nav_config
 
-__all__ = ["controller_config_msg", "fill_nav", "core_config"]
+__all__ = ["controller_config_msg", "fill_nav", "fill_magnetic", "core_config"]
 
 
 def controller_config_msg(
@@ -81,7 +82,40 @@ def controller_config_msg(
     m.pinv_damping = float(c.pinv_damping)
     if nav:
         fill_nav(scn, m)
+    fill_magnetic(scn, m)
     return m
+
+
+def fill_magnetic(scn: Any, m: controller_config_t) -> None:
+    """The controller's magnetic part (``mag_*``, ``bdot_*``; a scenario with
+    ``[momentum]`` or ``[bdot]``, else all off and zeros): the core's
+    ``MagneticConfig`` the scenario builds (``MagneticControl.to_core``: the
+    nominal rods' axes G_B [-] and limits [A m^2], the manager's and
+    B-dot's parameters), field by field; the controller decodes it back
+    (cpp/shell/translate.cpp ``magnetic_from_lcm``), so the offline engines
+    and the controller process run the same configuration."""
+    m.mag_G_B = [[0.0] * 6 for _ in range(3)]
+    m.mag_dipole_max = [0.0] * 6
+    if scn.magnetic_control is None:
+        return
+    mc = scn.magnetic_control.to_core(scn.plant.magnetorquers)
+    G = np.asarray(mc.rods.G_B, float)
+    n = G.shape[1]
+    m.mag_rods_enabled = True
+    m.mag_n_rods = n
+    m.mag_G_B = [[float(G[i, j]) if j < n else 0.0 for j in range(6)] for i in range(3)]
+    m.mag_dipole_max = [float(v) for v in mc.rods.dipole_max] + [0.0] * (6 - n)
+    p, b = mc.momentum, mc.bdot
+    m.mag_momentum_enabled = bool(mc.momentum_enabled)
+    m.mag_unload_kind = int(p.kind)
+    for name in ("gain", "on_fraction", "off_fraction", "capacity", "null_gain", "null_bias"):
+        setattr(m, "mag_" + name, float(getattr(p, name)))
+    m.mag_hysteresis = bool(p.hysteresis)
+    m.bdot_enabled = bool(mc.bdot_enabled)
+    m.bdot_normalized = bool(b.normalized)
+    m.bdot_derivative = int(b.derivative)
+    for name in ("gain", "filter_tau", "rate_on", "rate_off"):
+        setattr(m, "bdot_" + name, float(getattr(b, name)))
 
 
 def fill_nav(scn: Any, m: controller_config_t) -> None:
@@ -119,7 +153,4 @@ def core_config(
     so that a controller built from the config in this process runs it."""
     msg = controller_config_msg(scn, law, control_rate_hz, nav=False)  # the core reads no nav_* field
     msg.law = registry_spec(msg.law)  # a Python law: into the core's registry (sc_rt.pylaw)
-    cfg = _core.ControllerConfig.from_lcm_bytes(msg.encode())
-    if scn.magnetic_control is not None:  # not on the wire yet (sc-rt hil refuses it)
-        cfg.magnetic = scn.magnetic_control.to_core(scn.plant.magnetorquers)
-    return cfg
+    return _core.ControllerConfig.from_lcm_bytes(msg.encode())  # the magnetic part too (fill_magnetic)

@@ -169,6 +169,10 @@ def summarize(msg) -> dict:
                 "sigma_BN": list(msg.sigma_BN), "lost": msg.lost, "blacked_out": msg.blacked_out}
     if name == "tachometer_t":
         return {"t": msg.t, "seq": msg.seq, "wheel_speed": list(msg.wheel_speed)}
+    if name == "magnetometer_t":
+        return {"t": msg.t, "seq": msg.seq, "B": list(msg.B), "source": msg.source, "frame": msg.frame}
+    if name == "rod_cmd_t":
+        return {"t": msg.t, "seq": msg.seq, "state_seq": msg.state_seq, "dipole": list(msg.dipole[:msg.n_rods])}
     if name == "fault_cmd_t":
         return {k: getattr(msg, k) for k in ("seq", "wheel", "action", "now", "t_onset", "t_end",
                                              "effectiveness", "bias", "rate", "stuck")}
@@ -274,6 +278,11 @@ class Spy:
             elif tn == "tachometer_t":
                 lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  wheel speed "
                              f"{vec(m['wheel_speed'], '{:+.2f}')} rad/s")
+            elif tn == "magnetometer_t":
+                lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  B {vec([b * 1e6 for b in m['B']])} uT")
+            elif tn == "rod_cmd_t":
+                lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  state {m['state_seq']}  dipole "
+                             f"{vec(m['dipole'], '{:+.2f}')} A m^2")
             elif tn == "plant_truth_t":
                 lines.append(f"{name}: t {m['t']:.3f} s  wheel accel {vec(m['wheel_accel'])}  "
                              f"fault Y {vec(m['fault_Y'], '{:.2f}')}  L {vec(m['fault_effectiveness'], '{:.2f}')}"

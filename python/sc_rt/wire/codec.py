@@ -21,7 +21,7 @@ from sc_rt import _core
 
 __all__ = ["TYPES", "BY_FINGERPRINT", "identify", "decode_any", "numpy_dtype", "decode_array",
            "lcm_sources", "to_plain", "decode_as", "DECODE_ERRORS", "STATUS_RUN_FIELDS", "STATUS_TIMING_FIELDS",
-           "STATUS_NAV_FIELDS"]
+           "STATUS_NAV_FIELDS", "STATUS_FROM_COMMANDS"]
 
 
 def _types() -> dict[str, type]:
@@ -52,6 +52,11 @@ _DTYPES: dict[type, np.dtype | None] = {}
 #: on both sides (the command's own fields, u_cmd, u_sat, flags and mode,
 #: come from wheel_cmd_t).
 STATUS_RUN_FIELDS: tuple[str, ...] = tuple(r["name"] for r in _core.FIELD_TABLE if r["bus"] and r["group"] == "loop")
+#: Run fields a status carries (its telemetry: the MCAP, the live view) that a
+#: bench run's record takes from the command the plant applied instead, as
+#: ``u_cmd`` from wheel_cmd_t: the rods' commands held over the row (rod_cmd_t;
+#: in real time the newest, which may answer an earlier state than the status).
+STATUS_FROM_COMMANDS: tuple[str, ...] = ("rod_dipole_cmd",)
 #: The estimator's run fields in controller_status_t (a [sensors] run; its
 #: nav_flags are OR-ed into the row's flags, as the offline loop does).
 STATUS_NAV_FIELDS: tuple[str, ...] = tuple(r["name"] for r in _core.FIELD_TABLE if r["bus"] and r["group"] == "nav")
@@ -63,9 +68,6 @@ STATUS_NOT_CARRIED: dict[str, str] = {
     "u_cmd": "wheel_cmd_t (the command itself)", "u_sat": "wheel_cmd_t", "flags": "wheel_cmd_t",
     "ctrl_mode": "wheel_cmd_t", "latency_us": "the emulator's receipt time of the command",
     "tick_lateness_us": "the emulator's own loop", "state_log_us": "lcm-logger's receive time of the state",
-    # the controller's magnetic part: offline only until the bus carries it (sc-rt hil refuses it, docs/HIL.md)
-    **{name: "not yet on the bus (offline engines only)" for name in (
-        "rod_dipole_cmd", "m_B_cmd", "B_B", "h_wheels_B", "wheel_fill", "unloading", "detumble_mode")},
 }
 
 

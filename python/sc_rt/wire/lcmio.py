@@ -34,6 +34,10 @@ CHANNELS = {
     "SCRT_STAR": ("star_tracker_t", "emulator",
                   "[sensors.star_tracker] rate_hz, at delivery (exposure + latency)"),
     "SCRT_TACH": ("tachometer_t", "emulator", "[sensors.tachometer] rate_hz"),
+    "SCRT_MAG": ("magnetometer_t", "emulator",
+                 "magnetic control: the field at each state's instant, just before it (same seq)"),
+    "SCRT_ROD_CMD": ("rod_cmd_t", "controller",
+                     "magnetic control: one per command, just before its wheel_cmd_t (same seq)"),
     "SCRT_LOG_ACK": ("log_ack_t", "sc-rt-logger",
                      "sc-rt hil: after every 8 states written to the log (not logged, not authenticated)"),
 }

@@ -7,6 +7,9 @@ so that a log written before a layout changed still reads (docs/LOGS.md).
   table. ``upgrade`` moves the gains of the law the message names into its
   table, under the names that law reads (cpp/src/law_dsc.cpp, law_pd.cpp,
   law_rft.cpp); a plugin's table is kept as it was.
+- ``controller_config_v2_t`` (before the magnetic control went on the
+  bus, issue 43): no ``mag_*``, ``bdot_*``; ``upgrade`` copies every
+  field and leaves magnetic control off (the controller then had none).
 - ``controller_status_v1_t`` (before the law's telemetry went on the bus,
   issue #26): no ``x2d``, ``rho_hat``, ``n_telemetry``, ``telemetry``.
   ``decode_current`` reads such messages with the current ones, those
@@ -15,6 +18,8 @@ so that a log written before a layout changed still reads (docs/LOGS.md).
   the core's field table, issue 39): the same fields in another order and
   none of the fields added to the table since (the gyro calibration's);
   ``decode_current`` reads it the same way, the missing fields NaN.
+- ``controller_status_v3_t`` (before the magnetic control's fields went on
+  the bus, issue 43): read the same way, those fields NaN.
 """
 
 from __future__ import annotations
@@ -30,8 +35,10 @@ __all__ = ["LEGACY", "upgrade", "decode_current"]
 
 #: the old layout's class -> the current one it becomes
 LEGACY = {sc_rt_lcm.controller_config_v1_t: sc_rt_lcm.controller_config_t,
+          sc_rt_lcm.controller_config_v2_t: sc_rt_lcm.controller_config_t,
           sc_rt_lcm.controller_status_v1_t: sc_rt_lcm.controller_status_t,
-          sc_rt_lcm.controller_status_v2_t: sc_rt_lcm.controller_status_t}
+          sc_rt_lcm.controller_status_v2_t: sc_rt_lcm.controller_status_t,
+          sc_rt_lcm.controller_status_v3_t: sc_rt_lcm.controller_status_t}
 #: a fixed-size current type -> its old layouts (read by decode_current; the others: upgrade)
 _FIXED_OLD: dict[type, tuple[type, ...]] = {}
 for _old, _new in LEGACY.items():
@@ -94,18 +101,28 @@ def _law_table(m) -> list[tuple[str, list[float]]]:
     return []
 
 
+def _copy_shared(old, new):
+    """``new`` with every field the two layouts share as in ``old`` (the others as
+    the type makes them: off, zeros; a fixed array of the current layout's size)."""
+    new_fields = set(new.__slots__)
+    for name in old.__slots__:
+        if name in new_fields:
+            setattr(new, name, getattr(old, name))
+    new.mag_G_B = [[0.0] * 6 for _ in range(3)]
+    new.mag_dipole_max = [0.0] * 6
+    return new
+
+
 def upgrade(m):
     """A message of a legacy layout of a variable-size type as its current
     type (others unchanged; the fixed-size ones are read by decode_current)."""
+    if isinstance(m, sc_rt_lcm.controller_config_v2_t):  # every field as it was; no magnetic control
+        return _copy_shared(m, sc_rt_lcm.controller_config_t())
     if not isinstance(m, sc_rt_lcm.controller_config_v1_t):
         return m
     from sc_rt import _core
 
-    new = sc_rt_lcm.controller_config_t()
-    new_fields = set(new.__slots__)
-    for name in m.__slots__:  # every field the two layouts share, as it was
-        if name in new_fields:
-            setattr(new, name, getattr(m, name))
+    new = _copy_shared(m, sc_rt_lcm.controller_config_t())
     # the plugin's own table (its [controller.params]) first, then the built-in law's gains
     table, at = [], 0
     for key, n in zip(m.law_param_keys, m.law_param_len):

@@ -6,10 +6,11 @@ the controller has none, exactly as before.
 
 Both drive the ``[magnetorquers]`` rods (the controller knows them as
 given, without their faults) in the field along the ``[orbit]``: they need
-both tables. They are offline for now: ``sc-rt hil`` refuses them (the bus
-does not carry the dipoles yet). With ``[sensors]`` the controller gets the
-field it measures, so a run with ``[sensors]`` needs ``[sensors.magnetometer]``
-(docs/MODEL.md section 17); without ``[sensors]`` it gets the true field.
+both tables. They run offline and on the bus (``controller_config_t``'s
+``mag_*`` and ``bdot_*``, docs/PROTOCOL.md). With ``[sensors]`` the
+controller gets the field it measures, so a run with ``[sensors]`` needs
+``[sensors.magnetometer]`` (docs/MODEL.md section 17); without ``[sensors]``
+it gets the true field.
 
 ``[bdot] gain = "auto"`` is Markley & Crassidis' rule (after Avanzini &
 Giulietti 2012), ``k = 2 n (1 + sin xi_m) J_min`` [N m s]: n the orbit's
