@@ -240,11 +240,9 @@ def _start_record(b: _Bench) -> bytes:
 def _end_record(scn, res, stopper: Stopper) -> bytes:
     """The end marker's payload (wire/startrec.py): what the bench saw that
     no message shows, for ``sc-rt report`` to give the live run's reasons."""
-    rec: dict = {"scenario": scn.name}
+    rec: dict = {"scenario": scn.name, "died": stopper.died}  # (died: None while the controller lived)
     if res is not None:
         rec.update(rows=len(res), partial=bool(res.partial), stopped=res.message if res.partial else None)
-    if stopper.died is not None:
-        rec["died"] = stopper.died
     return encode_end(rec)
 
 
