@@ -6,6 +6,7 @@ The figure functions write PNGs and return their paths, so
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,10 @@ def record_figures(monkeypatch) -> dict:
     original = matplotlib.figure.Figure.savefig
 
     def savefig(self, fname, *args, **kwargs):
-        saved[Path(str(fname)).name] = self
+        name = Path(str(fname)).name
+        # a figure is written whole under a temporary name, then renamed (jsonsafe.atomic_path): its file's name
+        part = re.fullmatch(r"\.(.+)\.\d+\.part", name)
+        saved[part.group(1) if part else name] = self
         return original(self, fname, *args, **kwargs)
 
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", savefig)
