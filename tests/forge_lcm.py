@@ -24,6 +24,20 @@ def tagged(ch: str, data: bytes) -> bytes:
     return data + hmac.new(WRONG, ch.encode() + b"\0" + data, hashlib.sha256).digest()
 
 
+def handle_until_bench_ends(lc) -> None:
+    """Handle ``lc``'s messages until the process $SCRT_WAIT_PID (the bench
+    under attack) has ended (gone, or a zombie its shell has not reaped)."""
+    pid = int(os.environ["SCRT_WAIT_PID"])
+    while True:
+        lc.handle_timeout(50)
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                if f.read().rsplit(")", 1)[1].split()[0] == "Z":
+                    return
+        except OSError:
+            return
+
+
 def main(url: str, out: str) -> int:
     lc = lcm.LCM(url)
     sent = {"SCRT_CMD": 0, "SCRT_STATE": 0}
@@ -53,15 +67,7 @@ def main(url: str, out: str) -> int:
             sent[chan] += 2
 
     lc.subscribe("SCRT_STATE", on_state).set_queue_capacity(100_000)
-    pid = int(os.environ["SCRT_WAIT_PID"])
-    while True:
-        lc.handle_timeout(50)
-        try:
-            with open(f"/proc/{pid}/stat") as f:
-                if f.read().rsplit(")", 1)[1].split()[0] == "Z":
-                    break
-        except OSError:
-            break
+    handle_until_bench_ends(lc)
     with open(out, "w") as f:
         json.dump({"sent": sent, "heard": heard[0]}, f)
     return 0

@@ -11,11 +11,12 @@ after it would be "out of order" and the plant would hold the forged dipoles.
 from __future__ import annotations
 
 import json
-import os
 import sys
 
 import lcm
 import sc_rt_lcm
+
+from forge_lcm import handle_until_bench_ends
 
 FORGED_D = [29.0, -29.0, 29.0, 0.0, 0.0, 0.0]
 AT = 200
@@ -41,15 +42,7 @@ def main(url: str, out: str) -> int:
             sent += 1
 
     lc.subscribe("SCRT_ROD_CMD", on_rod).set_queue_capacity(100_000)
-    pid = int(os.environ["SCRT_WAIT_PID"])
-    while True:
-        lc.handle_timeout(50)
-        try:
-            with open(f"/proc/{pid}/stat") as f:
-                if f.read().rsplit(")", 1)[1].split()[0] == "Z":
-                    break
-        except OSError:
-            break
+    handle_until_bench_ends(lc)
     with open(out, "w") as f:
         json.dump({"sent": sent, "heard": heard}, f)
     return 0

@@ -18,11 +18,12 @@
 from __future__ import annotations
 
 import json
-import os
 import sys
 
 import lcm
 import sc_rt_lcm
+
+from forge_lcm import handle_until_bench_ends
 
 FORGED_U = [9.0, -7.0, 9.0, -7.0]
 AT = 200
@@ -69,15 +70,7 @@ def main(url: str, mode: str, out: str) -> int:
 
     lc.subscribe("SCRT_STATE", on_state).set_queue_capacity(100_000)
     lc.subscribe("SCRT_CMD", on_cmd).set_queue_capacity(100_000)
-    pid = int(os.environ["SCRT_WAIT_PID"])
-    while True:
-        lc.handle_timeout(50)
-        try:
-            with open(f"/proc/{pid}/stat") as f:
-                if f.read().rsplit(")", 1)[1].split()[0] == "Z":
-                    break
-        except OSError:
-            break
+    handle_until_bench_ends(lc)
     with open(out, "w") as f:
         json.dump({"sent": sent, "heard": heard}, f)
     return 0
