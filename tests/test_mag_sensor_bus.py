@@ -134,6 +134,13 @@ def test_the_intake_holds_the_samples_rotated_to_B_as_the_offline_navigation_doe
         intake.use(session, t)
         assert np.array_equal(intake.field_B, nav.field_B), i
     assert samples == 30 and intake.counts().mag_used == 30
+    # the other sensors' rules: a repeated seq or a non-finite sample is counted and changes nothing
+    held = np.array(intake.field_B)
+    intake.offer_mag(session, seq - 1, 5.95, (1e-5, 2e-5, 3e-5))
+    intake.offer_mag(session, seq, 5.95, (np.nan, 0.0, 0.0))
+    intake.use(session, 5.95)
+    c = intake.counts()
+    assert (c.out_of_order, c.invalid, c.mag_used) == (1, 1, 30) and np.array_equal(intake.field_B, held)
     # a sample of another session is not this session's field; a new session starts without one
     intake.use(session + 1, 6.0)
     assert np.all(np.isnan(intake.field_B))
@@ -175,7 +182,7 @@ def test_day_hold_sensed_in_lockstep_is_bitwise_the_cpp_engine(tmp_path):
     assert np.abs(hil["rod_dipole_cmd"][:, :3]).max() > 1.0
     timing = json.loads((out / "timing.json").read_text())
     n_mag = int(HOLD_S * 5) + 1  # 5 Hz from t = 0 to the last state's tick
-    assert timing["log_missing"].get("SCRT_MAG", 0) == 0
+    assert timing["emulator_counters"]["mag_sent"] == n_mag and not any(timing["log_missing"].values())
     summary = json.loads((out / "controller_summary.json").read_text())
     assert summary["nav"]["mag_used"] == n_mag and summary["magnetic"]["field_missing"] == 0
     # the log's report: the magnetometer among the sensors, every sample there at its rate
@@ -196,6 +203,22 @@ def test_detumble_sensed_in_lockstep_is_bitwise_the_cpp_engine_through_its_mode_
     k = int(np.argmax(mode == 1))
     assert mode[0] == 0 and k > 0 and np.all(mode[k:] == 1), mode
     assert hil["flags"][k] & _core.FLAG_MODE_SWITCH
+
+
+@pytest.mark.lcm
+def test_the_samples_with_authentication_are_still_bitwise(tmp_path):
+    """--auth-key: every magnetometer_t carries its tag, sc-rt-controller verifies it before
+    decoding; nothing fails to verify, every sample applied, the numbers stay."""
+    lcmnet.require()
+    key = tmp_path / "key"
+    key.write_bytes(b"a lab key of our own, 32 bytes!!")
+    path, out = _detumble_sensed(tmp_path), tmp_path / "hil"
+    _hil(path, out, 40.0, "--auth-key", str(key))
+    _same_as_sim(path, out, 40.0)
+    summary = json.loads((out / "controller_summary.json").read_text())
+    assert summary["auth"] and summary["auth_failed"] == 0
+    assert summary["nav"]["mag_used"] == 40 * 10 + 1 and sum(summary["nav"]["rejected"].values()) == 0
+    assert summary["magnetic"]["field_rejected"] == 0 and summary["magnetic"]["field_missing"] == 0
 
 
 @pytest.mark.lcm
