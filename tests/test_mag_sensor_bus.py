@@ -222,6 +222,35 @@ def test_the_samples_with_authentication_are_still_bitwise(tmp_path):
 
 
 @pytest.mark.lcm
+def test_hostile_magnetometer_messages_during_a_lockstep_run_change_nothing(tmp_path):
+    """5,000 malformed, truncated, foreign, replayed and non-finite magnetometer_t (and gyro_t)
+    messages while the sensed day_hold runs in lockstep: sc-rt-controller counts them and
+    applies none, every genuine sample once (the run is bitwise the offline one)."""
+    import shlex
+    import sys
+
+    lcmnet.require()
+    py = shlex.quote(sys.executable)
+    url = "udpm://239.255.76.67:7716?ttl=0&recv_buf_size=4194304"
+    path, out, sent = _day_hold_sensed(tmp_path), tmp_path / "hil", tmp_path / "sent.json"
+    script = f"""
+set -e
+{py} -m sc_rt.cli hil {path} --duration {HOLD_S:g} --no-plots --out {out} --lcm-url '{url}' > {tmp_path}/hil.log 2>&1 &
+HIL=$!
+SCRT_WAIT_PID=$HIL {py} {HERE / 'fuzz_lcm.py'} '{url}' 5000 {sent} 5 SCRT_MAG,SCRT_GYRO
+wait $HIL
+"""
+    r = lcmnet.run_script(script, timeout=600)
+    assert r.returncode == 0, r.stderr + (tmp_path / "hil.log").read_text()
+    assert json.loads(sent.read_text())["n"] == 5000
+    _same_as_sim(path, out, HOLD_S)
+    summary = json.loads((out / "controller_summary.json").read_text())
+    nav, mag = summary["nav"], summary["magnetic"]
+    assert mag["field_rejected"] > 0 and nav["rejected"]["foreign"] > 0, summary
+    assert nav["mag_used"] == int(HOLD_S * 5) + 1 and mag["field_missing"] == 0, summary
+
+
+@pytest.mark.lcm
 def test_a_python_law_in_sc_rt_controller_takes_the_samples_bitwise_as_sim(tmp_path):
     # sc-rt controller (pycontroller.py, maglink.py) feeds its intake the same samples
     lcmnet.require()
