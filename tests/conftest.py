@@ -83,6 +83,12 @@ SLOW_TESTS = (
     "tests/test_mag_bus.py::test_a_short_real_time_day_hold_commands_the_rods",
     "tests/test_mag_bus.py::test_a_controller_that_sends_no_rod_commands_still_runs_the_scenario_with_the_rods_held",
     "tests/test_mag_bus.py::test_a_python_law_in_sc_rt_controller_detumbles_and_switches_bitwise_as_sim",
+    "tests/test_mag_sensor_bus.py::test_day_hold_sensed_in_lockstep_is_bitwise_the_cpp_engine",
+    "tests/test_mag_sensor_bus.py::test_detumble_sensed_in_lockstep_is_bitwise_the_cpp_engine_through_its_mode_switch",
+    "tests/test_mag_sensor_bus.py::test_a_python_law_in_sc_rt_controller_takes_the_samples_bitwise_as_sim",
+    "tests/test_mag_sensor_bus.py::test_the_samples_with_authentication_are_still_bitwise",
+    "tests/test_mag_sensor_bus.py::test_hostile_magnetometer_messages_during_a_lockstep_run_change_nothing",
+    "tests/test_mag_sensor_bus.py::test_a_short_real_time_sensed_day_hold_uses_the_samples",
     # issue 43: a day on the C++ engine, with and without the momentum manager (~13 s each)
     "tests/test_day_hold.py::test_without_the_manager_the_wheels_gather_the_secular_torque_and_saturate",
     "tests/test_day_hold.py::test_with_the_manager_the_wheels_are_unloaded_and_kept_in_the_band",

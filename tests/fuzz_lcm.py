@@ -33,6 +33,7 @@ SENSORS = {  # a [sensors] run's channels, which sc-rt-controller subscribes to
     "SCRT_GYRO": sc_rt_lcm.gyro_t,
     "SCRT_STAR": sc_rt_lcm.star_tracker_t,
     "SCRT_TACH": sc_rt_lcm.tachometer_t,
+    "SCRT_MAG": sc_rt_lcm.magnetometer_t,  # a magnetometer's samples ([sensors.magnetometer])
 }
 START_TIMEOUT_S = 120.0
 OTHER = [sc_rt_lcm.plant_state_t, sc_rt_lcm.wheel_cmd_t, sc_rt_lcm.controller_status_t,
@@ -58,6 +59,8 @@ def valid(cls, rng: random.Random, bad: float | None = None):
         m.session = rng.getrandbits(62)  # never the genuine peer's
     if hasattr(m, "seq"):
         m.seq = rng.randrange(0, 10**6)
+    if cls is sc_rt_lcm.magnetometer_t and rng.random() < 0.5:  # a sample, not the ideal field
+        m.source, m.frame = m.SOURCE_SENSOR, m.FRAME_SENSOR
     if cls is sc_rt_lcm.fault_cmd_t:
         m.wheel = rng.randrange(1, 5)
         m.action = 1

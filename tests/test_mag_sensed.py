@@ -303,19 +303,3 @@ def test_the_table_round_trips_through_the_scenarios_data():
     a, b = scn.sensors.magnetometer, back.sensors.magnetometer
     assert all(np.array_equal(getattr(a, k), getattr(b, k)) for k in a.__dataclass_fields__)
     np.testing.assert_array_equal(simulate(scn, engine="cpp")["B_B"], simulate(back, engine="cpp")["B_B"])
-
-
-@pytest.mark.parametrize("cmd", [["hil", "--mode", "lockstep"], ["emulator"]])
-def test_the_bus_refuses_magnetic_control_with_sensors_in_one_line(tmp_path, capsys, cmd):
-    """The bus carries the true field (magnetometer_t), not the magnetometer's
-    samples yet: a run with [sensors] and magnetic control would not be the
-    offline one, so the bus commands refuse it (exit 2, one line), nothing
-    started or written."""
-    f = tmp_path / "sensed_mag.toml"
-    f.write_text(BASE_MAG + MOMENTUM + _mag(10.0, noise=100.0))
-    assert load_scenario(f).sensors is not None  # offline it is a run
-    out = tmp_path / "out"
-    rc, lines = _run(capsys, [cmd[0], str(f), *cmd[1:], "--out", str(out)])
-    assert rc == 2 and len(lines) == 1, lines
-    assert "[sensors] with [momentum]" in lines[0] and "not yet carried on the bus" in lines[0], lines
-    assert not out.exists()

@@ -102,6 +102,18 @@ def test_lockstep_with_sensors_auth_and_a_hostile_publisher_allocates_nothing(tm
     assert _allocations(s)["count"] == 0, s
 
 
+def test_lockstep_with_the_magnetometers_samples_and_the_rods_allocates_nothing(tmp_path):
+    """Magnetic control fed a magnetometer's samples (SCRT_MAG into the intake, its field
+    held, the manager, rod_cmd_t) beside the MEKF: day_hold with [sensors.magnetometer]
+    (tests/test_mag_sensor_bus.py's file), 600 steps, none after the warm-up allocates."""
+    from test_mag_sensor_bus import _day_hold_sensed
+
+    s = _run(tmp_path, str(_day_hold_sensed(tmp_path)), 7765, duration=60)
+    assert s["steps"] == 601 and s["nav"]["mag_used"] == 301, s
+    assert s["magnetic"]["field_missing"] == 0, s
+    assert _allocations(s)["count"] == 0, s
+
+
 @pytest.mark.parametrize("trigger, port", [("timer", 7763), ("event", 7764)])
 def test_realtime_steps_and_the_receive_thread_allocate_nothing(tmp_path, trigger, port):
     """Real time, both triggers: with the timer, the receive thread fills the

@@ -87,6 +87,8 @@ EXPECTED_MSG = {
     "mag_on_fraction": 0.0, "mag_off_fraction": 0.0, "mag_capacity": 0.0, "mag_null_gain": 0.0,
     "mag_null_bias": 0.0, "bdot_enabled": False, "bdot_gain": 0.0, "bdot_normalized": False,
     "bdot_derivative": 0, "bdot_filter_tau": 0.0, "bdot_rate_on": 0.0, "bdot_rate_off": 0.0,
+    # no magnetometer (no [sensors]): off and zero
+    "nav_mag_enabled": False, "nav_mag_R_SB": [[0.0] * 3] * 3,
 }
 
 

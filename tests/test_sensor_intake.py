@@ -61,8 +61,8 @@ def _samples(scn, seconds=20.0):
 
 def _intake(scn):
     raw = scn.controller_config_msg().encode()
-    enabled, use_est, mekf, sigma0 = _core.nav_from_config_bytes(raw)
-    assert enabled
+    enabled, use_est, mekf, sigma0, mag_R_SB = _core.nav_from_config_bytes(raw)
+    assert enabled and mag_R_SB is None  # no [sensors.magnetometer]
     return _core.SensorIntake(mekf, use_est, sigma0)
 
 
@@ -77,7 +77,7 @@ def _truth(x, t):
 
 def test_config_carries_the_filter_and_the_offline_initial_estimate(scn):
     raw = scn.controller_config_msg().encode()
-    enabled, use_est, mekf, sigma0 = _core.nav_from_config_bytes(raw)
+    enabled, use_est, mekf, sigma0, _mag = _core.nav_from_config_bytes(raw)
     ref = nav_config(scn.sensors, scn.run.plant_step)
     assert enabled and use_est == ref.use_estimate
     for k in ("arw", "rrw", "bias_sigma", "bias_tau", "quantization", "sigma_cross", "sigma_boresight",

@@ -45,6 +45,8 @@ void Shell::configure(const sc_rt::ControllerConfig& cfg, const sc_rt::NavSetup&
   ctl_->prepare();
   // [sensors]: the estimator runs here on the emulator's sensor messages (sensor_intake.hpp)
   if (nav.enabled) intake_ = std::make_unique<sc_rt::SensorIntake>(nav.mekf, nav.use_estimate, nav.sigma0);
+  // [sensors.magnetometer]: the magnetic part's field from its samples (SCRT_MAG, handle_mag)
+  if (nav.enabled && nav.mag_enabled) intake_->mount_magnetometer(nav.mag_R_SB);
   mag_ = cfg.magnetic.active();
   n_rods_ = mag_ ? static_cast<int>(cfg.magnetic.rods.G_B.cols()) : 0;
   period_ns_ = int64_t(std::llround(1e9 / cfg.control_rate_hz));
@@ -105,13 +107,20 @@ void Shell::handle_mag(const lcm::ReceiveBuffer* rb) {
   }
   sc_rt_lcm::magnetometer_t msg;
   const int n = msg.decode(rb->data, 0, size);
+  const bool sensed = intake_ && intake_->magnetometer_mounted();
   sc_rt::Vec3 B;
-  if (n < 0 || n != size || !sc_rt::field_from_lcm(msg, B)) {
+  sc_rt::MagSample sample;
+  // with a magnetometer, its samples (into the intake, as the other sensors'); else the ideal field
+  if (n < 0 || n != size || !(sensed ? sc_rt::mag_sample_from_lcm(msg, sample) : sc_rt::field_from_lcm(msg, B))) {
     ++mag_rejected_;
     return;
   }
   ++mag_received_;
   std::lock_guard<PiMutex> lock(mu_);
+  if (sensed) {
+    intake_->offer_mag(msg.session, msg.seq, sample);
+    return;
+  }
   mag_msg_ = msg;
   have_mag_ = true;
 }
@@ -120,8 +129,11 @@ sc_rt::Vec3 Shell::field_for(const sc_rt_lcm::plant_state_t& st) {
   sc_rt::Vec3 B = sc_rt::Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
   {
     std::lock_guard<PiMutex> lock(mu_);
-    // the field at the state's instant, from its plant (published just before the state)
-    if (have_mag_ && mag_msg_.session == st.session && mag_msg_.t == st.t) sc_rt::field_from_lcm(mag_msg_, B);
+    // with a magnetometer: its latest sample up to the state's time, rotated to B (the
+    // offline loop's Navigation::field_B; the intake applied the samples up to st.t)
+    if (intake_ && intake_->magnetometer_mounted() && intake_->session() == st.session) B = intake_->field_B();
+    // else the field at the state's instant, from its plant (published just before the state)
+    else if (have_mag_ && mag_msg_.session == st.session && mag_msg_.t == st.t) sc_rt::field_from_lcm(mag_msg_, B);
   }
   if (B.allFinite())
     ++mag_used_;
@@ -395,11 +407,11 @@ std::string Shell::summary_json(const std::string& scheduler) const {
     char nb[512];
     std::snprintf(nb, sizeof nb,
                   ", \"nav\": {\"measurement\": \"%s\", \"gyro_used\": %lld, \"star_used\": %lld, "
-                  "\"tach_used\": %lld, \"star_dropped\": %ld, \"rejected\": {\"malformed\": %lld, "
+                  "\"tach_used\": %lld, \"mag_used\": %lld, \"star_dropped\": %ld, \"rejected\": {\"malformed\": %lld, "
                   "\"invalid\": %lld, \"out_of_order\": %lld, \"too_old\": %lld, \"foreign\": %lld, "
                   "\"before_fix\": %lld}}",
                   intake_->use_estimate() ? "estimate" : "truth", (long long)c.used[0], (long long)c.used[1],
-                  (long long)c.used[2], intake_->estimator().dropped(), (long long)c.malformed,
+                  (long long)c.used[2], (long long)c.used[3], intake_->estimator().dropped(), (long long)c.malformed,
                   (long long)c.invalid, (long long)c.out_of_order, (long long)c.too_old, (long long)c.foreign,
                   (long long)c.before_fix);
     js += nb;

@@ -124,6 +124,8 @@ void bind_shell(py::module_& m) {
       .def_property_readonly("used", [](const SensorCounts& c) {
         return py::make_tuple(c.used[0], c.used[1], c.used[2]);
       }, "(gyro, star tracker, tachometer) samples applied")
+      .def_property_readonly("mag_used", [](const SensorCounts& c) { return c.used[3]; },
+                             "magnetometer samples applied")
       .def_readonly("malformed", &SensorCounts::malformed)
       .def_readonly("invalid", &SensorCounts::invalid)
       .def_readonly("out_of_order", &SensorCounts::out_of_order)
@@ -144,6 +146,14 @@ void bind_shell(py::module_& m) {
       .def("offer_tach", [](SensorIntake& s, int64_t session, int64_t seq, double t, const Vec4& w) {
              s.offer_tach(session, seq, TachSample{t, w});
            }, arg("session"), arg("seq"), arg("t"), arg("wheel_speed"))
+      .def("offer_mag", [](SensorIntake& s, int64_t session, int64_t seq, double t, const Vec3& B_S) {
+             s.offer_mag(session, seq, MagSample{t, B_S});
+           }, arg("session"), arg("seq"), arg("t"), arg("B_S"), "A magnetometer's sample B_S [T] (sensor frame).")
+      .def("mount_magnetometer", &SensorIntake::mount_magnetometer, arg("R_SB"),
+           "The magnetometer's known mounting R_SB [-] (body to sensor): its samples are used from now on.")
+      .def_property_readonly("magnetometer_mounted", &SensorIntake::magnetometer_mounted)
+      .def_property_readonly("field_B", &SensorIntake::field_B,
+                             "[T] the latest magnetometer sample rotated to B (NaN: none yet)")
       .def("malformed", &SensorIntake::malformed)
       .def("use", &SensorIntake::use, arg("session"), arg("t"))
       .def_property_readonly("ready", &SensorIntake::ready)
@@ -162,7 +172,9 @@ void bind_shell(py::module_& m) {
   m.def("nav_from_config_bytes", [](py::bytes data) {
         const std::string b = data;
         const NavSetup n = nav_from_bytes(b.data(), int(b.size()));
-        return py::make_tuple(n.enabled, n.use_estimate, n.mekf, n.sigma0);
+        return py::make_tuple(n.enabled, n.use_estimate, n.mekf, n.sigma0,
+                              n.mag_enabled ? py::object(py::cast(n.mag_R_SB)) : py::object(py::none()));
       }, arg("data"),
-      "(enabled, use_estimate, MekfParams, sigma0) of an encoded controller_config_t, as the controller reads it.");
+      "(enabled, use_estimate, MekfParams, sigma0, mag_R_SB) of an encoded controller_config_t, as the controller "
+      "reads it (mag_R_SB: the magnetometer's mounting [-], None: no magnetometer samples).");
 }

@@ -14,7 +14,7 @@ void SensorIntake::offer_gyro(int64_t session, int64_t seq, const GyroSample& g)
     ++c_.invalid;
     return;
   }
-  offer(Item{SensorKind::Gyro, session, seq, g, {}, {}});
+  offer(Item{SensorKind::Gyro, session, seq, g, {}, {}, {}});
 }
 
 void SensorIntake::offer_star(int64_t session, int64_t seq, const StarSample& s) {
@@ -23,7 +23,7 @@ void SensorIntake::offer_star(int64_t session, int64_t seq, const StarSample& s)
     ++c_.invalid;
     return;
   }
-  offer(Item{SensorKind::Star, session, seq, {}, s, {}});
+  offer(Item{SensorKind::Star, session, seq, {}, s, {}, {}});
 }
 
 void SensorIntake::offer_tach(int64_t session, int64_t seq, const TachSample& s) {
@@ -31,7 +31,15 @@ void SensorIntake::offer_tach(int64_t session, int64_t seq, const TachSample& s)
     ++c_.invalid;
     return;
   }
-  offer(Item{SensorKind::Tach, session, seq, {}, {}, s});
+  offer(Item{SensorKind::Tach, session, seq, {}, {}, s, {}});
+}
+
+void SensorIntake::offer_mag(int64_t session, int64_t seq, const MagSample& s) {
+  if (!mag_mounted_ || !std::isfinite(s.t) || !s.B_S.allFinite()) {
+    ++c_.invalid;
+    return;
+  }
+  offer(Item{SensorKind::Mag, session, seq, {}, {}, {}, s});
 }
 
 double SensorIntake::time_of(const Item& it) {
@@ -39,6 +47,7 @@ double SensorIntake::time_of(const Item& it) {
     case SensorKind::Gyro: return it.g.t;
     case SensorKind::Star: return it.s.t_delivery;
     case SensorKind::Tach: return it.c.t;
+    case SensorKind::Mag: return it.b.t;
   }
   return 0.0;
 }
@@ -68,6 +77,7 @@ void SensorIntake::use(int64_t session, double t) {
     started_ = ready_ = false;  // not ready until its first sample (seq 0: the run's start)
     for (int64_t& s : last_seq_) s = -1;
     est_.reset(sigma0_);
+    field_B_ = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // none of this session's yet
   }
   horizon_ = t;
   // the waiting samples in order: this session's up to t applied, others' dropped,
@@ -91,6 +101,13 @@ void SensorIntake::apply(const Item& it) {
   const int k = static_cast<int>(it.kind);
   if (it.seq <= last_seq_[k]) {
     ++c_.out_of_order;
+    return;
+  }
+  if (it.kind == SensorKind::Mag) {  // the field: no filter in it, a late joiner's too
+    // Navigation::tick's B_B = R_SB' B_S (sensors.hpp magnetometer_field_B): the same numbers
+    field_B_ = magnetometer_field_B(R_SB_, it.b.B_S);
+    last_seq_[k] = it.seq;
+    ++c_.used[k];
     return;
   }
   if (!started_) {  // the session's first sample: the run's start, or a late join
@@ -118,6 +135,7 @@ void SensorIntake::apply(const Item& it) {
     case SensorKind::Gyro: ok = est_.gyro(it.g); break;
     case SensorKind::Star: ok = est_.star(it.s); break;
     case SensorKind::Tach: est_.tach(it.c); break;
+    case SensorKind::Mag: break;  // applied above
   }
   last_seq_[k] = it.seq;
   if (ok) {

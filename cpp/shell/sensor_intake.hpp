@@ -1,6 +1,9 @@
 // The controller's sensor intake (docs/PROTOCOL.md, "Sensors"): the sensor
 // messages of the plant emulator (gyro_t, star_tracker_t, tachometer_t)
-// into the core's Estimator, with the shell's policy: which session's
+// into the core's Estimator, and a magnetometer's samples (magnetometer_t)
+// into the field the magnetic part uses (field_B: the offline loop's
+// Navigation::field_B, the latest sample rotated to B with the known
+// mounting, held until the next; docs/MODEL.md section 17), with the shell's policy: which session's
 // samples are used, what is rejected, when the estimate is ready. Policy
 // only: no I/O, no clock, no LCM (the shell decodes; the core estimates).
 //
@@ -23,6 +26,7 @@
 // the filter there (ready() false until then; the shell commands SAFE).
 #pragma once
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "sc_rt/mekf.hpp"
@@ -66,10 +70,10 @@ class FixedFifo {
   std::size_t head_ = 0, n_ = 0;
 };
 
-enum class SensorKind { Gyro = 0, Star = 1, Tach = 2 };
+enum class SensorKind { Gyro = 0, Star = 1, Tach = 2, Mag = 3 };
 
 struct SensorCounts {
-  int64_t used[3] = {0, 0, 0};  //!< applied, per SensorKind
+  int64_t used[4] = {0, 0, 0, 0};  //!< applied, per SensorKind
   int64_t malformed = 0;        //!< did not decode, trailing bytes, tag did not verify
   int64_t invalid = 0;          //!< non-finite values, |sigma| > 1, exposure after delivery, an unknown gyro output kind
   int64_t out_of_order = 0;     //!< seq not after the previous one of its kind (duplicates too)
@@ -86,6 +90,18 @@ class SensorIntake {
   void offer_gyro(int64_t session, int64_t seq, const GyroSample& g);
   void offer_star(int64_t session, int64_t seq, const StarSample& s);
   void offer_tach(int64_t session, int64_t seq, const TachSample& s);
+  // A magnetometer's sample (sensor frame); only after mount_magnetometer.
+  void offer_mag(int64_t session, int64_t seq, const MagSample& s);
+  // The magnetometer's known mounting R_SB [-] (body to sensor): its samples
+  // are used from now on (NavSetup::mag_enabled).
+  void mount_magnetometer(const Mat3& R_SB) {
+    R_SB_ = R_SB;
+    mag_mounted_ = true;
+  }
+  bool magnetometer_mounted() const { return mag_mounted_; }
+  //! [T] the field in B from the followed session's latest magnetometer
+  //! sample applied (magnetometer_field_B), NaN before the first
+  const Vec3& field_B() const { return field_B_; }
   void malformed() { ++c_.malformed; }
   // A state of `session` at time t is used now: follow that session (a new
   // one restarts the estimator) and apply its waiting samples up to t.
@@ -109,6 +125,7 @@ class SensorIntake {
     GyroSample g;
     StarSample s;
     TachSample c;
+    MagSample b;
   };
   void offer(const Item& it);
   void apply(const Item& it);
@@ -117,7 +134,10 @@ class SensorIntake {
   Vec3 sigma0_;
   bool following_ = false, started_ = false, ready_ = false;
   int64_t session_ = -1;
-  int64_t last_seq_[3] = {-1, -1, -1};
+  int64_t last_seq_[4] = {-1, -1, -1, -1};
+  Mat3 R_SB_ = Mat3::Identity();  // [-] the magnetometer's mounting, body to sensor
+  bool mag_mounted_ = false;
+  Vec3 field_B_ = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // [T]
   double horizon_ = -1.0;      // the time of the newest state used
   FixedFifo<Item> queue_;      // samples not yet applied, in arrival order
   SensorCounts c_;

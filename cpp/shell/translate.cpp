@@ -316,6 +316,14 @@ NavSetup nav_from_lcm(const sc_rt_lcm::controller_config_t& m) {
   k.initial_scale_factor_sigma = m.nav_initial_scale_factor_sigma;
   k.initial_misalignment_sigma = m.nav_initial_misalignment_sigma;
   n.sigma0 = vec(m.nav_sigma0);
+  n.mag_enabled = n.enabled && m.nav_mag_enabled;
+  if (n.mag_enabled) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) n.mag_R_SB(r, c) = m.nav_mag_R_SB[r][c];
+    // the mounting is a rotation: R R' = I (to rounding of the scenario's MRP)
+    if (!n.mag_R_SB.allFinite() || (n.mag_R_SB * n.mag_R_SB.transpose() - Mat3::Identity()).cwiseAbs().maxCoeff() > 1e-9)
+      throw std::invalid_argument("controller_config_t: nav_mag_R_SB is not a rotation matrix");
+  }
   const double nonneg[] = {k.arw, k.rrw, k.bias_sigma, k.quantization, k.sigma_cross, k.sigma_boresight,
                            k.initial_attitude_sigma, k.initial_bias_sigma, k.degraded_after,
                            k.initial_scale_factor_sigma, k.initial_misalignment_sigma};
@@ -344,6 +352,15 @@ bool field_from_lcm(const sc_rt_lcm::magnetometer_t& msg, Vec3& B_B) {
   const Vec3 B = vec(msg.B);
   if (!B.allFinite()) return false;
   B_B = B;
+  return true;
+}
+
+bool mag_sample_from_lcm(const sc_rt_lcm::magnetometer_t& msg, MagSample& s) {
+  if (msg.source != sc_rt_lcm::magnetometer_t::SOURCE_SENSOR || msg.frame != sc_rt_lcm::magnetometer_t::FRAME_SENSOR)
+    return false;  // the ideal field: the ideal magnetometer's (field_from_lcm)
+  const Vec3 B = vec(msg.B);
+  if (!std::isfinite(msg.t) || !B.allFinite()) return false;
+  s = MagSample{msg.t, B};
   return true;
 }
 

@@ -41,6 +41,9 @@ void fill_rod_cmd(const Command& c, int n_rods, sc_rt_lcm::rod_cmd_t& msg);
 // SOURCE_TRUE_FIELD, frame FRAME_BODY) into B_B; false (B_B untouched) for a
 // sensor's sample or a non-finite field.
 bool field_from_lcm(const sc_rt_lcm::magnetometer_t& msg, Vec3& B_B);
+// A magnetometer's sample (source SOURCE_SENSOR, frame FRAME_SENSOR) into s;
+// false (s untouched) for anything else or a non-finite sample.
+bool mag_sample_from_lcm(const sc_rt_lcm::magnetometer_t& msg, MagSample& s);
 // law: the controller's law code (Controller::law_code()).
 // n_telemetry: how many named values the law declared (Controller::telemetry_names)
 void fill_status(const Command& c, int law, int n_telemetry, sc_rt_lcm::controller_status_t& msg);
@@ -52,6 +55,8 @@ struct NavSetup {
   bool use_estimate = false;
   MekfParams mekf;
   Vec3 sigma0 = Vec3::Zero();  //!< the initial attitude estimate
+  bool mag_enabled = false;    //!< the magnetometer's samples feed the magnetic part (nav_mag_enabled)
+  Mat3 mag_R_SB = Mat3::Identity();  //!< [-] its known mounting, body to sensor (nav_mag_R_SB)
 };
 NavSetup nav_from_lcm(const sc_rt_lcm::controller_config_t& msg);
 NavSetup nav_from_bytes(const void* data, int size);

@@ -2223,6 +2223,11 @@ class SensorCounts:
     def invalid(self) -> int:
         ...
     @property
+    def mag_used(self) -> int:
+        """
+        magnetometer samples applied
+        """
+    @property
     def malformed(self) -> int:
         ...
     @property
@@ -2253,8 +2258,16 @@ class SensorIntake:
         """
         (Measurement, telemetry (NAV_SIZE,)) as the controller uses them.
         """
+    def mount_magnetometer(self, R_SB: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 3]"]) -> None:
+        """
+        The magnetometer's known mounting R_SB [-] (body to sensor): its samples are used from now on.
+        """
     def offer_gyro(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex, omega: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"], output: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
         ...
+    def offer_mag(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex, B_S: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
+        """
+        A magnetometer's sample B_S [T] (sensor frame).
+        """
     def offer_star(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t_exposure: typing.SupportsFloat | typing.SupportsIndex, t_delivery: typing.SupportsFloat | typing.SupportsIndex, sigma_BN: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[3, 1]"]) -> None:
         ...
     def offer_tach(self, session: typing.SupportsInt | typing.SupportsIndex, seq: typing.SupportsInt | typing.SupportsIndex, t: typing.SupportsFloat | typing.SupportsIndex, wheel_speed: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[4, 1]"]) -> None:
@@ -2263,6 +2276,14 @@ class SensorIntake:
         ...
     @property
     def estimator(self) -> Estimator:
+        ...
+    @property
+    def field_B(self) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
+        """
+        [T] the latest magnetometer sample rotated to B (NaN: none yet)
+        """
+    @property
+    def magnetometer_mounted(self) -> bool:
         ...
     @property
     def queued(self) -> int:
@@ -3134,9 +3155,9 @@ def mrp_to_dcm(sigma: typing.Annotated[numpy.typing.ArrayLike, numpy.float64, "[
     """
     Direction cosine matrix R(sigma) (10): maps N components to B for sigma_BN.
     """
-def nav_from_config_bytes(data: bytes) -> tuple[bool, bool, MekfParams, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]]:
+def nav_from_config_bytes(data: bytes) -> tuple[bool, bool, MekfParams, typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"], typing.Any]:
     """
-    (enabled, use_estimate, MekfParams, sigma0) of an encoded controller_config_t, as the controller reads it.
+    (enabled, use_estimate, MekfParams, sigma0, mag_R_SB) of an encoded controller_config_t, as the controller reads it (mag_R_SB: the magnetometer's mounting [-], None: no magnetometer samples).
     """
 def neso_condition_26(p: NesoParams) -> typing.Annotated[numpy.typing.NDArray[numpy.float64], "[3, 1]"]:
     """

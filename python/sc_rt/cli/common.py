@@ -14,22 +14,6 @@ from sc_rt.scenario.model import LAWS  # noqa: E402
 LAW_CHOICES = tuple(LAWS)  # the law table (sc_rt.scenario.model)
 
 
-def refuse_sensed_magnetic(scn, command: str) -> None:
-    """The bus commands (``sc-rt hil``, ``emulator``, ``controller``) refuse
-    magnetic control with ``[sensors]``: the emulator publishes the true
-    field (``magnetometer_t``), not the magnetometer's samples yet, so such a
-    run would not be the offline one (UsageError: exit 2, one line; docs/HIL.md,
-    "Magnetic control on the bus")."""
-    mc = getattr(scn, "magnetic_control", None)
-    if getattr(scn, "sensors", None) is None or mc is None:
-        return
-    for name in ("momentum", "bdot"):
-        if getattr(mc, name) is not None:
-            raise UsageError(f"{scn.path}: [sensors] with [{name}]: the magnetometer's samples are not yet carried "
-                             f"on the bus ({command} runs magnetic control without [sensors]; run this one "
-                             "offline with sc-rt sim)")
-
-
 def scenario_arg(path: str, args: argparse.Namespace | None = None, strays: bool = True, probe: bool = True):
     """The scenario a command names; its deprecation notes on stderr, one
     line each. A ``[laws.NAME]`` table that matches no law (a built-in, the

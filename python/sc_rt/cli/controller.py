@@ -13,7 +13,7 @@ import sys
 
 from sc_rt.cli.validate import (AUTH_KEY_HELP, MAX_RATE_HZ, UsageError, auth_key_file, integer, law_choice, lcm_url,
                                 number, resolve_url)
-from sc_rt.cli.common import add_set, refuse_sensed_magnetic
+from sc_rt.cli.common import add_set
 from sc_rt.pylaw import is_python_law
 
 __all__ = ["add_parser", "add_external_options", "external_choice", "cmd_controller"]
@@ -117,7 +117,6 @@ def cmd_controller(args: argparse.Namespace) -> int:
             msg = scn.controller_config_msg(law=spec)
         except ValueError as e:
             raise UsageError(str(e)) from e
-        refuse_sensed_magnetic(scn, "sc-rt controller")
         cfg, nav = _core.ControllerConfig.from_lcm_bytes(msg.encode()), _core.nav_from_config_bytes(msg.encode())
     try:
         proc = PyControllerProcess(cfg, url=resolve_url(args.lcm_url, DEFAULT_URL),

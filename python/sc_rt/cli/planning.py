@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from sc_rt.cli.common import checked_out, refuse_sensed_magnetic, scenario_arg
+from sc_rt.cli.common import checked_out, scenario_arg
 from sc_rt.cli.controller import external_choice
 from sc_rt.cli.validate import UsageError, resolve_url
 from sc_rt.plan.law import ExternalLaw, PythonLaw
@@ -69,9 +69,7 @@ def _scenario(args: argparse.Namespace):
     """The command's scenario, read (with --set); the file's own law probed
     here only when --law replaces it (a file naming a broken law is refused
     all the same), else by the plan."""
-    scn = scenario_arg(args.scenario, args, strays=False, probe=args.law is not None)
-    refuse_sensed_magnetic(scn, "sc-rt hil")
-    return scn
+    return scenario_arg(args.scenario, args, strays=False, probe=args.law is not None)
 
 
 def _noted(plan: RunPlan) -> RunPlan:

@@ -12,7 +12,7 @@ from sc_rt.cli.interrupts import flag_signals
 from sc_rt.cli.validate import UsageError, check_run_size, given_options, resolve_url, rounded
 from sc_rt.cli.planning import hil_plan, rerun_plan, sim_plan
 from sc_rt.cli.common import (checked_out, claim_out, html_report, invalid_exit, mcap_problem,
-                              print_metrics, refuse_sensed_magnetic, report_stopped, scenario_arg, strict_exit,
+                              print_metrics, report_stopped, scenario_arg, strict_exit,
                               write_mcap)
 from sc_rt.results.judge.gate import gate_problems
 
@@ -183,7 +183,6 @@ def cmd_emulator(args: argparse.Namespace) -> int:
     if args.out:
         checked_out(args.out)
     scn = with_overrides(scenario_arg(args.scenario, args), control_rate_hz=args.rate, duration=args.duration)
-    refuse_sensed_magnetic(scn, "sc-rt emulator")
     check_run_size(scn, given_options(args, rate="--rate", duration="--duration", time_scale="--time-scale"),
                    bus=True, realtime=args.mode == "realtime", time_scale=args.time_scale,
                    out=Path(args.out) if args.out else None)

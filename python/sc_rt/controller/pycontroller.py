@@ -120,7 +120,7 @@ class PyControllerProcess:
                  auth_key: bytes | None = None, nav: tuple | None = None, trigger: str = "event",
                  realtime_priority: bool = False, cpu: int | None = None):
         """``config``: a ControllerConfig whose law is registered (sc_rt.pylaw.register);
-        ``nav``: (enabled, use_estimate, MekfParams, sigma0) of _core.nav_from_config_bytes;
+        ``nav``: (enabled, use_estimate, MekfParams, sigma0, mag_R_SB) of _core.nav_from_config_bytes;
         ``trigger``: real time, "event" (a step on each state's arrival) or
         "timer" (its own phase-locked deadlines); ``realtime_priority``,
         ``cpu``: the stepping thread's scheduling (``setup_scheduler``)."""
@@ -135,6 +135,8 @@ class PyControllerProcess:
         self.config = config
         self.intake = (_core.SensorIntake(nav[2], bool(nav[1]), nav[3]) if nav is not None and nav[0]
                        else None)
+        if self.intake is not None and len(nav) > 4 and nav[4] is not None:
+            self.intake.mount_magnetometer(nav[4])  # [sensors.magnetometer]: its samples give the field
         self._nav_tel = None
         self.realtime = mode == "realtime"
         # a step per state on its arrival: lockstep, and real time with the event trigger
@@ -166,7 +168,8 @@ class PyControllerProcess:
         self._ch_info = channel("SCRT_CTRL_INFO", prefix)
         self.lc.subscribe(channel("SCRT_STATE", prefix), self._on_state).set_queue_capacity(100_000)
         #: magnetic control: the field in, the rods' commands out (controller/maglink.py)
-        self.mag = MagLink(config.magnetic.rods.G_B.shape[1], self.cnt) if config.magnetic.active() else None
+        self.mag = (MagLink(config.magnetic.rods.G_B.shape[1], self.cnt, self.intake)
+                    if config.magnetic.active() else None)
         self._ch_rod = channel("SCRT_ROD_CMD", prefix)
         if self.mag is not None:
             self.lc.subscribe(channel("SCRT_MAG", prefix), self.mag.on_mag).set_queue_capacity(100_000)

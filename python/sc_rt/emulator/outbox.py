@@ -11,32 +11,21 @@ from __future__ import annotations
 
 import math
 import select
-import struct
 import time
 from typing import Any, Callable
 
 import numpy as np
-import sc_rt_lcm
 
 from sc_rt.emulator.inbox import Inbox
 from sc_rt.emulator.peers import GuidancePublisher
-from sc_rt.emulator.sensorpub import SensorPublisher
+from sc_rt.emulator.sensorpub import SensorPublisher, mag_bytes
 from sc_rt.emulator.twin import PlantTwin, state_bytes, truth_bytes
 from sc_rt.wire.lcmio import channel
 from sc_rt.results.record.store import RowRing
 
 __all__ = ["Publisher", "mag_bytes"]
 
-# magnetometer_t: utime, seq, session, tick, t, B[3], source, frame
-_MAG_FP = sc_rt_lcm.magnetometer_t._get_packed_fingerprint()
-_MAG_LAYOUT = struct.Struct(">qqqqd3dbb")
-assert _MAG_LAYOUT.size + 8 == len(sc_rt_lcm.magnetometer_t().encode())
 _NAN3 = (math.nan, math.nan, math.nan)
-
-
-def mag_bytes(utime: int, seq: int, session: int, tick: int, t: float, B, source: int = 0, frame: int = 0) -> bytes:
-    """magnetometer_t: the field B [T] (source 0, frame 0: the true field in B)."""
-    return _MAG_FP + _MAG_LAYOUT.pack(utime, seq, session, tick, t, *B, source, frame)
 
 
 class Publisher:

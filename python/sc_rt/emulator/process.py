@@ -148,7 +148,9 @@ class Emulator:
         self.publisher = Publisher(self.lc, opts.prefix, self.session, guidance, self.inbox, self.twin,
                                    self.sensors, self.ring)
         self.guidance = guidance
-        if self.rods.n_rods:
+        if self.sensors is not None:  # [sensors.magnetometer]: its samples of the true field
+            self.sensors.field = self.twin.field_B
+        elif self.rods.n_rods:  # no sensors: the ideal magnetometer's true field before each state
             self.publisher.field, self.publisher.n_sub = self.twin.field_B, grid(scn)[1]
         if opts.log_paced and self.mode == "lockstep":  # never ahead of the logger (emulator/logpace.py)
             self.publisher.pace = LogPace(self.lc, opts.prefix, self.shared.counters)
@@ -458,7 +460,7 @@ class Emulator:
         run, self._breakdown = self.record.close(rows, self._meta(), self.mode)
         if self.sensors is not None:
             self.shared.counters.update(self.sensors.counters())
-        if self.rods.n_rods:
+        if self.publisher.field is not None:  # the ideal magnetometer's (with sensors: the samples' count above)
             self.shared.counters["mag_sent"] = self.publisher.mag_sent
         run.counters = dict(self.shared.counters)
         run.gaps = list(self._gaps)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import sc_rt_lcm
 
 from sc_rt.logs.logread import LogData
 from sc_rt.wire.codec import STATUS_FROM_COMMANDS, STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
@@ -221,17 +222,21 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
 
 #: sensor channel -> (summary name, time field)
 _SENSORS = {"SCRT_GYRO": ("gyro", "t"), "SCRT_STAR": ("star_tracker", "t_delivery"),
-            "SCRT_TACH": ("tachometer", "t")}
+            "SCRT_TACH": ("tachometer", "t"), "SCRT_MAG": ("magnetometer", "t")}
 
 
 def sensor_summary(d: LogData) -> dict[str, Any]:
     """What the log holds of each sensor channel (a [sensors] run; {} without):
     samples of the main session, the seqs missing between its first and last
     (lost on the way to the logger), the sample rate in simulation time, and
-    for the star tracker the latency and the emulator's own drop counters."""
+    for the star tracker the latency and the emulator's own drop counters.
+    SCRT_MAG: the magnetometer's samples only (source SOURCE_SENSOR; the ideal
+    magnetometer's true field, one per state, is not a sensor's)."""
     out: dict[str, Any] = {}
     for base, (name, tf) in _SENSORS.items():
         R = d.records.get(base)
+        if R is not None and base == "SCRT_MAG":
+            R = R[R["source"] == sc_rt_lcm.magnetometer_t.SOURCE_SENSOR]
         if R is None or R.size == 0:
             continue
         v, c = np.unique(R["session"], return_counts=True)

@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import sc_rt_lcm
 
 from sc_rt.wire.lcmio import lcm_binary
 from sc_rt.logs.logread import LogData, read_log
@@ -69,10 +70,11 @@ def _timing(run: Run, r: Rebuilt, d: LogData, wall: float) -> dict[str, Any]:
     if d.start is not None:  # the run's own record: how it was triggered
         out["trigger"] = d.start.get("trigger")
         out["mode"] = d.start.get("mode", out["mode"])
-    # with magnetic control (its field in the log) a field per row too, as sc-rt hil counts it
+    # with magnetic control (its ideal field in the log) a field per row too, as sc-rt hil counts it;
+    # a magnetometer's samples are counted as the other sensors' (sensor_summary's seq_missing)
     mag = d.records.get("SCRT_MAG")
-    out["log_missing"] = log_missing(d.path, d.prefix, len(run),
-                                     {"SCRT_MAG": len(run)} if mag is not None and mag.size else None)
+    ideal = mag is not None and bool(np.any(mag["source"] == sc_rt_lcm.magnetometer_t.SOURCE_TRUE_FIELD))
+    out["log_missing"] = log_missing(d.path, d.prefix, len(run), {"SCRT_MAG": len(run)} if ideal else None)
     out["controller_rejected_total"] = ls.get("rejected")
     out["state_to_cmd_latency_source"] = "lcm-logger receive times"
     if out.get("mode") == "realtime":

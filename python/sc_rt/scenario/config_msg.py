@@ -143,6 +143,10 @@ def fill_nav(scn: Any, m: controller_config_t) -> None:
     sigma0 = _core.initial_estimate(nav.sensors.seed, k.initial_attitude_sigma,
                                     np.asarray(scn.initial.sigma_BN, float))
     m.nav_sigma0 = [float(v) for v in sigma0]
+    # [sensors.magnetometer]: the controller rotates its samples to B with the known mounting
+    mag = nav.sensors.magnetometer
+    m.nav_mag_enabled = bool(mag.enabled)
+    m.nav_mag_R_SB = [[float(v) for v in row] for row in np.asarray(mag.R_SB if mag.enabled else np.eye(3))]
 
 
 def core_config(

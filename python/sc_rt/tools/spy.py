@@ -279,7 +279,8 @@ class Spy:
                 lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  wheel speed "
                              f"{vec(m['wheel_speed'], '{:+.2f}')} rad/s")
             elif tn == "magnetometer_t":
-                lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  B {vec([b * 1e6 for b in m['B']])} uT")
+                frame = " (sensor frame)" if m["frame"] == 1 else ""  # magnetometer_t FRAME_SENSOR
+                lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  B {vec([b * 1e6 for b in m['B']])} uT{frame}")
             elif tn == "rod_cmd_t":
                 lines.append(f"{name}: t {m['t']:.3f} s  seq {m['seq']}  state {m['state_seq']}  dipole "
                              f"{vec(m['dipole'], '{:+.2f}')} A m^2")

@@ -10,6 +10,9 @@ so that a log written before a layout changed still reads (docs/LOGS.md).
 - ``controller_config_v2_t`` (before the magnetic control went on the
   bus, issue 43): no ``mag_*``, ``bdot_*``; ``upgrade`` copies every
   field and leaves magnetic control off (the controller then had none).
+- ``controller_config_v3_t`` (before the magnetometer's samples went on the
+  bus, issue 43): no ``nav_mag_*``; ``upgrade`` copies every field and
+  leaves the magnetometer off (the controller then took the true field).
 - ``controller_status_v1_t`` (before the law's telemetry went on the bus,
   issue #26): no ``x2d``, ``rho_hat``, ``n_telemetry``, ``telemetry``.
   ``decode_current`` reads such messages with the current ones, those
@@ -36,6 +39,7 @@ __all__ = ["LEGACY", "upgrade", "decode_current"]
 #: the old layout's class -> the current one it becomes
 LEGACY = {sc_rt_lcm.controller_config_v1_t: sc_rt_lcm.controller_config_t,
           sc_rt_lcm.controller_config_v2_t: sc_rt_lcm.controller_config_t,
+          sc_rt_lcm.controller_config_v3_t: sc_rt_lcm.controller_config_t,
           sc_rt_lcm.controller_status_v1_t: sc_rt_lcm.controller_status_t,
           sc_rt_lcm.controller_status_v2_t: sc_rt_lcm.controller_status_t,
           sc_rt_lcm.controller_status_v3_t: sc_rt_lcm.controller_status_t}
@@ -108,15 +112,18 @@ def _copy_shared(old, new):
     for name in old.__slots__:
         if name in new_fields:
             setattr(new, name, getattr(old, name))
-    new.mag_G_B = [[0.0] * 6 for _ in range(3)]
-    new.mag_dipole_max = [0.0] * 6
+    if not hasattr(old, "mag_G_B"):
+        new.mag_G_B = [[0.0] * 6 for _ in range(3)]
+        new.mag_dipole_max = [0.0] * 6
+    new.nav_mag_R_SB = [[0.0] * 3 for _ in range(3)]
     return new
 
 
 def upgrade(m):
     """A message of a legacy layout of a variable-size type as its current
     type (others unchanged; the fixed-size ones are read by decode_current)."""
-    if isinstance(m, sc_rt_lcm.controller_config_v2_t):  # every field as it was; no magnetic control
+    if isinstance(m, (sc_rt_lcm.controller_config_v2_t, sc_rt_lcm.controller_config_v3_t)):
+        # every field as it was; no magnetic control (v2), no magnetometer samples (v2, v3)
         return _copy_shared(m, sc_rt_lcm.controller_config_t())
     if not isinstance(m, sc_rt_lcm.controller_config_v1_t):
         return m
