@@ -259,7 +259,7 @@ def test_a_short_real_time_sensed_day_hold_uses_the_samples(tmp_path):
     out = tmp_path / "rt"
     r = lcmnet.run_cli(["hil", str(_day_hold_sensed(tmp_path)), "--mode", "realtime", "--duration", "5",
                         "--trigger", "timer", "--floor", "off", "--out", str(out), "--no-plots"])
-    assert r.returncode == 0, r.stderr + r.stdout
+    lcmnet.realtime_outcome(r, out)  # (a loaded machine may not keep real time: judged so, not the subject)
     timing = json.loads((out / "timing.json").read_text())
     assert timing["emulator_counters"]["mag_sent"] == 26 and not any(timing["log_missing"].values()), timing
     summary = json.loads((out / "controller_summary.json").read_text())
