@@ -1,12 +1,15 @@
 """Scenarios with magnetic control for the tests (tests/test_mag_control.py,
 test_mag_detumble.py, test_mag_scenario.py): flight_wheels on an orbit in
-IGRF with three rods, a secular torque and nothing periodic."""
+IGRF with three rods, a secular torque and nothing periodic; and the tests'
+independent field along an orbit, ppigrf's IGRF-14 (``ppigrf_field_N``)."""
 
 from __future__ import annotations
 
 import dataclasses
 import tomllib
 from pathlib import Path
+
+import numpy as np
 
 from sc_rt.scenario.reader import scenario_from_data
 from sc_rt.scenario.shipped import resolve
@@ -84,3 +87,24 @@ null_bias = 5.0
 
 #: [rad/s] / 10: wheel speeds whose momentum fills MOMENTUM's capacity beyond on_fraction
 H0 = (-3.0, 6.0, 5.0, 4.0)
+
+
+def ppigrf_field_N(orbit, jd_epoch: float, times, when) -> np.ndarray:
+    """[T] the tests' independent field: IGRF-14 by the ``ppigrf`` package
+    (its coefficients at ``when``) at ``orbit``'s positions, rotated from
+    ECEF to ECI (N) with sc-rt's Earth rotation from ``jd_epoch``; (n, 3)."""
+    import ppigrf
+
+    from sc_rt.model.orbit import eci_to_ecef, orbit_state
+
+    r_N = np.array([orbit_state(orbit, t)[0] for t in times])
+    C = [eci_to_ecef(jd_epoch, t) for t in times]
+    r_E = np.array([c @ r for c, r in zip(C, r_N)])
+    r = np.linalg.norm(r_E, axis=1)
+    th, ph = np.arccos(r_E[:, 2] / r), np.arctan2(r_E[:, 1], r_E[:, 0])
+    Br, Bt, Bp = (np.ravel(v) for v in ppigrf.igrf_gc(r / 1e3, np.degrees(th), np.degrees(ph), when))
+    rh = np.c_[np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)]
+    thh = np.c_[np.cos(th) * np.cos(ph), np.cos(th) * np.sin(ph), -np.sin(th)]
+    phh = np.c_[-np.sin(ph), np.cos(ph), np.zeros_like(ph)]
+    B_E = Br[:, None] * rh + Bt[:, None] * thh + Bp[:, None] * phh  # [nT]
+    return np.array([c.T @ b for c, b in zip(C, B_E)]) * 1e-9

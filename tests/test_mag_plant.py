@@ -15,11 +15,12 @@ import math
 import numpy as np
 import pytest
 
+from magscn import ppigrf_field_N
 from refmath import mrp_dcm
 from sc_rt import _core
 from sc_rt.model.actuators import ActuatorParams, actuator_params_to_cpp
 from sc_rt.model.field import field_for
-from sc_rt.model.orbit import R_EARTH, OrbitParams, eci_to_ecef, orbit_state
+from sc_rt.model.orbit import R_EARTH, OrbitParams, orbit_state
 from sc_rt.model.plant import DisturbanceParams, PlantParams, derivative, plant_params_to_cpp
 from sc_rt.scenario.tables.orbit import julian_date
 
@@ -53,18 +54,7 @@ def _H_N(x) -> np.ndarray:
 
 def _field_N(times) -> np.ndarray:
     """[T] IGRF-14 by ppigrf at the orbit's positions (ECI), the epoch's coefficients (n, 3)."""
-    r_N = np.array([orbit_state(ORBIT, t)[0] for t in times])
-    C = [eci_to_ecef(JD, t) for t in times]
-    r_E = np.array([c @ r for c, r in zip(C, r_N)])
-    r = np.linalg.norm(r_E, axis=1)
-    th = np.arccos(r_E[:, 2] / r)
-    ph = np.arctan2(r_E[:, 1], r_E[:, 0])
-    Br, Bt, Bp = (np.ravel(v) for v in ppigrf.igrf_gc(r / 1e3, np.degrees(th), np.degrees(ph), WHEN))
-    rh = np.c_[np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)]
-    thh = np.c_[np.cos(th) * np.cos(ph), np.cos(th) * np.sin(ph), -np.sin(th)]
-    phh = np.c_[-np.sin(ph), np.cos(ph), np.zeros_like(ph)]
-    B_E = Br[:, None] * rh + Bt[:, None] * thh + Bp[:, None] * phh  # [nT]
-    return np.array([c.T @ b for c, b in zip(C, B_E)]) * 1e-9
+    return ppigrf_field_N(ORBIT, JD, times, WHEN)
 
 
 def _run(p: PlantParams, h: float, n: int, dipole=None) -> np.ndarray:

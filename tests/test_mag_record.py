@@ -20,10 +20,9 @@ import math
 import numpy as np
 import pytest
 
-from magscn import H0, MOMENTUM, mag_data
+from magscn import H0, MOMENTUM, mag_data, ppigrf_field_N
 from refmath import mrp_dcm
 from sc_rt import simulate
-from sc_rt.model.orbit import eci_to_ecef, orbit_state
 from sc_rt.results.present.html_report import write_html_report
 from sc_rt.results.present.magnetic_figure import FILE, magnetic_figure, magnetic_series
 from sc_rt.results.present.output import write_run
@@ -56,17 +55,7 @@ def _H_N(scn, run) -> np.ndarray:
 
 def _field_N(orbit, times) -> np.ndarray:
     """[T] IGRF-14 by ppigrf at the orbit's positions (ECI), (n, 3)."""
-    r_N = np.array([orbit_state(orbit, t)[0] for t in times])
-    C = [eci_to_ecef(orbit.jd_epoch, t) for t in times]
-    r_E = np.array([c @ r for c, r in zip(C, r_N)])
-    r = np.linalg.norm(r_E, axis=1)
-    th, ph = np.arccos(r_E[:, 2] / r), np.arctan2(r_E[:, 1], r_E[:, 0])
-    Br, Bt, Bp = (np.ravel(v) for v in ppigrf.igrf_gc(r / 1e3, np.degrees(th), np.degrees(ph), WHEN))
-    rh = np.c_[np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)]
-    thh = np.c_[np.cos(th) * np.cos(ph), np.cos(th) * np.sin(ph), -np.sin(th)]
-    phh = np.c_[-np.sin(ph), np.cos(ph), np.zeros_like(ph)]
-    B_E = Br[:, None] * rh + Bt[:, None] * thh + Bp[:, None] * phh  # [nT]
-    return np.array([c.T @ b for c, b in zip(C, B_E)]) * 1e-9
+    return ppigrf_field_N(orbit, orbit.jd_epoch, times, WHEN)
 
 
 @pytest.mark.parametrize("engine", ["cpp", "python"])
