@@ -15,7 +15,6 @@ from __future__ import annotations
 import base64
 import json
 import math
-import os
 from html import escape
 from pathlib import Path
 from typing import Any
@@ -27,6 +26,7 @@ from sc_rt.results.present.html_telemetry import telemetry_table
 from sc_rt.results.present.html_requirements import requirements_table
 from sc_rt.results.present.html_timeline import MODE_NAMES, spans, timeline_svg
 from sc_rt.results.judge.verdict import asks_envelope
+from sc_rt.results.record.jsonsafe import atomic_path
 
 __all__ = ["write_html_report", "render_html", "verdict_items", "timing_text", "pointing_arcsec_of_mrp_norm"]
 
@@ -485,11 +485,6 @@ def write_html_report(run_dir: str | Path, out: str | Path | None = None) -> Pat
     run_dir = Path(run_dir)
     out = Path(out) if out is not None else run_dir / "report.html"
     text = render_html(run_dir)
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.partial")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_path(out) as part:  # whole or not at all, like the run's other files
+        part.write_text(text, encoding="utf-8")
     return out
