@@ -85,7 +85,7 @@ def test_rod_messages_carry_what_was_asked():
     assert rod_inject_msg(1, "dead").kind == 1  # the core's RodFault::Dead (magnetorquer.hpp)
     c = rod_clear_msg(4)
     assert c.action == c.ACTION_CLEAR and c.rod == 4 and c.now
-    r = cli("fault", "inject", "--rod", "2", "--kind", "reversed", "--at", "3", "--prefix", "B1_")
+    r = cli("fault", "inject", "--rod", "2", "--kind", "reversed", "--at", "3", "--prefix", "B1_", "--no-wait")
     assert r.returncode == 0, r.stderr
     assert "inject rod 2 (reversed, at t = 3 s) -> B1_SCRT_ROD_FAULT" in r.stdout and "no echo" in r.stdout
 
