@@ -318,3 +318,32 @@ def test_the_log_holds_the_rod_fault_commands_for_the_report_and_the_mcap(live_r
             schema = json.loads(sch.data)
     assert [(m["rod"], m["kind"], m["dipole"]) for m in rows] == [(1, 2, 4.0), (3, 1, 0.0), (2, 3, 0.0)]
     assert schema["properties"]["dipole"]["description"].startswith("[A m^2]")
+
+
+@pytest.mark.parametrize("cpp", [True, False])
+def test_a_row_with_the_rods_a_command_left_is_the_row_of_a_plant_with_them_scheduled(cpp):
+    """The emulator's arithmetic of a row (emulator/twin.py) given the rods
+    as a live command left them equals the twin of a plant built with the
+    same faults in its scenario (C++ twin and Python model alike)."""
+    import dataclasses
+
+    from sc_rt.emulator.twin import PlantTwin
+    from sc_rt.model.rods import RodFault
+    from sc_rt.scenario.overrides import initial_state
+
+    scn = load_scenario("day_hold")
+    faults = (RodFault(rod=0, kind="stuck", dipole=4.0, onset=0.0), RodFault(rod=1, kind="reversed", onset=0.05),
+              RodFault(rod=2, kind="dead", onset=0.0, end=0.08))
+    rods = dataclasses.replace(scn.plant.magnetorquers, faults=faults)
+    live = PlantTwin(scn.plant, cpp)
+    sched = PlantTwin(dataclasses.replace(scn.plant, magnetorquers=rods), cpp)
+    x0, d_cmd = initial_state(scn), (30.0, -20.0, 10.0)
+    a = live.integrate(scn.actuators, 0.0, x0, np.zeros(4), 10, 0.01, d_cmd=d_cmd, rods=rods)
+    ra = live.row(scn.actuators, 0.0, x0, np.zeros(4), live.motor_at_start, d_cmd, rods)
+    b = sched.integrate(scn.actuators, 0.0, x0, np.zeros(4), 10, 0.01, d_cmd=d_cmd)
+    rb = sched.row(scn.actuators, 0.0, x0, np.zeros(4), sched.motor_at_start, d_cmd)
+    # a fresh twin (the wheels' motor state goes on from row to row) without the faults
+    healthy = PlantTwin(scn.plant, cpp).integrate(scn.actuators, 0.0, x0, np.zeros(4), 10, 0.01, d_cmd=d_cmd)
+    assert np.array_equal(a, b) and not np.array_equal(a, healthy)
+    assert all(np.array_equal(u, v) for u, v in zip(ra, rb))
+    assert [float(v) for v in live.dipole_B(0.06, d_cmd, rods)] == [4.0, 20.0, 0.0]  # stuck, reversed, dead
