@@ -48,7 +48,7 @@ def cli(*args: str) -> subprocess.CompletedProcess:
     (["inject", "--wheel", "1", "--bias", "inf"], "--bias must be finite"),
     (["clear", "--wheel", "7"], "--wheel must be 1..4, got 7"),
     (["inject", "--wheel", "1", "--at", "1", "--now"], "not allowed with argument --at"),
-    (["inject"], "the following arguments are required: --wheel"),
+    (["inject"], "one of the arguments --wheel --rod is required"),
     (["inject", "--wheel", "1"], "changes nothing"),
     (["inject", "--wheel", "1", "--effectiveness", "1", "--bias", "0", "--at", "3"], "changes nothing"),
     (["inject", "--wheel", "x"], "invalid int value: 'x'"),

@@ -43,16 +43,34 @@ def cmd_lcm_spy(args: argparse.Namespace) -> int:
     return 0  # pragma: no cover
 
 
+_WHEEL_ONLY = ("effectiveness", "bias", "friction", "rate")
+
+
+def _fault_msg(args: argparse.Namespace):
+    """The fault command of ``args``: a wheel's (fault_cmd_t) or a rod's
+    (rod_fault_cmd_t); FaultArgError naming an option of the other target."""
+    from sc_rt.tools.faultcmd import FaultArgError, clear_msg, inject_msg, rod_clear_msg, rod_inject_msg
+
+    if args.action == "clear":
+        return clear_msg(args.wheel) if args.rod is None else rod_clear_msg(args.rod)
+    if args.rod is not None:
+        given = [f"--{k}" for k in _WHEEL_ONLY if getattr(args, k) is not None] + (["--stuck"] if args.stuck else [])
+        if given:
+            raise FaultArgError(f"{given[0]} is a wheel fault's: a rod takes --kind (and --dipole when stuck)")
+        if args.kind is None:
+            raise FaultArgError("a rod fault needs --kind dead|stuck|reversed")
+        return rod_inject_msg(args.rod, args.kind, dipole=args.dipole, at=args.at, until=args.until)
+    if args.kind is not None or args.dipole is not None:
+        raise FaultArgError(f"--{'kind' if args.kind is not None else 'dipole'} is a rod fault's: give --rod N")
+    d = {k: (1.0 if k != "bias" else 0.0) if getattr(args, k) is None else getattr(args, k) for k in _WHEEL_ONLY}
+    return inject_msg(args.wheel, stuck=args.stuck, at=args.at, until=args.until, **d)
+
+
 def cmd_fault(args: argparse.Namespace) -> int:
-    from sc_rt.tools.faultcmd import FaultArgError, clear_msg, inject_msg, send
+    from sc_rt.tools.faultcmd import FaultArgError, send
 
     try:
-        if args.action == "inject":
-            msg = inject_msg(args.wheel, effectiveness=args.effectiveness, bias=args.bias,
-                             stuck=args.stuck, at=args.at, until=args.until, rate=args.rate,
-                             friction=args.friction)
-        else:
-            msg = clear_msg(args.wheel)
+        msg = _fault_msg(args)
         url = bus_url(args)
         from sc_rt.wire.auth import load_key
 
@@ -63,9 +81,17 @@ def cmd_fault(args: argparse.Namespace) -> int:
         return 2
     ch = sent.channel
     when = "now" if msg.now else f"at t = {msg.t_onset:g} s"
+    until = '' if msg.t_end < 0 else f' until t = {msg.t_end:g} s'
+    if args.rod is not None:
+        kind = {1: "dead", 2: f"stuck at {msg.dipole:g} A m^2", 3: "reversed"}.get(msg.kind, "")
+        what = f"{kind}, {when}{until}" if args.action == "inject" else "now"
+        print(f"sc-rt fault: {args.action} rod {msg.rod} ({what}) -> {ch} on {url} (seq {msg.seq}); a rod's fault "
+              "has no echo: applied only by an emulator started with --accept-fault-commands (its timing.json "
+              "faults_applied)")
+        return 0
     what = (f"effectiveness {msg.effectiveness:g}, bias {msg.bias:g} rad/s^2, rate {msg.rate:g} 1/s"
             f"{', stuck' if msg.stuck else ''}{f', friction x{msg.friction:g}' if msg.friction != 1.0 else ''}, {when}"
-            f"{'' if msg.t_end < 0 else f' until t = {msg.t_end:g} s'}") if args.action == "inject" else "now"
+            f"{until}") if args.action == "inject" else "now"
     head = f"sc-rt fault: {args.action} wheel {msg.wheel} ({what}) -> {ch} on {url} (seq {msg.seq})"
     if args.no_wait:
         print(f"{head}; not waiting for the echo (applied only by an emulator started with "

@@ -49,36 +49,43 @@ def _add_monitoring(sub) -> None:
     j.add_argument("--rebuild", action="store_true", help="rebuild the cached types jar")
     j.set_defaults(func=cmd_lcm_spy)
 
-    f = sub.add_parser("fault", help="inject or clear a wheel fault live (fault_cmd_t on SCRT_FAULT)")
+    f = sub.add_parser("fault", help="inject or clear a wheel's or a magnetorquer rod's fault live "
+                                     "(fault_cmd_t on SCRT_FAULT, rod_fault_cmd_t on SCRT_ROD_FAULT)")
     fs = f.add_subparsers(dest="action", metavar="ACTION", required=True)
-    fi = fs.add_parser("inject", help="inject a fault on one wheel")
-    # the values are checked by sc_rt.tools.faultcmd.inject_msg (exit 2, one line)
-    fi.add_argument("--wheel", type=int, required=True, metavar="N", help="wheel 1..4")
-    fi.add_argument("--effectiveness", type=float, default=1.0, metavar="E",
-                    help="L in [0, 1] (default: %(default)s)")
-    fi.add_argument("--bias", type=float, default=0.0, metavar="B",
-                    help="bias ubar [rad/s^2] (default: %(default)s)")
+    fi = fs.add_parser("inject", help="inject a fault on one wheel or one rod")
+    # the values are checked by sc_rt.tools.faultcmd.inject_msg / rod_inject_msg (exit 2, one line)
+    target = fi.add_mutually_exclusive_group(required=True)
+    target.add_argument("--wheel", type=int, metavar="N", help="wheel 1..4")
+    target.add_argument("--rod", type=int, metavar="N",
+                        help="magnetorquer rod 1..N of the plant's [magnetorquers] (at most 6)")
+    fi.add_argument("--effectiveness", type=float, metavar="E", help="wheel: L in [0, 1] (default: 1)")
+    fi.add_argument("--bias", type=float, metavar="B", help="wheel: bias ubar [rad/s^2] (default: 0)")
     fi.add_argument("--stuck", action="store_true",
-                    help="the wheel keeps its speed at onset (on [wheels]: seizes, its speed decaying with 1/rate)")
-    fi.add_argument("--friction", type=float, default=1.0, metavar="K",
-                    help="friction multiplier, torque-commanded wheels only (default: %(default)s)")
+                    help="wheel: keeps its speed at onset (on [wheels]: seizes, its speed decaying with 1/rate)")
+    fi.add_argument("--friction", type=float, metavar="K",
+                    help="wheel: friction multiplier, torque-commanded wheels only (default: 1)")
+    fi.add_argument("--kind", choices=("dead", "stuck", "reversed"),
+                    help="rod: dead (0), stuck (--dipole whatever the command) or reversed (polarity)")
+    fi.add_argument("--dipole", type=float, metavar="X", help="rod: a stuck rod's dipole [A m^2]")
     when = fi.add_mutually_exclusive_group()
     when.add_argument("--at", type=float, metavar="T",
                       help="onset at simulation time T [s] (refused when the emulator is already past it)")
     when.add_argument("--now", action="store_true", help="onset at the emulator's current time (default)")
     fi.add_argument("--until", type=float, metavar="T",
                     help="end at simulation time T [s] (default: never)")
-    fi.add_argument("--rate", type=float, default=1.0, metavar="A",
-                    help="evolution rate a of (16) [1/s] (default: %(default)s)")
-    fc = fs.add_parser("clear", help="the wheel is healthy again from now on")
-    fc.add_argument("--wheel", type=int, required=True, metavar="N", help="wheel 1..4")
+    fi.add_argument("--rate", type=float, metavar="A",
+                    help="wheel: evolution rate a of (16) [1/s] (default: 1)")
+    fc = fs.add_parser("clear", help="the wheel or rod is healthy again from now on")
+    target = fc.add_mutually_exclusive_group(required=True)
+    target.add_argument("--wheel", type=int, metavar="N", help="wheel 1..4")
+    target.add_argument("--rod", type=int, metavar="N", help="magnetorquer rod 1..N")
     for q in (fi, fc):
         q.add_argument("--lcm-url", metavar="URL", type=lcm_url, help=url_help)
         q.add_argument("--prefix", default="", help="channel name prefix (default: none)")
         q.add_argument("--auth-key", metavar="FILE", type=auth_key_file, help=AUTH_KEY_HELP)
         q.add_argument("--timeout", type=number(0, 600, unit="s"), default=3.0, metavar="S",
-                       help="wait this long for an emulator's plant_truth_t to echo the fault "
-                            "(default: %(default)s s); exit 1 if none does")
+                       help="wait this long for an emulator's plant_truth_t to echo a wheel's fault "
+                            "(default: %(default)s s); exit 1 if none does (a rod's fault has no echo)")
         q.add_argument("--no-wait", action="store_true",
                        help="publish and exit 0 without waiting for the echo")
         q.set_defaults(func=cmd_fault)
@@ -170,7 +177,8 @@ def _add_hil(sub) -> None:
     h.add_argument("--time-scale", type=number(0, MAX_TIME_SCALE), default=1.0, metavar="X",
                    help="real time: > 1 runs faster (default: %(default)s)")
     h.add_argument("--accept-fault-commands", action="store_true",
-                   help="the emulator applies fault_cmd_t from SCRT_FAULT (default: ignored)")
+                   help="the emulator applies fault_cmd_t from SCRT_FAULT and rod_fault_cmd_t from SCRT_ROD_FAULT "
+                        "(default: ignored)")
     h.add_argument("--no-plots", action="store_true", help="no figures (default: figures)")
     h.add_argument("--mcap", nargs="?", const="", metavar="OUT",
                    help="also write the run's log as MCAP (default OUT: run.mcap in --out; as sc-rt export)")
@@ -207,7 +215,7 @@ def _add_emulator(sub) -> None:
                    help="real time: > 1 runs faster (default: %(default)s)")
     e.add_argument("--duration", type=number(unit="s"), metavar="S", help="default: the scenario's")
     e.add_argument("--accept-fault-commands", action="store_true",
-                   help="apply fault_cmd_t from SCRT_FAULT (default: ignored)")
+                   help="apply fault_cmd_t from SCRT_FAULT and rod_fault_cmd_t from SCRT_ROD_FAULT (default: ignored)")
     e.add_argument("--out", metavar="DIR", type=out_dir,
                    help="write trajectory.arrow and emulator.json there (default: nothing written)")
     e.add_argument("--start-timeout", type=number(0, 86400, unit="s"), metavar="S",

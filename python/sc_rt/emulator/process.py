@@ -3,7 +3,9 @@
 Publishes ``guidance_t`` (SCRT_GUIDANCE, the reference, just before each
 state), ``plant_state_t`` (SCRT_STATE) and ``plant_truth_t`` (SCRT_TRUTH),
 applies the newest valid ``wheel_cmd_t`` it holds (zero-order hold), with the
-scenario's saturation and faults, and records the run (docs/PROTOCOL.md).
+scenario's saturation and faults (and those injected live: ``fault_cmd_t``,
+``rod_fault_cmd_t``, from the row they arrive in), and records the run
+(docs/PROTOCOL.md).
 
 - lockstep: publish state k, wait for the command answering k (and the
   controller's status for k from a controller that sends them: emulator/peers.py),
@@ -115,7 +117,7 @@ class Emulator:
         self.stop = stop
         self.url = opts.url
         #: what the parts share: counters, faults, the run's time, invalid/stopped (emulator/state.py)
-        self.shared = Shared(Counter(), scn.actuators)
+        self.shared = Shared(Counter(), scn.actuators, rods=scn.plant.magnetorquers)
         #: with auth_key every message carries an HMAC trailer; failures count as auth_failed (wire/auth.py)
         self.lc = open_bus(opts.url, opts.auth_key, self.shared.counters)
         self._gaps: list[tuple[float, float]] = []
@@ -410,10 +412,11 @@ class Emulator:
             if self._gap_start is not None:
                 self._gaps.append((self._gap_start, t))
                 self._gap_start = None
-        act = self.shared.act  # the row's faults (a handler may change shared.act only while we wait)
+        # the row's faults, the wheels' and the rods' (a handler may change them only while we wait)
+        act, rods = self.shared.act, self.shared.rods
         # the sensors sample inside the period only when a next row follows (as offline)
         sensors = self.sensors if next_state is not None else None
-        x_next = self.twin.integrate(act, t, x, u_cmd, n_sub, h, sensors, k * n_sub, d_cmd)
+        x_next = self.twin.integrate(act, t, x, u_cmd, n_sub, h, sensors, k * n_sub, d_cmd, rods)
         finite = bool(np.all(np.isfinite(x_next)))
         if stamps is not None:
             stamps[1] = time.monotonic_ns()
@@ -429,7 +432,7 @@ class Emulator:
         if self._pending is not None:  # a late tick: the previous row's record and truth first, never lost
             self._flush_pending()
         self._pending = (k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, self.twin.motor_at_start,
-                         d_cmd)
+                         d_cmd, rods)
         if defer_ns is None or next_state is None or not finite:
             self._flush_pending()
         else:
@@ -438,11 +441,11 @@ class Emulator:
 
     def _flush_pending(self) -> None:
         """The deferred part of a row: its record and its truth."""
-        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, motor, d_cmd = self._pending
+        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, motor, d_cmd, rods = self._pending
         self._pending = None
         if stamps is not None:
             stamps[3] = time.monotonic_ns()
-        _, accel, delta2 = self.twin.row(act, t, x, u_cmd, motor, d_cmd)
+        _, accel, delta2 = self.twin.row(act, t, x, u_cmd, motor, d_cmd, rods)
         self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd)
         self.publisher.drain()  # an answer that came meanwhile is received now, not after the truth's publish
         self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act)

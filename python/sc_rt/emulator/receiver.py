@@ -2,8 +2,8 @@
 side: ``Receiver``, a part of ``Emulator``; the handlers never raise.
 Every message is decoded under guard and counted by kind (``counters``);
 commands and status come from one controller session at a time, a new one
-adopted only once the current one is lost; fault commands change the
-actuators when accepted; another plant, or another controller while ours
+adopted only once the current one is lost; fault commands (the wheels' and
+the rods') change the actuators when accepted; another plant, or another controller while ours
 is alive, is a bench collision (emulator/collision.py) that stops the run.
 What they keep per state seq is the ``Inbox`` (emulator/inbox.py).
 """
@@ -27,6 +27,7 @@ from sc_rt.wire.codec import decode_as
 from sc_rt.emulator.peers import ControllerPeers
 from sc_rt.emulator.state import Shared
 from sc_rt.model.actuators import WheelFault
+from sc_rt.model.rods import ROD_FAULTS, RodFault
 from sc_rt.results.record.store import RowRing
 
 __all__ = ["Receiver"]
@@ -41,8 +42,9 @@ class Receiver:
     ``ctl_last_ns``, ``peer_lost``, which the loop sets when a state went
     unanswered) and the last seqs taken from it. Shares with the other parts
     only ``shared`` (emulator/state.py): the counters, the wheels' faults
-    (a fault command replaces ``shared.act``), the run's time and a bench
-    collision (``shared.collision``)."""
+    (a fault command replaces ``shared.act``), the rods' (a rod fault
+    command replaces ``shared.rods``), the run's time and a bench collision
+    (``shared.collision``)."""
 
     def __init__(self, lc: Any, prefix: str, session: int, n_rows: int, shared: Shared, *,
                  guard: Any = None, peers: ControllerPeers | None = None, accept_faults: bool = False,
@@ -72,8 +74,8 @@ class Receiver:
         # LCM silently drops messages beyond a subscription's queue capacity
         # (30 by default): hold many, so every one is either used or counted
         for name, handler in (("SCRT_CMD", self.on_cmd), ("SCRT_CTRL_STATUS", self.on_status),
-                              ("SCRT_FAULT", self.on_fault), ("SCRT_CTRL_INFO", self.on_info),
-                              ("SCRT_STATE", self.on_plant_state)):
+                              ("SCRT_FAULT", self.on_fault), ("SCRT_ROD_FAULT", self.on_rod_fault),
+                              ("SCRT_CTRL_INFO", self.on_info), ("SCRT_STATE", self.on_plant_state)):
             self.lc.subscribe(channel(name, self.prefix), handler).set_queue_capacity(100_000)
         if n_rods:  # a run with magnetic control: the rods' commands (docs/PROTOCOL.md)
             self.lc.subscribe(channel("SCRT_ROD_CMD", self.prefix), self.on_rod).set_queue_capacity(100_000)
@@ -218,19 +220,27 @@ class Receiver:
         """The controller_info_t of the session in use (None: none announced)."""
         return self.peers.info.get(self.ctl_session) if self.ctl_session is not None else None
 
-    def on_fault(self, _ch: str, data: bytes) -> None:
-        msg = decode_as(sc_rt_lcm.fault_cmd_t, data, self.counters)
-        if msg is None:
-            return
+    def _admitted(self, msg) -> bool:
+        """Whether a fault command (fault_cmd_t or rod_fault_cmd_t: the same
+        rules, one seq line) may change the plant: the emulator accepts fault
+        commands, the command is addressed to it (under authentication by its
+        session, never to any) and, under authentication, its seq is above the
+        last one applied (not a replay). Counted when refused."""
         if not self.accept_faults:
             self.counters["fault_ignored"] += 1
-            return
+            return False
         # addressed to another emulator (or, under authentication, to none): not ours
         if (msg.session != 0 or self.authenticated) and msg.session != self.session:
             self.counters["fault_foreign_session"] += 1
-            return
+            return False
         if self.authenticated and self._last_fault_seq is not None and msg.seq <= self._last_fault_seq:
             self.counters["fault_replayed"] += 1  # a captured command sent again: refused
+            return False
+        return True
+
+    def on_fault(self, _ch: str, data: bytes) -> None:
+        msg = decode_as(sc_rt_lcm.fault_cmd_t, data, self.counters)
+        if msg is None or not self._admitted(msg):
             return
         try:
             self._apply_fault(msg)
@@ -239,6 +249,48 @@ class Receiver:
         except ValueError as e:
             self.counters["fault_rejected"] += 1
             self.shared.faults_applied.append({"rejected": str(e), "wheel": msg.wheel})
+
+    def on_rod_fault(self, _ch: str, data: bytes) -> None:
+        """A rod fault command (rod_fault_cmd_t): the rules of ``_admitted``,
+        applied to ``shared.rods`` (the loop takes them at the next row)."""
+        msg = decode_as(sc_rt_lcm.rod_fault_cmd_t, data, self.counters)
+        if msg is None or not self._admitted(msg):
+            return
+        try:
+            self._apply_rod_fault(msg)
+            self.counters["fault_applied"] += 1
+            self._last_fault_seq = msg.seq
+        except ValueError as e:
+            self.counters["fault_rejected"] += 1
+            self.shared.faults_applied.append({"rejected": str(e), "rod": msg.rod})
+
+    def _apply_rod_fault(self, m) -> None:
+        rods = self.shared.rods
+        if rods is None:
+            raise ValueError("the plant has no magnetorquer rods ([magnetorquers])")
+        if not 1 <= m.rod <= rods.n_rods:
+            raise ValueError(f"rod must be 1..{rods.n_rods} (the plant's rods), got {m.rod}")
+        r = m.rod - 1
+        others = tuple(f for f in rods.faults if f.rod != r)
+        if m.action == sc_rt_lcm.rod_fault_cmd_t.ACTION_CLEAR:
+            new = others
+            rec = {"t": self.shared.t_now, "rod": m.rod, "action": "clear"}
+        elif m.action == sc_rt_lcm.rod_fault_cmd_t.ACTION_INJECT:
+            kind = {v: k for k, v in ROD_FAULTS.items()}.get(m.kind)
+            if kind is None:
+                raise ValueError(f"unknown rod fault kind {m.kind}")
+            if kind != "stuck" and m.dipole != 0.0:
+                raise ValueError(f"dipole is a stuck rod's value: a {kind} rod takes none, got {m.dipole}")
+            onset = self.shared.t_now if m.now else m.t_onset
+            fault = RodFault(rod=r, kind=kind, dipole=m.dipole, onset=onset,
+                             end=math.inf if m.t_end < 0 else m.t_end)
+            new = others + (fault,)
+            rec = {"t": self.shared.t_now, "rod": m.rod, "action": "inject", "kind": kind, "dipole": fault.dipole,
+                   "onset": onset, "end": None if m.t_end < 0 else fault.end}
+        else:
+            raise ValueError(f"unknown action {m.action}")
+        self.shared.rods = dataclasses.replace(rods, faults=new)  # validated by Magnetorquers
+        self.shared.faults_applied.append(rec)
 
     def _apply_fault(self, m) -> None:
         if not 1 <= m.wheel <= 4:

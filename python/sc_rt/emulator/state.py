@@ -4,9 +4,9 @@
   scheduling), one frozen value instead of a long keyword list.
 - ``Shared``: the few values its parts (the receiver, emulator/receiver.py;
   the publisher, emulator/outbox.py; the loops, emulator/process.py) read
-  and write across their boundary: the counters, the wheels' faults as
-  applied now (a fault command changes them), the run's time, and why the
-  run is invalid or stopping. Everything else a part keeps to itself.
+  and write across their boundary: the counters, the wheels' and the rods'
+  faults as applied now (a fault command changes them), the run's time, and
+  why the run is invalid or stopping. Everything else a part keeps to itself.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from sc_rt.model.actuators import ActuatorParams
+from sc_rt.model.rods import Magnetorquers
 
 __all__ = ["Options", "Shared"]
 
@@ -36,7 +37,7 @@ class Options:
     time_scale: float = 1.0
     #: [s] override of the scenario's duration
     duration: float | None = None
-    #: apply fault_cmd_t messages (``sc-rt fault``)
+    #: apply fault_cmd_t and rod_fault_cmd_t messages (``sc-rt fault``)
     accept_fault_commands: bool = False
     #: [s] lockstep: wait this long for the answer to a state, ``retries`` times
     cmd_timeout: float = 1.0
@@ -83,8 +84,11 @@ class Shared:
     invalid: str | None = None
     #: why the run stops early, None: it goes on
     stopped: str | None = None
-    #: the fault commands applied or rejected, in order
+    #: the fault commands applied or rejected, in order (a wheel's: "wheel"; a rod's: "rod")
     faults_applied: list[dict[str, Any]] = field(default_factory=list)
+    #: the plant's magnetorquer rods as applied now (a rod fault command replaces them;
+    #: None: the plant has none)
+    rods: Magnetorquers | None = None
 
     def collision(self, reason: str | None) -> None:
         """Another bench on our URL and prefix (emulator/collision.py): the

@@ -13,13 +13,16 @@
   (``field_B``: ``_core.plant_field_B`` or ``model.plant.field_B``, the
   ideal magnetometer) and the rods' dipole commands held over the period
   through the plant's rods and their faults at each step's time
-  (``rods_dipole_B``), as the offline engines do (sim/engines.py).
+  (``rods_dipole_B``), as the offline engines do (sim/engines.py). The
+  rods too are the row's (``rods``: a rod fault command replaces the
+  emulator's; None: the scenario's).
 - ``plant_state_t`` and ``plant_truth_t`` packed with struct, exactly the
   generated encoding (tests/test_emulator_wire.py), for speed.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import struct
 
 import numpy as np
@@ -27,7 +30,7 @@ import sc_rt_lcm
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
-from sc_rt.model.rods import rods_dipole_B
+from sc_rt.model.rods import rods_dipole_B, rods_to_cpp
 
 __all__ = ["PlantTwin", "RodHold", "state_bytes", "truth_bytes"]
 
@@ -67,14 +70,25 @@ class PlantTwin:
         #: was at the latest row's start
         self.motor: list[float] | None = None
         self.motor_at_start: tuple | None = None
-        self._cpp_params: tuple = (None,)
+        self._cpp_params: tuple = (None, None)
         self._fault_fields: tuple = (None,)
         self._pp = None  # the C++ plant parameters of the field (no faults in them)
+        self._rod_params: tuple = (None,)  # (rods, the plant parameters with them, their C++ PlantRods)
 
-    def _cpp(self, act) -> tuple:
-        if self._cpp_params[0] is not act:  # the fault set changed (live injection)
-            self._cpp_params = (act, plant.plant_params_to_cpp(self.params), actuators.actuator_params_to_cpp(act))
-        return self._cpp_params[1], self._cpp_params[2]
+    def _params(self, rods):
+        """The plant parameters with ``rods`` (model.rods.Magnetorquers, as a
+        rod fault command left them; None: the scenario's)."""
+        if rods is None or rods is self.params.magnetorquers:
+            return self.params
+        if self._rod_params[0] is not rods:  # the rods' faults changed (live injection)
+            self._rod_params = (rods, dataclasses.replace(self.params, magnetorquers=rods), rods_to_cpp(rods))
+        return self._rod_params[1]
+
+    def _cpp(self, act, rods=None) -> tuple:
+        if self._cpp_params[0] is not act or self._cpp_params[1] is not rods:  # a fault set changed (live)
+            self._cpp_params = (act, rods, plant.plant_params_to_cpp(self._params(rods)),
+                                actuators.actuator_params_to_cpp(act))
+        return self._cpp_params[2], self._cpp_params[3]
 
     def field_B(self, t: float, x: np.ndarray) -> tuple | None:
         """[T] the plant's true field in B at t for the state x (None: no field)."""
@@ -83,15 +97,17 @@ class PlantTwin:
             return None if B is None else tuple(float(v) for v in B)
         return plant.field_B(self.params, t, x)
 
-    def dipole_B(self, t: float, d_cmd) -> tuple | None:
+    def dipole_B(self, t: float, d_cmd, rods=None) -> tuple | None:
         """[A m^2] the body dipole of the rod commands ``d_cmd`` [A m^2] (one
         per rod; None: no magnetic control, the step holds the rods' own) at t
-        through the plant's rods and their faults."""
+        through the plant's rods and their faults (``rods``: the row's; None:
+        the scenario's)."""
         if d_cmd is None:
             return None
         if self.cpp:  # the C++ loop's (closed_loop.cpp), bitwise the Python one
-            return _core.rods_dipole_B(self._plant_cpp().rods, t, np.asarray(d_cmd, float))
-        return rods_dipole_B(self.params.magnetorquers, t, d_cmd)
+            c = self._plant_cpp().rods if self._params(rods) is self.params else self._rod_params[2]
+            return _core.rods_dipole_B(c, t, np.asarray(d_cmd, float))
+        return rods_dipole_B(self._params(rods).magnetorquers, t, d_cmd)
 
     def _plant_cpp(self):
         if self._pp is None:
@@ -99,9 +115,10 @@ class PlantTwin:
         return self._pp
 
     def integrate(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, n_sub: int, h: float,
-                  sensors=None, i0: int = 0, d_cmd=None) -> np.ndarray:
+                  sensors=None, i0: int = 0, d_cmd=None, rods=None) -> np.ndarray:
         """n_sub RK4 steps of h from t with u_cmd held (``d_cmd``: the rods'
-        dipole commands, held too, through the rods at each step's time). ``sensors`` (a
+        dipole commands, held too, through the rods at each step's time;
+        ``rods``: the row's rods and faults, None: the scenario's). ``sensors`` (a
         emulator.sensorpub.SensorPublisher, the row's first plant step ``i0``):
         ticked before each sub-step j > 0 whose plant step i0 + j it names
         (``next_tick``), at t + j h with the state then, as the offline loop
@@ -113,16 +130,16 @@ class PlantTwin:
             for j in range(n_sub):
                 if j > 0 and sensors is not None and i0 + j == sensors.next_tick:
                     sensors.tick(i0 + j, t + j * h, x)
-                x = truth.rk4_step(self.params, act, t + j * h, x, h, u_cmd, self.motor,
-                                   self.dipole_B(t + j * h, d_cmd))
+                x = truth.rk4_step(self._params(rods), act, t + j * h, x, h, u_cmd, self.motor,
+                                   self.dipole_B(t + j * h, d_cmd, rods))
             return x
-        pp, ap = self._cpp(act)
+        pp, ap = self._cpp(act, rods)
         xs = _core.PlantState.from_vector(x)
         motor = None if self.motor is None else np.array(self.motor)
         for j in range(n_sub):
             if j > 0 and sensors is not None and i0 + j == sensors.next_tick:
                 sensors.tick(i0 + j, t + j * h, xs.to_vector())
-            m_B = self.dipole_B(t + j * h, d_cmd)
+            m_B = self.dipole_B(t + j * h, d_cmd, rods)
             if motor is None:
                 xs = _core.plant_rk4_step(pp, ap, t + j * h, xs, h, u_cmd, m_B)
             else:
@@ -131,20 +148,21 @@ class PlantTwin:
             self.motor[:] = motor.tolist()
         return xs.to_vector()
 
-    def row(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, motor=None, d_cmd=None) -> tuple:
+    def row(self, act, t: float, x: np.ndarray, u_cmd: np.ndarray, motor=None, d_cmd=None, rods=None) -> tuple:
         """(u_sat, wheel accel, delta2) of the row at t, state x, command u_cmd
         (``motor``: the motor torques at t, ``motor_at_start`` of its integrate;
-        ``d_cmd``: the rods' commands the row holds, the step's first stage's dipole)."""
-        m_B = self.dipole_B(t, d_cmd)
+        ``d_cmd``: the rods' commands the row holds, the step's first stage's dipole;
+        ``rods``: the row's rods, None: the scenario's)."""
+        m_B = self.dipole_B(t, d_cmd, rods)
         if self.cpp:
-            pp, ap = self._cpp(act)
+            pp, ap = self._cpp(act, rods)
             xs = _core.PlantState.from_vector(x)
             w = _core.plant_row(pp, ap, t, xs, u_cmd, None if motor is None else np.array(motor), m_B)
             u_sat, accel = w.u_sat, w.accel
             delta2 = _core.lumped_disturbance(pp, t, xs, u_sat, accel)
         else:
-            u_sat, accel, delta2 = truth.row(self.params, act, t, x, u_cmd, None if motor is None else list(motor),
-                                             m_B)
+            u_sat, accel, delta2 = truth.row(self._params(rods), act, t, x, u_cmd,
+                                             None if motor is None else list(motor), m_B)
         return u_sat, accel, delta2
 
     def fault_fields(self, act, t: float) -> tuple[list, list]:

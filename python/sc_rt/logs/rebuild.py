@@ -14,6 +14,7 @@ import numpy as np
 import sc_rt_lcm
 
 from sc_rt.logs.logread import LogData
+from sc_rt.model.rods import ROD_FAULTS
 from sc_rt.wire.codec import STATUS_FROM_COMMANDS, STATUS_NAV_FIELDS, STATUS_RUN_FIELDS, STATUS_TIMING_FIELDS
 from sc_rt.results.record.run import RunMeta, empty_arrays
 from sc_rt.scenario.model import LAW_NAMES
@@ -23,6 +24,8 @@ __all__ = ["Rebuilt", "rebuild", "sensor_summary", "logged_config", "run_params"
 
 #: fault state changes listed per wheel in report.json (a hostile log could have one per row)
 MAX_FAULT_CHANGES = 1000
+#: rod_fault_cmd_t.kind -> the fault's name (model.rods.ROD_FAULTS)
+_ROD_KINDS = {v: k for k, v in ROD_FAULTS.items()}
 
 
 def _align(rows: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -315,23 +318,26 @@ def logged_guidance(d: LogData, scenario_path: str | None):
 
 
 def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
-    """Fault commands seen on the bus and the fault state changes in
-    plant_truth_t (when the emulator applied them)."""
-    F = d.records["SCRT_FAULT"]
-    fs = d.stamps["SCRT_FAULT"]
+    """Fault commands seen on the bus, the wheels' (``"wheel"``) and then the
+    rods' (``"rod"``: rod_fault_cmd_t on SCRT_ROD_FAULT), and the wheels'
+    fault state changes in plant_truth_t (when the emulator applied them; the
+    rods' state is not in plant_truth_t)."""
     st = r.arrays["state_log_us"]
     t = r.arrays["t"]
     t0 = int(st[0]) if st.size else 0
     cmds = []
-    for rec, stamp in zip(F, fs):
-        k = int(np.searchsorted(st, stamp, side="right")) - 1  # newest state logged before it
-        cmds.append({"log_s": (int(stamp) - t0) / 1e6, "t_sim_at_receipt": float(t[k]) if k >= 0 else None,
-                     "wheel": int(rec["wheel"]),
-                     "action": {1: "inject", 2: "clear"}.get(int(rec["action"]), int(rec["action"])),
-                     "now": bool(rec["now"]), "t_onset": float(rec["t_onset"]), "t_end": float(rec["t_end"]),
-                     "effectiveness": float(rec["effectiveness"]), "bias": float(rec["bias"]),
-                     "rate": float(rec["rate"]), "stuck": bool(rec["stuck"]),
-                     "friction": float(rec["friction"])})
+    for base, fields in (("SCRT_FAULT", lambda rec: {
+            "wheel": int(rec["wheel"]), "effectiveness": float(rec["effectiveness"]), "bias": float(rec["bias"]),
+            "rate": float(rec["rate"]), "stuck": bool(rec["stuck"]), "friction": float(rec["friction"])}),
+            ("SCRT_ROD_FAULT", lambda rec: {
+                "rod": int(rec["rod"]), "kind": _ROD_KINDS.get(int(rec["kind"]), int(rec["kind"])),
+                "dipole": float(rec["dipole"])})):
+        for rec, stamp in zip(d.records[base], d.stamps[base]):
+            k = int(np.searchsorted(st, stamp, side="right")) - 1  # newest state logged before it
+            cmds.append({"log_s": (int(stamp) - t0) / 1e6, "t_sim_at_receipt": float(t[k]) if k >= 0 else None,
+                         "action": {1: "inject", 2: "clear"}.get(int(rec["action"]), int(rec["action"])),
+                         "now": bool(rec["now"]), "t_onset": float(rec["t_onset"]), "t_end": float(rec["t_end"]),
+                         **fields(rec)})
     changes: list[dict[str, Any]] = []
     h = r.has_truth
     L, B, K, Y = (r.arrays[k][h] for k in ("fault_effectiveness", "fault_bias", "fault_stuck", "fault_Y"))

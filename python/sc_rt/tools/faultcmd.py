@@ -1,11 +1,14 @@
-"""``sc-rt fault``: live wheel-fault injection (``fault_cmd_t`` on SCRT_FAULT).
+"""``sc-rt fault``: live fault injection, a wheel's (``fault_cmd_t`` on
+SCRT_FAULT) or a magnetorquer rod's (``rod_fault_cmd_t`` on SCRT_ROD_FAULT).
 
-An emulator applies it only when started with ``--accept-fault-commands``
+An emulator applies them only when started with ``--accept-fault-commands``
 (``sc-rt hil`` / ``sc-rt emulator``): a bench is never faulted by accident.
 The emulator records what it applied (``faults_applied`` in timing.json) and
 echoes the fault state of every wheel in ``plant_truth_t``: ``send`` waits
 for that echo (applied, or not heard by any emulator), and refuses an onset
-the emulator's clock (``plant_truth_t.t``) has already passed.
+the emulator's clock (``plant_truth_t.t``) has already passed. A rod's fault
+has no echo (``plant_truth_t`` carries the wheels' only): ``send`` refuses a
+past onset the same way, publishes and does not wait.
 """
 
 from __future__ import annotations
@@ -18,11 +21,12 @@ from dataclasses import dataclass
 
 import sc_rt_lcm
 
+from sc_rt.model.rods import MAX_RODS, ROD_FAULTS
 from sc_rt.wire.auth import open_bus
 from sc_rt.wire.lcmio import channel
 from sc_rt.wire.codec import decode_as
 
-__all__ = ["FaultArgError", "inject_msg", "clear_msg", "publish", "send", "Sent"]
+__all__ = ["FaultArgError", "inject_msg", "clear_msg", "rod_inject_msg", "rod_clear_msg", "publish", "send", "Sent"]
 
 
 class FaultArgError(ValueError):
@@ -32,6 +36,16 @@ class FaultArgError(ValueError):
 def _check_wheel(wheel: int) -> None:
     if not (isinstance(wheel, int) and 1 <= wheel <= 4):
         raise FaultArgError(f"--wheel must be 1..4, got {wheel}")
+
+
+def _check_window(at: float | None, until: float | None) -> None:
+    if at is not None and not (math.isfinite(at) and at >= 0):
+        raise FaultArgError(f"--at must be a simulation time >= 0 s, got {at}")
+    if until is not None:
+        if not (math.isfinite(until) and until >= 0):
+            raise FaultArgError(f"--until must be a simulation time >= 0 s, got {until}")
+        if at is not None and not until > at:
+            raise FaultArgError(f"--until must be after --at, got --at {at} --until {until}")
 
 
 def _base(wheel: int, action: int) -> sc_rt_lcm.fault_cmd_t:
@@ -66,13 +80,7 @@ def inject_msg(wheel: int, *, effectiveness: float = 1.0, bias: float = 0.0, stu
         raise FaultArgError(f"--friction must be >= 0, got {friction}")
     if stuck and friction != 1.0:
         raise FaultArgError("a stuck (seized) wheel ignores --friction: give --stuck or --friction")
-    if at is not None and not (math.isfinite(at) and at >= 0):
-        raise FaultArgError(f"--at must be a simulation time >= 0 s, got {at}")
-    if until is not None:
-        if not (math.isfinite(until) and until >= 0):
-            raise FaultArgError(f"--until must be a simulation time >= 0 s, got {until}")
-        if at is not None and not until > at:
-            raise FaultArgError(f"--until must be after --at, got --at {at} --until {until}")
+    _check_window(at, until)
     if effectiveness == 1.0 and bias == 0.0 and friction == 1.0 and not stuck:
         raise FaultArgError("a fault with --effectiveness 1, --bias 0, --friction 1 and not --stuck changes nothing: "
                             "give one of them (sc-rt fault clear heals a wheel)")
@@ -97,9 +105,64 @@ def clear_msg(wheel: int) -> sc_rt_lcm.fault_cmd_t:
     return m
 
 
-def publish(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "", auth_key: bytes | None = None) -> str:
-    """Publish once on ``prefix + SCRT_FAULT`` (tagged with auth_key, wire/auth.py); returns the channel."""
-    ch = channel("SCRT_FAULT", prefix)
+def _check_rod(rod: int) -> None:
+    # the plant's rod count is the emulator's to check (it refuses a rod beyond it, timing.json)
+    if not (isinstance(rod, int) and 1 <= rod <= MAX_RODS):
+        raise FaultArgError(f"--rod must be 1..{MAX_RODS}, got {rod}")
+
+
+def _rod_base(rod: int, action: int) -> sc_rt_lcm.rod_fault_cmd_t:
+    m = sc_rt_lcm.rod_fault_cmd_t()
+    m.utime = time.time_ns() // 1000
+    m.seq = m.utime  # one-shot publisher: the wall clock orders commands (one line with the wheels')
+    m.rod = rod
+    m.action = action
+    m.t_end = -1.0
+    return m
+
+
+def rod_inject_msg(rod: int, kind: str, *, dipole: float | None = None, at: float | None = None,
+                   until: float | None = None) -> sc_rt_lcm.rod_fault_cmd_t:
+    """A validated ACTION_INJECT rod command: ``kind`` "dead", "stuck" or
+    "reversed" (model.rods.ROD_FAULTS), ``dipole`` [A m^2] a stuck rod's
+    (required for "stuck", refused otherwise), ``at`` the onset in simulation
+    time [s] (None: now), ``until`` the end (None: no end)."""
+    _check_rod(rod)
+    if kind not in ROD_FAULTS:
+        raise FaultArgError(f"--kind must be one of {', '.join(ROD_FAULTS)}, got {kind!r}")
+    if kind == "stuck" and dipole is None:
+        raise FaultArgError("a stuck rod needs its dipole: give --dipole X [A m^2]")
+    if kind != "stuck" and dipole is not None:
+        raise FaultArgError(f"--dipole is a stuck rod's value: --kind {kind} takes none")
+    if dipole is not None and not math.isfinite(dipole):
+        raise FaultArgError(f"--dipole must be finite, got {dipole}")
+    _check_window(at, until)
+    m = _rod_base(rod, sc_rt_lcm.rod_fault_cmd_t.ACTION_INJECT)
+    m.kind = ROD_FAULTS[kind]
+    m.dipole = 0.0 if dipole is None else float(dipole)
+    m.now = at is None
+    m.t_onset = 0.0 if at is None else float(at)
+    m.t_end = -1.0 if until is None else float(until)
+    return m
+
+
+def rod_clear_msg(rod: int) -> sc_rt_lcm.rod_fault_cmd_t:
+    """An ACTION_CLEAR rod command: the rod is healthy again from the
+    emulator's current time on."""
+    _check_rod(rod)
+    m = _rod_base(rod, sc_rt_lcm.rod_fault_cmd_t.ACTION_CLEAR)
+    m.now = True
+    return m
+
+
+def _channel_of(msg) -> str:
+    return "SCRT_ROD_FAULT" if isinstance(msg, sc_rt_lcm.rod_fault_cmd_t) else "SCRT_FAULT"
+
+
+def publish(msg, url: str, prefix: str = "", auth_key: bytes | None = None) -> str:
+    """Publish once on ``prefix + SCRT_FAULT`` (a rod's: SCRT_ROD_FAULT; tagged
+    with auth_key, wire/auth.py); returns the channel."""
+    ch = channel(_channel_of(msg), prefix)
     open_bus(url, auth_key).publish(ch, msg.encode())
     return ch
 
@@ -125,14 +188,15 @@ def _echoes(msg: sc_rt_lcm.fault_cmd_t, truth) -> bool:
     return got == want
 
 
-def send(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "", timeout: float = 3.0,
+def send(msg, url: str, prefix: str = "", timeout: float = 3.0,
          wait: bool = True, auth_key: bytes | None = None) -> Sent:
-    """Publish ``msg`` and wait up to ``timeout`` s for an emulator's
-    plant_truth_t to echo its fault state (``applied_at``). An onset in the
-    past of the emulator's clock (heard within the timeout before sending)
-    raises FaultArgError and nothing is sent."""
+    """Publish ``msg`` (fault_cmd_t or rod_fault_cmd_t) and wait up to
+    ``timeout`` s for an emulator's plant_truth_t to echo its fault state
+    (``applied_at``; a rod's fault has no echo: not waited for). An onset in
+    the past of the emulator's clock (heard within the timeout before
+    sending) raises FaultArgError and nothing is sent."""
     lc = open_bus(url, auth_key)
-    ch, tch = channel("SCRT_FAULT", prefix), channel("SCRT_TRUTH", prefix)
+    ch, tch = channel(_channel_of(msg), prefix), channel("SCRT_TRUTH", prefix)
     res = Sent(ch, tch)
     seen: list = []
     bad: Counter = Counter()
@@ -162,7 +226,7 @@ def send(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "", timeout: float 
             raise FaultArgError(f"--auth-key: no emulator heard on {url} ({channel('SCRT_STATE', prefix)}) "
                                 f"to address the command to")
         msg.session = sessions[-1]
-    if wait and msg.action == sc_rt_lcm.fault_cmd_t.ACTION_INJECT and not msg.now:
+    if wait and msg.action == msg.ACTION_INJECT and not msg.now:
         # the emulator's clock, to refuse an onset it has passed (one state period or the timeout)
         t_now: list = []
         listen(time.monotonic() + min(timeout, 1.0), lambda m: bool(t_now.append(m.t)) or True)
@@ -172,7 +236,7 @@ def send(msg: sc_rt_lcm.fault_cmd_t, url: str, prefix: str = "", timeout: float 
                 raise FaultArgError(f"--at {msg.t_onset:g}: the onset is in the past: the emulator on "
                                     f"{url} ({tch}) is at t = {t_now[0]:.3f} s")
     lc.publish(ch, msg.encode())
-    if not wait:
+    if not wait or isinstance(msg, sc_rt_lcm.rod_fault_cmd_t):
         return res
     hit: list = []
     listen(time.monotonic() + timeout, lambda m: _echoes(msg, m) and not hit.append(m.t))

@@ -176,6 +176,8 @@ def summarize(msg) -> dict:
     if name == "fault_cmd_t":
         return {k: getattr(msg, k) for k in ("seq", "wheel", "action", "now", "t_onset", "t_end",
                                              "effectiveness", "bias", "rate", "stuck")}
+    if name == "rod_fault_cmd_t":
+        return {k: getattr(msg, k) for k in ("seq", "rod", "action", "kind", "now", "t_onset", "t_end", "dipole")}
     if name == "controller_config_t":
         return {"scenario": msg.scenario, "law": LAW_NAMES.get(msg.law, msg.law),
                 "control_rate_hz": msg.control_rate_hz}
@@ -288,7 +290,7 @@ class Spy:
                 lines.append(f"{name}: t {m['t']:.3f} s  wheel accel {vec(m['wheel_accel'])}  "
                              f"fault Y {vec(m['fault_Y'], '{:.2f}')}  L {vec(m['fault_effectiveness'], '{:.2f}')}"
                              f"  stuck {m['fault_stuck']}  stale {m['cmd_stale']}")
-            elif tn == "fault_cmd_t":
+            elif tn in ("fault_cmd_t", "rod_fault_cmd_t"):
                 lines.append(f"{name}: " + "  ".join(f"{k} {v}" for k, v in m.items()))
             elif tn == "controller_config_t":
                 lines.append(f"{name}: scenario {m['scenario']}  law {m['law']}  "

@@ -26,6 +26,7 @@ CHANNELS = {
     "SCRT_TRUTH": ("plant_truth_t", "emulator", "one per plant state"),
     "SCRT_CTRL_STATUS": ("controller_status_t", "controller", "one per control step"),
     "SCRT_FAULT": ("fault_cmd_t", "sc-rt fault", "on demand"),
+    "SCRT_ROD_FAULT": ("rod_fault_cmd_t", "sc-rt fault --rod", "on demand"),
     "SCRT_CONFIG": ("controller_config_t", "sc-rt hil", "once at start (controller --config-channel)"),
     "SCRT_GUIDANCE": ("guidance_t", "emulator", "one per plant state, just before it (same seq)"),
     "SCRT_CTRL_INFO": ("controller_info_t", "controller",

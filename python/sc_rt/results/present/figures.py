@@ -61,11 +61,11 @@ def _spans(t: np.ndarray, mask: np.ndarray) -> list[tuple[float, float]]:
 
 
 def fault_onsets(run: Run) -> list[tuple[float, int]]:
-    """(time, wheel) of every fault onset: scheduled in the scenario or
-    injected live (as the emulator applied them)."""
+    """(time, wheel) of every wheel fault onset: scheduled in the scenario or
+    injected live (as the emulator applied them; a rod's, ``"rod"``, is not a wheel's)."""
     out = [(float(f["onset"]), int(f["wheel"])) for f in run.meta.faults]
     for f in run.faults_applied:  # the emulator's record, or the commands a log holds
-        if f.get("action") != "inject":
+        if f.get("action") != "inject" or f.get("wheel") is None:
             continue
         onset = f.get("t_sim_at_receipt") if f.get("now") else f.get("onset", f.get("t_onset"))
         if onset is not None:

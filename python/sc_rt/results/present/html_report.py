@@ -420,7 +420,8 @@ def render_html(run_dir: str | Path) -> str:
             parts.append("<p>Controller mode not recorded by this engine.</p>")
         cmds = [{"wheel": c.get("wheel"), "t": c.get("t_sim_at_receipt", c.get("t")), "action": c.get("action")}
                 for c in ((d["report"] or {}).get("faults", {}).get("commands", [])
-                          + list((d["timing"] or {}).get("faults_applied") or []))]
+                          + list((d["timing"] or {}).get("faults_applied") or []))
+                if c.get("wheel") is not None]  # the wheels' lanes (a rod's command names a "rod")
         parts.append(timeline_svg(traj["t"], modes=modes, bound_ok=traj.get("bound_ok") if envelope else None,
                                   scheduled=_scheduled(d),
                                   fault_Y=traj.get("fault_Y"), cmd_stale=traj.get("cmd_stale"), commands=cmds))
