@@ -121,10 +121,24 @@ def test_magnetorquer_keys_read_with_their_defaults():
     ('[magnetorquers]\naxes = [[1, 0, 0]]\nmax_dipole = 5\n[[magnetorquers.faults]]\nrod = 1\nkind = "dead"\n'
      "onset = 5\nend = 2\n", "end must be > onset"),
     ("[magnetorquers]\naxes = [[1, 0, 0]]\nmax_dipol = 5\n", "did you mean 'max_dipole'"),
+    # a rod saturates: it cannot stick beyond its own limit (rod 2's is 8, rod 1's 5)
+    ('[magnetorquers]\naxes = [[1, 0, 0], [0, 1, 0]]\nmax_dipole = [5, 8]\n[[magnetorquers.faults]]\nrod = 1\n'
+     'kind = "stuck"\ndipole = -6\n', r"magnetorquers.faults\[0\].dipole = -6.*max_dipole = 5 A m\^2"),
 ])
 def test_bad_magnetorquer_keys_are_refused_naming_the_key(extra, needle):
     with pytest.raises(ScenarioError, match=needle):
         scenario_from_data(_scenario_data(ENV + extra), "bad.toml")
+
+
+def test_a_rod_stuck_within_its_limit_is_read_and_beyond_it_refused_by_the_model_too():
+    rods_toml = ("[magnetorquers]\naxes = [[1, 0, 0], [0, 1, 0]]\nmax_dipole = [5, 8]\n"
+                 '[[magnetorquers.faults]]\nrod = 2\nkind = "stuck"\ndipole = -8\n')
+    scn = scenario_from_data(_scenario_data(ENV + rods_toml), "rods.toml")
+    rods = scn.plant.magnetorquers
+    assert [(f.rod, f.dipole) for f in rods.faults] == [(1, -8.0)]
+    # what a live rod fault command builds (emulator/receiver.py) is checked by the model itself
+    with pytest.raises(ValueError, match="rod 2 stuck at 8.5 A m\\^2, beyond its limit 8.0"):
+        dataclasses.replace(rods, faults=(RodFault(rod=1, kind="stuck", dipole=8.5),))
 
 
 def test_magnetorquers_need_a_field():

@@ -150,6 +150,21 @@ def test_the_emulator_applies_rod_faults_only_when_it_accepts_them_and_refuses_a
                                          "rod": 1}]
 
 
+def test_a_live_rod_stuck_beyond_its_limit_is_refused_named():
+    # day_hold's rods hold 100 A m^2 at most: a command to stick one at more (a valid
+    # message: the CLI does not know the plant's rods) leaves the rods as they were
+    rx = _receiver()
+    before = rx.shared.rods
+    for dipole in (100.5, -1e300):
+        rx.on_rod_fault("SCRT_ROD_FAULT", rod_inject_msg(1, "stuck", dipole=dipole).encode())
+    assert rx.shared.rods is before and rx.counters["fault_rejected"] == 2 and not rx.counters["fault_applied"]
+    assert [r["rejected"].split(": ")[-1] for r in rx.shared.faults_applied] == [
+        "rod 1 stuck at 100.5 A m^2, beyond its limit 100.0 A m^2",
+        "rod 1 stuck at -1e+300 A m^2, beyond its limit 100.0 A m^2"]
+    rx.on_rod_fault("SCRT_ROD_FAULT", rod_inject_msg(1, "stuck", dipole=-100.0).encode())  # at the limit: held
+    assert [(f.rod, f.kind, f.dipole) for f in rx.shared.rods.faults if f.rod == 0] == [(0, "stuck", -100.0)]
+
+
 def test_under_auth_key_an_unauthenticated_misaddressed_or_replayed_rod_fault_is_refused():
     from sc_rt.wire.auth import unauthenticated
 

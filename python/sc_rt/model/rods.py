@@ -79,6 +79,9 @@ class Magnetorquers:
                     errs.append(f"Magnetorquers.faults: rod {f.rod + 1} has more than one fault")
                 elif not (math.isfinite(f.dipole) and math.isfinite(f.onset) and f.end > f.onset):
                     errs.append(f"Magnetorquers.faults: rod {f.rod + 1}: dipole and onset finite, end > onset: {f!r}")
+                elif lim.shape == (n,) and abs(f.dipole) > lim[f.rod]:  # a rod holds no more than its limit
+                    errs.append(f"Magnetorquers.faults: rod {f.rod + 1} stuck at {f.dipole!r} A m^2, beyond "
+                                f"its limit {float(lim[f.rod])!r} A m^2")
                 seen.add(getattr(f, "rod", None))
         if errs:
             raise ValueError("invalid Magnetorquers: " + "; ".join(errs))

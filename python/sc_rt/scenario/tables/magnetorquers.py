@@ -58,7 +58,8 @@ def _read_axes(t: Table) -> np.ndarray | None:
     return np.where(np.abs(norms - 1.0) > 1e-12, G / norms, G)
 
 
-def _read_faults(t: Table, n: int | None) -> tuple[RodFault, ...] | None:
+def _read_faults(t: Table, n: int | None, lim) -> tuple[RodFault, ...] | None:
+    """The rods' faults (``lim``: the rods' limits [A m^2], one or N; None: unread)."""
     t.used.add("faults")
     raw = t.raw("faults") if t.has("faults") else []
     if not (isinstance(raw, list) and all(isinstance(f, dict) for f in raw)):
@@ -83,6 +84,8 @@ def _read_faults(t: Table, n: int | None) -> tuple[RodFault, ...] | None:
             f.fail("end", f"end must be > onset ({onset:g} s)")
         elif f.has("dipole") and kind != "stuck":
             f.fail("dipole", f'dipole is a stuck rod\'s value: kind = "{kind}" takes none')
+        elif lim is not None and abs(dipole) > (limit := float(np.broadcast_to(lim, (n,))[rod - 1])):
+            f.fail("dipole", f"a rod sticks within its limit: |dipole| <= max_dipole = {limit:g} A m^2")
         else:
             seen.add(rod)
             faults.append(RodFault(rod=rod - 1, kind=kind, dipole=float(dipole), onset=float(onset),
@@ -105,7 +108,7 @@ def read_magnetorquers(root: Table, field_model: str | None) -> Magnetorquers | 
     lim = t.read("max_dipole", Spec("vector", shape=(n or 1,), scalar_ok=True, gt=0)) if n else None
     if not n:
         t.used.add("max_dipole")
-    faults = _read_faults(t, n)
+    faults = _read_faults(t, n, lim)
     t.finish()
     if G is None or lim is None or faults is None:
         return False
