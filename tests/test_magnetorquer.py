@@ -63,6 +63,11 @@ def test_faults_dead_stuck_reversed_live():
     assert q.update(cmd, B).dipole[1] == -10.0
     with pytest.raises(ValueError, match="rod 3 outside"):
         q.set_fault(3, _core.RodFault.Dead)
+    # a rod saturates: it sticks within its limit (10 A m^2), and a refused fault changes nothing
+    q.set_fault(2, _core.RodFault.Stuck, -10.0)
+    with pytest.raises(ValueError, match="rod 2 stuck at 10.5 A m\\^2, beyond its dipole_max 10 A m\\^2"):
+        q.set_fault(2, _core.RodFault.Stuck, 10.5)
+    assert q.update(cmd, B).dipole[2] == -10.0
 
 
 def test_residual_dipole_is_a_torque_like_any_other():

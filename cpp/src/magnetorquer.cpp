@@ -58,6 +58,9 @@ void Magnetorquers::set_fault(int rod, RodFault fault, double stuck_dipole) {
                                 std::to_string(n_rods()) + ")");
   if (!std::isfinite(stuck_dipole))
     throw std::invalid_argument("set_fault: stuck_dipole must be finite, got " + format_double(stuck_dipole));
+  if (fault == RodFault::Stuck && std::abs(stuck_dipole) > p_.dipole_max(rod))  // a rod saturates
+    throw std::invalid_argument("set_fault: rod " + std::to_string(rod) + " stuck at " + format_double(stuck_dipole) +
+                                " A m^2, beyond its dipole_max " + format_double(p_.dipole_max(rod)) + " A m^2");
   fault_[rod] = fault;
   stuck_[rod] = stuck_dipole;
 }

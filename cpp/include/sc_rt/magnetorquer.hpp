@@ -63,7 +63,8 @@ class Magnetorquers {
   explicit Magnetorquers(const MagnetorquerParams& p);  // throws std::invalid_argument
   int n_rods() const { return static_cast<int>(p_.G_B.cols()); }
   const MagnetorquerParams& params() const { return p_; }
-  // Rod i's fault from now on (stuck_dipole [A m^2] is used by RodFault::Stuck only).
+  // Rod i's fault from now on (stuck_dipole [A m^2] is used by RodFault::Stuck only,
+  // |stuck_dipole| <= the rod's dipole_max: std::invalid_argument otherwise).
   void set_fault(int rod, RodFault fault, double stuck_dipole = 0.0);
   RodFault fault(int rod) const;
   // d_cmd [A m^2] (size N) in the field B_B [T]: each rod clipped to
