@@ -1,7 +1,8 @@
 """A hostile LCM publisher for the robustness tests: malformed, truncated,
 foreign, replayed and non-finite messages on every channel sc-rt subscribes
 to. Run as a script: python fuzz_lcm.py URL N OUT.json [SEED [CHANNELS]]
-(CHANNELS: a comma-separated subset of TARGETS and SENSORS, default TARGETS).
+(CHANNELS: a comma-separated subset of TARGETS, SENSORS and MAGNETIC, default
+TARGETS).
 
 It starts only once it has seen the genuine loop running (states and the
 controller's commands on the bus, waiting up to START_TIMEOUT_S): a hostile
@@ -35,9 +36,14 @@ SENSORS = {  # a [sensors] run's channels, which sc-rt-controller subscribes to
     "SCRT_TACH": sc_rt_lcm.tachometer_t,
     "SCRT_MAG": sc_rt_lcm.magnetometer_t,  # a magnetometer's samples ([sensors.magnetometer])
 }
+MAGNETIC = {  # a run with magnetorquers: the rods' commands and live rod faults, which the emulator subscribes to
+    "SCRT_ROD_CMD": sc_rt_lcm.rod_cmd_t,
+    "SCRT_ROD_FAULT": sc_rt_lcm.rod_fault_cmd_t,
+}
 START_TIMEOUT_S = 120.0
 OTHER = [sc_rt_lcm.plant_state_t, sc_rt_lcm.wheel_cmd_t, sc_rt_lcm.controller_status_t,
-         sc_rt_lcm.plant_truth_t, sc_rt_lcm.fault_cmd_t]
+         sc_rt_lcm.plant_truth_t, sc_rt_lcm.fault_cmd_t, sc_rt_lcm.rod_cmd_t, sc_rt_lcm.rod_fault_cmd_t]
+FAULTS = (sc_rt_lcm.fault_cmd_t, sc_rt_lcm.rod_fault_cmd_t)
 
 
 def _alive(pid: int) -> bool:
@@ -67,6 +73,21 @@ def valid(cls, rng: random.Random, bad: float | None = None):
         m.effectiveness = 0.0
         m.rate = 1.0
         m.now = True
+    if cls is sc_rt_lcm.rod_cmd_t:  # mostly the plant's rod count (3 in day_hold), sometimes another
+        m.n_rods = 3 if rng.random() < 0.7 else rng.randrange(0, 7)
+    if cls is sc_rt_lcm.rod_fault_cmd_t:
+        m.rod, m.action, m.kind, m.now = rng.randrange(1, 7), 1, rng.randrange(1, 4), True
+        m.dipole = rng.uniform(-50, 50) if m.kind == m.KIND_STUCK else 0.0
+    return m
+
+
+def _bad_fault(cls, rng: random.Random, bad: float):
+    """A fault command (wheel or rod) with one non-finite or absurd number."""
+    m = valid(cls, rng)
+    if cls is sc_rt_lcm.fault_cmd_t:
+        m.effectiveness = bad
+    else:
+        setattr(m, rng.choice(("dipole", "t_onset", "t_end")), bad)
     return m
 
 
@@ -74,10 +95,11 @@ def main(url: str, n: int, out: str, seed: int = 1, channels: str | None = None)
     rng = random.Random(seed)
     lc = lcm.LCM(url)
     sent: Counter = Counter()
-    every = {**TARGETS, **SENSORS}
+    every = {**TARGETS, **SENSORS, **MAGNETIC}
     targets = TARGETS if not channels else {ch: every[ch] for ch in channels.split(",")}
-    recent: dict[str, deque] = {ch: deque(maxlen=50) for ch in
-                                ("SCRT_STATE", "SCRT_CMD", "SCRT_CTRL_STATUS", *(c for c in targets if c in SENSORS))}
+    genuine = ("SCRT_STATE", "SCRT_CMD", "SCRT_CTRL_STATUS",
+               *(c for c in targets if c in SENSORS or c == "SCRT_ROD_CMD"))
+    recent: dict[str, deque] = {ch: deque(maxlen=50) for ch in genuine}  # for replays
     for ch in recent:
         lc.subscribe(ch, lambda c, d: recent[c].append(d))
     stop = threading.Event()
@@ -117,10 +139,8 @@ def main(url: str, n: int, out: str, seed: int = 1, channels: str | None = None)
             data = valid(cls, rng).encode() + rng.randbytes(rng.randrange(1, 40))
         elif kind in ("nan", "inf", "absurd"):
             bad = {"nan": math.nan, "inf": math.inf, "absurd": 1e300}[kind]
-            if cls is sc_rt_lcm.fault_cmd_t:
-                m = valid(cls, rng)
-                m.effectiveness = bad
-                data = m.encode()
+            if cls in FAULTS:
+                data = _bad_fault(cls, rng, bad).encode()
             else:
                 data = valid(cls, rng, bad).encode()
         else:  # replay of a genuine message seen earlier (old sequence number)

@@ -252,6 +252,40 @@ echo "rc=$?"
 
 
 @pytest.mark.lcm
+def test_hostile_rod_commands_and_rod_faults_during_a_lockstep_run_change_nothing(tmp_path):
+    """5,000 malformed, truncated, foreign, replayed and non-finite rod_cmd_t,
+    rod_fault_cmd_t and wheel_cmd_t messages while day_hold runs in lockstep, its
+    emulator accepting fault commands: each counted by kind, none applied, the run
+    valid and bitwise the C++ engine's (the rods' commands among the fields)."""
+    lcmnet.require()
+    out, sent, port = tmp_path / "hil", tmp_path / "sent.json", 7982
+    url = f"udpm://239.255.76.67:{port}?ttl=0&recv_buf_size=4194304"
+    script = f"""
+set -e
+{PY} -m sc_rt.cli hil day_hold --mode lockstep --duration 60 --no-plots --out {out} --lcm-url '{url}' \
+    --accept-fault-commands > {tmp_path}/hil.log 2>&1 &
+HIL=$!
+SCRT_WAIT_PID=$HIL {PY} {HERE / 'fuzz_lcm.py'} '{url}' 5000 {sent} 11 SCRT_ROD_CMD,SCRT_ROD_FAULT,SCRT_CMD
+wait $HIL
+"""
+    r = lcmnet.run_script(script, timeout=600)
+    assert r.returncode == 0, r.stderr + (tmp_path / "hil.log").read_text()
+    s = json.loads(sent.read_text())
+    assert s["n"] == 5000
+    by = {ch: sum(v for k, v in s["sent"].items() if k.startswith(ch + ":"))
+          for ch in ("SCRT_ROD_CMD", "SCRT_ROD_FAULT")}
+    emu = json.loads((out / "timing.json").read_text())["emulator_counters"]
+    # every hostile rod fault was refused (foreign session, or not a rod_fault_cmd_t), none applied
+    assert emu.get("fault_applied", 0) == 0 and 0 < emu.get("fault_foreign_session", 0) <= by["SCRT_ROD_FAULT"], emu
+    # hostile rod commands: another rod count or a non-finite dipole, a foreign session, a replay
+    rod_refused = sum(emu.get(k, 0) for k in ("invalid_rod_command", "rod_duplicate", "rod_out_of_order"))
+    assert emu.get("invalid_rod_command", 0) > 0 and 0 < rod_refused <= by["SCRT_ROD_CMD"], emu
+    assert emu.get("rod_cmd_held", 0) == 0 and emu.get("rod_conflict", 0) == 0, emu
+    assert json.loads((out / "metrics.json").read_text())["valid"] is True
+    _same_as_sim(resolve("day_hold"), out, 60.0)
+
+
+@pytest.mark.lcm
 def test_a_controller_that_sends_no_rod_commands_still_runs_the_scenario_with_the_rods_held(tmp_path):
     # wheel_cmd_t is unchanged: the example written against it runs a magnetic scenario, its rods held at zero
     lcmnet.require()
