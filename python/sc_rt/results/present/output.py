@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from sc_rt.results.record.jsonsafe import atomic_path
 from sc_rt.results.record.run import Run, write_json
 
 __all__ = ["write_run", "check_out_dir", "OutDir", "OutDirInUse", "MANIFEST"]
@@ -199,10 +200,9 @@ class OutDir:
         import json
 
         own = sorted(_files(self.path) - self.foreign)
-        tmp = self.path / (MANIFEST + ".partial")
-        tmp.write_text(json.dumps({"run_id": self.run_id, "done": done, "files": own,
-                                   "foreign": sorted(self.foreign)}, indent=1) + "\n")
-        tmp.replace(self.path / MANIFEST)
+        with atomic_path(self.path / MANIFEST) as tmp:
+            tmp.write_text(json.dumps({"run_id": self.run_id, "done": done, "files": own,
+                                       "foreign": sorted(self.foreign)}, indent=1) + "\n")
 
     def release(self) -> None:
         if not self._claimed:
