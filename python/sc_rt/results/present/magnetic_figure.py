@@ -76,7 +76,7 @@ def _shade(ax, t: np.ndarray, on: np.ndarray, label: str) -> None:
 
 
 def _mark_rod_faults(axs: list, dipole_ax, faults: list[RodFaultSpan], t_last: float, scale: float) -> None:
-    """Each rod fault within the run: its span shaded in its rod's colour on
+    """Each rod fault within the run: its span hatched in its rod's colour on
     the dipole panel (labelled with what, where from and when), its onset
     (dash-dot) and end (dotted) on every panel; ``scale``: [s] per unit of
     the time axis. Every artist's gid is "rod-fault-N"."""
@@ -85,7 +85,7 @@ def _mark_rod_faults(axs: list, dipole_ax, faults: list[RodFaultSpan], t_last: f
             continue
         a, b = f.onset / scale, (t_last if f.end is None else min(f.end, t_last)) / scale
         colour, gid = f"C{(f.rod - 1) % 10}", f"rod-fault-{f.rod}"
-        dipole_ax.axvspan(a, b, color=colour, alpha=0.15, lw=0, label=f.text(), gid=gid)
+        dipole_ax.axvspan(a, b, fill=False, hatch="//", edgecolor=colour, alpha=0.4, lw=0, label=f.text(), gid=gid)
         for ax in axs:
             ax.axvline(a, color=colour, ls="-.", lw=1.0, gid=gid)
             if f.end is not None and f.end <= t_last:
@@ -145,7 +145,7 @@ def magnetic_figure(run: Run, out: Path, title: str = "") -> Path | None:
     head = ("Wheel momentum, the momentum manager and the rod dipoles (shaded: unloading)" if manager
             else "The rod dipoles and B-dot's mode")
     if s["rod_faults"]:
-        head += "; rod faults: dash-dot onset, dotted end"
+        head += "\nrod faults hatched in the rod's colour: dash-dot onset, dotted end"
     axs[0].set_title(f"{head}\n{title or run_title(run)}", fontsize=10)
     path = save_figure(fig, Path(out) / FILE)
     plt.close(fig)
