@@ -63,7 +63,8 @@ def _timeline(page: str) -> str:
 def _rod_bars(page: str) -> list[tuple[str, float, float, str]]:
     """(class, x, width, title) of the timeline's rod fault bars."""
     return [(c, float(x), float(w), t) for x, w, c, t in re.findall(
-        r'<rect x="([\d.]+)" y="[\d.]+" width="([\d.]+)"[^>]*class="(rod-fault[^"]*)"[^>]*><title>([^<]*)</title>',
+        r'<rect x="([\d.]+)" y="[\d.]+" width="([\d.]+)"[^>]*class="(rod-fault (?:scheduled|live))"[^>]*>'
+        r'<title>([^<]*)</title>',
         _timeline(page))]
 
 
@@ -185,6 +186,54 @@ def test_live_rod_fault_spans_are_what_the_emulator_applies_between_commands():
         "rod 1 dead (live, received at 20 s) from 25 s to 35 s",
         "rod 2 stuck at 7.5 A m^2 (live, received at 22 s) from 22 s",
         "rod 3 reversed (live, received at 24 s) from 26 s to 28 s"]
+
+
+def test_the_report_of_a_small_log_lists_its_live_rod_fault_and_counts_each_command_once(tmp_path):
+    """A six-state log (the shape of tests/test_report.py's) with a wheel's
+    and a rod's fault command: sc-rt report's page lists the rod's on rod 2's
+    lane and in the verdict, with its receipt (the newest state logged before
+    it: t = 0.1 s), and counts two live commands, not each twice (report.json
+    and timing.json both hold them)."""
+    import lcm
+
+    from sc_rt.logs.report import write_report
+    from sc_rt.tools.faultcmd import inject_msg
+
+    scn = load_scenario("paper_fault_free")
+    log = tmp_path / "x.lcmlog"
+    w = lcm.EventLog(str(log), "w", overwrite=True)
+    w.write_event(0, "SCRT_CONFIG", scn.controller_config_msg().encode())
+    ts = 1000
+    for k in range(6):
+        for ch, m in (("SCRT_STATE", sc_rt_lcm.plant_state_t()), ("SCRT_CMD", sc_rt_lcm.wheel_cmd_t()),
+                      ("SCRT_TRUTH", sc_rt_lcm.plant_truth_t())):
+            m.t = k / 10
+            if ch == "SCRT_STATE":
+                m.seq = k
+            elif ch == "SCRT_CMD":
+                m.session, m.seq, m.state_seq = 1, k, k
+            else:
+                m.seq, m.cmd_seq_applied = k, k
+            ts += 10
+            w.write_event(ts, ch, m.encode())
+        if k == 1:  # after state 1 (t = 0.1 s)
+            ts += 10
+            w.write_event(ts, "SCRT_ROD_FAULT", rod_inject_msg(2, "stuck", dipole=3.0, at=0.2, until=0.4).encode())
+            ts += 10
+            w.write_event(ts, "SCRT_FAULT", inject_msg(1, effectiveness=0.5, at=0.3).encode())
+    w.close()
+    write_report(log, tmp_path / "rep", plots=False)
+    page = write_html_report(tmp_path / "rep").read_text()
+    text = "rod 2 stuck at 3 A m^2 (live, received at 0.1 s) from 0.2 s to 0.4 s"
+    assert f'<li id="verdict-rod-faults">Rod faults: {text}</li>' in page
+    assert "; 2 live fault commands on the bus</li>" in page
+    (cls, x, w_, title), = _rod_bars(page)  # on [0, 0.5] s: x = 150 + 830 t / 0.5
+    assert (cls, title) == ("rod-fault live", text)
+    assert x == pytest.approx(150 + 830 * 0.2 / 0.5, abs=0.06) and w_ == pytest.approx(830 * 0.2 / 0.5, abs=0.11)
+    rod2 = _timeline(page).split(">rod 2 fault</text>")[1].split("</g>")[0]
+    assert text in rod2 and rod2.count('class="rod-fault-command"') == 1
+    wheel1 = _timeline(page).split(">wheel 1 fault</text>")[1].split("</g>")[0]
+    assert wheel1.count("fault command inject at 0.1 s") == 1  # drawn once, not once per file
 
 
 # --------------------------------------------------------------------------- #

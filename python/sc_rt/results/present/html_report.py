@@ -25,7 +25,7 @@ from sc_rt.results.present.output import run_files
 from sc_rt.results.present.html_telemetry import telemetry_table
 from sc_rt.results.present.html_requirements import requirements_table
 from sc_rt.results.present.html_timeline import spans, timeline_of_stored, timeline_section
-from sc_rt.results.present.rod_faults import live_rod_records, rod_fault_line, rod_fault_spans
+from sc_rt.results.present.rod_faults import live_fault_records, rod_fault_line, rod_fault_spans
 from sc_rt.results.judge.verdict import asks_envelope
 from sc_rt.results.record.jsonsafe import atomic_path
 
@@ -192,8 +192,7 @@ def _fault_texts(d: dict[str, Any]) -> list[str]:
             on = np.nonzero(np.nan_to_num(Y[:, w]) > 0)[0]
             if on.size:
                 applied.append(f"wheel {w + 1} from {fmt(float(t[on[0]]), 's')} s")
-        live = ((d["report"] or {}).get("faults", {}).get("commands", [])
-                + list((d["timing"] or {}).get("faults_applied") or []))
+        live = live_fault_records(d["report"], d["timing"])  # one record of each command (not both files)
         text = "Faults applied (plant truth): " + ("; ".join(applied) if applied else "none")
         if live:
             text += f"; {len(live)} live fault command{'s' if len(live) > 1 else ''} on the bus"
@@ -297,7 +296,7 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
         held = False
     items = [("verdict-safe", _safe_text(d))]
     items += [(f"verdict-faults-{i}", s) for i, s in enumerate(_fault_texts(d))]
-    rods = rod_fault_spans((d["meta"] or {}).get("rod_faults") or (), live_rod_records(d["report"], d["timing"]))
+    rods = rod_fault_spans((d["meta"] or {}).get("rod_faults") or (), live_fault_records(d["report"], d["timing"]))
     if rods:  # the magnetorquer rods' faults, scheduled and live (results/present/rod_faults.py)
         t = d["traj"].get("t")
         items.append(("verdict-rod-faults", rod_fault_line(rods, float(t[-1]) if t is not None and len(t) else None)))

@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from sc_rt.results.present.rod_faults import RodCommand, RodFaultSpan, live_rod_records, rod_commands, rod_fault_spans
+from sc_rt.results.present.rod_faults import (RodCommand, RodFaultSpan, live_fault_records, rod_commands,
+                                              rod_fault_spans)
 
 __all__ = ["spans", "timeline_svg", "timeline_section", "timeline_of_stored", "MODE_NAMES"]
 
@@ -179,11 +180,9 @@ def timeline_section(traj: dict[str, np.ndarray], meta: dict[str, Any], report: 
     if modes is not None and not np.any(modes >= 0):
         modes = None
         parts.append("<p>Controller mode not recorded by this engine.</p>")
+    live = live_fault_records(report, timing)
     cmds = [{"wheel": c.get("wheel"), "t": c.get("t_sim_at_receipt", c.get("t")), "action": c.get("action")}
-            for c in ((report or {}).get("faults", {}).get("commands", [])
-                      + list((timing or {}).get("faults_applied") or []))
-            if c.get("wheel") is not None]  # the wheels' lanes (a rod's command names a "rod")
-    live = live_rod_records(report, timing)
+            for c in live if c.get("wheel") is not None]  # the wheels' lanes (a rod's command names a "rod")
     rods, rod_cmds = rod_fault_spans(meta.get("rod_faults") or (), live), rod_commands(live)
     n_rods = len((meta.get("magnetic") or {}).get("rod_max_dipole") or ())
     parts.append(timeline_svg(traj["t"], modes=modes, bound_ok=traj.get("bound_ok") if envelope else None,

@@ -28,7 +28,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
-__all__ = ["RodFaultSpan", "RodCommand", "rod_commands", "rod_fault_spans", "live_rod_records", "rod_fault_line"]
+__all__ = ["RodFaultSpan", "RodCommand", "rod_commands", "rod_fault_spans", "live_fault_records", "rod_fault_line"]
 
 
 @dataclass(frozen=True)
@@ -118,10 +118,12 @@ def rod_fault_spans(scheduled: list[dict[str, Any]] | tuple = (),
     return sorted(done + list(current.values()), key=lambda s: (s.rod, s.onset))
 
 
-def live_rod_records(report: dict[str, Any] | None, timing: dict[str, Any] | None) -> list[dict[str, Any]]:
-    """The live fault records of a run directory: ``sc-rt report``'s
-    report.json commands (the log's), else timing.json's ``faults_applied``
-    (the emulator's). A log's report has both, the same commands: one is taken."""
+def live_fault_records(report: dict[str, Any] | None, timing: dict[str, Any] | None) -> list[dict[str, Any]]:
+    """The live fault records of a run directory, the wheels' and the rods':
+    ``sc-rt report``'s report.json commands (the log's), else timing.json's
+    ``faults_applied`` (the emulator's). A log's report has both, the same
+    commands (logs/report.py puts them in the run's ``faults_applied``): one
+    is taken, so that none is counted twice."""
     cmds = ((report or {}).get("faults") or {}).get("commands")
     return list(cmds) if report is not None and cmds is not None else list((timing or {}).get("faults_applied") or [])
 
