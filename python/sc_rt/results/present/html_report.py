@@ -53,7 +53,7 @@ FIGURES = {
     "law_telemetry.png": "The law's own telemetry: its named values and the fixed slots it fills (x2d, rho_hat)",
     "magnetic_control.png": ("Magnetic control: the wheels' momentum |h_wheels_B| with the momentum manager's "
                              "on/off band, its fill, the rod dipole commands with their limits and B-dot's mode "
-                             "when it ran; shaded: unloading"),
+                             "when it ran; shaded: unloading; hatched, dash-dot to dotted: a rod's fault"),
     "gyro_calibration.png": ("The calibrating filter's gyro scale factors [ppm] and misalignments [arcsec] "
                              "with their 3 sigma (gyro_cal_est, gyro_cal_3sigma)"),
 }
