@@ -105,10 +105,10 @@ def timeline_svg(t: np.ndarray, *, modes: np.ndarray | None, bound_ok: np.ndarra
                      "none" if f.source == "scheduled" else ROD_FILL, f.text(), class_=f"rod-fault {f.source}",
                      stroke=ROD_STROKE, stroke_width="2", **({"stroke_dasharray": "5,3"} if f.source == "scheduled"
                                                             else {}))
-                for f in rods if f.rod == r and f.onset <= t1]
+                for f in rods if f.rod == r and f.onset <= t1 and (f.end is None or f.end > t0)]  # within the run
         bars += [_bar(0, c.received, c.received, t0, t1, "#000000",
                       f"rod fault command {c.action} rod {c.rod} at {c.received:g} s", class_="rod-fault-command")
-                 for c in rod_cmds if c.rod == r and c.received <= t1]
+                 for c in rod_cmds if c.rod == r and t0 <= c.received <= t1]
         lanes.append((f"rod {r} fault", bars))
     if cmd_stale is not None and t.size:
         lanes.append(("command gaps", [_bar(0, a, b, t0, t1, "#fd8d3c", f"no valid command {a:.2f}-{b:.2f} s")
