@@ -71,6 +71,8 @@ SLOW_TESTS = (
     # the run, the C++ engine twice), its report and MCAP
     "tests/test_rod_fault.py::test_rod_faults_sent_live_in_lockstep_equal_the_cpp_engine_with_them_scheduled",
     "tests/test_rod_fault.py::test_the_log_holds_the_rod_fault_commands_for_the_report_and_the_mcap",
+    # issue 43 item 8: the live run's and its log's report.html and the log's figures with its rod faults
+    "tests/test_rod_fault.py::test_the_reports_of_the_live_run_and_of_its_log_show_its_rod_faults",
     # issue 43: WMM2025's epoch window refused by `sc-rt sim` and `sc-rt check` (two processes, ~1.2 s)
     "tests/test_wmm2025.py::test_sc_rt_refuses_an_epoch_outside_wmm2025_with_exit_2_and_one_line",
     # issue 43: a lockstep run over LCM in WMM2025 against the C++ engine

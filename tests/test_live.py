@@ -30,7 +30,7 @@ import sc_rt_lcm
 from mcap.reader import make_reader
 from tornado.httpclient import HTTPClientError
 
-from sc_rt.live.layout import LAYOUT, TOPICS, build_layout, referenced_topics
+from sc_rt.live.layout import LAYOUT, TOPICS, build_layout, message_paths, referenced_topics
 from sc_rt.live.ratelimit import RateLimiter, parse_rates
 from sc_rt.live.server import LiveServer
 from sc_rt.wire import codec as wire
@@ -242,6 +242,42 @@ def test_a_magnetic_run_serves_its_field_and_rods_live_as_the_export(tmp_path):
     # bytes (but for the controller's re-answers of the first state: the cap keeps one per time)
     assert len(rods) == 101 and rods == capped(mcap["SCRT_ROD_CMD"])
     assert any(any(abs(d) > 1.0 for d in json.loads(p)["dipole"][:3]) for p in rods)
+    # the shipped layout (its Rods tab too) reads only what this magnetic run publishes: every path a
+    # field of its topic's schema in the export, and the Rods tab's values numbers in what was served
+    shipped = json.loads(LAYOUT.read_text())
+    for path in message_paths(shipped):
+        topic, steps = _path_steps(path)
+        if topic.startswith("/studio_script/"):
+            continue  # the layout's own user script writes it
+        assert topic in schemas, path
+        node = schemas[topic][1]
+        for step in steps:
+            node = node["items"] if isinstance(step, int) else node["properties"][step]
+    status = [json.loads(p) for _, p in got["messages"]["SCRT_CTRL_STATUS"]]
+    rod_paths = [p for p in message_paths(shipped) if '"SCRT_CTRL_STATUS".' in p]
+    assert {p.split(".")[1].split("[")[0] for p in rod_paths} == {
+        "rod_dipole_cmd", "m_B_cmd", "wheel_fill", "unloading", "detumble_mode"}
+    for m in status:
+        for p in rod_paths:
+            v = m
+            for step in _path_steps(p)[1]:
+                v = v[step]
+            assert isinstance(v, (int, float)), (p, v)
+    assert {m["unloading"] for m in status} <= {0, 1} and {m["detumble_mode"] for m in status} == {-1}
+    assert any(abs(v) > 1.0 for m in status for v in m["m_B_cmd"])
+
+
+def _path_steps(path: str) -> tuple[str, list]:
+    """(topic, [field, index, ...]) of a Foxglove message path: ``"T".a[2]`` or ``/t/u.a.b``."""
+    if path.startswith('"'):
+        topic, rest = path[1:path.index('"', 1)], path[path.index('"', 1) + 2:]
+    else:
+        topic, _, rest = path.partition(".")
+    steps: list = []
+    for part in rest.split("."):
+        name, *idx = part.replace("]", "").split("[")
+        steps += [name, *(int(i) for i in idx)]
+    return topic, steps
 
 
 def capped(payloads: list[bytes], periodic: bool = True) -> list[bytes]:

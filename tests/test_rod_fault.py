@@ -362,3 +362,38 @@ def test_a_row_with_the_rods_a_command_left_is_the_row_of_a_plant_with_them_sche
     assert np.array_equal(a, b) and not np.array_equal(a, healthy)
     assert all(np.array_equal(u, v) for u, v in zip(ra, rb))
     assert [float(v) for v in live.dipole_B(0.06, d_cmd, rods)] == [4.0, 20.0, 0.0]  # stuck, reversed, dead
+
+
+#: the rod faults the live run's commands left (LIVE; day_hold's armed rod 2 replaced before its onset)
+SHOWN = ["rod 1 stuck at 4 A m^2 (live, received at 0 s) from 0 s",
+         "rod 2 reversed (live, received at 0 s) from 20.3 s",
+         "rod 3 dead (live, received at 0 s) from 5 s to 30 s"]
+
+
+@pytest.mark.lcm
+def test_the_reports_of_the_live_run_and_of_its_log_show_its_rod_faults(live_run, tmp_path, monkeypatch):
+    """report.html of the run (timing.json's faults_applied) and of its log
+    (sc-rt report: the log's rod_fault_cmd_t) list the three live rod faults
+    in the verdict and on the rods' lanes of the timeline, and the log's
+    magnetic_control.png marks each rod's (tests/test_rod_view.py: the
+    scheduled ones)."""
+    from sc_rt.logs.report import write_report
+    from sc_rt.results.present import magnetic_figure as magfig
+    from sc_rt.results.present.html_report import write_html_report
+
+    out, _ = live_run
+    figs = []
+    real = magfig.save_figure
+    monkeypatch.setattr(magfig, "save_figure", lambda fig, path, *a, **kw: (figs.append(fig), real(fig, path))[1])
+    write_report(out / "run.lcmlog", tmp_path / "report")
+    for page in (write_html_report(out, tmp_path / "hil.html").read_text(),
+                 write_html_report(tmp_path / "report").read_text()):
+        assert f'<li id="verdict-rod-faults">Rod faults: {"; ".join(SHOWN)}</li>' in page
+        timeline = page[page.index('<section id="timeline">'):page.index("<h2>Figures</h2>")]
+        for rod, text in zip((1, 2, 3), SHOWN):
+            lane = timeline.split(f">rod {rod} fault</text>")[1].split("</g>")[0]
+            assert 'class="rod-fault live"' in lane and text in lane, rod
+            assert "scheduled" not in lane  # day_hold's armed rod 2 fault never began
+    (fig,) = figs
+    gids = {a.get_gid() for ax in fig.axes for a in ax.get_children()}
+    assert {"rod-fault-1", "rod-fault-2", "rod-fault-3"} <= gids

@@ -11,7 +11,13 @@ with sensors), the controller mode
 N in 3D (``/tf``). Tab "Wheels": the wheel speeds against their limit
 (``max_wheel_speed`` of ``SCRT_CONFIG``, through a user script) and the
 commands before and after saturation, in the wheels' unit (rad/s^2, or N m
-on torque wheels: the ``SCRT_CMD`` schema of the bench says which).
+on torque wheels: the ``SCRT_CMD`` schema of the bench says which). Tab
+"Rods" (a run with magnetic control; without it the values are null): the
+controller's rod dipole commands (``SCRT_CTRL_STATUS.rod_dipole_cmd``, rods
+1 to 6, 0 beyond the run's), the body dipole they command (``m_B_cmd``), the
+wheels' fill of the momentum manager's capacity (``wheel_fill``) and the
+magnetic control's modes (``unloading``, ``detumble_mode``). The dipole the
+plant applied (after its limits and the rods' faults) is not on the bus.
 
 ``build_layout`` writes the file with the SDK's layout classes
 (``foxglove.layouts``); tests/test_live.py checks that the shipped file is
@@ -24,12 +30,14 @@ import json
 import re
 from pathlib import Path
 
-__all__ = ["LAYOUT", "TOPICS", "SCRIPT_TOPIC", "build_layout", "referenced_topics"]
+__all__ = ["LAYOUT", "TOPICS", "SCRIPT_TOPIC", "build_layout", "referenced_topics", "message_paths"]
 
 #: the shipped layout
 LAYOUT = Path(__file__).resolve().parent / "foxglove_layout.json"
 #: the topics the layout reads
-TOPICS = ("/derived/pointing", "/derived/wheels", "/tf", "SCRT_CMD", "SCRT_CONFIG")
+TOPICS = ("/derived/pointing", "/derived/wheels", "/tf", "SCRT_CMD", "SCRT_CONFIG", "SCRT_CTRL_STATUS")
+#: [-] the rods the Rods tab plots: the most a plant has (sc_rt.model.rods.MAX_RODS, rod_cmd_t.dipole's size)
+RODS = 6
 #: the topic the layout's user script writes (the wheel speed limit beside each wheel sample)
 SCRIPT_TOPIC = "/studio_script/wheel_limits"
 
@@ -89,6 +97,7 @@ def build_layout() -> dict:
     cmds = plot("wheel commands [rad/s^2; N m on torque wheels]", [
         *[(f'"SCRT_CMD".u_cmd[{i}]', f"u_cmd {i + 1}") for i in range(4)],
         *[(f'"SCRT_CMD".u_sat[{i}]', f"u_sat {i + 1}") for i in range(4)]], "rad/s^2 or N m (the wheels')")
+    rods = _rods_tab(fl, plot)
     attitude = fl.SplitContainer(direction="row", items=[
         fl.SplitItem(proportion=2, content=fl.SplitContainer(direction="column", items=axes)),
         fl.SplitItem(proportion=2, content=fl.SplitContainer(direction="column", items=[
@@ -98,9 +107,33 @@ def build_layout() -> dict:
                                                              fl.SplitItem(content=cmds)])
     layout = fl.Layout(
         content=fl.TabContainer(tabs=[fl.TabItem(title="Attitude", content=attitude),
-                                      fl.TabItem(title="Wheels", content=wheel_tab)]),
+                                      fl.TabItem(title="Wheels", content=wheel_tab),
+                                      fl.TabItem(title="Rods", content=rods)]),
         user_scripts={"wheel_limits": fl.UserScript(name="wheel limits", source_code=_SCRIPT)})
     return json.loads(layout.to_json())
+
+
+def _rods_tab(fl, plot):
+    """The tab of the magnetorquer rods: what the controller's status
+    carries of its magnetic part (docs/MODEL.md section 17)."""
+    st = '"SCRT_CTRL_STATUS"'
+    dipoles = plot("rod dipole commands [A m^2] (before the plant's limits and faults)",
+                   [(f"{st}.rod_dipole_cmd[{i}]", f"rod {i + 1}") for i in range(RODS)], "A m^2")
+    body = plot("body dipole commanded m_B_cmd = G_B rod_dipole_cmd [A m^2]",
+                [(f"{st}.m_B_cmd[{i}]", f"m_B_cmd,{ax}") for i, ax in enumerate("xyz")], "A m^2")
+    fill = plot("wheels' fill of the momentum manager's capacity [-]", [(f"{st}.wheel_fill", "fill")], "-")
+
+    def states(path: str, label: str, names: dict[int, str]):
+        return fl.StateTransitionsSeries(value=path, label=label, timestamp_method="receiveTime",
+                                         custom_states=fl.StateTransitionsDiscreteCustomStates(states=[
+                                             fl.StateTransitionsDiscreteCustomState(value=str(v), label=n)
+                                             for v, n in names.items()]))
+    modes = fl.StateTransitionsPanel(title="magnetic control mode", config=fl.StateTransitionsConfig(paths=[
+        states(f"{st}.unloading", "momentum unloading", {-1: "no manager", 0: "off", 1: "on"}),
+        states(f"{st}.detumble_mode", "B-dot", {-1: "no B-dot", 0: "detumble", 1: "attitude"})]))
+    return fl.SplitContainer(direction="column", items=[
+        fl.SplitItem(content=dipoles), fl.SplitItem(content=body), fl.SplitItem(proportion=0.6, content=fill),
+        fl.SplitItem(proportion=0.6, content=modes)])
 
 
 def _walk(node, out: dict[str, list]) -> None:
@@ -118,6 +151,14 @@ def _walk(node, out: dict[str, list]) -> None:
     elif isinstance(node, list):
         for v in node:
             _walk(v, out)
+
+
+def message_paths(layout: dict) -> list[str]:
+    """Every message path of a layout (``"SCRT_CMD".u_cmd[0]``,
+    ``/derived/pointing.true_error_arcsec``), in the layout's order."""
+    found: dict[str, list] = {"paths": [], "panels": [], "scripts": []}
+    _walk(layout, found)
+    return found["paths"]
 
 
 def referenced_topics(layout: dict) -> set[str]:

@@ -24,7 +24,8 @@ import numpy as np
 from sc_rt.results.present.output import run_files
 from sc_rt.results.present.html_telemetry import telemetry_table
 from sc_rt.results.present.html_requirements import requirements_table
-from sc_rt.results.present.html_timeline import MODE_NAMES, spans, timeline_svg
+from sc_rt.results.present.html_timeline import spans, timeline_of_stored, timeline_section
+from sc_rt.results.present.rod_faults import live_fault_records, rod_fault_line, rod_fault_spans
 from sc_rt.results.judge.verdict import asks_envelope
 from sc_rt.results.record.jsonsafe import atomic_path
 
@@ -52,7 +53,7 @@ FIGURES = {
     "law_telemetry.png": "The law's own telemetry: its named values and the fixed slots it fills (x2d, rho_hat)",
     "magnetic_control.png": ("Magnetic control: the wheels' momentum |h_wheels_B| with the momentum manager's "
                              "on/off band, its fill, the rod dipole commands with their limits and B-dot's mode "
-                             "when it ran; shaded: unloading"),
+                             "when it ran; shaded: unloading; hatched, dash-dot to dotted: a rod's fault"),
     "gyro_calibration.png": ("The calibrating filter's gyro scale factors [ppm] and misalignments [arcsec] "
                              "with their 3 sigma (gyro_cal_est, gyro_cal_3sigma)"),
 }
@@ -155,7 +156,7 @@ def _load(run_dir: Path) -> dict[str, Any]:
     meta: dict[str, Any] = {}
     p = run_dir / "trajectory.npz"  # a run written before trajectory.arrow was the one format
     if (run_dir / "trajectory.arrow").exists():
-        traj, meta = _timeline_of_stored(run_dir / "trajectory.arrow")
+        traj, meta = timeline_of_stored(run_dir / "trajectory.arrow")
     elif p.exists():
         with np.load(p, allow_pickle=False) as z:
             for k in ("t", "bound_ok", "ctrl_mode", "flags", "fault_Y", "cmd_stale"):
@@ -168,35 +169,6 @@ def _load(run_dir: Path) -> dict[str, Any]:
                   key=lambda q: (list(FIGURES).index(q.name) if q.name in FIGURES else len(FIGURES), q.name))
     return {"metrics": metrics, "timing": js("timing.json"), "report": js("report.json"), "traj": traj,
             "meta": meta, "figures": figs}
-
-
-def _timeline_of_stored(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """What the timeline draws of a run on disk (trajectory.arrow), read a
-    chunk at a time and kept at its change points only: the rows where the
-    mode, the flags, a command gap, the bound or a fault's activity (Y > 0)
-    changes, and the last row. Every span the timeline draws ends at the
-    next change, so the spans are those of every row."""
-    from sc_rt.results.record.store import ChunkReader
-
-    r = ChunkReader(path)
-    names = ("t", "bound_ok", "ctrl_mode", "flags", "fault_Y", "cmd_stale")
-    kept: dict[str, list[np.ndarray]] = {k: [] for k in names}
-    prev = None
-    for i in range(r.n_batches):
-        c = r.batch(i, names)
-        c["fault_Y"] = (np.nan_to_num(c["fault_Y"]) > 0).astype(float)  # all the timeline uses of it
-        key = np.column_stack([c["bound_ok"], c["ctrl_mode"], c["flags"], c["fault_Y"], c["cmd_stale"] != 0])
-        change = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]
-        if prev is not None:
-            change[0] = bool(np.any(key[0] != prev))
-        if i == r.n_batches - 1:
-            change[-1] = True
-        prev = key[-1]
-        for k in names:
-            kept[k].append(c[k][change])
-    meta = json.loads(r.metadata.get("sc-rt:meta", "{}"))
-    r.close()
-    return ({k: np.concatenate(v) for k, v in kept.items()} if r.n_batches else {}), meta
 
 
 def _scheduled(d: dict[str, Any]) -> list[dict[str, Any]]:
@@ -220,8 +192,7 @@ def _fault_texts(d: dict[str, Any]) -> list[str]:
             on = np.nonzero(np.nan_to_num(Y[:, w]) > 0)[0]
             if on.size:
                 applied.append(f"wheel {w + 1} from {fmt(float(t[on[0]]), 's')} s")
-        live = ((d["report"] or {}).get("faults", {}).get("commands", [])
-                + list((d["timing"] or {}).get("faults_applied") or []))
+        live = live_fault_records(d["report"], d["timing"])  # one record of each command (not both files)
         text = "Faults applied (plant truth): " + ("; ".join(applied) if applied else "none")
         if live:
             text += f"; {len(live)} live fault command{'s' if len(live) > 1 else ''} on the bus"
@@ -325,6 +296,10 @@ def verdict_items(d: dict[str, Any]) -> tuple[bool, str, list[tuple[str, str]]]:
         held = False
     items = [("verdict-safe", _safe_text(d))]
     items += [(f"verdict-faults-{i}", s) for i, s in enumerate(_fault_texts(d))]
+    rods = rod_fault_spans((d["meta"] or {}).get("rod_faults") or (), live_fault_records(d["report"], d["timing"]))
+    if rods:  # the magnetorquer rods' faults, scheduled and live (results/present/rod_faults.py)
+        t = d["traj"].get("t")
+        items.append(("verdict-rod-faults", rod_fault_line(rods, float(t[-1]) if t is not None and len(t) else None)))
     items.append(("verdict-timing", timing_text(d["timing"])))
     if m.get("diverged") or m.get("finite") is False:
         after = m.get("diverged_after_s")
@@ -413,28 +388,7 @@ def render_html(run_dir: str | Path) -> str:
     traj = d["traj"]
     envelope = asks_envelope(m.get("requirements"))  # its bands only where the scenario asks for it
     parts.append('<h2>Timeline</h2><section id="timeline">')
-    if "t" in traj:
-        modes = traj.get("ctrl_mode")
-        if modes is not None and not np.any(modes >= 0):
-            modes = None
-            parts.append("<p>Controller mode not recorded by this engine.</p>")
-        cmds = [{"wheel": c.get("wheel"), "t": c.get("t_sim_at_receipt", c.get("t")), "action": c.get("action")}
-                for c in ((d["report"] or {}).get("faults", {}).get("commands", [])
-                          + list((d["timing"] or {}).get("faults_applied") or []))
-                if c.get("wheel") is not None]  # the wheels' lanes (a rod's command names a "rod")
-        parts.append(timeline_svg(traj["t"], modes=modes, bound_ok=traj.get("bound_ok") if envelope else None,
-                                  scheduled=_scheduled(d),
-                                  fault_Y=traj.get("fault_Y"), cmd_stale=traj.get("cmd_stale"), commands=cmds))
-        legend = [(c, f"mode {n}") for n, c in (("INIT", "#9ecae1"), ("NORMAL", "#74c476"), ("SAFE", "#de2d26"))]
-        legend += [("#9e9ac8", "fault active (Y > 0)"), ("#ffffff;border:2px dashed #6a51a3", "fault scheduled"),
-                   ("#fd8d3c", "no valid command")]
-        if envelope:
-            legend.append(("#cb181d", "outside the prescribed bound"))
-        parts.append('<p class=legend>' + "".join(f'<span><i style="background:{c}"></i>{escape(n)}</span>'
-                                                   for c, n in legend) + "</p>")
-        _ = MODE_NAMES
-    else:
-        parts.append("<p>No trajectory.arrow: no timeline.</p>")
+    parts.append(timeline_section(traj, d["meta"] or {}, d["report"], d["timing"], envelope))
     parts.append('</section><h2>Figures</h2><section id="figures">')
     captions = dict(FIGURES if envelope else FIGURES_WITHOUT_ENVELOPE)
     if m.get("wheel_command") == "torque":  # the wheels take motor torques: the commands' unit is N m

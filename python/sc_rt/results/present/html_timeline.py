@@ -1,19 +1,28 @@
 """The timeline of a run as an inline SVG: controller modes, wheel faults
-(scheduled, and active in the plant's truth), command gaps and, when given
-(a scenario that asks for the envelope), the spans outside the prescribed
-bound per axis. Pure data in, SVG text out."""
+(scheduled, and active in the plant's truth), the magnetorquer rods' faults
+(scheduled, and sent live: results/present/rod_faults.py), command gaps and,
+when given (a scenario that asks for the envelope), the spans outside the
+prescribed bound per axis. Pure data in, SVG text out; ``timeline_section``
+is report.html's section of it, from a run directory's files."""
 
 from __future__ import annotations
 
+import json
 from html import escape
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["spans", "timeline_svg", "MODE_NAMES"]
+from sc_rt.results.present.rod_faults import (RodCommand, RodFaultSpan, live_fault_records, rod_commands,
+                                              rod_fault_spans)
+
+__all__ = ["spans", "timeline_svg", "timeline_section", "timeline_of_stored", "MODE_NAMES"]
 
 MODE_NAMES = {-1: "unknown", 0: "INIT", 1: "NORMAL", 2: "SAFE"}
 MODE_COLOURS = {-1: "#d9d9d9", 0: "#9ecae1", 1: "#74c476", 2: "#de2d26"}
+#: a rod fault's outline (scheduled: dashed) and fill (sent live)
+ROD_STROKE, ROD_FILL = "#1b7837", "#a6dba0"
 W, LEFT, RIGHT, LANE, TOP = 1000, 150, 20, 22, 10
 
 
@@ -54,9 +63,12 @@ def _bar(y: float, a: float, b: float, t0: float, t1: float, fill: str, title: s
 
 def timeline_svg(t: np.ndarray, *, modes: np.ndarray | None, bound_ok: np.ndarray | None,
                  scheduled: list[dict[str, Any]], fault_Y: np.ndarray | None,
-                 cmd_stale: np.ndarray | None, commands: list[dict[str, Any]]) -> str:
-    """The SVG (one lane each: mode, wheels 1..4, command gaps, and with
-    ``bound_ok`` the prescribed bound x/y/z)."""
+                 cmd_stale: np.ndarray | None, commands: list[dict[str, Any]],
+                 rods: list[RodFaultSpan] | tuple = (), rod_cmds: list[RodCommand] | tuple = (),
+                 n_rods: int = 0) -> str:
+    """The SVG (one lane each: mode, wheels 1..4, the rods 1..``n_rods``
+    and any other rod with a fault in ``rods`` or a command in ``rod_cmds``,
+    command gaps, and with ``bound_ok`` the prescribed bound x/y/z)."""
     t = np.asarray(t, float)
     t0, t1 = (float(t[0]), float(t[-1])) if t.size else (0.0, 1.0)
     lanes: list[tuple[str, list[str]]] = []
@@ -88,6 +100,16 @@ def timeline_svg(t: np.ndarray, *, modes: np.ndarray | None, bound_ok: np.ndarra
                 bars.append(_bar(0, float(c["t"]), float(c["t"]), t0, t1, "#000000",
                                  f"fault command {c.get('action', '')} at {c['t']} s"))
         lanes.append((f"wheel {w} fault", bars))
+    for r in range(1, max([n_rods, *(f.rod for f in rods), *(c.rod for c in rod_cmds)]) + 1):
+        bars = [_bar(0, max(f.onset, t0), t1 if f.end is None else min(f.end, t1), t0, t1,
+                     "none" if f.source == "scheduled" else ROD_FILL, f.text(), class_=f"rod-fault {f.source}",
+                     stroke=ROD_STROKE, stroke_width="2", **({"stroke_dasharray": "5,3"} if f.source == "scheduled"
+                                                            else {}))
+                for f in rods if f.rod == r and f.onset <= t1 and (f.end is None or f.end > t0)]  # within the run
+        bars += [_bar(0, c.received, c.received, t0, t1, "#000000",
+                      f"rod fault command {c.action} rod {c.rod} at {c.received:g} s", class_="rod-fault-command")
+                 for c in rod_cmds if c.rod == r and t0 <= c.received <= t1]
+        lanes.append((f"rod {r} fault", bars))
     if cmd_stale is not None and t.size:
         lanes.append(("command gaps", [_bar(0, a, b, t0, t1, "#fd8d3c", f"no valid command {a:.2f}-{b:.2f} s")
                                        for a, b in spans(t, np.asarray(cmd_stale) != 0)]))
@@ -114,3 +136,68 @@ def timeline_svg(t: np.ndarray, *, modes: np.ndarray | None, bound_ok: np.ndarra
         out.append(f'<text x="{x:.1f}" y="{ya + 14}" text-anchor="middle" font-size="11">{tick:.4g} s</text>')
     out.append("</svg>")
     return "\n".join(out)
+
+
+def timeline_of_stored(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """What the timeline draws of a run on disk (trajectory.arrow), read a
+    chunk at a time and kept at its change points only: the rows where the
+    mode, the flags, a command gap, the bound or a fault's activity (Y > 0)
+    changes, and the last row. Every span the timeline draws ends at the
+    next change, so the spans are those of every row. Also the run's meta
+    (``sc-rt:meta``) as JSON data."""
+    from sc_rt.results.record.store import ChunkReader
+
+    r = ChunkReader(path)
+    names = ("t", "bound_ok", "ctrl_mode", "flags", "fault_Y", "cmd_stale")
+    kept: dict[str, list[np.ndarray]] = {k: [] for k in names}
+    prev = None
+    for i in range(r.n_batches):
+        c = r.batch(i, names)
+        c["fault_Y"] = (np.nan_to_num(c["fault_Y"]) > 0).astype(float)  # all the timeline uses of it
+        key = np.column_stack([c["bound_ok"], c["ctrl_mode"], c["flags"], c["fault_Y"], c["cmd_stale"] != 0])
+        change = np.r_[True, np.any(key[1:] != key[:-1], axis=1)]
+        if prev is not None:
+            change[0] = bool(np.any(key[0] != prev))
+        if i == r.n_batches - 1:
+            change[-1] = True
+        prev = key[-1]
+        for k in names:
+            kept[k].append(c[k][change])
+    meta = json.loads(r.metadata.get("sc-rt:meta", "{}"))
+    r.close()
+    return ({k: np.concatenate(v) for k, v in kept.items()} if r.n_batches else {}), meta
+
+
+def timeline_section(traj: dict[str, np.ndarray], meta: dict[str, Any], report: dict[str, Any] | None,
+                     timing: dict[str, Any] | None, envelope: bool) -> str:
+    """report.html's timeline (the SVG and its legend) of a run directory's
+    rows ``traj`` (``timeline_of_stored``), its meta, report.json (a log's
+    report) and timing.json; the envelope's lanes only with ``envelope``."""
+    if "t" not in traj:
+        return "<p>No trajectory.arrow: no timeline.</p>"
+    parts = []
+    modes = traj.get("ctrl_mode")
+    if modes is not None and not np.any(modes >= 0):
+        modes = None
+        parts.append("<p>Controller mode not recorded by this engine.</p>")
+    live = live_fault_records(report, timing)
+    cmds = [{"wheel": c.get("wheel"), "t": c.get("t_sim_at_receipt", c.get("t")), "action": c.get("action")}
+            for c in live if c.get("wheel") is not None]  # the wheels' lanes (a rod's command names a "rod")
+    rods, rod_cmds = rod_fault_spans(meta.get("rod_faults") or (), live), rod_commands(live)
+    n_rods = len((meta.get("magnetic") or {}).get("rod_max_dipole") or ())
+    parts.append(timeline_svg(traj["t"], modes=modes, bound_ok=traj.get("bound_ok") if envelope else None,
+                              scheduled=list(meta.get("faults") or []), fault_Y=traj.get("fault_Y"),
+                              cmd_stale=traj.get("cmd_stale"), commands=cmds, rods=rods, rod_cmds=rod_cmds,
+                              n_rods=n_rods))
+    legend = [(c, f"mode {n}") for n, c in (("INIT", "#9ecae1"), ("NORMAL", "#74c476"), ("SAFE", "#de2d26"))]
+    legend += [("#9e9ac8", "fault active (Y > 0)"), ("#ffffff;border:2px dashed #6a51a3", "fault scheduled"),
+               ("#fd8d3c", "no valid command")]
+    if rods or rod_cmds or n_rods:
+        legend += [(f"#ffffff;border:2px dashed {ROD_STROKE}", "rod fault scheduled"),
+                   (f"{ROD_FILL};border:2px solid {ROD_STROKE}", "rod fault sent live"),
+                   ("#000000", "live fault command received")]
+    if envelope:
+        legend.append(("#cb181d", "outside the prescribed bound"))
+    parts.append('<p class=legend>' + "".join(f'<span><i style="background:{c}"></i>{escape(n)}</span>'
+                                               for c, n in legend) + "</p>")
+    return "\n".join(parts)

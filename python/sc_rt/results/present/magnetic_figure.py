@@ -1,8 +1,10 @@
 """magnetic_control.png: the controller's magnetic part over a run (issue 43
 item 8; docs/MODEL.md section 17): the wheels' momentum |h_wheels_B| and the
 momentum manager's fill with its on/off band and unloading state, the rod
-dipole commands with their limits, and B-dot's mode when it ran. Units come
-from the run (``RunMeta.unit``), the band and limits from ``RunMeta.magnetic``."""
+dipole commands with their limits, B-dot's mode when it ran, and the rods'
+faults, scheduled and live (results/present/rod_faults.py), each marked
+"rod N" on every panel. Units come from the run (``RunMeta.unit``), the band
+and limits from ``RunMeta.magnetic``."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from sc_rt.results.present.figures import mark_events, run_title, save_figure
+from sc_rt.results.present.rod_faults import RodFaultSpan, rod_fault_spans
 from sc_rt.results.record.run import Run
 
 __all__ = ["magnetic_figure", "magnetic_series", "has_magnetic_control", "FILE", "HOURS_AFTER_S"]
@@ -38,7 +41,9 @@ def magnetic_series(run: Run) -> dict:
         manager's on/off fractions [-] and the same in "h_unit", or None),
         "dipole" (the rods' commands (rows, n_rods) in "dipole_unit"),
         "limits" (per rod, or ()), "detumble" (0/1 per row, or None when
-        B-dot did not run).
+        B-dot did not run), "rod_faults" (``RodFaultSpan`` of the rods,
+        scheduled in ``RunMeta.rod_faults`` and live in
+        ``Run.faults_applied``; their times in s).
     """
     meta, mag = run.meta, dict(run.meta.magnetic or {})
     t = np.asarray(run["t"], float)
@@ -58,7 +63,8 @@ def magnetic_series(run: Run) -> dict:
             "fill": np.asarray(run["wheel_fill"], float), "fill_unit": meta.unit("wheel_fill"),
             "unloading": np.asarray(run["unloading"]), "band": band,
             "dipole": d[:, :n_rods], "dipole_unit": meta.unit("rod_dipole_cmd"), "limits": limits,
-            "detumble": det if bool(np.any(det >= 0)) else None}
+            "detumble": det if bool(np.any(det >= 0)) else None,
+            "rod_faults": rod_fault_spans(meta.rod_faults, run.faults_applied)}
 
 
 def _shade(ax, t: np.ndarray, on: np.ndarray, label: str) -> None:
@@ -69,10 +75,28 @@ def _shade(ax, t: np.ndarray, on: np.ndarray, label: str) -> None:
         ax.axvspan(t[a], t[min(b, t.size - 1)], color="#fdd0a2", alpha=0.5, lw=0, label=label if i == 0 else None)
 
 
+def _mark_rod_faults(axs: list, dipole_ax, faults: list[RodFaultSpan], t_last: float, scale: float) -> None:
+    """Each rod fault within the run: its span hatched in its rod's colour on
+    the dipole panel (labelled with what, where from and when), its onset
+    (dash-dot) and end (dotted) on every panel; ``scale``: [s] per unit of
+    the time axis. Every artist's gid is "rod-fault-N"."""
+    for f in faults:
+        if f.onset > t_last:
+            continue
+        a, b = f.onset / scale, (t_last if f.end is None else min(f.end, t_last)) / scale
+        colour, gid = f"C{(f.rod - 1) % 10}", f"rod-fault-{f.rod}"
+        dipole_ax.axvspan(a, b, fill=False, hatch="//", edgecolor=colour, alpha=0.4, lw=0, label=f.text(), gid=gid)
+        for ax in axs:
+            ax.axvline(a, color=colour, ls="-.", lw=1.0, gid=gid)
+            if f.end is not None and f.end <= t_last:
+                ax.axvline(b, color=colour, ls=":", lw=1.0, gid=gid)
+
+
 def magnetic_figure(run: Run, out: Path, title: str = "") -> Path | None:
     """magnetic_control.png in ``out``: |h_wheels| with the manager's band,
     its fill, the rod dipole commands with their limits (and B-dot's mode
-    when it ran); unloading spans shaded. None without magnetic control."""
+    when it ran); unloading spans shaded; the rods' faults marked. None
+    without magnetic control."""
     import matplotlib.pyplot as plt
 
     if not has_magnetic_control(run):
@@ -109,6 +133,8 @@ def magnetic_figure(run: Run, out: Path, title: str = "") -> Path | None:
         ax4.step(t, s["detumble"], where="post", lw=1)
         ax4.set_yticks([0, 1], ["detumble", "attitude"])
         ax4.set_ylabel("B-dot mode")
+    if t.size:
+        _mark_rod_faults(axs, ax3, s["rod_faults"], float(run["t"][-1]), 3600.0 if s["t_unit"] == "h" else 1.0)
     for a in axs:
         a.grid(alpha=0.3)
         if a.get_legend_handles_labels()[0]:
@@ -118,6 +144,8 @@ def magnetic_figure(run: Run, out: Path, title: str = "") -> Path | None:
     axs[-1].set_xlabel(f"t [{s['t_unit']}]")
     head = ("Wheel momentum, the momentum manager and the rod dipoles (shaded: unloading)" if manager
             else "The rod dipoles and B-dot's mode")
+    if s["rod_faults"]:
+        head += "\nrod faults hatched in the rod's colour: dash-dot onset, dotted end"
     axs[0].set_title(f"{head}\n{title or run_title(run)}", fontsize=10)
     path = save_figure(fig, Path(out) / FILE)
     plt.close(fig)

@@ -48,6 +48,11 @@ class RunMeta:
         The scenario's scheduled faults: "wheel" (1-based), "onset" [s],
         "end" [s] (None: never), "effectiveness" [-], "bias" [rad/s^2],
         "rate" [1/s], "stuck" (bool).
+    rod_faults : tuple of dict
+        The scenario's scheduled magnetorquer-rod faults
+        (``[[magnetorquers.faults]]``): "rod" (1-based), "kind" ("dead",
+        "stuck", "reversed"), "dipole" [A m^2] (a stuck rod's), "onset" [s],
+        "end" [s] (None: never); ``()``: none (or an older record).
     wall_s : float
         [s] wall-clock time of the run (NaN: not measured).
     mode : str
@@ -123,6 +128,8 @@ class RunMeta:
     umax: tuple[float, ...]
     #: the scenario's scheduled faults: dicts wheel (1-based), onset, end, effectiveness, bias, rate, stuck
     faults: tuple[dict[str, Any], ...] = ()
+    #: the scenario's scheduled rod faults: dicts rod (1-based), kind, dipole [A m^2], onset [s], end [s] (None: never)
+    rod_faults: tuple[dict[str, Any], ...] = ()
     wall_s: float = math.nan
     #: how the loop was clocked: offline, lockstep or realtime
     mode: str = "offline"
@@ -189,6 +196,7 @@ class RunMeta:
         d["ppc"] = {k: tuple(float(x) for x in v) for k, v in d["ppc"].items()}
         d["umin"], d["umax"] = tuple(d["umin"]), tuple(d["umax"])
         d["faults"] = tuple(d.get("faults", ()))
+        d["rod_faults"] = tuple(d.get("rod_faults", ()))
         d["requirements"] = tuple(d.get("requirements", ()))
         d["telemetry_names"] = tuple(d.get("telemetry_names", ()))
         d["units"] = dict(d.get("units", {}))
@@ -206,6 +214,10 @@ class RunMeta:
         faults = tuple({"wheel": f.wheel + 1, "onset": f.onset, "end": f.end,
                         "effectiveness": f.effectiveness, "bias": f.bias, "rate": f.rate,
                         "stuck": bool(f.stuck)} for f in a.faults)
+        rods = getattr(plant, "magnetorquers", None)
+        rod_faults = tuple({"rod": f.rod + 1, "kind": f.kind, "dipole": float(f.dipole), "onset": float(f.onset),
+                            "end": None if math.isinf(f.end) else float(f.end)}
+                           for f in (rods.faults if rods is not None else ()))
         from sc_rt.scenario.model import law_identity
 
         ident = law_identity(scn.run.controller)
@@ -214,7 +226,7 @@ class RunMeta:
                   ppc={k: tuple(float(x) for x in np.asarray(getattr(p, k), float))
                        for k in ("chi0", "chiinf", "gamma", "dmin", "dmax")},
                   umin=tuple(float(x) for x in np.asarray(a.umin, float)),
-                  umax=tuple(float(x) for x in np.asarray(a.umax, float)), faults=faults,
+                  umax=tuple(float(x) for x in np.asarray(a.umax, float)), faults=faults, rod_faults=rod_faults,
                   requirements=tuple(dataclasses.asdict(r) for r in getattr(scn, "requirements", ())),
                   Cbar=tuple(tuple(float(x) for x in row) for row in np.asarray(plant.Cbar, float)),
                   Jw=tuple(float(x) for x in np.asarray(plant.Jw, float)),
