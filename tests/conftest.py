@@ -143,6 +143,7 @@ SLOW_TESTS = (
     "tests/test_requirement_matrix.py::test_every_kind_through_a_campaign_and_its_ensemble_row",
     "tests/test_full_disk_outputs.py::test_a_full_disk_leaves_every_output_whole_or_absent",
     "tests/test_set_option.py::test_design_with_set_designs_for_the_edited_file",
+    "tests/test_set_option.py::test_set_reaches_an_entry_of_an_array_as_montecarlo_keys_do",
     "tests/test_traceability.py::test_compare_and_montecarlo_record_their_inputs",
     "tests/test_truth.py::test_the_live_view_gives_the_same_true_error",
     "tests/test_compare_seeds.py::test_compare_over_seeds_says_what_lies_within_the_spread",

@@ -88,3 +88,31 @@ def test_design_with_set_designs_for_the_edited_file(tmp_path):
     for d in (a, b, o):
         d.pop("scenario_path")
     assert a == b and a != o
+
+
+def test_set_reaches_an_entry_of_an_array_as_montecarlo_keys_do(tmp_path):
+    """``--set magnetorquers.faults[0].onset=...`` (the key a [montecarlo]
+    dispersion names) edits that entry; the scenario read equals the one read
+    from a copy of the file with the entry edited as text; an entry the file
+    has not is one line."""
+    from sc_rt.scenario.reader import load_scenario
+
+    text = (LIB / "day_hold.toml").read_text()
+    edited, n = re.subn(r"(?m)^onset = 1\.0e9 ", "onset = 3600.0 ", text)
+    edited, m = re.subn(r"(?m)^(kind = \"stuck\"\n)dipole = 0\.0 ", r"\1dipole = -12.5 ", edited)
+    assert n == m == 1
+    f = tmp_path / "day_hold.toml"
+    f.write_text(edited)
+    by_hand = load_scenario(f)
+    by_set = load_scenario("day_hold", sets=[("magnetorquers.faults[0].onset", 3600.0),
+                                             ("magnetorquers.faults[0].dipole", -12.5)])
+    assert by_set.plant.magnetorquers.faults == by_hand.plant.magnetorquers.faults
+    assert by_set.plant.magnetorquers.faults[0].onset == 3600.0
+    assert by_set.plant.magnetorquers.faults[0].dipole == -12.5
+    for pair, words in (("magnetorquers.faults[1].onset=5", "magnetorquers.faults[1] is not in the file "
+                                                             "(magnetorquers.faults has 1 entry)"),
+                        ("faults[0].onset=5", "faults[0] is not in the file")):
+        r = _cli("sim", "day_hold", "--set", pair, "--out", str(tmp_path / "o"))
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1 and words in lines[0], (pair, r.stderr)
+        assert not (tmp_path / "o").exists()

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["element_names", "get_key", "is_number", "numeric_keys", "scenario_data", "set_key",
+__all__ = ["element_names", "get_key", "is_number", "key_parts", "numeric_keys", "scenario_data", "set_key",
            "value_shape"]
 
 
@@ -146,7 +146,9 @@ def _sensors(scn: Any, controller: dict[str, Any]) -> dict[str, Any]:
 _PART_RE = re.compile(r"^([A-Za-z_][\w-]*)((?:\[\d+\])*)$")
 
 
-def _parts(key: str) -> list[str | int] | None:
+def key_parts(key: str) -> list[str | int] | None:
+    """The names and indices of dotted ``key`` ("faults[0].onset" -> ["faults", 0,
+    "onset"]); None when it is not a key."""
     out: list[str | int] = []
     for part in key.split("."):
         m = _PART_RE.match(part)
@@ -160,7 +162,7 @@ def _parts(key: str) -> list[str | int] | None:
 def get_key(data: dict[str, Any], key: str) -> Any:
     """The value of dotted ``key`` ("faults[0].onset") in ``data``; KeyError if absent."""
     node: Any = data
-    for p in _parts(key) or [key]:
+    for p in key_parts(key) or [key]:
         try:
             node = node[p]
         except (KeyError, IndexError, TypeError):
@@ -170,7 +172,7 @@ def get_key(data: dict[str, Any], key: str) -> Any:
 
 def set_key(data: dict[str, Any], key: str, value: Any) -> None:
     """Set dotted ``key`` in ``data`` (which must hold it already)."""
-    parts = _parts(key) or [key]
+    parts = key_parts(key) or [key]
     node: Any = data
     for p in parts[:-1]:
         node = node[p]

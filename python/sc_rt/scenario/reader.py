@@ -19,6 +19,7 @@ from sc_rt.scenario.tables.magnetorquers import read_magnetorquers
 from sc_rt.scenario.tables.momentum import read_magnetic_control
 from sc_rt.scenario.tables.orbit import read_environment, read_orbit
 from sc_rt.scenario.dispersions import read_montecarlo
+from sc_rt.scenario.keys import key_parts
 from sc_rt.scenario.files import MAX_NESTING, FileProblem, deep_key, nesting_problem, read_bounded
 from sc_rt.scenario.schema import (
     Doc,
@@ -235,19 +236,44 @@ def parse_set(text: str) -> tuple[str, Any]:
 
 
 def _apply_sets(path: Path, data: dict[str, Any], sets: Any) -> None:
-    """``--set`` pairs into the file's data, before it is validated like the file."""
+    """``--set`` pairs into the file's data, before it is validated like the file.
+    A key names its tables with dots and an entry of an array (of tables, or of
+    numbers) with ``[i]``, as ``[montecarlo]`` keys do: ``faults[0].onset``,
+    ``magnetorquers.faults[0].dipole``, ``initial.omega_BN_B[2]``; the entry must
+    be in the file (``--set`` changes a fault, it does not add one)."""
     for key, value in sets:
-        node = data
-        parts = key.split(".")
-        for i, part in enumerate(parts[:-1]):
-            nxt = node.setdefault(part, {})
-            if not isinstance(nxt, dict):
-                where = ".".join(parts[:i + 1])
-                raise ScenarioError(path, [ScenarioIssue(0, key, value, f"--set {key}: {where} is not a table")])
-            node = nxt
-        if isinstance(node.get(parts[-1]), dict):
-            raise ScenarioError(path, [ScenarioIssue(0, key, value, f"--set {key}: a table, not a value")])
-        node[parts[-1]] = value
+        def fail(why: str, key=key, value=value) -> ScenarioError:
+            return ScenarioError(path, [ScenarioIssue(0, key, value, f"--set {key}: {why}")])
+
+        parts = key_parts(key)
+        if parts is None:
+            raise fail("not a key of the scenario file (dotted names, [i] for an entry of an array)")
+        node: Any = data
+        for i, part in enumerate(parts):
+            last = i == len(parts) - 1
+            where = key.split(".")[0] if i == 0 else _key_text(parts[:i + 1])
+            if isinstance(part, int):
+                if not isinstance(node, list) or part >= len(node):
+                    n = len(node) if isinstance(node, list) else 0
+                    entries = f"{n} entr{'y' if n == 1 else 'ies'}"
+                    raise fail(f"{where} is not in the file ({_key_text(parts[:i])} has {entries})")
+            elif not isinstance(node, dict):
+                raise fail(f"{_key_text(parts[:i])} is not a table")
+            if last:
+                if isinstance(node[part] if isinstance(part, int) else node.get(part), dict):
+                    raise fail("a table, not a value")
+                node[part] = value
+            elif isinstance(part, str) and part not in node:
+                if isinstance(parts[i + 1], int):
+                    raise fail(f"{where} is not in the file")
+                node = node.setdefault(part, {})
+            else:
+                node = node[part]
+
+
+def _key_text(parts: list) -> str:
+    """["faults", 0, "onset"] -> "faults[0].onset"."""
+    return "".join(f"[{p}]" if isinstance(p, int) else (p if i == 0 else "." + p) for i, p in enumerate(parts))
 
 
 def load_scenario(path: str | Path, sets: Any = ()) -> Scenario:
