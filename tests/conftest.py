@@ -88,6 +88,7 @@ SLOW_TESTS = (
     "tests/test_mag_bus.py::test_one_forged_rod_command_far_ahead_is_dropped_and_the_run_stays_bitwise",
     "tests/test_mag_bus.py::test_hostile_rod_commands_and_rod_faults_during_a_lockstep_run_change_nothing",
     "tests/test_mag_bus.py::test_a_short_real_time_day_hold_commands_the_rods",
+    "tests/test_mag_bus.py::test_a_short_real_time_detumble_runs_b_dot_on_the_rods",
     "tests/test_mag_bus.py::test_a_controller_that_sends_no_rod_commands_still_runs_the_scenario_with_the_rods_held",
     "tests/test_mag_bus.py::test_a_python_law_in_sc_rt_controller_detumbles_and_switches_bitwise_as_sim",
     "tests/test_mag_sensor_bus.py::test_day_hold_sensed_in_lockstep_is_bitwise_the_cpp_engine",
