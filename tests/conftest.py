@@ -71,6 +71,9 @@ SLOW_TESTS = (
     # the run, the C++ engine twice), its report and MCAP
     "tests/test_rod_fault.py::test_rod_faults_sent_live_in_lockstep_equal_the_cpp_engine_with_them_scheduled",
     "tests/test_rod_fault.py::test_the_log_holds_the_rod_fault_commands_for_the_report_and_the_mcap",
+    "tests/test_rod_fault.py::test_the_logged_truth_of_the_rods_is_the_scheduled_faults_applied_by_hand",
+    # issue 43: the rods' echo against two real-time emulator processes and five sc-rt fault processes
+    "tests/test_rod_echo.py::test_a_rod_fault_is_echoed_by_an_emulator_that_applies_it",
     # issue 43: WMM2025's epoch window refused by `sc-rt sim` and `sc-rt check` (two processes, ~1.2 s)
     "tests/test_wmm2025.py::test_sc_rt_refuses_an_epoch_outside_wmm2025_with_exit_2_and_one_line",
     # issue 43: a lockstep run over LCM in WMM2025 against the C++ engine
