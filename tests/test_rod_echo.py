@@ -84,7 +84,8 @@ def test_the_truths_rod_fields_are_the_rows_rods_through_their_faults(cpp):
         assert n == 3 and held == (*cmd, 0.0, 0.0, 0.0)
         assert list(d) == [*want_d.tolist(), 0.0, 0.0, 0.0] and list(fault) == [*want_state.tolist(), 0, 0, 0]
         np.testing.assert_allclose(m_B, want_m, rtol=1e-14, atol=1e-12)
-        same = [truth_bytes(0, 1, t, 1, *([0.0] * 4,) * 2, *([0.0] * 3,) * 2, [0.0] * 4, [1.0] * 4 + [0.0] * 4 + [0] * 4, False,
+        healthy = [1.0] * 4 + [0.0] * 4 + [0] * 4  # the wheels' effectiveness, bias, stuck
+        same = [truth_bytes(0, 1, t, 1, *([0.0] * 4,) * 2, *([0.0] * 3,) * 2, [0.0] * 4, healthy, False,
                             rods=tw.rod_fields(t, cmd, rods)) for tw in (twin, other)]
         assert same[0] == same[1]  # the C++ twin's and the Python model's truth: the same bytes
     # no magnetic control (no commands): a zero command, the stuck rod's dipole still applied
