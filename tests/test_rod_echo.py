@@ -169,6 +169,35 @@ def test_a_log_of_the_older_layout_rebuilds_the_rods_from_rod_cmd_t(tmp_path):
         {"t": 0.0, "rod": 3, "fault": "dead", "active": False}, {"t": 0.1, "rod": 3, "fault": "dead", "active": True}]
 
 
+def _truth(t, fault, dipole=(0.0, 0.0, 0.0), n_rods=3):
+    m = sc_rt_lcm.plant_truth_t()
+    m.t, m.n_rods = t, n_rods
+    m.rod_fault = [*fault, *(0,) * (6 - len(fault))]
+    m.rod_dipole = [*dipole, *(0.0,) * (6 - len(dipole))]
+    return sc_rt_lcm.plant_truth_t.decode(m.encode())
+
+
+def test_the_echo_is_the_commands_fault_state_at_the_truths_time():
+    """What ``sc-rt fault --rod`` takes for its echo (tools/faultcmd.py):
+    the command's kind on its rod, active inside its window and minus it
+    outside, a stuck rod's dipole once active; a pending fault of the same
+    kind (day_hold schedules rod 2 stuck from 1e9 s) is no echo of one
+    injected now."""
+    from sc_rt.tools.faultcmd import _echoed, rod_clear_msg, rod_inject_msg
+
+    now = rod_inject_msg(2, "stuck", dipole=3.5)
+    assert not _echoed(now, _truth(4.0, [0, -2, 0]))  # the scheduled stuck rod, pending: not this one
+    assert not _echoed(now, _truth(4.0, [0, 2, 0], (0.0, 1.0, 0.0)))  # stuck at another dipole
+    assert _echoed(now, _truth(4.1, [0, 2, 0], (0.0, 3.5, 0.0)))
+    later = rod_inject_msg(3, "dead", at=100.0, until=200.0)
+    assert _echoed(later, _truth(4.0, [0, 0, -1])) and not _echoed(later, _truth(4.0, [0, 0, 1]))
+    assert _echoed(later, _truth(150.0, [0, 0, 1])) and not _echoed(later, _truth(150.0, [0, 0, -1]))
+    assert _echoed(later, _truth(200.0, [0, 0, -1]))  # its end passed
+    assert not _echoed(later, _truth(4.0, [0, 0, -3]))  # another kind
+    assert not _echoed(rod_inject_msg(4, "dead"), _truth(4.0, [0, 0, 0]))  # a rod the plant lacks
+    assert _echoed(rod_clear_msg(2), _truth(4.0, [0, 0, 1])) and not _echoed(rod_clear_msg(2), _truth(4.0, [0, 3]))
+
+
 @pytest.mark.lcm
 def test_a_rod_fault_is_echoed_by_an_emulator_that_applies_it(tmp_path):
     """Against real emulator processes (day_hold's three rods, real time):

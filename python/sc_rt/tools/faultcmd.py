@@ -189,19 +189,23 @@ def _echoes(msg: sc_rt_lcm.fault_cmd_t, truth) -> bool:
 
 
 def _rod_echoes(msg: sc_rt_lcm.rod_fault_cmd_t, truth) -> bool:
-    """plant_truth_t ``truth`` shows ``msg``'s fault state on its rod: none
-    after a clear; after an inject the kind (active, or its window not
-    reached: ``rod_fault`` minus the kind) and, for a stuck rod while active,
-    its dipole."""
+    """plant_truth_t ``truth`` shows ``msg``'s fault state on its rod at
+    ``truth.t``: none after a clear; after an inject the kind, active
+    (``rod_fault`` the kind; a stuck rod's ``rod_dipole`` its dipole) inside
+    the command's window, outside it minus the kind (``--now``: active from
+    the emulator's time of arrival, so a fault the rod had pending, a
+    scheduled one, does not pass for it)."""
     r = msg.rod - 1
     if truth.n_rods <= r:
         return False
     state = truth.rod_fault[r]
     if msg.action == sc_rt_lcm.rod_fault_cmd_t.ACTION_CLEAR:
         return state == 0
-    if abs(state) != msg.kind:
+    ended = 0.0 <= msg.t_end <= truth.t
+    active = not ended and (msg.now or msg.t_onset <= truth.t)
+    if state != (msg.kind if active else -msg.kind):
         return False
-    return msg.kind != sc_rt_lcm.rod_fault_cmd_t.KIND_STUCK or state < 0 or truth.rod_dipole[r] == msg.dipole
+    return not active or msg.kind != sc_rt_lcm.rod_fault_cmd_t.KIND_STUCK or truth.rod_dipole[r] == msg.dipole
 
 
 def _echoed(msg, truth) -> bool:
