@@ -198,6 +198,21 @@ def test_the_echo_is_the_commands_fault_state_at_the_truths_time():
     assert _echoed(rod_clear_msg(2), _truth(4.0, [0, 0, 1])) and not _echoed(rod_clear_msg(2), _truth(4.0, [0, 3]))
 
 
+def test_a_rod_fault_no_emulator_echoes_exits_1_naming_why():
+    """No emulator on the bus (in-process memq): exit 1, the channel, the URL
+    and the reasons named (the old main published and exited 0)."""
+    import os
+    import subprocess
+
+    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "fault", "inject", "--rod", "2", "--kind", "reversed",
+                        "--timeout", "0.3", "--prefix", "B1_"], capture_output=True, text=True,
+                       env=dict(os.environ, SCRT_LCM_URL="memq://"), timeout=60)
+    assert r.returncode == 1, r.stdout + r.stderr
+    why = [ln for ln in r.stderr.splitlines() if ln.startswith("sc-rt fault: not applied")]
+    assert len(why) == 1 and "no emulator echoed it on B1_SCRT_TRUTH within 0.3 s" in why[0], r.stderr
+    assert "memq://" in why[0] and "--accept-fault-commands" in why[0] and "refused the rod" in why[0]
+
+
 @pytest.mark.lcm
 def test_a_rod_fault_is_echoed_by_an_emulator_that_applies_it(tmp_path):
     """Against real emulator processes (day_hold's three rods, real time):
