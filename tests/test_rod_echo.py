@@ -248,3 +248,20 @@ kill -INT $E1 $E2; wait
     lines = [ln for ln in se.splitlines() if ln.startswith("sc-rt fault: not applied")]
     assert len(lines) == 2 and all("no emulator echoed it on SCRT_TRUTH within 1 s" in ln for ln in lines), se
     assert url2 in lines[1] and "--accept-fault-commands" in lines[1], se
+
+
+def test_spy_shows_the_rods_truth():
+    """``sc-rt spy``'s summary and line of a plant_truth_t with rods: the
+    rods' dipoles and fault states, only those of the plant's rods."""
+    from sc_rt.tools.spy import Spy, summarize
+
+    m = _truth(2.0, [2, 0, -1], (4.0, -1.5, 0.0))
+    m.dipole_B = [4.0, -1.5, 0.0]
+    s = summarize(m)
+    assert (s["n_rods"], s["rod_dipole"], s["rod_fault"], s["dipole_B"]) == (
+        3, [4.0, -1.5, 0.0], [2, 0, -1], [4.0, -1.5, 0.0])
+    spy = Spy("memq://")
+    spy.lc.publish("SCRT_TRUTH", m.encode())
+    spy.listen(0.2)
+    assert "rods [+4.00 -1.50 +0.00] A m^2  rod fault [2, 0, -1]" in spy.render()
+    assert summarize(sc_rt_lcm.plant_truth_t())["rod_dipole"] == []  # a plant without rods
