@@ -6,7 +6,9 @@ cpp/src/plant.cpp, the same scalar operations in the same order).
 Per rod, as the core's ``Magnetorquers.update``: the command clipped to
 ``+-max_dipole``, then its fault while active (``onset <= t < end``): dead
 (0), stuck (a fixed dipole whatever the command), reversed (the clipped
-command with its sign flipped).
+command with its sign flipped). ``rods_applied`` gives each rod's dipole
+and fault state (the emulator's plant_truth_t ``rod_dipole``,
+``rod_fault``), ``rods_dipole_B`` the body dipole of them.
 
 Examples
 --------
