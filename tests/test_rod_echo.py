@@ -178,7 +178,7 @@ def _truth(t, fault, dipole=(0.0, 0.0, 0.0), n_rods=3):
 
 
 def test_the_echo_is_the_commands_fault_state_at_the_truths_time():
-    """What ``sc-rt fault --rod`` takes for its echo (tools/faultcmd.py):
+    """What ``sc-rt fault --rod`` takes for its echo (python/sc_rt/tools/faultcmd.py):
     the command's kind on its rod, active inside its window and minus it
     outside, a stuck rod's dipole once active; a pending fault of the same
     kind (day_hold schedules rod 2 stuck from 1e9 s) is no echo of one
