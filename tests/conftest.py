@@ -73,6 +73,11 @@ SLOW_TESTS = (
     "tests/test_rod_fault.py::test_the_log_holds_the_rod_fault_commands_for_the_report_and_the_mcap",
     # issue 43 item 8: the live run's and its log's report.html and the log's figures with its rod faults
     "tests/test_rod_fault.py::test_the_reports_of_the_live_run_and_of_its_log_show_its_rod_faults",
+    "tests/test_rod_fault.py::test_the_logged_truth_of_the_rods_is_the_scheduled_faults_applied_by_hand",
+    # issue 43: the rods' echo against two real-time emulator processes and five sc-rt fault processes
+    "tests/test_rod_echo.py::test_a_rod_fault_is_echoed_by_an_emulator_that_applies_it",
+    # a sc-rt fault process waiting 0.3 s for an echo (0.65 s measured, near the line)
+    "tests/test_rod_echo.py::test_a_rod_fault_no_emulator_echoes_exits_1_naming_why",
     # issue 43: WMM2025's epoch window refused by `sc-rt sim` and `sc-rt check` (two processes, ~1.2 s)
     "tests/test_wmm2025.py::test_sc_rt_refuses_an_epoch_outside_wmm2025_with_exit_2_and_one_line",
     # issue 43: a lockstep run over LCM in WMM2025 against the C++ engine

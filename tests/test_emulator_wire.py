@@ -30,10 +30,21 @@ def test_state_and_truth_packing_equal_the_generated_encoding():
         tr.fault_stuck = [rng.randrange(0, 2) for _ in range(4)]
         tr.cmd_stale = rng.randrange(0, 2)
         tr.gyro_bias = [rng.uniform(-1e-4, 1e-4) for _ in range(3)]
+        tr.n_rods = rng.randrange(0, 7)
+        tr.rod_dipole_cmd, tr.rod_dipole, tr.dipole_B = ([rng.uniform(-500, 500) for _ in range(n)]
+                                                         for n in (6, 6, 3))
+        tr.rod_fault = [rng.randrange(-3, 4) for _ in range(6)]
+        rods = (tr.n_rods, tr.rod_dipole_cmd, tr.rod_dipole, tr.dipole_B, tr.rod_fault)
         packed = T._TRUTH_FP + T._TRUTH_LAYOUT.pack(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied,
                                                     *[v for arr in f for v in arr], *tr.fault_stuck,
-                                                    tr.cmd_stale, *tr.gyro_bias)
+                                                    tr.cmd_stale, *tr.gyro_bias, tr.n_rods, *tr.rod_dipole_cmd,
+                                                    *tr.rod_dipole, *tr.dipole_B, *tr.rod_fault)
         assert packed == tr.encode()
+        assert T.truth_bytes(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied, *f[0:4], f[4], f[5] + f[6]
+                             + tr.fault_stuck, tr.cmd_stale, tr.gyro_bias, rods) == tr.encode()
+        # a plant without rods: every rod field 0, as the generated class starts them
+        tr.n_rods, tr.rod_fault = 0, [0] * 6
+        tr.rod_dipole_cmd, tr.rod_dipole, tr.dipole_B = [0.0] * 6, [0.0] * 6, [0.0] * 3
         assert T.truth_bytes(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied, *f[0:4], f[4], f[5] + f[6]
                              + tr.fault_stuck, tr.cmd_stale, tr.gyro_bias) == tr.encode()
 

@@ -87,7 +87,8 @@ def test_rod_messages_carry_what_was_asked():
     assert c.action == c.ACTION_CLEAR and c.rod == 4 and c.now
     r = cli("fault", "inject", "--rod", "2", "--kind", "reversed", "--at", "3", "--prefix", "B1_", "--no-wait")
     assert r.returncode == 0, r.stderr
-    assert "inject rod 2 (reversed, at t = 3 s) -> B1_SCRT_ROD_FAULT" in r.stdout and "no echo" in r.stdout
+    assert "inject rod 2 (reversed, at t = 3 s) -> B1_SCRT_ROD_FAULT" in r.stdout
+    assert "not waiting for the echo" in r.stdout
 
 
 def _receiver(accept: bool = True, key: bytes | None = None, session: int = 1):
@@ -252,7 +253,9 @@ def live_run(tmp_path_factory):
     ctl = (f"until [ -e {shlex.quote(str(go))} ]; do sleep 0.05; done; exec {shlex.quote(controller_binary())} "
            '--config "$SCRT_CONFIG" --mode lockstep --lcm-url "$SCRT_LCM_URL" --summary "$SCRT_SUMMARY"')
     wait = f"{PY} {shlex.quote(str(HERE / 'buswait.py'))} '{url}'"
-    faults = "\n".join(f"{PY} -m sc_rt.cli fault inject {' '.join(a)} --lcm-url '{url}' || exit 3" for a in LIVE)
+    # --no-wait: a lockstep emulator publishes no truth (no echo) before its controller answers
+    faults = "\n".join(f"{PY} -m sc_rt.cli fault inject {' '.join(a)} --no-wait --lcm-url '{url}' || exit 3"
+                       for a in LIVE)
     script = f"""
 {PY} -m sc_rt.cli hil day_hold --mode lockstep --duration {DURATION:g} --accept-fault-commands --no-plots \\
     --out {out} --lcm-url '{url}' --external {shlex.quote('sh -c ' + shlex.quote(ctl))} --start-timeout 300 \\
@@ -397,3 +400,50 @@ def test_the_reports_of_the_live_run_and_of_its_log_show_its_rod_faults(live_run
     (fig,) = figs
     gids = {a.get_gid() for ax in fig.axes for a in ax.get_children()}
     assert {"rod-fault-1", "rod-fault-2", "rod-fault-3"} <= gids
+
+
+@pytest.mark.lcm
+def test_the_logged_truth_of_the_rods_is_the_scheduled_faults_applied_by_hand(live_run):
+    """plant_truth_t of the live run, row by row: ``rod_dipole_cmd`` the
+    logged rod_cmd_t answering the row's state (lockstep), ``rod_dipole``
+    that command clipped and through the three faults applied by hand in
+    numpy, ``dipole_B`` G_B of it, ``rod_fault`` the kinds at each row's
+    time; and the report's rod_dipole_cmd, taken from the truth, equals the
+    emulator's own record (fails on the old main: no such fields)."""
+    from sc_rt.logs.report import read_log
+    from sc_rt.logs.rebuild import rebuild
+
+    out, _ = live_run
+    d = read_log(out / "run.lcmlog")
+    T, R = d.records["SCRT_TRUTH"], d.records["SCRT_ROD_CMD"]
+    rods = load_scenario("day_hold").plant.magnetorquers
+    G, lim = np.asarray(rods.axes), np.asarray(rods.max_dipole)
+    first = {}
+    for i, s in enumerate(R["state_seq"]):
+        first.setdefault(int(s), i)
+    t = np.asarray(T["t"], float)
+    rows = [j for j in range(len(T)) if int(T["seq"][j]) in first]
+    assert len(T) >= 600 and len(rows) >= len(T) - 1
+    cmd = np.array([np.asarray(R["dipole"][first[int(T["seq"][j])]], float) for j in rows])
+    tr = t[rows]
+    assert np.array_equal(np.asarray(T["rod_dipole_cmd"][rows], float), cmd)
+    assert np.all(T["n_rods"] == 3)
+    want = np.clip(cmd[:, :3], -lim, lim)
+    want[:, 0] = 4.0  # stuck at 4 A m^2 from t = 0
+    dead = (tr >= 5.0) & (tr < 30.0)
+    want[dead, 2] = 0.0
+    rev = tr >= 20.3
+    want[rev, 1] = -want[rev, 1]
+    got = np.asarray(T["rod_dipole"][rows], float)
+    assert np.array_equal(got[:, :3], want) and not np.any(got[:, 3:])
+    np.testing.assert_allclose(np.asarray(T["dipole_B"][rows], float), want @ G.T, rtol=1e-13, atol=1e-12)
+    fault = np.asarray(T["rod_fault"][rows], int)
+    assert np.array_equal(fault[:, 0], np.full(len(rows), 2))
+    assert np.array_equal(fault[:, 1], np.where(rev, 3, -3))
+    assert np.array_equal(fault[:, 2], np.where(dead, 1, -1)) and not np.any(fault[:, 3:])
+    assert dead.any() and rev.any() and (~rev).any()  # every window seen
+    # the report's rows: the truth's commands, equal to the emulator's own record
+    r = rebuild(d)
+    hil = load_traj(out)
+    every = load_scenario("day_hold").record.every
+    assert np.array_equal(r.arrays["rod_dipole_cmd"][::every], hil["rod_dipole_cmd"])

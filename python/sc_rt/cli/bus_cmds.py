@@ -85,21 +85,20 @@ def cmd_fault(args: argparse.Namespace) -> int:
     if args.rod is not None:
         kind = {1: "dead", 2: f"stuck at {msg.dipole:g} A m^2", 3: "reversed"}.get(msg.kind, "")
         what = f"{kind}, {when}{until}" if args.action == "inject" else "now"
-        print(f"sc-rt fault: {args.action} rod {msg.rod} ({what}) -> {ch} on {url} (seq {msg.seq}); a rod's fault "
-              "has no echo: applied only by an emulator started with --accept-fault-commands (its timing.json "
-              "faults_applied)")
-        return 0
-    what = (f"effectiveness {msg.effectiveness:g}, bias {msg.bias:g} rad/s^2, rate {msg.rate:g} 1/s"
-            f"{', stuck' if msg.stuck else ''}{f', friction x{msg.friction:g}' if msg.friction != 1.0 else ''}, {when}"
-            f"{until}") if args.action == "inject" else "now"
-    head = f"sc-rt fault: {args.action} wheel {msg.wheel} ({what}) -> {ch} on {url} (seq {msg.seq})"
+        head = f"sc-rt fault: {args.action} rod {msg.rod} ({what}) -> {ch} on {url} (seq {msg.seq})"
+    else:
+        what = (f"effectiveness {msg.effectiveness:g}, bias {msg.bias:g} rad/s^2, rate {msg.rate:g} 1/s"
+                f"{', stuck' if msg.stuck else ''}{f', friction x{msg.friction:g}' if msg.friction != 1.0 else ''}, "
+                f"{when}{until}") if args.action == "inject" else "now"
+        head = f"sc-rt fault: {args.action} wheel {msg.wheel} ({what}) -> {ch} on {url} (seq {msg.seq})"
     if args.no_wait:
         print(f"{head}; not waiting for the echo (applied only by an emulator started with "
               "--accept-fault-commands)")
         return 0
     if sent.applied_at is None:
         print(f"{head}\nsc-rt fault: not applied: no emulator echoed it on {sent.truth_channel} within "
-              f"{args.timeout:g} s (none running on {url}, or not started with --accept-fault-commands)",
+              f"{args.timeout:g} s (none running on {url}, or not started with --accept-fault-commands"
+              f"{', or it refused the rod: its timing.json faults_applied' if args.rod is not None else ''})",
               file=sys.stderr)
         return 1
     print(f"{head}; applied: echoed on {sent.truth_channel} at t = {sent.applied_at:.3f} s")

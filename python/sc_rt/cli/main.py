@@ -84,8 +84,8 @@ def _add_monitoring(sub) -> None:
         q.add_argument("--prefix", default="", help="channel name prefix (default: none)")
         q.add_argument("--auth-key", metavar="FILE", type=auth_key_file, help=AUTH_KEY_HELP)
         q.add_argument("--timeout", type=number(0, 600, unit="s"), default=3.0, metavar="S",
-                       help="wait this long for an emulator's plant_truth_t to echo a wheel's fault "
-                            "(default: %(default)s s); exit 1 if none does (a rod's fault has no echo)")
+                       help="wait this long for an emulator's plant_truth_t to echo the wheel's or the "
+                            "rod's fault (default: %(default)s s); exit 1 if none does")
         q.add_argument("--no-wait", action="store_true",
                        help="publish and exit 0 without waiting for the echo")
         q.set_defaults(func=cmd_fault)

@@ -88,15 +88,17 @@ class Publisher:
         while select.select([fd], [], [], 0)[0]:
             self.lc.handle()
 
-    def truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale, act) -> None:
-        """Row k's truth, with the faults ``act`` it was applied with; its
-        fault fields go into the run's row too."""
+    def truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale, act, d_cmd=None, rods=None) -> None:
+        """Row k's truth, with the faults ``act`` it was applied with and the
+        rods ``rods`` (None: the scenario's) holding the commands ``d_cmd``
+        (None: no magnetic control); its wheels' fault fields go into the
+        run's row too."""
         fault_y, eff_bias_stuck = self.twin.fault_fields(act, t)
         row, j = self.ring.slot(k)
         bias = (0.0, 0.0, 0.0) if self.sensors is None else row["bias_true"][j]
         self.lc.publish(self._ch_truth, truth_bytes(time.time_ns() // 1000, k, t, cmd_seq, u_cmd, accel, delta2,
                                                     self.twin.disturbance(t), fault_y, eff_bias_stuck, stale,
-                                                    bias))
+                                                    bias, self.twin.rod_fields(t, d_cmd, rods)))
         row["fault_Y"][j] = fault_y
         row["fault_effectiveness"][j] = eff_bias_stuck[0:4]
         row["fault_bias"][j] = eff_bias_stuck[4:8]

@@ -448,7 +448,7 @@ class Emulator:
         _, accel, delta2 = self.twin.row(act, t, x, u_cmd, motor, d_cmd, rods)
         self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd)
         self.publisher.drain()  # an answer that came meanwhile is received now, not after the truth's publish
-        self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act)
+        self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act, d_cmd, rods)
         if stamps is not None:
             stamps[4] = time.monotonic_ns()
 

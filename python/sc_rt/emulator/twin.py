@@ -16,6 +16,9 @@
   (``rods_dipole_B``), as the offline engines do (sim/engines.py). The
   rods too are the row's (``rods``: a rod fault command replaces the
   emulator's; None: the scenario's).
+- the truth's rod fields (``rod_fields``): the commands the row holds,
+  each rod's dipole and fault state at t and the body dipole the step
+  applies.
 - ``plant_state_t`` and ``plant_truth_t`` packed with struct, exactly the
   generated encoding (tests/test_emulator_wire.py), for speed.
 """
@@ -30,19 +33,22 @@ import sc_rt_lcm
 
 from sc_rt import _core
 from sc_rt.model import actuators, plant, truth
-from sc_rt.model.rods import rods_dipole_B, rods_to_cpp
+from sc_rt.model.rods import rods_applied, rods_dipole_B, rods_to_cpp
 
-__all__ = ["PlantTwin", "RodHold", "state_bytes", "truth_bytes"]
+__all__ = ["NO_RODS", "PlantTwin", "RodHold", "state_bytes", "truth_bytes"]
 
 # plant_state_t: utime, seq, session, t, sigma_BN[3], omega_BN_B[3], wheel_speed[4]
 _STATE_FP = sc_rt_lcm.plant_state_t._get_packed_fingerprint()
 _STATE_LAYOUT = struct.Struct(">qqqd3d3d4d")
 # plant_truth_t: utime, seq, t, cmd_seq_applied, u_cmd[4], wheel_accel[4],
 # delta2[3], disturbance[3], fault_Y[4], fault_effectiveness[4], fault_bias[4],
-# fault_stuck[4] (int8), cmd_stale (int8), gyro_bias[3]
+# fault_stuck[4] (int8), cmd_stale (int8), gyro_bias[3], n_rods (int8),
+# rod_dipole_cmd[6], rod_dipole[6], dipole_B[3], rod_fault[6] (int8)
 _TRUTH_FP = sc_rt_lcm.plant_truth_t._get_packed_fingerprint()
-_TRUTH_LAYOUT = struct.Struct(">qqdq4d4d3d3d4d4d4d4bb3d")
+_TRUTH_LAYOUT = struct.Struct(">qqdq4d4d3d3d4d4d4d4bb3db6d6d3d6b")
 _NO_BIAS = (0.0, 0.0, 0.0)
+#: the truth's rod fields of a plant without rods: n_rods, rod_dipole_cmd, rod_dipole, dipole_B, rod_fault
+NO_RODS = (0, (0.0,) * 6, (0.0,) * 6, (0.0,) * 3, (0,) * 6)
 assert _STATE_LAYOUT.size + 8 == len(sc_rt_lcm.plant_state_t().encode())
 assert _TRUTH_LAYOUT.size + 8 == len(sc_rt_lcm.plant_truth_t().encode())
 
@@ -53,10 +59,12 @@ def state_bytes(utime: int, k: int, session: int, t: float, x: np.ndarray) -> by
 
 
 def truth_bytes(utime: int, k: int, t: float, cmd_seq: int, u_cmd, accel, delta2, disturbance, fault_y,
-                eff_bias_stuck, stale: bool, gyro_bias=_NO_BIAS) -> bytes:
-    """plant_truth_t of row k."""
+                eff_bias_stuck, stale: bool, gyro_bias=_NO_BIAS, rods=NO_RODS) -> bytes:
+    """plant_truth_t of row k (``rods``: its rod fields, ``PlantTwin.rod_fields``)."""
+    n_rods, d_cmd, d, m_B, fault = rods
     return _TRUTH_FP + _TRUTH_LAYOUT.pack(utime, k, t, cmd_seq, *u_cmd, *accel, *delta2, *disturbance,
-                                          *fault_y, *eff_bias_stuck, 1 if stale else 0, *gyro_bias)
+                                          *fault_y, *eff_bias_stuck, 1 if stale else 0, *gyro_bias,
+                                          n_rods, *d_cmd, *d, *m_B, *fault)
 
 
 class PlantTwin:
@@ -108,6 +116,21 @@ class PlantTwin:
             c = self._plant_cpp().rods if self._params(rods) is self.params else self._rod_params[2]
             return _core.rods_dipole_B(c, t, np.asarray(d_cmd, float))
         return rods_dipole_B(self._params(rods).magnetorquers, t, d_cmd)
+
+    def rod_fields(self, t: float, d_cmd, rods=None) -> tuple:
+        """The truth's rod fields at t (``NO_RODS`` without rods): n_rods, the
+        commands ``d_cmd`` the row holds [A m^2] (None: no magnetic control,
+        a zero command), each rod's dipole through its limit and fault
+        (model.rods.rods_applied: exact, the same on either path), the body
+        dipole the step applies (``dipole_B``: the C++ or the Python twin's),
+        each rod's fault state; the arrays padded to 6 with 0."""
+        r = self._params(rods).magnetorquers
+        if r is None:
+            return NO_RODS
+        n, pad = r.n_rods, (0.0,) * (6 - r.n_rods)
+        cmd = (0.0,) * n if d_cmd is None else tuple(float(v) for v in d_cmd)
+        d, fault = rods_applied(r, t, cmd)
+        return (n, cmd + pad, (*d, *pad), tuple(self.dipole_B(t, cmd, rods)), (*fault, *(0,) * (6 - n)))
 
     def _plant_cpp(self):
         if self._pp is None:

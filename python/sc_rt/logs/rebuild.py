@@ -49,6 +49,10 @@ class Rebuilt:
     last_status: dict[str, Any] | None
     mode: str
     gaps: list[tuple[float, float]]
+    #: the rods' truth per row (plant_truth_t of the current layout with rods): ``rod_dipole`` [A m^2]
+    #: (n, 6) each rod's dipole applied, ``dipole_B`` [A m^2] (n, 3), ``rod_fault`` (n, 6) int (its
+    #: rod_fault); NaN / 0 for a row without it. None: no row has it (no rods, or an older log)
+    rods: dict[str, np.ndarray] | None = None
 
 
 def _first_valid(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -119,6 +123,7 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
         traj[k] = _f(S[k][si])
     traj["state_log_us"] = s_stamp.astype(float)
     has_truth = np.zeros(n, bool)
+    rods = None
 
     C = d.records["SCRT_CMD"]
 
@@ -144,9 +149,24 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
         traj["flags"][rows[ok]] = C["flags"][idx[ok]]
         traj["ctrl_mode"][rows[ok]] = C["mode"][idx[ok]]
         R = d.records.get("SCRT_ROD_CMD")
-        if R is not None and R.size:  # magnetic control: the rods the row held
-            ridx = _applied_cmd(R, d.stamps["SCRT_ROD_CMD"], applied[rows], d.stamps["SCRT_TRUTH"][ti[pos[rows]]])
-            traj["rod_dipole_cmd"][has] = _applied_rods(R, has, applied, rows, ridx)
+        cfg = logged_config(d)
+        n_rods = T["n_rods"][tm]  # 0 in an older layout (plant_truth_v1_t) or without rods
+        if np.any(n_rods > 0):
+            rods = {"rod_dipole": np.full((n, 6), np.nan), "dipole_B": np.full((n, 3), np.nan),
+                    "rod_fault": np.zeros((n, 6), np.int64)}
+            at = np.flatnonzero(has)[n_rods > 0]
+            for k in rods:
+                rods[k][at] = T[k][tm[n_rods > 0]]
+        if (R is not None and R.size) or (cfg is not None and cfg.mag_rods_enabled):
+            # magnetic control: the rods' commands the row held, the truth's (the emulator's own), else
+            # (a log of the older layout) rebuilt from rod_cmd_t matched by the applied wheel command's seq
+            held = np.full((int(np.count_nonzero(has)), 6), np.nan)
+            if R is not None and R.size:
+                ridx = _applied_cmd(R, d.stamps["SCRT_ROD_CMD"], applied[rows],
+                                    d.stamps["SCRT_TRUTH"][ti[pos[rows]]])
+                held = _applied_rods(R, has, applied, rows, ridx)
+            held[n_rods > 0] = _f(T["rod_dipole_cmd"][tm[n_rods > 0]])
+            traj["rod_dipole_cmd"][has] = held
     # a state without its truth: the command answering it (first received)
     miss = ~has
     if np.any(miss) and C.size:
@@ -220,7 +240,7 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
     starts, ends = np.nonzero(edge == 1)[0], np.nonzero(edge == -1)[0]
     gaps = [(float(th[a]), float(th[b]) if b < th.size else float(traj["t"][-1]))
             for a, b in zip(starts, ends)]
-    return Rebuilt(traj, has_truth, last_status, mode, gaps)
+    return Rebuilt(traj, has_truth, last_status, mode, gaps, rods)
 
 
 #: sensor channel -> (summary name, time field)
@@ -319,9 +339,10 @@ def logged_guidance(d: LogData, scenario_path: str | None):
 
 def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
     """Fault commands seen on the bus, the wheels' (``"wheel"``) and then the
-    rods' (``"rod"``: rod_fault_cmd_t on SCRT_ROD_FAULT), and the wheels'
-    fault state changes in plant_truth_t (when the emulator applied them; the
-    rods' state is not in plant_truth_t)."""
+    rods' (``"rod"``: rod_fault_cmd_t on SCRT_ROD_FAULT), and the fault state
+    changes in plant_truth_t (when the emulator applied them): the wheels'
+    (``state_changes``) and the rods' (``rod_state_changes``: the fault's
+    kind and whether it is active; none in a log of the older layout)."""
     st = r.arrays["state_log_us"]
     t = r.arrays["t"]
     t0 = int(st[0]) if st.size else 0
@@ -354,4 +375,22 @@ def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
         on = np.nonzero(Y[:, w] > 0)[0]
         active_from.append(float(th[on[0]]) if on.size else None)
     changes.sort(key=lambda c: (c["t"], c["wheel"]))
-    return {"commands": cmds, "state_changes": changes, "first_active_s": active_from}
+    return {"commands": cmds, "state_changes": changes, "first_active_s": active_from,
+            "rod_state_changes": _rod_changes(r)}
+
+
+def _rod_changes(r: Rebuilt) -> list[dict[str, Any]]:
+    """The rods' fault state changes (plant_truth_t ``rod_fault``), in time
+    order: ``fault`` the kind (None: healthy), ``active`` whether at t."""
+    if r.rods is None:
+        return []
+    h = r.has_truth
+    F, th = r.rods["rod_fault"][h], r.arrays["t"][h]
+    out = []
+    for i in range(6):
+        prev = np.concatenate(([0], F[:-1, i]))
+        for j in np.nonzero(F[:, i] != prev)[0][:MAX_FAULT_CHANGES]:
+            v = int(F[j, i])
+            out.append({"t": float(th[j]), "rod": i + 1, "fault": _ROD_KINDS.get(abs(v)), "active": v > 0})
+    out.sort(key=lambda c: (c["t"], c["rod"]))
+    return out

@@ -6,7 +6,9 @@ cpp/src/plant.cpp, the same scalar operations in the same order).
 Per rod, as the core's ``Magnetorquers.update``: the command clipped to
 ``+-max_dipole``, then its fault while active (``onset <= t < end``): dead
 (0), stuck (a fixed dipole whatever the command), reversed (the clipped
-command with its sign flipped).
+command with its sign flipped). ``rods_applied`` gives each rod's dipole
+and fault state (the emulator's plant_truth_t ``rod_dipole``,
+``rod_fault``), ``rods_dipole_B`` the body dipole of them.
 
 Examples
 --------
@@ -24,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MAX_RODS", "ROD_FAULTS", "RodFault", "Magnetorquers", "rods_dipole_B", "rods_to_cpp"]
+__all__ = ["MAX_RODS", "ROD_FAULTS", "RodFault", "Magnetorquers", "rods_applied", "rods_dipole_B", "rods_to_cpp"]
 
 MAX_RODS = 6  # the core's kMaxRods
 #: a rod fault's kind -> the core's RodFault value
@@ -96,9 +98,20 @@ class Magnetorquers:
         return int(self.axes.shape[1])
 
 
-def rods_dipole_B(r: Magnetorquers, t: float, d_cmd=None) -> tuple[float, float, float]:
-    """The body dipole ``m_B = G d`` [A m^2] of the rod commands ``d_cmd``
-    [A m^2] (None: all 0) at ``t`` [s]: each clipped, then its active fault."""
+def rods_applied(r: Magnetorquers, t: float, d_cmd=None) -> tuple[list[float], list[int]]:
+    """Each rod's dipole [A m^2] for the rod commands ``d_cmd`` [A m^2]
+    (None: all 0) at ``t`` [s], clipped then through its active fault, and
+    each rod's fault state at ``t``: 0 none, the fault's ``ROD_FAULTS`` value
+    while active (``onset <= t < end``), minus it outside that window
+    (plant_truth_t ``rod_fault``).
+
+    Examples
+    --------
+    >>> r = Magnetorquers(axes=np.eye(3), max_dipole=np.full(3, 5.0),
+    ...                   faults=(RodFault(rod=2, kind="dead", onset=1.0),))
+    >>> rods_applied(r, 0.0, [10.0, 2.0, -1.0])  # rod 2's fault not yet active
+    ([5.0, 2.0, -1.0], [0, 0, -1])
+    """
     n = r.n_rods
     d = [0.0] * n if d_cmd is None else [float(v) for v in d_cmd]
     if len(d) != n:
@@ -106,10 +119,23 @@ def rods_dipole_B(r: Magnetorquers, t: float, d_cmd=None) -> tuple[float, float,
     lim = r.max_dipole.tolist()
     for i in range(n):
         d[i] = min(max(d[i], -lim[i]), lim[i])  # per-rod clip, as MtbEffector
+    state = [0] * n
     for f in r.faults:
+        i = f.rod
         if f.onset <= t < f.end:
-            i = f.rod
             d[i] = 0.0 if f.kind == "dead" else f.dipole if f.kind == "stuck" else -d[i]
+            state[i] = ROD_FAULTS[f.kind]
+        else:
+            state[i] = -ROD_FAULTS[f.kind]
+    return d, state
+
+
+def rods_dipole_B(r: Magnetorquers, t: float, d_cmd=None) -> tuple[float, float, float]:
+    """The body dipole ``m_B = G d`` [A m^2] of the rod commands ``d_cmd``
+    [A m^2] (None: all 0) at ``t`` [s]: each clipped, then its active fault
+    (``rods_applied``)."""
+    n = r.n_rods
+    d = rods_applied(r, t, d_cmd)[0]
     G = r.axes.tolist()
     m = []
     for row in G:

@@ -4,11 +4,11 @@ SCRT_FAULT) or a magnetorquer rod's (``rod_fault_cmd_t`` on SCRT_ROD_FAULT).
 An emulator applies them only when started with ``--accept-fault-commands``
 (``sc-rt hil`` / ``sc-rt emulator``): a bench is never faulted by accident.
 The emulator records what it applied (``faults_applied`` in timing.json) and
-echoes the fault state of every wheel in ``plant_truth_t``: ``send`` waits
-for that echo (applied, or not heard by any emulator), and refuses an onset
-the emulator's clock (``plant_truth_t.t``) has already passed. A rod's fault
-has no echo (``plant_truth_t`` carries the wheels' only): ``send`` refuses a
-past onset the same way, publishes and does not wait.
+echoes the fault state of every wheel and every rod in ``plant_truth_t``
+(``fault_effectiveness`` / ``fault_bias`` / ``fault_stuck``; ``rod_fault``
+and a stuck rod's ``rod_dipole``): ``send`` waits for that echo (applied,
+or not heard by any emulator), and refuses an onset the emulator's clock
+(``plant_truth_t.t``) has already passed.
 """
 
 from __future__ import annotations
@@ -188,11 +188,38 @@ def _echoes(msg: sc_rt_lcm.fault_cmd_t, truth) -> bool:
     return got == want
 
 
+def _rod_echoes(msg: sc_rt_lcm.rod_fault_cmd_t, truth) -> bool:
+    """plant_truth_t ``truth`` shows ``msg``'s fault state on its rod at
+    ``truth.t``: none after a clear; after an inject the kind, active
+    (``rod_fault`` the kind; a stuck rod's ``rod_dipole`` its dipole) inside
+    the command's window, outside it minus the kind (``--now``: active from
+    the emulator's time of arrival, so a fault the rod had pending, a
+    scheduled one, does not pass for it)."""
+    r = msg.rod - 1
+    if truth.n_rods <= r:
+        return False
+    state = truth.rod_fault[r]
+    if msg.action == sc_rt_lcm.rod_fault_cmd_t.ACTION_CLEAR:
+        return state == 0
+    ended = 0.0 <= msg.t_end <= truth.t
+    active = not ended and (msg.now or msg.t_onset <= truth.t)
+    if state != (msg.kind if active else -msg.kind):
+        return False
+    return not active or msg.kind != sc_rt_lcm.rod_fault_cmd_t.KIND_STUCK or truth.rod_dipole[r] == msg.dipole
+
+
+def _echoed(msg, truth) -> bool:
+    """``truth`` shows the fault state of ``msg``, a wheel's or a rod's command."""
+    if isinstance(msg, sc_rt_lcm.rod_fault_cmd_t):
+        return _rod_echoes(msg, truth)
+    return _echoes(msg, truth)
+
+
 def send(msg, url: str, prefix: str = "", timeout: float = 3.0,
          wait: bool = True, auth_key: bytes | None = None) -> Sent:
     """Publish ``msg`` (fault_cmd_t or rod_fault_cmd_t) and wait up to
     ``timeout`` s for an emulator's plant_truth_t to echo its fault state
-    (``applied_at``; a rod's fault has no echo: not waited for). An onset in
+    (``applied_at``; a wheel's or a rod's). An onset in
     the past of the emulator's clock (heard within the timeout before
     sending) raises FaultArgError and nothing is sent."""
     lc = open_bus(url, auth_key)
@@ -236,10 +263,10 @@ def send(msg, url: str, prefix: str = "", timeout: float = 3.0,
                 raise FaultArgError(f"--at {msg.t_onset:g}: the onset is in the past: the emulator on "
                                     f"{url} ({tch}) is at t = {t_now[0]:.3f} s")
     lc.publish(ch, msg.encode())
-    if not wait or isinstance(msg, sc_rt_lcm.rod_fault_cmd_t):
+    if not wait:
         return res
     hit: list = []
-    listen(time.monotonic() + timeout, lambda m: _echoes(msg, m) and not hit.append(m.t))
+    listen(time.monotonic() + timeout, lambda m: _echoed(msg, m) and not hit.append(m.t))
     if hit:
         res.applied_at = hit[0]
     return res

@@ -161,7 +161,8 @@ def summarize(msg) -> dict:
                 "wheel_accel": list(msg.wheel_accel), "delta2": list(msg.delta2),
                 "fault_Y": list(msg.fault_Y), "fault_effectiveness": list(msg.fault_effectiveness),
                 "fault_bias": list(msg.fault_bias), "fault_stuck": list(msg.fault_stuck),
-                "cmd_stale": msg.cmd_stale}
+                "cmd_stale": msg.cmd_stale, "n_rods": msg.n_rods, "rod_dipole": list(msg.rod_dipole[:msg.n_rods]),
+                "dipole_B": list(msg.dipole_B), "rod_fault": list(msg.rod_fault[:msg.n_rods])}
     if name == "gyro_t":
         return {"t": msg.t, "seq": msg.seq, "omega": list(msg.omega)}
     if name == "star_tracker_t":
@@ -289,7 +290,9 @@ class Spy:
             elif tn == "plant_truth_t":
                 lines.append(f"{name}: t {m['t']:.3f} s  wheel accel {vec(m['wheel_accel'])}  "
                              f"fault Y {vec(m['fault_Y'], '{:.2f}')}  L {vec(m['fault_effectiveness'], '{:.2f}')}"
-                             f"  stuck {m['fault_stuck']}  stale {m['cmd_stale']}")
+                             f"  stuck {m['fault_stuck']}  stale {m['cmd_stale']}"
+                             + (f"  rods {vec(m['rod_dipole'], '{:+.2f}')} A m^2  rod fault {m['rod_fault']}"
+                                if m["n_rods"] else ""))
             elif tn in ("fault_cmd_t", "rod_fault_cmd_t"):
                 lines.append(f"{name}: " + "  ".join(f"{k} {v}" for k, v in m.items()))
             elif tn == "controller_config_t":

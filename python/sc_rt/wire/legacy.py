@@ -23,6 +23,10 @@ so that a log written before a layout changed still reads (docs/LOGS.md).
   ``decode_current`` reads it the same way, the missing fields NaN.
 - ``controller_status_v3_t`` (before the magnetic control's fields went on
   the bus, issue 43): read the same way, those fields NaN.
+- ``plant_truth_v1_t`` (before the rods' truth went on the bus, issue 43):
+  read the same way, ``rod_dipole_cmd``, ``rod_dipole`` and ``dipole_B``
+  NaN, ``n_rods`` and ``rod_fault`` 0 (logs/rebuild.py then rebuilds the
+  rods' commands from ``rod_cmd_t``).
 """
 
 from __future__ import annotations
@@ -42,7 +46,8 @@ LEGACY = {sc_rt_lcm.controller_config_v1_t: sc_rt_lcm.controller_config_t,
           sc_rt_lcm.controller_config_v3_t: sc_rt_lcm.controller_config_t,
           sc_rt_lcm.controller_status_v1_t: sc_rt_lcm.controller_status_t,
           sc_rt_lcm.controller_status_v2_t: sc_rt_lcm.controller_status_t,
-          sc_rt_lcm.controller_status_v3_t: sc_rt_lcm.controller_status_t}
+          sc_rt_lcm.controller_status_v3_t: sc_rt_lcm.controller_status_t,
+          sc_rt_lcm.plant_truth_v1_t: sc_rt_lcm.plant_truth_t}
 #: a fixed-size current type -> its old layouts (read by decode_current; the others: upgrade)
 _FIXED_OLD: dict[type, tuple[type, ...]] = {}
 for _old, _new in LEGACY.items():
