@@ -83,6 +83,16 @@ def run_cli(args: list[str], *, timeout: float = 300, netns: bool = True) -> sub
     return run([sys.executable, "-m", "sc_rt.cli", *args], timeout=timeout, netns=netns)
 
 
+def cli_memq(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    """`sc-rt ARGS` with LCM in-process (``memq://``, SCRT_LCM_URL): a command
+    that publishes to no one (its own checks, its messages, no echo)."""
+    import os
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "sc_rt.cli", *args], capture_output=True, text=True, cwd=ROOT,
+                          env=dict(os.environ, SCRT_LCM_URL="memq://"), timeout=timeout)
+
+
 def realtime_outcome(r: subprocess.CompletedProcess, out: Path) -> bool:
     """A real-time run's exit: 0, or 1 only because it did not keep real time
     under this machine's load (the bench judged it so, rightly: whether it

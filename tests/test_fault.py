@@ -5,9 +5,7 @@ in the log, in plant_truth_t and in the report, at the right time."""
 from __future__ import annotations
 
 import json
-import os
 import shlex
-import subprocess
 import sys
 from pathlib import Path
 
@@ -31,9 +29,7 @@ HERE = Path(__file__).resolve().parent
 PY = shlex.quote(sys.executable)
 
 
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "sc_rt.cli", *args], capture_output=True, text=True,
-                          cwd=ROOT, env=dict(os.environ, SCRT_LCM_URL="memq://"))
+cli = lcmnet.cli_memq
 
 
 @pytest.mark.parametrize("args, message", [

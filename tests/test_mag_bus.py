@@ -298,15 +298,20 @@ def test_a_controller_that_sends_no_rod_commands_still_runs_the_scenario_with_th
     assert np.all(hil["rod_dipole_cmd"] == 0.0) and np.any(hil["u_cmd"] != 0.0)
 
 
-@pytest.mark.lcm
-def test_a_short_real_time_day_hold_commands_the_rods(tmp_path):
+def _real_time_5s(name: str, out: Path):
+    """The shipped scenario ``name`` for 5 s in real time (timer trigger): its record."""
     lcmnet.require()
-    out = tmp_path / "rt"
-    r = lcmnet.run_cli(["hil", "day_hold", "--mode", "realtime", "--duration", "5", "--trigger", "timer",
+    r = lcmnet.run_cli(["hil", name, "--mode", "realtime", "--duration", "5", "--trigger", "timer",
                         "--floor", "off", "--out", str(out), "--no-plots"])
     if lcmnet.realtime_outcome(r, out):  # (a loaded machine may not keep real time: judged so, not the subject)
         assert json.loads((out / "metrics.json").read_text())["valid"] is True
-    hil = load_traj(out)
+    return load_traj(out)
+
+
+@pytest.mark.lcm
+def test_a_short_real_time_day_hold_commands_the_rods(tmp_path):
+    out = tmp_path / "rt"
+    hil = _real_time_5s("day_hold", out)
     rods = hil["rod_dipole_cmd"][:, :3]
     assert np.isfinite(rods).all() and np.abs(rods).max() > 1.0
     emu = json.loads((out / "timing.json").read_text())["emulator_counters"]
@@ -320,13 +325,8 @@ def test_a_short_real_time_detumble_runs_b_dot_on_the_rods(tmp_path):
     it measures (m . dB <= 0 on the rows the filter has settled on, dB from the
     recorded B_B; -(k/|B|^2) dB/dt, MODEL.md section 15), the body's kinetic
     energy falling."""
-    lcmnet.require()
     out = tmp_path / "rt"
-    r = lcmnet.run_cli(["hil", "detumble", "--mode", "realtime", "--duration", "5", "--trigger", "timer",
-                        "--floor", "off", "--out", str(out), "--no-plots"])
-    if lcmnet.realtime_outcome(r, out):  # (a loaded machine may not keep real time: judged so, not the subject)
-        assert json.loads((out / "metrics.json").read_text())["valid"] is True
-    hil = load_traj(out)
+    hil = _real_time_5s("detumble", out)
     det = np.asarray(hil["detumble_mode"])
     ok = det >= 0  # rows whose status arrived (-1: none)
     assert ok.sum() > len(det) // 2 and np.all(det[ok] == 0), det  # 0: detumble (fields.hpp)

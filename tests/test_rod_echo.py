@@ -201,12 +201,7 @@ def test_the_echo_is_the_commands_fault_state_at_the_truths_time():
 def test_a_rod_fault_no_emulator_echoes_exits_1_naming_why():
     """No emulator on the bus (in-process memq): exit 1, the channel, the URL
     and the reasons named (the old main published and exited 0)."""
-    import os
-    import subprocess
-
-    r = subprocess.run([sys.executable, "-m", "sc_rt.cli", "fault", "inject", "--rod", "2", "--kind", "reversed",
-                        "--timeout", "0.3", "--prefix", "B1_"], capture_output=True, text=True,
-                       env=dict(os.environ, SCRT_LCM_URL="memq://"), timeout=60)
+    r = lcmnet.cli_memq("fault", "inject", "--rod", "2", "--kind", "reversed", "--timeout", "0.3", "--prefix", "B1_")
     assert r.returncode == 1, r.stdout + r.stderr
     why = [ln for ln in r.stderr.splitlines() if ln.startswith("sc-rt fault: not applied")]
     assert len(why) == 1 and "no emulator echoed it on B1_SCRT_TRUTH within 0.3 s" in why[0], r.stderr

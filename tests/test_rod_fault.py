@@ -15,10 +15,8 @@ exist."""
 from __future__ import annotations
 
 import json
-import os
 import re
 import shlex
-import subprocess
 import sys
 from collections import Counter
 from pathlib import Path
@@ -41,9 +39,7 @@ HERE = Path(__file__).resolve().parent
 PY = shlex.quote(sys.executable)
 
 
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "sc_rt.cli", *args], capture_output=True, text=True,
-                          cwd=ROOT, env=dict(os.environ, SCRT_LCM_URL="memq://"))
+cli = lcmnet.cli_memq
 
 
 @pytest.mark.parametrize("args, message", [

@@ -239,30 +239,28 @@ class Receiver:
         return True
 
     def on_fault(self, _ch: str, data: bytes) -> None:
-        msg = decode_as(sc_rt_lcm.fault_cmd_t, data, self.counters)
-        if msg is None or not self._admitted(msg):
-            return
-        try:
-            self._apply_fault(msg)
-            self.counters["fault_applied"] += 1
-            self._last_fault_seq = msg.seq
-        except ValueError as e:
-            self.counters["fault_rejected"] += 1
-            self.shared.faults_applied.append({"rejected": str(e), "wheel": msg.wheel})
+        """A wheel fault command (fault_cmd_t), applied to ``shared.act``."""
+        self._fault_command(sc_rt_lcm.fault_cmd_t, data, self._apply_fault, "wheel")
 
     def on_rod_fault(self, _ch: str, data: bytes) -> None:
-        """A rod fault command (rod_fault_cmd_t): the rules of ``_admitted``,
-        applied to ``shared.rods`` (the loop takes them at the next row)."""
-        msg = decode_as(sc_rt_lcm.rod_fault_cmd_t, data, self.counters)
+        """A rod fault command (rod_fault_cmd_t), applied to ``shared.rods``
+        (the loop takes them at the next row)."""
+        self._fault_command(sc_rt_lcm.rod_fault_cmd_t, data, self._apply_rod_fault, "rod")
+
+    def _fault_command(self, cls, data: bytes, apply, target: str) -> None:
+        """A fault command of type ``cls``: admitted by the rules of ``_admitted``,
+        then ``apply``-ed; one the plant refuses (ValueError) is recorded with
+        its reason and its ``target`` (the wheel's or rod's number)."""
+        msg = decode_as(cls, data, self.counters)
         if msg is None or not self._admitted(msg):
             return
         try:
-            self._apply_rod_fault(msg)
+            apply(msg)
             self.counters["fault_applied"] += 1
             self._last_fault_seq = msg.seq
         except ValueError as e:
             self.counters["fault_rejected"] += 1
-            self.shared.faults_applied.append({"rejected": str(e), "rod": msg.rod})
+            self.shared.faults_applied.append({"rejected": str(e), target: getattr(msg, target)})
 
     def _apply_rod_fault(self, m) -> None:
         rods = self.shared.rods
