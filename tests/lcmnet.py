@@ -93,6 +93,24 @@ def cli_memq(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
                           env=dict(os.environ, SCRT_LCM_URL="memq://"), timeout=timeout)
 
 
+def two_emulators(emu: str, url: str, url2: str, logs) -> str:
+    """The head of a fault test's script: the emulator command ``emu`` started
+    twice in the background, on ``url`` accepting fault commands ($E1) and on
+    ``url2`` not ($E2), logs in the directory ``logs``; it goes on once both
+    publish states (tests/buswait.py). The script ends with
+    ``kill -INT $E1 $E2; wait``."""
+    import sys
+
+    wait = f"{shlex.quote(sys.executable)} {shlex.quote(str(ROOT / 'tests' / 'buswait.py'))}"
+    return f"""
+{emu} --accept-fault-commands --lcm-url '{url}' > {logs}/emu1.log 2>&1 &
+E1=$!
+{emu} --lcm-url '{url2}' > {logs}/emu2.log 2>&1 &
+E2=$!
+{wait} '{url}' state 60 > /dev/null && {wait} '{url2}' state 60 > /dev/null
+"""
+
+
 def realtime_outcome(r: subprocess.CompletedProcess, out: Path) -> bool:
     """A real-time run's exit: 0, or 1 only because it did not keep real time
     under this machine's load (the bench judged it so, rightly: whether it

@@ -88,12 +88,7 @@ def test_fault_echo_applied_refused_and_unheard(tmp_path):
     fault = f"{PY} -m sc_rt.cli fault"
     emu = f"{PY} -m sc_rt.cli emulator scenarios/paper_fault_free.toml --mode realtime --rate 20 --duration 60"
     # the emulator is at t >= 1 s once buswait has seen the state of t = 1 (20 states)
-    script = f"""
-{emu} --accept-fault-commands --lcm-url '{url}' > {tmp_path}/emu1.log 2>&1 &
-E1=$!
-{emu} --lcm-url '{url2}' > {tmp_path}/emu2.log 2>&1 &
-E2=$!
-{wait} '{url}' state 60 > /dev/null && {wait} '{url2}' state 60 > /dev/null
+    script = lcmnet.two_emulators(emu, url, url2, tmp_path) + f"""
 while [ "$({wait} '{url}' state 60 | cut -d. -f1)" -lt 1 ]; do :; done
 {fault} inject --wheel 2 --effectiveness 0.3 --timeout 20 --lcm-url '{url}'; echo "rc_applied=$?"
 {fault} inject --wheel 3 --bias 0.1 --at 0.5 --timeout 20 --lcm-url '{url}'; echo "rc_past=$?"

@@ -218,15 +218,9 @@ def test_a_rod_fault_is_echoed_by_an_emulator_that_applies_it(tmp_path):
     lcmnet.require()
     url = "udpm://239.255.76.67:7753?ttl=0"
     url2 = "udpm://239.255.76.67:7754?ttl=0"
-    wait = f"{PY} {shlex.quote(str(HERE / 'buswait.py'))}"
     fault = f"{PY} -m sc_rt.cli fault"
     emu = f"{PY} -m sc_rt.cli emulator day_hold --mode realtime --rate 20 --duration 120"
-    script = f"""
-{emu} --accept-fault-commands --lcm-url '{url}' > {tmp_path}/emu1.log 2>&1 &
-E1=$!
-{emu} --lcm-url '{url2}' > {tmp_path}/emu2.log 2>&1 &
-E2=$!
-{wait} '{url}' state 60 > /dev/null && {wait} '{url2}' state 60 > /dev/null
+    script = lcmnet.two_emulators(emu, url, url2, tmp_path) + f"""
 {fault} inject --rod 1 --kind dead --timeout 20 --lcm-url '{url}'; echo "rc_dead=$?"
 {fault} inject --rod 3 --kind stuck --dipole 3.5 --at 100 --timeout 20 --lcm-url '{url}'; echo "rc_later=$?"
 {fault} clear --rod 1 --timeout 20 --lcm-url '{url}'; echo "rc_clear=$?"
