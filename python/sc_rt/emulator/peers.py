@@ -86,6 +86,10 @@ class ControllerPeers:
         return session in self.status_sessions
 
     def label(self, session: int | None) -> str | None:
-        """The law's name the controller of ``session`` announced."""
+        """The law's name the controller of ``session`` announced; "external"
+        for a session that sent commands only (not sc-rt-controller, no name
+        announced); None: no controller."""
         info = self.info.get(session) if session is not None else None
-        return info["law"] if info and info["law"] else None
+        if info and info["law"]:
+            return info["law"]
+        return "external" if session is not None and session not in self.status_sessions else None

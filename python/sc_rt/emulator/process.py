@@ -23,14 +23,16 @@ Python one: emulator/twin.py), and run with the garbage collector frozen
 (emulator/rtproc.py). Real time sleeps in ``select`` until ``spin_us`` before
 the tick and polls from there.
 
-The publishing side (guidance, state, truth, the sensors' samples) is
-emulator/outbox.py; the receive side is emulator/receiver.py, the handlers (bad input never
-stops the loop: every message is decoded under guard and counted by kind,
+A row (the command applied, the next state out first, then the record and
+the truth, deferred in real time) is emulator/rows.py; the publishing side
+(guidance, state, truth, the sensors' samples) emulator/outbox.py; the
+receive side emulator/receiver.py, the handlers (bad input never stops the
+loop: every message is decoded under guard and counted by kind,
 ``counters``), and emulator/inbox.py, per state seq, the commands, statuses
-and publish times.
-Both write into the run's record, emulator/record.py: two chunks of rows
-allocated when the emulator is made, the older rows written to disk as the
-run goes, so that its memory stays flat however long the run lasts.
+and publish times. The rows go into the run's record, emulator/record.py:
+two chunks of rows allocated when the emulator is made, the older rows
+written to disk as the run goes, so that its memory stays flat however long
+the run lasts.
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ from sc_rt.emulator.outbox import Publisher
 from sc_rt.emulator.state import Options, Shared
 from sc_rt.wire.lcmio import channel
 from sc_rt.emulator.peers import ControllerPeers, GuidancePublisher
+from sc_rt.emulator.rows import RowPipeline
 from sc_rt.emulator.rtproc import RealtimeThread
 from sc_rt.emulator.sensorpub import SensorPublisher
 from sc_rt.emulator.twin import PlantTwin, RodHold
@@ -92,12 +95,7 @@ class Emulator:
         self.twin = PlantTwin(scn.plant, opts.cpp_plant)
         #: where the loop's microseconds went (emulator/loopstats.py), after the run
         self._breakdown: dict[str, Any] = {}
-        #: real time: row k's record and truth wait (bounded) until the answer to
-        #: state k + 1 is in, so the command is handled as it arrives
-        self._pending: tuple | None = None
-        self._pending_by_ns = 0
         self._guidance_next: tuple | None = None  # guidance values of the next state, computed ahead
-        self._next_published = -1
         #: real time: ticks that applied the answer to the state of the period just ended
         self.fresh_ticks = 0
         self.cmd_timeout, self.retries = opts.cmd_timeout, opts.retries
@@ -120,8 +118,6 @@ class Emulator:
         self.shared = Shared(Counter(), scn.actuators, rods=scn.plant.magnetorquers)
         #: with auth_key every message carries an HMAC trailer; failures count as auth_failed (wire/auth.py)
         self.lc = open_bus(opts.url, opts.auth_key, self.shared.counters)
-        self._gaps: list[tuple[float, float]] = []
-        self._gap_start: float | None = None
         self.session = secrets.randbits(62)
         n_rows = grid(scn)[0] + 1
         #: the run's record (results/record/store.py): every row's fields, its command and status as
@@ -129,7 +125,6 @@ class Emulator:
         #: (``record_dir``/trajectory.arrow, once the run outgrows the two chunks)
         self.record = Record(n_rows, opts.record_chunk, opts.record_dir)
         self.ring = self.record.ring
-        self._last_t = 0.0  # [s] the newest row's time
         #: the handlers and, per state seq of the run's rows, its command,
         #: status and publish times, preallocated (emulator/inbox.py); a second
         #: bench on our URL and prefix stops the run, marked invalid (emulator/collision.py)
@@ -158,6 +153,9 @@ class Emulator:
             self.publisher.pace = LogPace(self.lc, opts.prefix, self.shared.counters)
             self.publisher.should_stop = self._should_stop
             self.publisher.shared_stop = self._stop_for
+        #: a row's steps, and the real-time deferral of its record and truth (emulator/rows.py)
+        self.rows = RowPipeline(self.twin, self.publisher, self.ring, self.receiver, self.shared, self.sensors,
+                                self._should_stop)
 
     # the shared values, by their old names (the CLI, the HIL runner, tests)
     @property
@@ -190,17 +188,16 @@ class Emulator:
         ``spin_ns`` before it, then polling (a wake-up from sleep is late by
         the scheduler's latency; a poll is not)."""
         fd = self.lc.fileno()
+        rows = self.rows
         while True:
-            if self._pending is not None and (self.inbox.has_cmd(self._next_published)
-                                              or time.monotonic_ns() >= self._pending_by_ns):
-                self._flush_pending()  # the answer is in (or half a period passed): now the truth
+            rows.flush_due(self.inbox.has_cmd)  # the answer is in (or half a period passed): now the truth
             rem = deadline_ns - time.monotonic_ns()
             if rem <= 0:
                 self.publisher.drain()  # what is already there, without waiting
                 return
             wait = rem - spin_ns
-            if self._pending is not None:  # wake for the deferred truth at the latest
-                wait = min(wait, self._pending_by_ns - time.monotonic_ns())
+            if rows.pending is not None:  # wake for the deferred truth at the latest
+                wait = min(wait, rows.pending_by_ns - time.monotonic_ns())
             if select.select([fd], [], [], wait / 1e9 if wait > 0 else 0)[0]:
                 self.lc.handle()
 
@@ -235,7 +232,7 @@ class Emulator:
     @property
     def t_reached(self) -> float:
         """[s] the time of the newest row recorded."""
-        return self._last_t
+        return self.rows.t_reached
 
     def breakdown(self) -> dict[str, Any]:
         """Where each row's microseconds went (emulator/loopstats.py), after the run."""
@@ -265,25 +262,6 @@ class Emulator:
     def _meta(self) -> RunMeta:
         return RunMeta.of_scenario(self.scn, f"hil-{self.mode}", mode=self.mode)
 
-    def _record(self, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd=None) -> None:
-        run, k = self.ring.slot(k)
-        if d_cmd is not None:  # the rods' commands the row held (0 beyond the rods, as the core's Command)
-            run["rod_dipole_cmd"][k] = (*d_cmd, *(0.0,) * (6 - len(d_cmd)))
-        self._last_t = t
-        run["t"][k] = t
-        run["sigma_BN"][k] = x[0:3]
-        run["omega_BN_B"][k] = x[3:6]
-        run["wheel_speed"][k] = x[6:10]
-        run["u_cmd"][k] = u_cmd
-        run["u_sat"][k] = u_sat_ctrl
-        run["wheel_accel"][k] = accel
-        run["delta2"][k] = delta2
-        run["cmd_stale"][k] = cmd is None
-        if cmd is not None:
-            run["cmd_seq_applied"][k] = cmd.seq
-            run["flags"][k] = cmd.flags
-            run["ctrl_mode"][k] = cmd.mode
-
     def _run_lockstep(self) -> Run:
         scn = self.scn
         n_ctrl, n_sub, h, rate = grid(scn)
@@ -292,7 +270,7 @@ class Emulator:
         x = initial_state(scn)
         rows = 0
         silent = 0  # consecutive states without an answer
-        self._next_published = -1  # the state _apply published already (the state first)
+        self.rows.next_published = -1  # the state a row published already (the state first)
         for k in range(n_ctrl + 1):
             t = k / rate
             self.shared.t_now = t
@@ -306,7 +284,7 @@ class Emulator:
             for attempt in range(retries + 1):
                 if attempt:
                     self.shared.counters["state_resent"] += 1
-                if attempt or self._next_published != k:
+                if attempt or self.rows.next_published != k:
                     self.publisher.state(k, t, x)
                 if attempt == 0 and k < n_ctrl:  # the next state's guidance while the controller works
                     self._guidance_next = self.guidance.values((k + 1) / rate)
@@ -393,71 +371,12 @@ class Emulator:
     def _apply(self, k: int, t: float, x: np.ndarray, cmd, n_sub: int, h: float,
                next_state: tuple[int, float] | None = None, stamps=None, defer_ns: int | None = None,
                d_cmd: tuple | None = None):
-        """Row k: apply ``cmd`` (None: the watchdog's zero) over one control
-        period; publish the next state (``next_state``: its seq and t; not when
-        the run stops or diverged) first, then record row k with the truth at t and publish the
-        truth. ``stamps``: the row's monotonic ns (integrated, state out, truth
-        out) go to stamps[1:5]. ``defer_ns``: the record and the truth wait
-        until the answer to the next state is in, at most this long
-        (``_handle_until``). ``d_cmd``: the rods' commands held (RodHold).
-        Returns the next state, or None when it is not finite."""
-        stale = cmd is None
-        self.receiver.peer_lost = stale
-        if stale:
-            u_cmd, u_sat_ctrl, cmd_seq = np.zeros(4), np.zeros(4), -1
-            if self._gap_start is None:
-                self._gap_start = t
-        else:
-            u_cmd, u_sat_ctrl, cmd_seq = np.array(cmd.u_cmd), np.array(cmd.u_sat), cmd.seq
-            if self._gap_start is not None:
-                self._gaps.append((self._gap_start, t))
-                self._gap_start = None
-        # the row's faults, the wheels' and the rods' (a handler may change them only while we wait)
-        act, rods = self.shared.act, self.shared.rods
-        # the sensors sample inside the period only when a next row follows (as offline)
-        sensors = self.sensors if next_state is not None else None
-        x_next = self.twin.integrate(act, t, x, u_cmd, n_sub, h, sensors, k * n_sub, d_cmd, rods)
-        finite = bool(np.all(np.isfinite(x_next)))
-        if stamps is not None:
-            stamps[1] = time.monotonic_ns()
-        if next_state is not None and finite and not self._should_stop():
-            if sensors is not None:  # the samples of the next control instant go out before its state
-                self.publisher.sense(next_state[0] * n_sub, next_state[1], x_next, next_state[0])
-            self.shared.t_now = next_state[1]  # what arrives from now on arrives during the next row
-            guidance, self._guidance_next = self._guidance_next, None
-            self.publisher.state(next_state[0], next_state[1], x_next, guidance)
-            self._next_published = next_state[0]
-        if stamps is not None:
-            stamps[2] = time.monotonic_ns()
-        if self._pending is not None:  # a late tick: the previous row's record and truth first, never lost
-            self._flush_pending()
-        self._pending = (k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, self.twin.motor_at_start,
-                         d_cmd, rods)
-        if defer_ns is None or next_state is None or not finite:
-            self._flush_pending()
-        else:
-            self._pending_by_ns = time.monotonic_ns() + defer_ns
-        return x_next if finite else None
-
-    def _flush_pending(self) -> None:
-        """The deferred part of a row: its record and its truth."""
-        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, motor, d_cmd, rods = self._pending
-        self._pending = None
-        if stamps is not None:
-            stamps[3] = time.monotonic_ns()
-        _, accel, delta2 = self.twin.row(act, t, x, u_cmd, motor, d_cmd, rods)
-        self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd)
-        self.publisher.drain()  # an answer that came meanwhile is received now, not after the truth's publish
-        self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act, d_cmd, rods)
-        if stamps is not None:
-            stamps[4] = time.monotonic_ns()
+        """Row k (RowPipeline.apply), with the next state's guidance computed ahead."""
+        guidance, self._guidance_next = self._guidance_next, None
+        return self.rows.apply(k, t, x, cmd, n_sub, h, next_state, stamps, defer_ns, d_cmd, guidance)
 
     def _finish(self, rows: int, diverged: bool) -> Run:
-        if self._pending is not None:
-            self._flush_pending()
-        if self._gap_start is not None and rows > 0:
-            self._gaps.append((self._gap_start, self._last_t))
-            self._gap_start = None
+        self.rows.close(rows)
         # let the last status arrive
         self._handle_until(time.monotonic_ns() + 20_000_000)
         run, self._breakdown = self.record.close(rows, self._meta(), self.mode)
@@ -466,18 +385,15 @@ class Emulator:
         if self.publisher.field is not None:  # the ideal magnetometer's (with sensors: the samples' count above)
             self.shared.counters["mag_sent"] = self.publisher.mag_sent
         run.counters = dict(self.shared.counters)
-        run.gaps = list(self._gaps)
+        run.gaps = list(self.rows.gaps)
         run.faults_applied = list(self.shared.faults_applied)
         run.diverged = diverged
         label = self.peers.label(self.receiver.ctl_session)  # the law's name, as the controller announced it
-        session = self.receiver.ctl_session
-        if label is None and session is not None and session not in self.peers.status_sessions:
-            label = "external"  # commands only: not sc-rt-controller, and no name announced
         if label:
             run.meta = dataclasses.replace(run.meta, law=label)
         if self.shared.stopped is not None:
             run.partial = True
             run.message = self.shared.stopped
-            run.metrics.update(stopped=self.shared.stopped, t_reached_s=self._last_t if rows else None)
+            run.metrics.update(stopped=self.shared.stopped, t_reached_s=self.rows.t_reached if rows else None)
         run.metrics.update(provenance(self.session, self.receiver.ctl_session, self.shared.invalid))
         return run
