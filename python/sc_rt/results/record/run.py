@@ -24,6 +24,7 @@ from sc_rt.pylaw import split_unit
 from sc_rt.results.record.fields import COLUMNS, CORE_FIELDS, FIELD, FIELDS, Field, empty_arrays
 from sc_rt.results.record.jsonsafe import json_safe, write_json
 from sc_rt.results.record.meta import RunMeta
+from sc_rt.results.record.provenance import provenance  # re-exported: its callers import it with Run
 
 __all__ = ["Field", "FIELDS", "FIELD", "CORE_FIELDS", "RunMeta", "Run", "empty_arrays", "json_safe", "write_json",
            "provenance"]
@@ -395,15 +396,3 @@ def _read_json_beside(run: Run, run_dir: Path) -> None:
         if p.exists():
             setattr(run, attr, json.loads(p.read_text()))
 
-
-def provenance(plant_session: int | None, controller_session: int | None,
-               invalid: str | None = None) -> dict[str, Any]:
-    """The bench run's metrics keys saying where its numbers came from: the
-    plant and controller sessions (LCM ids, None: none) and whether the run
-    is valid (False, with the reason: another bench on the same channels
-    mixed into it, emulator/collision.py)."""
-    out: dict[str, Any] = {"valid": invalid is None, "plant_session": plant_session,
-                           "controller_session": controller_session}
-    if invalid is not None:
-        out["invalid_reason"] = invalid
-    return out
