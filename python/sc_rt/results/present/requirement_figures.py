@@ -10,7 +10,7 @@
   against the wheel speed and momentum requirements and the actuator's
   speed limit.
 
-The y axes follow the data, not the limits (sc_rt.results.present.figures.limit_lines).
+The y axes follow the data, not the limits (sc_rt.results.present.figure_marks.limit_lines).
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from typing import Any
 import numpy as np
 
 from sc_rt.results.present import figures as _figures
-from sc_rt.results.present.figures import _legend_outside, _two_line, limit_lines, mark_events, plt
+from sc_rt.results.present.figure_marks import _legend_outside, _two_line, limit_lines, mark_events
+from sc_rt.results.present.figures import plt
 from sc_rt.results.judge.indices import index_values
 from sc_rt.results.judge.pointing import error_signal, wheel_momentum
 from sc_rt.results.judge.requirements import is_sensed, knowledge_error, requirement_span

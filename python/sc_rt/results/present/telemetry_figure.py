@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sc_rt.results.present.figures import mark_events, run_title, save_figure
+from sc_rt.results.present.figure_marks import mark_events, run_title
+from sc_rt.results.present.figures import save_figure
 from sc_rt.results.judge.law_telemetry import telemetry_summary
 from sc_rt.results.record.run import Run
 
