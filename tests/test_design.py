@@ -15,7 +15,7 @@ from sc_rt.scenario.variants import with_law_params
 from sc_rt import _core
 from sc_rt.studies import design as D
 from sc_rt.cli import main
-from sc_rt.model.plant import DisturbanceParams
+from sc_rt.model.plant_params import DisturbanceParams
 from sc_rt.scenario.reader import load_scenario
 from sc_rt.sim.engines import simulate
 

@@ -25,7 +25,8 @@ import pytest
 from sc_rt import _core
 from sc_rt.model import truth
 from sc_rt.model.actuators import ActuatorParams, WheelFault, actuator_params_to_cpp
-from sc_rt.model.plant import DisturbanceParams, PlantParams, plant_params_to_cpp
+from sc_rt.model.plant import plant_params_to_cpp
+from sc_rt.model.plant_params import DisturbanceParams, PlantParams
 from sc_rt.model.wheels import TorqueWheels, WheelFriction, WheelLimits
 from sc_rt.scenario.keys import scenario_data
 from sc_rt.scenario.reader import load_scenario, scenario_from_data

@@ -21,7 +21,8 @@ from sc_rt import _core
 from sc_rt.model.actuators import ActuatorParams, actuator_params_to_cpp
 from sc_rt.model.field import field_for
 from sc_rt.model.orbit import R_EARTH, OrbitParams, orbit_state
-from sc_rt.model.plant import DisturbanceParams, PlantParams, derivative, plant_params_to_cpp
+from sc_rt.model.plant import derivative, plant_params_to_cpp
+from sc_rt.model.plant_params import DisturbanceParams, PlantParams
 from sc_rt.scenario.tables.orbit import julian_date
 
 ppigrf = pytest.importorskip("ppigrf")

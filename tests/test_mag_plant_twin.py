@@ -20,7 +20,8 @@ import pytest
 from sc_rt import _core
 from sc_rt.model.actuators import ActuatorParams, WheelFault, actuator_params_to_cpp
 from sc_rt.model.orbit import R_EARTH, OrbitParams
-from sc_rt.model.plant import PlantParams, derivative, lumped_disturbance, plant_params_to_cpp, rk4_step
+from sc_rt.model.plant import derivative, lumped_disturbance, plant_params_to_cpp, rk4_step
+from sc_rt.model.plant_params import PlantParams
 from sc_rt.model.torque_plant import TorquePlant, TorqueWheels, torque_plant_to_cpp
 from sc_rt.model.truth import new_motor
 from sc_rt.model.truth import rk4_step as truth_step

@@ -149,7 +149,8 @@ def test_magnetorquers_need_a_field():
 def test_torque_wheel_plant_with_a_stuck_rod_is_bit_identical_in_python_and_cpp():
     from sc_rt.model.actuators import ActuatorParams, actuator_params_to_cpp
     from sc_rt.model.orbit import R_EARTH, OrbitParams
-    from sc_rt.model.plant import PlantParams, plant_params_to_cpp
+    from sc_rt.model.plant import plant_params_to_cpp
+    from sc_rt.model.plant_params import PlantParams
     from sc_rt.model.truth import new_motor, rk4_step, row
     from sc_rt.model.wheels import TorqueWheels, WheelLimits
 

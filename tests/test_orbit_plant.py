@@ -17,7 +17,8 @@ import pytest
 from sc_rt import _core
 from sc_rt.model.actuators import ActuatorParams, WheelFault, actuator_params_to_cpp
 from sc_rt.model.orbit import MU_EARTH, R_EARTH, OrbitParams, gravity_gradient_orbit, orbit_state
-from sc_rt.model.plant import PlantParams, derivative, lumped_disturbance, plant_params_to_cpp, rk4_step
+from sc_rt.model.plant import derivative, lumped_disturbance, plant_params_to_cpp, rk4_step
+from sc_rt.model.plant_params import PlantParams
 from sc_rt.model.torque_plant import TorquePlant, TorqueWheels, torque_plant_to_cpp
 from sc_rt.model.wheels import WheelFriction, WheelLimits
 from sc_rt.scenario.reader import load_scenario, scenario_from_data

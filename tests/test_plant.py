@@ -17,8 +17,6 @@ from scipy.spatial.transform import Rotation
 from sc_rt import _core
 from sc_rt.model.actuators import ActuatorParams, WheelFault, actuator_params_to_cpp, wheel_accel
 from sc_rt.model.plant import (
-    DisturbanceParams,
-    PlantParams,
     derivative,
     disturbance,
     lumped_disturbance,
@@ -27,6 +25,7 @@ from sc_rt.model.plant import (
     rk4_step,
     total_angular_momentum_N,
 )
+from sc_rt.model.plant_params import DisturbanceParams, PlantParams
 
 CBAR_PAPER = np.array(
     [

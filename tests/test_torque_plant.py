@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from sc_rt.model.plant import DisturbanceParams, PlantParams
+from sc_rt.model.plant_params import DisturbanceParams, PlantParams
 from sc_rt.model.torque_plant import TorquePlant, TorqueWheels, torque_plant_to_cpp
 from sc_rt.model.wheels import WheelFriction, WheelLimits
 

@@ -26,7 +26,8 @@ from sc_rt import _core
 from sc_rt.model.actuators import ActuatorParams, actuator_params_to_cpp
 from sc_rt.model.field import GeomagField, decimal_year, field_for, wmm2025_coefficients
 from sc_rt.model.orbit import R_EARTH, OrbitParams
-from sc_rt.model.plant import PlantParams, plant_params_to_cpp, rk4_step
+from sc_rt.model.plant import plant_params_to_cpp, rk4_step
+from sc_rt.model.plant_params import PlantParams
 from sc_rt.model.wmm2025_table import EPOCH, LAST, ROWS
 from sc_rt.scenario.reader import scenario_from_data
 from sc_rt.scenario.schema import ScenarioError

@@ -14,7 +14,7 @@ def total_momentum_N(p, x) -> tuple[float, float, float]:
 
     Parameters
     ----------
-    p : sc_rt.model.plant.PlantParams
+    p : sc_rt.model.plant_params.PlantParams
         The plant: the true inertia ``J = J0 + dJ`` [kg m^2], ``Cbar`` [-]
         and ``Jw`` [kg m^2].
     x : sequence of 10 floats

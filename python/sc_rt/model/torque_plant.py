@@ -39,7 +39,7 @@ import numpy as np
 from sc_rt.model.actuators import ActuatorParams
 from sc_rt.model.magnetic import held_dipole, make_field_N
 from sc_rt.model.kernels import inv3, make_disturbance, make_orbit_gg, make_rhs, mrp_to_dcm
-from sc_rt.model.plant import PlantParams
+from sc_rt.model.plant_params import PlantParams
 from sc_rt.model.wheels import TorqueWheels, applied_torque, friction_torque, stribeck_switch, wheel_torque_command
 
 __all__ = ["TorqueWheels", "TorquePlant", "torque_plant_to_cpp", "step_inputs"]

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from sc_rt.model import actuators, plant
 from sc_rt.model.actuators import ActuatorParams
-from sc_rt.model.plant import PlantParams
+from sc_rt.model.plant_params import PlantParams
 from sc_rt.model.rods import rods_dipole_B
 from sc_rt.model.torque_plant import TorquePlant, step_inputs
 from sc_rt.model.wheels import motor_lag, stribeck_switch

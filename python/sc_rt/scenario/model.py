@@ -28,7 +28,7 @@ from sc_rt_lcm import controller_config_t
 
 from sc_rt import _core
 from sc_rt.model.actuators import ActuatorParams
-from sc_rt.model.plant import PlantParams
+from sc_rt.model.plant_params import PlantParams
 from sc_rt.scenario.schema import (  # noqa: F401  (ScenarioError and ScenarioIssue are public here)
     Doc,
     ScenarioError,

@@ -13,7 +13,7 @@ import numpy as np
 from sc_rt._core import mrp_to_dcm
 from sc_rt.model.actuators import ActuatorParams, WheelFault
 from sc_rt.model.combined import RigidBody, combine
-from sc_rt.model.plant import DisturbanceParams, PlantParams
+from sc_rt.model.plant_params import DisturbanceParams, PlantParams
 from sc_rt.scenario.schema import Spec, Table, build, format_value, read_only
 from sc_rt.scenario.tables.wheels import check_wheel_fault
 

@@ -16,7 +16,8 @@ import numpy as np
 
 from sc_rt import _core
 from sc_rt.model.actuators import fault_Y
-from sc_rt.model.plant import PlantParams, derivative
+from sc_rt.model.plant import derivative
+from sc_rt.model.plant_params import PlantParams
 from sc_rt.scenario.model import Scenario
 
 __all__ = [
