@@ -81,6 +81,30 @@ def valid(cls, rng: random.Random, bad: float | None = None):
     return m
 
 
+def refusable_rod_fault(rng: random.Random):
+    """A rod_fault_cmd_t any emulator is addressed by (session 0) and that the
+    plant must refuse whatever its time (``now`` or not): a rod beyond day_hold's
+    three, an unknown kind or action, a stuck dipole beyond the rods' 100 A m^2
+    or not finite, a dipole on a fault that takes none, an end that is not a
+    number. It reaches ``_apply_rod_fault`` (the session check lets it by)."""
+    m = valid(sc_rt_lcm.rod_fault_cmd_t, rng)
+    m.session, m.rod, m.kind, m.dipole, m.now = 0, rng.randrange(1, 4), m.KIND_DEAD, 0.0, rng.random() < 0.5
+    how = rng.randrange(6)
+    if how == 0:
+        m.rod = rng.randrange(4, 7)
+    elif how == 1:
+        m.kind = rng.choice((0, 4, 9))
+    elif how == 2:
+        m.action = rng.choice((0, 3))
+    elif how == 3:
+        m.kind, m.dipole = m.KIND_STUCK, rng.choice((100.5, -250.0, 1e300, math.nan, math.inf))
+    elif how == 4:
+        m.dipole = 1.0  # a dead rod takes no dipole
+    else:
+        m.t_end = math.nan
+    return m
+
+
 def _bad_fault(cls, rng: random.Random, bad: float):
     """A fault command (wheel or rod) with one non-finite or absurd number."""
     m = valid(cls, rng)
@@ -125,8 +149,10 @@ def main(url: str, n: int, out: str, seed: int = 1, channels: str | None = None)
     while i < n:
         ch = rng.choice(list(targets))
         cls = targets[ch]
-        kind = rng.choice(kinds)
-        if kind == "empty":
+        kind = rng.choice(kinds + (["refusable"] if ch == "SCRT_ROD_FAULT" else []))
+        if kind == "refusable":  # reaches the plant's checks, which must refuse it
+            data = refusable_rod_fault(rng).encode()
+        elif kind == "empty":
             data = b""
         elif kind == "random":
             data = rng.randbytes(rng.randrange(1, 300))

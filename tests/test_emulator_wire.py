@@ -35,16 +35,20 @@ def test_state_and_truth_packing_equal_the_generated_encoding():
                                                          for n in (6, 6, 3))
         tr.rod_fault = [rng.randrange(-3, 4) for _ in range(6)]
         rods = (tr.n_rods, tr.rod_dipole_cmd, tr.rod_dipole, tr.dipole_B, tr.rod_fault)
+        tr.fault_seq_applied, tr.fault_seq_refused = rng.randrange(-1, 2**62), rng.randrange(-1, 2**62)
         packed = T._TRUTH_FP + T._TRUTH_LAYOUT.pack(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied,
                                                     *[v for arr in f for v in arr], *tr.fault_stuck,
                                                     tr.cmd_stale, *tr.gyro_bias, tr.n_rods, *tr.rod_dipole_cmd,
-                                                    *tr.rod_dipole, *tr.dipole_B, *tr.rod_fault)
+                                                    *tr.rod_dipole, *tr.dipole_B, *tr.rod_fault,
+                                                    tr.fault_seq_applied, tr.fault_seq_refused)
         assert packed == tr.encode()
         assert T.truth_bytes(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied, *f[0:4], f[4], f[5] + f[6]
-                             + tr.fault_stuck, tr.cmd_stale, tr.gyro_bias, rods) == tr.encode()
+                             + tr.fault_stuck, tr.cmd_stale, tr.gyro_bias, rods,
+                             (tr.fault_seq_applied, tr.fault_seq_refused)) == tr.encode()
         # a plant without rods: every rod field 0, as the generated class starts them
         tr.n_rods, tr.rod_fault = 0, [0] * 6
         tr.rod_dipole_cmd, tr.rod_dipole, tr.dipole_B = [0.0] * 6, [0.0] * 6, [0.0] * 3
+        tr.fault_seq_applied = tr.fault_seq_refused = -1  # and no fault command yet
         assert T.truth_bytes(tr.utime, tr.seq, tr.t, tr.cmd_seq_applied, *f[0:4], f[4], f[5] + f[6]
                              + tr.fault_stuck, tr.cmd_stale, tr.gyro_bias) == tr.encode()
 

@@ -274,9 +274,16 @@ wait $HIL
     assert s["n"] == 5000
     by = {ch: sum(v for k, v in s["sent"].items() if k.startswith(ch + ":"))
           for ch in ("SCRT_ROD_CMD", "SCRT_ROD_FAULT")}
-    emu = json.loads((out / "timing.json").read_text())["emulator_counters"]
-    # every hostile rod fault was refused (foreign session, or not a rod_fault_cmd_t), none applied
+    timing = json.loads((out / "timing.json").read_text())
+    emu = timing["emulator_counters"]
+    # every hostile rod fault was refused, none applied: a foreign session, not a rod_fault_cmd_t, or
+    # (addressed to any emulator) refused by the plant's own checks, each named in faults_applied
     assert emu.get("fault_applied", 0) == 0 and 0 < emu.get("fault_foreign_session", 0) <= by["SCRT_ROD_FAULT"], emu
+    refusable = s["sent"].get("SCRT_ROD_FAULT:refusable", 0)
+    assert 0 < emu.get("fault_rejected", 0) <= refusable, (emu, refusable)
+    rejected = [f for f in timing["faults_applied"] if "rejected" in f]
+    kept = min(emu["fault_rejected"], 100)  # the emulator keeps the reasons of the first 100 (MAX_REFUSALS_KEPT)
+    assert len(rejected) == kept == len(timing["faults_applied"]), timing["faults_applied"][:5]
     # hostile rod commands: another rod count or a non-finite dipole, a foreign session, a replay
     rod_refused = sum(emu.get(k, 0) for k in ("invalid_rod_command", "rod_duplicate", "rod_out_of_order"))
     assert emu.get("invalid_rod_command", 0) > 0 and 0 < rod_refused <= by["SCRT_ROD_CMD"], emu

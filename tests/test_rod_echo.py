@@ -127,7 +127,8 @@ def test_a_log_of_the_older_layout_rebuilds_the_rods_from_rod_cmd_t(tmp_path):
     applied wheel command's seq, as before; with today's truth from the
     truth, where it differs from that match (the plant held another)."""
     from sc_rt.logs.logread import read_log
-    from sc_rt.logs.rebuild import fault_summary, rebuild
+    from sc_rt.logs.faults import fault_summary
+    from sc_rt.logs.rebuild import rebuild
 
     def log(path, truth_cls):
         ev = lcm.EventLog(str(path), "w", overwrite=True)
@@ -198,6 +199,66 @@ def test_the_echo_is_the_commands_fault_state_at_the_truths_time():
     assert _echoed(rod_clear_msg(2), _truth(4.0, [0, 0, 1])) and not _echoed(rod_clear_msg(2), _truth(4.0, [0, 3]))
 
 
+def test_the_answer_is_the_commands_seq_not_a_state_the_rod_already_had():
+    """``faultcmd.answer``: applied when the truth's ``fault_seq_applied`` is the
+    command's seq, refused when ``fault_seq_refused`` is; a truth already
+    showing the state asked for (day_hold's rod 2 stuck, pending, for an
+    inject with a later onset; the same fault sent again) is no answer while
+    the emulator has not applied this command. A later command applied over
+    it still counts when the state shows this one."""
+    from sc_rt.tools.faultcmd import answer, inject_msg, rod_inject_msg
+
+    cmd = rod_inject_msg(2, "stuck", dipole=500.0, at=100.0)  # beyond day_hold's 100 A m^2
+    cmd.seq = 1000
+    pending = _truth(5.0, [0, -2, 0])  # what the rod showed before: day_hold's armed fault
+    assert answer(cmd, pending) is None
+    pending.fault_seq_applied, pending.fault_seq_refused = 999, 1000
+    assert answer(cmd, pending) == "refused"
+    ok = _truth(5.0, [0, -2, 0])
+    ok.fault_seq_applied, ok.fault_seq_refused = 1000, -1
+    assert answer(cmd, ok) == "applied"
+    later = _truth(5.0, [0, -2, 0])
+    later.fault_seq_applied, later.fault_seq_refused = 1001, -1  # another command after it; the state is it
+    assert answer(cmd, later) == "applied" and answer(rod_inject_msg(2, "dead"), later) is None
+    wheel = inject_msg(3, effectiveness=0.5)
+    wheel.seq = 7
+    healthy = _truth(1.0, [])
+    healthy.fault_seq_applied = 6
+    assert answer(wheel, healthy) is None
+    healthy.fault_seq_applied = 7
+    assert answer(wheel, healthy) == "applied"
+
+
+def test_a_logs_fault_commands_are_marked_by_the_seqs_the_truth_echoes():
+    """sc-rt report (logs/faults.py): a command whose seq a truth names as
+    applied is applied; one it names as refused, refused; one no truth names
+    (another emulator's, one ignoring fault commands) not applied; a log of
+    the older layout does not say (None). The report's pages draw the
+    applied and the unknown ones only (rod_faults.live_fault_records)."""
+    from sc_rt.logs.faults import _mark_answers
+    from sc_rt.results.present.rod_faults import live_fault_records
+    from sc_rt.wire.codec import decode_array
+    from sc_rt.wire.legacy import decode_current
+
+    truths = []
+    for applied, refused in ((-1, -1), (1000, -1), (1000, 1001)):
+        m = sc_rt_lcm.plant_truth_t()
+        m.fault_seq_applied, m.fault_seq_refused = applied, refused
+        truths.append(m.encode())
+    T, _ = decode_array(sc_rt_lcm.plant_truth_t, truths)
+    cmds = [{"seq": 1000, "rod": 1}, {"seq": 1001, "rod": 2}, {"seq": 1002, "rod": 3}]
+    _mark_answers(cmds, T)
+    assert cmds == [{"seq": 1000, "rod": 1, "applied": True},
+                    {"seq": 1001, "rod": 2, "applied": False, "refused": True},
+                    {"seq": 1002, "rod": 3, "applied": False, "refused": False}]
+    assert [c["rod"] for c in live_fault_records({"faults": {"commands": cmds}}, None)] == [1]
+    old, _ = decode_current(sc_rt_lcm.plant_truth_t, [sc_rt_lcm.plant_truth_v1_t().encode()])
+    cmds = [{"seq": 1000, "rod": 1}]
+    _mark_answers(cmds, old)
+    assert cmds == [{"seq": 1000, "rod": 1, "applied": None}]
+    assert live_fault_records({"faults": {"commands": cmds}}, None) == cmds
+
+
 def test_a_rod_fault_no_emulator_echoes_exits_1_naming_why():
     """No emulator on the bus (in-process memq): exit 1, the channel, the URL
     and the reasons named (the old main published and exited 0)."""
@@ -205,16 +266,19 @@ def test_a_rod_fault_no_emulator_echoes_exits_1_naming_why():
     assert r.returncode == 1, r.stdout + r.stderr
     why = [ln for ln in r.stderr.splitlines() if ln.startswith("sc-rt fault: not applied")]
     assert len(why) == 1 and "no emulator echoed it on B1_SCRT_TRUTH within 0.3 s" in why[0], r.stderr
-    assert "memq://" in why[0] and "--accept-fault-commands" in why[0] and "refused the rod" in why[0]
+    assert "memq://" in why[0] and "--accept-fault-commands" in why[0]
 
 
 @pytest.mark.lcm
 def test_a_rod_fault_is_echoed_by_an_emulator_that_applies_it(tmp_path):
     """Against real emulator processes (day_hold's three rods, real time):
     applied and echoed (exit 0) for an inject now, one with a later onset
-    and a clear; not echoed (exit 1, the reason named) by an emulator
-    without --accept-fault-commands (on the old main: exit 0) and for a rod
-    the plant lacks."""
+    and a clear; refused by the plant (exit 1 at once, named) for a rod it
+    lacks and for rod 2 stuck beyond its 100 A m^2 limit with a later onset
+    (day_hold arms rod 2 stuck, pending: a rule reading the rod's state alone
+    took that pending fault for the command's echo and said "applied");
+    not echoed (exit 1, the reason named) by an emulator without
+    --accept-fault-commands (on the old main: exit 0)."""
     lcmnet.require()
     url = "udpm://239.255.76.67:7753?ttl=0"
     url2 = "udpm://239.255.76.67:7754?ttl=0"
@@ -224,7 +288,8 @@ def test_a_rod_fault_is_echoed_by_an_emulator_that_applies_it(tmp_path):
 {fault} inject --rod 1 --kind dead --timeout 20 --lcm-url '{url}'; echo "rc_dead=$?"
 {fault} inject --rod 3 --kind stuck --dipole 3.5 --at 100 --timeout 20 --lcm-url '{url}'; echo "rc_later=$?"
 {fault} clear --rod 1 --timeout 20 --lcm-url '{url}'; echo "rc_clear=$?"
-{fault} inject --rod 5 --kind dead --timeout 1 --lcm-url '{url}'; echo "rc_no_rod=$?"
+{fault} inject --rod 5 --kind dead --timeout 20 --lcm-url '{url}'; echo "rc_no_rod=$?"
+{fault} inject --rod 2 --kind stuck --dipole 500 --at 100 --timeout 20 --lcm-url '{url}'; echo "rc_beyond=$?"
 {fault} inject --rod 1 --kind reversed --timeout 1 --lcm-url '{url2}'; echo "rc_ignored=$?"
 kill -INT $E1 $E2; wait
 """
@@ -233,10 +298,12 @@ kill -INT $E1 $E2; wait
     for name in ("dead", "later", "clear"):
         assert f"rc_{name}=0" in so, so + se
     assert so.count("applied: echoed on SCRT_TRUTH at t = ") == 3, so + se
-    assert "rc_no_rod=1" in so and "rc_ignored=1" in so, so + se
+    assert "rc_no_rod=1" in so and "rc_beyond=1" in so and "rc_ignored=1" in so, so + se
     lines = [ln for ln in se.splitlines() if ln.startswith("sc-rt fault: not applied")]
-    assert len(lines) == 2 and all("no emulator echoed it on SCRT_TRUTH within 1 s" in ln for ln in lines), se
-    assert url2 in lines[1] and "--accept-fault-commands" in lines[1], se
+    assert len(lines) == 3, se
+    assert all("the emulator refused it (said on SCRT_TRUTH at t = " in ln for ln in lines[:2]), se
+    assert "no emulator echoed it on SCRT_TRUTH within 1 s" in lines[2], se
+    assert url2 in lines[2] and "--accept-fault-commands" in lines[2], se
 
 
 def test_spy_shows_the_rods_truth():

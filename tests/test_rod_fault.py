@@ -162,6 +162,18 @@ def test_a_live_rod_stuck_beyond_its_limit_is_refused_named():
     assert [(f.rod, f.kind, f.dipole) for f in rx.shared.rods.faults if f.rod == 0] == [(0, "stuck", -100.0)]
 
 
+def test_a_flood_of_refused_rod_faults_is_counted_and_only_the_first_reasons_kept():
+    # memory bounded by the emulator, not by its input: 250 refusals, 100 reasons kept (MAX_REFUSALS_KEPT)
+    rx = _receiver()
+    for i in range(250):
+        msg = rod_inject_msg(1, "stuck", dipole=200.0 + i)
+        msg.seq = 10_000 + i
+        rx.on_rod_fault("SCRT_ROD_FAULT", msg.encode())
+    assert rx.counters["fault_rejected"] == 250 and len(rx.shared.faults_applied) == 100
+    assert rx.shared.faults_applied[-1]["rejected"].endswith("rod 1 stuck at 299.0 A m^2, beyond its limit 100.0 A m^2")
+    assert rx.shared.fault_seq_refused == 10_249 and rx.shared.fault_seq_applied == -1  # what the truth echoes
+
+
 def test_under_auth_key_an_unauthenticated_misaddressed_or_replayed_rod_fault_is_refused():
     from sc_rt.wire.auth import unauthenticated
 
@@ -322,6 +334,9 @@ def test_the_log_holds_the_rod_fault_commands_for_the_report_and_the_mcap(live_r
             for c in rep["faults"]["commands"]]
     assert cmds == [(1, "inject", "stuck", True, 0.0, -1.0, 4.0), (3, "inject", "dead", False, 5.0, 30.0, 0.0),
                     (2, "inject", "reversed", False, 20.3, -1.0, 0.0)]
+    # the emulator's truth echoed each command's seq: all three applied, as sent
+    assert [c["applied"] for c in rep["faults"]["commands"]] == [True] * 3
+    assert [c["seq"] for c in rep["faults"]["commands"]] == [int(v) for v in F["seq"]]
     mcap = tmp_path / "run.mcap"
     r = lcmnet.run_cli(["export", str(out / "run.lcmlog"), "--mcap", str(mcap)], netns=False)
     assert r.returncode == 0, r.stderr

@@ -142,7 +142,7 @@ def _emulator(scheduled: tuple) -> Receiver:
 
 
 def _as_logged(cmd, received: float) -> dict:
-    """A command as sc-rt report lists it from a log (logs/rebuild.py fault_summary)."""
+    """A command as sc-rt report lists it from a log (logs/faults.py fault_summary)."""
     kinds = {1: "dead", 2: "stuck", 3: "reversed"}
     return {"log_s": received, "t_sim_at_receipt": received, "rod": cmd.rod, "now": bool(cmd.now),
             "action": {1: "inject", 2: "clear"}[cmd.action], "kind": kinds.get(cmd.kind, cmd.kind),

@@ -111,7 +111,8 @@ def test_set_reaches_an_entry_of_an_array_as_montecarlo_keys_do(tmp_path):
     assert by_set.plant.magnetorquers.faults[0].dipole == -12.5
     for pair, words in (("magnetorquers.faults[1].onset=5", "magnetorquers.faults[1] is not in the file "
                                                              "(magnetorquers.faults has 1 entry)"),
-                        ("faults[0].onset=5", "faults[0] is not in the file")):
+                        ("faults[0].onset=5", "faults is not in the file"),
+                        ("run[0]=1", "run is a table, not an array")):
         r = _cli("sim", "day_hold", "--set", pair, "--out", str(tmp_path / "o"))
         lines = r.stderr.strip().splitlines()
         assert r.returncode == 2 and len(lines) == 1 and words in lines[0], (pair, r.stderr)

@@ -95,10 +95,13 @@ def cmd_fault(args: argparse.Namespace) -> int:
         print(f"{head}; not waiting for the echo (applied only by an emulator started with "
               "--accept-fault-commands)")
         return 0
+    if sent.refused_at is not None:
+        print(f"{head}\nsc-rt fault: not applied: the emulator refused it (said on {sent.truth_channel} at "
+              f"t = {sent.refused_at:.3f} s; why: its timing.json faults_applied)", file=sys.stderr)
+        return 1
     if sent.applied_at is None:
         print(f"{head}\nsc-rt fault: not applied: no emulator echoed it on {sent.truth_channel} within "
-              f"{args.timeout:g} s (none running on {url}, or not started with --accept-fault-commands"
-              f"{', or it refused the rod: its timing.json faults_applied' if args.rod is not None else ''})",
+              f"{args.timeout:g} s (none running on {url}, or not started with --accept-fault-commands)",
               file=sys.stderr)
         return 1
     print(f"{head}; applied: echoed on {sent.truth_channel} at t = {sent.applied_at:.3f} s")

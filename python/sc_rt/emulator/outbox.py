@@ -88,17 +88,19 @@ class Publisher:
         while select.select([fd], [], [], 0)[0]:
             self.lc.handle()
 
-    def truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale, act, d_cmd=None, rods=None) -> None:
+    def truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale, act, d_cmd=None, rods=None,
+              fault_seqs=(-1, -1)) -> None:
         """Row k's truth, with the faults ``act`` it was applied with and the
         rods ``rods`` (None: the scenario's) holding the commands ``d_cmd``
-        (None: no magnetic control); its wheels' fault fields go into the
-        run's row too."""
+        (None: no magnetic control), and the seqs of the newest fault commands
+        applied and refused by then (``fault_seqs``); its wheels' fault fields
+        go into the run's row too."""
         fault_y, eff_bias_stuck = self.twin.fault_fields(act, t)
         row, j = self.ring.slot(k)
         bias = (0.0, 0.0, 0.0) if self.sensors is None else row["bias_true"][j]
         self.lc.publish(self._ch_truth, truth_bytes(time.time_ns() // 1000, k, t, cmd_seq, u_cmd, accel, delta2,
                                                     self.twin.disturbance(t), fault_y, eff_bias_stuck, stale,
-                                                    bias, self.twin.rod_fields(t, d_cmd, rods)))
+                                                    bias, self.twin.rod_fields(t, d_cmd, rods), fault_seqs))
         row["fault_Y"][j] = fault_y
         row["fault_effectiveness"][j] = eff_bias_stuck[0:4]
         row["fault_bias"][j] = eff_bias_stuck[4:8]

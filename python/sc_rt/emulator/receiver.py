@@ -30,7 +30,11 @@ from sc_rt.model.actuators import WheelFault
 from sc_rt.model.rods import ROD_FAULTS, RodFault
 from sc_rt.results.record.store import RowRing
 
-__all__ = ["Receiver"]
+__all__ = ["Receiver", "MAX_REFUSALS_KEPT"]
+
+#: refused fault commands kept with their reason in ``faults_applied`` (timing.json); the rest are
+#: counted only (``fault_rejected``), so that a flood of them cannot grow the emulator's memory
+MAX_REFUSALS_KEPT = 100
 
 
 class Receiver:
@@ -257,10 +261,12 @@ class Receiver:
         try:
             apply(msg)
             self.counters["fault_applied"] += 1
-            self._last_fault_seq = msg.seq
+            self._last_fault_seq = self.shared.fault_seq_applied = msg.seq
         except ValueError as e:
             self.counters["fault_rejected"] += 1
-            self.shared.faults_applied.append({"rejected": str(e), target: getattr(msg, target)})
+            self.shared.fault_seq_refused = msg.seq
+            if self.counters["fault_rejected"] <= MAX_REFUSALS_KEPT:  # a flood of them: counted, not all kept
+                self.shared.faults_applied.append({"rejected": str(e), target: getattr(msg, target)})
 
     def _apply_rod_fault(self, m) -> None:
         rods = self.shared.rods

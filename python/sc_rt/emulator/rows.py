@@ -72,8 +72,10 @@ class RowPipeline:
             if self._gap_start is not None:
                 self.gaps.append((self._gap_start, t))
                 self._gap_start = None
-        # the row's faults, the wheels' and the rods' (a handler may change them only while we wait)
+        # the row's faults, the wheels' and the rods', and the fault commands' seqs that left them
+        # (a handler may change them only while we wait)
         act, rods = self.shared.act, self.shared.rods
+        fault_seqs = (self.shared.fault_seq_applied, self.shared.fault_seq_refused)
         # the sensors sample inside the period only when a next row follows (as offline)
         sensors = self.sensors if next_state is not None else None
         x_next = self.twin.integrate(act, t, x, u_cmd, n_sub, h, sensors, k * n_sub, d_cmd, rods)
@@ -91,7 +93,7 @@ class RowPipeline:
         if self.pending is not None:  # a late tick: the previous row's record and truth first, never lost
             self.flush()
         self.pending = (k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, self.twin.motor_at_start,
-                        d_cmd, rods)
+                        d_cmd, rods, fault_seqs)
         if defer_ns is None or next_state is None or not finite:
             self.flush()
         else:
@@ -100,14 +102,14 @@ class RowPipeline:
 
     def flush(self) -> None:
         """The deferred part of a row: its record and its truth."""
-        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, motor, d_cmd, rods = self.pending
+        k, t, x, cmd, u_cmd, u_sat_ctrl, cmd_seq, stale, act, stamps, motor, d_cmd, rods, fault_seqs = self.pending
         self.pending = None
         if stamps is not None:
             stamps[3] = time.monotonic_ns()
         _, accel, delta2 = self.twin.row(act, t, x, u_cmd, motor, d_cmd, rods)
         self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd)
         self.publisher.drain()  # an answer that came meanwhile is received now, not after the truth's publish
-        self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act, d_cmd, rods)
+        self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act, d_cmd, rods, fault_seqs)
         if stamps is not None:
             stamps[4] = time.monotonic_ns()
 

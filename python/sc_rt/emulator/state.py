@@ -89,6 +89,10 @@ class Shared:
     #: the plant's magnetorquer rods as applied now (a rod fault command replaces them;
     #: None: the plant has none)
     rods: Magnetorquers | None = None
+    #: the seqs of the newest fault commands applied and refused (-1: none), echoed in
+    #: each row's plant_truth_t for ``sc-rt fault`` to wait for its own
+    fault_seq_applied: int = -1
+    fault_seq_refused: int = -1
 
     def collision(self, reason: str | None) -> None:
         """Another bench on our URL and prefix (emulator/collision.py): the

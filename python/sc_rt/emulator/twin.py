@@ -45,7 +45,7 @@ _STATE_LAYOUT = struct.Struct(">qqqd3d3d4d")
 # fault_stuck[4] (int8), cmd_stale (int8), gyro_bias[3], n_rods (int8),
 # rod_dipole_cmd[6], rod_dipole[6], dipole_B[3], rod_fault[6] (int8)
 _TRUTH_FP = sc_rt_lcm.plant_truth_t._get_packed_fingerprint()
-_TRUTH_LAYOUT = struct.Struct(">qqdq4d4d3d3d4d4d4d4bb3db6d6d3d6b")
+_TRUTH_LAYOUT = struct.Struct(">qqdq4d4d3d3d4d4d4d4bb3db6d6d3d6bqq")
 _NO_BIAS = (0.0, 0.0, 0.0)
 #: the truth's rod fields of a plant without rods: n_rods, rod_dipole_cmd, rod_dipole, dipole_B, rod_fault
 NO_RODS = (0, (0.0,) * 6, (0.0,) * 6, (0.0,) * 3, (0,) * 6)
@@ -59,12 +59,13 @@ def state_bytes(utime: int, k: int, session: int, t: float, x: np.ndarray) -> by
 
 
 def truth_bytes(utime: int, k: int, t: float, cmd_seq: int, u_cmd, accel, delta2, disturbance, fault_y,
-                eff_bias_stuck, stale: bool, gyro_bias=_NO_BIAS, rods=NO_RODS) -> bytes:
-    """plant_truth_t of row k (``rods``: its rod fields, ``PlantTwin.rod_fields``)."""
+                eff_bias_stuck, stale: bool, gyro_bias=_NO_BIAS, rods=NO_RODS, fault_seqs=(-1, -1)) -> bytes:
+    """plant_truth_t of row k (``rods``: its rod fields, ``PlantTwin.rod_fields``;
+    ``fault_seqs``: the seqs of the newest fault commands applied and refused)."""
     n_rods, d_cmd, d, m_B, fault = rods
     return _TRUTH_FP + _TRUTH_LAYOUT.pack(utime, k, t, cmd_seq, *u_cmd, *accel, *delta2, *disturbance,
                                           *fault_y, *eff_bias_stuck, 1 if stale else 0, *gyro_bias,
-                                          n_rods, *d_cmd, *d, *m_B, *fault)
+                                          n_rods, *d_cmd, *d, *m_B, *fault, *fault_seqs)
 
 
 class PlantTwin:

@@ -44,7 +44,8 @@ import sc_rt_lcm
 from sc_rt.wire.lcmio import lcm_binary
 from sc_rt.logs.logread import LogData, read_log
 from sc_rt.logs.timing import RealtimeLimits, log_missing, realtime_shortfall, timing_report
-from sc_rt.logs.rebuild import (Rebuilt, controller_label, fault_summary, logged_config, logged_guidance, rebuild,
+from sc_rt.logs.faults import fault_summary
+from sc_rt.logs.rebuild import (Rebuilt, controller_label, logged_config, logged_guidance, rebuild,
                                run_params, sensor_summary)
 from sc_rt.pylaw import FLAG_LAW_INVALID
 from sc_rt.results.judge.metrics import fill_tracking_errors, finish_run, mark_invalid

@@ -251,8 +251,10 @@ def _apply_sets(path: Path, data: dict[str, Any], sets: Any) -> None:
         node: Any = data
         for i, part in enumerate(parts):
             last = i == len(parts) - 1
-            where = key.split(".")[0] if i == 0 else _key_text(parts[:i + 1])
+            where = _key_text(parts[:i + 1])
             if isinstance(part, int):
+                if isinstance(node, dict):
+                    raise fail(f"{_key_text(parts[:i])} is a table, not an array")
                 if not isinstance(node, list) or part >= len(node):
                     n = len(node) if isinstance(node, list) else 0
                     entries = f"{n} entr{'y' if n == 1 else 'ies'}"

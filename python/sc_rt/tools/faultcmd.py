@@ -174,6 +174,7 @@ class Sent:
     channel: str  # where it was published
     truth_channel: str  # where the echo was awaited
     applied_at: float | None = None  # the emulator's simulation time of the echo
+    refused_at: float | None = None  # the emulator's simulation time when it said it refused the command
     emulator_t: float | None = None  # the emulator's time when the command left (None: not heard)
 
 
@@ -213,6 +214,23 @@ def _echoed(msg, truth) -> bool:
     if isinstance(msg, sc_rt_lcm.rod_fault_cmd_t):
         return _rod_echoes(msg, truth)
     return _echoes(msg, truth)
+
+
+def answer(msg, truth) -> str | None:
+    """What plant_truth_t ``truth`` says of fault command ``msg``: "applied"
+    (its ``fault_seq_applied`` is the command's seq; or a later command's, one
+    sent after it, with the state ``msg`` asked for: ``_echoed``), "refused"
+    (``fault_seq_refused``: the plant could not apply it), None: not yet.
+    The seq, not the state alone: a fault the wheel or rod already had (a
+    scheduled one pending, the same fault sent again) cannot pass for the
+    command's echo."""
+    if truth.fault_seq_applied == msg.seq:
+        return "applied"
+    if truth.fault_seq_refused == msg.seq:
+        return "refused"
+    if truth.fault_seq_applied > msg.seq and _echoed(msg, truth):
+        return "applied"
+    return None
 
 
 def send(msg, url: str, prefix: str = "", timeout: float = 3.0,
@@ -266,7 +284,10 @@ def send(msg, url: str, prefix: str = "", timeout: float = 3.0,
     if not wait:
         return res
     hit: list = []
-    listen(time.monotonic() + timeout, lambda m: _echoed(msg, m) and not hit.append(m.t))
+    listen(time.monotonic() + timeout, lambda m: (a := answer(msg, m)) is not None and not hit.append((a, m.t)))
     if hit:
-        res.applied_at = hit[0]
+        if hit[0][0] == "applied":
+            res.applied_at = hit[0][1]
+        else:
+            res.refused_at = hit[0][1]
     return res

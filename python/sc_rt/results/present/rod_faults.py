@@ -79,7 +79,7 @@ def rod_commands(records: list[dict[str, Any]] | None) -> list[RodCommand]:
     for i, r in enumerate(records or ()):
         if r.get("rod") is None or "rejected" in r or r.get("action") not in ("inject", "clear"):
             continue
-        if "t_sim_at_receipt" in r or "t_onset" in r:  # a log's command (logs/rebuild.py fault_summary)
+        if "t_sim_at_receipt" in r or "t_onset" in r:  # a log's command (logs/faults.py fault_summary)
             got = _num(r.get("t_sim_at_receipt"))
             received = 0.0 if got is None else got  # logged before the first state: the run's start
             onset = received if r.get("now") else float(r.get("t_onset", 0.0))
@@ -123,9 +123,13 @@ def live_fault_records(report: dict[str, Any] | None, timing: dict[str, Any] | N
     ``sc-rt report``'s report.json commands (the log's), else timing.json's
     ``faults_applied`` (the emulator's). A log's report has both, the same
     commands (logs/report.py puts them in the run's ``faults_applied``): one
-    is taken, so that none is counted twice."""
+    is taken, so that none is counted twice. Of a log's, a command the
+    plant's truth says it did not apply (``applied`` False: refused, another
+    emulator's, one that ignores fault commands) is left out."""
     cmds = ((report or {}).get("faults") or {}).get("commands")
-    return list(cmds) if report is not None and cmds is not None else list((timing or {}).get("faults_applied") or [])
+    if report is not None and cmds is not None:  # the log's: those the plant's truth did not say it applied left out
+        return [c for c in cmds if c.get("applied") is not False]
+    return list((timing or {}).get("faults_applied") or [])
 
 
 def rod_fault_line(spans: list[RodFaultSpan], t_end: float | None = None) -> str:
