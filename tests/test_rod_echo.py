@@ -231,10 +231,11 @@ def test_the_answer_is_the_commands_seq_not_a_state_the_rod_already_had():
 
 def test_a_logs_fault_commands_are_marked_by_the_seqs_the_truth_echoes():
     """sc-rt report (logs/faults.py): a command whose seq a truth names as
-    applied is applied; one it names as refused, refused; one no truth names
-    (another emulator's, one ignoring fault commands) not applied; a log of
-    the older layout does not say (None). The report's pages draw the
-    applied and the unknown ones only (rod_faults.live_fault_records)."""
+    applied is applied; one it names as refused, refused; one no truth names,
+    nor any later one (another emulator's, one ignoring fault commands), not
+    applied; one a later command's echo covers, and every command of a log
+    of the older layout, unknown (None). The report's pages draw the applied
+    and the unknown ones only (rod_faults.live_fault_records)."""
     from sc_rt.logs.faults import _mark_answers
     from sc_rt.results.present.rod_faults import live_fault_records
     from sc_rt.wire.codec import decode_array
@@ -246,12 +247,13 @@ def test_a_logs_fault_commands_are_marked_by_the_seqs_the_truth_echoes():
         m.fault_seq_applied, m.fault_seq_refused = applied, refused
         truths.append(m.encode())
     T, _ = decode_array(sc_rt_lcm.plant_truth_t, truths)
-    cmds = [{"seq": 1000, "rod": 1}, {"seq": 1001, "rod": 2}, {"seq": 1002, "rod": 3}]
+    cmds = [{"seq": 999, "rod": 4}, {"seq": 1000, "rod": 1}, {"seq": 1001, "rod": 2}, {"seq": 1002, "rod": 3}]
     _mark_answers(cmds, T)
-    assert cmds == [{"seq": 1000, "rod": 1, "applied": True},
+    assert cmds == [{"seq": 999, "rod": 4, "applied": None},  # 1000 applied in the same row: cannot tell
+                    {"seq": 1000, "rod": 1, "applied": True},
                     {"seq": 1001, "rod": 2, "applied": False, "refused": True},
                     {"seq": 1002, "rod": 3, "applied": False, "refused": False}]
-    assert [c["rod"] for c in live_fault_records({"faults": {"commands": cmds}}, None)] == [1]
+    assert [c["rod"] for c in live_fault_records({"faults": {"commands": cmds}}, None)] == [4, 1]
     old, _ = decode_current(sc_rt_lcm.plant_truth_t, [sc_rt_lcm.plant_truth_v1_t().encode()])
     cmds = [{"seq": 1000, "rod": 1}]
     _mark_answers(cmds, old)

@@ -67,19 +67,28 @@ def fault_summary(d: LogData, r: Rebuilt) -> dict[str, Any]:
 
 
 def _mark_answers(cmds: list[dict[str, Any]], T: np.ndarray) -> None:
-    """Each fault command's ``applied``: True when a truth of the log names
-    its seq as applied (``fault_seq_applied``), False otherwise, with
-    ``refused`` True when one names it as refused (``fault_seq_refused``: the
-    plant could not apply it); None for a log whose truth does not say (the
-    older layout: both fields 0 in every message, where an emulator that
-    says says -1 before its first fault command)."""
+    """Each fault command's ``applied``, from the seqs the truth echoes (the
+    newest fault command applied, ``fault_seq_applied``, and refused,
+    ``fault_seq_refused``, as each row starts): True when a truth names its
+    seq as applied; False with ``refused`` True when one names it as
+    refused (the plant could not apply it); False with ``refused`` False
+    when no truth names it nor any later command (no emulator of the log
+    applied it: another session's, one ignoring fault commands); None when
+    a later command's seq is named instead (both arrived within one row: the
+    log cannot tell) and for a log whose truth does not say (the older
+    layout: both fields 0 in every message, where an emulator that says
+    says -1 before its first fault command)."""
     said = T.size and bool(np.any(T["fault_seq_applied"] != 0) or np.any(T["fault_seq_refused"] != 0))
     applied = set(np.unique(T["fault_seq_applied"]).tolist()) if said else set()
     refused = set(np.unique(T["fault_seq_refused"]).tolist()) if said else set()
+    newest = max(applied | refused) if said else -1
     for c in cmds:
-        c["applied"] = (c["seq"] in applied) if said else None
-        if said and not c["applied"]:
-            c["refused"] = c["seq"] in refused
+        if not said or (c["seq"] not in applied | refused and newest > c["seq"]):
+            c["applied"] = None
+        else:
+            c["applied"] = c["seq"] in applied
+            if not c["applied"]:
+                c["refused"] = c["seq"] in refused
 
 
 def _rod_changes(r: Rebuilt) -> list[dict[str, Any]]:
