@@ -36,7 +36,7 @@ class AppliedRods:
     """The rods' truth of each row (``m_B``, ``rod_dipole``; docs/MODEL.md
     section 16) for the plant's rods ``rods`` (model.rods.Magnetorquers;
     None: no rods, both fields stay NaN) over ``n`` rows: the closed loop's
-    ``m_app``/``rod_app`` of cpp/src/closed_loop.cpp, the same operations."""
+    ``m_B_app``/``rod_app`` of cpp/src/closed_loop.cpp, the same operations."""
 
     def __init__(self, rods, n: int):
         self.rods = rods
