@@ -67,6 +67,8 @@ def rng() -> np.random.Generator:
 #: cores), left out of the fast loop (`pytest -m "not slow"`, under a minute)
 #: and run by `make test` like every other: whole LCM runs, CLI round trips.
 SLOW_TESTS = (
+    # the rods' applied dipole in the record: day_hold 30 s in lockstep with two rod faults, the C++ engine, its report
+    "tests/test_rod_applied.py::test_a_lockstep_run_with_rod_faults_records_the_applied_dipole_as_the_cpp_engine",
     # issue 43 item 3: day_hold 60 s in lockstep with three rod faults sent live (its sc-rt fault processes,
     # the run, the C++ engine twice), its report and MCAP
     "tests/test_rod_fault.py::test_rod_faults_sent_live_in_lockstep_equal_the_cpp_engine_with_them_scheduled",

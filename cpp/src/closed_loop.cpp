@@ -84,11 +84,11 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
     const Command c = mag_ ? ctl_->step(m, mag_meas_ ? nv->field_B() : B_true) : ctl_->step(m);
     // the rod commands held over the period; the row's wheel accelerations with
     // the dipole the step's first stage holds (docs/MODEL.md section 17)
-    RodVec d_cmd;
+    RodVec d_cmd, d_app;  // [A m^2] the rods' commands held, each rod's dipole applied
     Vec3 m_B0;
     if (rods_) {
       d_cmd = c.magnetic.rod_dipole_cmd.head(plant_.rods.params.G_B.cols());
-      m_B0 = rods_dipole_B(plant_.rods, t, &d_cmd);
+      m_B0 = rods_dipole_B(plant_.rods, t, &d_cmd, out ? &d_app : nullptr);
     }
     const WheelOutput w = plant_row(plant_, act_, t, x_, c.u_cmd, &motor_, rods_ ? &m_B0 : nullptr);
     if (out) {
@@ -100,6 +100,17 @@ int ClosedLoop::run(int rows, ClosedLoopResult* out) {
       out->put(FieldId::delta2, i, delta2_(t, x_, w.u_sat, w.accel));
       out->put(FieldId::H_N, i, total_momentum_N(plant_, x_));
       out->put(FieldId::B_B_true, i, B_true);
+      // the rods' truth (docs/MODEL.md section 16): the dipole the row's first step holds, each
+      // rod's beside it; without magnetic control the rods' own (a zero command: a stuck rod's)
+      Vec3 m_B_app = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  // [A m^2] NaN: no rods
+      // [A m^2] per rod, NaN beyond the rods
+      Eigen::Matrix<double, kMaxRods, 1> rod_app = Eigen::Matrix<double, kMaxRods, 1>::Constant(m_B_app(0));
+      if (plant_.rods.enabled) {
+        m_B_app = rods_ ? m_B0 : rods_dipole_B(plant_.rods, t, nullptr, &d_app);
+        rod_app.head(d_app.size()) = d_app;
+      }
+      out->put(FieldId::m_B, i, m_B_app);
+      out->put(FieldId::rod_dipole, i, rod_app);
       for_each_command_field(c, [out, i](FieldId f, const auto& v) { out->put(f, i, v); });
       if (nv) {
         out->put(FieldId::flags, i, c.flags | tel_.flags);

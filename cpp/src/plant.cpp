@@ -154,7 +154,7 @@ std::vector<std::string> validate(const PlantParams& p) {
   return errs;
 }
 
-Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd) {
+Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd, RodVec* applied) {
   const int n = static_cast<int>(r.params.G_B.cols());
   double d[kMaxRods];
   for (int i = 0; i < n; ++i) {
@@ -168,6 +168,10 @@ Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd) {
     if (r.fault[k] == RodFault::Dead) d[i] = 0.0;
     else if (r.fault[k] == RodFault::Stuck) d[i] = r.stuck[k];
     else d[i] = -d[i];
+  }
+  if (applied != nullptr) {  // (a fixed-capacity vector: no allocation)
+    applied->resize(n);
+    for (int i = 0; i < n; ++i) (*applied)(i) = d[i];
   }
   Vec3 m;
   for (int row = 0; row < 3; ++row) {

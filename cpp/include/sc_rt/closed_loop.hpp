@@ -16,6 +16,7 @@ namespace sc_rt {
 
 static_assert(field_width(FieldId::telemetry) == kLawMaxTelemetry, "fields.hpp: telemetry's width");
 static_assert(field_width(FieldId::rod_dipole_cmd) == kMaxRods, "fields.hpp: rod_dipole_cmd's width");
+static_assert(field_width(FieldId::rod_dipole) == kMaxRods, "fields.hpp: rod_dipole's width");
 
 // The producers of the table's rows from the core's structs (fields.hpp):
 // f(FieldId, value) for every packed field of a Command and every kNav field

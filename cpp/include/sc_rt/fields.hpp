@@ -93,6 +93,13 @@ namespace sc_rt {
   X(B_B_true, 3, "f8", "T", "", "truth", kLoop, false, false, false,                                            \
     "the plant's true geomagnetic field in B at t_k, C_BN(sigma_BN) B_N(t_k), beside the B_B the controller "  \
     "used (NaN: no magnetic control, the unsampled engine, lockstep)")                                         \
+  X(m_B, 3, "f8", "A m^2", "", "truth", kLoop, false, false, false,                                             \
+    "body dipole the rods applied from t_k, G_B rod_dipole: the held rod commands through the rods' limits and "  \
+    "active faults (a zero command without magnetic control), residual dipole not included (NaN: no rods, the "   \
+    "unsampled engine)")                                                                                         \
+  X(rod_dipole, 6, "f8", "A m^2", "", "truth", kLoop, false, false, false,                                      \
+    "each rod's dipole applied from t_k, rod i in column i: its command clipped to its limit, then its active "  \
+    "fault (dead 0, stuck its dipole, reversed -d) (NaN beyond the rods, without rods, the unsampled engine)")   \
   X(sigma_BN_est, 3, "f8", "-", "", "estimator", kNav, false, true, false,                                      \
     "MEKF attitude estimate at t_k (what the law gets with measurement = estimate)")                             \
   X(bias_est, 3, "f8", "rad/s", "", "estimator", kNav, false, true, false, "MEKF gyro bias estimate")            \

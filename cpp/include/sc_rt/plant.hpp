@@ -58,7 +58,9 @@ struct PlantRods {
 // The body dipole m_B = G d [A m^2] of rod commands d_cmd [A m^2] (null: all 0)
 // at t [s]: each clipped to +-dipole_max, then its active fault (dead 0, stuck
 // its dipole, reversed -d), as Magnetorquers::update; the sums in rod order.
-Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd = nullptr);
+// applied (optional): each rod's dipole d [A m^2] (N values, the record's
+// rod_dipole; sc_rt.model.rods.rods_applied).
+Vec3 rods_dipole_B(const PlantRods& r, double t, const RodVec* d_cmd = nullptr, RodVec* applied = nullptr);
 
 // The true plant. Defaults are the paper's (Section 4): J0, dJ, Cbar, Jw and d(t).
 struct PlantParams {

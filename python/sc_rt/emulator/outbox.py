@@ -19,7 +19,7 @@ import numpy as np
 from sc_rt.emulator.inbox import Inbox
 from sc_rt.emulator.peers import GuidancePublisher
 from sc_rt.emulator.sensorpub import SensorPublisher, mag_bytes
-from sc_rt.emulator.twin import PlantTwin, state_bytes, truth_bytes
+from sc_rt.emulator.twin import NO_RODS, PlantTwin, state_bytes, truth_bytes
 from sc_rt.wire.lcmio import channel
 from sc_rt.results.record.store import RowRing
 
@@ -88,19 +88,19 @@ class Publisher:
         while select.select([fd], [], [], 0)[0]:
             self.lc.handle()
 
-    def truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale, act, d_cmd=None, rods=None,
+    def truth(self, k, t, cmd_seq, u_cmd, accel, delta2, stale, act, rod_fields=NO_RODS,
               fault_seqs=(-1, -1)) -> None:
-        """Row k's truth, with the faults ``act`` it was applied with and the
-        rods ``rods`` (None: the scenario's) holding the commands ``d_cmd``
-        (None: no magnetic control), and the seqs of the newest fault commands
-        applied and refused by then (``fault_seqs``); its wheels' fault fields
-        go into the run's row too."""
+        """Row k's truth, with the faults ``act`` it was applied with, the
+        rods' fields ``rod_fields`` (``PlantTwin.rod_fields`` of the row: the
+        commands held, each rod's dipole, the body dipole, the fault states)
+        and the seqs of the newest fault commands applied and refused by then
+        (``fault_seqs``); its wheels' fault fields go into the run's row too."""
         fault_y, eff_bias_stuck = self.twin.fault_fields(act, t)
         row, j = self.ring.slot(k)
         bias = (0.0, 0.0, 0.0) if self.sensors is None else row["bias_true"][j]
         self.lc.publish(self._ch_truth, truth_bytes(time.time_ns() // 1000, k, t, cmd_seq, u_cmd, accel, delta2,
                                                     self.twin.disturbance(t), fault_y, eff_bias_stuck, stale,
-                                                    bias, self.twin.rod_fields(t, d_cmd, rods), fault_seqs))
+                                                    bias, rod_fields, fault_seqs))
         row["fault_Y"][j] = fault_y
         row["fault_effectiveness"][j] = eff_bias_stuck[0:4]
         row["fault_bias"][j] = eff_bias_stuck[4:8]

@@ -19,6 +19,8 @@ from typing import Callable
 
 import numpy as np
 
+from sc_rt.emulator.twin import NO_RODS
+
 __all__ = ["RowPipeline"]
 
 
@@ -107,9 +109,10 @@ class RowPipeline:
         if stamps is not None:
             stamps[3] = time.monotonic_ns()
         _, accel, delta2 = self.twin.row(act, t, x, u_cmd, motor, d_cmd, rods)
-        self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd)
+        rod_fields = self.twin.rod_fields(t, d_cmd, rods)  # once: the record's and the truth's
+        self._record(k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd, rod_fields)
         self.publisher.drain()  # an answer that came meanwhile is received now, not after the truth's publish
-        self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act, d_cmd, rods, fault_seqs)
+        self.publisher.truth(k, t, cmd_seq, u_cmd, accel, delta2, stale, act, rod_fields, fault_seqs)
         if stamps is not None:
             stamps[4] = time.monotonic_ns()
 
@@ -121,10 +124,14 @@ class RowPipeline:
             self.gaps.append((self._gap_start, self.t_reached))
             self._gap_start = None
 
-    def _record(self, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd=None) -> None:
+    def _record(self, k, t, x, cmd, u_cmd, u_sat_ctrl, accel, delta2, d_cmd=None, rod_fields=NO_RODS) -> None:
         run, k = self.ring.slot(k)
         if d_cmd is not None:  # the rods' commands the row held (0 beyond the rods, as the core's Command)
             run["rod_dipole_cmd"][k] = (*d_cmd, *(0.0,) * (6 - len(d_cmd)))
+        n_rods, _, rod_dipole, m_B, _ = rod_fields  # the rods' truth (PlantTwin.rod_fields), NaN without rods
+        if n_rods:
+            run["m_B"][k] = m_B
+            run["rod_dipole"][k, :n_rods] = rod_dipole[:n_rods]
         self.t_reached = t
         run["t"][k] = t
         run["sigma_BN"][k] = x[0:3]

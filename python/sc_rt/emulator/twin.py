@@ -69,7 +69,7 @@ def truth_bytes(utime: int, k: int, t: float, cmd_seq: int, u_cmd, accel, delta2
 
 
 class PlantTwin:
-    """The plant of ``params`` (model.plant.PlantParams) with the actuators
+    """The plant of ``params`` (model.plant_params.PlantParams) with the actuators
     each call is given."""
 
     def __init__(self, params, cpp: bool = True):

@@ -151,6 +151,10 @@ def rebuild(d: LogData, mode: str | None = None) -> Rebuilt:
             at = np.flatnonzero(has)[n_rods > 0]
             for k in rods:
                 rods[k][at] = T[k][tm[n_rods > 0]]
+            # the record's rods' truth, as the emulator recorded it (NaN beyond the rods)
+            traj["m_B"][at] = rods["dipole_B"][at]
+            traj["rod_dipole"][at] = np.where(np.arange(6) < n_rods[n_rods > 0][:, None], rods["rod_dipole"][at],
+                                              np.nan)
         if (R is not None and R.size) or (cfg is not None and cfg.mag_rods_enabled):
             # magnetic control: the rods' commands the row held, the truth's (the emulator's own), else
             # (a log of the older layout) rebuilt from rod_cmd_t matched by the applied wheel command's seq

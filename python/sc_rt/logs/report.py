@@ -16,7 +16,8 @@ The trajectory has one row per plant state (``plant_state_t.seq``):
   on (u_cmd, and which ``wheel_cmd_t`` it was), wheel_accel, delta2, the
   fault state, and with magnetic control the rods' commands the plant held
   (rod_dipole_cmd; a log of the older layout without the rods' truth: the
-  ``rod_cmd_t`` matched by the applied wheel command's seq);
+  ``rod_cmd_t`` matched by the applied wheel command's seq) and with rods
+  what they applied (m_B, rod_dipole);
 - ``wheel_cmd_t``: u_sat of the applied command (lockstep: the answer to
   that state; real time: the newest held);
 - the first ``controller_status_t`` that used the state: sigma_DN, sigma_BD,

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MAX_RODS", "ROD_FAULTS", "RodFault", "Magnetorquers", "rods_applied", "rods_dipole_B", "rods_to_cpp"]
+__all__ = ["MAX_RODS", "ROD_FAULTS", "RodFault", "Magnetorquers", "rods_applied", "rods_applied_B", "rods_dipole_B",
+           "rods_to_cpp"]
 
 MAX_RODS = 6  # the core's kMaxRods
 #: a rod fault's kind -> the core's RodFault value
@@ -134,6 +135,14 @@ def rods_dipole_B(r: Magnetorquers, t: float, d_cmd=None) -> tuple[float, float,
     """The body dipole ``m_B = G d`` [A m^2] of the rod commands ``d_cmd``
     [A m^2] (None: all 0) at ``t`` [s]: each clipped, then its active fault
     (``rods_applied``)."""
+    return rods_applied_B(r, t, d_cmd)[1]
+
+
+def rods_applied_B(r: Magnetorquers, t: float, d_cmd=None) -> tuple[list[float], tuple[float, float, float]]:
+    """Each rod's dipole [A m^2] (``rods_applied``'s) and the body dipole
+    ``m_B = G d`` [A m^2] of them (``rods_dipole_B``'s, the same operations)
+    for the rod commands ``d_cmd`` [A m^2] (None: all 0) at ``t`` [s]: what
+    a row records as ``rod_dipole`` and ``m_B``."""
     n = r.n_rods
     d = rods_applied(r, t, d_cmd)[0]
     G = r.axes.tolist()
@@ -143,7 +152,7 @@ def rods_dipole_B(r: Magnetorquers, t: float, d_cmd=None) -> tuple[float, float,
         for i in range(1, n):
             s = s + row[i] * d[i]
         m.append(s)
-    return (m[0], m[1], m[2])
+    return d, (m[0], m[1], m[2])
 
 
 def rods_to_cpp(r: Magnetorquers | None):

@@ -4,9 +4,13 @@ once for the plain and the sensed loop."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["loop_columns", "LAW_FAILURES", "TELEMETRY_NAMES", "INT_FIELDS"]
+from sc_rt.model.rods import MAX_RODS, rods_applied_B
+
+__all__ = ["loop_columns", "AppliedRods", "LAW_FAILURES", "TELEMETRY_NAMES", "INT_FIELDS"]
 
 #: The packed integer fields of the magnetic part besides flags and ctrl_mode (fields.hpp)
 INT_FIELDS = ("unloading", "detumble_mode")
@@ -26,6 +30,32 @@ def loop_columns(T, X, ACC, D2, OUT, packed: dict[str, slice], recorded: dict[st
     cols["flags"] = np.nan_to_num(OUT[:, packed["flags"]][:, 0]).astype(np.int64)
     cols["ctrl_mode"] = np.nan_to_num(OUT[:, packed["ctrl_mode"]][:, 0], nan=-1).astype(np.int64)
     return cols
+
+
+class AppliedRods:
+    """The rods' truth of each row (``m_B``, ``rod_dipole``; docs/MODEL.md
+    section 16) for the plant's rods ``rods`` (model.rods.Magnetorquers;
+    None: no rods, both fields stay NaN) over ``n`` rows: the closed loop's
+    ``m_B_app``/``rod_app`` of cpp/src/closed_loop.cpp, the same operations."""
+
+    def __init__(self, rods, n: int):
+        self.rods = rods
+        self.m_B = np.full((n, 3), math.nan)  # [A m^2]
+        self.rod_dipole = np.full((n, MAX_RODS), math.nan)  # [A m^2]
+
+    def row(self, k: int, t: float, d_cmd=None) -> tuple | None:
+        """Row k at t [s] with the rod commands ``d_cmd`` [A m^2] held (None:
+        no magnetic control, a zero command): the body dipole [A m^2] the
+        row's first plant step holds (None without rods), recorded."""
+        if self.rods is None:
+            return None
+        d, m_B = rods_applied_B(self.rods, t, d_cmd)
+        self.m_B[k] = m_B
+        self.rod_dipole[k, :len(d)] = d
+        return m_B
+
+    def columns(self) -> dict[str, np.ndarray]:
+        return {"m_B": self.m_B, "rod_dipole": self.rod_dipole}
 
 
 #: The key under which an engine hands the law's contained failures

@@ -34,7 +34,7 @@ from sc_rt.model.momentum import total_momentum_N
 from sc_rt.model.rods import rods_dipole_B
 from sc_rt.pylaw import register
 from sc_rt.results.judge.metrics import finish_run, record_law_failures
-from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, loop_columns
+from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, AppliedRods, loop_columns
 from sc_rt.results.record.fields import COLUMNS, packed_layout
 from sc_rt.results.record.run import FIELD, Run, RunMeta
 from sc_rt.results.record.store import remove_with, scratch_dir
@@ -92,6 +92,7 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     mag = scn.magnetic_control is not None
     rods = pp.magnetorquers if mag else None
     rod_slice = PACKED["rod_dipole_cmd"]
+    applied = AppliedRods(pp.magnetorquers, n)  # the rods' truth (without magnetic control: their own)
     for k in range(n):
         t = k / rate
         if mag:
@@ -105,7 +106,9 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
         m_B0 = None  # the dipole the step's first stage holds: the row's accelerations with it
         if rods is not None:
             d_cmd = out[rod_slice][:rods.n_rods].tolist()
-            m_B0 = rods_dipole_B(rods, t, d_cmd)
+            m_B0 = applied.row(k, t, d_cmd)
+        elif applied.rods is not None:
+            applied.row(k, t)
         _, accel, delta2 = plant_row(pp, act, t, x, u_cmd, motor, m_B0)
         T[k] = t
         X[k] = x
@@ -130,6 +133,7 @@ def _run_python(scn: Scenario) -> tuple[dict[str, np.ndarray], int, bool]:
     cols = loop_columns(T, X, ACC, D2, OUT, PACKED, RECORDED)
     cols["H_N"] = HN
     cols["B_B_true"] = BT
+    cols.update(applied.columns())
     cols[LAW_FAILURES], cols[TELEMETRY_NAMES] = ctl.law_failures, ctl.telemetry_names
     return cols, rows, diverged
 

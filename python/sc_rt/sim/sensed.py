@@ -42,7 +42,7 @@ from sc_rt.results.record.run import FIELD
 from sc_rt.scenario.overrides import grid, initial_state
 from sc_rt.scenario.schema import ScenarioError, ScenarioIssue
 from sc_rt.scenario.tables.sensors import nav_config
-from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, loop_columns
+from sc_rt.sim.columns import LAW_FAILURES, TELEMETRY_NAMES, AppliedRods, loop_columns
 
 __all__ = ["run_sensed", "NAV", "NAV_RECORDED"]
 
@@ -80,6 +80,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
     mag = scn.magnetic_control is not None
     rods = pp.magnetorquers if mag else None
     BT = np.full((n_ctrl + 1, 3), np.nan)
+    applied = AppliedRods(pp.magnetorquers, n_ctrl + 1)  # the rods' truth (without magnetic control: their own)
     nxt = nav.next_tick(0)
     n = n_ctrl + 1
     T = np.full(n, np.nan)
@@ -115,7 +116,9 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
         m_B0 = None  # the dipole the step's first stage holds: the row's accelerations with it
         if rods is not None:
             d_cmd = row[packed["rod_dipole_cmd"]][:rods.n_rods].tolist()
-            m_B0 = rods_dipole_B(rods, t, d_cmd)
+            m_B0 = applied.row(k, t, d_cmd)
+        elif applied.rods is not None:
+            applied.row(k, t)
         _, accel, delta2 = plant_row(pp, act, t, x, u_cmd, motor, m_B0)
         T[k] = t
         X[k] = x
@@ -142,6 +145,7 @@ def _run_python(scn, packed: dict[str, slice], recorded: dict[str, str]):
     cols = loop_columns(T, X, ACC, D2, OUT, packed, recorded)
     cols["H_N"] = HN
     cols["B_B_true"] = BT
+    cols.update(applied.columns())
     for name in NAV_RECORDED:
         v = NAVT[:, NAV[name]]
         cols[name] = v[:, 0] if v.shape[1] == 1 else v

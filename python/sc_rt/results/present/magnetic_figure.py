@@ -1,7 +1,9 @@
 """magnetic_control.png: the controller's magnetic part over a run (issue 43
 item 8; docs/MODEL.md section 17): the wheels' momentum |h_wheels_B| and the
 momentum manager's fill with its on/off band and unloading state, the rod
-dipole commands with their limits, B-dot's mode when it ran, and the rods'
+dipole commands with their limits and, where a fault made a rod's applied
+dipole (the record's ``rod_dipole``) differ from its clipped command, the
+applied one dashed beside it, B-dot's mode when it ran, and the rods'
 faults, scheduled and live (results/present/rod_faults.py), each marked
 "rod N" on every panel. Units come from the run (``RunMeta.unit``), the band
 and limits from ``RunMeta.magnetic``."""
@@ -41,7 +43,10 @@ def magnetic_series(run: Run) -> dict:
         "fill" [-], "unloading" (1 on, 0 off, -1 none), "band" (the
         manager's on/off fractions [-] and the same in "h_unit", or None),
         "dipole" (the rods' commands (rows, n_rods) in "dipole_unit"),
-        "limits" (per rod, or ()), "detumble" (0/1 per row, or None when
+        "limits" (per rod, or ()), "applied" (the rods' applied dipoles
+        (rows, n_rods) in "dipole_unit", NaN for a rod whose applied dipole
+        equals its clipped command on every row; None when every rod's does),
+        "detumble" (0/1 per row, or None when
         B-dot did not run), "rod_faults" (``RodFaultSpan`` of the rods,
         scheduled in ``RunMeta.rod_faults`` and live in
         ``Run.faults_applied``; their times in s).
@@ -53,6 +58,10 @@ def magnetic_series(run: Run) -> dict:
     limits = tuple(mag.get("rod_max_dipole") or ())
     d = np.asarray(run["rod_dipole_cmd"], float)
     n_rods = len(limits) or int(np.sum(np.any(np.isfinite(d) & (d != 0.0), axis=0))) or d.shape[1]
+    applied = np.asarray(run["rod_dipole"], float)[:, :n_rods].copy()
+    clipped = np.clip(d[:, :n_rods], -np.asarray(limits), np.asarray(limits)) if limits else d[:, :n_rods]
+    same = np.all((applied == clipped) | np.isnan(applied), axis=0)  # no fault acted on the rod
+    applied[:, same] = np.nan
     mom = mag.get("momentum")
     band = None
     if mom:
@@ -64,6 +73,7 @@ def magnetic_series(run: Run) -> dict:
             "fill": np.asarray(run["wheel_fill"], float), "fill_unit": meta.unit("wheel_fill"),
             "unloading": np.asarray(run["unloading"]), "band": band,
             "dipole": d[:, :n_rods], "dipole_unit": meta.unit("rod_dipole_cmd"), "limits": limits,
+            "applied": None if same.all() else applied,
             "detumble": det if bool(np.any(det >= 0)) else None,
             "rod_faults": rod_fault_spans(meta.rod_faults, run.faults_applied)}
 
@@ -125,6 +135,9 @@ def magnetic_figure(run: Run, out: Path, title: str = "") -> Path | None:
     ax3 = rest.pop(0)
     for j in range(s["dipole"].shape[1]):
         line, = ax3.plot(t, s["dipole"][:, j], lw=0.9, label=f"rod {j + 1}")
+        if s["applied"] is not None and np.isfinite(s["applied"][:, j]).any():
+            ax3.plot(t, s["applied"][:, j], lw=1.2, ls="--", color=line.get_color(), label=f"rod {j + 1} applied",
+                     gid=f"rod-applied-{j + 1}")
         if j < len(s["limits"]):
             for sign in (1.0, -1.0):
                 ax3.axhline(sign * s["limits"][j], ls="--", lw=0.6, color=line.get_color())
