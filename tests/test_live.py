@@ -265,6 +265,10 @@ def test_a_magnetic_run_serves_its_field_and_rods_live_as_the_export(tmp_path):
             assert isinstance(v, (int, float)), (p, v)
     assert {m["unloading"] for m in status} <= {0, 1} and {m["detumble_mode"] for m in status} == {-1}
     assert any(abs(v) > 1.0 for m in status for v in m["m_B_cmd"])
+    # the Rods tab's applied body dipole: the plant's truth, served (healthy rods within their limits here)
+    truths = [json.loads(p) for _, p in got["messages"]["SCRT_TRUTH"]]
+    assert truths and all(isinstance(v, float) for m in truths for v in m["dipole_B"])
+    assert any(abs(v) > 1.0 for m in truths for v in m["dipole_B"])
 
 
 def _path_steps(path: str) -> tuple[str, list]:

@@ -16,8 +16,10 @@ on torque wheels: the ``SCRT_CMD`` schema of the bench says which). Tab
 controller's rod dipole commands (``SCRT_CTRL_STATUS.rod_dipole_cmd``, rods
 1 to 6, 0 beyond the run's), the body dipole they command (``m_B_cmd``), the
 wheels' fill of the momentum manager's capacity (``wheel_fill``) and the
-magnetic control's modes (``unloading``, ``detumble_mode``). The dipole the
-plant applied (after its limits and the rods' faults) is not on the bus.
+magnetic control's modes (``unloading``, ``detumble_mode``), and beside the
+commanded body dipole the one the plant applied after the rods' limits and
+faults (``SCRT_TRUTH.dipole_B``: where they part, a rod is clipped or
+faulted).
 
 ``build_layout`` writes the file with the SDK's layout classes
 (``foxglove.layouts``); tests/test_live.py checks that the shipped file is
@@ -35,7 +37,7 @@ __all__ = ["LAYOUT", "TOPICS", "SCRIPT_TOPIC", "build_layout", "referenced_topic
 #: the shipped layout
 LAYOUT = Path(__file__).resolve().parent / "foxglove_layout.json"
 #: the topics the layout reads
-TOPICS = ("/derived/pointing", "/derived/wheels", "/tf", "SCRT_CMD", "SCRT_CONFIG", "SCRT_CTRL_STATUS")
+TOPICS = ("/derived/pointing", "/derived/wheels", "/tf", "SCRT_CMD", "SCRT_CONFIG", "SCRT_CTRL_STATUS", "SCRT_TRUTH")
 #: [-] the rods the Rods tab plots: the most a plant has (sc_rt.model.rods.MAX_RODS, rod_cmd_t.dipole's size)
 RODS = 6
 #: the topic the layout's user script writes (the wheel speed limit beside each wheel sample)
@@ -119,8 +121,10 @@ def _rods_tab(fl, plot):
     st = '"SCRT_CTRL_STATUS"'
     dipoles = plot("rod dipole commands [A m^2] (before the plant's limits and faults)",
                    [(f"{st}.rod_dipole_cmd[{i}]", f"rod {i + 1}") for i in range(RODS)], "A m^2")
-    body = plot("body dipole commanded m_B_cmd = G_B rod_dipole_cmd [A m^2]",
-                [(f"{st}.m_B_cmd[{i}]", f"m_B_cmd,{ax}") for i, ax in enumerate("xyz")], "A m^2")
+    truth = '"SCRT_TRUTH"'
+    body = plot("body dipole: commanded m_B_cmd = G_B rod_dipole_cmd, applied dipole_B (limits, faults) [A m^2]",
+                [(f"{st}.m_B_cmd[{i}]", f"m_B_cmd,{ax}") for i, ax in enumerate("xyz")]
+                + [(f"{truth}.dipole_B[{i}]", f"applied,{ax}") for i, ax in enumerate("xyz")], "A m^2")
     fill = plot("wheels' fill of the momentum manager's capacity [-]", [(f"{st}.wheel_fill", "fill")], "-")
 
     def states(path: str, label: str, names: dict[int, str]):
