@@ -60,7 +60,6 @@ class Receiver:
         self.accept_faults = accept_faults
         #: a bus with a key: a fault command must name this emulator's session and a seq above the last
         self.authenticated = authenticated
-        self._last_fault_seq: int | None = None
         self.inbox = Inbox(n_rows, self.counters, ring)
         self.newest_cmd: Cmd | None = None
         self.newest_cmd_ns = 0
@@ -237,7 +236,8 @@ class Receiver:
         if (msg.session != 0 or self.authenticated) and msg.session != self.session:
             self.counters["fault_foreign_session"] += 1
             return False
-        if self.authenticated and self._last_fault_seq is not None and msg.seq <= self._last_fault_seq:
+        if (self.authenticated and self.counters["fault_applied"]  # the last one applied: shared.fault_seq_applied
+                and msg.seq <= self.shared.fault_seq_applied):
             self.counters["fault_replayed"] += 1  # a captured command sent again: refused
             return False
         return True
@@ -261,7 +261,7 @@ class Receiver:
         try:
             apply(msg)
             self.counters["fault_applied"] += 1
-            self._last_fault_seq = self.shared.fault_seq_applied = msg.seq
+            self.shared.fault_seq_applied = msg.seq  # the truth echoes it; the replay rule reads it
         except ValueError as e:
             self.counters["fault_rejected"] += 1
             self.shared.fault_seq_refused = msg.seq
