@@ -14,7 +14,7 @@ import numpy as np
 from sc_rt.scenario.reader import scenario_from_data
 from sc_rt.scenario.shipped import resolve
 
-__all__ = ["MAG", "STUCK", "BIAS", "MOMENTUM", "H0", "mag_data", "mag_scenario"]
+__all__ = ["MAG", "STUCK", "BIAS", "MOMENTUM", "H0", "mag_data", "mag_scenario", "detumble_switch"]
 
 #: an orbit, IGRF, three orthogonal 30 A m^2 rods (the third stuck at 5 A m^2 from 20 s) on the flight-like
 #: wheels of flight_wheels, a secular body torque of 1e-4 N m and nothing periodic
@@ -108,3 +108,16 @@ def ppigrf_field_N(orbit, jd_epoch: float, times, when) -> np.ndarray:
     phh = np.c_[-np.sin(ph), np.cos(ph), np.zeros_like(ph)]
     B_E = Br[:, None] * rh + Bt[:, None] * thh + Bp[:, None] * phh  # [nT]
     return np.array([c.T @ b for c, b in zip(C, B_E)]) * 1e-9
+
+
+def detumble_switch(run) -> int:
+    """The row of a record's one switch from B-dot to the attitude law:
+    ``detumble_mode`` 0 (detumble) from the start, 1 (attitude) from that row
+    on, which carries FLAG_MODE_SWITCH (fields.hpp)."""
+    from sc_rt import _core
+
+    mode = np.asarray(run["detumble_mode"])
+    k = int(np.argmax(mode == 1))
+    assert mode[0] == 0 and k > 0 and np.all(mode[:k] == 0) and np.all(mode[k:] == 1), mode
+    assert run["flags"][k] & _core.FLAG_MODE_SWITCH
+    return k

@@ -32,6 +32,7 @@ from sc_rt.scenario.shipped import resolve
 from sc_rt.sim.engines import simulate
 
 import lcmnet
+from magscn import detumble_switch
 from trajcmp import compared_fields, load_traj
 
 HERE = Path(__file__).resolve().parent
@@ -210,10 +211,7 @@ def test_detumble_in_lockstep_is_bitwise_the_cpp_engine_through_its_mode_switch(
     path, out = _detumble_file(tmp_path), tmp_path / "hil"
     _hil(path, out, DETUMBLE_S)
     hil, _ = _same_as_sim(path, out, DETUMBLE_S)
-    mode = np.asarray(hil["detumble_mode"])
-    k = int(np.argmax(mode == 1))
-    assert mode[0] == 0 and k > 0 and np.all(mode[:k] == 0) and np.all(mode[k:] == 1), mode
-    assert hil["flags"][k] & _core.FLAG_MODE_SWITCH
+    k = detumble_switch(hil)
     assert np.all(hil["u_cmd"][:k] == 0.0) and np.any(hil["u_cmd"][k:] != 0.0)  # B-dot: wheels at zero
 
 
